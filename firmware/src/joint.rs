@@ -1,1 +1,385 @@
-//! (in progress)
+//! One complete control step for a joint with `P` antagonistic pairs and `S`
+//! wire sensors: feedback → validity checks → angle estimate → pair laws →
+//! safety supervisor → bounded driver commands.
+//!
+//! - [`Joint3d`] (`P = 2`, `S = 4`): the paper's 3D mechanism, α on coils
+//!   1/3 and sensors 1/3, β on coils 2/4 and sensors 2/4 (seed 000, last
+//!   paper, §VI), estimated with Eq. 3 by default or Eq. 4/5 once
+//!   calibrated.
+//! - [`Joint2d`] (`P = 1`, `S = 1`): the 2D mechanism with one wire sensor
+//!   (Eq. 2) and an antagonistic pair (§V), or with camera feedback and one
+//!   actuator (Eq. 1, §III).
+//!
+//! Feedback is either pulse counts ([`Feedback::WireCounts`]) or externally
+//! measured angles ([`Feedback::Angles`], e.g. the 30 frames/s camera). A
+//! channel without a new reading holds its last good value until it goes
+//! stale. The step never allocates, never panics, and every output is a
+//! [`PairCommand`] whose voltage lies in [0, supply].
+
+use crate::control::{ControlError, DriverConfig, PairCommand, PairController, PairGains, PairMode};
+use crate::estimate::{CalibrationError, LinearLaw, Method, PlaneEstimator, PlaneLaw, PulseCoder, QuadraticLaw};
+use crate::sensor::{SensorGuard, SensorLimits};
+use crate::supervisor::{Faults, StillFaulted, Supervisor, SupervisorConfig};
+
+/// Why a joint configuration was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ConfigError {
+    /// A controller parameter (which one is in the payload).
+    Control(ControlError),
+    /// A calibration parameter.
+    Calibration(CalibrationError),
+    /// Sensor limits not finite or not ordered.
+    SensorLimits,
+    /// The plane index does not exist.
+    NoSuchPlane,
+    /// A target beyond the allowed range (± `max_target_deg`).
+    TargetOutOfRange,
+}
+
+impl From<ControlError> for ConfigError {
+    fn from(e: ControlError) -> Self {
+        ConfigError::Control(e)
+    }
+}
+
+impl From<CalibrationError> for ConfigError {
+    fn from(e: CalibrationError) -> Self {
+        ConfigError::Calibration(e)
+    }
+}
+
+/// Everything a joint controller is built from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointConfig<const P: usize, const S: usize> {
+    /// Driver input range and threshold.
+    pub driver: DriverConfig,
+    /// Counts → millimetres per sensor.
+    pub coders: [PulseCoder; S],
+    /// Estimation law per plane.
+    pub laws: [PlaneLaw; P],
+    /// Gains per pair.
+    pub gains: [PairGains; P],
+    /// Single actuator (Eq. 1) or antagonistic, per pair.
+    pub modes: [PairMode; P],
+    /// Plausibility limits of the wire insertions.
+    pub wire_limits: SensorLimits,
+    /// Plausibility limits of measured or estimated angles.
+    pub angle_limits: SensorLimits,
+    /// Thermal budget and link watchdog.
+    pub supervisor: SupervisorConfig,
+    /// Largest accepted |target| (deg). Default 25°: the joint's range is
+    /// about ±20° (paper §VI-A) plus margin.
+    pub max_target_deg: f32,
+}
+
+/// The 3D joint: two pairs, four sensors.
+pub type Joint3d = JointController<2, 4>;
+/// The 2D joint: one pair, one sensor.
+pub type Joint2d = JointController<1, 1>;
+
+/// Default largest |target| (deg), see [`JointConfig::max_target_deg`].
+pub const DEFAULT_MAX_TARGET_DEG: f32 = 25.0;
+
+impl JointConfig<2, 4> {
+    /// The paper's 3D joint: Eq. 3 with its published constants, Kp = 2.0
+    /// V/deg on every coil (the paper's 3D gains are not printed; 2.0 is its
+    /// visual-feedback gain), antagonistic pairs, default limits.
+    pub fn paper_3d() -> Self {
+        Self {
+            driver: DriverConfig::default(),
+            coders: [PulseCoder::default(); 4],
+            laws: [
+                PlaneLaw::Differential { plus: 2, minus: 0, law: LinearLaw::PAPER_ALPHA },
+                PlaneLaw::Differential { plus: 3, minus: 1, law: LinearLaw::PAPER_BETA },
+            ],
+            gains: [PairGains::default(); 2],
+            modes: [PairMode::Antagonistic; 2],
+            wire_limits: SensorLimits::WIRE_DEFAULT,
+            angle_limits: SensorLimits::CAMERA_DEFAULT,
+            supervisor: SupervisorConfig::default(),
+            max_target_deg: DEFAULT_MAX_TARGET_DEG,
+        }
+    }
+}
+
+impl JointConfig<1, 1> {
+    /// The paper's 2D joint with one wire sensor (Eq. 2) and an antagonistic
+    /// pair (§V-B), Kp = 2.0 V/deg.
+    pub fn paper_2d_wire() -> Self {
+        Self {
+            driver: DriverConfig::default(),
+            coders: [PulseCoder::default()],
+            laws: [PlaneLaw::Single { sensor: 0, law: QuadraticLaw::PAPER_2D }],
+            gains: [PairGains::default()],
+            modes: [PairMode::Antagonistic],
+            wire_limits: SensorLimits::WIRE_DEFAULT,
+            angle_limits: SensorLimits::CAMERA_DEFAULT,
+            supervisor: SupervisorConfig::default(),
+            max_target_deg: DEFAULT_MAX_TARGET_DEG,
+        }
+    }
+
+    /// The paper's visual-feedback experiment (Eq. 1): one actuator, camera
+    /// angles as feedback, gain `kp_v_per_deg` (the paper tried 0.05 and 2.0).
+    pub fn paper_2d_camera(kp_v_per_deg: f32) -> Result<Self, ConfigError> {
+        Ok(Self {
+            gains: [PairGains::proportional(kp_v_per_deg, kp_v_per_deg)?],
+            modes: [PairMode::SingleAgonist],
+            ..Self::paper_2d_wire()
+        })
+    }
+}
+
+/// Feedback for one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Feedback<const S: usize, const P: usize> {
+    /// Pulse-coder counts per wire sensor (`None`: no new reading).
+    WireCounts([Option<i32>; S]),
+    /// Measured angles per plane in degrees (`None`: no new frame).
+    Angles([Option<f32>; P]),
+}
+
+/// Inputs of one step. Time is passed in: the core has no clock.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepInput<const S: usize, const P: usize> {
+    /// Current time (s) on the controller's time base.
+    pub now_s: f32,
+    /// Time since the previous step (s).
+    pub dt_s: f32,
+    /// Sensor readings.
+    pub feedback: Feedback<S, P>,
+}
+
+/// Result of one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepOutput<const P: usize> {
+    /// What to apply to each pair (already supervised).
+    pub commands: [PairCommand; P],
+    /// Angle estimate per plane (deg): the held value when a channel had no
+    /// new reading; NaN only before the first reading.
+    pub estimate_deg: [f32; P],
+    /// Estimation method per plane (`None` for measured angles).
+    pub methods: [Option<Method>; P],
+    /// Faults active or latched.
+    pub faults: Faults,
+}
+
+impl<const P: usize> StepOutput<P> {
+    /// Driver input voltages per pair, `[agonist, antagonist]`.
+    pub fn pair_volts(&self) -> [[f32; 2]; P] {
+        let mut out = [[0.0; 2]; P];
+        for (o, c) in out.iter_mut().zip(self.commands.iter()) {
+            *o = c.coil_volts();
+        }
+        out
+    }
+}
+
+impl StepOutput<2> {
+    /// The 3D joint's voltages in the paper's coil numbering
+    /// `[v1, v2, v3, v4]`: α pair = coils 1 (agonist) and 3, β pair = coils
+    /// 2 (agonist) and 4.
+    pub fn paper_coil_volts(&self) -> [f32; 4] {
+        let [[v1, v3], [v2, v4]] = self.pair_volts();
+        [v1, v2, v3, v4]
+    }
+}
+
+/// The controller for `P` pairs and `S` wire sensors.
+#[derive(Clone, Debug)]
+pub struct JointController<const P: usize, const S: usize> {
+    driver: DriverConfig,
+    coders: [PulseCoder; S],
+    estimators: [PlaneEstimator<S>; P],
+    pairs: [PairController; P],
+    targets_deg: [f32; P],
+    wire_guard: SensorGuard<S>,
+    angle_guard: SensorGuard<P>,
+    supervisor: Supervisor<P>,
+    max_target_deg: f32,
+    estimate_deg: [f32; P],
+}
+
+impl<const P: usize, const S: usize> JointController<P, S> {
+    /// Validates `config` and builds a disarmed controller with every target
+    /// at 0°.
+    pub fn new(config: JointConfig<P, S>) -> Result<Self, ConfigError> {
+        if !config.wire_limits.is_valid() || !config.angle_limits.is_valid() {
+            return Err(ConfigError::SensorLimits);
+        }
+        if !(config.max_target_deg.is_finite() && config.max_target_deg > 0.0) {
+            return Err(ConfigError::TargetOutOfRange);
+        }
+        for law in config.laws.iter() {
+            law.validate(S)?;
+        }
+        let estimators = config.laws.map(PlaneEstimator::from_validated);
+        let mut pairs = config.gains.map(|g| PairController::new(g, PairMode::Antagonistic));
+        for (p, m) in pairs.iter_mut().zip(config.modes.iter()) {
+            *p = PairController::new(p.gains(), *m);
+        }
+        Ok(Self {
+            driver: config.driver,
+            coders: config.coders,
+            estimators,
+            pairs,
+            targets_deg: [0.0; P],
+            wire_guard: SensorGuard::new(config.wire_limits),
+            angle_guard: SensorGuard::new(config.angle_limits),
+            supervisor: Supervisor::new(config.supervisor),
+            max_target_deg: config.max_target_deg,
+            estimate_deg: [f32::NAN; P],
+        })
+    }
+
+    /// The driver configuration.
+    pub fn driver(&self) -> &DriverConfig {
+        &self.driver
+    }
+
+    /// Sets the desired angle of `plane` (0 = α, 1 = β).
+    pub fn set_target(&mut self, plane: usize, desired_deg: f32) -> Result<(), ConfigError> {
+        if !desired_deg.is_finite() {
+            return Err(ConfigError::Control(ControlError::TargetNotFinite));
+        }
+        if desired_deg.abs() > self.max_target_deg {
+            return Err(ConfigError::TargetOutOfRange);
+        }
+        let t = self.targets_deg.get_mut(plane).ok_or(ConfigError::NoSuchPlane)?;
+        *t = desired_deg;
+        Ok(())
+    }
+
+    /// Desired angles (deg).
+    pub fn targets_deg(&self) -> [f32; P] {
+        self.targets_deg
+    }
+
+    /// Replaces the gains of `plane`.
+    pub fn set_gains(&mut self, plane: usize, gains: PairGains) -> Result<(), ConfigError> {
+        self.pairs.get_mut(plane).ok_or(ConfigError::NoSuchPlane)?.set_gains(gains);
+        Ok(())
+    }
+
+    /// Gains of `plane`.
+    pub fn gains(&self, plane: usize) -> Option<PairGains> {
+        self.pairs.get(plane).map(|p| p.gains())
+    }
+
+    /// Replaces the estimation law of `plane` (validated).
+    pub fn set_law(&mut self, plane: usize, law: PlaneLaw) -> Result<(), ConfigError> {
+        let est = PlaneEstimator::new(law)?;
+        *self.estimators.get_mut(plane).ok_or(ConfigError::NoSuchPlane)? = est;
+        Ok(())
+    }
+
+    /// Estimation law of `plane`.
+    pub fn law(&self, plane: usize) -> Option<PlaneLaw> {
+        self.estimators.get(plane).map(|e| e.law())
+    }
+
+    /// Integrator contribution of `plane` in volts.
+    pub fn integral_v(&self, plane: usize) -> Option<f32> {
+        self.pairs.get(plane).map(|p| p.integral_v())
+    }
+
+    /// Allows outputs (unless a fault is latched).
+    pub fn arm(&mut self) {
+        for p in self.pairs.iter_mut() {
+            p.reset();
+        }
+        self.supervisor.arm();
+    }
+
+    /// Forces outputs off.
+    pub fn disarm(&mut self) {
+        self.supervisor.disarm();
+    }
+
+    /// True when armed.
+    pub fn is_armed(&self) -> bool {
+        self.supervisor.is_armed()
+    }
+
+    /// Clears latched faults if their causes have gone.
+    pub fn clear_faults(&mut self) -> Result<(), StillFaulted> {
+        self.supervisor.clear()
+    }
+
+    /// Latches a fault detected outside the step (link, driver, image).
+    pub fn report_fault(&mut self, faults: Faults) {
+        self.supervisor.report(faults);
+    }
+
+    /// Records a frame from the host (for the link watchdog).
+    pub fn note_link_frame(&mut self, now_s: f32) {
+        self.supervisor.note_link_frame(now_s);
+    }
+
+    /// The supervisor (thermal state, latched faults).
+    pub fn supervisor(&self) -> &Supervisor<P> {
+        &self.supervisor
+    }
+
+    /// Runs one control step.
+    pub fn step(&mut self, input: &StepInput<S, P>) -> StepOutput<P> {
+        let mut faults = Faults::NONE;
+        let time_ok = input.now_s.is_finite() && input.dt_s.is_finite() && input.dt_s >= 0.0;
+        if !time_ok {
+            faults |= Faults::INVALID_INPUT;
+        }
+        let mut methods = [None; P];
+        match input.feedback {
+            Feedback::WireCounts(counts) => {
+                let mut mm = [None; S];
+                for ((m, c), coder) in mm.iter_mut().zip(counts.iter()).zip(self.coders.iter()) {
+                    *m = c.map(|c| coder.insertion_mm(c));
+                }
+                let (held_mm, f) = self.wire_guard.check(input.now_s, &mm);
+                faults |= f;
+                // Estimate from held values only while every channel is
+                // healthy, so a faulty channel cannot move the switching
+                // state; otherwise the last estimate is held.
+                if f.is_empty() {
+                    for ((est, out), method) in
+                        self.estimators.iter_mut().zip(self.estimate_deg.iter_mut()).zip(methods.iter_mut())
+                    {
+                        let e = est.estimate(&held_mm);
+                        *out = e.angle_deg;
+                        *method = Some(e.method);
+                    }
+                }
+                let lim = self.angle_guard.limits();
+                if f.is_empty() && self.estimate_deg.iter().any(|a| !(lim.min..=lim.max).contains(a)) {
+                    faults |= Faults::SENSOR_RANGE;
+                }
+            }
+            Feedback::Angles(angles) => {
+                let (held, f) = self.angle_guard.check(input.now_s, &angles);
+                faults |= f;
+                self.estimate_deg = held;
+            }
+        }
+
+        let mut commands = [PairCommand::Off; P];
+        if faults.is_empty() {
+            for ((cmd, pair), (angle, target)) in commands
+                .iter_mut()
+                .zip(self.pairs.iter_mut())
+                .zip(self.estimate_deg.iter().zip(self.targets_deg.iter()))
+            {
+                *cmd = pair.update(&self.driver, *angle, *target, input.dt_s);
+            }
+        }
+        let supervised = self.supervisor.supervise(input.now_s, input.dt_s, commands, faults, &self.driver);
+        if supervised.faults.intersects(Faults::LATCHING) || !self.supervisor.is_armed() {
+            // While outputs are forced off, integrators must not keep state
+            // that would kick the coils when control resumes.
+            for p in self.pairs.iter_mut() {
+                p.reset();
+            }
+        }
+        StepOutput { commands: supervised.commands, estimate_deg: self.estimate_deg, methods, faults: supervised.faults }
+    }
+}

@@ -219,7 +219,7 @@ mod tests {
 
     #[test]
     fn inverse_times_matrix_is_identity() {
-        let m = Mat3([[4.0, 1.0, 0.5], [1.0, 3.0, -0.2], [0.5, -0.2, 2.0]]);
+        let m: Mat3<f64> = Mat3([[4.0, 1.0, 0.5], [1.0, 3.0, -0.2], [0.5, -0.2, 2.0]]);
         let inv = m.inverse().expect("well-conditioned");
         let p = m * inv;
         for r in 0..3 {
@@ -232,7 +232,7 @@ mod tests {
 
     #[test]
     fn singular_and_non_finite_matrices_have_no_inverse() {
-        let singular = Mat3([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]]);
+        let singular: Mat3<f64> = Mat3([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]]);
         assert!(singular.inverse().is_none());
         assert!(Mat3::<f64>::zero().inverse().is_none());
         let nan = Mat3([[f64::NAN, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);

@@ -1,1 +1,527 @@
-//! (in progress)
+//! The safety supervisor: the last word on what reaches the SMA drivers.
+//!
+//! SMA coils burn out and drivers overheat (SPEC §6). Unpowered is the safe
+//! state: an unpowered coil is just a bias spring. The supervisor
+//!
+//! - keeps a per-coil **thermal budget**: a first-order model of the coil's
+//!   temperature rise above ambient, `C dT/dt = I² R − T/R_th`, driven by the
+//!   current the ULN2003 would pass for the commanded input voltage. A coil
+//!   whose modelled rise reaches the trip level is held off until it has
+//!   cooled to the resume level (cool-down with hysteresis), and
+//!   [`Faults::OVER_BUDGET`] is reported meanwhile;
+//! - watches the link (hardware-in-the-loop or a remote host): no frame for
+//!   longer than the timeout is [`Faults::LINK_LOSS`];
+//! - **latches** the safe state on any fault other than the thermal cut-off
+//!   (sensor range/rate/stale, link loss, invalid input): every output is
+//!   zero until [`Supervisor::clear`] is called, and clearing only succeeds
+//!   once the cause has gone;
+//! - gates everything behind arm/disarm (disarmed: all off, not a fault).
+//!
+//! The pair rule (never both coils of a pair) is enforced by the type of
+//! [`PairCommand`]; the supervisor can only remove drive, never add it.
+
+use crate::control::{DriveVolts, DriverConfig, PairCommand};
+
+/// A set of fault flags (a bit set; combine with `|`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Faults(u16);
+
+impl Faults {
+    /// No fault.
+    pub const NONE: Faults = Faults(0);
+    /// A sensor reading was out of range or not finite.
+    pub const SENSOR_RANGE: Faults = Faults(1 << 0);
+    /// A sensor reading changed implausibly fast.
+    pub const SENSOR_RATE: Faults = Faults(1 << 1);
+    /// A sensor has not delivered a good reading for too long.
+    pub const SENSOR_STALE: Faults = Faults(1 << 2);
+    /// No frame from the host within the link timeout.
+    pub const LINK_LOSS: Faults = Faults(1 << 3);
+    /// A coil's thermal budget is exhausted; it is held off to cool.
+    pub const OVER_BUDGET: Faults = Faults(1 << 4);
+    /// A non-finite or out-of-range input (time, target, step).
+    pub const INVALID_INPUT: Faults = Faults(1 << 5);
+    /// A driver channel reported an error.
+    pub const DRIVER: Faults = Faults(1 << 6);
+    /// The firmware panicked or reset unexpectedly (set by the image).
+    pub const INTERNAL: Faults = Faults(1 << 7);
+
+    /// Every flag, in bit order, with a short name (for reports).
+    pub const NAMED: [(Faults, &'static str); 8] = [
+        (Faults::SENSOR_RANGE, "sensor-range"),
+        (Faults::SENSOR_RATE, "sensor-rate"),
+        (Faults::SENSOR_STALE, "sensor-stale"),
+        (Faults::LINK_LOSS, "link-loss"),
+        (Faults::OVER_BUDGET, "over-budget"),
+        (Faults::INVALID_INPUT, "invalid-input"),
+        (Faults::DRIVER, "driver"),
+        (Faults::INTERNAL, "internal"),
+    ];
+
+    /// Faults that latch the safe state (all but the thermal cut-off, which
+    /// clears itself after cool-down).
+    pub const LATCHING: Faults = Faults(
+        Faults::SENSOR_RANGE.0
+            | Faults::SENSOR_RATE.0
+            | Faults::SENSOR_STALE.0
+            | Faults::LINK_LOSS.0
+            | Faults::INVALID_INPUT.0
+            | Faults::DRIVER.0
+            | Faults::INTERNAL.0,
+    );
+
+    /// The raw bits.
+    pub const fn bits(self) -> u16 {
+        self.0
+    }
+
+    /// From raw bits (unknown bits kept, so nothing reported is lost).
+    pub const fn from_bits(bits: u16) -> Faults {
+        Faults(bits)
+    }
+
+    /// True when no flag is set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// True when every flag of `other` is set here.
+    pub const fn contains(self, other: Faults) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// True when any flag of `other` is set here.
+    pub const fn intersects(self, other: Faults) -> bool {
+        self.0 & other.0 != 0
+    }
+
+    /// The flags of `self` that are also in `other`.
+    pub const fn intersection(self, other: Faults) -> Faults {
+        Faults(self.0 & other.0)
+    }
+}
+
+impl core::ops::BitOr for Faults {
+    type Output = Faults;
+    fn bitor(self, o: Faults) -> Faults {
+        Faults(self.0 | o.0)
+    }
+}
+
+impl core::ops::BitOrAssign for Faults {
+    fn bitor_assign(&mut self, o: Faults) {
+        self.0 |= o.0;
+    }
+}
+
+/// Parameters of the per-coil thermal model and budget.
+///
+/// Defaults are estimates for a BMX200-class coil (SPEC §2): 0.2 mm NiTi
+/// wire, ~5 Ω per 20 mm coil, thermal time constant 3–7 s. The heat
+/// capacity: ~100 turns × π × 0.6 mm ≈ 190 mm of wire, π(0.1 mm)² × 190 mm
+/// ≈ 6.0 mm³, × 6450 kg/m³ (NiTi density) ≈ 39 mg, × 837 J/(kg·K) ≈
+/// 0.032 J/K. With τ = 5 s, R_th = τ/C ≈ 155 K/W.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ThermalConfig {
+    /// Coil resistance (Ω). Estimate: ~5 Ω per 20 mm BMX200 coil (SPEC §2).
+    pub coil_resistance_ohm: f32,
+    /// ULN2003 transconductance above the threshold (A/V). Estimate within
+    /// SPEC §2's 0.3–1.5 A/V; the upper end is the conservative choice.
+    pub driver_gain_a_per_v: f32,
+    /// Driver current limit (A): ULN2003 rating of 0.5 A per channel.
+    pub max_current_a: f32,
+    /// Heat capacity of one coil (J/K). Estimate, see above.
+    pub heat_capacity_j_per_k: f32,
+    /// Cooling time constant (s). Estimate: middle of SPEC §2's 3–7 s.
+    pub time_constant_s: f32,
+    /// Modelled rise above ambient that trips the coil off (K). Estimate:
+    /// 95 K ≈ 120 °C at 25 °C ambient, 42 K above A_f = 78 °C (SPEC §2),
+    /// enough to finish the transformation with margin below the ~150 °C
+    /// where NiTi begins to lose its trained memory.
+    pub trip_rise_k: f32,
+    /// Rise below which a tripped coil may be driven again (K). Estimate:
+    /// 45 K ≈ 70 °C, below A_s = 68 °C + margin, so a tripped coil has
+    /// really cooled before it is reheated.
+    pub resume_rise_k: f32,
+}
+
+impl Default for ThermalConfig {
+    fn default() -> Self {
+        Self {
+            coil_resistance_ohm: 5.0,
+            driver_gain_a_per_v: 1.5,
+            max_current_a: 0.5,
+            heat_capacity_j_per_k: 0.032,
+            time_constant_s: 5.0,
+            trip_rise_k: 95.0,
+            resume_rise_k: 45.0,
+        }
+    }
+}
+
+impl ThermalConfig {
+    /// True when every parameter is finite, positive and resume < trip.
+    pub fn is_valid(&self) -> bool {
+        let pos = |v: f32| v.is_finite() && v > 0.0;
+        pos(self.coil_resistance_ohm)
+            && pos(self.driver_gain_a_per_v)
+            && pos(self.max_current_a)
+            && pos(self.heat_capacity_j_per_k)
+            && pos(self.time_constant_s)
+            && pos(self.trip_rise_k)
+            && self.resume_rise_k.is_finite()
+            && self.resume_rise_k >= 0.0
+            && self.resume_rise_k < self.trip_rise_k
+    }
+
+    /// Current the driver passes at input `volts` (A), the SPEC §2 model
+    /// `clamp(g (V − V_offset), 0, I_max)`.
+    pub fn current_a(&self, volts: DriveVolts, driver: &DriverConfig) -> f32 {
+        let i = self.driver_gain_a_per_v * (volts.volts() - driver.offset_v());
+        i.max(0.0).min(self.max_current_a)
+    }
+
+    /// Steady-state rise (K) at a constant input — what the budget converges
+    /// to if the coil is driven forever: `I² R · R_th`.
+    pub fn steady_rise_k(&self, volts: DriveVolts, driver: &DriverConfig) -> f32 {
+        let i = self.current_a(volts, driver);
+        i * i * self.coil_resistance_ohm * self.time_constant_s / self.heat_capacity_j_per_k
+    }
+}
+
+/// One coil's thermal state.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct CoilThermal {
+    rise_k: f32,
+    tripped: bool,
+}
+
+impl CoilThermal {
+    /// Semi-implicit Euler for `C dT/dt = P − C T/τ`:
+    /// `T' = (T + dt P/C)/(1 + dt/τ)`, stable for any dt ≥ 0.
+    fn advance(&mut self, power_w: f32, dt_s: f32, cfg: &ThermalConfig) {
+        let next = (self.rise_k + dt_s * power_w / cfg.heat_capacity_j_per_k) / (1.0 + dt_s / cfg.time_constant_s);
+        // A non-finite update (cannot happen with validated inputs) is
+        // treated as the hottest state: trip.
+        self.rise_k = if next.is_finite() { next } else { f32::MAX };
+        if self.rise_k >= cfg.trip_rise_k {
+            self.tripped = true;
+        } else if self.rise_k <= cfg.resume_rise_k {
+            self.tripped = false;
+        }
+    }
+}
+
+/// Supervisor configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SupervisorConfig {
+    /// Thermal model and budget.
+    pub thermal: ThermalConfig,
+    /// Link-loss timeout (s); `None` when there is no link to watch.
+    pub link_timeout_s: Option<f32>,
+}
+
+impl Default for SupervisorConfig {
+    /// Default thermal budget, no link watchdog.
+    fn default() -> Self {
+        Self { thermal: ThermalConfig::default(), link_timeout_s: None }
+    }
+}
+
+/// The HIL default link timeout: 50 ms of the firmware's own time.
+pub const DEFAULT_LINK_TIMEOUT_S: f32 = 0.05;
+
+/// What the supervisor let through, and why anything was removed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Supervised<const P: usize> {
+    /// Commands to apply to the drivers.
+    pub commands: [PairCommand; P],
+    /// Every fault active or latched after this step.
+    pub faults: Faults,
+}
+
+/// The supervisor for `P` antagonistic pairs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Supervisor<const P: usize> {
+    config: SupervisorConfig,
+    coils: [[CoilThermal; 2]; P],
+    latched: Faults,
+    /// Faults seen on the most recent step (to decide whether clear() may
+    /// succeed).
+    present: Faults,
+    last_link_s: Option<f32>,
+    armed: bool,
+}
+
+/// Why `clear` refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StillFaulted(pub Faults);
+
+impl<const P: usize> Supervisor<P> {
+    /// A disarmed supervisor. An invalid thermal configuration is replaced
+    /// by the default and reported as `INVALID_INPUT` (latched), so a bad
+    /// parameter cannot silently disable the budget.
+    pub fn new(config: SupervisorConfig) -> Self {
+        let valid_link = config.link_timeout_s.is_none_or(|t| t.is_finite() && t > 0.0);
+        let valid = config.thermal.is_valid() && valid_link;
+        let config = if valid { config } else { SupervisorConfig::default() };
+        Self {
+            config,
+            coils: [[CoilThermal::default(); 2]; P],
+            latched: if valid { Faults::NONE } else { Faults::INVALID_INPUT },
+            present: Faults::NONE,
+            last_link_s: None,
+            armed: false,
+        }
+    }
+
+    /// The configuration in force.
+    pub fn config(&self) -> SupervisorConfig {
+        self.config
+    }
+
+    /// Allows outputs (if no fault is latched).
+    pub fn arm(&mut self) {
+        self.armed = true;
+    }
+
+    /// Forces every output off (not a fault).
+    pub fn disarm(&mut self) {
+        self.armed = false;
+    }
+
+    /// True when armed.
+    pub fn is_armed(&self) -> bool {
+        self.armed
+    }
+
+    /// Faults latched so far.
+    pub fn latched(&self) -> Faults {
+        self.latched
+    }
+
+    /// Modelled temperature rise of coil `coil` (0/1) of pair `pair` (K).
+    pub fn coil_rise_k(&self, pair: usize, coil: usize) -> Option<f32> {
+        self.coils.get(pair).and_then(|c| c.get(coil)).map(|c| c.rise_k)
+    }
+
+    /// Records that a valid frame arrived from the host at `now_s`.
+    pub fn note_link_frame(&mut self, now_s: f32) {
+        if now_s.is_finite() {
+            self.last_link_s = Some(now_s);
+        }
+    }
+
+    /// Latches `faults` (from the estimator, the image, a driver error...).
+    pub fn report(&mut self, faults: Faults) {
+        let new = faults.intersection(Faults::LATCHING);
+        if !new.is_empty() && !self.latched.contains(new) {
+            log_warn!("fault latched: {=u16:#x}", new.bits());
+        }
+        self.latched |= new;
+        self.present |= new;
+    }
+
+    /// Clears the latch if the faults seen on the last step have gone.
+    pub fn clear(&mut self) -> Result<(), StillFaulted> {
+        let still = self.present.intersection(Faults::LATCHING);
+        if still.is_empty() {
+            self.latched = Faults::NONE;
+            Ok(())
+        } else {
+            Err(StillFaulted(still))
+        }
+    }
+
+    /// Filters one step's commands. `faults` are the faults detected this
+    /// step by the caller (sensors, inputs); `dt_s` the time since the last
+    /// step, used for the thermal model.
+    pub fn supervise(
+        &mut self,
+        now_s: f32,
+        dt_s: f32,
+        commands: [PairCommand; P],
+        faults: Faults,
+        driver: &DriverConfig,
+    ) -> Supervised<P> {
+        let mut present = faults;
+        if !(now_s.is_finite() && dt_s.is_finite() && dt_s >= 0.0) {
+            present |= Faults::INVALID_INPUT;
+        }
+        if let Some(timeout) = self.config.link_timeout_s {
+            let lost = match self.last_link_s {
+                Some(t) => !(now_s - t <= timeout),
+                None => false, // not yet started: disarmed until a frame comes
+            };
+            if lost {
+                present |= Faults::LINK_LOSS;
+            }
+        }
+        self.present = present.intersection(Faults::LATCHING);
+        let new = present.intersection(Faults::LATCHING);
+        if !new.is_empty() && !self.latched.contains(new) {
+            log_warn!("fault latched: {=u16:#x}", new.bits());
+        }
+        self.latched |= new;
+
+        let allow = self.armed && self.latched.is_empty();
+        let mut out = [PairCommand::Off; P];
+        let mut over_budget = false;
+        let dt = if dt_s.is_finite() && dt_s > 0.0 { dt_s } else { 0.0 };
+        let cfg = self.config.thermal;
+        for ((slot, cmd), coils) in out.iter_mut().zip(commands.iter()).zip(self.coils.iter_mut()) {
+            let mut c = if allow { *cmd } else { PairCommand::Off };
+            for (k, coil) in coils.iter().enumerate() {
+                if coil.tripped {
+                    c = c.inhibit(k);
+                }
+            }
+            // Heat for this step is counted with the drive as decided above;
+            // a coil that trips during the step is cut in this step's output
+            // too (conservative: its last dt of heat is still counted).
+            let volts = c.coil_volts();
+            for (k, (coil, v)) in coils.iter_mut().zip(volts.iter()).enumerate() {
+                let i = cfg.current_a(driver.clamp(*v), driver);
+                coil.advance(i * i * cfg.coil_resistance_ohm, dt, &cfg);
+                if coil.tripped {
+                    c = c.inhibit(k);
+                    over_budget = true;
+                }
+            }
+            *slot = c;
+        }
+        let mut reported = self.latched;
+        if over_budget {
+            reported |= Faults::OVER_BUDGET;
+        }
+        Supervised { commands: out, faults: reported }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn armed() -> Supervisor<1> {
+        let mut s = Supervisor::new(SupervisorConfig::default());
+        s.arm();
+        s
+    }
+
+    #[test]
+    fn full_drive_trips_the_budget_and_cools_down() {
+        let d = DriverConfig::default();
+        let mut s = armed();
+        let full = [PairCommand::Agonist(d.clamp(5.0))];
+        let cfg = ThermalConfig::default();
+        // Full drive: 0.5 A (clamped), 1.25 W, steady rise 195 K > trip.
+        assert!(cfg.steady_rise_k(d.clamp(5.0), &d) > cfg.trip_rise_k);
+        let mut t = 0.0;
+        let mut tripped_at = None;
+        while t < 20.0 {
+            let out = s.supervise(t, 0.001, full, Faults::NONE, &d);
+            if out.faults.contains(Faults::OVER_BUDGET) {
+                tripped_at = Some(t);
+                assert_eq!(out.commands, [PairCommand::Off]);
+                break;
+            }
+            t += 0.001;
+        }
+        // Closed form of the first-order rise: T(t) = T∞(1 − e^(−t/τ)) hits
+        // 95 K at t = −τ ln(1 − 95/195.3) ≈ 3.34 s.
+        let t_trip = tripped_at.expect("never tripped");
+        let expect = -cfg.time_constant_s * (1.0 - cfg.trip_rise_k / cfg.steady_rise_k(d.clamp(5.0), &d)).ln();
+        assert!((t_trip - expect).abs() < 0.02, "tripped at {t_trip}, expected {expect}");
+        // While cooling, still held off even though the command asks for 5 V;
+        // the other coil of the pair is unaffected.
+        let out = s.supervise(t + 0.1, 0.001, full, Faults::NONE, &d);
+        assert_eq!(out.commands, [PairCommand::Off]);
+        let other = s.supervise(t + 0.2, 0.001, [PairCommand::Antagonist(d.clamp(3.0))], Faults::NONE, &d);
+        assert_eq!(other.commands, [PairCommand::Antagonist(d.clamp(3.0))]);
+        // Cool-down from 95 K to 45 K takes τ ln(95/45) ≈ 3.7 s.
+        let mut resumed = None;
+        let mut t2 = t + 0.2;
+        while t2 < t + 20.0 {
+            let out = s.supervise(t2, 0.01, full, Faults::NONE, &d);
+            if out.commands == full {
+                resumed = Some(t2 - t);
+                break;
+            }
+            t2 += 0.01;
+        }
+        let resumed = resumed.expect("never resumed");
+        assert!(resumed > 3.5 && resumed < 4.2, "resumed after {resumed} s");
+    }
+
+    #[test]
+    fn every_latching_fault_zeroes_all_outputs_until_cleared() {
+        let d = DriverConfig::default();
+        for (fault, name) in Faults::NAMED {
+            if !Faults::LATCHING.contains(fault) {
+                continue;
+            }
+            let mut s: Supervisor<2> = Supervisor::new(SupervisorConfig::default());
+            s.arm();
+            let cmd = [PairCommand::Agonist(d.clamp(3.0)), PairCommand::Antagonist(d.clamp(2.0))];
+            assert_eq!(s.supervise(0.0, 0.001, cmd, Faults::NONE, &d).commands, cmd);
+            let out = s.supervise(0.001, 0.001, cmd, fault, &d);
+            assert_eq!(out.commands, [PairCommand::Off; 2], "{name} did not zero outputs");
+            assert!(out.faults.contains(fault), "{name} not reported");
+            // The cause has gone, but the latch holds until cleared...
+            let out = s.supervise(0.002, 0.001, cmd, Faults::NONE, &d);
+            assert_eq!(out.commands, [PairCommand::Off; 2], "{name} did not latch");
+            // ...and clearing succeeds now that the last step was clean.
+            s.clear().unwrap();
+            assert_eq!(s.supervise(0.003, 0.001, cmd, Faults::NONE, &d).commands, cmd);
+        }
+    }
+
+    #[test]
+    fn clear_is_refused_while_the_cause_persists() {
+        let d = DriverConfig::default();
+        let mut s = armed();
+        s.supervise(0.0, 0.001, [PairCommand::Off], Faults::SENSOR_STALE, &d);
+        assert_eq!(s.clear(), Err(StillFaulted(Faults::SENSOR_STALE)));
+    }
+
+    #[test]
+    fn link_loss_after_the_timeout() {
+        let d = DriverConfig::default();
+        let mut s: Supervisor<1> =
+            Supervisor::new(SupervisorConfig { link_timeout_s: Some(0.05), ..Default::default() });
+        s.arm();
+        let cmd = [PairCommand::Agonist(d.clamp(3.0))];
+        s.note_link_frame(0.0);
+        assert_eq!(s.supervise(0.049, 0.001, cmd, Faults::NONE, &d).commands, cmd);
+        let out = s.supervise(0.051, 0.001, cmd, Faults::NONE, &d);
+        assert_eq!(out.commands, [PairCommand::Off]);
+        assert!(out.faults.contains(Faults::LINK_LOSS));
+    }
+
+    #[test]
+    fn disarmed_and_bad_config_mean_off() {
+        let d = DriverConfig::default();
+        let cmd = [PairCommand::Agonist(d.clamp(3.0))];
+        let mut s: Supervisor<1> = Supervisor::new(SupervisorConfig::default());
+        assert_eq!(s.supervise(0.0, 0.001, cmd, Faults::NONE, &d).commands, [PairCommand::Off]);
+        let bad = SupervisorConfig {
+            thermal: ThermalConfig { time_constant_s: f32::NAN, ..Default::default() },
+            ..Default::default()
+        };
+        let mut s: Supervisor<1> = Supervisor::new(bad);
+        s.arm();
+        let out = s.supervise(0.0, 0.001, cmd, Faults::NONE, &d);
+        assert_eq!(out.commands, [PairCommand::Off]);
+        assert!(out.faults.contains(Faults::INVALID_INPUT));
+        // NaN time is an invalid input too.
+        let mut s = armed();
+        assert!(s.supervise(f32::NAN, 0.001, cmd, Faults::NONE, &d).faults.contains(Faults::INVALID_INPUT));
+    }
+}
