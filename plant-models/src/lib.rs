@@ -2,3 +2,4 @@
 //! deformable objects it handles. Everything here is std and deterministic:
 //! random effects take an explicit seeded RNG.
 #![deny(unsafe_code)]
+pub mod joint;

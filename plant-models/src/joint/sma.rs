@@ -1,0 +1,483 @@
+//! SMA coil actuator (BioMetal Helix BMX200-like): lumped thermal model,
+//! hysteretic martensite fraction, and a coil spring whose stiffness, rest
+//! length and resistance move with the phase.
+//!
+//! Thermal model (SPEC §2):
+//!
+//! ```text
+//!   m c dT/dt = I² R(ξ) − h A (T − T_amb) + m ΔH dξ/dt
+//! ```
+//!
+//! `ξ` is the martensite fraction (1 = cold, fully martensite). The Joule and
+//! convection terms are integrated **exactly** over a step for the power at
+//! the start of the step (`T ← T_eq + (T − T_eq) e^{−h/τ}`), which is
+//! unconditionally stable and makes the frozen-phase step response the
+//! analytic exponential. Latent heat is then applied as an energy correction
+//! `ΔT = ΔH Δξ / c` (heating M→A absorbs heat, cooling A→M releases it).
+//!
+//! Phase (Liang–Rogers cosine law with separate branches):
+//! - heating, `A_s ≤ T ≤ A_f`: `ξ = ξ₀ · g_A(T)/g_A(T₀)`,
+//!   `g_A(T) = (1 + cos(π (T − A_s)/(A_f − A_s)))/2`;
+//! - cooling, `M_f ≤ T ≤ M_s`: `1 − ξ = (1 − ξ₀) · g_M(T)/g_M(T₀)`,
+//!   `g_M(T) = (1 − cos(π (T − M_f)/(M_s − M_f)))/2`.
+//!
+//! The update is applied incrementally from the previous step (`T₀`, `ξ₀` =
+//! last step). Because the law is a ratio, increments telescope: a partial
+//! heating that turns into cooling resumes from the partial fraction on the
+//! cooling branch (and vice versa), reaching ξ = 0 exactly at `A_f` and
+//! ξ = 1 exactly at `M_f` from any starting point — the minor-loop rule of
+//! Liang–Rogers as usually implemented for control simulations.
+//!
+//! Left out: stress dependence of the transformation temperatures
+//! (Clausius–Clapeyron), R-phase, pseudo-plastic detwinning of the cold coil
+//! (the cold coil is a linear spring here), fatigue and the coil's thermal
+//! coupling to its neighbours and to the socket.
+
+use serde::{Deserialize, Serialize};
+
+use super::{check_finite, check_positive, PlantError};
+
+/// Parameters of one SMA coil. Defaults: typical NiTi values from SPEC §2 and
+/// estimates for the BMX200 coil (its datasheet is not available here).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SmaParams {
+    /// Wire diameter (m). Estimate (SPEC §2: 0.2 mm wire).
+    pub wire_diameter_m: f64,
+    /// Length of wire wound into the coil (m). Estimate: chosen so that the
+    /// martensite resistance is ≈ 5 Ω (SPEC §2: ~5 Ω per 20 mm coil):
+    /// L = R·A/ρ_M = 5 Ω · 3.14e-8 m² / 80e-8 Ω·m ≈ 0.196 m.
+    pub wire_length_m: f64,
+    /// NiTi density (kg/m³). SPEC §2 typical value.
+    pub density_kg_m3: f64,
+    /// NiTi specific heat (J/(kg·K)). SPEC §2 typical value.
+    pub specific_heat_j_kg_k: f64,
+    /// Latent heat of the transformation (J/kg); 0 disables it. SPEC §2.
+    pub latent_heat_j_kg: f64,
+    /// Resistivity of martensite (Ω·m). SPEC §2: 80 µΩ·cm.
+    pub resistivity_martensite_ohm_m: f64,
+    /// Resistivity of austenite (Ω·m). SPEC §2: 100 µΩ·cm.
+    pub resistivity_austenite_ohm_m: f64,
+    /// Austenite start (°C). SPEC §2, low-temperature wire.
+    pub austenite_start_c: f64,
+    /// Austenite finish (°C). SPEC §2.
+    pub austenite_finish_c: f64,
+    /// Martensite start (°C). SPEC §2.
+    pub martensite_start_c: f64,
+    /// Martensite finish (°C). SPEC §2.
+    pub martensite_finish_c: f64,
+    /// Convective coefficient (W/(m²·K)). SPEC §2 gives 20–150; 54 puts the
+    /// coil's thermal time constant m·c/(h·A) at ≈ 5 s, the middle of the
+    /// SPEC's 3–7 s estimate for the BMX200.
+    pub convection_w_m2_k: f64,
+    /// Ambient temperature (°C). Estimate (room temperature).
+    pub ambient_c: f64,
+    /// Coil spring rate when fully martensite (N/m). SPEC §2 estimate.
+    pub stiffness_martensite_n_m: f64,
+    /// Coil spring rate when fully austenite (N/m). SPEC §2 estimate.
+    pub stiffness_austenite_n_m: f64,
+    /// Rest (zero-force) length when fully martensite (m). Estimate, tuned
+    /// with the coil geometry (see `link::CoilGeometry`): 18 mm for a coil
+    /// installed at 20 mm gives the cold bias-spring pretension ≈ 0.18 N.
+    pub rest_length_martensite_m: f64,
+    /// Rest length when fully austenite (m). Estimate: the hot coil
+    /// contracts to 13 mm, enough for ≈ 20°+ of travel at 5 V against the
+    /// cold antagonist (paper: range about ±20°).
+    pub rest_length_austenite_m: f64,
+    /// Internal damping of the coil along its axis (N·s/m). Estimate (small:
+    /// a metal coil dissipates little).
+    pub damping_n_s_m: f64,
+}
+
+impl Default for SmaParams {
+    fn default() -> Self {
+        Self {
+            wire_diameter_m: 0.2e-3,
+            wire_length_m: 0.196,
+            density_kg_m3: 6450.0,
+            specific_heat_j_kg_k: 837.0,
+            latent_heat_j_kg: 24.2e3,
+            resistivity_martensite_ohm_m: 80e-8,
+            resistivity_austenite_ohm_m: 100e-8,
+            austenite_start_c: 68.0,
+            austenite_finish_c: 78.0,
+            martensite_start_c: 52.0,
+            martensite_finish_c: 42.0,
+            convection_w_m2_k: 54.0,
+            ambient_c: 25.0,
+            stiffness_martensite_n_m: 90.0,
+            stiffness_austenite_n_m: 230.0,
+            rest_length_martensite_m: 18.0e-3,
+            rest_length_austenite_m: 13.0e-3,
+            damping_n_s_m: 0.02,
+        }
+    }
+}
+
+impl SmaParams {
+    /// Rejects non-finite, non-positive or inconsistent values, naming the
+    /// field (`prefix` is prepended, e.g. `"coil."`).
+    pub fn validate(&self, prefix: &str) -> Result<(), PlantError> {
+        let p = |f: &str| format!("{prefix}{f}");
+        check_positive(&p("wire_diameter_m"), self.wire_diameter_m)?;
+        check_positive(&p("wire_length_m"), self.wire_length_m)?;
+        check_positive(&p("density_kg_m3"), self.density_kg_m3)?;
+        check_positive(&p("specific_heat_j_kg_k"), self.specific_heat_j_kg_k)?;
+        check_finite(&p("latent_heat_j_kg"), self.latent_heat_j_kg)?;
+        if self.latent_heat_j_kg < 0.0 {
+            return Err(PlantError::param(&p("latent_heat_j_kg"), "must be ≥ 0"));
+        }
+        check_positive(&p("resistivity_martensite_ohm_m"), self.resistivity_martensite_ohm_m)?;
+        check_positive(&p("resistivity_austenite_ohm_m"), self.resistivity_austenite_ohm_m)?;
+        check_finite(&p("austenite_start_c"), self.austenite_start_c)?;
+        check_finite(&p("austenite_finish_c"), self.austenite_finish_c)?;
+        check_finite(&p("martensite_start_c"), self.martensite_start_c)?;
+        check_finite(&p("martensite_finish_c"), self.martensite_finish_c)?;
+        if self.austenite_finish_c <= self.austenite_start_c {
+            return Err(PlantError::param(&p("austenite_finish_c"), "must exceed austenite_start_c"));
+        }
+        if self.martensite_start_c <= self.martensite_finish_c {
+            return Err(PlantError::param(&p("martensite_start_c"), "must exceed martensite_finish_c"));
+        }
+        check_positive(&p("convection_w_m2_k"), self.convection_w_m2_k)?;
+        check_finite(&p("ambient_c"), self.ambient_c)?;
+        check_positive(&p("stiffness_martensite_n_m"), self.stiffness_martensite_n_m)?;
+        check_positive(&p("stiffness_austenite_n_m"), self.stiffness_austenite_n_m)?;
+        check_positive(&p("rest_length_martensite_m"), self.rest_length_martensite_m)?;
+        check_positive(&p("rest_length_austenite_m"), self.rest_length_austenite_m)?;
+        check_finite(&p("damping_n_s_m"), self.damping_n_s_m)?;
+        if self.damping_n_s_m < 0.0 {
+            return Err(PlantError::param(&p("damping_n_s_m"), "must be ≥ 0"));
+        }
+        Ok(())
+    }
+
+    fn wire_area_m2(&self) -> f64 {
+        core::f64::consts::PI * 0.25 * self.wire_diameter_m * self.wire_diameter_m
+    }
+
+    /// Wire mass (kg).
+    pub fn mass_kg(&self) -> f64 {
+        self.density_kg_m3 * self.wire_area_m2() * self.wire_length_m
+    }
+
+    /// Heat capacity m·c (J/K).
+    pub fn heat_capacity_j_k(&self) -> f64 {
+        self.mass_kg() * self.specific_heat_j_kg_k
+    }
+
+    /// Convective conductance h·A (W/K), A the wire's lateral surface.
+    pub fn conductance_w_k(&self) -> f64 {
+        self.convection_w_m2_k * core::f64::consts::PI * self.wire_diameter_m * self.wire_length_m
+    }
+
+    /// Thermal time constant m·c/(h·A) (s).
+    pub fn time_constant_s(&self) -> f64 {
+        self.heat_capacity_j_k() / self.conductance_w_k()
+    }
+
+    /// Resistance at martensite fraction `xi` (Ω), resistivities mixed
+    /// linearly by phase.
+    pub fn resistance_ohm(&self, xi: f64) -> f64 {
+        let rho = xi * self.resistivity_martensite_ohm_m + (1.0 - xi) * self.resistivity_austenite_ohm_m;
+        rho * self.wire_length_m / self.wire_area_m2()
+    }
+
+    /// Heating-branch shape g_A(T): 1 below A_s, 0 above A_f.
+    fn g_heat(&self, t: f64) -> f64 {
+        if t <= self.austenite_start_c {
+            1.0
+        } else if t >= self.austenite_finish_c {
+            0.0
+        } else {
+            let a = core::f64::consts::PI / (self.austenite_finish_c - self.austenite_start_c);
+            0.5 * (1.0 + (a * (t - self.austenite_start_c)).cos())
+        }
+    }
+
+    /// Cooling-branch shape g_M(T): 1 above M_s, 0 below M_f.
+    fn g_cool(&self, t: f64) -> f64 {
+        if t >= self.martensite_start_c {
+            1.0
+        } else if t <= self.martensite_finish_c {
+            0.0
+        } else {
+            let a = core::f64::consts::PI / (self.martensite_start_c - self.martensite_finish_c);
+            0.5 * (1.0 - (a * (t - self.martensite_finish_c)).cos())
+        }
+    }
+
+    /// One Liang–Rogers phase update from (`t_old`, `xi_old`) to `t_new`.
+    pub fn phase_update(&self, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
+        if t_new > t_old {
+            if t_new >= self.austenite_finish_c {
+                return 0.0;
+            }
+            let g_old = self.g_heat(t_old);
+            if g_old <= 0.0 {
+                return xi_old;
+            }
+            (xi_old * self.g_heat(t_new) / g_old).min(xi_old).clamp(0.0, 1.0)
+        } else if t_new < t_old {
+            if t_new <= self.martensite_finish_c {
+                return 1.0;
+            }
+            let g_old = self.g_cool(t_old);
+            if g_old <= 0.0 {
+                return xi_old;
+            }
+            let aus = ((1.0 - xi_old) * self.g_cool(t_new) / g_old).min(1.0 - xi_old);
+            (1.0 - aus).clamp(0.0, 1.0)
+        } else {
+            xi_old
+        }
+    }
+}
+
+/// State of one coil.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SmaCoil {
+    params: SmaParams,
+    heat_capacity_j_k: f64,
+    conductance_w_k: f64,
+    cached_dt_s: f64,
+    cached_decay: f64,
+    temperature_c: f64,
+    martensite_fraction: f64,
+    current_a: f64,
+}
+
+impl SmaCoil {
+    /// A cold coil (ambient temperature, fully martensite).
+    pub fn new(params: SmaParams) -> Result<Self, PlantError> {
+        params.validate("coil.")?;
+        let t = params.ambient_c;
+        // Cold start below A_s: fully martensite. (A coil above A_f would be
+        // austenite; we only start at ambient, validated < A_s below.)
+        if t >= params.austenite_start_c {
+            return Err(PlantError::param("coil.ambient_c", "must be below austenite_start_c"));
+        }
+        Ok(Self {
+            heat_capacity_j_k: params.heat_capacity_j_k(),
+            conductance_w_k: params.conductance_w_k(),
+            cached_dt_s: 0.0,
+            cached_decay: 1.0,
+            temperature_c: t,
+            martensite_fraction: 1.0,
+            current_a: 0.0,
+            params,
+        })
+    }
+
+    /// Parameters.
+    pub fn params(&self) -> &SmaParams {
+        &self.params
+    }
+
+    /// Coil temperature (°C).
+    pub fn temperature_c(&self) -> f64 {
+        self.temperature_c
+    }
+
+    /// Martensite fraction ξ ∈ [0, 1].
+    pub fn martensite_fraction(&self) -> f64 {
+        self.martensite_fraction
+    }
+
+    /// Current through the coil during the last step (A).
+    pub fn current_a(&self) -> f64 {
+        self.current_a
+    }
+
+    /// Present resistance (Ω).
+    pub fn resistance_ohm(&self) -> f64 {
+        self.params.resistance_ohm(self.martensite_fraction)
+    }
+
+    /// Present spring rate (N/m), mixed linearly by phase.
+    pub fn stiffness_n_m(&self) -> f64 {
+        let xi = self.martensite_fraction;
+        xi * self.params.stiffness_martensite_n_m + (1.0 - xi) * self.params.stiffness_austenite_n_m
+    }
+
+    /// Present rest length (m), mixed linearly by phase.
+    pub fn rest_length_m(&self) -> f64 {
+        let xi = self.martensite_fraction;
+        xi * self.params.rest_length_martensite_m + (1.0 - xi) * self.params.rest_length_austenite_m
+    }
+
+    /// Axial tension (N) at `length_m` stretching at `rate_m_s`; a coil
+    /// shorter than its rest length is slack (no push).
+    #[inline]
+    pub fn tension_n(&self, length_m: f64, rate_m_s: f64) -> f64 {
+        let stretch = length_m - self.rest_length_m();
+        if stretch <= 0.0 {
+            0.0
+        } else {
+            (self.stiffness_n_m() * stretch + self.params.damping_n_s_m * rate_m_s).max(0.0)
+        }
+    }
+
+    /// Sets temperature and phase directly (tests, warm starts).
+    pub fn set_state(&mut self, temperature_c: f64, martensite_fraction: f64) -> Result<(), PlantError> {
+        check_finite("coil.temperature_c", temperature_c)?;
+        if !(0.0..=1.0).contains(&martensite_fraction) {
+            return Err(PlantError::param("coil.martensite_fraction", "must be in [0, 1]"));
+        }
+        self.temperature_c = temperature_c;
+        self.martensite_fraction = martensite_fraction;
+        Ok(())
+    }
+
+    /// Advances the thermal and phase state by `dt_s` with `current_a`
+    /// flowing. With `freeze_phase`, ξ (and so R) stays fixed and no latent
+    /// heat is exchanged — the case with a closed-form answer.
+    #[inline]
+    pub fn step(&mut self, dt_s: f64, current_a: f64, freeze_phase: bool) {
+        if dt_s != self.cached_dt_s {
+            self.cached_dt_s = dt_s;
+            self.cached_decay = (-dt_s * self.conductance_w_k / self.heat_capacity_j_k).exp();
+        }
+        self.current_a = current_a;
+        let power_w = current_a * current_a * self.resistance_ohm();
+        let t_eq = self.params.ambient_c + power_w / self.conductance_w_k;
+        let t_old = self.temperature_c;
+        let mut t_new = t_eq + (t_old - t_eq) * self.cached_decay;
+        if !freeze_phase {
+            let xi_old = self.martensite_fraction;
+            let xi_new = self.params.phase_update(t_old, xi_old, t_new);
+            // Latent heat: m ΔH dξ — M→A (ξ falls) absorbs, A→M releases.
+            t_new += self.params.latent_heat_j_kg * (xi_new - xi_old) / self.params.specific_heat_j_kg_k;
+            self.martensite_fraction = xi_new;
+        }
+        self.temperature_c = t_new;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_coil_matches_spec_estimates() {
+        let p = SmaParams::default();
+        let r = p.resistance_ohm(1.0);
+        assert!((r - 5.0).abs() < 0.1, "R_M = {r}");
+        assert!((p.resistance_ohm(0.0) / r - 1.25).abs() < 1e-12);
+        let tau = p.time_constant_s();
+        assert!((3.0..=7.0).contains(&tau), "tau = {tau}");
+    }
+
+    #[test]
+    fn full_heating_then_cooling_cycle() {
+        let p = SmaParams::default();
+        let mut xi = 1.0;
+        let mut t = 25.0;
+        while t < 100.0 {
+            let t2 = t + 0.5;
+            xi = p.phase_update(t, xi, t2);
+            t = t2;
+            if t < p.austenite_start_c {
+                assert_eq!(xi, 1.0);
+            }
+        }
+        assert_eq!(xi, 0.0);
+        while t > 20.0 {
+            let t2 = t - 0.5;
+            xi = p.phase_update(t, xi, t2);
+            t = t2;
+            if t > p.martensite_start_c {
+                assert_eq!(xi, 0.0, "no reverse transformation above M_s (hysteresis)");
+            }
+        }
+        assert_eq!(xi, 1.0);
+    }
+
+    #[test]
+    fn partial_heating_resumes_on_the_cooling_branch() {
+        let p = SmaParams::default();
+        // Heat to the middle of the A band: ξ = g_A(73) = 0.5.
+        let xi = p.phase_update(25.0, 1.0, 73.0);
+        assert!((xi - 0.5).abs() < 1e-12, "{xi}");
+        // Cooling to 60 °C (between A_s and M_s... above M_s): unchanged.
+        let xi2 = p.phase_update(73.0, xi, 60.0);
+        assert_eq!(xi2, xi);
+        // Cooling to the middle of the M band: austenite halves (0.5 → 0.25).
+        let xi3 = p.phase_update(60.0, xi2, 47.0);
+        assert!((xi3 - 0.75).abs() < 1e-12, "{xi3}");
+        // Reheating to 73 °C scales the martensite by g_A again: 0.75 · 0.5.
+        let xi4 = p.phase_update(47.0, xi3, 73.0);
+        assert!((xi4 - 0.375).abs() < 1e-12, "{xi4}");
+        // Telescoping: many small steps give the same as one step.
+        let mut xs = xi3;
+        let mut t = 47.0;
+        while t < 73.0 - 1e-9 {
+            xs = p.phase_update(t, xs, t + 0.1);
+            t += 0.1;
+        }
+        assert!((xs - p.phase_update(47.0, xi3, t)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn frozen_phase_step_response_is_the_analytic_exponential() {
+        let p = SmaParams::default();
+        let mut c = SmaCoil::new(p.clone()).unwrap();
+        let i = 0.2;
+        let r = p.resistance_ohm(1.0);
+        let ga = p.conductance_w_k();
+        let tau = p.heat_capacity_j_k() / ga;
+        let dt = 1e-3;
+        for n in 1..=10_000 {
+            c.step(dt, i, true);
+            let t = n as f64 * dt;
+            let expect = p.ambient_c + i * i * r / ga * (1.0 - (-t / tau).exp());
+            assert!((c.temperature_c() - expect).abs() < 1e-9, "t={t}: {} vs {expect}", c.temperature_c());
+        }
+        // Independent forward-Euler check of the ODE at a small step, so a
+        // wrong formula for T_eq or τ cannot pass by construction.
+        let mut te = p.ambient_c;
+        let h = 1e-4;
+        for _ in 0..100_000 {
+            te += h * (i * i * r - ga * (te - p.ambient_c)) / p.heat_capacity_j_k();
+        }
+        assert!((c.temperature_c() - te).abs() < 0.01, "{} vs Euler {te}", c.temperature_c());
+    }
+
+    #[test]
+    fn latent_heat_slows_heating_through_the_band() {
+        let p = SmaParams::default();
+        let mut with = SmaCoil::new(p.clone()).unwrap();
+        let mut without = SmaCoil::new(SmaParams { latent_heat_j_kg: 0.0, ..p }).unwrap();
+        let mut steps = 0;
+        while without.martensite_fraction() > 0.5 {
+            with.step(1e-3, 0.3, false);
+            without.step(1e-3, 0.3, false);
+            steps += 1;
+            assert!(steps < 30_000, "never transformed");
+        }
+        // Same power in; the latent heat absorbed keeps the other coil
+        // cooler and less transformed.
+        assert!(with.temperature_c() < without.temperature_c() - 1.0);
+        assert!(with.martensite_fraction() > without.martensite_fraction() + 0.1);
+    }
+
+    #[test]
+    fn spring_moves_between_phases_and_goes_slack() {
+        let p = SmaParams::default();
+        let mut c = SmaCoil::new(p.clone()).unwrap();
+        assert!((c.stiffness_n_m() - 90.0).abs() < 1e-12);
+        assert!((c.tension_n(0.020, 0.0) - 90.0 * 0.002).abs() < 1e-12);
+        c.set_state(90.0, 0.0).unwrap();
+        assert!((c.tension_n(0.020, 0.0) - 230.0 * 0.007).abs() < 1e-12);
+        assert_eq!(c.tension_n(0.010, 0.0), 0.0);
+    }
+
+    #[test]
+    fn bad_parameters_name_the_field() {
+        let p = SmaParams { convection_w_m2_k: f64::NAN, ..SmaParams::default() };
+        let e = SmaCoil::new(p).unwrap_err();
+        assert!(e.to_string().contains("coil.convection_w_m2_k"), "{e}");
+        let p = SmaParams { austenite_finish_c: 60.0, ..SmaParams::default() };
+        assert!(SmaCoil::new(p).unwrap_err().to_string().contains("austenite_finish_c"));
+    }
+}
