@@ -1,1 +1,82 @@
-fn main() {}
+//! Benchmarks of the portable core on the host: one 3D control step (the
+//! paper's joint, Eq. 3 estimation, two antagonistic pairs, supervisor), the
+//! same with threshold switching, and the DGFM viscoelastic update of a
+//! 193-vertex object (the seed's triceratops size) with 3 active vertices.
+//! Inputs are deterministic; figures go in the README.
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use firmware::estimate::{LinearLaw, PlaneLaw, QuadraticLaw};
+use firmware::joint::{Feedback, Joint3d, JointConfig, StepInput};
+use firmware::linalg::{Mat3, Vec3};
+use firmware::real::Real;
+use firmware::viscoelastic::{RayleighParams, TimeStep, ViscoDgfm};
+
+fn control_step(c: &mut Criterion) {
+    let mut group = c.benchmark_group("control_step_3d");
+    for (name, switching) in [("eq3_differential", false), ("eq4_switching", true)] {
+        let mut cfg = JointConfig::paper_3d();
+        if switching {
+            cfg.laws[0] = PlaneLaw::Switching {
+                plus: 2,
+                minus: 0,
+                high: LinearLaw::PAPER_ALPHA,
+                sensor: 2,
+                low: QuadraticLaw { a: 0.02, b: 5.4, c: 0.3 },
+                threshold_deg: -7.46,
+                hysteresis_deg: 0.5,
+            };
+        }
+        let mut joint = Joint3d::new(cfg).unwrap();
+        joint.arm();
+        joint.set_target(0, 5.0).unwrap();
+        joint.set_target(1, 5.0).unwrap();
+        let mut k: i32 = 0;
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                let d = (k % 400 - 200).abs() - 100;
+                let input = StepInput {
+                    now_s: (k as f32) * 1e-3,
+                    dt_s: 1e-3,
+                    feedback: Feedback::WireCounts([Some(-d), Some(d / 2), Some(d), Some(-d / 2)]),
+                };
+                black_box(joint.step(black_box(&input)))
+            })
+        });
+    }
+    group.finish();
+}
+
+const V: usize = 193;
+
+fn dgfm<T: Real>() -> Box<[[Mat3<T>; V]; V]> {
+    let rows: Vec<[Mat3<T>; V]> = (0..V)
+        .map(|i| {
+            core::array::from_fn(|j| {
+                let d = (i as f64 - j as f64).abs();
+                let s = 1e-3 / (1.0 + d);
+                Mat3::diagonal(T::lit(s), T::lit(1.2 * s), T::lit(0.8 * s))
+            })
+        })
+        .collect();
+    rows.into_boxed_slice().try_into().unwrap_or_else(|_| unreachable!())
+}
+
+fn bench_dgfm<T: Real, const A: usize>(c: &mut Criterion, name: &str, active: usize) {
+    let xi = dgfm::<T>();
+    let params = [RayleighParams::new(T::lit(2.0), T::lit(0.05)).unwrap(); V];
+    let mut model: ViscoDgfm<T, V, A> = ViscoDgfm::new(&xi, params).unwrap();
+    for k in 0..active {
+        model.set_traction((k * 61) % V, Vec3::new(T::one(), T::zero(), T::lit(0.5))).unwrap();
+    }
+    let h = TimeStep::new(T::lit(1e-3)).unwrap();
+    let mut u = Box::new([Vec3::zero(); V]);
+    c.bench_function(name, |b| b.iter(|| model.step(black_box(h), &mut u)));
+}
+
+fn dgfm_update(c: &mut Criterion) {
+    bench_dgfm::<f32, 3>(c, "dgfm_193v_3active_f32", 3);
+    bench_dgfm::<f64, 3>(c, "dgfm_193v_3active_f64", 3);
+}
+
+criterion_group!(benches, control_step, dgfm_update);
+criterion_main!(benches);

@@ -129,10 +129,12 @@ fn solve_small(m: &mut [[f64; 4]; 3], n: usize) -> Result<[f64; 3], FitError> {
             return Err(FitError::Degenerate);
         }
         m.swap(col, piv);
-        for r in col + 1..n {
-            let f = m[r][col] / m[col][col];
-            for c in col..4 {
-                m[r][c] -= f * m[col][c];
+        let (upper, lower) = m.split_at_mut(col + 1);
+        let pivot = &upper[col];
+        for row in lower.iter_mut().take(n - col - 1) {
+            let f = row[col] / pivot[col];
+            for (x, p) in row.iter_mut().zip(pivot.iter()).skip(col) {
+                *x -= f * p;
             }
         }
     }

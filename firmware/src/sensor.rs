@@ -127,12 +127,18 @@ impl<const S: usize> SensorGuard<S> {
             }
             match *last {
                 None => faults |= Faults::SENSOR_STALE,
-                Some(t) if !(now_s - t <= lim.stale_after_s) => faults |= Faults::SENSOR_STALE,
+                Some(t) if !is_fresh(now_s - t, lim.stale_after_s) => faults |= Faults::SENSOR_STALE,
                 Some(_) => {}
             }
         }
         (self.value, faults)
     }
+}
+
+/// True when a reading of age `age_s` is within `limit_s`. A NaN age (a NaN
+/// clock) is not fresh: unknown age counts as stale.
+pub(crate) fn is_fresh(age_s: f32, limit_s: f32) -> bool {
+    age_s <= limit_s
 }
 
 #[cfg(test)]

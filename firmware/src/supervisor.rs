@@ -357,7 +357,7 @@ impl<const P: usize> Supervisor<P> {
         }
         if let Some(timeout) = self.config.link_timeout_s {
             let lost = match self.last_link_s {
-                Some(t) => !(now_s - t <= timeout),
+                Some(t) => !crate::sensor::is_fresh(now_s - t, timeout),
                 None => false, // not yet started: disarmed until a frame comes
             };
             if lost {

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Runs every test of the project on a fresh machine, installing what is
+# missing: the thumbv7em target and QEMU. This is the README's test command
+# and what CI (.ci/run) calls.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+step() { printf '\n==> %s\n' "$*"; }
+
+as_root() {
+    if [ "$(id -u)" -eq 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
+        echo "need root to run: $*" >&2; return 1; fi
+}
+
+step "toolchain: thumbv7em-none-eabihf target, clippy"
+if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
+    rustup target add thumbv7em-none-eabihf
+fi
+rustup component list --installed | grep -q '^clippy' || rustup component add clippy
+
+step "QEMU (qemu-system-arm, for the firmware image)"
+if ! command -v qemu-system-arm >/dev/null; then
+    as_root apt-get update
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y qemu-system-arm
+fi
+qemu-system-arm --version | head -1
+
+step "firmware image: thumbv7em build, with and without defmt"
+cargo build -p firmware --release --target thumbv7em-none-eabihf --locked
+cargo build -p firmware --release --target thumbv7em-none-eabihf --features defmt --locked
+
+step "clippy -D warnings: host (all crates, all targets) and thumb"
+cargo clippy --workspace --all-targets --locked -- -D warnings
+cargo clippy -p firmware --target thumbv7em-none-eabihf --lib --bins --locked -- -D warnings
+cargo clippy -p firmware --target thumbv7em-none-eabihf --features defmt --lib --bins --locked -- -D warnings
+
+step "the core's 3D control step running in the Cortex-M4F image under QEMU"
+cargo build -p firmware --release --target thumbv7em-none-eabihf --bin step-probe --locked
+timeout 60 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
+    -semihosting-config enable=on,target=native \
+    -kernel target/thumbv7em-none-eabihf/release/step-probe
+echo "step-probe exited 0 (every output bounded, no fault)"
+
+step "tests: unit, property, closed-loop and integration (host)"
+cargo test --workspace --locked
