@@ -27,6 +27,7 @@ pub mod estimate;
 pub mod fit;
 pub mod joint;
 pub mod linalg;
+pub mod protocol;
 pub mod real;
 pub mod sensor;
 pub mod supervisor;
