@@ -77,8 +77,10 @@ pub struct SmaParams {
     /// Coil spring rate when fully austenite (N/m). SPEC §2 estimate.
     pub stiffness_austenite_n_m: f64,
     /// Rest (zero-force) length when fully martensite (m). Estimate, tuned
-    /// with the coil geometry (see `link::CoilGeometry`): 18 mm for a coil
-    /// installed at 20 mm gives the cold bias-spring pretension ≈ 0.18 N.
+    /// with the coil geometry (see `link::CoilGeometry`): 16 mm for a coil
+    /// installed at 20 mm gives a cold bias-spring pretension ≈ 0.36 N, so
+    /// the antagonist stays taut beyond ±15° (a slack coil would make the
+    /// unpowered joint much softer than the paper's 12° under 50 g).
     pub rest_length_martensite_m: f64,
     /// Rest length when fully austenite (m). Estimate: the hot coil
     /// contracts to 13 mm, enough for ≈ 20°+ of travel at 5 V against the
@@ -107,8 +109,8 @@ impl Default for SmaParams {
             ambient_c: 25.0,
             stiffness_martensite_n_m: 90.0,
             stiffness_austenite_n_m: 230.0,
-            rest_length_martensite_m: 18.0e-3,
-            rest_length_austenite_m: 13.0e-3,
+            rest_length_martensite_m: 16.0e-3,
+            rest_length_austenite_m: 7.0e-3,
             damping_n_s_m: 0.02,
         }
     }
@@ -466,7 +468,7 @@ mod tests {
         let p = SmaParams::default();
         let mut c = SmaCoil::new(p.clone()).unwrap();
         assert!((c.stiffness_n_m() - 90.0).abs() < 1e-12);
-        assert!((c.tension_n(0.020, 0.0) - 90.0 * 0.002).abs() < 1e-12);
+        assert!((c.tension_n(0.020, 0.0) - 90.0 * 0.004).abs() < 1e-12);
         c.set_state(90.0, 0.0).unwrap();
         assert!((c.tension_n(0.020, 0.0) - 230.0 * 0.007).abs() < 1e-12);
         assert_eq!(c.tension_n(0.010, 0.0), 0.0);

@@ -110,6 +110,11 @@ pub const EQ2_REST_MM: f64 = 0.137_483_566;
 #[inline]
 pub fn free_length_mm(g: &WireGeometry, x_mm: f64, y_mm: f64, theta_rad: f64) -> f64 {
     let (s, c) = theta_rad.sin_cos();
+    free_length_sc_mm(g, x_mm, y_mm, s, c)
+}
+
+#[inline]
+fn free_length_sc_mm(g: &WireGeometry, x_mm: f64, y_mm: f64, s: f64, c: f64) -> f64 {
     let [qx, qy] = g.attach_link_mm;
     let wx = x_mm + qx * c + qy * s;
     let wy = y_mm - qx * s + qy * c;
@@ -257,10 +262,16 @@ impl WireSensor {
     }
 
     /// Updates the reading for the link pose; `rng` drives stick events.
-    #[inline]
     pub fn update(&mut self, x_mm: f64, y_mm: f64, theta_rad: f64, rng: &mut ChaCha8Rng) {
+        let (s, c) = theta_rad.sin_cos();
+        self.update_sin_cos(x_mm, y_mm, s, c, rng);
+    }
+
+    /// [`Self::update`] with (sin θ, cos θ) already known.
+    #[inline]
+    pub fn update_sin_cos(&mut self, x_mm: f64, y_mm: f64, sin_t: f64, cos_t: f64, rng: &mut ChaCha8Rng) {
         let g = &self.params.geometry;
-        let ideal = g.insertion_at_rest_mm + self.ref_length_mm - free_length_mm(g, x_mm, y_mm, theta_rad);
+        let ideal = g.insertion_at_rest_mm + self.ref_length_mm - free_length_sc_mm(g, x_mm, y_mm, sin_t, cos_t);
         let delta = ideal - self.ideal_mm;
         self.ideal_mm = ideal;
         let j = &self.params.jam;
