@@ -470,8 +470,8 @@ mod tests {
         assert!((c.stiffness_n_m() - 90.0).abs() < 1e-12);
         assert!((c.tension_n(0.020, 0.0) - 90.0 * 0.004).abs() < 1e-12);
         c.set_state(90.0, 0.0).unwrap();
-        assert!((c.tension_n(0.020, 0.0) - 230.0 * 0.007).abs() < 1e-12);
-        assert_eq!(c.tension_n(0.010, 0.0), 0.0);
+        assert!((c.tension_n(0.020, 0.0) - 230.0 * 0.013).abs() < 1e-12);
+        assert_eq!(c.tension_n(0.006, 0.0), 0.0);
     }
 
     #[test]
