@@ -22,6 +22,7 @@
 #[macro_use]
 mod fmt;
 
+pub mod app;
 pub mod control;
 pub mod estimate;
 pub mod fit;

@@ -163,7 +163,7 @@ fn unknown_types_and_wrong_lengths_are_malformed_not_crashes() {
 #[test]
 fn unit_conversions_saturate_and_keep_sign() {
     let d = DriverConfig::default();
-    assert_eq!(mv_to_pair(pair_to_mv(firmware::control::PairCommand::Antagonist(d.clamp(2.5))), &d).coil_volts(), [0.0, 2.5]);
+    assert_eq!(mv_to_pair(pair_to_mv(firmware::control::PairCommand::Antagonist(d.clamp(2.5)), &d), &d).coil_volts(), [0.0, 2.5]);
     assert_eq!(deg_to_cdeg(f32::NAN), i16::MIN);
     assert!(cdeg_to_deg(i16::MIN).is_nan());
     assert_eq!(deg_to_cdeg(1e9), i16::MAX);

@@ -747,16 +747,24 @@ fn crc16_le(b: &[u8]) -> u16 {
 }
 
 /// Encodes a pair command as signed millivolts (+ agonist, − antagonist).
-pub fn pair_to_mv(cmd: PairCommand) -> i16 {
-    let to_mv = |v: f32| {
-        let mv = num_traits::Float::round(v * 1000.0);
-        if mv >= f32::from(i16::MAX) { i16::MAX } else if mv > 0.0 { mv as i16 } else { 0 }
-    };
+/// Uses the same rounding as a PWM channel whose full scale is the supply in
+/// millivolts ([`volts_to_duty`](crate::control::volts_to_duty)), so a
+/// simulator driving such a channel and a host receiving these frames see
+/// identical values.
+pub fn pair_to_mv(cmd: PairCommand, driver: &DriverConfig) -> i16 {
+    let full_scale = millivolt_full_scale(driver);
+    let mv = |v| i16::try_from(crate::control::volts_to_duty(v, driver, full_scale)).unwrap_or(i16::MAX);
     match cmd {
         PairCommand::Off => 0,
-        PairCommand::Agonist(v) => to_mv(v.volts()),
-        PairCommand::Antagonist(v) => -to_mv(v.volts()),
+        PairCommand::Agonist(v) => mv(v),
+        PairCommand::Antagonist(v) => -mv(v),
     }
+}
+
+/// The supply in millivolts, as a duty-cycle full scale (saturating).
+pub fn millivolt_full_scale(driver: &DriverConfig) -> u16 {
+    let mv = num_traits::Float::round(driver.supply_v() * 1000.0);
+    if mv >= f32::from(i16::MAX) { i16::MAX as u16 } else if mv >= 1.0 { mv as u16 } else { 1 }
 }
 
 /// Decodes signed millivolts into a pair command, clamped to the driver.

@@ -1,0 +1,171 @@
+//! The firmware image: the board application ([`firmware::app::App`]) on a
+//! Cortex-M4F, talking over UART0.
+//!
+//! Default board: QEMU's `mps2-an386` (CMSDK APB UART0 at 0x4000_4000,
+//! 25 MHz system clock, SysTick as the millisecond clock). Another board
+//! goes in its own module behind a cargo feature, providing the same four
+//! things: a byte UART, a millisecond clock, SMA driver outputs and wire
+//! sensors.
+//!
+//! Run it under QEMU with its UART on a pty (what `softjoint hil` does):
+//! ```text
+//! qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
+//!     -semihosting-config enable=on,target=native -serial pty \
+//!     -kernel target/thumbv7em-none-eabihf/release/softjoint-fw
+//! ```
+//! The image never speaks first: QEMU drops guest output until the host
+//! opens the pty, so the host sends `Hello` and the board answers.
+#![cfg_attr(target_os = "none", no_std)]
+#![cfg_attr(target_os = "none", no_main)]
+
+#[cfg(target_os = "none")]
+mod mps2 {
+    //! QEMU mps2-an386 board support.
+    #![allow(unsafe_code)] // memory-mapped registers; each access says why it is sound
+
+    use core::sync::atomic::{AtomicU16, AtomicU32, Ordering};
+    use cortex_m::peripheral::syst::SystClkSource;
+    use cortex_m_rt::{entry, exception};
+    #[cfg(feature = "defmt")]
+    use defmt_semihosting as _;
+    use firmware::app::{App, NoSensors};
+    use firmware::control::{DriverConfig, PairCommand};
+    use firmware::protocol::pair_to_mv;
+
+    /// System clock of the AN386 image (ARM AN386 application note: 25 MHz).
+    const SYSCLK_HZ: u32 = 25_000_000;
+
+    /// CMSDK APB UART (ARM DDI 0479, "Cortex-M System Design Kit", §4.3).
+    struct CmsdkUart {
+        base: usize,
+    }
+
+    const DATA: usize = 0x000;
+    const STATE: usize = 0x004;
+    const CTRL: usize = 0x008;
+    const BAUDDIV: usize = 0x010;
+    const STATE_TX_FULL: u32 = 1 << 0;
+    const STATE_RX_FULL: u32 = 1 << 1;
+    const CTRL_TX_EN: u32 = 1 << 0;
+    const CTRL_RX_EN: u32 = 1 << 1;
+
+    impl CmsdkUart {
+        /// UART0 of mps2-an386.
+        fn uart0() -> Self {
+            let u = Self { base: 0x4000_4000 };
+            // 115200 Bd at 25 MHz: BAUDDIV = 217 (must be ≥ 16). QEMU's
+            // model ignores the rate but requires the register and enables.
+            u.write(BAUDDIV, SYSCLK_HZ / 115_200);
+            u.write(CTRL, CTRL_TX_EN | CTRL_RX_EN);
+            u
+        }
+
+        fn read(&self, off: usize) -> u32 {
+            // SAFETY: `base + off` is a CMSDK UART register of this board,
+            // 4-byte aligned, valid for volatile 32-bit access.
+            unsafe { core::ptr::read_volatile((self.base + off) as *const u32) }
+        }
+
+        fn write(&self, off: usize, v: u32) {
+            // SAFETY: as in `read`.
+            unsafe { core::ptr::write_volatile((self.base + off) as *mut u32, v) }
+        }
+
+        fn try_read_byte(&self) -> Option<u8> {
+            if self.read(STATE) & STATE_RX_FULL != 0 {
+                Some((self.read(DATA) & 0xFF) as u8)
+            } else {
+                None
+            }
+        }
+
+        fn write_bytes(&self, bytes: &[u8]) {
+            for &b in bytes {
+                while self.read(STATE) & STATE_TX_FULL != 0 {}
+                self.write(DATA, u32::from(b));
+            }
+        }
+    }
+
+    /// Milliseconds since boot, advanced by SysTick.
+    static MILLIS: AtomicU32 = AtomicU32::new(0);
+
+    #[exception]
+    fn SysTick() {
+        MILLIS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    fn now_ms() -> u32 {
+        MILLIS.load(Ordering::Relaxed)
+    }
+
+    /// The SMA driver outputs as the board would set them (signed mV per
+    /// pair). QEMU has no PWM peripheral, so the "hardware" is these cells;
+    /// on a real board this is where the timer compare registers are
+    /// written through `PairDriver`.
+    static OUTPUT_MV: [AtomicU16; 2] = [AtomicU16::new(0), AtomicU16::new(0)];
+
+    fn apply_outputs(cmds: [PairCommand; 2], driver: &DriverConfig) {
+        for (cell, cmd) in OUTPUT_MV.iter().zip(cmds) {
+            cell.store(pair_to_mv(cmd, driver) as u16, Ordering::SeqCst);
+        }
+    }
+
+    fn all_outputs_off() {
+        for cell in OUTPUT_MV.iter() {
+            cell.store(0, Ordering::SeqCst);
+        }
+    }
+
+    #[entry]
+    fn main() -> ! {
+        all_outputs_off();
+        let Some(mut core) = cortex_m::Peripherals::take() else { halt() };
+        core.SYST.set_clock_source(SystClkSource::Core);
+        core.SYST.set_reload(SYSCLK_HZ / 1000 - 1);
+        core.SYST.clear_current();
+        core.SYST.enable_counter();
+        core.SYST.enable_interrupt();
+
+        let uart = CmsdkUart::uart0();
+        let Ok(mut app) = App::new() else { halt() };
+        #[cfg(feature = "defmt")]
+        defmt::info!("softjoint-fw up");
+        let mut send = |frame: &[u8]| uart.write_bytes(frame);
+        loop {
+            while let Some(b) = uart.try_read_byte() {
+                app.on_byte(b, now_ms(), &mut send);
+            }
+            app.poll(now_ms(), &mut NoSensors, &mut send);
+            apply_outputs(app.outputs(), app.joint().driver());
+        }
+    }
+
+    /// Unpowered forever (configuration failure at boot).
+    fn halt() -> ! {
+        all_outputs_off();
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    #[panic_handler]
+    fn panic(_info: &core::panic::PanicInfo) -> ! {
+        // Outputs first: unpowered is the safe state.
+        all_outputs_off();
+        #[cfg(feature = "defmt")]
+        defmt::error!("panic");
+        // Under QEMU (started with semihosting) report failure and stop; a
+        // real board would wait here for its watchdog.
+        cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_FAILURE);
+        halt()
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "softjoint-fw is a thumbv7em-none-eabihf image: cargo build -p firmware --release \
+         --target thumbv7em-none-eabihf --bin softjoint-fw, then `softjoint hil`"
+    );
+}
