@@ -3,3 +3,4 @@
 //! random effects take an explicit seeded RNG.
 #![deny(unsafe_code)]
 pub mod joint;
+pub mod viscoelastic;

@@ -1,0 +1,82 @@
+//! The one error type of the viscoelastic module. Every variant names what
+//! was wrong (the parameter, or the file and line of the input) so that a
+//! user can fix it; nothing on these paths panics on bad input.
+use firmware::viscoelastic::ViscoError;
+use thiserror::Error;
+
+/// Why a viscoelastic-object operation refused its input.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum VeError {
+    /// A named scalar parameter is NaN/infinite or outside its valid range.
+    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
+        /// Parameter name as the user knows it.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+        /// What the valid range is.
+        reason: &'static str,
+    },
+    /// A surface or volume mesh is unusable (open, degenerate, not star-shaped…).
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(String),
+    /// Malformed text input (CSV, OBJ): `source` is the file name or a label.
+    #[error("{file}:{line}: {reason}")]
+    Parse {
+        /// File name (or label) of the input.
+        file: String,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong on that line.
+        reason: String,
+    },
+    /// The stiffness matrix is not positive definite (mechanism / free body).
+    #[error("FEM stiffness is not positive definite at equation {equation}: is the object fixed (any Λu vertices)?")]
+    NotPositiveDefinite {
+        /// Index of the pivot that failed.
+        equation: usize,
+    },
+    /// A vertex index outside the mesh or outside the traction set Λv.
+    #[error("vertex {vertex} is not a traction vertex of this {n}-vertex object")]
+    VertexNotInTractionSet {
+        /// Requested mesh vertex.
+        vertex: usize,
+        /// Number of mesh vertices.
+        n: usize,
+    },
+    /// The portable core refused a parameter or a step.
+    #[error("viscoelastic core: {0:?} ({1})")]
+    Core(ViscoError, &'static str),
+    /// Two series that must line up do not.
+    #[error("length mismatch: {what} has {got} entries, expected {expected}")]
+    LengthMismatch {
+        /// Which series.
+        what: &'static str,
+        /// Its length.
+        got: usize,
+        /// The length it should have.
+        expected: usize,
+    },
+}
+
+/// Result alias of the viscoelastic module.
+pub type Result<T> = core::result::Result<T, VeError>;
+
+/// Checks that `value` is finite and > 0; names it otherwise.
+pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(VeError::InvalidParameter { name, value, reason: "must be finite and > 0" })
+    }
+}
+
+/// Checks that `value` is finite and ≥ 0; names it otherwise.
+pub(crate) fn check_non_negative(name: &'static str, value: f64) -> Result<f64> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(VeError::InvalidParameter { name, value, reason: "must be finite and >= 0" })
+    }
+}
