@@ -10,31 +10,32 @@
 //! `L_ref` its length at the rest pose where the coder was zeroed to
 //! `d_rest`.
 //!
-//! **Geometry vs the paper's calibrated laws.** The default geometries are
-//! estimates chosen so the paper's laws hold for a rigid rotation about the
-//! joint origin:
+//! **Geometry vs the paper's calibrated laws.** The paper calibrated its
+//! laws against camera images of the real joint, so they include the link's
+//! translation on the cartilage (the base sinks ≈ 0.06 mm per degree as the
+//! holding coil pulls harder). The default geometries are estimates fitted
+//! so the laws hold on the *simulated* joint's quasi-static path (link held
+//! at each angle by one coil, the antagonist cold; `tests/joint_wire.rs`):
 //! - 2D (one sensor on the −x side, Eq. 2 θ = 0.349 d² − 5.525 d + 0.753):
-//!   attachment (−5, 27) mm at the link end, tube entry (−19, −25) mm,
-//!   `d_rest = 0.137` mm (Eq. 2's root at θ = 0). Eq. 2 applied to
-//!   [`ideal_insertion_mm`] stays within 1.8° of θ over ±20° (test
-//!   `eq2_matches_geometry`). With Eq. 2 as printed, `d` *falls* as θ rises,
-//!   so the 2D wire is **pushed in when θ decreases**. The paper's prose says
-//!   the wire is pushed in when the angle increases; we follow the calibrated
-//!   equation, which the brief asks us to match.
+//!   attachment (−4, 14.4) mm on the link, tube entry (−24, −7.9) mm,
+//!   `d_rest = 0.137` mm (Eq. 2's root at θ = 0): Eq. 2 stays within ≈ 2.1°
+//!   of the true angle over ±20° on that path. For a pure rotation about the
+//!   origin ([`ideal_insertion_mm`]) the same geometry is off by up to ≈ 7°:
+//!   the fit compensates the sink, as the paper's calibration did. With Eq. 2
+//!   as printed, `d` *falls* as θ rises, so the 2D wire is **pushed in when
+//!   θ decreases**. The paper's prose says the wire is pushed in when the
+//!   angle increases; we follow the calibrated equation.
 //! - 3D (Eq. 3 α = 2.727 (d3 − d1) + 0.323, β = 2.670 (d4 − d2) + 0.131):
 //!   sensors 1/2 on the −side of their plane, 3/4 mirrored on the + side,
-//!   attachments (∓7.5, 27) mm (α) and (∓6.5, 27) mm (β), tube entries
-//!   (∓13.5, −25) mm and (∓15.0, −25) mm; rest offsets make Eq. 3 give 0 at
-//!   rest (d1 = d2 = 0, d3 = −0.323/2.727, d4 = −0.131/2.670). The
-//!   differential law then matches within 0.03° over ±20°. Sensor 3 (4) is
-//!   pushed in when α (β) rises, sensor 1 (2) when it falls — consistent
-//!   with the paper's threshold law (Eq. 4 uses d3 alone for α < −7.46°,
-//!   where wire 3 is being pulled out and cannot jam).
-//!
-//! The link's translation on the cartilage also changes `d`; the paper's
-//! calibration absorbed it, ours is a pure rotation, so the plant's
-//! quasi-static θ(d) differs from Eq. 2 by the sink of the link (measured in
-//! `tests/joint_wire.rs`).
+//!   attachments (∓7.5, 27) mm (α) and (∓6.5, 27) mm (β) at the link end,
+//!   tube entries (∓13.5, −25) mm and (∓15.0, −25) mm; rest offsets make
+//!   Eq. 3 give 0 at rest (d1 = d2 = 0, d3 = −0.323/2.727,
+//!   d4 = −0.131/2.670). The differential law is insensitive to the sink
+//!   (both wires see it alike): within 0.03° for a pure rotation and
+//!   ≈ 0.2° (α) / 0.65° (β) on the simulated path. Sensor 3 (4) is pushed in
+//!   when α (β) rises, sensor 1 (2) when it falls — consistent with the
+//!   paper's threshold law (Eq. 4 uses d3 alone for α < −7.46°, where wire 3
+//!   is being pulled out and cannot jam).
 //!
 //! **Jamming** (pushing only). The wire buckles and drags in the tube, so the
 //! coder sees less insertion than the geometry gives: a lag `e ≥ 0`,
@@ -73,9 +74,10 @@ pub struct WireGeometry {
 }
 
 impl WireGeometry {
-    /// The 2D sensor (see the module docs; estimate fitted to Eq. 2).
+    /// The 2D sensor (see the module docs; estimate fitted to Eq. 2 on the
+    /// simulated joint's quasi-static path).
     pub fn paper_2d() -> Self {
-        Self { attach_link_mm: [-5.0, 27.0], tube_entry_mm: [-19.0, -25.0], insertion_at_rest_mm: EQ2_REST_MM }
+        Self { attach_link_mm: [-4.0, 14.4], tube_entry_mm: [-24.0, -7.9], insertion_at_rest_mm: EQ2_REST_MM }
     }
 
     /// The 3D sensor `index` ∈ 1..=4 (see the module docs; estimates fitted
@@ -123,9 +125,18 @@ fn free_length_sc_mm(g: &WireGeometry, x_mm: f64, y_mm: f64, s: f64, c: f64) -> 
 
 /// Ideal (jam-free, unquantised) insertion (mm) for a pure rotation by
 /// `theta_rad` about the joint origin, the coder zeroed at θ = 0:
-/// `d = d_rest + L(0) − L(θ)`.
+/// `d = d_rest + L(0) − L(θ)`. This is the rigid-bearing answer; with the
+/// cartilage use [`ideal_insertion_at_pose_mm`] with the link base position.
 pub fn ideal_insertion_mm(g: &WireGeometry, theta_rad: f64) -> f64 {
     g.insertion_at_rest_mm + free_length_mm(g, 0.0, 0.0, 0.0) - free_length_mm(g, 0.0, 0.0, theta_rad)
+}
+
+/// Ideal insertion (mm) with the link base at (`x_mm`, `y_mm`) and angle
+/// `theta_rad`, the coder zeroed at the pose `zero` = (x, y, θ) (mm, mm,
+/// rad): `d = d_rest + L(zero) − L(pose)`. The plant's sensors report this
+/// (before jamming and quantisation), zeroed at the settled rest pose.
+pub fn ideal_insertion_at_pose_mm(g: &WireGeometry, zero: (f64, f64, f64), x_mm: f64, y_mm: f64, theta_rad: f64) -> f64 {
+    g.insertion_at_rest_mm + free_length_mm(g, zero.0, zero.1, zero.2) - free_length_mm(g, x_mm, y_mm, theta_rad)
 }
 
 /// Paper Eq. 2 (2D single-sensor law), degrees from mm.
@@ -138,9 +149,13 @@ pub fn paper_eq3_deg(d_mm: [f64; 4]) -> (f64, f64) {
     (2.727 * (d_mm[2] - d_mm[0]) + 0.323, 2.670 * (d_mm[3] - d_mm[1]) + 0.131)
 }
 
-/// Jamming (stick and buckling) parameters; all estimates, chosen so a
-/// single pushed sensor errs by more than 1° near ±20° while the
-/// differential of an antagonistic pair stays under about half of that.
+/// Jamming (stick and buckling) parameters; all estimates. The defaults
+/// give a lag of ≈ 0.2–0.25 mm after pushing a wire ~3.5 mm in (3D, α from
+/// 0 to 20°): ≈ 2.4° of error for a single pushed sensor, ≈ 1.2° for the
+/// differential law (only the pushed wire of a pair lags), about half of
+/// which is hysteresis a least-squares calibration over an up-and-down sweep
+/// cannot remove — the regime the paper describes (single sensor > 1°,
+/// threshold switching < 1°).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct JamParams {
@@ -161,9 +176,9 @@ pub struct JamParams {
 impl Default for JamParams {
     fn default() -> Self {
         Self {
-            buckling_gain: 0.2,
+            buckling_gain: 0.25,
             max_lag_mm: 0.05,
-            max_lag_per_mm: 0.08,
+            max_lag_per_mm: 0.06,
             stick_per_mm: 1.0,
             stick_min_mm: 0.02,
             stick_max_mm: 0.08,
@@ -331,18 +346,23 @@ mod tests {
     use rand::SeedableRng;
 
     #[test]
-    fn eq2_matches_geometry() {
+    fn eq2_slope_and_sign_match_geometry() {
+        // The full Eq. 2 check needs the cartilage's translation
+        // (tests/joint_wire.rs); for a pure rotation the slope at rest must
+        // still agree with Eq. 2's (−5.43 °/mm) to within the sink
+        // compensation (±40 %), and the sign must.
         let g = WireGeometry::paper_2d();
-        let mut worst: f64 = 0.0;
-        for i in -200..=200 {
-            let th = i as f64 * 0.1;
-            let d = ideal_insertion_mm(&g, th.to_radians());
-            worst = worst.max((paper_eq2_deg(d) - th).abs());
-        }
-        assert!(worst < 2.0, "Eq. 2 vs geometry: worst {worst}°");
+        let h = 0.5f64.to_radians();
+        let dd = ideal_insertion_mm(&g, h) - ideal_insertion_mm(&g, -h);
+        let slope_deg_per_mm = 1.0 / dd;
+        let eq2_slope = 2.0 * 0.349 * EQ2_REST_MM - 5.525;
+        assert!((slope_deg_per_mm / eq2_slope - 1.0).abs() < 0.4, "{slope_deg_per_mm} vs {eq2_slope}");
         assert!((paper_eq2_deg(EQ2_REST_MM)).abs() < 1e-6);
         // Pushed in (d grows) when θ falls.
         assert!(ideal_insertion_mm(&g, -0.1) > ideal_insertion_mm(&g, 0.0));
+        // The pose form reduces to the rotation form at zero translation.
+        let a = ideal_insertion_at_pose_mm(&g, (0.0, 0.0, 0.0), 0.0, 0.0, 0.2);
+        assert_eq!(a, ideal_insertion_mm(&g, 0.2));
     }
 
     #[test]

@@ -1,0 +1,146 @@
+//! Wire sensors on the assembled joints: the paper's calibrated laws (Eq. 2,
+//! Eq. 3) against the true angles on a quasi-static sweep, and jamming on
+//! the pushing side only.
+//!
+//! The sweep holds the link at each target with the paper's antagonistic P
+//! law on the *true* angle (Kp = 2 V/°), 4 s per 1° step — a stand-in for a
+//! camera-referenced calibration, not the controller under test.
+
+use plant_models::joint::wire_sensor::{paper_eq2_deg, paper_eq3_deg};
+use plant_models::joint::{JamParams, Joint2d, Joint2dParams, Joint3d, Joint3dParams};
+
+const DT: f64 = 1e-3;
+
+fn p_law(angle: f64, target: f64) -> [f64; 2] {
+    let e = angle - target;
+    // Raising coil when below the target, lowering coil when above (the
+    // sign that pulls back, see SPEC §1).
+    if e < 0.0 {
+        [1.7 - 2.0 * e, 0.0]
+    } else {
+        [0.0, 1.7 + 2.0 * e]
+    }
+}
+
+/// Targets 0 → ±20° in 1° steps from rest, for each side separately.
+fn targets(sign: f64) -> impl Iterator<Item = f64> {
+    (0..=20).map(move |k| sign * k as f64)
+}
+
+#[test]
+fn eq2_holds_on_the_quasi_static_path_without_jamming() {
+    let mut worst: f64 = 0.0;
+    for sign in [1.0, -1.0] {
+        let mut p = Joint2dParams::default();
+        p.wire.jam = JamParams::none();
+        let mut j = Joint2d::new(p).unwrap();
+        for t in targets(sign) {
+            for _ in 0..4000 {
+                j.step(DT, &p_law(j.angle_deg(), t)).unwrap();
+            }
+            let err = paper_eq2_deg(j.wire_insertion_mm()) - j.angle_deg();
+            worst = worst.max(err.abs());
+        }
+    }
+    println!("Eq. 2 on the simulated 2D joint, no jamming: worst {worst:.2}°");
+    assert!(worst < 2.5, "Eq. 2 off by {worst:.2}°");
+}
+
+#[test]
+fn eq3_holds_on_the_quasi_static_path_without_jamming() {
+    let mut worst = [0.0f64; 2];
+    for sign in [1.0, -1.0] {
+        let mut p = Joint3dParams::default();
+        for w in p.wires.iter_mut() {
+            w.jam = JamParams::none();
+        }
+        let mut j = Joint3d::new(p).unwrap();
+        for t in targets(sign) {
+            // α to t, β to −t/2: both planes move, in opposite directions.
+            for _ in 0..4000 {
+                let [a, b] = j.angles_deg();
+                let va = p_law(a, t);
+                let vb = p_law(b, -0.5 * t);
+                j.step(DT, &[va[0], vb[0], va[1], vb[1]]).unwrap();
+            }
+            let (ae, be) = paper_eq3_deg(j.wire_insertions_mm());
+            let [a, b] = j.angles_deg();
+            worst[0] = worst[0].max((ae - a).abs());
+            worst[1] = worst[1].max((be - b).abs());
+        }
+    }
+    println!("Eq. 3 on the simulated 3D joint, no jamming: worst α {:.2}°, β {:.2}°", worst[0], worst[1]);
+    assert!(worst[0] < 1.0 && worst[1] < 1.0, "Eq. 3 off by {worst:?}°");
+}
+
+/// Angle error (deg) of the single-sensor reading: the jamming lag through
+/// Eq. 2's local slope.
+fn eq2_error(j: &Joint2d) -> f64 {
+    paper_eq2_deg(j.wire_insertion_mm()) - paper_eq2_deg(j.wire().ideal_insertion_mm())
+}
+
+#[test]
+fn jamming_errs_when_pushing_and_not_when_pulling() {
+    let mut j = Joint2d::new(Joint2dParams::default()).unwrap();
+    // Pulling side first (θ rises: the 2D wire comes out of its tube).
+    let mut worst_pull: f64 = 0.0;
+    for t in targets(1.0) {
+        for _ in 0..2000 {
+            j.step(DT, &p_law(j.angle_deg(), t)).unwrap();
+            worst_pull = worst_pull.max(eq2_error(&j).abs());
+        }
+    }
+    // Then all the way down to −20° (pushed in).
+    let mut worst_push: f64 = 0.0;
+    for t in (-20..=20).rev().map(f64::from) {
+        for _ in 0..2000 {
+            j.step(DT, &p_law(j.angle_deg(), t)).unwrap();
+            worst_push = worst_push.max(eq2_error(&j).abs());
+        }
+    }
+    println!("2D jamming: single-sensor error pulling {worst_pull:.3}°, pushing {worst_push:.3}°");
+    // Pulling: only the quantisation (0.01 mm ≈ 0.06°) remains. Pushing:
+    // an order of magnitude more (Eq. 2 flattens at deep insertion, so the
+    // 2D error in degrees is smaller than the 3D single-sensor one).
+    assert!(worst_pull < 0.1, "error while pulling {worst_pull}");
+    assert!(worst_push > 0.5 && worst_push > 10.0 * worst_pull, "jamming error while pushing only {worst_push}");
+}
+
+#[test]
+fn only_the_pushed_wire_of_a_pair_jams() {
+    let mut j = Joint3d::new(Joint3dParams::default()).unwrap();
+    let (mut single, mut diff) = (0.0f64, 0.0f64);
+    let lags = |j: &Joint3d| {
+        let w = j.wires();
+        (w[0].ideal_insertion_mm() - w[0].insertion_mm(), w[2].ideal_insertion_mm() - w[2].insertion_mm())
+    };
+    let mut at_top = (0.0, 0.0);
+    let mut at_bottom = (0.0, 0.0);
+    let sweep = (0..=20).chain((-20..20).rev()).chain(-20..=0).map(f64::from);
+    for (k, t) in sweep.enumerate() {
+        for _ in 0..2000 {
+            let [a, _] = j.angles_deg();
+            let va = p_law(a, t);
+            j.step(DT, &[va[0], 0.0, va[1], 0.0]).unwrap();
+            let (lag1, lag3) = lags(&j);
+            // Single sensor: each wire carries half of Eq. 3's 2.727 °/mm.
+            single = single.max(2.0 * 2.727 * lag1.abs()).max(2.0 * 2.727 * lag3.abs());
+            // Differential law: what the jam does to Eq. 3's α.
+            diff = diff.max((2.727 * (lag3 - lag1)).abs());
+        }
+        if k == 20 {
+            at_top = lags(&j);
+        }
+        if k == 60 {
+            at_bottom = lags(&j);
+        }
+    }
+    println!("3D α jamming: single-sensor error up to {single:.3}°, differential up to {diff:.3}°");
+    println!("lags (wire 1, wire 3) at +20°: {at_top:.3?} mm, at −20°: {at_bottom:.3?} mm");
+    assert!(single > 1.0, "single-sensor jamming error only {single}");
+    // At +20° wire 3 was pushed in and lags; wire 1 was pulled out and has
+    // shed its lag. At −20° the other way round.
+    assert!(at_top.1 > 0.1 && at_top.0 < at_top.1 / 3.0, "at +20°: {at_top:?}");
+    assert!(at_bottom.0 > 0.1 && at_bottom.1 < at_bottom.0 / 3.0, "at −20°: {at_bottom:?}");
+    assert!(diff < 0.6 * single, "differential error {diff} vs single {single}");
+}
