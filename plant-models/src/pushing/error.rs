@@ -1,0 +1,63 @@
+//! The one error type of the pushing module: every variant names the bad
+//! parameter or the bad piece of input so that a caller can fix it.
+use thiserror::Error;
+
+/// Why a pushing-model operation refused its input.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum PushError {
+    /// A named scalar parameter is NaN/infinite or outside its valid range.
+    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
+        name: &'static str,
+        value: f64,
+        reason: &'static str,
+    },
+    /// A mesh could not be built or validated.
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(String),
+    /// Input data (a CSV file, a series of frames) is malformed.
+    #[error("malformed input at {location}: {reason}")]
+    MalformedInput { location: String, reason: String },
+    /// Two series that must line up (frames, forces, ground truth) do not.
+    #[error("length mismatch: {what} has {got} entries, expected {expected}")]
+    LengthMismatch {
+        what: &'static str,
+        got: usize,
+        expected: usize,
+    },
+}
+
+/// Result alias of the pushing module.
+pub type Result<T> = core::result::Result<T, PushError>;
+
+/// Checks that `value` is finite and inside `[min, max]`; names it otherwise.
+pub(crate) fn check_range(name: &'static str, value: f64, min: f64, max: f64) -> Result<f64> {
+    if !value.is_finite() {
+        return Err(PushError::InvalidParameter {
+            name,
+            value,
+            reason: "must be a finite number",
+        });
+    }
+    if value < min || value > max {
+        return Err(PushError::InvalidParameter {
+            name,
+            value,
+            reason: "outside its allowed range",
+        });
+    }
+    Ok(value)
+}
+
+/// Checks that `value` is finite and strictly positive.
+pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64> {
+    if !value.is_finite() || value <= 0.0 {
+        return Err(PushError::InvalidParameter {
+            name,
+            value,
+            reason: "must be finite and > 0",
+        });
+    }
+    Ok(value)
+}

@@ -1,0 +1,216 @@
+//! Occupancy images and the pixel F-score of §VII-B (Eq. 16–19).
+//!
+//! Shapes are rasterised onto a fixed grid of square cells; a cell is
+//! occupied when its centre lies inside the shape. With `cell_px = 1` a cell
+//! is one camera pixel as in the seed; larger cells trade resolution for
+//! speed. The mesh is rasterised triangle by triangle (the union), a tracked
+//! contour as a polygon (even–odd rule).
+use super::error::{check_positive, PushError, Result};
+use super::mesh::Mesh;
+use super::V2;
+use serde::{Deserialize, Serialize};
+
+/// A grid of square cells covering a region of the image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RasterGrid {
+    /// Lower-left corner, px.
+    pub origin_px: V2,
+    /// Cell side, px.
+    pub cell_px: f64,
+    pub nx: usize,
+    pub ny: usize,
+}
+
+impl RasterGrid {
+    /// A grid covering [lo, hi] with cells of `cell_px`.
+    pub fn covering(lo_px: V2, hi_px: V2, cell_px: f64) -> Result<Self> {
+        check_positive("cell_px", cell_px)?;
+        let span = hi_px - lo_px;
+        if !(span.x.is_finite() && span.y.is_finite()) || span.x <= 0.0 || span.y <= 0.0 {
+            return Err(PushError::InvalidParameter { name: "raster region", value: span.x.min(span.y), reason: "must have a positive finite size" });
+        }
+        let nx = (span.x / cell_px).ceil() as usize;
+        let ny = (span.y / cell_px).ceil() as usize;
+        if nx.saturating_mul(ny) > 50_000_000 {
+            return Err(PushError::InvalidParameter { name: "cell_px", value: cell_px, reason: "too small for the region (over 5e7 cells)" });
+        }
+        Ok(Self { origin_px: lo_px, cell_px, nx, ny })
+    }
+
+    /// An empty image on this grid.
+    pub fn empty(&self) -> Bitmap {
+        Bitmap { nx: self.nx, ny: self.ny, words_per_row: self.nx.div_ceil(64), bits: vec![0; self.nx.div_ceil(64) * self.ny] }
+    }
+
+    /// Centre of cell (i, j), px.
+    #[inline]
+    pub fn cell_centre(&self, i: usize, j: usize) -> V2 {
+        V2::new(self.origin_px.x + (i as f64 + 0.5) * self.cell_px, self.origin_px.y + (j as f64 + 0.5) * self.cell_px)
+    }
+
+    /// Range of cell indices whose centres lie in [lo, hi] along x (or y).
+    #[inline]
+    fn index_range(&self, lo: f64, hi: f64, origin: f64, n: usize) -> Option<(usize, usize)> {
+        let a = ((lo - origin) / self.cell_px - 0.5).ceil();
+        let b = ((hi - origin) / self.cell_px - 0.5).floor();
+        if !(a.is_finite() && b.is_finite()) || b < 0.0 || a > (n as f64 - 1.0) || a > b {
+            return None;
+        }
+        Some((a.max(0.0) as usize, (b.min(n as f64 - 1.0)) as usize))
+    }
+}
+
+/// A binary image, one bit per cell, rows of 64-bit words.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Bitmap {
+    pub nx: usize,
+    pub ny: usize,
+    words_per_row: usize,
+    bits: Vec<u64>,
+}
+
+impl Bitmap {
+    pub fn clear(&mut self) {
+        self.bits.iter_mut().for_each(|w| *w = 0);
+    }
+    #[inline]
+    pub fn get(&self, i: usize, j: usize) -> bool {
+        self.bits[j * self.words_per_row + i / 64] >> (i % 64) & 1 == 1
+    }
+    /// Sets cells i0..=i1 of row j.
+    #[inline]
+    fn set_span(&mut self, j: usize, i0: usize, i1: usize) {
+        let row = j * self.words_per_row;
+        let (w0, w1) = (i0 / 64, i1 / 64);
+        for w in w0..=w1 {
+            let lo = if w == w0 { i0 % 64 } else { 0 };
+            let hi = if w == w1 { i1 % 64 } else { 63 };
+            self.bits[row + w] |= span_mask(lo, hi);
+        }
+    }
+    /// Toggles cells i0..=i1 of row j (even–odd polygon filling).
+    #[inline]
+    fn toggle_span(&mut self, j: usize, i0: usize, i1: usize) {
+        let row = j * self.words_per_row;
+        let (w0, w1) = (i0 / 64, i1 / 64);
+        for w in w0..=w1 {
+            let lo = if w == w0 { i0 % 64 } else { 0 };
+            let hi = if w == w1 { i1 % 64 } else { 63 };
+            self.bits[row + w] ^= span_mask(lo, hi);
+        }
+    }
+    /// Number of occupied cells.
+    pub fn count(&self) -> u64 {
+        self.bits.iter().map(|w| w.count_ones() as u64).sum()
+    }
+}
+
+/// Bits lo..=hi of a word set (lo ≤ hi < 64).
+#[inline]
+fn span_mask(lo: usize, hi: usize) -> u64 {
+    let upper = if hi == 63 { u64::MAX } else { (1u64 << (hi + 1)) - 1 };
+    upper & !((1u64 << lo) - 1)
+}
+
+/// Fills the triangle's cells (either orientation) into `img`.
+pub fn fill_triangle(grid: &RasterGrid, img: &mut Bitmap, a: V2, b: V2, c: V2) {
+    let ylo = a.y.min(b.y).min(c.y);
+    let yhi = a.y.max(b.y).max(c.y);
+    let Some((j0, j1)) = grid.index_range(ylo, yhi, grid.origin_px.y, grid.ny) else { return };
+    let verts = [a, b, c];
+    for j in j0..=j1 {
+        let y = grid.origin_px.y + (j as f64 + 0.5) * grid.cell_px;
+        // Intersect the horizontal line with the three edges.
+        let mut xmin = f64::INFINITY;
+        let mut xmax = f64::NEG_INFINITY;
+        for k in 0..3 {
+            let p = verts[k];
+            let q = verts[(k + 1) % 3];
+            if (p.y <= y && q.y >= y) || (q.y <= y && p.y >= y) {
+                let x = if (q.y - p.y).abs() < 1e-300 { p.x.min(q.x) } else { p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y) };
+                let x2 = if (q.y - p.y).abs() < 1e-300 { p.x.max(q.x) } else { x };
+                xmin = xmin.min(x);
+                xmax = xmax.max(x2);
+            }
+        }
+        if xmin > xmax {
+            continue;
+        }
+        if let Some((i0, i1)) = grid.index_range(xmin, xmax, grid.origin_px.x, grid.nx) {
+            img.set_span(j, i0, i1);
+        }
+    }
+}
+
+/// Rasterises the union of the mesh's triangles at `positions_px`.
+pub fn rasterise_mesh(grid: &RasterGrid, img: &mut Bitmap, mesh: &Mesh, positions_px: &[V2]) {
+    img.clear();
+    for &[a, b, c] in &mesh.triangles {
+        fill_triangle(grid, img, positions_px[a], positions_px[b], positions_px[c]);
+    }
+}
+
+/// Rasterises a closed polygon (even–odd rule).
+pub fn rasterise_polygon(grid: &RasterGrid, img: &mut Bitmap, polygon_px: &[V2]) {
+    img.clear();
+    let n = polygon_px.len();
+    if n < 3 {
+        return;
+    }
+    let mut xs: Vec<f64> = Vec::with_capacity(16);
+    for j in 0..grid.ny {
+        let y = grid.origin_px.y + (j as f64 + 0.5) * grid.cell_px;
+        xs.clear();
+        for k in 0..n {
+            let p = polygon_px[k];
+            let q = polygon_px[(k + 1) % n];
+            // Half-open rule so a vertex on the scan line counts once.
+            if (p.y <= y) != (q.y <= y) {
+                xs.push(p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y));
+            }
+        }
+        xs.sort_by(|a, b| a.total_cmp(b));
+        for pair in xs.chunks_exact(2) {
+            if let Some((i0, i1)) = grid.index_range(pair[0], pair[1], grid.origin_px.x, grid.nx) {
+                img.toggle_span(j, i0, i1);
+            }
+        }
+    }
+}
+
+/// Pixel counts and F-score of one frame (Eq. 16–18).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FrameScore {
+    pub true_positive: u64,
+    pub false_positive: u64,
+    pub false_negative: u64,
+    /// F = 1 / (1 + (FN + FP) / (2 TP)); 0 when TP = 0.
+    pub f_score: f64,
+}
+
+/// Compares a prediction with the ground truth (same grid).
+pub fn f_score(truth: &Bitmap, predicted: &Bitmap) -> FrameScore {
+    debug_assert_eq!(truth.bits.len(), predicted.bits.len());
+    let (mut tp, mut fp, mut fneg) = (0u64, 0u64, 0u64);
+    for (t, p) in truth.bits.iter().zip(&predicted.bits) {
+        tp += (t & p).count_ones() as u64;
+        fp += (!t & p).count_ones() as u64;
+        fneg += (t & !p).count_ones() as u64;
+    }
+    let f = if tp == 0 { 0.0 } else { 1.0 / (1.0 + (fneg + fp) as f64 / (2.0 * tp as f64)) };
+    FrameScore { true_positive: tp, false_positive: fp, false_negative: fneg, f_score: f }
+}
+
+/// Running mean μ(F) after every frame (Eq. 19 as the mean over the frames
+/// so far, as the text below it defines).
+pub fn running_mean(f_per_frame: &[f64]) -> Vec<f64> {
+    let mut sum = 0.0;
+    f_per_frame
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            sum += f;
+            sum / (i + 1) as f64
+        })
+        .collect()
+}
