@@ -147,6 +147,12 @@ fn check_ranges(ranges: &[ParamRange; 8]) -> Result<()> {
     Ok(())
 }
 
+/// A completely new candidate (Algorithm 5 lines 12–18): every parameter
+/// log-uniform in its range, spring constants 0 with probability `p_special`.
+pub fn new_candidate(rng: &mut ChaCha8Rng, ranges: &[ParamRange; 8], p_special: f64) -> [f64; 8] {
+    core::array::from_fn(|k| log_uniform(rng, &ranges[k], p_special))
+}
+
 fn log_uniform(rng: &mut ChaCha8Rng, r: &ParamRange, p_special: f64) -> f64 {
     if r.allows_zero && rng.gen::<f64>() < p_special {
         return 0.0;
@@ -166,8 +172,7 @@ fn mutate(rng: &mut ChaCha8Rng, value: f64, r: &ParamRange, sigma: f64, p_specia
     let (lo, hi) = (r.min.ln(), r.max.ln());
     let z: f64 = StandardNormal.sample(rng);
     let mut x = value.ln() + z * sigma / 1000.0 * (hi - lo);
-    // Reflect into [lo, hi].
-    let w = hi - lo;
+    // Reflect into [lo, hi] (a few bounces, then clamp).
     for _ in 0..4 {
         if x < lo {
             x = 2.0 * lo - x;
@@ -175,9 +180,7 @@ fn mutate(rng: &mut ChaCha8Rng, value: f64, r: &ParamRange, sigma: f64, p_specia
             x = 2.0 * hi - x;
         }
     }
-    x = x.clamp(lo, hi);
-    let _ = w;
-    x.exp()
+    x.clamp(lo, hi).exp()
 }
 
 /// Runs Algorithm 5, maximising `fitness` (μ(F) in the seed). Candidates
@@ -191,7 +194,7 @@ where
     check_ranges(ranges)?;
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
     let n = settings.population();
-    let mut pop: Vec<[f64; 8]> = (0..n).map(|_| core::array::from_fn(|k| log_uniform(&mut rng, &ranges[k], settings.p_special))).collect();
+    let mut pop: Vec<[f64; 8]> = (0..n).map(|_| new_candidate(&mut rng, ranges, settings.p_special)).collect();
     let mut scores: Vec<Option<f64>> = vec![None; n];
     let d_sigma = (settings.sigma_max - settings.sigma_min) / settings.generations as f64;
     let mut sigma = settings.sigma_max;
@@ -253,7 +256,7 @@ where
             next_scores.push(None);
         }
         for _ in 0..settings.newcomers {
-            next.push(core::array::from_fn(|k| log_uniform(&mut rng, &ranges[k], settings.p_special)));
+            next.push(new_candidate(&mut rng, ranges, settings.p_special));
             next_scores.push(None);
         }
         pop = next;
