@@ -19,7 +19,10 @@
 
 pub mod dgfm;
 pub mod error;
+pub mod estimate;
 pub mod fem;
+pub mod fit;
+pub mod measure;
 pub mod mesh;
 pub mod object;
 

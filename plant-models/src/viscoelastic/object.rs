@@ -390,7 +390,7 @@ pub struct ProbeEvent {
 /// every haptic sample.
 pub fn run_script(haptic: &mut HapticLoop, events: &[ProbeEvent], duration_s: f64) -> Result<Vec<HapticSample>> {
     super::error::check_positive("duration_s", duration_s)?;
-    if events.windows(2).any(|w| !(w[1].time_s > w[0].time_s)) {
+    if events.windows(2).any(|w| w[1].time_s.partial_cmp(&w[0].time_s) != Some(std::cmp::Ordering::Greater)) {
         return Err(VeError::InvalidParameter { name: "probe events", value: f64::NAN, reason: "event times must be strictly increasing" });
     }
     let steps = (duration_s / HAPTIC_PERIOD_S).round() as u64;
