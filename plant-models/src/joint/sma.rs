@@ -242,6 +242,8 @@ pub struct SmaCoil {
     params: SmaParams,
     heat_capacity_j_k: f64,
     conductance_w_k: f64,
+    resistance_martensite_ohm: f64,
+    resistance_austenite_ohm: f64,
     cached_dt_s: f64,
     cached_decay: f64,
     temperature_c: f64,
@@ -262,6 +264,8 @@ impl SmaCoil {
         Ok(Self {
             heat_capacity_j_k: params.heat_capacity_j_k(),
             conductance_w_k: params.conductance_w_k(),
+            resistance_martensite_ohm: params.resistance_ohm(1.0),
+            resistance_austenite_ohm: params.resistance_ohm(0.0),
             cached_dt_s: 0.0,
             cached_decay: 1.0,
             temperature_c: t,
@@ -291,9 +295,11 @@ impl SmaCoil {
         self.current_a
     }
 
-    /// Present resistance (Ω).
+    /// Present resistance (Ω) (resistivity mixed linearly by phase).
+    #[inline]
     pub fn resistance_ohm(&self) -> f64 {
-        self.params.resistance_ohm(self.martensite_fraction)
+        let xi = self.martensite_fraction;
+        xi * self.resistance_martensite_ohm + (1.0 - xi) * self.resistance_austenite_ohm
     }
 
     /// Present spring rate (N/m), mixed linearly by phase.

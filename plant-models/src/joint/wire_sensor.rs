@@ -120,7 +120,8 @@ fn free_length_sc_mm(g: &WireGeometry, x_mm: f64, y_mm: f64, s: f64, c: f64) -> 
     let [qx, qy] = g.attach_link_mm;
     let wx = x_mm + qx * c + qy * s;
     let wy = y_mm - qx * s + qy * c;
-    (wx - g.tube_entry_mm[0]).hypot(wy - g.tube_entry_mm[1])
+    let (dx, dy) = (wx - g.tube_entry_mm[0], wy - g.tube_entry_mm[1]);
+    (dx * dx + dy * dy).sqrt()
 }
 
 /// Ideal (jam-free, unquantised) insertion (mm) for a pure rotation by
