@@ -81,12 +81,16 @@ pub struct SensorGuard<const S: usize> {
     limits: SensorLimits,
     value: [f32; S],
     last_ok_s: [Option<f32>; S],
+    /// Time of the first check: a channel that has never delivered is
+    /// stale only once the stale limit has passed since then (a camera's
+    /// first frame arrives one frame period after start).
+    started_s: Option<f32>,
 }
 
 impl<const S: usize> SensorGuard<S> {
     /// A guard with nothing read yet.
     pub fn new(limits: SensorLimits) -> Self {
-        Self { limits, value: [0.0; S], last_ok_s: [None; S] }
+        Self { limits, value: [0.0; S], last_ok_s: [None; S], started_s: None }
     }
 
     /// The limits in use.
@@ -97,6 +101,7 @@ impl<const S: usize> SensorGuard<S> {
     /// Forgets all readings.
     pub fn reset(&mut self) {
         self.last_ok_s = [None; S];
+        self.started_s = None;
     }
 
     /// Checks the readings taken at `now_s` (`None`: no new reading on that
@@ -107,6 +112,7 @@ impl<const S: usize> SensorGuard<S> {
     pub fn check(&mut self, now_s: f32, readings: &[Option<f32>; S]) -> ([f32; S], Faults) {
         let mut faults = Faults::NONE;
         let lim = self.limits;
+        let started = *self.started_s.get_or_insert(now_s);
         for ((value, last), reading) in self.value.iter_mut().zip(self.last_ok_s.iter_mut()).zip(readings.iter()) {
             if let Some(r) = *reading {
                 if !r.is_finite() || r < lim.min || r > lim.max {
@@ -126,7 +132,8 @@ impl<const S: usize> SensorGuard<S> {
                 }
             }
             match *last {
-                None => faults |= Faults::SENSOR_STALE,
+                None if !is_fresh(now_s - started, lim.stale_after_s) => faults |= Faults::SENSOR_STALE,
+                None => {}
                 Some(t) if !is_fresh(now_s - t, lim.stale_after_s) => faults |= Faults::SENSOR_STALE,
                 Some(_) => {}
             }
@@ -149,7 +156,11 @@ mod tests {
     fn range_rate_and_staleness_are_flagged() {
         let mut g = SensorGuard::<2>::new(SensorLimits::WIRE_DEFAULT);
         let (_, f) = g.check(0.0, &[Some(1.0), None]);
-        assert_eq!(f, Faults::SENSOR_STALE, "channel 1 never read");
+        assert_eq!(f, Faults::NONE, "a channel gets the stale limit to deliver its first reading");
+        let (_, f) = g.check(0.051, &[Some(1.0), None]);
+        assert_eq!(f, Faults::SENSOR_STALE, "channel 1 never read within 50 ms");
+        let mut g = SensorGuard::<2>::new(SensorLimits::WIRE_DEFAULT);
+        g.check(0.0, &[Some(1.0), Some(0.0)]);
         let (v, f) = g.check(0.001, &[Some(1.1), Some(0.0)]);
         assert_eq!(f, Faults::NONE);
         assert_eq!(v, [1.1, 0.0]);

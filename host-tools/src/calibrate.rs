@@ -1,0 +1,493 @@
+//! Calibrating the wire-sensor laws against reference angles, as the paper
+//! did against camera images (seed 000, last paper, Fig. 14, 20, 22).
+//!
+//! Input: a sweep of insertions and reference angles (CSV). For each angle
+//! the tool fits, with the core's least-squares accumulators
+//! ([`firmware::fit::PolyFit`]):
+//! - the single-sensor quadratic (Eq. 2) on the sensor that is *pulled out*
+//!   on the low side (d3 for α, d4 for β, the only sensor in 2D);
+//! - the differential linear law (Eq. 3) on d3 − d1 (α) or d4 − d2 (β);
+//! - threshold switching (Eq. 4): for each candidate threshold on a 0.1°
+//!   grid the quadratic is fitted to the rows below it and the linear law to
+//!   the rows at or above it, the switching estimator (as the firmware runs
+//!   it, hysteresis included, over the sweep in order) is evaluated on every
+//!   row, and the threshold with the smallest worst-case error wins.
+//!
+//! The chosen estimator is the one with the smallest worst-case error.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{bail, Context};
+use firmware::estimate::{LinearLaw, PlaneEstimator, PlaneLaw, QuadraticLaw, DEFAULT_HYSTERESIS_DEG};
+use firmware::fit::PolyFit;
+use serde::{Deserialize, Serialize};
+
+/// One calibration sample: insertions (mm) and reference angles (deg).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepRow {
+    /// Insertions d1..dS (mm).
+    pub d_mm: Vec<f64>,
+    /// Reference angles: [θ] (2D) or [α, β] (3D).
+    pub angle_deg: Vec<f64>,
+}
+
+/// Header of a 3D sweep file.
+pub const HEADER_3D: &str = "d1_mm,d2_mm,d3_mm,d4_mm,alpha_deg,beta_deg";
+/// Header of a 2D sweep file.
+pub const HEADER_2D: &str = "d_mm,theta_deg";
+
+/// Writes a sweep as CSV (3D if rows have 4 insertions, else 2D).
+pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
+    let three_d = rows.first().map(|r| r.d_mm.len() == 4).unwrap_or(true);
+    let mut s = String::new();
+    s.push_str(if three_d { HEADER_3D } else { HEADER_2D });
+    s.push('\n');
+    for r in rows {
+        let cells: Vec<String> = r.d_mm.iter().chain(r.angle_deg.iter()).map(|v| format!("{v:.5}")).collect();
+        s.push_str(&cells.join(","));
+        s.push('\n');
+    }
+    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Reads a sweep CSV; a bad row is an error naming the file and line.
+pub fn read_sweep(path: &Path) -> anyhow::Result<Vec<SweepRow>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    parse_sweep(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// Parses sweep CSV text (header required: 3D or 2D columns, any order).
+pub fn parse_sweep(text: &str) -> anyhow::Result<Vec<SweepRow>> {
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some((_, header)) = lines.next() else { bail!("empty file: expected a header") };
+    let cols: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
+    let find = |name: &str| cols.iter().position(|c| *c == name);
+    let (d_cols, a_cols): (Vec<usize>, Vec<usize>) = if let (Some(d1), Some(d2), Some(d3), Some(d4), Some(a), Some(b)) =
+        (find("d1_mm"), find("d2_mm"), find("d3_mm"), find("d4_mm"), find("alpha_deg"), find("beta_deg"))
+    {
+        (vec![d1, d2, d3, d4], vec![a, b])
+    } else if let (Some(d), Some(t)) = (find("d_mm"), find("theta_deg")) {
+        (vec![d], vec![t])
+    } else {
+        bail!("line 1: header must have columns `{HEADER_3D}` (3D) or `{HEADER_2D}` (2D), got `{header}`");
+    };
+    let mut rows = Vec::new();
+    for (i, line) in lines {
+        let lineno = i + 1;
+        let cells: Vec<&str> = line.split(',').map(|c| c.trim()).collect();
+        if cells.len() != cols.len() {
+            bail!("line {lineno}: expected {} fields, got {}", cols.len(), cells.len());
+        }
+        let num = |c: usize| -> anyhow::Result<f64> {
+            let v: f64 = cells[c].parse().map_err(|_| anyhow::anyhow!("line {lineno}: column `{}`: not a number: `{}`", cols[c], cells[c]))?;
+            if !v.is_finite() {
+                bail!("line {lineno}: column `{}`: not finite", cols[c]);
+            }
+            Ok(v)
+        };
+        let d_mm = d_cols.iter().map(|&c| num(c)).collect::<anyhow::Result<Vec<_>>>()?;
+        let angle_deg = a_cols.iter().map(|&c| num(c)).collect::<anyhow::Result<Vec<_>>>()?;
+        rows.push(SweepRow { d_mm, angle_deg });
+    }
+    if rows.len() < 10 {
+        bail!("need at least 10 data rows to calibrate, got {}", rows.len());
+    }
+    Ok(rows)
+}
+
+/// Max and RMS error of one method over the sweep (deg).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ErrorStats {
+    /// Worst-case |estimate − reference|.
+    pub max_error_deg: f64,
+    /// Root mean square error.
+    pub rms_error_deg: f64,
+}
+
+/// The fits of one angle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlaneFit {
+    /// "alpha", "beta" or "theta".
+    pub angle: String,
+    /// Single-sensor quadratic over the whole sweep, and its errors.
+    pub single: (LawSpec, ErrorStats),
+    /// Differential law over the whole sweep (3D only).
+    pub differential: Option<(LawSpec, ErrorStats)>,
+    /// Threshold switching (3D only).
+    pub switching: Option<(LawSpec, ErrorStats)>,
+    /// The method with the smallest worst-case error.
+    pub chosen: LawSpec,
+    /// Its errors.
+    pub chosen_errors: ErrorStats,
+}
+
+/// A law as stored in calibration files (sensor numbers 1-based, as the
+/// paper numbers them).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "method", rename_all = "snake_case", deny_unknown_fields)]
+pub enum LawSpec {
+    /// Eq. 2 on sensor `sensor`.
+    Single {
+        /// Sensor (1-based).
+        sensor: u8,
+        /// d² coefficient (deg/mm²).
+        a: f64,
+        /// d coefficient (deg/mm).
+        b: f64,
+        /// Constant (deg).
+        c: f64,
+    },
+    /// Eq. 3 on d[plus] − d[minus].
+    Differential {
+        /// Sensor pushed in as the angle rises (1-based).
+        plus: u8,
+        /// The antagonistic sensor (1-based).
+        minus: u8,
+        /// Slope (deg/mm).
+        gain: f64,
+        /// Offset (deg).
+        offset: f64,
+    },
+    /// Eq. 4.
+    Switching {
+        /// Differential branch, plus sensor (1-based).
+        plus: u8,
+        /// Differential branch, minus sensor (1-based).
+        minus: u8,
+        /// Slope (deg/mm).
+        gain: f64,
+        /// Offset (deg).
+        offset: f64,
+        /// Single-sensor branch sensor (1-based).
+        sensor: u8,
+        /// d² coefficient.
+        a: f64,
+        /// d coefficient.
+        b: f64,
+        /// Constant.
+        c: f64,
+        /// Switching angle (deg).
+        threshold_deg: f64,
+        /// Hysteresis band (deg).
+        hysteresis_deg: f64,
+    },
+}
+
+impl LawSpec {
+    /// The core's law (sensor numbers to 0-based indices).
+    pub fn to_law(&self) -> anyhow::Result<PlaneLaw> {
+        let idx = |s: u8| -> anyhow::Result<u8> {
+            if s == 0 {
+                bail!("sensor numbers are 1-based, got 0");
+            }
+            Ok(s - 1)
+        };
+        Ok(match *self {
+            LawSpec::Single { sensor, a, b, c } => {
+                PlaneLaw::Single { sensor: idx(sensor)?, law: QuadraticLaw { a: a as f32, b: b as f32, c: c as f32 } }
+            }
+            LawSpec::Differential { plus, minus, gain, offset } => PlaneLaw::Differential {
+                plus: idx(plus)?,
+                minus: idx(minus)?,
+                law: LinearLaw { gain: gain as f32, offset: offset as f32 },
+            },
+            LawSpec::Switching { plus, minus, gain, offset, sensor, a, b, c, threshold_deg, hysteresis_deg } => {
+                PlaneLaw::Switching {
+                    plus: idx(plus)?,
+                    minus: idx(minus)?,
+                    high: LinearLaw { gain: gain as f32, offset: offset as f32 },
+                    sensor: idx(sensor)?,
+                    low: QuadraticLaw { a: a as f32, b: b as f32, c: c as f32 },
+                    threshold_deg: threshold_deg as f32,
+                    hysteresis_deg: hysteresis_deg as f32,
+                }
+            }
+        })
+    }
+
+    /// The threshold (switching only).
+    pub fn threshold_deg(&self) -> Option<f64> {
+        match self {
+            LawSpec::Switching { threshold_deg, .. } => Some(*threshold_deg),
+            _ => None,
+        }
+    }
+}
+
+/// A calibration file: one law per angle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationFile {
+    /// α (3D) or θ (2D).
+    pub alpha: LawSpec,
+    /// β (3D only).
+    #[serde(default)]
+    pub beta: Option<LawSpec>,
+}
+
+impl CalibrationFile {
+    /// Reads and validates a calibration file.
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read calibration {}", path.display()))?;
+        let c: CalibrationFile =
+            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        for (name, law) in [("alpha", Some(&c.alpha)), ("beta", c.beta.as_ref())] {
+            if let Some(l) = law {
+                let sensors = if c.beta.is_some() { 4 } else { 1 };
+                l.to_law()
+                    .and_then(|pl| pl.validate(sensors).map_err(|e| anyhow::anyhow!("{e:?}")))
+                    .map_err(|e| anyhow::anyhow!("{}: law `{name}`: {e}", path.display()))?;
+            }
+        }
+        Ok(c)
+    }
+
+    /// Writes it as TOML.
+    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        let text = toml::to_string_pretty(self)?;
+        let header = "# Wire-sensor calibration written by `softjoint calibrate wire`.\n\
+                      # Sensor numbers are 1-based (the paper's d1..d4); angles in degrees, insertions in mm.\n";
+        std::fs::write(path, format!("{header}{text}")).with_context(|| format!("cannot write {}", path.display()))
+    }
+
+    /// The laws for the core.
+    pub fn laws(&self) -> anyhow::Result<Vec<PlaneLaw>> {
+        let mut v = vec![self.alpha.to_law()?];
+        if let Some(b) = &self.beta {
+            v.push(b.to_law()?);
+        }
+        Ok(v)
+    }
+}
+
+/// Runs an estimator over the rows in order and returns its errors.
+fn evaluate<const S: usize>(law: PlaneLaw, rows: &[SweepRow], plane: usize) -> Option<ErrorStats> {
+    let mut est = PlaneEstimator::<S>::new(law).ok()?;
+    let (mut max, mut sq) = (0.0f64, 0.0f64);
+    for r in rows {
+        let d: [f32; S] = core::array::from_fn(|k| r.d_mm.get(k).copied().unwrap_or(f64::NAN) as f32);
+        let e = f64::from(est.estimate(&d).angle_deg) - r.angle_deg[plane];
+        max = max.max(e.abs());
+        sq += e * e;
+    }
+    Some(ErrorStats { max_error_deg: max, rms_error_deg: (sq / rows.len().max(1) as f64).sqrt() })
+}
+
+fn fit_quadratic(rows: impl Iterator<Item = (f64, f64)>) -> Option<[f64; 3]> {
+    let mut f = PolyFit::quadratic(0.0);
+    rows.for_each(|(x, y)| f.add(x, y));
+    f.solve().ok()
+}
+
+fn fit_linear(rows: impl Iterator<Item = (f64, f64)>) -> Option<[f64; 3]> {
+    let mut f = PolyFit::linear(0.0);
+    rows.for_each(|(x, y)| f.add(x, y));
+    f.solve().ok()
+}
+
+/// Fits every method for every angle of the sweep.
+pub fn fit(rows: &[SweepRow]) -> anyhow::Result<Vec<PlaneFit>> {
+    let Some(first) = rows.first() else { bail!("no rows") };
+    if first.d_mm.len() == 1 {
+        return Ok(vec![fit_plane::<1>(rows, 0, "theta", 0, None)?]);
+    }
+    // α: d3 − d1, single on d3; β: d4 − d2, single on d4 (0-based indices).
+    Ok(vec![fit_plane::<4>(rows, 0, "alpha", 2, Some(0))?, fit_plane::<4>(rows, 1, "beta", 3, Some(1))?])
+}
+
+fn fit_plane<const S: usize>(
+    rows: &[SweepRow],
+    plane: usize,
+    name: &str,
+    plus: usize,
+    minus: Option<usize>,
+) -> anyhow::Result<PlaneFit> {
+    let ang = |r: &SweepRow| r.angle_deg[plane];
+    let [a, b, c] = fit_quadratic(rows.iter().map(|r| (r.d_mm[plus], ang(r))))
+        .ok_or_else(|| anyhow::anyhow!("{name}: the insertions do not determine a quadratic (sweep too narrow?)"))?;
+    let single = LawSpec::Single { sensor: plus as u8 + 1, a, b, c };
+    let single_err = evaluate::<S>(single.to_law()?, rows, plane).ok_or_else(|| anyhow::anyhow!("{name}: invalid single law"))?;
+    let mut candidates = vec![(single.clone(), single_err)];
+    let (mut differential, mut switching) = (None, None);
+    if let Some(minus) = minus {
+        let diff = |r: &SweepRow| r.d_mm[plus] - r.d_mm[minus];
+        let [_, gain, offset] = fit_linear(rows.iter().map(|r| (diff(r), ang(r))))
+            .ok_or_else(|| anyhow::anyhow!("{name}: the insertions do not determine a line"))?;
+        let d = LawSpec::Differential { plus: plus as u8 + 1, minus: minus as u8 + 1, gain, offset };
+        let de = evaluate::<S>(d.to_law()?, rows, plane).ok_or_else(|| anyhow::anyhow!("{name}: invalid law"))?;
+        differential = Some((d.clone(), de));
+        candidates.push((d, de));
+        // Threshold search on a 0.1° grid within the sweep's range, keeping
+        // at least 5 % of the rows on each side.
+        let mut sorted: Vec<f64> = rows.iter().map(ang).collect();
+        sorted.sort_by(f64::total_cmp);
+        let lo = sorted[sorted.len() / 20];
+        let hi = sorted[sorted.len() - 1 - sorted.len() / 20];
+        let mut best: Option<(LawSpec, ErrorStats)> = None;
+        let mut th = (lo * 10.0).ceil() / 10.0;
+        while th <= hi {
+            let below = rows.iter().filter(|r| ang(r) < th);
+            let above = rows.iter().filter(|r| ang(r) >= th);
+            if let (Some([qa, qb, qc]), Some([_, g, o])) = (
+                fit_quadratic(below.map(|r| (r.d_mm[plus], ang(r)))),
+                fit_linear(above.map(|r| (diff(r), ang(r)))),
+            ) {
+                let s = LawSpec::Switching {
+                    plus: plus as u8 + 1,
+                    minus: minus as u8 + 1,
+                    gain: g,
+                    offset: o,
+                    sensor: plus as u8 + 1,
+                    a: qa,
+                    b: qb,
+                    c: qc,
+                    threshold_deg: th,
+                    hysteresis_deg: f64::from(DEFAULT_HYSTERESIS_DEG),
+                };
+                if let Some(e) = s.to_law().ok().and_then(|l| evaluate::<S>(l, rows, plane)) {
+                    if best.as_ref().is_none_or(|(_, b)| e.max_error_deg < b.max_error_deg) {
+                        best = Some((s, e));
+                    }
+                }
+            }
+            th += 0.1;
+        }
+        if let Some(b) = best {
+            switching = Some(b.clone());
+            candidates.push(b);
+        }
+    }
+    let (chosen, chosen_errors) = candidates
+        .into_iter()
+        .min_by(|x, y| x.1.max_error_deg.total_cmp(&y.1.max_error_deg))
+        .ok_or_else(|| anyhow::anyhow!("{name}: no method could be fitted"))?;
+    Ok(PlaneFit {
+        angle: name.into(),
+        single: (single, single_err),
+        differential,
+        switching,
+        chosen,
+        chosen_errors,
+    })
+}
+
+/// The calibration file of a set of fits (the chosen law per angle).
+pub fn calibration_of(fits: &[PlaneFit]) -> anyhow::Result<CalibrationFile> {
+    let Some(first) = fits.first() else { bail!("no fits") };
+    Ok(CalibrationFile { alpha: first.chosen.clone(), beta: fits.get(1).map(|f| f.chosen.clone()) })
+}
+
+/// A calibration file that forces one method for every angle (for
+/// comparing methods in simulation).
+pub fn calibration_with(fits: &[PlaneFit], method: &str) -> anyhow::Result<CalibrationFile> {
+    let pick = |f: &PlaneFit| -> anyhow::Result<LawSpec> {
+        Ok(match method {
+            "single" => f.single.0.clone(),
+            "differential" => f.differential.clone().ok_or_else(|| anyhow::anyhow!("{}: no differential fit", f.angle))?.0,
+            "switching" => f.switching.clone().ok_or_else(|| anyhow::anyhow!("{}: no switching fit", f.angle))?.0,
+            _ => f.chosen.clone(),
+        })
+    };
+    let Some(first) = fits.first() else { bail!("no fits") };
+    Ok(CalibrationFile { alpha: pick(first)?, beta: fits.get(1).map(pick).transpose()? })
+}
+
+/// A human-readable table of the fits.
+pub fn table(fits: &[PlaneFit]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "{:<7} {:<13} {:>12} {:>12}  coefficients", "angle", "method", "max err (°)", "rms err (°)");
+    for f in fits {
+        let mut rows = vec![("single", &f.single)];
+        if let Some(d) = &f.differential {
+            rows.push(("differential", d));
+        }
+        if let Some(w) = &f.switching {
+            rows.push(("switching", w));
+        }
+        for (name, (law, e)) in rows {
+            let chosen = if *law == f.chosen { " ← chosen" } else { "" };
+            let _ = writeln!(
+                s,
+                "{:<7} {:<13} {:>12.3} {:>12.3}  {}{}",
+                f.angle,
+                name,
+                e.max_error_deg,
+                e.rms_error_deg,
+                describe(law),
+                chosen
+            );
+        }
+    }
+    s
+}
+
+fn describe(law: &LawSpec) -> String {
+    match law {
+        LawSpec::Single { sensor, a, b, c } => format!("{a:.4}·d{sensor}² + {b:.4}·d{sensor} + {c:.4}"),
+        LawSpec::Differential { plus, minus, gain, offset } => format!("{gain:.4}·(d{plus} − d{minus}) + {offset:.4}"),
+        LawSpec::Switching { plus, minus, gain, offset, sensor, a, b, c, threshold_deg, .. } => format!(
+            "≥ {threshold_deg:.2}°: {gain:.4}·(d{plus} − d{minus}) + {offset:.4}; below: {a:.4}·d{sensor}² + {b:.4}·d{sensor} + {c:.4}"
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_errors_name_the_line() {
+        let e = parse_sweep("d_mm,theta_deg\n1,2\n3,x\n").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("theta_deg"), "{e}");
+        let e = parse_sweep("d_mm,theta_deg\n1,2\n3\n").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("expected 2 fields"), "{e}");
+        let e = parse_sweep("foo,bar\n").unwrap_err().to_string();
+        assert!(e.contains("line 1") && e.contains("header"), "{e}");
+        let e = parse_sweep("d_mm,theta_deg\n1,NaN\n").unwrap_err().to_string();
+        assert!(e.contains("line 2"), "{e}");
+        assert!(parse_sweep("").is_err());
+    }
+
+    #[test]
+    fn exact_2d_data_recovers_eq2() {
+        let rows: Vec<SweepRow> = (0..200)
+            .map(|i| {
+                let d = -3.5 + 7.0 * f64::from(i) / 199.0;
+                SweepRow { d_mm: vec![d], angle_deg: vec![0.349 * d * d - 5.525 * d + 0.753] }
+            })
+            .collect();
+        let fits = fit(&rows).unwrap();
+        let LawSpec::Single { a, b, c, .. } = fits[0].chosen else { panic!("2D must choose single") };
+        assert!((a - 0.349).abs() < 1e-6 && (b + 5.525).abs() < 1e-6 && (c - 0.753).abs() < 1e-6);
+        assert!(fits[0].chosen_errors.max_error_deg < 1e-5);
+    }
+
+    #[test]
+    fn switching_beats_both_methods_on_two_sided_jamming() {
+        // A synthetic α plane: the differential law is exact except where
+        // wire 1 jams (α < −7: it under-reads being pushed in), the
+        // quadratic on d3 is exact except where wire 3 jams (α > 0).
+        let rows: Vec<SweepRow> = (0..400)
+            .map(|i| {
+                let alpha = -20.0 + 40.0 * f64::from(i) / 399.0;
+                let mut d3 = alpha / 5.454;
+                let mut d1 = -alpha / 5.454;
+                if alpha > 0.0 {
+                    d3 -= 0.02 * alpha; // wire 3 jams while pushed in
+                }
+                if alpha < -7.0 {
+                    d1 -= 0.05 * (-7.0 - alpha); // wire 1 jams
+                    d3 += 0.0;
+                }
+                SweepRow { d_mm: vec![d1, 0.0, d3, 0.0], angle_deg: vec![alpha, 0.0] }
+            })
+            .collect();
+        let f = &fit(&rows).unwrap()[0];
+        let sw = f.switching.as_ref().unwrap().1.max_error_deg;
+        assert!(sw < f.single.1.max_error_deg && sw < f.differential.as_ref().unwrap().1.max_error_deg, "{}", table(&[f.clone()]));
+        assert!(matches!(f.chosen, LawSpec::Switching { .. }));
+        let th = f.chosen.threshold_deg().unwrap();
+        assert!((-8.0..=-6.0).contains(&th), "threshold {th}");
+    }
+}

@@ -1,0 +1,9 @@
+//! The library behind the `softjoint` program: scenarios, the closed-loop
+//! simulation, wire-sensor calibration, reports, and the serial tools.
+#![deny(unsafe_code)]
+
+pub mod calibrate;
+pub mod report;
+pub mod scenario;
+pub mod sim;
+pub mod svg;

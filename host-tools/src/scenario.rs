@@ -1,0 +1,366 @@
+//! Scenario files: what to simulate (joint, controller, estimator, targets
+//! over time, disturbances, duration, seed), in TOML.
+//!
+//! Every field has a default, so `softjoint sim` with no file runs
+//! [`Scenario::default`]: the 3D joint under wire-sensor feedback with
+//! threshold-switching estimation, targets (0°, 0°) → (5°, 5°) → (10°, 10°).
+//! A malformed file is an error naming the file, the field and the reason.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use serde::{Deserialize, Serialize};
+
+/// Which joint to simulate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum JointKind {
+    /// One plane, one wire sensor (the paper's §III–V prototypes).
+    #[serde(rename = "2d")]
+    TwoD,
+    /// Two projection planes, four wire sensors (the paper's §VI).
+    #[serde(rename = "3d")]
+    ThreeD,
+}
+
+/// What the controller sees.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FeedbackKind {
+    /// Wire length sensors.
+    Wire,
+    /// The 30 frames/s camera (the paper's visual feedback, §III).
+    Camera,
+}
+
+/// How each pair uses its coils.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ControlMode {
+    /// The antagonistic law (§V–VI).
+    Antagonistic,
+    /// One actuator, the other a bias spring (Eq. 1).
+    Single,
+}
+
+/// Controller settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ControllerSpec {
+    /// Single actuator or antagonistic.
+    pub mode: ControlMode,
+    /// Proportional gain per coil in the paper's numbering (V/deg): 2 values
+    /// for 2D (coil 1, coil 2), 4 for 3D (K_P1..K_P4). One value applies to
+    /// every coil.
+    pub kp_v_per_deg: Vec<f64>,
+    /// Integral gain (V/(deg·s)); 0 = the paper's pure P law.
+    pub ki_v_per_deg_s: f64,
+    /// Limit of the integral contribution (V).
+    pub integral_limit_v: f64,
+}
+
+impl Default for ControllerSpec {
+    fn default() -> Self {
+        Self { mode: ControlMode::Antagonistic, kp_v_per_deg: vec![2.0], ki_v_per_deg_s: 0.0, integral_limit_v: 1.0 }
+    }
+}
+
+/// How angles are estimated from the wires.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EstimatorMethod {
+    /// The paper's published laws: Eq. 3 (3D) or Eq. 2 (2D).
+    Paper,
+    /// Threshold switching (Eq. 4/5) with calibrated coefficients (3D).
+    Switching,
+    /// One sensor, quadratic, calibrated (the jamming-prone method).
+    Single,
+    /// Differential linear law, calibrated (3D).
+    Differential,
+}
+
+/// Estimator settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EstimatorSpec {
+    /// Which law.
+    pub method: EstimatorMethod,
+    /// Calibration file written by `softjoint calibrate wire` (relative to
+    /// the scenario file). Without one, calibrated methods first run a
+    /// simulated calibration sweep of this same joint and fit it.
+    pub calibration: Option<PathBuf>,
+}
+
+impl Default for EstimatorSpec {
+    fn default() -> Self {
+        Self { method: EstimatorMethod::Switching, calibration: None }
+    }
+}
+
+/// A change of desired angles at a time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TargetStep {
+    /// From this time on (s).
+    pub t_s: f64,
+    /// Desired angles (deg): [θ] for 2D, [α, β] for 3D.
+    pub deg: Vec<f64>,
+}
+
+/// Something done to the joint from `from_s` to `to_s`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Disturbance {
+    /// A coil driven at a fixed voltage regardless of the controller (the
+    /// paper's Fig. 9: coil 2 at 5 V from 4 s to 6 s).
+    CoilVoltage {
+        /// Coil, paper numbering (1-based).
+        coil: usize,
+        /// Driver input (V).
+        volts: f64,
+        /// Start (s).
+        from_s: f64,
+        /// End (s).
+        to_s: f64,
+    },
+    /// A weight hanging from the link end by a thread led along
+    /// `direction` (socket frame; default horizontal towards −θ).
+    Weight {
+        /// Mass (g).
+        mass_g: f64,
+        /// Plane for 3D ("alpha" or "beta"); ignored for 2D.
+        #[serde(default)]
+        plane: Option<String>,
+        /// Thread direction; default [-1, 0].
+        #[serde(default)]
+        direction: Option<[f64; 2]>,
+        /// Hung at (s).
+        from_s: f64,
+        /// Thread cut at (s).
+        to_s: f64,
+    },
+}
+
+/// Plant options.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlantSpec {
+    /// Replace the cartilage by a rigid bearing (the paper's Fig. 10–11).
+    pub rigid_bearing: bool,
+}
+
+/// A complete scenario.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scenario {
+    /// Shown in reports.
+    pub name: String,
+    /// 2D or 3D.
+    pub joint: JointKind,
+    /// Simulated duration (s).
+    pub duration_s: f64,
+    /// Control period (µs); the paper's controller ran much faster than the
+    /// camera; 1 ms (1 kHz) is the default.
+    pub control_period_us: u32,
+    /// Seed of every random stream (plant noise, jamming, camera).
+    pub seed: u64,
+    /// Feedback.
+    pub feedback: FeedbackKind,
+    /// Controller.
+    pub controller: ControllerSpec,
+    /// Estimator.
+    pub estimator: EstimatorSpec,
+    /// Desired angles over time (sorted by time; the first applies from 0).
+    pub targets: Vec<TargetStep>,
+    /// Disturbances.
+    pub disturbances: Vec<Disturbance>,
+    /// Plant options.
+    pub plant: PlantSpec,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            name: "default: 3D joint, threshold switching, (0,0) → (5,5) → (10,10)".into(),
+            joint: JointKind::ThreeD,
+            duration_s: 30.0,
+            control_period_us: 1000,
+            seed: 1,
+            feedback: FeedbackKind::Wire,
+            controller: ControllerSpec::default(),
+            estimator: EstimatorSpec::default(),
+            targets: vec![
+                TargetStep { t_s: 0.0, deg: vec![0.0, 0.0] },
+                TargetStep { t_s: 10.0, deg: vec![5.0, 5.0] },
+                TargetStep { t_s: 20.0, deg: vec![10.0, 10.0] },
+            ],
+            disturbances: vec![],
+            plant: PlantSpec::default(),
+        }
+    }
+}
+
+impl Scenario {
+    /// Angles controlled: 1 (2D) or 2 (3D).
+    pub fn planes(&self) -> usize {
+        match self.joint {
+            JointKind::TwoD => 1,
+            JointKind::ThreeD => 2,
+        }
+    }
+
+    /// Coils: 2 (2D) or 4 (3D).
+    pub fn coils(&self) -> usize {
+        2 * self.planes()
+    }
+
+    /// Reads and validates a scenario file; errors name the file, the field
+    /// and the reason.
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read scenario {}", path.display()))?;
+        let mut s: Scenario =
+            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        if let Some(c) = &s.estimator.calibration {
+            if c.is_relative() {
+                let base = path.parent().unwrap_or(Path::new("."));
+                s.estimator.calibration = Some(base.join(c));
+            }
+        }
+        s.validate().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Ok(s)
+    }
+
+    /// Checks ranges and lengths; the error names the field.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        let finite_pos = |field: &str, v: f64| -> anyhow::Result<()> {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("field `{field}`: must be a finite number > 0, got {v}");
+            }
+            Ok(())
+        };
+        finite_pos("duration_s", self.duration_s)?;
+        if self.duration_s > 3600.0 {
+            bail!("field `duration_s`: at most 3600 s, got {}", self.duration_s);
+        }
+        if !(100..=1_000_000).contains(&self.control_period_us) {
+            bail!("field `control_period_us`: must be 100..=1000000, got {}", self.control_period_us);
+        }
+        let kp = &self.controller.kp_v_per_deg;
+        if !(kp.len() == 1 || kp.len() == self.coils()) {
+            bail!(
+                "field `controller.kp_v_per_deg`: give 1 value or {} (one per coil) for a {} joint, got {}",
+                self.coils(),
+                if self.planes() == 1 { "2D" } else { "3D" },
+                kp.len()
+            );
+        }
+        for (i, k) in kp.iter().enumerate() {
+            finite_pos(&format!("controller.kp_v_per_deg[{i}]"), *k)?;
+        }
+        for (f, v) in [("controller.ki_v_per_deg_s", self.controller.ki_v_per_deg_s), ("controller.integral_limit_v", self.controller.integral_limit_v)] {
+            if !(v.is_finite() && v >= 0.0) {
+                bail!("field `{f}`: must be a finite number ≥ 0, got {v}");
+            }
+        }
+        if self.planes() == 1 && matches!(self.estimator.method, EstimatorMethod::Switching | EstimatorMethod::Differential) {
+            bail!("field `estimator.method`: the 2D joint has one wire sensor; use \"paper\" or \"single\"");
+        }
+        if self.targets.is_empty() {
+            bail!("field `targets`: at least one target is needed");
+        }
+        let mut last_t = f64::NEG_INFINITY;
+        for (i, t) in self.targets.iter().enumerate() {
+            if !(t.t_s.is_finite() && t.t_s >= 0.0) {
+                bail!("field `targets[{i}].t_s`: must be a finite time ≥ 0, got {}", t.t_s);
+            }
+            if t.t_s < last_t {
+                bail!("field `targets[{i}].t_s`: targets must be in time order ({} after {})", t.t_s, last_t);
+            }
+            last_t = t.t_s;
+            if t.deg.len() != self.planes() {
+                bail!("field `targets[{i}].deg`: need {} angle(s) for this joint, got {}", self.planes(), t.deg.len());
+            }
+            for (k, d) in t.deg.iter().enumerate() {
+                if !(d.is_finite() && d.abs() <= f64::from(firmware::joint::DEFAULT_MAX_TARGET_DEG)) {
+                    bail!(
+                        "field `targets[{i}].deg[{k}]`: must be within ±{}°, got {d}",
+                        firmware::joint::DEFAULT_MAX_TARGET_DEG
+                    );
+                }
+            }
+        }
+        for (i, d) in self.disturbances.iter().enumerate() {
+            let (from, to) = match d {
+                Disturbance::CoilVoltage { coil, volts, from_s, to_s } => {
+                    if !(1..=self.coils()).contains(coil) {
+                        bail!("field `disturbances[{i}].coil`: must be 1..={}, got {coil}", self.coils());
+                    }
+                    if !(volts.is_finite() && (0.0..=5.0).contains(volts)) {
+                        bail!("field `disturbances[{i}].volts`: must be within 0–5 V, got {volts}");
+                    }
+                    (*from_s, *to_s)
+                }
+                Disturbance::Weight { mass_g, plane, direction, from_s, to_s } => {
+                    finite_pos(&format!("disturbances[{i}].mass_g"), *mass_g)?;
+                    if let Some(p) = plane {
+                        if p != "alpha" && p != "beta" {
+                            bail!("field `disturbances[{i}].plane`: \"alpha\" or \"beta\", got {p:?}");
+                        }
+                    }
+                    if let Some(dir) = direction {
+                        if !(dir.iter().all(|v| v.is_finite()) && dir[0].hypot(dir[1]) > 0.0) {
+                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector");
+                        }
+                    }
+                    (*from_s, *to_s)
+                }
+            };
+            if !(from.is_finite() && to.is_finite() && from >= 0.0 && to > from) {
+                bail!("fields `disturbances[{i}].from_s/to_s`: need 0 ≤ from_s < to_s, got {from}..{to}");
+            }
+        }
+        Ok(())
+    }
+
+    /// Desired angles at time `t_s`.
+    pub fn target_at(&self, t_s: f64) -> &[f64] {
+        let mut cur = &self.targets[0].deg;
+        for t in &self.targets {
+            if t.t_s <= t_s {
+                cur = &t.deg;
+            }
+        }
+        cur
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_valid_and_round_trips_through_toml() {
+        let s = Scenario::default();
+        s.validate().unwrap();
+        let text = toml::to_string(&s).unwrap();
+        let back: Scenario = toml::from_str(&text).unwrap();
+        assert_eq!(back, s);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let bad = |text: &str| -> String {
+            match toml::from_str::<Scenario>(text) {
+                Err(e) => e.to_string(),
+                Ok(s) => s.validate().unwrap_err().to_string(),
+            }
+        };
+        assert!(bad("duration_s = -1").contains("duration_s"));
+        assert!(bad("joint = \"4d\"").contains("joint"));
+        assert!(bad("[controller]\nkp_v_per_deg = [1.0, 2.0, 3.0]").contains("kp_v_per_deg"));
+        assert!(bad("bogus = 1").contains("bogus"));
+        assert!(bad("[[targets]]\nt_s = 0\ndeg = [1.0]").contains("targets[0].deg"));
+        assert!(bad("[[targets]]\nt_s = 0\ndeg = [40.0, 0.0]").contains("targets[0].deg[0]"));
+        assert!(bad("[[disturbances]]\nkind = \"coil_voltage\"\ncoil = 9\nvolts = 5\nfrom_s = 1\nto_s = 2").contains("coil"));
+        assert!(bad("joint = \"2d\"\n[[targets]]\nt_s = 0\ndeg = [1.0]").contains("estimator.method"));
+    }
+}

@@ -1,0 +1,443 @@
+//! Running a scenario: the firmware core in closed loop with the simulated
+//! joint (through `hal-sim`), and the summary a user reads.
+
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use firmware::control::PairGains;
+use firmware::estimate::PlaneLaw;
+use firmware::joint::{JointConfig, JointController};
+use firmware::supervisor::Faults;
+use hal_sim::{ClosedLoop, FeedbackSource, Plant};
+use plant_models::joint::{Joint2d, Joint2dParams, Joint3d, Joint3dParams, LoadId, Plane, PointLoad};
+use serde::Serialize;
+
+use crate::calibrate::{self, CalibrationFile, SweepRow};
+use crate::scenario::{ControlMode, Disturbance, EstimatorMethod, FeedbackKind, JointKind, Scenario};
+
+/// One row of the time series.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Row {
+    /// Time (s).
+    pub t_s: f64,
+    /// True angles (deg).
+    pub true_deg: Vec<f64>,
+    /// Estimated angles (deg).
+    pub estimate_deg: Vec<f64>,
+    /// Desired angles (deg).
+    pub desired_deg: Vec<f64>,
+    /// Driver input voltages, paper numbering (V).
+    pub coil_volts: Vec<f64>,
+    /// Fault bits.
+    pub faults: u16,
+}
+
+/// The time series of a run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Trace {
+    /// One row per control period.
+    pub rows: Vec<Row>,
+}
+
+/// Steady-state error of one target segment.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Segment {
+    /// Segment start (s).
+    pub from_s: f64,
+    /// Segment end (s).
+    pub to_s: f64,
+    /// Desired angles (deg).
+    pub desired_deg: Vec<f64>,
+    /// |mean true angle − desired| over the last 20 % of the segment (deg).
+    pub steady_state_error_deg: Vec<f64>,
+    /// Largest excursion beyond the target in the direction of travel (deg).
+    pub overshoot_deg: Vec<f64>,
+}
+
+/// The summary of a run (also the `--json` output).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Scenario name.
+    pub scenario: String,
+    /// "2d" or "3d".
+    pub joint: String,
+    /// Names of the controlled angles.
+    pub angles: Vec<String>,
+    /// Worst steady-state error over the target segments, per angle (deg).
+    pub steady_state_error_deg: Vec<f64>,
+    /// Largest |estimate − true| over the run, per angle (deg).
+    pub max_estimation_error_deg: Vec<f64>,
+    /// Per-segment details.
+    pub segments: Vec<Segment>,
+    /// Simulated seconds.
+    pub sim_seconds: f64,
+    /// Wall-clock seconds of the closed loop.
+    pub wall_seconds: f64,
+    /// sim_seconds / wall_seconds.
+    pub realtime_factor: f64,
+    /// Control steps.
+    pub steps: u64,
+    /// Every fault seen during the run.
+    pub faults_seen: Vec<String>,
+    /// Estimation method and its source.
+    pub estimator: String,
+    /// Peak modelled coil temperature (°C), per coil.
+    pub peak_coil_temperature_c: Vec<f64>,
+}
+
+/// Names of the set bits of a fault word.
+pub fn fault_names(bits: u16) -> Vec<String> {
+    Faults::NAMED
+        .iter()
+        .filter(|(f, _)| Faults::from_bits(bits).contains(*f))
+        .map(|(_, n)| (*n).to_string())
+        .collect()
+}
+
+fn gains(s: &Scenario, pair: usize) -> anyhow::Result<PairGains> {
+    let kp = &s.controller.kp_v_per_deg;
+    let k = |coil: usize| kp.get(coil).or(kp.first()).copied().unwrap_or(2.0) as f32;
+    // Pair p's agonist is coil p+1, its antagonist coil p+1+planes.
+    let planes = s.planes();
+    PairGains::new(k(pair), k(pair + planes), s.controller.ki_v_per_deg_s as f32, s.controller.integral_limit_v as f32)
+        .map_err(|e| anyhow::anyhow!("controller gains: {e:?}"))
+}
+
+/// Builds the estimation laws for the scenario: the paper's, a calibration
+/// file's, or a fit to a simulated calibration sweep of the same joint.
+pub fn laws_for(s: &Scenario) -> anyhow::Result<(Option<Vec<PlaneLaw>>, String)> {
+    if s.estimator.method == EstimatorMethod::Paper || s.feedback == FeedbackKind::Camera {
+        return Ok((None, "paper (Eq. 2 / Eq. 3, published constants)".into()));
+    }
+    let (fits_cal, source) = match &s.estimator.calibration {
+        Some(path) => (CalibrationFile::load(path)?, format!("calibration file {}", path.display())),
+        None => {
+            let rows = calibration_sweep(s)?;
+            let fits = calibrate::fit(&rows)?;
+            let method = match s.estimator.method {
+                EstimatorMethod::Single => "single",
+                EstimatorMethod::Differential => "differential",
+                _ => "switching",
+            };
+            (calibrate::calibration_with(&fits, method)?, format!("fitted to a simulated sweep ({} rows)", rows.len()))
+        }
+    };
+    let laws = fits_cal.laws()?;
+    if laws.len() != s.planes() {
+        bail!("calibration has {} angle(s), the scenario's joint has {}", laws.len(), s.planes());
+    }
+    let method = match laws[0] {
+        PlaneLaw::Single { .. } => "single-sensor quadratic",
+        PlaneLaw::Differential { .. } => "differential linear",
+        PlaneLaw::Switching { .. } => "threshold switching",
+    };
+    Ok((Some(laws), format!("{method}, {source}")))
+}
+
+/// What one run produced.
+pub struct RunOutput {
+    /// The summary.
+    pub summary: Summary,
+    /// The time series.
+    pub trace: Trace,
+}
+
+/// Runs a scenario to completion.
+pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
+    s.validate()?;
+    let (laws, estimator) = laws_for(s)?;
+    match s.joint {
+        JointKind::ThreeD => {
+            let mut params = Joint3dParams::default();
+            params.sim.seed = s.seed;
+            if s.plant.rigid_bearing {
+                params.alpha = params.alpha.rigid_bearing();
+                params.beta = params.beta.rigid_bearing();
+            }
+            let plant = Joint3d::new(params).context("building the 3D plant")?;
+            let mut cfg = JointConfig::paper_3d();
+            for p in 0..2 {
+                cfg.gains[p] = gains(s, p)?;
+            }
+            if let Some(l) = &laws {
+                cfg.laws = [l[0], l[1]];
+            }
+            if s.controller.mode == ControlMode::Single {
+                cfg.modes = [firmware::control::PairMode::SingleAgonist; 2];
+            }
+            let ctl = JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
+            let cl: ClosedLoop<Joint3d, 2, 4, 4> = ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
+            run_loop(s, cl, estimator, &["alpha", "beta"], |plant, load, on| match load {
+                LoadAction::Weight { plane, load } => {
+                    let which = if plane == 1 { Plane::Beta } else { Plane::Alpha };
+                    if let Some(id) = on {
+                        plant.remove_load(which, id);
+                        Ok(None)
+                    } else {
+                        Ok(Some(plant.add_load(which, load)?))
+                    }
+                }
+            })
+        }
+        JointKind::TwoD => {
+            let mut params = Joint2dParams::default();
+            params.sim.seed = s.seed;
+            if s.plant.rigid_bearing {
+                params = params.rigid_bearing();
+            }
+            let plant = Joint2d::new(params).context("building the 2D plant")?;
+            let mut cfg = JointConfig::paper_2d_wire();
+            cfg.gains[0] = gains(s, 0)?;
+            if let Some(l) = &laws {
+                cfg.laws = [l[0]];
+            }
+            if s.controller.mode == ControlMode::Single {
+                cfg.modes = [firmware::control::PairMode::SingleAgonist];
+            }
+            let ctl = JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
+            let cl: ClosedLoop<Joint2d, 1, 1, 2> = ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
+            run_loop(s, cl, estimator, &["theta"], |plant, load, on| match load {
+                LoadAction::Weight { load, .. } => {
+                    if let Some(id) = on {
+                        plant.remove_load(id);
+                        Ok(None)
+                    } else {
+                        Ok(Some(plant.add_load(load)?))
+                    }
+                }
+            })
+        }
+    }
+}
+
+fn feedback(s: &Scenario) -> FeedbackSource {
+    match s.feedback {
+        FeedbackKind::Wire => FeedbackSource::Wire,
+        FeedbackKind::Camera => FeedbackSource::Camera,
+    }
+}
+
+/// A load to attach or remove.
+#[derive(Clone, Copy, Debug)]
+pub enum LoadAction {
+    /// A point load on a plane.
+    Weight {
+        /// Plane index.
+        plane: usize,
+        /// The load.
+        load: PointLoad,
+    },
+}
+
+/// Link end distance from the joint origin (m), for hanging weights: the
+/// paper's 27 mm (seed 000, last paper, §II-B).
+const LINK_END_M: f64 = 0.027;
+/// Standard gravity (m/s²).
+const G_M_S2: f64 = 9.80665;
+
+fn run_loop<Pl, const P: usize, const S: usize, const C: usize>(
+    s: &Scenario,
+    mut cl: ClosedLoop<Pl, P, S, C>,
+    estimator: String,
+    names: &[&str],
+    mut apply_load: impl FnMut(&mut Pl, LoadAction, Option<LoadId>) -> Result<Option<LoadId>, plant_models::joint::PlantError>,
+) -> anyhow::Result<RunOutput>
+where
+    Pl: Plant<C, S, P>,
+{
+    let period = f64::from(s.control_period_us) * 1e-6;
+    let steps = (s.duration_s / period).round() as u64;
+    let mut rows = Vec::with_capacity(steps as usize);
+    let mut loads: Vec<Option<LoadId>> = vec![None; s.disturbances.len()];
+    let mut faults_seen = 0u16;
+    let mut peak_temp = [f64::NEG_INFINITY; C];
+    let mut current_target: Vec<f64> = vec![f64::NAN; P];
+    let started = Instant::now();
+    for k in 0..steps {
+        let t = k as f64 * period;
+        let target = s.target_at(t);
+        if target != current_target.as_slice() {
+            for (p, d) in target.iter().enumerate() {
+                cl.controller.set_target(p, *d as f32).map_err(|e| anyhow::anyhow!("target: {e:?}"))?;
+            }
+            current_target = target.to_vec();
+        }
+        cl.overrides = [None; C];
+        for (i, d) in s.disturbances.iter().enumerate() {
+            match d {
+                Disturbance::CoilVoltage { coil, volts, from_s, to_s } => {
+                    if t >= *from_s && t < *to_s {
+                        if let Some(o) = cl.overrides.get_mut(coil - 1) {
+                            *o = Some(*volts);
+                        }
+                    }
+                }
+                Disturbance::Weight { mass_g, plane, direction, from_s, to_s } => {
+                    let active = t >= *from_s && t < *to_s;
+                    let plane = usize::from(plane.as_deref() == Some("beta"));
+                    let dir = direction.unwrap_or([-1.0, 0.0]);
+                    let load = PointLoad::weight(mass_g * 1e-3, G_M_S2, [0.0, LINK_END_M], dir);
+                    if active && loads[i].is_none() {
+                        loads[i] = apply_load(&mut cl.plant, LoadAction::Weight { plane, load }, None)?;
+                    } else if !active && loads[i].is_some() {
+                        apply_load(&mut cl.plant, LoadAction::Weight { plane, load }, loads[i].take())?;
+                    }
+                }
+            }
+        }
+        let sample = cl.tick().with_context(|| format!("at t = {t:.3} s"))?;
+        faults_seen |= sample.faults;
+        for (p, c) in peak_temp.iter_mut().zip(cl.plant.coil_temperatures_c()) {
+            *p = p.max(c);
+        }
+        rows.push(Row {
+            t_s: sample.t_s,
+            true_deg: sample.true_deg.to_vec(),
+            estimate_deg: sample.estimate_deg.to_vec(),
+            desired_deg: sample.desired_deg.to_vec(),
+            coil_volts: sample.coil_volts.to_vec(),
+            faults: sample.faults,
+        });
+    }
+    let wall = started.elapsed().as_secs_f64();
+    let trace = Trace { rows };
+    let segments = segments(s, &trace);
+    let sse: Vec<f64> = (0..P).map(|p| segments.iter().map(|g| g.steady_state_error_deg[p]).fold(0.0, f64::max)).collect();
+    let est: Vec<f64> = (0..P)
+        .map(|p| trace.rows.iter().map(|r| (r.estimate_deg[p] - r.true_deg[p]).abs()).filter(|e| e.is_finite()).fold(0.0, f64::max))
+        .collect();
+    let sim_seconds = steps as f64 * period;
+    let summary = Summary {
+        scenario: s.name.clone(),
+        joint: if P == 1 { "2d".into() } else { "3d".into() },
+        angles: names.iter().map(|n| n.to_string()).collect(),
+        steady_state_error_deg: sse,
+        max_estimation_error_deg: est,
+        segments,
+        sim_seconds,
+        wall_seconds: wall,
+        realtime_factor: if wall > 0.0 { sim_seconds / wall } else { f64::INFINITY },
+        steps,
+        faults_seen: fault_names(faults_seen),
+        estimator,
+        peak_coil_temperature_c: peak_temp.to_vec(),
+    };
+    Ok(RunOutput { summary, trace })
+}
+
+/// Splits the run at target changes and measures each segment.
+pub fn segments(s: &Scenario, trace: &Trace) -> Vec<Segment> {
+    let end = s.duration_s;
+    let mut out = Vec::new();
+    let mut prev_target: Option<Vec<f64>> = None;
+    for (i, t) in s.targets.iter().enumerate() {
+        let from = t.t_s;
+        let to = s.targets.get(i + 1).map(|n| n.t_s).unwrap_or(end).min(end);
+        if to <= from {
+            continue;
+        }
+        let rows: Vec<&Row> = trace.rows.iter().filter(|r| r.t_s >= from && r.t_s < to).collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let tail_from = to - 0.2 * (to - from);
+        let tail: Vec<&&Row> = rows.iter().filter(|r| r.t_s >= tail_from).collect();
+        let planes = t.deg.len();
+        let sse = (0..planes)
+            .map(|p| {
+                let mean = tail.iter().map(|r| r.true_deg[p]).sum::<f64>() / tail.len().max(1) as f64;
+                (mean - t.deg[p]).abs()
+            })
+            .collect();
+        let overshoot = (0..planes)
+            .map(|p| {
+                let start = prev_target.as_ref().map(|v| v[p]).unwrap_or(rows[0].true_deg[p]);
+                let dir = (t.deg[p] - start).signum();
+                if dir == 0.0 {
+                    return 0.0;
+                }
+                rows.iter().map(|r| dir * (r.true_deg[p] - t.deg[p])).fold(0.0, f64::max)
+            })
+            .collect();
+        out.push(Segment { from_s: from, to_s: to, desired_deg: t.deg.clone(), steady_state_error_deg: sse, overshoot_deg: overshoot });
+        prev_target = Some(t.deg.clone());
+    }
+    out
+}
+
+/// A slow calibration sweep of the scenario's joint: the controller follows
+/// a triangle of targets ±20° under camera feedback (the paper calibrated
+/// against camera images), and every camera frame gives one row of wire
+/// insertions and camera angles (with the camera's noise and latency).
+pub fn calibration_sweep(s: &Scenario) -> anyhow::Result<Vec<SweepRow>> {
+    const AMPLITUDE_DEG: f64 = 20.0;
+    const RATE_DEG_S: f64 = 1.0; // slow enough for the SMA to follow
+    let period_us = 1000u32;
+    let quarter = AMPLITUDE_DEG / RATE_DEG_S;
+    let duration = 4.0 * quarter;
+    let target = |t: f64| {
+        // 0 → +A → −A → 0
+        if t < quarter {
+            t * RATE_DEG_S
+        } else if t < 3.0 * quarter {
+            AMPLITUDE_DEG - (t - quarter) * RATE_DEG_S
+        } else {
+            -AMPLITUDE_DEG + (t - 3.0 * quarter) * RATE_DEG_S
+        }
+    };
+    let steps = (duration / (f64::from(period_us) * 1e-6)) as u64;
+    let mut rows = Vec::new();
+    // One row per camera frame. The camera's one-frame latency means each
+    // angle is ~33 ms older than the insertions beside it: at 1°/s that is
+    // 0.03°, well under the estimation errors being calibrated.
+    let mut last_frame: Option<u64> = None;
+    match s.joint {
+        JointKind::ThreeD => {
+            let mut params = Joint3dParams::default();
+            params.sim.seed = s.seed ^ 0xCA1B;
+            let plant = Joint3d::new(params)?;
+            let mut cfg = JointConfig::paper_3d();
+            cfg.gains = [PairGains::default(); 2];
+            let ctl = JointController::new(cfg).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let mut cl: ClosedLoop<Joint3d, 2, 4, 4> = ClosedLoop::new(plant, ctl, FeedbackSource::Camera, period_us, s.seed)?;
+            for k in 0..steps {
+                let t = k as f64 * 1e-3;
+                let d = target(t) as f32;
+                cl.controller.set_target(0, d).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                cl.controller.set_target(1, d).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                cl.control();
+                cl.advance()?;
+                if let Some(frame) = cl.plant.camera().latest().cloned() {
+                    if last_frame != Some(frame.index) {
+                        last_frame = Some(frame.index);
+                        if let Some(a) = frame.angles_deg {
+                            rows.push(SweepRow { d_mm: cl.plant.wire_insertions_mm().to_vec(), angle_deg: a.to_vec() });
+                        }
+                    }
+                }
+            }
+        }
+        JointKind::TwoD => {
+            let mut params = Joint2dParams::default();
+            params.sim.seed = s.seed ^ 0xCA1B;
+            let plant = Joint2d::new(params)?;
+            let ctl = JointController::new(JointConfig::paper_2d_wire()).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let mut cl: ClosedLoop<Joint2d, 1, 1, 2> = ClosedLoop::new(plant, ctl, FeedbackSource::Camera, period_us, s.seed)?;
+            for k in 0..steps {
+                let t = k as f64 * 1e-3;
+                cl.controller.set_target(0, target(t) as f32).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                cl.control();
+                cl.advance()?;
+                if let Some(frame) = cl.plant.camera().latest().cloned() {
+                    if last_frame != Some(frame.index) {
+                        last_frame = Some(frame.index);
+                        if let Some(a) = frame.angles_deg {
+                            rows.push(SweepRow { d_mm: vec![cl.plant.wire_insertion_mm()], angle_deg: vec![a[0]] });
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(rows)
+}

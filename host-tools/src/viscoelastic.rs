@@ -1,0 +1,271 @@
+//! `softjoint viscoelastic`: the 3-element model of seed 002 for users'
+//! data (`simulate`, `fit`) and the measured-object pipeline on a mesh
+//! (`object`). The physics lives in `plant_models::viscoelastic`; this is
+//! argument handling, file I/O and reports.
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use firmware::viscoelastic::TimeStep;
+use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
+use plant_models::viscoelastic::estimate::{estimate_all, spread_columns};
+use plant_models::viscoelastic::fem::{LinearElastic, DEFAULT_SHELL_SCALES};
+use plant_models::viscoelastic::fit::{fit_trial, fit_trials, simulate_displacement, simulate_force, NelderMeadOptions, Weighting};
+use plant_models::viscoelastic::io::{header, read_columns, read_probe_script};
+use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, VertexTruth};
+use plant_models::viscoelastic::object::{run_script, Contact, ProbeEvent, HAPTIC_PERIOD_S};
+use plant_models::viscoelastic::svg::{false_colour_mesh, fit_plot};
+use plant_models::viscoelastic::{HapticLoop, SurfaceMesh, ViscoObject};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `softjoint viscoelastic`.
+#[derive(Args)]
+pub struct ViscoArgs {
+    #[command(subcommand)]
+    command: ViscoCommand,
+}
+
+#[derive(Subcommand)]
+enum ViscoCommand {
+    /// Run the 1D 3-element model (seed 002 Eq. 3) on a CSV of
+    /// `time_s,displacement` (m) → force (N), or `time_s,force` (N) →
+    /// displacement (m); writes `time_s,displacement,force`.
+    Simulate {
+        /// Input CSV with a header.
+        input: PathBuf,
+        /// Delayed spring k1 (N/m).
+        #[arg(long)]
+        k1: f64,
+        /// Series (instantaneous) spring k2 (N/m).
+        #[arg(long)]
+        k2: f64,
+        /// Dashpot b (N·s/m).
+        #[arg(long)]
+        b: f64,
+        /// Output CSV (default: standard output).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
+    /// Fit (k1, k2, b) to a force-vs-time trial CSV
+    /// `time_s,displacement,force` (s, m, N) by Nelder–Mead with the seed's
+    /// weighting (tail ×100, 3 points around the peak ×1000).
+    Fit {
+        /// Input CSV with a header.
+        input: PathBuf,
+        /// Weight every sample equally instead.
+        #[arg(long)]
+        uniform: bool,
+        /// Write a plot of measured and fitted force (SVG).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Print a JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Build the DGFM object of a mesh (default: the shipped ~200-vertex
+    /// blob), estimate its parameters from simulated probe trials, run a
+    /// scripted probe at 1 kHz and write per-vertex displacement and force
+    /// at 30 Hz, the contact trace, the parameters and a false-colour
+    /// damping image.
+    Object {
+        /// Closed, star-shaped triangle mesh (OBJ, metres).
+        #[arg(long)]
+        mesh: Option<PathBuf>,
+        /// Probe script CSV `time_s,vertex,fx_n,fy_n,fz_n` (vertex −1
+        /// releases). Default: 1 N down on the top vertex for 0.5 s.
+        #[arg(long)]
+        script: Option<PathBuf>,
+        /// Simulated duration (s).
+        #[arg(long, default_value_t = 1.5)]
+        duration_s: f64,
+        /// Probe every N-th traction vertex in the simulated campaign.
+        #[arg(long, default_value_t = 10)]
+        probe_every: usize,
+        /// Seed of the measurement noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Use general damping tensors instead of Rayleigh damping.
+        #[arg(long)]
+        tensor: bool,
+        /// Output directory (created).
+        #[arg(long)]
+        out_dir: PathBuf,
+    },
+}
+
+/// Runs a `softjoint viscoelastic` subcommand.
+pub fn run(args: ViscoArgs) -> Result<()> {
+    match args.command {
+        ViscoCommand::Simulate { input, k1, k2, b, output } => simulate(&input, k1, k2, b, output.as_deref()),
+        ViscoCommand::Fit { input, uniform, plot, json } => fit(&input, uniform, plot.as_deref(), json),
+        ViscoCommand::Object { mesh, script, duration_s, probe_every, seed, tensor, out_dir } => {
+            object(mesh.as_deref(), script.as_deref(), duration_s, probe_every, seed, tensor, &out_dir)
+        }
+    }
+}
+
+fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Result<()> {
+    let text = read_text(input)?;
+    let name = input.display().to_string();
+    let head = header(&text);
+    let has = |c: &str| head.iter().any(|h| h == c);
+    let (t, u, f) = if has("displacement") {
+        let c = read_columns(&text, &name, &["time_s", "displacement"], Some("time_s"))?;
+        let (t, u) = (c.values[0].clone(), c.values[1].clone());
+        let f = simulate_force(k1, k2, b, &t, &u)?;
+        (t, u, f)
+    } else if has("force") {
+        let c = read_columns(&text, &name, &["time_s", "force"], Some("time_s"))?;
+        let (t, f) = (c.values[0].clone(), c.values[1].clone());
+        let u = simulate_displacement(k1, k2, b, &t, &f)?;
+        (t, u, f)
+    } else {
+        bail!("{name}:1: missing column: need `displacement` or `force` beside `time_s` (header has: {})", head.join(", "));
+    };
+    let mut s = String::from("time_s,displacement,force\n");
+    for k in 0..t.len() {
+        let _ = writeln!(s, "{},{},{}", t[k], u[k], f[k]);
+    }
+    match output {
+        Some(p) => write_text(p, &s),
+        None => {
+            print!("{s}");
+            Ok(())
+        }
+    }
+}
+
+fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<()> {
+    let text = read_text(input)?;
+    let name = input.display().to_string();
+    let c = read_columns(&text, &name, &["time_s", "displacement", "force"], Some("time_s"))?;
+    let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
+    let weighting = if uniform { Weighting::Uniform } else { Weighting::Seed };
+    let r = fit_trial(t, u, f, weighting, NelderMeadOptions::default()).with_context(|| format!("fitting {name}"))?;
+    if let Some(p) = plot {
+        let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
+        let caption = format!(
+            "{name}: k1 = {:.4e} N/m, k2 = {:.4e} N/m, b = {:.4e} N s/m ({weighting:?} weighting)",
+            r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m
+        );
+        write_text(p, &fit_plot(t, f, &fitted, &caption))?;
+    }
+    if json {
+        println!(
+            "{{\"k1_n_per_m\": {:e}, \"k2_n_per_m\": {:e}, \"b_n_s_per_m\": {:e}, \"rms_residual_n\": {:e}, \"weighted_cost_n2\": {:e}, \"evaluations\": {}, \"weighting\": \"{}\", \"samples\": {}}}",
+            r.k1_n_per_m,
+            r.k2_n_per_m,
+            r.b_n_s_per_m,
+            r.rms_residual_n,
+            r.weighted_cost_n2,
+            r.evaluations,
+            if uniform { "uniform" } else { "seed" },
+            t.len()
+        );
+    } else {
+        println!("k1 = {:.6e} N/m", r.k1_n_per_m);
+        println!("k2 = {:.6e} N/m", r.k2_n_per_m);
+        println!("b  = {:.6e} N s/m", r.b_n_s_per_m);
+        println!("rms residual = {:.4e} N over {} samples ({:?} weighting, {} evaluations)", r.rms_residual_n, t.len(), weighting, r.evaluations);
+    }
+    Ok(())
+}
+
+/// Synthetic ground truth of the default pipeline: Rayleigh b larger in the
+/// middle of the object than at its ends (like the seed's triceratops,
+/// Fig. 9), ratio from the seed's Fig. 8 fit. Estimates, not measurements.
+fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
+    let mesh = dgfm.mesh();
+    let x_max = mesh.vertices_m.iter().map(|v| v[0].abs()).fold(0.0, f64::max).max(1e-12);
+    let mut out = Vec::new();
+    for j in (0..dgfm.len()).step_by(every.max(1)) {
+        let x = mesh.vertices_m[dgfm.traction_vertices()[j]][0].abs() / x_max;
+        out.push(VertexTruth::from_dgfm(dgfm, j, 0.29, 0.1 + 0.4 * (1.0 - x))?);
+    }
+    Ok(out)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn object(mesh_path: Option<&Path>, script: Option<&Path>, duration_s: f64, every: usize, seed: u64, tensor: bool, out_dir: &Path) -> Result<()> {
+    if !(duration_s.is_finite() && duration_s > 0.0) {
+        bail!("--duration-s must be finite and > 0, got {duration_s}");
+    }
+    let mesh = match mesh_path {
+        Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,
+        None => SurfaceMesh::default_object(),
+    };
+    let fixed = support_below(&mesh, DEFAULT_SUPPORT_HEIGHT_FRACTION);
+    let dgfm = Dgfm::from_mesh(mesh, LinearElastic::default(), fixed, &DEFAULT_SHELL_SCALES)?;
+    // Measure (simulated), fit, estimate and spread, as in seed §4.
+    let truths = synthetic_truth(&dgfm, every)?;
+    let protocol = ProbeProtocol { speeds_m_per_s: vec![20.0e-3], ..ProbeProtocol::default() };
+    let trials = simulate_campaign(&dgfm, &truths, &protocol, seed)?;
+    let fits = fit_trials(&trials, Weighting::Seed, NelderMeadOptions::default());
+    let estimates = estimate_all(&dgfm, &trials, &fits)?;
+    let params = spread_columns(dgfm.len(), &estimates, 1.0, tensor)?;
+    let magnitude = params.damping_magnitude_n_s_per_m(&dgfm);
+    let nv = dgfm.mesh().len();
+    let mut per_vertex = vec![0.0; nv];
+    for (j, &v) in dgfm.traction_vertices().iter().enumerate() {
+        per_vertex[v] = magnitude[j];
+    }
+    let events = match script {
+        Some(p) => read_probe_script(&read_text(p)?, &p.display().to_string(), nv)?,
+        None => {
+            let top = (0..nv)
+                .filter(|&v| !dgfm.fixed()[v])
+                .max_by(|&a, &b| dgfm.mesh().vertices_m[a][2].total_cmp(&dgfm.mesh().vertices_m[b][2]))
+                .context("no traction vertex")?;
+            vec![
+                ProbeEvent { time_s: 0.0, contact: Some(Contact::Vertex(top)), force_n: [0.0, 0.0, -1.0] },
+                ProbeEvent { time_s: 0.5, contact: None, force_n: [0.0; 3] },
+            ]
+        }
+    };
+    let h = TimeStep::new(HAPTIC_PERIOD_S).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let mesh_for_image = dgfm.mesh().clone();
+    let fixed_flags = dgfm.fixed().to_vec();
+    let obj = ViscoObject::new(dgfm, params.clone(), h)?;
+    let mut haptic = HapticLoop::new(obj)?;
+    let samples = run_script(&mut haptic, &events, duration_s)?;
+    std::fs::create_dir_all(out_dir).with_context(|| format!("cannot create {}", out_dir.display()))?;
+    let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");
+    for fr in &haptic.frames {
+        for v in 0..nv {
+            let (u, f) = (fr.displacement_m[v], fr.force_n[v]);
+            let _ = writeln!(frames, "{},{v},{:e},{:e},{:e},{:e},{:e},{:e}", fr.time_s, u[0], u[1], u[2], f[0], f[1], f[2]);
+        }
+    }
+    write_text(&out_dir.join("frames.csv"), &frames)?;
+    let mut hs = String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m\n");
+    for s in &samples {
+        let (f, u) = (s.force_n, s.contact_displacement_m);
+        let _ = writeln!(hs, "{},{},{},{},{:e},{:e},{:e}", s.time_s, f[0], f[1], f[2], u[0], u[1], u[2]);
+    }
+    write_text(&out_dir.join("haptic.csv"), &hs)?;
+    let mut ps = String::from("vertex,fixed,damping_magnitude_n_s_per_m\n");
+    for v in 0..nv {
+        let _ = writeln!(ps, "{v},{},{:e}", u8::from(fixed_flags[v]), per_vertex[v]);
+    }
+    write_text(&out_dir.join("params.csv"), &ps)?;
+    let caption = format!("damping magnitude ({} trials, {} vertices estimated)", trials.len(), estimates.len());
+    write_text(&out_dir.join("damping.svg"), &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption))?;
+    println!(
+        "{} vertices ({} traction), {} trials fitted, {} vertices estimated; {} haptic steps, {} display frames written to {}",
+        nv,
+        fixed_flags.iter().filter(|f| !**f).count(),
+        trials.len(),
+        estimates.len(),
+        samples.len(),
+        haptic.frames.len(),
+        out_dir.display()
+    );
+    Ok(())
+}
