@@ -22,9 +22,11 @@ pub mod error;
 pub mod estimate;
 pub mod fem;
 pub mod fit;
+pub mod io;
 pub mod measure;
 pub mod mesh;
 pub mod object;
+pub mod svg;
 
 pub use dgfm::Dgfm;
 pub use error::{Result, VeError};
