@@ -1,6 +1,10 @@
 //! `softjoint`: simulation, hardware-in-the-loop, board console, calibration
 //! and model fitting for SMA-driven soft joints and deformable objects.
-use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use host_tools::{calibrate, report, scenario::Scenario, sim};
 
 mod viscoelastic;
 
@@ -13,20 +17,127 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Print what the portable control core computes for one 3D step.
-    Info,
+    /// Simulate the joint under the firmware controller (default: the 3D
+    /// joint, threshold switching, targets (0,0) → (5,5) → (10,10)).
+    Sim(SimArgs),
+    /// Calibrate from measured data.
+    #[command(subcommand)]
+    Calibrate(CalibrateCommand),
     /// Viscoelastic solids (seed 002): 3-element model on your data, fits,
     /// and the measured DGFM object.
     Viscoelastic(viscoelastic::ViscoArgs),
 }
 
-fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+#[derive(Args)]
+struct SimArgs {
+    /// Scenario file (TOML); without it the built-in default runs.
+    scenario: Option<PathBuf>,
+    /// Write the time series as CSV.
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Write a plot of angles and voltages against time (SVG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Print a machine-readable summary instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Instead of a control run, write a calibration sweep of the simulated
+    /// joint (slow ±20° sweep, camera reference) to this CSV.
+    #[arg(long, value_name = "PATH")]
+    calibration_sweep: Option<PathBuf>,
+    /// Print the built-in default scenario as TOML and exit.
+    #[arg(long)]
+    print_default: bool,
+}
+
+#[derive(Subcommand)]
+enum CalibrateCommand {
+    /// Fit the wire-sensor laws (Eq. 2–5) to a sweep CSV
+    /// (`d1_mm,d2_mm,d3_mm,d4_mm,alpha_deg,beta_deg` or `d_mm,theta_deg`).
+    Wire {
+        /// The sweep.
+        sweep: PathBuf,
+        /// Write the calibration file (TOML) here.
+        #[arg(short, long, default_value = "calibration.toml")]
+        output: PathBuf,
+        /// Print a machine-readable result.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Info => {
-            println!("softjoint {}", env!("CARGO_PKG_VERSION"));
+        Command::Sim(args) => sim_command(args),
+        Command::Viscoelastic(args) => viscoelastic::run(args),
+        Command::Calibrate(CalibrateCommand::Wire { sweep, output, json }) => {
+            let rows = calibrate::read_sweep(&sweep)?;
+            let fits = calibrate::fit(&rows)?;
+            calibrate::calibration_of(&fits)?.save(&output)?;
+            if json {
+                let out: Vec<serde_json::Value> = fits
+                    .iter()
+                    .map(|f| {
+                        serde_json::json!({
+                            "angle": f.angle,
+                            "chosen": f.chosen,
+                            "threshold_deg": f.chosen.threshold_deg(),
+                            "max_error_deg": f.chosen_errors.max_error_deg,
+                            "rms_error_deg": f.chosen_errors.rms_error_deg,
+                            "methods": {
+                                "single": f.single.1,
+                                "differential": f.differential.as_ref().map(|d| d.1),
+                                "switching": f.switching.as_ref().map(|d| d.1),
+                            },
+                        })
+                    })
+                    .collect();
+                println!("{}", serde_json::to_string_pretty(&serde_json::json!({ "rows": rows.len(), "angles": out, "calibration": output }))?);
+            } else {
+                print!("{}", calibrate::table(&fits));
+                println!("{} rows; calibration written to {}", rows.len(), output.display());
+            }
             Ok(())
         }
-        Command::Viscoelastic(args) => viscoelastic::run(args),
     }
+}
+
+fn sim_command(args: SimArgs) -> anyhow::Result<()> {
+    let scenario = match &args.scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::default(),
+    };
+    if args.print_default {
+        print!("{}", toml::to_string_pretty(&Scenario::default())?);
+        return Ok(());
+    }
+    if let Some(path) = &args.calibration_sweep {
+        let rows = sim::calibration_sweep(&scenario)?;
+        calibrate::write_sweep(path, &rows)?;
+        println!("{} sweep rows written to {}", rows.len(), path.display());
+        return Ok(());
+    }
+    let out = sim::run(&scenario)?;
+    if let Some(p) = &args.csv {
+        report::write_csv(p, &out.summary.angles, &out.trace)?;
+    }
+    if let Some(p) = &args.plot {
+        report::write_plot(p, &scenario.name, &out.summary.angles, &out.trace)?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out.summary)?);
+    } else {
+        print!("{}", report::table(&out.summary));
+    }
+    Ok(())
 }
