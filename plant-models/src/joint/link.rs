@@ -61,7 +61,7 @@ impl Default for LinkParams {
 #[serde(default, deny_unknown_fields)]
 pub struct CoilGeometry {
     /// Lateral offset of the attachment on the link, link frame (m). Tuned
-    /// estimate: 12 mm sets the coils' share of the joint stiffness so the
+    /// estimate: 12.5 mm sets the coils' share of the joint stiffness so the
     /// 50 g compliance test gives ≈ 12° unpowered and ≈ 7.5° at 3 V / 2 V
     /// together with the sponge pad width (README.md).
     pub attach_lateral_m: f64,

@@ -387,6 +387,10 @@ impl Joint2d {
     pub fn camera(&mut self) -> &mut Camera {
         &mut self.camera
     }
+    /// The newest available camera frame, read-only.
+    pub fn camera_latest(&self) -> Option<&CameraFrame> {
+        self.camera.latest()
+    }
     /// Attaches a point load (weight thread, push).
     pub fn add_load(&mut self, load: PointLoad) -> Result<LoadId, PlantError> {
         self.plane.add_load(load)
@@ -590,6 +594,28 @@ impl Joint3d {
     /// The camera (reports [α, β]).
     pub fn camera(&mut self) -> &mut Camera {
         &mut self.camera
+    }
+    /// The newest available camera frame, read-only.
+    pub fn camera_latest(&self) -> Option<&CameraFrame> {
+        self.camera.latest()
+    }
+    /// Martensite fractions, coils 1..4.
+    pub fn martensite_fractions(&self) -> [f64; 4] {
+        let [a, b] = &self.planes;
+        [
+            a.coils()[0].martensite_fraction(),
+            b.coils()[0].martensite_fraction(),
+            a.coils()[1].martensite_fraction(),
+            b.coils()[1].martensite_fraction(),
+        ]
+    }
+    /// Hangs `mass_kg` from the link end in one plane, the thread led along
+    /// `direction` (that plane's socket frame).
+    pub fn add_weight_at_end(&mut self, which: Plane, mass_kg: f64, direction: [f64; 2]) -> Result<LoadId, PlantError> {
+        check_positive("load.mass_kg", mass_kg)?;
+        let p = &mut self.planes[which as usize];
+        let (g, l) = (p.params().link.gravity_m_s2, p.params().link.end_length_m);
+        p.add_load(PointLoad::weight(mass_kg, g, [0.0, l], direction))
     }
     /// Attaches a load to one plane.
     pub fn add_load(&mut self, which: Plane, load: PointLoad) -> Result<LoadId, PlantError> {

@@ -82,9 +82,12 @@ pub struct SmaParams {
     /// the antagonist stays taut beyond ±15° (a slack coil would make the
     /// unpowered joint much softer than the paper's 12° under 50 g).
     pub rest_length_martensite_m: f64,
-    /// Rest length when fully austenite (m). Estimate: the hot coil
-    /// contracts to 13 mm, enough for ≈ 20°+ of travel at 5 V against the
-    /// cold antagonist (paper: range about ±20°).
+    /// Rest length when fully austenite (m). Tuned estimate: 7 mm makes the
+    /// hot coil pull ≈ 2 N near 20°, enough for the paper's ±20° range at
+    /// 5 V against the cold antagonist and the sponge (open loop reaches
+    /// ≈ 22°); the paper puts one coil at 5 V at "about 150 g" (≈ 1.5 N).
+    /// That is above the 172 MPa long-life wire stress (SPEC §2) — a known
+    /// compromise of a linear austenite spring.
     pub rest_length_austenite_m: f64,
     /// Internal damping of the coil along its axis (N·s/m). Estimate (small:
     /// a metal coil dissipates little).
