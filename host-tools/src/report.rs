@@ -56,7 +56,7 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
     for a in angles {
         let _ = write!(s, ",{a}_true_deg,{a}_estimate_deg,{a}_desired_deg");
     }
-    let coils = trace.rows.first().map(|r| r.coil_volts.len()).unwrap_or(0);
+    let coils = 2 * trace.planes;
     for c in 1..=coils {
         let _ = write!(s, ",v{c}_V");
     }
@@ -66,7 +66,7 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
         for p in 0..angles.len() {
             let _ = write!(s, ",{:.4},{:.4},{:.4}", r.true_deg[p], r.estimate_deg[p], r.desired_deg[p]);
         }
-        for v in &r.coil_volts {
+        for v in r.coil_volts.iter().take(coils) {
             let _ = write!(s, ",{v:.3}");
         }
         let _ = writeln!(s, ",{}", r.faults);
@@ -89,7 +89,7 @@ pub fn write_plot(path: &Path, title: &str, angles: &[String], trace: &Trace) ->
         angle_series.push(Series::new(format!("{a} estimate"), c, true, rows.iter().map(|r| r.estimate_deg[p]).collect()));
         angle_series.push(Series::new(format!("{a} desired"), "#555555", true, rows.iter().map(|r| r.desired_deg[p]).collect()));
     }
-    let coils = rows.first().map(|r| r.coil_volts.len()).unwrap_or(0);
+    let coils = 2 * trace.planes;
     let volt_series = (0..coils)
         .map(|c| Series::new(format!("v{}", c + 1), colours[c % colours.len()], false, rows.iter().map(|r| r.coil_volts[c]).collect()))
         .collect();

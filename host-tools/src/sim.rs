@@ -15,19 +15,20 @@ use serde::Serialize;
 use crate::calibrate::{self, CalibrationFile, SweepRow};
 use crate::scenario::{ControlMode, Disturbance, EstimatorMethod, FeedbackKind, JointKind, Scenario};
 
-/// One row of the time series.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// One row of the time series. Fixed-size so recording a step does not
+/// allocate: a 2D joint uses index 0 of the angle arrays and coils 0–1.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Row {
     /// Time (s).
     pub t_s: f64,
     /// True angles (deg).
-    pub true_deg: Vec<f64>,
+    pub true_deg: [f64; 2],
     /// Estimated angles (deg).
-    pub estimate_deg: Vec<f64>,
+    pub estimate_deg: [f64; 2],
     /// Desired angles (deg).
-    pub desired_deg: Vec<f64>,
+    pub desired_deg: [f64; 2],
     /// Driver input voltages, paper numbering (V).
-    pub coil_volts: Vec<f64>,
+    pub coil_volts: [f64; 4],
     /// Fault bits.
     pub faults: u16,
 }
@@ -35,8 +36,14 @@ pub struct Row {
 /// The time series of a run.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Trace {
+    /// Angles per row that are used (1 or 2).
+    pub planes: usize,
     /// One row per control period.
     pub rows: Vec<Row>,
+}
+
+fn pad<const N: usize, const M: usize>(v: [f64; N]) -> [f64; M] {
+    core::array::from_fn(|i| v.get(i).copied().unwrap_or(f64::NAN))
 }
 
 /// Steady-state error of one target segment.
@@ -292,15 +299,15 @@ where
         }
         rows.push(Row {
             t_s: sample.t_s,
-            true_deg: sample.true_deg.to_vec(),
-            estimate_deg: sample.estimate_deg.to_vec(),
-            desired_deg: sample.desired_deg.to_vec(),
-            coil_volts: sample.coil_volts.to_vec(),
+            true_deg: pad(sample.true_deg),
+            estimate_deg: pad(sample.estimate_deg),
+            desired_deg: pad(sample.desired_deg),
+            coil_volts: pad(sample.coil_volts),
             faults: sample.faults,
         });
     }
     let wall = started.elapsed().as_secs_f64();
-    let trace = Trace { rows };
+    let trace = Trace { planes: P, rows };
     let segments = segments(s, &trace);
     let sse: Vec<f64> = (0..P).map(|p| segments.iter().map(|g| g.steady_state_error_deg[p]).fold(0.0, f64::max)).collect();
     let est: Vec<f64> = (0..P)
