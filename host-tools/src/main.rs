@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use host_tools::{calibrate, report, scenario::Scenario, sim};
 
+mod push;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -26,6 +27,9 @@ enum Command {
     /// Viscoelastic solids (seed 002): 3-element model on your data, fits,
     /// and the measured DGFM object.
     Viscoelastic(viscoelastic::ViscoArgs),
+    /// Deformable blocks under robotic pushing (seed 001): simulate,
+    /// calibrate (Algorithm 5), classify.
+    Push(push::PushArgs),
 }
 
 #[derive(Args)]
@@ -80,6 +84,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Sim(args) => sim_command(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
+        Command::Push(args) => push::run(args),
         Command::Calibrate(CalibrateCommand::Wire { sweep, output, json }) => {
             let rows = calibrate::read_sweep(&sweep)?;
             let fits = calibrate::fit(&rows)?;

@@ -60,6 +60,11 @@ impl PreparedVideo {
     pub fn new(video: Video, setup: &EvalSetup) -> Result<Self> {
         video.validate()?;
         check_range("cell_px", setup.cell_px, 1e-3, 1e3)?;
+        for (name, n) in [("nx", setup.nx), ("ny", setup.ny)] {
+            if n == 0 || n > 2000 {
+                return Err(PushError::InvalidParameter { name, value: n as f64, reason: "needs between 1 and 2000 squares" });
+            }
+        }
         let grid = raster_grid(&video.scenario, setup.cell_px)?;
         let mut truth = Vec::with_capacity(video.contours_px.len());
         for c in &video.contours_px {

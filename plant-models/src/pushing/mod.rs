@@ -38,6 +38,7 @@ pub mod reference;
 pub mod scenario;
 pub mod sim;
 pub mod vec2;
+pub mod video_csv;
 
 pub use error::{PushError, Result};
 

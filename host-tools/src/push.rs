@@ -1,0 +1,610 @@
+//! `softjoint push`: deformable blocks under robotic pushing (seed 001).
+//!
+//! * `simulate` — record a push of the ground-truth block (or read one from
+//!   CSV), run the mass-spring model on it and score every frame;
+//! * `calibrate` — Algorithm 5 on a training push, with a progress bar;
+//! * `classify` — which of several calibrated models predicts a push best.
+//!
+//! Every command writes CSV and SVG pictures into `--out` and prints either
+//! a short text report or, with `--json`, a machine-readable summary.
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use host_tools::svg;
+use plant_models::pushing::classify::{classify, MaterialModel};
+use plant_models::pushing::evaluate::{score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore};
+use plant_models::pushing::evolution::{calibrate, CalibrationResult, EvolutionSettings, TABLE_III_RANGES};
+use plant_models::pushing::force_regression::{ForcePredictor, DEFAULT_ERROR_THRESHOLD};
+use plant_models::pushing::forces::MaterialParams;
+use plant_models::pushing::reference::{record_push, ReferenceConfig, ReferenceMaterial, Video};
+use plant_models::pushing::scenario::{PushScenario, PushSite};
+use plant_models::pushing::sim::{DrivingMode, Integrator, SimConfig};
+use plant_models::pushing::video_csv::{parse_video_csv, write_video_csv};
+use plant_models::pushing::V2;
+
+#[derive(Args)]
+pub struct PushArgs {
+    #[command(subcommand)]
+    command: PushCommand,
+}
+
+#[derive(Subcommand)]
+enum PushCommand {
+    /// Run the mass-spring model on one push and score it frame by frame.
+    Simulate(SimulateArgs),
+    /// Learn the model's parameters from a training push (Algorithm 5).
+    Calibrate(CalibrateArgs),
+    /// Decide which calibrated material model explains a push best.
+    Classify(ClassifyArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MaterialArg {
+    Sponge,
+    Plasticine,
+}
+
+impl MaterialArg {
+    fn label(self) -> &'static str {
+        match self {
+            MaterialArg::Sponge => "sponge",
+            MaterialArg::Plasticine => "plasticine",
+        }
+    }
+    fn reference(self) -> ReferenceMaterial {
+        match self {
+            MaterialArg::Sponge => ReferenceMaterial::SPONGE,
+            MaterialArg::Plasticine => ReferenceMaterial::PLASTICINE,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SiteArg {
+    /// Middle of the long side (the seed's training push).
+    MiddleLong,
+    /// Near the corner of the long side.
+    Corner,
+    /// Middle of the short side.
+    MiddleShort,
+}
+
+impl From<SiteArg> for PushSite {
+    fn from(s: SiteArg) -> Self {
+        match s {
+            SiteArg::MiddleLong => PushSite::MiddleLongSide,
+            SiteArg::Corner => PushSite::NearCorner,
+            SiteArg::MiddleShort => PushSite::MiddleShortSide,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum IntegratorArg {
+    Customised,
+    Euler,
+    Verlet,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ModeArg {
+    /// Finger as an obstacle only.
+    Collision,
+    /// Sensed forces on the vertices under the finger only.
+    Forces,
+    /// Both (the default, as in the seed's calibration).
+    Both,
+}
+
+/// Which push to use.
+#[derive(Args, Clone)]
+struct VideoArgs {
+    /// Material of the block (chooses the generated ground truth and the
+    /// camera scale, §VIII-A).
+    #[arg(long, value_enum, default_value = "sponge")]
+    material: MaterialArg,
+    /// Where the finger pushes.
+    #[arg(long, value_enum, default_value = "middle-long")]
+    site: SiteArg,
+    /// Read the tracked contours and forces from this CSV
+    /// (`frame,force_n,x_px,y_px`) instead of generating them.
+    #[arg(long, value_name = "CSV")]
+    video: Option<PathBuf>,
+    /// Element size of the finite-element ground truth, px.
+    #[arg(long, default_value_t = 8.0)]
+    ref_element_px: f64,
+    /// Seed of the ground truth's contour and force noise.
+    #[arg(long, default_value_t = 1)]
+    noise_seed: u64,
+}
+
+/// How to run the mass-spring model.
+#[derive(Args, Clone)]
+struct ModelArgs {
+    #[arg(long, value_enum, default_value = "customised")]
+    integrator: IntegratorArg,
+    #[arg(long, value_enum, default_value = "both")]
+    mode: ModeArg,
+    /// Squares along the block's long side.
+    #[arg(long, default_value_t = 20)]
+    nx: usize,
+    /// Squares along the block's short side.
+    #[arg(long, default_value_t = 10)]
+    ny: usize,
+    /// Raster cell size for the F-score, px (1 = camera pixels).
+    #[arg(long, default_value_t = 1.0)]
+    cell_px: f64,
+    /// Turn off the repair of reversed and flat triangles (§VI-E).
+    #[arg(long)]
+    no_repair: bool,
+}
+
+#[derive(Args)]
+struct SimulateArgs {
+    #[command(flatten)]
+    video: VideoArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Model parameters: a JSON file with the eight parameters, or the
+    /// output of `calibrate`. Default: the seed's Fig. 14 (sponge) or
+    /// Fig. 15 (plasticine) values.
+    #[arg(long, value_name = "JSON")]
+    params: Option<PathBuf>,
+    /// Drive the model with the force predictor (§V) learned on this push
+    /// instead of the sensed forces.
+    #[arg(long)]
+    predicted_forces: bool,
+    /// Output directory.
+    #[arg(long, default_value = "push-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct CalibrateArgs {
+    #[command(flatten)]
+    video: VideoArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Generations M (Table III: 30).
+    #[arg(long, default_value_t = 30)]
+    generations: usize,
+    /// Seed of the evolutionary search.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Output directory.
+    #[arg(long, default_value = "push-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct ClassifyArgs {
+    #[command(flatten)]
+    video: VideoArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// A calibrated model as LABEL=PARAMS.json; give at least two.
+    #[arg(long = "model", value_name = "LABEL=JSON", required = true)]
+    models: Vec<String>,
+    /// Output directory.
+    #[arg(long, default_value = "push-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: PushArgs) -> Result<()> {
+    match args.command {
+        PushCommand::Simulate(a) => simulate_cmd(a),
+        PushCommand::Calibrate(a) => calibrate_cmd(a),
+        PushCommand::Classify(a) => classify_cmd(a),
+    }
+}
+
+fn sim_config(m: &ModelArgs) -> SimConfig {
+    SimConfig {
+        integrator: match m.integrator {
+            IntegratorArg::Customised => Integrator::Customised,
+            IntegratorArg::Euler => Integrator::Euler,
+            IntegratorArg::Verlet => Integrator::Verlet,
+        },
+        mode: match m.mode {
+            ModeArg::Collision => DrivingMode::CollisionOnly,
+            ModeArg::Forces => DrivingMode::ForcesOnVertices,
+            ModeArg::Both => DrivingMode::CollisionAndForces,
+        },
+        geometric_repair: !m.no_repair,
+        ..SimConfig::default()
+    }
+}
+
+fn load_video(v: &VideoArgs) -> Result<Video> {
+    let mat = v.material.reference();
+    let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
+    match &v.video {
+        Some(path) => {
+            let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            parse_video_csv(&text, &scenario, v.material.label()).with_context(|| format!("in {}", path.display()))
+        }
+        None => {
+            let cfg = ReferenceConfig { element_size_px: v.ref_element_px, seed: v.noise_seed, ..ReferenceConfig::default() };
+            Ok(record_push(v.material.label(), mat, &scenario, &cfg)?)
+        }
+    }
+}
+
+fn prepare(v: &VideoArgs, m: &ModelArgs) -> Result<PreparedVideo> {
+    let video = load_video(v)?;
+    Ok(PreparedVideo::new(video, &EvalSetup { nx: m.nx, ny: m.ny, cell_px: m.cell_px })?)
+}
+
+/// Reads parameters from a bare parameter object or from `calibrate`'s
+/// `params.json` (which holds them under `best_params`).
+fn load_params(path: &Path) -> Result<MaterialParams> {
+    let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let value: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
+    let inner = value.get("best_params").cloned().unwrap_or(value);
+    let p: MaterialParams = serde_json::from_value(inner).with_context(|| format!("{}: expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha)", path.display()))?;
+    p.validate().with_context(|| format!("in {}", path.display()))?;
+    Ok(p)
+}
+
+fn out_dir(dir: &Path) -> Result<()> {
+    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+}
+
+fn write(path: &Path, text: &str) -> Result<()> {
+    fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
+const SNAPSHOT_FRAMES: [usize; 5] = [0, 25, 50, 75, 99];
+
+/// Mesh positions of the model at the snapshot frames.
+fn snapshot_positions(prep: &PreparedVideo, forces: &[f64], p: &MaterialParams, sim: &SimConfig) -> Result<Vec<(usize, Vec<V2>)>> {
+    let n = prep.frame_count();
+    let frames: Vec<usize> = SNAPSHOT_FRAMES.iter().map(|&f| f.min(n - 1)).collect();
+    let mut out = Vec::new();
+    simulate_frames(&prep.mesh, &prep.video.scenario, forces, p, sim, |f, pos, _| {
+        if frames.contains(&f) {
+            out.push((f, pos.to_vec()));
+        }
+    })?;
+    Ok(out)
+}
+
+/// Mesh snapshots over frames: ground-truth outline (grey fill), the model
+/// mesh (blue), the finger (red).
+fn snapshots_svg(prep: &PreparedVideo, shots: &[(usize, Vec<V2>)], score: &RunScore, title: &str) -> String {
+    let sc = &prep.video.scenario;
+    let (lo, hi) = (prep.grid.origin_px, V2::new(prep.grid.origin_px.x + prep.grid.nx as f64 * prep.grid.cell_px, prep.grid.origin_px.y + prep.grid.ny as f64 * prep.grid.cell_px));
+    let panel_w = 300.0;
+    let scale = panel_w / (hi.x - lo.x);
+    let panel_h = (hi.y - lo.y) * scale;
+    let top = 40.0;
+    let width = panel_w * shots.len() as f64 + 10.0 * (shots.len() as f64 + 1.0);
+    let height = panel_h + top + 40.0;
+    let mut s = String::new();
+    let _ = writeln!(s, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0}" height="{height:.0}" font-family="sans-serif" font-size="12">"#);
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(s, r#"<text x="10" y="20" font-size="14">{}</text>"#, title.replace('&', "&amp;").replace('<', "&lt;"));
+    for (k, (f, pos)) in shots.iter().enumerate() {
+        let ox = 10.0 + k as f64 * (panel_w + 10.0);
+        let tx = |p: V2| (ox + (p.x - lo.x) * scale, top + (hi.y - p.y) * scale);
+        let _ = writeln!(s, r##"<rect x="{ox:.1}" y="{top:.1}" width="{panel_w:.1}" height="{panel_h:.1}" fill="none" stroke="#ccc"/>"##);
+        // table
+        let (tx0, ty0) = tx(V2::new(lo.x, 0.0));
+        let _ = writeln!(s, r##"<line x1="{tx0:.1}" y1="{ty0:.1}" x2="{:.1}" y2="{ty0:.1}" stroke="#964" stroke-width="2"/>"##, ox + panel_w);
+        let mut pts = String::new();
+        for p in &prep.video.contours_px[*f] {
+            let (x, y) = tx(*p);
+            let _ = write!(pts, "{x:.1},{y:.1} ");
+        }
+        let _ = writeln!(s, r##"<polygon points="{pts}" fill="#ddd" stroke="#777" stroke-width="1"/>"##);
+        let mut path = String::new();
+        for e in &prep.mesh.edges {
+            let (x1, y1) = tx(pos[e[0]]);
+            let (x2, y2) = tx(pos[e[1]]);
+            let _ = write!(path, "M{x1:.1},{y1:.1}L{x2:.1},{y2:.1}");
+        }
+        let _ = writeln!(s, r##"<path d="{path}" stroke="#1f5fbf" stroke-width="0.7" fill="none"/>"##);
+        let finger = sc.finger_at(sc.frame_time_s(*f));
+        let (cx, cy) = tx(finger.centre_px);
+        let _ = writeln!(s, r##"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="none" stroke="#d22" stroke-width="1.5"/>"##, finger.radius_px * scale);
+        let fscore = score.f_per_frame.get(*f).copied().unwrap_or(f64::NAN);
+        let phase = if sc.is_push_frame(*f) { "push" } else { "retrieval" };
+        let _ = writeln!(s, r#"<text x="{:.1}" y="{:.1}">frame {f} ({phase}), F = {fscore:.3}</text>"#, ox, top + panel_h + 18.0);
+    }
+    let _ = writeln!(s, r##"<text x="10" y="{:.1}" fill="#555">grey: ground-truth contour · blue: mass-spring mesh · red: finger · brown: table</text>"##, height - 6.0);
+    s.push_str("</svg>\n");
+    s
+}
+
+fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> String {
+    let sc = &prep.video.scenario;
+    let mean = plant_models::pushing::raster::running_mean(&score.f_per_frame);
+    let mut s = String::from("frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f\n");
+    for f in 0..prep.frame_count() {
+        let t = sc.frame_time_s(f);
+        let _ = writeln!(
+            s,
+            "{f},{t:.3},{},{:.3},{:.4},{:.4},{:.5},{:.5}",
+            if sc.is_push_frame(f) { "push" } else { "retrieval" },
+            sc.finger_depth_px(t),
+            prep.video.forces_n[f],
+            forces_used[f],
+            score.f_per_frame[f],
+            mean[f]
+        );
+    }
+    s
+}
+
+fn simulate_cmd(a: SimulateArgs) -> Result<()> {
+    let prep = prepare(&a.video, &a.model)?;
+    let sim = sim_config(&a.model);
+    let params = match &a.params {
+        Some(p) => load_params(p)?,
+        None => match a.video.material {
+            MaterialArg::Sponge => MaterialParams::SEED_FIG14_SPONGE,
+            MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
+        },
+    };
+    let forces = if a.predicted_forces {
+        ForcePredictor::fit(&prep.video.scenario, &prep.video.forces_n, DEFAULT_ERROR_THRESHOLD)?.predict_series(&prep.video.scenario)
+    } else {
+        prep.video.forces_n.clone()
+    };
+    let score = score_run(&prep, &forces, &params, &sim)?;
+    out_dir(&a.out)?;
+    write(&a.out.join("frames.csv"), &frames_csv(&prep, &forces, &score))?;
+    write(&a.out.join("video.csv"), &write_video_csv(&prep.video))?;
+    let shots = snapshot_positions(&prep, &forces, &params, &sim)?;
+    let title = format!("{} pushed at {}: μ(F) = {:.4}", prep.video.material, prep.video.scenario.site.name(), score.mean_f);
+    write(&a.out.join("snapshots.svg"), &snapshots_svg(&prep, &shots, &score, &title))?;
+    let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
+    let chart = svg::render(
+        &t,
+        &[
+            svg::Chart { title: "F-score per frame (x: frame)".into(), y_label: "F".into(), series: vec![svg::Series::new("F".into(), "#1f5fbf", false, score.f_per_frame.clone()), svg::Series::new("μ(F)".into(), "#d22", true, plant_models::pushing::raster::running_mean(&score.f_per_frame))] },
+            svg::Chart { title: "Finger force".into(), y_label: "N".into(), series: vec![svg::Series::new("sensed".into(), "#555", false, prep.video.forces_n.clone()), svg::Series::new("driving the model".into(), "#e80", true, forces.clone())] },
+        ],
+    );
+    write(&a.out.join("f_per_frame.svg"), &chart)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "material": prep.video.material,
+                "site": prep.video.scenario.site.name(),
+                "integrator": sim.integrator.name(),
+                "mode": sim.mode.name(),
+                "params": params,
+                "mean_f": score.mean_f,
+                "unstable_from_frame": score.unstable_from_frame,
+                "instability": score.instability.map(|i| format!("{i:?}")),
+                "f_per_frame": score.f_per_frame,
+                "out": a.out,
+            }))?
+        );
+    } else {
+        println!("{title}");
+        if let Some(f) = score.unstable_from_frame {
+            println!("unstable from frame {f} ({:?}): scored 0 from there", score.instability);
+        }
+        println!("wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}", a.out.display());
+    }
+    Ok(())
+}
+
+fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    if a.generations == 0 {
+        bail!("--generations must be at least 1");
+    }
+    let prep = prepare(&a.video, &a.model)?;
+    let sim = sim_config(&a.model);
+    let mut st = EvolutionSettings::table_iii(a.seed);
+    st.generations = a.generations;
+    let bar = indicatif::ProgressBar::new(a.generations as u64);
+    bar.set_style(indicatif::ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} generations, {msg} ({elapsed})").map_err(|e| anyhow::anyhow!("{e}"))?.progress_chars("=> "));
+    bar.set_prefix("calibrating");
+    let result: CalibrationResult = calibrate(
+        &st,
+        &TABLE_III_RANGES,
+        |p| score_run(&prep, &prep.video.forces_n, p, &sim).map(|s| s.mean_f).unwrap_or(f64::NAN),
+        |g| {
+            bar.set_message(format!("best μ(F) {:.4}", g.best));
+            bar.inc(1);
+        },
+    )?;
+    bar.finish_and_clear();
+    out_dir(&a.out)?;
+    write(&a.out.join("params.json"), &serde_json::to_string_pretty(&result)?)?;
+    let mut csv = String::from("generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n");
+    for g in &result.history {
+        let _ = writeln!(csv, "{},{:.6},{:.6},{:.6},{:.2}", g.generation, g.best, g.mean, g.worst, g.sigma);
+    }
+    write(&a.out.join("generations.csv"), &csv)?;
+    let t: Vec<f64> = result.history.iter().map(|g| g.generation as f64).collect();
+    let chart = svg::render(
+        &t,
+        &[svg::Chart {
+            title: format!("μ(F) per generation (x: generation), {} at {}", prep.video.material, prep.video.scenario.site.name()),
+            y_label: "μ(F)".into(),
+            series: vec![
+                svg::Series::new("best".into(), "#1f5fbf", false, result.history.iter().map(|g| g.best).collect()),
+                svg::Series::new("population mean".into(), "#e80", true, result.history.iter().map(|g| g.mean).collect()),
+            ],
+        }],
+    );
+    write(&a.out.join("mu_per_generation.svg"), &chart)?;
+    let score = score_run(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
+    let shots = snapshot_positions(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
+    let title = format!("calibrated {} model on its training push: μ(F) = {:.4}", prep.video.material, score.mean_f);
+    write(&a.out.join("snapshots.svg"), &snapshots_svg(&prep, &shots, &score, &title))?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "material": prep.video.material,
+                "site": prep.video.scenario.site.name(),
+                "integrator": sim.integrator.name(),
+                "mode": sim.mode.name(),
+                "best_params": result.best_params,
+                "best_mean_f": result.best_score,
+                "evaluations": result.evaluations,
+                "best_per_generation": result.history.iter().map(|g| g.best).collect::<Vec<_>>(),
+                "out": a.out,
+            }))?
+        );
+    } else {
+        println!("best μ(F) {:.4} after {} generations ({} simulations)", result.best_score, result.history.len(), result.evaluations);
+        println!("{:?}", result.best_params);
+        println!("wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}", a.out.display());
+    }
+    Ok(())
+}
+
+fn parse_model(spec: &str) -> Result<MaterialModel> {
+    let Some((label, path)) = spec.split_once('=') else {
+        bail!("--model `{spec}`: expected LABEL=PARAMS.json");
+    };
+    if label.trim().is_empty() {
+        bail!("--model `{spec}`: the label is empty");
+    }
+    Ok(MaterialModel { label: label.trim().to_string(), params: load_params(Path::new(path.trim()))? })
+}
+
+fn classify_cmd(a: ClassifyArgs) -> Result<()> {
+    let models: Vec<MaterialModel> = a.models.iter().map(|s| parse_model(s)).collect::<Result<_>>()?;
+    if models.len() < 2 {
+        bail!("classification needs at least two --model LABEL=PARAMS.json");
+    }
+    let prep = prepare(&a.video, &a.model)?;
+    let sim = sim_config(&a.model);
+    let c = classify(&prep, &prep.video.forces_n, &models, &sim)?;
+    out_dir(&a.out)?;
+    let mut csv = String::from("frame");
+    for m in &models {
+        let _ = write!(csv, ",f_{}", m.label);
+    }
+    csv.push_str(",winner\n");
+    for f in 0..prep.frame_count() {
+        let _ = write!(csv, "{f}");
+        for k in 0..models.len() {
+            let _ = write!(csv, ",{:.5}", c.f_per_frame[k][f]);
+        }
+        let _ = writeln!(csv, ",{}", c.frame_winner[f].map(|k| c.labels[k].as_str()).unwrap_or("tie"));
+    }
+    write(&a.out.join("classification.csv"), &csv)?;
+    const COLOURS: [&str; 6] = ["#1f5fbf", "#d22", "#2a2", "#e80", "#808", "#555"];
+    let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
+    let chart = svg::render(
+        &t,
+        &[svg::Chart {
+            title: format!("F per frame of each model (x: frame) — global vote: {}", c.winner_label()),
+            y_label: "F".into(),
+            series: models.iter().enumerate().map(|(k, m)| svg::Series::new(m.label.clone(), COLOURS[k % COLOURS.len()], k % 2 == 1, c.f_per_frame[k].clone())).collect(),
+        }],
+    );
+    write(&a.out.join("classification.svg"), &chart)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "video_material": prep.video.material,
+                "site": prep.video.scenario.site.name(),
+                "winner": c.winner_label(),
+                "labels": c.labels,
+                "frames_won": c.frames_won,
+                "vote": c.vote,
+                "out": a.out,
+            }))?
+        );
+    } else {
+        println!("global vote: {}", c.winner_label());
+        for (k, l) in c.labels.iter().enumerate() {
+            println!("  {l:>12}: {} frames won, weighted vote {:+.4}", c.frames_won[k], c.vote[k]);
+        }
+        println!("wrote classification.csv, classification.svg to {}", a.out.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("softjoint-push-{}-{name}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        d
+    }
+
+    fn small_video(material: MaterialArg) -> VideoArgs {
+        VideoArgs { material, site: SiteArg::MiddleLong, video: None, ref_element_px: 30.0, noise_seed: 1 }
+    }
+
+    fn small_model() -> ModelArgs {
+        ModelArgs { integrator: IntegratorArg::Customised, mode: ModeArg::Both, nx: 3, ny: 2, cell_px: 8.0, no_repair: false }
+    }
+
+    #[test]
+    fn bad_model_specs_and_parameter_files_are_refused_clearly() {
+        let dir = tmp("bad");
+        fs::create_dir_all(&dir).unwrap();
+        assert!(parse_model("sponge").unwrap_err().to_string().contains("expected LABEL=PARAMS.json"));
+        assert!(parse_model(" =x.json").unwrap_err().to_string().contains("label is empty"));
+        assert!(format!("{:#}", parse_model("a=/nonexistent/p.json").unwrap_err()).contains("reading /nonexistent/p.json"));
+        let p = dir.join("notjson.json");
+        fs::write(&p, "k_length = 3").unwrap();
+        assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("is not JSON"));
+        let p = dir.join("missing.json");
+        fs::write(&p, r#"{"k_length": 1.0}"#).unwrap();
+        assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("expected the eight model parameters"));
+        let p = dir.join("negative.json");
+        let mut bad = serde_json::to_value(MaterialParams::SEED_FIG14_SPONGE).unwrap();
+        bad["k_area"] = serde_json::json!(-1.0);
+        fs::write(&p, bad.to_string()).unwrap();
+        assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("k_area"));
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn simulate_calibrate_and_classify_write_their_files() {
+        let dir = tmp("run");
+        let sim_out = dir.join("sim");
+        simulate_cmd(SimulateArgs { video: small_video(MaterialArg::Sponge), model: small_model(), params: None, predicted_forces: true, out: sim_out.clone(), json: true }).unwrap();
+        let frames = fs::read_to_string(sim_out.join("frames.csv")).unwrap();
+        assert_eq!(frames.lines().count(), 101);
+        assert!(fs::read_to_string(sim_out.join("snapshots.svg")).unwrap().starts_with("<svg"));
+        // The written video reads back through --video.
+        let mut v = small_video(MaterialArg::Sponge);
+        v.video = Some(sim_out.join("video.csv"));
+        let again = load_video(&v).unwrap();
+        assert_eq!(again.contours_px.len(), 100);
+
+        for (mat, name) in [(MaterialArg::Sponge, "s"), (MaterialArg::Plasticine, "p")] {
+            calibrate_cmd(CalibrateArgs { video: small_video(mat), model: small_model(), generations: 2, seed: 3, out: dir.join(name), json: true }).unwrap();
+            let p = load_params(&dir.join(name).join("params.json")).unwrap();
+            p.validate().unwrap();
+            assert_eq!(fs::read_to_string(dir.join(name).join("generations.csv")).unwrap().lines().count(), 3);
+        }
+        let models = vec![format!("sponge={}", dir.join("s/params.json").display()), format!("plasticine={}", dir.join("p/params.json").display())];
+        classify_cmd(ClassifyArgs { video: small_video(MaterialArg::Plasticine), model: small_model(), models, out: dir.join("c"), json: true }).unwrap();
+        assert_eq!(fs::read_to_string(dir.join("c/classification.csv")).unwrap().lines().count(), 101);
+        let one = vec![format!("sponge={}", dir.join("s/params.json").display())];
+        assert!(classify_cmd(ClassifyArgs { video: small_video(MaterialArg::Plasticine), model: small_model(), models: one, out: dir.join("c"), json: true }).is_err());
+        assert!(calibrate_cmd(CalibrateArgs { video: small_video(MaterialArg::Sponge), model: small_model(), generations: 0, seed: 3, out: dir.join("z"), json: true }).is_err());
+        let _ = fs::remove_dir_all(&dir);
+    }
+}
