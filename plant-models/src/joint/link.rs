@@ -73,7 +73,9 @@ pub struct CoilGeometry {
     pub anchor_lateral_m: f64,
     /// Height of the anchor, socket frame (m; negative = below the sponge
     /// top). Estimate: the coil is installed at 20 mm, the SPEC's 20 mm
-    /// coil.
+    /// coil, hanging vertically. Any orientation is accepted (inclined or
+    /// horizontal coils load the sponge differently: horizontal coils barely
+    /// compress it but cannot reach ±20° against the sponge's shear).
     pub anchor_height_m: f64,
 }
 
@@ -161,8 +163,9 @@ impl PlaneParams {
         check_finite(&p("coil_geometry.attach_height_m"), g.attach_height_m)?;
         check_positive(&p("coil_geometry.anchor_lateral_m"), g.anchor_lateral_m)?;
         check_finite(&p("coil_geometry.anchor_height_m"), g.anchor_height_m)?;
-        if g.attach_height_m - g.anchor_height_m <= 0.0 {
-            return Err(PlantError::param(&p("coil_geometry.anchor_height_m"), "must be below the attachment"));
+        let installed = (g.anchor_lateral_m - g.attach_lateral_m).hypot(g.anchor_height_m - g.attach_height_m);
+        if installed < 1e-3 {
+            return Err(PlantError::param(&p("coil_geometry.anchor_height_m"), "coil shorter than 1 mm as installed"));
         }
         self.driver.validate(&p("driver."))
     }
