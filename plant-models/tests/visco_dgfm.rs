@@ -262,3 +262,57 @@ fn obj_round_trips_and_bad_obj_names_the_line() {
     let e = SurfaceMesh::from_obj_str(bad, "bad.obj").unwrap_err().to_string();
     assert!(e.starts_with("bad.obj:4:") && e.contains("7"), "{e}");
 }
+
+#[test]
+fn runtime_driver_equals_the_cores_compile_time_visco_dgfm() {
+    // An independent implementation of the same semantics: the core's
+    // ViscoDgfm<N> (compile-time N) on a small FEM-derived DGFM must give
+    // the same displacements, step by step, through loading and release,
+    // and keep the same active list.
+    use firmware::viscoelastic::ViscoDgfm;
+    const N: usize = 9;
+    let mesh = SurfaceMesh::blob(3, 4, [0.05, 0.04, 0.03]);
+    // The bottom pole and the lowest ring rest on the table.
+    let fixed = support_below(&mesh, 0.2);
+    let d = Dgfm::from_mesh(mesh, LinearElastic::default(), fixed, &DEFAULT_SHELL_SCALES).unwrap();
+    assert_eq!(d.len(), N);
+    let mut xi = Box::new([[Mat3::zero(); N]; N]);
+    for (i, row) in xi.iter_mut().enumerate() {
+        for (j, blk) in row.iter_mut().enumerate() {
+            *blk = d.xi(i, j);
+        }
+    }
+    let cols: [RayleighParams<f64>; N] = core::array::from_fn(|j| RayleighParams::new(0.3 + 0.2 * j as f64, 0.01 + 0.02 * (j % 4) as f64).unwrap());
+    let mut core = ViscoDgfm::<f64, N, N>::new(&xi, cols).unwrap();
+    core.set_rest_threshold(plant_models::viscoelastic::object::DEFAULT_REST_THRESHOLD_M).unwrap();
+    let mut ours = ViscoObject::new(d.clone(), ColumnParams::Rayleigh(cols.to_vec()), TimeStep::new(1e-3).unwrap()).unwrap();
+    let h = TimeStep::new(1e-3).unwrap();
+    let mut u_core = [Vec3::zero(); N];
+    let mut u_ours = vec![Vec3::zero(); N];
+    for step in 0..600 {
+        let load = |k: usize| Vec3::new(200.0 * k as f64, -100.0, -1.5e3);
+        match step {
+            0 => {
+                for (k, j) in [2usize, 5, 7].into_iter().enumerate() {
+                    core.set_traction(j, load(k)).unwrap();
+                    ours.set_traction(j, load(k)).unwrap();
+                }
+            }
+            150 => {
+                core.set_traction(5, Vec3::zero()).unwrap();
+                ours.set_traction(5, Vec3::zero()).unwrap();
+            }
+            300 => {
+                core.release_all();
+                ours.release_all();
+            }
+            _ => {}
+        }
+        core.step(h, &mut u_core);
+        ours.step(h, &mut u_ours).unwrap();
+        let diff = max_diff(&u_core, &u_ours);
+        assert!(diff <= 1e-15 * max_abs(&u_core).max(1e-12), "step {step}: differ by {diff:e}");
+        assert_eq!(core.active_count(), ours.active_count(), "step {step}");
+    }
+    assert_eq!(ours.active_count(), 0, "all columns relaxed and left");
+}

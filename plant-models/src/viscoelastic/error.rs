@@ -32,7 +32,7 @@ pub enum VeError {
         reason: String,
     },
     /// The stiffness matrix is not positive definite (mechanism / free body).
-    #[error("FEM stiffness is not positive definite at equation {equation}: is the object fixed (any Λu vertices)?")]
+    #[error("FEM stiffness is not positive definite at equation {equation}: is the object held (Λu needs at least three non-collinear vertices to stop rigid motion)?")]
     NotPositiveDefinite {
         /// Index of the pivot that failed.
         equation: usize,

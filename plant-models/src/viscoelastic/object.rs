@@ -278,7 +278,7 @@ impl HapticLoop {
     pub fn new(object: ViscoObject) -> Result<Self> {
         let h = TimeStep::new(HAPTIC_PERIOD_S).map_err(|e| VeError::Core(e, "haptic period"))?;
         let n = object.dgfm().len();
-        Ok(HapticLoop { object, h, step_count: 0, frames_emitted: 0, loaded: Vec::new(), u: vec![Vec3::zero(); n], frames: Vec::new() })
+        Ok(HapticLoop { object, h, step_count: 0, frames_emitted: 0, loaded: Vec::with_capacity(3), u: vec![Vec3::zero(); n], frames: Vec::new() })
     }
 
     /// The object.
@@ -291,10 +291,12 @@ impl HapticLoop {
         self.step_count as f64 * self.h.seconds()
     }
 
-    fn contact_weights(&self, contact: Contact) -> Result<Vec<(usize, f64)>> {
+    /// Mesh vertices under the contact and their weights (up to 3; the
+    /// count is returned beside them, so nothing is allocated per step).
+    fn contact_weights(&self, contact: Contact) -> Result<([(usize, f64); 3], usize)> {
         let mesh = self.object.dgfm().mesh();
         match contact {
-            Contact::Vertex(v) if v < mesh.len() => Ok(vec![(v, 1.0)]),
+            Contact::Vertex(v) if v < mesh.len() => Ok(([(v, 1.0), (0, 0.0), (0, 0.0)], 1)),
             Contact::Vertex(v) => Err(VeError::VertexNotInTractionSet { vertex: v, n: mesh.len() }),
             Contact::Triangle { triangle, barycentric } => {
                 let tri = mesh.triangles.get(triangle).ok_or(VeError::InvalidParameter {
@@ -306,38 +308,42 @@ impl HapticLoop {
                 if !(barycentric.iter().all(|w| w.is_finite() && *w >= 0.0) && (sum - 1.0).abs() < 1e-9) {
                     return Err(VeError::InvalidParameter { name: "barycentric", value: sum, reason: "weights must be >= 0 and sum to 1" });
                 }
-                Ok(tri.iter().copied().zip(barycentric).collect())
+                Ok(([(tri[0], barycentric[0]), (tri[1], barycentric[1]), (tri[2], barycentric[2])], 3))
             }
         }
     }
 
     /// One haptic step: the probe pushes with `force_n` at `contact` (or
     /// nothing touches the object). Returns the contact displacement (m).
+    /// Allocation-free after the first frames (display frames allocate).
     pub fn step(&mut self, contact: Option<(Contact, [f64; 3])>) -> Result<[f64; 3]> {
-        let weights = match contact {
+        let (weights, count, force) = match contact {
             Some((c, f)) => {
                 if !f.iter().all(|v| v.is_finite()) {
                     return Err(VeError::InvalidParameter { name: "force_n", value: f64::NAN, reason: "must be finite" });
                 }
-                self.contact_weights(c)?.into_iter().map(|(v, w)| (v, w, f)).collect()
+                let (w, n) = self.contact_weights(c)?;
+                (w, n, f)
             }
-            None => Vec::new(),
+            None => ([(0, 0.0); 3], 0, [0.0; 3]),
         };
+        let weights = &weights[..count];
         // Release vertices that are no longer under the probe.
-        for &(v, _) in &self.loaded {
-            if !weights.iter().any(|&(w, _, _)| w == v) {
+        for k in 0..self.loaded.len() {
+            let v = self.loaded[k].0;
+            if !weights.iter().any(|&(w, _)| w == v) {
                 if let Ok(j) = self.object.dgfm().index_of(v) {
                     self.object.set_traction(j, Vec3::zero())?;
                 }
             }
         }
         self.loaded.clear();
-        for &(v, w, f) in &weights {
+        for &(v, w) in weights {
             self.loaded.push((v, w));
             // A contact on Λu pushes on the support: no traction on the object.
             if let Ok(j) = self.object.dgfm().index_of(v) {
                 let alpha = self.object.dgfm().areas_m2()[j];
-                self.object.set_traction(j, Vec3::new(f[0], f[1], f[2]).scale(w / alpha))?;
+                self.object.set_traction(j, Vec3::new(force[0], force[1], force[2]).scale(w / alpha))?;
             }
         }
         self.object.step(self.h, &mut self.u)?;
