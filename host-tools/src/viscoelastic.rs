@@ -10,7 +10,7 @@ use plant_models::viscoelastic::estimate::{estimate_all, spread_columns};
 use plant_models::viscoelastic::fem::{LinearElastic, DEFAULT_SHELL_SCALES};
 use plant_models::viscoelastic::fit::{fit_trial, fit_trials, simulate_displacement, simulate_force, NelderMeadOptions, Weighting};
 use plant_models::viscoelastic::io::{header, read_columns, read_probe_script};
-use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, VertexTruth};
+use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, Trial, VertexTruth};
 use plant_models::viscoelastic::object::{run_script, Contact, ProbeEvent, HAPTIC_PERIOD_S};
 use plant_models::viscoelastic::svg::{false_colour_mesh, fit_plot};
 use plant_models::viscoelastic::{HapticLoop, SurfaceMesh, ViscoObject};
@@ -86,6 +86,11 @@ enum ViscoCommand {
         /// Use general damping tensors instead of Rayleigh damping.
         #[arg(long)]
         tensor: bool,
+        /// Also write every simulated probe trial as
+        /// `trial_NNNN.csv` (`time_s,displacement,force`) plus `trials.csv`
+        /// with the 1D parameters that generated each (for `fit`, Fig. 8).
+        #[arg(long)]
+        trials_dir: Option<PathBuf>,
         /// Output directory (created).
         #[arg(long)]
         out_dir: PathBuf,
@@ -97,8 +102,9 @@ pub fn run(args: ViscoArgs) -> Result<()> {
     match args.command {
         ViscoCommand::Simulate { input, k1, k2, b, output } => simulate(&input, k1, k2, b, output.as_deref()),
         ViscoCommand::Fit { input, uniform, plot, json } => fit(&input, uniform, plot.as_deref(), json),
-        ViscoCommand::Object { mesh, script, duration_s, probe_every, seed, tensor, out_dir } => {
-            object(mesh.as_deref(), script.as_deref(), duration_s, probe_every, seed, tensor, &out_dir)
+        ViscoCommand::Object { mesh, script, duration_s, probe_every, seed, tensor, trials_dir, out_dir } => {
+            let o = ObjectRun { duration_s, every: probe_every, seed, tensor };
+            object(mesh.as_deref(), script.as_deref(), &o, trials_dir.as_deref(), &out_dir)
         }
     }
 }
@@ -192,8 +198,34 @@ fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
     Ok(out)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn object(mesh_path: Option<&Path>, script: Option<&Path>, duration_s: f64, every: usize, seed: u64, tensor: bool, out_dir: &Path) -> Result<()> {
+/// Scalar options of `object`.
+struct ObjectRun {
+    duration_s: f64,
+    every: usize,
+    seed: u64,
+    tensor: bool,
+}
+
+fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut index = String::from("file,vertex,speed_m_per_s,ux,uy,uz,true_k1_n_per_m,true_k2_n_per_m,true_b_n_s_per_m\n");
+    for (k, t) in trials.iter().enumerate() {
+        let name = format!("trial_{k:04}.csv");
+        let mut s = String::from("time_s,displacement,force\n");
+        for i in 0..t.time_s.len() {
+            let _ = writeln!(s, "{},{:e},{:e}", t.time_s[i], t.displacement_m[i], t.force_n[i]);
+        }
+        write_text(&dir.join(&name), &s)?;
+        let truth = truths.iter().find(|v| v.vertex == t.vertex).context("trial without truth")?;
+        let (k1, k2, b) = truth.trial_scalars(t.direction);
+        let d = t.direction;
+        let _ = writeln!(index, "{name},{},{},{},{},{},{k1:e},{k2:e},{b:e}", t.vertex, t.speed_m_per_s, d[0], d[1], d[2]);
+    }
+    write_text(&dir.join("trials.csv"), &index)
+}
+
+fn object(mesh_path: Option<&Path>, script: Option<&Path>, run: &ObjectRun, trials_dir: Option<&Path>, out_dir: &Path) -> Result<()> {
+    let ObjectRun { duration_s, every, seed, tensor } = *run;
     if !(duration_s.is_finite() && duration_s > 0.0) {
         bail!("--duration-s must be finite and > 0, got {duration_s}");
     }
@@ -207,6 +239,9 @@ fn object(mesh_path: Option<&Path>, script: Option<&Path>, duration_s: f64, ever
     let truths = synthetic_truth(&dgfm, every)?;
     let protocol = ProbeProtocol { speeds_m_per_s: vec![20.0e-3], ..ProbeProtocol::default() };
     let trials = simulate_campaign(&dgfm, &truths, &protocol, seed)?;
+    if let Some(dir) = trials_dir {
+        write_trials(dir, &trials, &truths)?;
+    }
     let fits = fit_trials(&trials, Weighting::Seed, NelderMeadOptions::default());
     let estimates = estimate_all(&dgfm, &trials, &fits)?;
     let params = spread_columns(dgfm.len(), &estimates, 1.0, tensor)?;

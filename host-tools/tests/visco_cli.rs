@@ -116,7 +116,10 @@ fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
 #[test]
 fn object_writes_frames_trace_parameters_and_a_damping_image() {
     let dir = tmp("object_out");
-    let out = softjoint(&["viscoelastic", "object", "--duration-s", "0.4", "--probe-every", "15", "--out-dir", dir.to_str().unwrap()]);
+    let trials = tmp("trials");
+    let out = softjoint(&[
+        "viscoelastic", "object", "--duration-s", "0.4", "--probe-every", "15", "--trials-dir", trials.to_str().unwrap(), "--out-dir", dir.to_str().unwrap(),
+    ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let frames = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
     // Frames at 0, 1/30, … ≤ 0.4 s: 13 frames × 198 vertices.
@@ -130,6 +133,31 @@ fn object_writes_frames_trace_parameters_and_a_damping_image() {
     let svg = std::fs::read_to_string(dir.join("damping.svg")).unwrap();
     let colours: std::collections::BTreeSet<&str> = svg.match_indices("fill=\"rgb(").map(|(i, _)| &svg[i..i + 24]).collect();
     assert!(colours.len() > 5, "false colour uses several colours");
+    // Fig. 8 through the CLI: a written trial (contact-area artefact, noise)
+    // fitted with the seed's weighting and uniformly, against the 1D
+    // parameters that generated it.
+    let index = std::fs::read_to_string(trials.join("trials.csv")).unwrap();
+    let row: Vec<&str> = index.lines().nth(1).unwrap().split(',').collect();
+    let truth: Vec<f64> = row[6..9].iter().map(|v| v.parse().unwrap()).collect();
+    let trial = trials.join(row[0]);
+    let fit_err = |extra: &[&str]| -> f64 {
+        let mut args = vec!["viscoelastic", "fit", trial.to_str().unwrap(), "--json"];
+        args.extend_from_slice(extra);
+        let out = softjoint(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let json = String::from_utf8(out.stdout).unwrap();
+        ["k1_n_per_m", "k2_n_per_m", "b_n_s_per_m"]
+            .iter()
+            .zip(&truth)
+            .map(|(name, want)| {
+                let i = json.find(&format!("\"{name}\": ")).unwrap() + name.len() + 4;
+                let got: f64 = json[i..].split([',', '}']).next().unwrap().trim().parse().unwrap();
+                (got / want - 1.0).abs()
+            })
+            .fold(0.0, f64::max)
+    };
+    let (weighted, uniform) = (fit_err(&[]), fit_err(&["--uniform"]));
+    assert!(weighted < 0.05 && weighted < uniform, "weighted {weighted} vs uniform {uniform}");
     // A broken mesh file is an error naming the line.
     let bad = tmp("bad.obj");
     std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap();
