@@ -202,6 +202,9 @@ impl App {
                 }
                 self.mode = Mode::Hil { period_us, last: None };
                 self.outputs = [PairCommand::Off; 2];
+                // Simulated time starts at seq × period: a new time base.
+                self.joint.restart_time_base();
+                self.last_faults = self.joint.supervisor().latched();
                 ack
             }
             Message::HilSensor(frame) => self.hil_step(frame),

@@ -284,6 +284,23 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         self.pairs.get(plane).map(|p| p.integral_v())
     }
 
+    /// Starts a new time base (entering lockstep, or after the clock was
+    /// reset): sensor guards, estimator switching state, integrators and the
+    /// supervisor's record of present causes start afresh. Latched faults
+    /// remain until [`Self::clear_faults`].
+    pub fn restart_time_base(&mut self) {
+        self.wire_guard.reset();
+        self.angle_guard.reset();
+        for e in self.estimators.iter_mut() {
+            e.reset();
+        }
+        for p in self.pairs.iter_mut() {
+            p.reset();
+        }
+        self.estimate_deg = [f32::NAN; P];
+        self.supervisor.restart_time_base();
+    }
+
     /// Allows outputs (unless a fault is latched).
     pub fn arm(&mut self) {
         for p in self.pairs.iter_mut() {

@@ -319,6 +319,15 @@ impl<const P: usize> Supervisor<P> {
         }
     }
 
+    /// Starts a new time base (e.g. entering lockstep): forgets which fault
+    /// causes were present and when the link last spoke, since both refer
+    /// to the old clock. Latched faults stay latched until [`Self::clear`];
+    /// the thermal state is physical and is kept.
+    pub fn restart_time_base(&mut self) {
+        self.present = Faults::NONE;
+        self.last_link_s = None;
+    }
+
     /// Latches `faults` (from the estimator, the image, a driver error...).
     pub fn report(&mut self, faults: Faults) {
         let new = faults.intersection(Faults::LATCHING);

@@ -3,6 +3,9 @@
 #![deny(unsafe_code)]
 
 pub mod calibrate;
+pub mod hil;
+pub mod link;
+pub mod qemu;
 pub mod report;
 pub mod scenario;
 pub mod sim;

@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use host_tools::{calibrate, report, scenario::Scenario, sim};
 
-mod push;
+mod serial_cmds;
+
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -24,12 +25,14 @@ enum Command {
     /// Calibrate from measured data.
     #[command(subcommand)]
     Calibrate(CalibrateCommand),
+    /// Hardware-in-the-loop: the firmware image under QEMU (or a board on
+    /// --port) runs the controller in lockstep with the simulated joint.
+    Hil(serial_cmds::HilArgs),
+    /// Send commands to a board and stream its telemetry.
+    Console(serial_cmds::ConsoleArgs),
     /// Viscoelastic solids (seed 002): 3-element model on your data, fits,
     /// and the measured DGFM object.
     Viscoelastic(viscoelastic::ViscoArgs),
-    /// Deformable blocks under robotic pushing (seed 001): simulate,
-    /// calibrate (Algorithm 5), classify.
-    Push(push::PushArgs),
 }
 
 #[derive(Args)]
@@ -83,8 +86,9 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Sim(args) => sim_command(args),
+        Command::Hil(args) => serial_cmds::hil(args),
+        Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
-        Command::Push(args) => push::run(args),
         Command::Calibrate(CalibrateCommand::Wire { sweep, output, json }) => {
             let rows = calibrate::read_sweep(&sweep)?;
             let fits = calibrate::fit(&rows)?;

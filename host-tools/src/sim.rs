@@ -155,13 +155,7 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
     let (laws, estimator) = laws_for(s)?;
     match s.joint {
         JointKind::ThreeD => {
-            let mut params = Joint3dParams::default();
-            params.sim.seed = s.seed;
-            if s.plant.rigid_bearing {
-                params.alpha = params.alpha.rigid_bearing();
-                params.beta = params.beta.rigid_bearing();
-            }
-            let plant = Joint3d::new(params).context("building the 3D plant")?;
+            let plant = plant_3d(s)?;
             let mut cfg = JointConfig::paper_3d();
             for p in 0..2 {
                 cfg.gains[p] = gains(s, p)?;
@@ -174,17 +168,7 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
             }
             let ctl = JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
             let cl: ClosedLoop<Joint3d, 2, 4, 4> = ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
-            run_loop(s, cl, estimator, &["alpha", "beta"], |plant, load, on| match load {
-                LoadAction::Weight { plane, load } => {
-                    let which = if plane == 1 { Plane::Beta } else { Plane::Alpha };
-                    if let Some(id) = on {
-                        plant.remove_load(which, id);
-                        Ok(None)
-                    } else {
-                        Ok(Some(plant.add_load(which, load)?))
-                    }
-                }
-            })
+            run_loop(s, cl, estimator, &["alpha", "beta"], load_3d)
         }
         JointKind::TwoD => {
             let mut params = Joint2dParams::default();
@@ -215,6 +199,39 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
             })
         }
     }
+}
+
+/// Hangs (no id) or cuts (with id) a weight on the 3D plant.
+pub fn load_3d(
+    plant: &mut Joint3d,
+    action: LoadAction,
+    id: Option<LoadId>,
+) -> Result<Option<LoadId>, plant_models::joint::PlantError> {
+    let LoadAction::Weight { plane, load } = action;
+    let which = if plane == 1 { Plane::Beta } else { Plane::Alpha };
+    match id {
+        Some(id) => {
+            plant.remove_load(which, id);
+            Ok(None)
+        }
+        None => Ok(Some(plant.add_load(which, load)?)),
+    }
+}
+
+/// The 3D plant of a scenario.
+pub fn plant_3d(s: &Scenario) -> anyhow::Result<Joint3d> {
+    let mut params = Joint3dParams::default();
+    params.sim.seed = s.seed;
+    if s.plant.rigid_bearing {
+        params.alpha = params.alpha.rigid_bearing();
+        params.beta = params.beta.rigid_bearing();
+    }
+    Joint3d::new(params).context("building the 3D plant")
+}
+
+/// Pair gains of a scenario (public for `hil`).
+pub fn pair_gains(s: &Scenario, pair: usize) -> anyhow::Result<PairGains> {
+    gains(s, pair)
 }
 
 fn feedback(s: &Scenario) -> FeedbackSource {
@@ -255,7 +272,7 @@ where
     let period = f64::from(s.control_period_us) * 1e-6;
     let steps = (s.duration_s / period).round() as u64;
     let mut rows = Vec::with_capacity(steps as usize);
-    let mut loads: Vec<Option<LoadId>> = vec![None; s.disturbances.len()];
+    let mut disturber = Disturber::new(s);
     let mut faults_seen = 0u16;
     let mut peak_temp = [f64::NEG_INFINITY; C];
     let mut current_target: Vec<f64> = vec![f64::NAN; P];
@@ -270,28 +287,7 @@ where
             current_target = target.to_vec();
         }
         cl.overrides = [None; C];
-        for (i, d) in s.disturbances.iter().enumerate() {
-            match d {
-                Disturbance::CoilVoltage { coil, volts, from_s, to_s } => {
-                    if t >= *from_s && t < *to_s {
-                        if let Some(o) = cl.overrides.get_mut(coil - 1) {
-                            *o = Some(*volts);
-                        }
-                    }
-                }
-                Disturbance::Weight { mass_g, plane, direction, from_s, to_s } => {
-                    let active = t >= *from_s && t < *to_s;
-                    let plane = usize::from(plane.as_deref() == Some("beta"));
-                    let dir = direction.unwrap_or([-1.0, 0.0]);
-                    let load = PointLoad::weight(mass_g * 1e-3, G_M_S2, [0.0, LINK_END_M], dir);
-                    if active && loads[i].is_none() {
-                        loads[i] = apply_load(&mut cl.plant, LoadAction::Weight { plane, load }, None)?;
-                    } else if !active && loads[i].is_some() {
-                        apply_load(&mut cl.plant, LoadAction::Weight { plane, load }, loads[i].take())?;
-                    }
-                }
-            }
-        }
+        disturber.apply(s, t, &mut cl.overrides, |action, id| apply_load(&mut cl.plant, action, id))?;
         let sample = cl.tick().with_context(|| format!("at t = {t:.3} s"))?;
         faults_seen |= sample.faults;
         for (p, c) in peak_temp.iter_mut().zip(cl.plant.coil_temperatures_c()) {
@@ -308,28 +304,93 @@ where
     }
     let wall = started.elapsed().as_secs_f64();
     let trace = Trace { planes: P, rows };
-    let segments = segments(s, &trace);
-    let sse: Vec<f64> = (0..P).map(|p| segments.iter().map(|g| g.steady_state_error_deg[p]).fold(0.0, f64::max)).collect();
-    let est: Vec<f64> = (0..P)
+    let summary = summarize(s, &trace, names, wall, estimator, faults_seen, peak_temp.to_vec());
+    Ok(RunOutput { summary, trace })
+}
+
+/// Applies a scenario's disturbances as time passes (shared by `sim` and
+/// `hil`): coil-voltage overrides, and weights hung and cut.
+pub struct Disturber {
+    loads: Vec<Option<LoadId>>,
+}
+
+impl Disturber {
+    /// Nothing applied yet.
+    pub fn new(s: &Scenario) -> Self {
+        Self { loads: vec![None; s.disturbances.len()] }
+    }
+
+    /// Sets the coil overrides active at `t_s` (coil index = paper number
+    /// − 1) and hangs or cuts weights through `load` (attach when given no
+    /// id, remove when given one).
+    pub fn apply<const C: usize>(
+        &mut self,
+        s: &Scenario,
+        t_s: f64,
+        overrides: &mut [Option<f64>; C],
+        mut load: impl FnMut(LoadAction, Option<LoadId>) -> Result<Option<LoadId>, plant_models::joint::PlantError>,
+    ) -> anyhow::Result<()> {
+        for (i, d) in s.disturbances.iter().enumerate() {
+            match d {
+                Disturbance::CoilVoltage { coil, volts, from_s, to_s } => {
+                    if t_s >= *from_s && t_s < *to_s {
+                        if let Some(o) = overrides.get_mut(coil.saturating_sub(1)) {
+                            *o = Some(*volts);
+                        }
+                    }
+                }
+                Disturbance::Weight { mass_g, plane, direction, from_s, to_s } => {
+                    let active = t_s >= *from_s && t_s < *to_s;
+                    let plane = usize::from(plane.as_deref() == Some("beta"));
+                    let dir = direction.unwrap_or([-1.0, 0.0]);
+                    let w = PointLoad::weight(mass_g * 1e-3, G_M_S2, [0.0, LINK_END_M], dir);
+                    let action = LoadAction::Weight { plane, load: w };
+                    if active && self.loads[i].is_none() {
+                        self.loads[i] = load(action, None)?;
+                    } else if !active && self.loads[i].is_some() {
+                        load(action, self.loads[i].take())?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The summary of a finished run (shared by `sim` and `hil`).
+pub fn summarize(
+    s: &Scenario,
+    trace: &Trace,
+    names: &[&str],
+    wall_seconds: f64,
+    estimator: String,
+    faults_seen: u16,
+    peak_coil_temperature_c: Vec<f64>,
+) -> Summary {
+    let planes = trace.planes;
+    let segments = segments(s, trace);
+    let sse: Vec<f64> =
+        (0..planes).map(|p| segments.iter().map(|g| g.steady_state_error_deg[p]).fold(0.0, f64::max)).collect();
+    let est: Vec<f64> = (0..planes)
         .map(|p| trace.rows.iter().map(|r| (r.estimate_deg[p] - r.true_deg[p]).abs()).filter(|e| e.is_finite()).fold(0.0, f64::max))
         .collect();
-    let sim_seconds = steps as f64 * period;
-    let summary = Summary {
+    let period = f64::from(s.control_period_us) * 1e-6;
+    let sim_seconds = trace.rows.len() as f64 * period;
+    Summary {
         scenario: s.name.clone(),
-        joint: if P == 1 { "2d".into() } else { "3d".into() },
+        joint: if planes == 1 { "2d".into() } else { "3d".into() },
         angles: names.iter().map(|n| n.to_string()).collect(),
         steady_state_error_deg: sse,
         max_estimation_error_deg: est,
         segments,
         sim_seconds,
-        wall_seconds: wall,
-        realtime_factor: if wall > 0.0 { sim_seconds / wall } else { f64::INFINITY },
-        steps,
+        wall_seconds,
+        realtime_factor: if wall_seconds > 0.0 { sim_seconds / wall_seconds } else { f64::INFINITY },
+        steps: trace.rows.len() as u64,
         faults_seen: fault_names(faults_seen),
         estimator,
-        peak_coil_temperature_c: peak_temp.to_vec(),
-    };
-    Ok(RunOutput { summary, trace })
+        peak_coil_temperature_c,
+    }
 }
 
 /// Splits the run at target changes and measures each segment.

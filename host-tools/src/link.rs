@@ -1,0 +1,233 @@
+//! The host end of the serial protocol (`firmware::protocol`): framing,
+//! bounded waits and retries, and the counters a user needs to judge a link.
+//!
+//! The host always speaks first (QEMU's pty drops what the guest writes
+//! before the host opens it; a board never speaks unasked except for
+//! telemetry). Every wait has a deadline; a request that times out is sent
+//! again unchanged — board requests are idempotent (a repeated lockstep
+//! `seq` is answered from the board's cache) — up to a retry limit.
+
+use std::collections::VecDeque;
+use std::io::{self, Read, Write};
+use std::time::{Duration, Instant};
+
+use firmware::protocol::{encode_frame, ErrorCode, FrameDecoder, LinkStats, Message, MAX_FRAME};
+use serde::Serialize;
+
+/// Why a request failed.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    /// No matching reply after every retry.
+    #[error("no reply to {request:#04x} after {attempts} attempts of {timeout_ms} ms")]
+    Timeout {
+        /// Type byte of the request.
+        request: u8,
+        /// Attempts made.
+        attempts: u32,
+        /// Per-attempt timeout (ms).
+        timeout_ms: u64,
+    },
+    /// The board answered with an error.
+    #[error("board refused {request:#04x}: {code:?}")]
+    Refused {
+        /// Type byte of the request.
+        request: u8,
+        /// The board's reason.
+        code: ErrorCode,
+    },
+    /// The port failed.
+    #[error("serial port: {0}")]
+    Io(#[from] io::Error),
+}
+
+/// Host-side link counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct HostLinkStats {
+    /// Frames written.
+    pub frames_sent: u64,
+    /// Frames received and decoded.
+    pub frames_received: u64,
+    /// Requests sent again after a timeout.
+    pub retries: u64,
+    /// Received frames with a CRC mismatch.
+    pub crc_errors: u64,
+    /// Received frames with bad COBS or too short.
+    pub cobs_errors: u64,
+    /// Received frames longer than the maximum.
+    pub overfull: u64,
+    /// Received CRC-valid frames of unknown type or wrong length.
+    pub malformed: u64,
+    /// Decoded frames that were not the awaited reply (stale replies to
+    /// retried requests, telemetry while waiting).
+    pub unexpected: u64,
+}
+
+/// A byte port with a read timeout.
+pub trait Port: Read + Write + Send {
+    /// Sets how long a read may block.
+    fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()>;
+}
+
+impl Port for Box<dyn serialport::SerialPort> {
+    fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        self.set_timeout(timeout).map_err(io::Error::from)
+    }
+}
+
+#[cfg(unix)]
+impl Port for serialport::TTYPort {
+    fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        serialport::SerialPort::set_timeout(self, timeout).map_err(io::Error::from)
+    }
+}
+
+/// Opens a serial device (a board, or QEMU's pty) in raw mode.
+pub fn open_port(path: &str, baud: u32) -> anyhow::Result<Box<dyn serialport::SerialPort>> {
+    serialport::new(path, baud)
+        .timeout(Duration::from_millis(10))
+        .open()
+        .map_err(|e| anyhow::anyhow!("cannot open serial port {path}: {e}"))
+}
+
+/// The host end of a link.
+pub struct Link<P: Port> {
+    port: P,
+    decoder: FrameDecoder,
+    stats: HostLinkStats,
+    queued: VecDeque<Message>,
+    buf: [u8; 256],
+    buffered: (usize, usize),
+    lose_next: bool,
+}
+
+impl<P: Port> Link<P> {
+    /// Wraps a port.
+    pub fn new(port: P) -> Self {
+        Self {
+            port,
+            decoder: FrameDecoder::new(),
+            stats: HostLinkStats::default(),
+            queued: VecDeque::new(),
+            buf: [0; 256],
+            buffered: (0, 0),
+            lose_next: false,
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> HostLinkStats {
+        let d: LinkStats = self.decoder.stats();
+        HostLinkStats {
+            crc_errors: u64::from(d.crc_errors),
+            cobs_errors: u64::from(d.cobs_errors),
+            overfull: u64::from(d.overfull),
+            malformed: u64::from(d.malformed),
+            ..self.stats
+        }
+    }
+
+    /// The port (tests use it to inject bytes).
+    pub fn port_mut(&mut self) -> &mut P {
+        &mut self.port
+    }
+
+    /// Fault injection: the next frame is counted as sent but not written
+    /// (a frame lost on the wire), so the request's retry must recover it.
+    pub fn lose_next_send(&mut self) {
+        self.lose_next = true;
+    }
+
+    /// Sends one message as a frame.
+    pub fn send(&mut self, msg: &Message) -> io::Result<()> {
+        if std::mem::take(&mut self.lose_next) {
+            self.stats.frames_sent += 1;
+            return Ok(());
+        }
+        let mut frame = [0u8; MAX_FRAME];
+        let n = encode_frame(msg, &mut frame);
+        // No flush: on a tty it is tcdrain, which would block until the far
+        // end (QEMU feeds its UART one byte at a time) has read everything.
+        self.port.write_all(&frame[..n])?;
+        self.stats.frames_sent += 1;
+        Ok(())
+    }
+
+    /// Sends raw bytes (a leading delimiter to flush the board's decoder,
+    /// or deliberate garbage in tests).
+    pub fn send_raw(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.port.write_all(bytes)
+    }
+
+    /// Next message received before `deadline` (queued ones first).
+    pub fn recv_until(&mut self, deadline: Instant) -> io::Result<Option<Message>> {
+        if let Some(m) = self.queued.pop_front() {
+            return Ok(Some(m));
+        }
+        loop {
+            while self.buffered.0 < self.buffered.1 {
+                let b = self.buf[self.buffered.0];
+                self.buffered.0 += 1;
+                if let Some(Ok(m)) = self.decoder.push(b) {
+                    self.stats.frames_received += 1;
+                    return Ok(Some(m));
+                }
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(None);
+            }
+            self.port.set_read_timeout((deadline - now).min(Duration::from_millis(100)))?;
+            match self.port.read(&mut self.buf) {
+                Ok(0) => {}
+                Ok(n) => self.buffered = (0, n),
+                Err(e) if e.kind() == io::ErrorKind::TimedOut || e.kind() == io::ErrorKind::WouldBlock => {}
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// Sends `msg` and waits up to `timeout` for a reply that `accept`
+    /// takes; on a timeout sends it again, up to `attempts` times in all.
+    /// An `Error` reply to this request type ends the wait. Other messages
+    /// that arrive meanwhile are counted as unexpected (telemetry is kept
+    /// for [`Link::recv_until`]).
+    pub fn request(
+        &mut self,
+        msg: &Message,
+        timeout: Duration,
+        attempts: u32,
+        accept: impl Fn(&Message) -> bool,
+    ) -> Result<Message, LinkError> {
+        let request = msg.kind();
+        for attempt in 0..attempts.max(1) {
+            if attempt > 0 {
+                self.stats.retries += 1;
+            }
+            self.send(msg)?;
+            let deadline = Instant::now() + timeout;
+            while let Some(reply) = self.recv_until(deadline)? {
+                if accept(&reply) {
+                    return Ok(reply);
+                }
+                match reply {
+                    Message::Error { request: r, code } if r == request => {
+                        return Err(LinkError::Refused { request, code });
+                    }
+                    Message::Telemetry(_) => self.queued.push_back(reply),
+                    _ => self.stats.unexpected += 1,
+                }
+                if self.queued.len() > 1024 {
+                    self.queued.pop_front();
+                }
+            }
+        }
+        Err(LinkError::Timeout { request, attempts: attempts.max(1), timeout_ms: timeout.as_millis() as u64 })
+    }
+
+    /// A request answered by `Ack` for its type.
+    pub fn command(&mut self, msg: &Message, timeout: Duration, attempts: u32) -> Result<(), LinkError> {
+        let kind = msg.kind();
+        self.request(msg, timeout, attempts, |r| matches!(r, Message::Ack { request } if *request == kind)).map(|_| ())
+    }
+}
