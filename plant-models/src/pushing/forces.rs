@@ -263,12 +263,25 @@ pub fn accumulate_internal_forces(
             forces[c] += f[2];
         }
         if do_angle {
-            for k in 0..3 {
+            // Two corner angles by atan2; the third from the angle sum
+            // (π for a counter-clockwise triangle, −π for a reversed one).
+            let phi_a = corner_angle(pa, pb, pc);
+            let phi_b = corner_angle(pb, pc, pa);
+            let twice_area = cross(pb - pa, pc - pa);
+            let phi_c = if twice_area.abs() > 1e-9 * (pb - pa).norm_squared().max((pc - pa).norm_squared()) {
+                core::f64::consts::PI.copysign(twice_area) - phi_a - phi_b
+            } else {
+                corner_angle(pc, pa, pb)
+            };
+            let r = &mesh.rest_angles_rad[t];
+            for (k, phi) in [phi_a, phi_b, phi_c].into_iter().enumerate() {
                 let (i, j, l) = corner(tri, k);
-                let f = angle_forces(positions_px[i], positions_px[j], positions_px[l], mesh.rest_angles_rad[t][k], p.k_angle);
-                forces[i] += f[0];
-                forces[j] += f[1];
-                forces[l] += f[2];
+                if let Some(g) = angle_gradients(positions_px[i], positions_px[j], positions_px[l]) {
+                    let s = -p.k_angle * (phi - r[k]);
+                    forces[i] += g[0] * s;
+                    forces[j] += g[1] * s;
+                    forces[l] += g[2] * s;
+                }
             }
         }
     }

@@ -112,30 +112,29 @@ fn span_mask(lo: usize, hi: usize) -> u64 {
     upper & !((1u64 << lo) - 1)
 }
 
-/// Fills the triangle's cells (either orientation) into `img`.
+/// Fills the triangle's cells (either orientation) into `img`: a cell is
+/// filled when its centre lies inside or on the triangle. Rows are walked
+/// with the edges' precomputed slopes.
 pub fn fill_triangle(grid: &RasterGrid, img: &mut Bitmap, a: V2, b: V2, c: V2) {
-    let ylo = a.y.min(b.y).min(c.y);
-    let yhi = a.y.max(b.y).max(c.y);
-    let Some((j0, j1)) = grid.index_range(ylo, yhi, grid.origin_px.y, grid.ny) else { return };
-    let verts = [a, b, c];
+    // Sort by y: p0 lowest, p2 highest.
+    let (mut p0, mut p1, mut p2) = (a, b, c);
+    if p1.y < p0.y {
+        core::mem::swap(&mut p0, &mut p1);
+    }
+    if p2.y < p1.y {
+        core::mem::swap(&mut p1, &mut p2);
+    }
+    if p1.y < p0.y {
+        core::mem::swap(&mut p0, &mut p1);
+    }
+    let Some((j0, j1)) = grid.index_range(p0.y, p2.y, grid.origin_px.y, grid.ny) else { return };
+    let slope = |p: V2, q: V2| if q.y > p.y { (q.x - p.x) / (q.y - p.y) } else { 0.0 };
+    let (s02, s01, s12) = (slope(p0, p2), slope(p0, p1), slope(p1, p2));
     for j in j0..=j1 {
         let y = grid.origin_px.y + (j as f64 + 0.5) * grid.cell_px;
-        // Intersect the horizontal line with the three edges.
-        let mut xmin = f64::INFINITY;
-        let mut xmax = f64::NEG_INFINITY;
-        for k in 0..3 {
-            let p = verts[k];
-            let q = verts[(k + 1) % 3];
-            if (p.y <= y && q.y >= y) || (q.y <= y && p.y >= y) {
-                let x = if (q.y - p.y).abs() < 1e-300 { p.x.min(q.x) } else { p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y) };
-                let x2 = if (q.y - p.y).abs() < 1e-300 { p.x.max(q.x) } else { x };
-                xmin = xmin.min(x);
-                xmax = xmax.max(x2);
-            }
-        }
-        if xmin > xmax {
-            continue;
-        }
+        let xa = p0.x + (y - p0.y) * s02;
+        let xb = if y < p1.y { p0.x + (y - p0.y) * s01 } else { p1.x + (y - p1.y) * s12 };
+        let (xmin, xmax) = if xa <= xb { (xa, xb) } else { (xb, xa) };
         if let Some((i0, i1)) = grid.index_range(xmin, xmax, grid.origin_px.x, grid.nx) {
             img.set_span(j, i0, i1);
         }
