@@ -448,10 +448,16 @@ impl PlanarJoint {
             ("coil_temperature[0]", self.coils[0].temperature_c()),
             ("coil_temperature[1]", self.coils[1].temperature_c()),
         ];
-        for (name, v) in vals {
-            if !v.is_finite() {
-                return Err(PlantError::NonFinite { plane, quantity: name });
+        // NaN and ±∞ propagate through the sum: one test on the hot path,
+        // the per-variable search only once something is wrong.
+        if !vals.iter().map(|v| v.1).sum::<f64>().is_finite() {
+            for (name, v) in vals {
+                if !v.is_finite() {
+                    return Err(PlantError::NonFinite { plane, quantity: name });
+                }
             }
+            // Finite values whose sum overflows (absurd magnitudes).
+            return Err(PlantError::NonFinite { plane, quantity: "state sum" });
         }
         let ke = self.kinetic_energy_j();
         if ke > max_kinetic_j {
