@@ -103,6 +103,22 @@ fn reruns_are_bit_identical_and_the_seed_matters() {
 }
 
 #[test]
+fn three_d_reruns_are_bit_identical() {
+    let run = || {
+        let mut j = Joint3d::new(Joint3dParams::default()).unwrap();
+        let mut out = Vec::new();
+        for k in 0..12_000 {
+            let v = if (k / 3000) % 2 == 0 { [3.0, 0.0, 0.0, 3.0] } else { [0.0, 3.0, 3.0, 0.0] };
+            j.step(DT, &v).unwrap();
+            let cam = j.camera_latest().and_then(|f| f.angles_deg).map_or([0, 0], |a| a.map(f64::to_bits));
+            out.push((j.angles_deg().map(f64::to_bits), j.wire_counts(), cam));
+        }
+        out
+    };
+    assert!(run() == run());
+}
+
+#[test]
 fn bad_parameters_are_errors_naming_the_field() {
     let field = |e: PlantError| match e {
         PlantError::InvalidParameter { field, .. } => field,
