@@ -1,0 +1,309 @@
+//! Closed loop under wire length feedback (seed 000, last paper, §V–VI):
+//! the 2D joint with one sensor and Eq. 2 (Fig. 16), the 3D joint with four
+//! sensors (Fig. 21), and the estimation methods of §VI-D (Fig. 22, Eq. 4–5)
+//! calibrated the way a user calibrates a prototype: a camera-referenced
+//! sweep, `calibrate::fit`, a calibration file — then checked on an
+//! independent run.
+//!
+//! Conventions (plant README): 3D wire 3 (4) is pushed into its tube when α
+//! (β) rises and pulled out when it falls; a pushed wire jams (reads less
+//! insertion than the geometry gives), a pulled one sheds its lag.
+
+mod closed_loop_support;
+
+use closed_loop_support::{err_stats, estimate_err_stats, peak_to_peak, run, scratch_dir, wire_2d};
+use firmware::control::PairGains;
+use firmware::estimate::{PlaneEstimator, PlaneLaw};
+use firmware::joint::{JointConfig, JointController};
+use hal_sim::{ClosedLoop, FeedbackSource, Plant};
+use host_tools::calibrate::{self, CalibrationFile};
+use host_tools::scenario::{EstimatorMethod, EstimatorSpec, Scenario, TargetStep};
+use host_tools::sim;
+use plant_models::joint::{Joint3d, Joint3dParams};
+
+/// Paper §V-C, Fig. 16: 2D joint, one wire sensor read with Eq. 2 as
+/// published, antagonistic P law (Kp = 2.0), θd ∈ {0, ±5, ±15}°, each from
+/// rest; "each link converged".
+///
+/// Converged here means: the controller's estimate holds θd within 0.2°
+/// (three 0.055° coder quanta), and the true angle has stopped (< 0.3° peak
+/// to peak over the last 4 s) within 2.5° of θd — Eq. 2 itself is only good
+/// to ≈ 2.1° on the simulated joint (plant README), so the true angle cannot
+/// be held closer than the law's own error.
+///
+/// Measured (seed 5, 8–12 s): true angle 0.00, 5.56, 16.58, −3.59, −13.28°
+/// for θd = 0, 5, 15, −5, −15° (estimate within 0.1° of θd in every case).
+/// The paper saw accurate convergence for negative θd and sensor–camera
+/// differences for positive θd (its pushing side); in the simulation the
+/// pushing side is θ < 0 (Eq. 2 as printed makes d fall as θ rises) and the
+/// differences appear on both sides, dominated by Eq. 2's fit to the
+/// simulated geometry (0.6–1.6° pulling, 1.4–1.7° pushing).
+#[test]
+fn wire_feedback_2d_converges_for_each_target_of_fig16() {
+    for target in [0.0, 5.0, -5.0, 15.0, -15.0] {
+        let t = run(&wire_2d(target, 12.0, 5)).trace;
+        let est = estimate_err_stats(&t, 0, 8.0, 12.0);
+        let tru = err_stats(&t, 0, 8.0, 12.0);
+        let ptp = peak_to_peak(&t, 0, 8.0, 12.0);
+        println!("θd = {target:+5.1}°: estimate error {:+.3}°, true error {:+.3}°, {ptp:.3}° p-p", est.mean, tru.mean);
+        assert!(est.max_abs < 0.2, "θd = {target}°: estimate not held at θd: {est:?}");
+        assert!(ptp < 0.3, "θd = {target}°: still moving, {ptp:.3}° peak to peak over 8–12 s");
+        assert!(tru.max_abs < 2.5, "θd = {target}°: true angle off by {tru:?}");
+    }
+}
+
+/// Paper §VI-C, Fig. 21: 3D joint, (αd, βd) = (0, 0), (5, 5), (10, 10),
+/// independent P laws per plane; "we were able to control two projecting
+/// angles", with sensor errors growing at the larger angles.
+///
+/// Run twice: with Eq. 3 and its published constants (as in Fig. 21), and
+/// with the `softjoint sim` default (threshold switching fitted to a
+/// simulated sweep). Converged: true angles within 1.0° of the target over
+/// the last 20 % of each 10 s segment (the paper's own sensor accuracy,
+/// §VI-D), the estimates within 0.3°, no fault.
+///
+/// Measured (seed 7): Eq. 3 — worst steady-state error 0.12° (α), 0.05° (β);
+/// switching — 0.18° (α), 0.13° (β) (seed 1 of the default: 0.15°, 0.26°).
+#[test]
+fn wire_feedback_3d_converges_to_the_targets_of_fig21() {
+    for method in [EstimatorMethod::Paper, EstimatorMethod::Switching] {
+        let s = Scenario { seed: 7, estimator: EstimatorSpec { method, calibration: None }, ..Scenario::default() };
+        let out = run(&s);
+        println!(
+            "{method:?}: steady-state error {:?}°, estimation error up to {:?}°",
+            out.summary.steady_state_error_deg, out.summary.max_estimation_error_deg
+        );
+        assert!(out.summary.faults_seen.is_empty(), "{method:?}: faults {:?}", out.summary.faults_seen);
+        assert_eq!(out.summary.segments.len(), 3);
+        for g in &out.summary.segments {
+            for p in 0..2 {
+                assert!(
+                    g.steady_state_error_deg[p] < 1.0,
+                    "{method:?}: target {:?}, plane {p}: steady-state error {:.3}°",
+                    g.desired_deg,
+                    g.steady_state_error_deg[p]
+                );
+                let tail = g.to_s - 0.2 * (g.to_s - g.from_s);
+                let est = estimate_err_stats(&out.trace, p, tail, g.to_s);
+                assert!(est.mean.abs() < 0.3, "{method:?}: target {:?}, plane {p}: estimate {est:?}", g.desired_deg);
+            }
+        }
+    }
+}
+
+/// Sweep rate and amplitude of `sim::calibration_sweep` (1°/s, ±20°).
+const SWEEP_AMPLITUDE_DEG: f64 = 20.0;
+const SWEEP_S: f64 = 80.0;
+
+/// The sweep's triangle, 0 → +A → −A → 0 (`sign` = −1: 0 → −A → +A → 0).
+fn triangle(t: f64, sign: f64) -> f64 {
+    let q = SWEEP_AMPLITUDE_DEG;
+    let v = if t < q {
+        t
+    } else if t < 3.0 * q {
+        q - (t - q)
+    } else {
+        -q + (t - 3.0 * q)
+    };
+    sign * v
+}
+
+/// One step of an evaluation run: true angles, the coder readings and the
+/// jam-free insertions the geometry gives (mm).
+struct EvalStep {
+    t_s: f64,
+    true_deg: [f64; 2],
+    measured_mm: [f32; 4],
+    ideal_mm: [f32; 4],
+}
+
+/// An independent camera-referenced sweep of the 3D joint (same procedure
+/// as the calibration sweep: the firmware's P law on camera feedback
+/// follows the triangle at 1°/s), recording every 1 ms step.
+fn evaluation_run(seed: u64, sign: f64) -> Vec<EvalStep> {
+    let mut params = Joint3dParams::default();
+    params.sim.seed = seed;
+    let plant = Joint3d::new(params).expect("3D plant");
+    let mut cfg = JointConfig::paper_3d();
+    cfg.gains = [PairGains::default(); 2];
+    let ctl = JointController::new(cfg).expect("controller");
+    let mut cl: ClosedLoop<Joint3d, 2, 4, 4> =
+        ClosedLoop::new(plant, ctl, FeedbackSource::Camera, 1000, seed).expect("closed loop");
+    let steps = (SWEEP_S * 1000.0) as u64;
+    let mut out = Vec::with_capacity(steps as usize);
+    for k in 0..steps {
+        let t_s = k as f64 * 1e-3;
+        let d = triangle(t_s, sign) as f32;
+        cl.controller.set_target(0, d).expect("target");
+        cl.controller.set_target(1, d).expect("target");
+        cl.control();
+        cl.advance().expect("plant step");
+        let wires = cl.plant.wires();
+        out.push(EvalStep {
+            t_s,
+            true_deg: cl.plant.true_angles_deg(),
+            measured_mm: cl.plant.wire_insertions_mm().map(|v| v as f32),
+            ideal_mm: core::array::from_fn(|i| wires[i].ideal_insertion_mm() as f32),
+        });
+    }
+    out
+}
+
+/// Largest |estimate − true| per plane along a run, the estimator running
+/// step by step as the firmware runs it (switching state included).
+fn max_errors(laws: &[PlaneLaw], run: &[EvalStep]) -> [f64; 2] {
+    let mut est: Vec<PlaneEstimator<4>> = laws.iter().map(|l| PlaneEstimator::new(*l).expect("valid law")).collect();
+    let mut worst = [0.0f64; 2];
+    for s in run {
+        for (p, e) in est.iter_mut().enumerate() {
+            let err = (f64::from(e.estimate(&s.measured_mm).angle_deg) - s.true_deg[p]).abs();
+            worst[p] = worst[p].max(err);
+        }
+    }
+    worst
+}
+
+/// The calibration a user would make: the simulated camera-referenced sweep
+/// (seed `seed`) written as CSV, read back, fitted, written as a
+/// calibration file and loaded — the path of `softjoint sim
+/// --calibration-sweep` + `softjoint calibrate wire` + a scenario's
+/// `estimator.calibration`. Returns the file's laws (the chosen method per
+/// plane), the single-sensor laws of the same fit, and the file's path.
+fn calibrate_from_simulated_sweep(
+    seed: u64,
+    dir: &std::path::Path,
+) -> (Vec<PlaneLaw>, Vec<PlaneLaw>, std::path::PathBuf) {
+    let s = Scenario { seed, ..Scenario::default() };
+    let rows = sim::calibration_sweep(&s).expect("sweep");
+    let csv = dir.join("sweep.csv");
+    calibrate::write_sweep(&csv, &rows).expect("write sweep");
+    let rows = calibrate::read_sweep(&csv).expect("read sweep");
+    let fits = calibrate::fit(&rows).expect("fit");
+    print!("{}", calibrate::table(&fits));
+    let path = dir.join("calibration.toml");
+    calibrate::calibration_of(&fits).expect("calibration").save(&path).expect("save");
+    let chosen = CalibrationFile::load(&path).expect("load").laws().expect("laws");
+    let single = calibrate::calibration_with(&fits, "single").expect("single").laws().expect("laws");
+    (chosen, single, path)
+}
+
+const CALIBRATION_SEED: u64 = 11;
+const EVALUATION_SEED: u64 = 12;
+
+/// Paper §VI-D, Fig. 22, Eq. 4–5: one wire per plane is spoiled by jamming
+/// while it is pushed in; selecting the method by a threshold (α: single
+/// sensor below α_th, differential above; β: differential) keeps "the
+/// measurement angle errors less than 1.0 deg" in both planes.
+///
+/// Calibrated on a simulated sweep (seed 11), evaluated along an independent
+/// sweep of the same ±20° range (seed 12: different camera noise and jam
+/// stick-slip events). Measured: the fit chooses switching for α (threshold
+/// −10.3°; the paper's −7.46°) and the differential law for β (the paper's
+/// Eq. 5); errors on the independent run 0.74° (α), 0.83° (β). The single-
+/// sensor quadratic is off by 13.1° (α), 12.9° (β) — mostly not jamming but
+/// the sponge sinking by ≈ 3.3 mm under both coils of a pair once both have
+/// been hot (plant README, "left out"), which moves both wires of a pair
+/// alike; the differential and switching laws cancel it.
+///
+/// The jamming error itself is isolated by applying the single law to the
+/// measured and to the jam-free (geometric) insertions: the difference is
+/// the jam's share of the estimate error. Measured: mean 0.63° (α) / 0.72°
+/// (β) while the wire is pushed in (rising angle), 0.04° / 0.03° while it is
+/// pulled out; up to 1.7° / 2.0° on the pushing side.
+#[test]
+fn threshold_switching_keeps_estimation_error_below_1_deg_where_single_sensor_jams() {
+    let dir = scratch_dir("switching");
+    let (chosen, single, _) = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
+    assert!(
+        matches!(chosen[0], PlaneLaw::Switching { .. }),
+        "α: the fit did not choose threshold switching: {:?}",
+        chosen[0]
+    );
+
+    let eval = evaluation_run(EVALUATION_SEED, 1.0);
+    let e_chosen = max_errors(&chosen, &eval);
+    let e_single = max_errors(&single, &eval);
+    println!("independent run: chosen (switching/differential) {e_chosen:.3?}°, single {e_single:.3?}°");
+    for (p, name) in ["α", "β"].iter().enumerate() {
+        assert!(e_chosen[p] < 1.0, "{name}: threshold switching off by {:.3}° (paper: < 1.0°)", e_chosen[p]);
+        assert!(e_single[p] > 1.0, "{name}: single sensor only off by {:.3}°", e_single[p]);
+    }
+
+    // The jam's share of the single-sensor estimate, by direction of travel:
+    // rising angle (0–20 s, 60–80 s) pushes wire 3 (α) / 4 (β) in.
+    let mut pushing = [(0.0f64, 0usize, 0.0f64); 2];
+    let mut pulling = [(0.0f64, 0usize); 2];
+    let mut on_meas: Vec<PlaneEstimator<4>> = single.iter().map(|l| PlaneEstimator::new(*l).expect("law")).collect();
+    let mut on_ideal = on_meas.clone();
+    for s in &eval {
+        let rising = !(20.0..60.0).contains(&s.t_s);
+        for p in 0..2 {
+            let jam =
+                f64::from(on_meas[p].estimate(&s.measured_mm).angle_deg - on_ideal[p].estimate(&s.ideal_mm).angle_deg)
+                    .abs();
+            if rising {
+                pushing[p] = (pushing[p].0 + jam, pushing[p].1 + 1, pushing[p].2.max(jam));
+            } else {
+                pulling[p] = (pulling[p].0 + jam, pulling[p].1 + 1);
+            }
+        }
+    }
+    for (p, name) in ["α", "β"].iter().enumerate() {
+        let push = pushing[p].0 / pushing[p].1 as f64;
+        let pull = pulling[p].0 / pulling[p].1 as f64;
+        println!(
+            "{name}: jam share of the single estimate: pushing mean {push:.3}° (max {:.3}°), pulling mean {pull:.3}°",
+            pushing[p].2
+        );
+        assert!(push > 0.3 && push > 5.0 * pull, "{name}: jamming error pushing {push:.3}° vs pulling {pull:.3}°");
+        assert!(pushing[p].2 > 1.0, "{name}: jamming alone never exceeds 1.0° ({:.3}°)", pushing[p].2);
+    }
+}
+
+/// The same calibration file in the loop (`estimator.calibration`, wire
+/// feedback): targets stepping over the ±20° range, 0 → 20 → 0 → −20 → 0 in
+/// 10° steps of 6 s (seed 12). `max_estimation_error_deg` (estimate vs true
+/// angle over the whole run) stays below 1.0° in both planes.
+///
+/// Measured: 0.75° (α), 0.77° (β). (With the single-sensor law in the loop:
+/// 13.3°, 13.0°.)
+#[test]
+fn calibrated_switching_in_the_loop_keeps_estimation_error_below_1_deg() {
+    let dir = scratch_dir("switching_loop");
+    let (_, _, path) = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
+    let seq = [0.0, 10.0, 20.0, 10.0, 0.0, -10.0, -20.0, -10.0, 0.0];
+    let s = Scenario {
+        name: "calibrated switching over ±20°".into(),
+        seed: EVALUATION_SEED,
+        duration_s: 6.0 * seq.len() as f64,
+        targets: seq.iter().enumerate().map(|(i, d)| TargetStep { t_s: 6.0 * i as f64, deg: vec![*d, *d] }).collect(),
+        estimator: EstimatorSpec { method: EstimatorMethod::Switching, calibration: Some(path) },
+        ..Scenario::default()
+    };
+    let out = run(&s);
+    println!("estimator: {}; max estimation error {:?}°", out.summary.estimator, out.summary.max_estimation_error_deg);
+    assert!(out.summary.estimator.contains("calibration file"), "{}", out.summary.estimator);
+    for (p, e) in out.summary.max_estimation_error_deg.iter().enumerate() {
+        assert!(*e < 1.0, "plane {p}: estimation error {e:.3}° in the loop (paper: < 1.0°)");
+    }
+}
+
+/// The claim "over the ±20° range" on a sweep taken the other way round
+/// (0 → −20 → +20 → 0, seed 12), i.e. reaching α < α_th with both coils
+/// still cold instead of after the +20° excursion as in the calibration.
+///
+/// NOT reproduced. Measured: α 11.67° (β 0.88°). The single-sensor branch
+/// of the switching law is fitted on readings taken with the sponge sunk
+/// (both α coils hot); from cold the same angle reads ≈ 3 mm differently.
+/// Cause in the plant (history-dependent sink, plant README "left out"); a
+/// calibration sweep that covers both histories would also expose it in the
+/// fit's own error. Reported, not loosened.
+#[test]
+#[ignore = "plant: sponge sink makes the single-wire branch history dependent; reverse sweep α error 11.7° (paper < 1.0°)"]
+fn threshold_switching_holds_on_a_sweep_in_the_other_direction() {
+    let dir = scratch_dir("switching_reverse");
+    let (chosen, _, _) = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
+    let e = max_errors(&chosen, &evaluation_run(EVALUATION_SEED, -1.0));
+    println!("reverse sweep: {e:.3?}°");
+    assert!(e[0] < 1.0 && e[1] < 1.0, "reverse sweep estimation error {e:.3?}° (paper: < 1.0°)");
+}
