@@ -43,3 +43,6 @@ echo "step-probe exited 0 (every output bounded, no fault)"
 
 step "tests: unit, property, closed-loop and integration (host)"
 cargo test --workspace --locked
+
+step "the firmware image under QEMU in lockstep with the simulated joint (needs the image built above)"
+cargo test -p integration-tests --test qemu_hil --locked -- --ignored

@@ -1,0 +1,112 @@
+//! The real thumbv7em firmware image under `qemu-system-arm -machine
+//! mps2-an386`, in lockstep with the simulated joint over QEMU's pty.
+//!
+//! These need QEMU and the image, so they are ignored in a plain
+//! `cargo test`; `scripts/test-all.sh` installs QEMU, builds the image and
+//! runs them with `--ignored`.
+use std::path::PathBuf;
+use std::time::Duration;
+
+use firmware::protocol::{Message, SensorFrame};
+use firmware::supervisor::Faults;
+use host_tools::hil::{self, HilOptions};
+use host_tools::link::{open_port, Link};
+use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
+use host_tools::scenario::{Scenario, TargetStep};
+use host_tools::sim;
+
+fn image() -> PathBuf {
+    // Tests run in the crate directory; the image is under the workspace.
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(DEFAULT_IMAGE);
+    assert!(p.exists(), "{} missing: run `{}`", p.display(), host_tools::qemu::BUILD_IMAGE);
+    p
+}
+
+fn short_default() -> Scenario {
+    Scenario {
+        name: "short 3D default".into(),
+        duration_s: 6.0,
+        targets: vec![
+            TargetStep { t_s: 0.0, deg: vec![0.0, 0.0] },
+            TargetStep { t_s: 1.0, deg: vec![5.0, 5.0] },
+            TargetStep { t_s: 3.5, deg: vec![10.0, 10.0] },
+        ],
+        ..Scenario::default()
+    }
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn image_in_lockstep_reproduces_the_simulation() {
+    let s = short_default();
+    let expected = sim::run(&s).expect("sim");
+    let qemu = Qemu::launch(&image(), true).expect("qemu");
+    let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let opts = HilOptions { link_timeout_ms: Some(250), ..HilOptions::default() };
+    let got = hil::run(&s, &mut link, opts).expect("hil run");
+    assert_eq!(got.trace.rows.len(), expected.trace.rows.len());
+    for (k, (h, e)) in got.trace.rows.iter().zip(&expected.trace.rows).enumerate() {
+        // Same control core, same inputs, same plant: identical trajectory
+        // and outputs. Estimates travel in centidegrees (±0.005°).
+        assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
+        assert_eq!(h.coil_volts, e.coil_volts, "coil voltages differ at step {k}");
+        assert_eq!(h.faults, e.faults, "faults differ at step {k}");
+        for p in 0..2 {
+            assert!((h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-9, "estimate {p} at step {k}");
+        }
+    }
+    // The run did something: the joint reached its targets (2.5 s segments
+    // are short for SMA coils to settle fully, hence 1°).
+    assert!(got.report.summary.steady_state_error_deg.iter().all(|e| *e < 1.0), "{:?}", got.report.summary);
+    // Every frame answered (a reply slower than the timeout on a loaded host
+    // costs a harmless, idempotent retry); nothing corrupted.
+    let l = got.report.link;
+    assert_eq!(l.frames_received, l.frames_sent, "{l:?}");
+    assert_eq!((got.report.board_crc_errors, got.report.board_cobs_errors, l.crc_errors), (0, 0, 0));
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn lost_frames_are_retried_through_qemu() {
+    let s = Scenario { duration_s: 1.5, ..short_default() };
+    let qemu = Qemu::launch(&image(), true).expect("qemu");
+    let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let opts = HilOptions { lose_every: Some(100), link_timeout_ms: Some(1000), timeout: Duration::from_millis(100), ..HilOptions::default() };
+    let got = hil::run(&s, &mut link, opts).expect("hil run with losses");
+    // Each of the 15 lost frames (1500 steps / 100) costs at least one
+    // retry; a loaded host can add a few more (a reply later than 100 ms).
+    assert!(got.report.link.retries >= 15, "retries {}", got.report.link.retries);
+    let l = got.report.link;
+    assert_eq!(l.frames_received + 15, l.frames_sent, "every frame written was answered once; 15 were never written: {l:?}");
+    assert!(got.report.summary.faults_seen.is_empty(), "{:?}", got.report.summary.faults_seen);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn dead_link_zeroes_the_image_outputs() {
+    // Without -icount the guest clock follows the host's, so a host that
+    // stops talking for 0.5 s is 0.5 s of firmware time.
+    let qemu = Qemu::launch(&image(), false).expect("qemu");
+    let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let t = Duration::from_millis(300);
+    hil::handshake(&mut link).expect("handshake");
+    link.command(&Message::HilStart { period_us: 1000 }, t, 5).unwrap();
+    link.command(&Message::ClearFaults, t, 5).unwrap();
+    link.command(&Message::SetTarget { plane: 0, target_deg: 10.0 }, t, 5).unwrap();
+    link.command(&Message::Arm, t, 5).unwrap();
+    let mut last = None;
+    for seq in 0..10u16 {
+        let r = link
+            .request(&Message::HilSensor(SensorFrame { seq, counts: [0, 0, -6, -2] }), t, 5, |m| matches!(m, Message::HilActuator(_)))
+            .unwrap();
+        last = Some(r);
+    }
+    match last {
+        Some(Message::HilActuator(a)) => assert!(a.pair_mv[0] > 0, "driving before the link dies: {a:?}"),
+        other => panic!("{other:?}"),
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let s = hil::status(&mut link).unwrap();
+    assert!(Faults::from_bits(u16::from(s.latched)).contains(Faults::LINK_LOSS), "{s:?}");
+    assert_eq!(s.pair_mv, [0, 0], "outputs zero after link loss");
+}
