@@ -239,6 +239,16 @@ fn meshes_that_cannot_be_used_are_rejected_with_a_reason() {
         t.swap(1, 2);
     }
     assert!(flipped.validate().unwrap_err().to_string().contains("volume"));
+    // A closed, oriented mesh that is not star-shaped about its vertex mean
+    // (a ring pushed through to the far side folds its triangles towards
+    // the centre): the layered tetrahedralisation refuses it.
+    let mut folded = SurfaceMesh::blob(6, 8, [0.05, 0.04, 0.03]);
+    for v in folded.vertices_m.iter_mut().skip(1).take(8) {
+        v[2] = -0.9 * v[2].abs();
+    }
+    folded.validate().expect("still closed, oriented, positive volume");
+    let e = TetMesh::layered(&folded, &DEFAULT_SHELL_SCALES).unwrap_err().to_string();
+    assert!(e.contains("star-shaped"), "{e}");
     // Nothing fixed: the body floats, the FEM refuses.
     let mesh = SurfaceMesh::blob(5, 6, [0.05, 0.04, 0.03]);
     let none = vec![false; mesh.len()];
