@@ -36,7 +36,7 @@ cargo clippy -p firmware --target thumbv7em-none-eabihf --features defmt --lib -
 
 step "the core's 3D control step running in the Cortex-M4F image under QEMU"
 cargo build -p firmware --release --target thumbv7em-none-eabihf --bin step-probe --locked
-timeout 60 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
+timeout 60 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -icount shift=0 \
     -semihosting-config enable=on,target=native \
     -kernel target/thumbv7em-none-eabihf/release/step-probe
 echo "step-probe exited 0 (every output bounded, no fault)"

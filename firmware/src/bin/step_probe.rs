@@ -5,6 +5,14 @@
 //! counts, prints a one-line summary over semihosting and exits 0 when every
 //! output was bounded.
 //!
+//! It also measures instructions per control step. Under `qemu-system-arm
+//! -icount shift=0` QEMU advances virtual time by exactly 1 ns per executed
+//! instruction, and SysTick counts the AN386's 25 MHz system clock (40 ns
+//! per tick), so `ticks × 40` is the number of instructions executed. A
+//! loop of known length (`nop; subs; bne`, 3 instructions per iteration) is
+//! timed the same way as a check of the method. Without `-icount` the
+//! figures are host-speed dependent and meaningless.
+//!
 //! On the host it only explains itself, so `cargo build --workspace` works.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
@@ -12,7 +20,9 @@
 #[cfg(target_os = "none")]
 mod image {
     use core::hint::black_box;
-    use cortex_m_rt::entry;
+    use core::sync::atomic::{AtomicU32, Ordering};
+    use cortex_m::peripheral::{syst::SystClkSource, SYST};
+    use cortex_m_rt::{entry, exception};
     use cortex_m_semihosting::{debug, hprintln};
     #[cfg(feature = "defmt")]
     use defmt_semihosting as _;
@@ -20,9 +30,50 @@ mod image {
 
     const STEPS: i32 = 1000;
     const DT_S: f32 = 0.001;
+    /// SysTick reload: the full 24-bit range.
+    const RELOAD: u32 = 0x00FF_FFFF;
+    /// Nanoseconds per SysTick tick at the AN386's 25 MHz system clock;
+    /// with -icount shift=0 also instructions per tick.
+    const INSNS_PER_TICK: u64 = 40;
+
+    static WRAPS: AtomicU32 = AtomicU32::new(0);
+
+    #[exception]
+    fn SysTick() {
+        WRAPS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Ticks since SysTick was started (wrap count × reload + elapsed).
+    fn ticks() -> u64 {
+        loop {
+            let w1 = WRAPS.load(Ordering::Relaxed);
+            let v = SYST::get_current();
+            let w2 = WRAPS.load(Ordering::Relaxed);
+            if w1 == w2 {
+                return u64::from(w1) * (u64::from(RELOAD) + 1) + u64::from(RELOAD - v);
+            }
+        }
+    }
 
     #[entry]
     fn main() -> ! {
+        if let Some(mut core) = cortex_m::Peripherals::take() {
+            core.SYST.set_clock_source(SystClkSource::Core);
+            core.SYST.set_reload(RELOAD);
+            core.SYST.clear_current();
+            core.SYST.enable_interrupt();
+            core.SYST.enable_counter();
+            // VAL reads 0 until the first reload (which raises no
+            // exception); wait for it so elapsed ticks start at 0.
+            while SYST::get_current() == 0 {}
+        }
+        // Check of the method: 100 000 iterations of nop/subs/bne.
+        let t0 = ticks();
+        for _ in 0..black_box(100_000u32) {
+            cortex_m::asm::nop();
+        }
+        let nop_insns = (ticks() - t0) * INSNS_PER_TICK;
+        hprintln!("nop loop: {} instructions measured for 100000 iterations", nop_insns);
         let ok = match Joint3d::new(JointConfig::paper_3d()) {
             Ok(mut joint) => run(&mut joint),
             Err(_) => false,
@@ -40,6 +91,7 @@ mod image {
         let mut bounded = true;
         let mut driven = 0u32;
         let mut faults = 0u16;
+        let t0 = ticks();
         for k in 0..STEPS {
             // A slow triangle sweep of ±1 mm on the α and β pairs.
             let phase = (k % 400) - 200;
@@ -53,6 +105,8 @@ mod image {
             }
             faults |= out.faults.bits();
         }
+        let insns = (ticks() - t0) * INSNS_PER_TICK;
+        hprintln!("3D control step: {} instructions per step (mean of {} steps, loop and input setup included)", insns / STEPS as u64, STEPS);
         #[cfg(feature = "defmt")]
         defmt::info!("step-probe: {=i32} steps, {=u32} coil-steps driven", STEPS, driven);
         hprintln!("step-probe: {} steps, {} coil-steps driven, faults {:#06x}", STEPS, driven, faults);
