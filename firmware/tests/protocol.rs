@@ -178,6 +178,8 @@ fn schema_hash_is_pinned() {
     // were last changed. An edit to SCHEMA must update docs/protocol.md and
     // this value together.
     assert_eq!(SCHEMA_HASH, 0x0651_ADA2);
+    // docs/protocol.md quotes these too.
+    assert_eq!((MAX_PAYLOAD, MAX_FRAME), (48, 52));
 }
 
 proptest! {
