@@ -5,6 +5,7 @@
 pub mod calibrate;
 pub mod hil;
 pub mod link;
+pub mod pty_board;
 pub mod qemu;
 pub mod report;
 pub mod scenario;
