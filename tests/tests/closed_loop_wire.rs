@@ -17,7 +17,7 @@ use firmware::estimate::{PlaneEstimator, PlaneLaw};
 use firmware::joint::{JointConfig, JointController};
 use hal_sim::{ClosedLoop, FeedbackSource, Plant};
 use host_tools::calibrate::{self, CalibrationFile};
-use host_tools::scenario::{EstimatorMethod, EstimatorSpec, Scenario, TargetStep};
+use host_tools::scenario::{EstimatorMethod, EstimatorSpec, Scenario};
 use host_tools::sim;
 use plant_models::joint::{Joint3d, Joint3dParams};
 
@@ -163,129 +163,157 @@ fn max_errors(laws: &[PlaneLaw], run: &[EvalStep]) -> [f64; 2] {
     worst
 }
 
+/// Laws fitted by the calibration code, as a user gets them.
+struct Calibrated {
+    /// What the calibration file holds: the method `calibrate wire` chose
+    /// per plane (smallest worst-case error on the sweep).
+    chosen: Vec<PlaneLaw>,
+    /// The single-sensor quadratic of the same fit (d3 for α, d4 for β).
+    single: Vec<PlaneLaw>,
+    /// The differential linear law of the same fit (Eq. 3's form, refitted;
+    /// the high branch of Eq. 4 and the whole of Eq. 5).
+    differential: Vec<PlaneLaw>,
+}
+
 /// The calibration a user would make: the simulated camera-referenced sweep
 /// (seed `seed`) written as CSV, read back, fitted, written as a
 /// calibration file and loaded — the path of `softjoint sim
 /// --calibration-sweep` + `softjoint calibrate wire` + a scenario's
-/// `estimator.calibration`. Returns the file's laws (the chosen method per
-/// plane), the single-sensor laws of the same fit, and the file's path.
-fn calibrate_from_simulated_sweep(
-    seed: u64,
-    dir: &std::path::Path,
-) -> (Vec<PlaneLaw>, Vec<PlaneLaw>, std::path::PathBuf) {
+/// `estimator.calibration`.
+fn calibrate_from_simulated_sweep(seed: u64, dir: &std::path::Path) -> Calibrated {
     let s = Scenario { seed, ..Scenario::default() };
     let rows = sim::calibration_sweep(&s).expect("sweep");
-    let csv = dir.join("sweep.csv");
+    let csv = dir.join(format!("sweep_{seed}.csv"));
     calibrate::write_sweep(&csv, &rows).expect("write sweep");
     let rows = calibrate::read_sweep(&csv).expect("read sweep");
     let fits = calibrate::fit(&rows).expect("fit");
-    print!("{}", calibrate::table(&fits));
-    let path = dir.join("calibration.toml");
+    print!("calibration seed {seed}:\n{}", calibrate::table(&fits));
+    let path = dir.join(format!("calibration_{seed}.toml"));
     calibrate::calibration_of(&fits).expect("calibration").save(&path).expect("save");
-    let chosen = CalibrationFile::load(&path).expect("load").laws().expect("laws");
-    let single = calibrate::calibration_with(&fits, "single").expect("single").laws().expect("laws");
-    (chosen, single, path)
+    let laws = |m| calibrate::calibration_with(&fits, m).expect("fit has the method").laws().expect("laws");
+    Calibrated {
+        chosen: CalibrationFile::load(&path).expect("load").laws().expect("laws"),
+        single: laws("single"),
+        differential: laws("differential"),
+    }
 }
 
 const CALIBRATION_SEED: u64 = 11;
-const EVALUATION_SEED: u64 = 12;
+/// Independent evaluation runs: same procedure, other seeds (camera noise
+/// and wire stick-slip events differ; the mechanics is deterministic).
+const EVALUATION_SEEDS: [u64; 3] = [12, 22, 32];
 
-/// Paper §VI-D, Fig. 22, Eq. 4–5: one wire per plane is spoiled by jamming
-/// while it is pushed in; selecting the method by a threshold (α: single
-/// sensor below α_th, differential above; β: differential) keeps "the
-/// measurement angle errors less than 1.0 deg" in both planes.
+/// Paper §VI-D, Fig. 22: "when we applied only one length sensor, the
+/// measurement errors were large due to wire sensor jamming while pushing
+/// into the sensor tube"; the laws using both wires of a pair stay below
+/// 1.0°.
 ///
-/// Calibrated on a simulated sweep (seed 11), evaluated along an independent
-/// sweep of the same ±20° range (seed 12: different camera noise and jam
-/// stick-slip events). Measured: the fit chooses switching for α (threshold
-/// −10.3°; the paper's −7.46°) and the differential law for β (the paper's
-/// Eq. 5); errors on the independent run 0.74° (α), 0.83° (β). The single-
-/// sensor quadratic is off by 13.1° (α), 12.9° (β) — mostly not jamming but
-/// the sponge sinking by ≈ 3.3 mm under both coils of a pair once both have
-/// been hot (plant README, "left out"), which moves both wires of a pair
-/// alike; the differential and switching laws cancel it.
+/// Calibrated on a simulated sweep (seed 11), evaluated along independent
+/// sweeps of the same ±20° range (seeds 12, 22, 32). Measured:
+/// - single-sensor quadratic: 13.1° / 13.0° (α / β, seed 12), > 12.9°
+///   everywhere. Mostly not jamming: once both coils of a pair have been
+///   hot the sponge has sunk ≈ 3.3 mm, moving both wires of the pair alike
+///   (plant README, "left out"); the differential law cancels that;
+/// - the jamming share of the single-sensor estimate, isolated by applying
+///   the same law to the measured and to the jam-free (geometric)
+///   insertions: mean 0.45–0.66° (α) / 0.66–0.80° (β) while the wire is
+///   pushed in (rising angle), 0.03–0.06° while it is pulled out; up to
+///   1.2–1.7° / 2.0–2.4°;
+/// - the differential law of the same fit: 0.75–0.78° (α), 0.69–0.83° (β).
 ///
-/// The jamming error itself is isolated by applying the single law to the
-/// measured and to the jam-free (geometric) insertions: the difference is
-/// the jam's share of the estimate error. Measured: mean 0.63° (α) / 0.72°
-/// (β) while the wire is pushed in (rising angle), 0.04° / 0.03° while it is
-/// pulled out; up to 1.7° / 2.0° on the pushing side.
+/// The paper's actual claim — *threshold switching* below 1.0° — is not
+/// robust in the simulation; see the ignored test below.
 #[test]
-fn threshold_switching_keeps_estimation_error_below_1_deg_where_single_sensor_jams() {
-    let dir = scratch_dir("switching");
-    let (chosen, single, _) = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
-    assert!(
-        matches!(chosen[0], PlaneLaw::Switching { .. }),
-        "α: the fit did not choose threshold switching: {:?}",
-        chosen[0]
-    );
+fn single_sensor_jams_on_the_pushing_side_and_two_wire_laws_stay_below_1_deg() {
+    let dir = scratch_dir("jamming");
+    let cal = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
+    for seed in EVALUATION_SEEDS {
+        let eval = evaluation_run(seed, 1.0);
+        let e_single = max_errors(&cal.single, &eval);
+        let e_diff = max_errors(&cal.differential, &eval);
+        let e_chosen = max_errors(&cal.chosen, &eval);
+        println!("seed {seed}: single {e_single:.3?}°, differential {e_diff:.3?}°, chosen {e_chosen:.3?}°");
+        for (p, name) in ["α", "β"].iter().enumerate() {
+            assert!(e_single[p] > 1.0, "seed {seed}, {name}: single sensor only off by {:.3}°", e_single[p]);
+            assert!(e_diff[p] < 1.0, "seed {seed}, {name}: differential law off by {:.3}° (paper: < 1.0°)", e_diff[p]);
+        }
 
-    let eval = evaluation_run(EVALUATION_SEED, 1.0);
-    let e_chosen = max_errors(&chosen, &eval);
-    let e_single = max_errors(&single, &eval);
-    println!("independent run: chosen (switching/differential) {e_chosen:.3?}°, single {e_single:.3?}°");
-    for (p, name) in ["α", "β"].iter().enumerate() {
-        assert!(e_chosen[p] < 1.0, "{name}: threshold switching off by {:.3}° (paper: < 1.0°)", e_chosen[p]);
-        assert!(e_single[p] > 1.0, "{name}: single sensor only off by {:.3}°", e_single[p]);
-    }
-
-    // The jam's share of the single-sensor estimate, by direction of travel:
-    // rising angle (0–20 s, 60–80 s) pushes wire 3 (α) / 4 (β) in.
-    let mut pushing = [(0.0f64, 0usize, 0.0f64); 2];
-    let mut pulling = [(0.0f64, 0usize); 2];
-    let mut on_meas: Vec<PlaneEstimator<4>> = single.iter().map(|l| PlaneEstimator::new(*l).expect("law")).collect();
-    let mut on_ideal = on_meas.clone();
-    for s in &eval {
-        let rising = !(20.0..60.0).contains(&s.t_s);
-        for p in 0..2 {
-            let jam =
-                f64::from(on_meas[p].estimate(&s.measured_mm).angle_deg - on_ideal[p].estimate(&s.ideal_mm).angle_deg)
-                    .abs();
-            if rising {
-                pushing[p] = (pushing[p].0 + jam, pushing[p].1 + 1, pushing[p].2.max(jam));
-            } else {
-                pulling[p] = (pulling[p].0 + jam, pulling[p].1 + 1);
+        // The jam's share of the single-sensor estimate, by direction of
+        // travel: a rising angle (0–20 s, 60–80 s) pushes wire 3 (α) / 4 (β)
+        // in, a falling one pulls it out.
+        let mut pushing = [(0.0f64, 0usize, 0.0f64); 2];
+        let mut pulling = [(0.0f64, 0usize); 2];
+        let mut on_meas: Vec<PlaneEstimator<4>> =
+            cal.single.iter().map(|l| PlaneEstimator::new(*l).expect("law")).collect();
+        let mut on_ideal = on_meas.clone();
+        for s in &eval {
+            let rising = !(20.0..60.0).contains(&s.t_s);
+            for p in 0..2 {
+                let jam = f64::from(
+                    on_meas[p].estimate(&s.measured_mm).angle_deg - on_ideal[p].estimate(&s.ideal_mm).angle_deg,
+                )
+                .abs();
+                if rising {
+                    pushing[p] = (pushing[p].0 + jam, pushing[p].1 + 1, pushing[p].2.max(jam));
+                } else {
+                    pulling[p] = (pulling[p].0 + jam, pulling[p].1 + 1);
+                }
             }
         }
-    }
-    for (p, name) in ["α", "β"].iter().enumerate() {
-        let push = pushing[p].0 / pushing[p].1 as f64;
-        let pull = pulling[p].0 / pulling[p].1 as f64;
-        println!(
-            "{name}: jam share of the single estimate: pushing mean {push:.3}° (max {:.3}°), pulling mean {pull:.3}°",
-            pushing[p].2
-        );
-        assert!(push > 0.3 && push > 5.0 * pull, "{name}: jamming error pushing {push:.3}° vs pulling {pull:.3}°");
-        assert!(pushing[p].2 > 1.0, "{name}: jamming alone never exceeds 1.0° ({:.3}°)", pushing[p].2);
+        for (p, name) in ["α", "β"].iter().enumerate() {
+            let push = pushing[p].0 / pushing[p].1 as f64;
+            let pull = pulling[p].0 / pulling[p].1 as f64;
+            println!(
+                "seed {seed}, {name}: jam share of the single estimate: pushing mean {push:.3}° (max {:.3}°), pulling mean {pull:.3}°",
+                pushing[p].2
+            );
+            assert!(
+                push > 0.3 && push > 5.0 * pull,
+                "seed {seed}, {name}: jamming error pushing {push:.3}° vs pulling {pull:.3}°"
+            );
+            assert!(pushing[p].2 > 1.0, "seed {seed}, {name}: jamming alone never exceeds 1.0° ({:.3}°)", pushing[p].2);
+        }
     }
 }
 
-/// The same calibration file in the loop (`estimator.calibration`, wire
-/// feedback): targets stepping over the ±20° range, 0 → 20 → 0 → −20 → 0 in
-/// 10° steps of 6 s (seed 12). `max_estimation_error_deg` (estimate vs true
-/// angle over the whole run) stays below 1.0° in both planes.
+/// Paper §VI-D, Eq. 4–5: "for each projecting plane, the measurement angle
+/// errors were less than 1.0 deg" with threshold switching, coefficients
+/// "obtained by angle calibrations".
 ///
-/// Measured: 0.75° (α), 0.77° (β). (With the single-sensor law in the loop:
-/// 13.3°, 13.0°.)
+/// NOT reproduced robustly. The estimator `calibrate wire` chooses (smallest
+/// worst-case error on its own sweep, ≈ 0.75–0.81°) evaluated on independent
+/// sweeps, calibration seed × evaluation seed, worst error α / β:
+/// - 11 (α switching at −10.3°, β differential): 12: 0.74 / 0.83,
+///   22: 1.21 / 0.69, 32: 1.25 / 0.80;
+/// - 21 (α switching −9.4°, β switching −7.7°): 0.71 / 1.81, 1.32 / 1.32,
+///   1.38 / 1.49;
+/// - 31 (α differential, β switching −7.1°): 0.74 / 2.11, 0.79 / 1.63,
+///   0.72 / 1.80.
+///
+/// Every error above 1° is in the single-sensor branch just after the
+/// turn at −20° (t ≈ 61–62 s, angle ≈ −18°): the sweep turns upwards, the
+/// branch's wire (d3 / d4) is now pushed in and jams. The fit picks
+/// switching over the differential law by a few hundredths of a degree on
+/// the calibration sweep's own stick-slip events; the differential law
+/// alone stays at 0.69–0.87° on all nine pairs. In closed loop (the file
+/// in `estimator.calibration`, 10° steps over ±20°) the chosen laws reach
+/// 0.75–7.4°, the differential 0.77–1.01°.
 #[test]
-fn calibrated_switching_in_the_loop_keeps_estimation_error_below_1_deg() {
-    let dir = scratch_dir("switching_loop");
-    let (_, _, path) = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
-    let seq = [0.0, 10.0, 20.0, 10.0, 0.0, -10.0, -20.0, -10.0, 0.0];
-    let s = Scenario {
-        name: "calibrated switching over ±20°".into(),
-        seed: EVALUATION_SEED,
-        duration_s: 6.0 * seq.len() as f64,
-        targets: seq.iter().enumerate().map(|(i, d)| TargetStep { t_s: 6.0 * i as f64, deg: vec![*d, *d] }).collect(),
-        estimator: EstimatorSpec { method: EstimatorMethod::Switching, calibration: Some(path) },
-        ..Scenario::default()
-    };
-    let out = run(&s);
-    println!("estimator: {}; max estimation error {:?}°", out.summary.estimator, out.summary.max_estimation_error_deg);
-    assert!(out.summary.estimator.contains("calibration file"), "{}", out.summary.estimator);
-    for (p, e) in out.summary.max_estimation_error_deg.iter().enumerate() {
-        assert!(*e < 1.0, "plane {p}: estimation error {e:.3}° in the loop (paper: < 1.0°)");
+#[ignore = "switching's single-wire branch jams after the −20° turn: 0.7–2.1° on independent runs (paper < 1.0°)"]
+fn threshold_switching_below_1_deg_on_independent_runs() {
+    let dir = scratch_dir("switching_seeds");
+    let mut failures = Vec::new();
+    for cal_seed in [11, 21, 31] {
+        let cal = calibrate_from_simulated_sweep(cal_seed, &dir);
+        for seed in EVALUATION_SEEDS {
+            let e = max_errors(&cal.chosen, &evaluation_run(seed, 1.0));
+            println!("calibration {cal_seed}, evaluation {seed}: chosen {e:.3?}°");
+            if e.iter().any(|x| *x >= 1.0) {
+                failures.push((cal_seed, seed, e));
+            }
+        }
     }
+    assert!(failures.is_empty(), "estimation error ≥ 1.0° (paper: < 1.0°): {failures:.3?}");
 }
 
 /// The claim "over the ±20° range" on a sweep taken the other way round
@@ -302,8 +330,8 @@ fn calibrated_switching_in_the_loop_keeps_estimation_error_below_1_deg() {
 #[ignore = "plant: sponge sink makes the single-wire branch history dependent; reverse sweep α error 11.7° (paper < 1.0°)"]
 fn threshold_switching_holds_on_a_sweep_in_the_other_direction() {
     let dir = scratch_dir("switching_reverse");
-    let (chosen, _, _) = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
-    let e = max_errors(&chosen, &evaluation_run(EVALUATION_SEED, -1.0));
+    let cal = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
+    let e = max_errors(&cal.chosen, &evaluation_run(12, -1.0));
     println!("reverse sweep: {e:.3?}°");
     assert!(e[0] < 1.0 && e[1] < 1.0, "reverse sweep estimation error {e:.3?}° (paper: < 1.0°)");
 }
