@@ -25,7 +25,7 @@ const FIG7_TARGET_DEG: f64 = 20.0;
 /// steady-state error that depends on Kp.
 ///
 /// Measured (seed 3, 40 s): Kp = 2.0 enters ±1° of θd at ≈ 2.3 s and then
-/// cycles between ≈ −0.3° and +0.5° around θd (the SMA's hysteresis: an
+/// cycles between ≈ −0.4° and +0.5° around θd (the SMA's hysteresis: an
 /// overshoot is held while the unpowered coil cools through the hysteresis
 /// band, then the coil is reheated — a ≈ 3.5 s limit cycle), mean +0.27°
 /// over 20–40 s. Kp = 0.05 settles smoothly at 16.37° (error −3.63°, no
@@ -62,7 +62,7 @@ fn camera_p_control_converges_at_both_gains_of_fig7() {
 /// acceptable, being less than 0.15 deg".
 ///
 /// NOT reproduced by the current plant. Measured with Kp = 2.0, θd = 20°
-/// (the hysteresis limit cycle described above, +0.5° / −0.3° around θd):
+/// (the hysteresis limit cycle described above, +0.5° / −0.4° around θd):
 /// - time mean of θ − θd over 10–60 s: +0.182° (seed 1), +0.169° (2),
 ///   +0.215° (3), +0.121° (4), +0.150° (5);
 /// - `softjoint sim`'s own metric (|mean| over the last 20 % of a 30 s
@@ -94,7 +94,7 @@ fn camera_p_steady_state_error_below_0_15_deg_at_kp_2() {
 /// (held while it cools, as in Fig. 7), back within 0.1° of θd by 12.5 s;
 /// over 14–20 s the error stays within −0.14…−0.02°, mean −0.08°.
 /// Tolerance: the same ±0.75° band that covers the P law's own limit cycle
-/// (−0.3…+0.5° at this gain, see above) and a mean within 0.3°.
+/// (−0.4…+0.5° at this gain, see above) and a mean within 0.3°.
 #[test]
 fn coil_2_disturbance_pushes_the_angle_away_and_it_returns() {
     let target = 5.0;
