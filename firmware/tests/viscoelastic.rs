@@ -13,59 +13,45 @@ fn model() -> ThreeElement<f64> {
     ThreeElement::new(K1, K2, B).unwrap()
 }
 
-/// Max |numeric − exact| over t ∈ (0, 1 s] for a given step, for each of the
-/// three loadings.
+/// Max |numeric − exact| over t ∈ (0, 1 s] for step `h`: `step` advances
+/// the model by one step and returns its output, `exact` is the closed form.
+fn max_error(
+    h: f64,
+    mut step: impl FnMut(&ThreeElement<f64>, &mut ThreeElementState<f64>, f64, TimeStep<f64>) -> f64,
+    exact: impl Fn(f64) -> f64,
+) -> f64 {
+    let m = model();
+    let mut s = ThreeElementState::default();
+    let hs = TimeStep::new(h).unwrap();
+    let n = (1.0 / h).round() as usize;
+    (1..=n)
+        .map(|k| {
+            let t = k as f64 * h;
+            (step(&m, &mut s, t, hs) - exact(t)).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Creep under a step force F0 = 2: u(t) = F0/E1 + F0/E2 (1 − e^(−t/τc)).
 fn creep_error(h: f64) -> f64 {
-    let f0 = 2.0;
-    let tau = B / K1;
-    let m = model();
-    let mut s = ThreeElementState::default();
-    let step = TimeStep::new(h).unwrap();
-    let n = (1.0 / h).round() as usize;
-    (1..=n)
-        .map(|k| {
-            let t = k as f64 * h;
-            let u = m.step_displacement(&mut s, f0, step);
-            let exact = f0 / K2 + f0 / K1 * (1.0 - (-t / tau).exp());
-            (u - exact).abs()
-        })
-        .fold(0.0, f64::max)
+    let (f0, tau) = (2.0, B / K1);
+    max_error(h, |m, s, _, hs| m.step_displacement(s, f0, hs), |t| f0 / K2 + f0 / K1 * (1.0 - (-t / tau).exp()))
 }
 
+/// Relaxation under a step displacement u0 = 0.4.
 fn relaxation_error(h: f64) -> f64 {
-    let u0 = 0.4;
-    let e_inf = K1 * K2 / (K1 + K2);
-    let tau = B / (K1 + K2);
-    let m = model();
-    let mut s = ThreeElementState::default();
-    let step = TimeStep::new(h).unwrap();
-    let n = (1.0 / h).round() as usize;
-    (1..=n)
-        .map(|k| {
-            let t = k as f64 * h;
-            let f = m.step_force(&mut s, u0, step);
-            let exact = u0 * (e_inf + (K2 - e_inf) * (-t / tau).exp());
-            (f - exact).abs()
-        })
-        .fold(0.0, f64::max)
+    let (u0, e_inf, tau) = (0.4, K1 * K2 / (K1 + K2), B / (K1 + K2));
+    max_error(h, |m, s, _, hs| m.step_force(s, u0, hs), |t| u0 * (e_inf + (K2 - e_inf) * (-t / tau).exp()))
 }
 
+/// Constant-velocity loading u = r·t, r = 0.7.
 fn constant_velocity_error(h: f64) -> f64 {
-    let rate = 0.7;
-    let e_inf = K1 * K2 / (K1 + K2);
-    let tau = B / (K1 + K2);
-    let m = model();
-    let mut s = ThreeElementState::default();
-    let step = TimeStep::new(h).unwrap();
-    let n = (1.0 / h).round() as usize;
-    (1..=n)
-        .map(|k| {
-            let t = k as f64 * h;
-            let f = m.step_force(&mut s, rate * t, step);
-            let exact = rate * (e_inf * t + (K2 - e_inf) * tau * (1.0 - (-t / tau).exp()));
-            (f - exact).abs()
-        })
-        .fold(0.0, f64::max)
+    let (rate, e_inf, tau) = (0.7, K1 * K2 / (K1 + K2), B / (K1 + K2));
+    max_error(
+        h,
+        |m, s, t, hs| m.step_force(s, rate * t, hs),
+        |t| rate * (e_inf * t + (K2 - e_inf) * tau * (1.0 - (-t / tau).exp())),
+    )
 }
 
 /// Halving h must roughly halve the error (first order), and the error at

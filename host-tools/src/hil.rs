@@ -14,7 +14,7 @@ use hal_sim::Plant;
 use serde::Serialize;
 
 use crate::link::{HostLinkStats, Link, LinkError, Port};
-use crate::scenario::{FeedbackKind, JointKind, Scenario};
+use crate::scenario::{FeedbackKind, JointKind, Scenario, TargetTracker};
 use crate::sim::{self, Row, Summary, Trace};
 
 /// Lockstep settings.
@@ -137,24 +137,22 @@ pub fn run<P: Port>(s: &Scenario, link: &mut Link<P>, opts: HilOptions) -> anyho
     link.command(&Message::Arm, CMD_TIMEOUT, CMD_ATTEMPTS)?;
 
     let driver = DriverConfig::default();
-    let period = f64::from(s.control_period_us) * 1e-6;
-    let steps = (s.duration_s / period).round() as u64;
+    let (period, steps) = (s.period_s(), s.steps());
     let mut rows = Vec::with_capacity(steps as usize);
     let mut disturber = sim::Disturber::new(s);
-    let mut current: Vec<f64> = vec![f64::NAN; 2];
+    let mut targets = TargetTracker::default();
     let mut faults_seen = 0u16;
     let mut peak = [f64::NEG_INFINITY; 4];
     let started = Instant::now();
     for k in 0..steps {
         let t = k as f64 * period;
-        let target = s.target_at(t);
-        if target != current.as_slice() {
+        if let Some(target) = targets.changed(s, t) {
             for (p, d) in target.iter().enumerate() {
                 link.command(&Message::SetTarget { plane: p as u8, target_deg: *d as f32 }, CMD_TIMEOUT, CMD_ATTEMPTS)
                     .with_context(|| format!("setting the target at t = {t:.3} s"))?;
             }
-            current = target.to_vec();
         }
+        let target = s.target_at(t);
         let mut overrides = [None; 4];
         disturber.apply(s, t, &mut overrides, |a, id| sim::load_3d(&mut plant, a, id))?;
         let counts = Plant::<4, 4, 2>::counts(&plant).map(|c| c.clamp(i64::from(i16::MIN), i64::from(i16::MAX)) as i16);

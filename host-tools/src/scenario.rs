@@ -321,6 +321,16 @@ impl Scenario {
         Ok(())
     }
 
+    /// Control period (s).
+    pub fn period_s(&self) -> f64 {
+        f64::from(self.control_period_us) * 1e-6
+    }
+
+    /// Control steps in the run.
+    pub fn steps(&self) -> u64 {
+        (self.duration_s / self.period_s()).round() as u64
+    }
+
     /// Desired angles at time `t_s`.
     pub fn target_at(&self, t_s: f64) -> &[f64] {
         let mut cur = &self.targets[0].deg;
@@ -330,6 +340,24 @@ impl Scenario {
             }
         }
         cur
+    }
+}
+
+/// Follows a scenario's targets over time and tells when they change.
+#[derive(Clone, Debug, Default)]
+pub struct TargetTracker {
+    current: Vec<f64>,
+}
+
+impl TargetTracker {
+    /// The targets at `t_s` if they differ from the last ones returned.
+    pub fn changed<'a>(&mut self, s: &'a Scenario, t_s: f64) -> Option<&'a [f64]> {
+        let target = s.target_at(t_s);
+        if target == self.current.as_slice() {
+            return None;
+        }
+        self.current = target.to_vec();
+        Some(target)
     }
 }
 

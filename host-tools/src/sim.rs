@@ -13,7 +13,7 @@ use plant_models::joint::{Joint2d, Joint2dParams, Joint3d, Joint3dParams, LoadId
 use serde::Serialize;
 
 use crate::calibrate::{self, CalibrationFile, SweepRow};
-use crate::scenario::{ControlMode, Disturbance, EstimatorMethod, FeedbackKind, JointKind, Scenario};
+use crate::scenario::{ControlMode, Disturbance, EstimatorMethod, FeedbackKind, JointKind, Scenario, TargetTracker};
 
 /// One row of the time series. Fixed-size so recording a step does not
 /// allocate: a 2D joint uses index 0 of the angle arrays and coils 0–1.
@@ -269,22 +269,19 @@ fn run_loop<Pl, const P: usize, const S: usize, const C: usize>(
 where
     Pl: Plant<C, S, P>,
 {
-    let period = f64::from(s.control_period_us) * 1e-6;
-    let steps = (s.duration_s / period).round() as u64;
+    let (period, steps) = (s.period_s(), s.steps());
     let mut rows = Vec::with_capacity(steps as usize);
     let mut disturber = Disturber::new(s);
     let mut faults_seen = 0u16;
     let mut peak_temp = [f64::NEG_INFINITY; C];
-    let mut current_target: Vec<f64> = vec![f64::NAN; P];
+    let mut targets = TargetTracker::default();
     let started = Instant::now();
     for k in 0..steps {
         let t = k as f64 * period;
-        let target = s.target_at(t);
-        if target != current_target.as_slice() {
+        if let Some(target) = targets.changed(s, t) {
             for (p, d) in target.iter().enumerate() {
                 cl.controller.set_target(p, *d as f32).map_err(|e| anyhow::anyhow!("target: {e:?}"))?;
             }
-            current_target = target.to_vec();
         }
         cl.overrides = [None; C];
         disturber.apply(s, t, &mut cl.overrides, |action, id| apply_load(&mut cl.plant, action, id))?;
