@@ -7,7 +7,7 @@ use firmware::estimate::{LinearLaw, PlaneLaw, QuadraticLaw};
 use firmware::protocol::*;
 use firmware::supervisor::Faults;
 use host_tools::link::{Link, LinkError};
-use integration_tests::PtyBoard;
+use integration_tests::{start_lockstep, PtyBoard};
 use rand::{Rng, SeedableRng};
 
 const T: Duration = Duration::from_millis(300);
@@ -212,14 +212,9 @@ fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
 fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
     let (board, port) = PtyBoard::start();
     let mut link = Link::new(port);
-    host_tools::hil::handshake(&mut link).unwrap();
     // Retries take longer than the default 50 ms link-loss time (which
     // would then rightly latch); give the link 500 ms for this test.
-    link.command(&Message::SetLinkTimeout { timeout_ms: 500 }, T, 3).unwrap();
-    link.command(&Message::HilStart { period_us: 1000 }, T, 3).unwrap();
-    link.command(&Message::ClearFaults, T, 3).unwrap();
-    link.command(&Message::SetTarget { plane: 0, target_deg: 5.0 }, T, 3).unwrap();
-    link.command(&Message::Arm, T, 3).unwrap();
+    start_lockstep(&mut link, Some(500), 5.0, T);
     let timeout = Duration::from_millis(60);
     let step = |link: &mut Link<_>, seq: u16| -> ActuatorFrame {
         match link
@@ -251,12 +246,7 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
     // replies, so the retried steps ran exactly once.
     let (_clean, port) = PtyBoard::start();
     let mut clean = Link::new(port);
-    host_tools::hil::handshake(&mut clean).unwrap();
-    clean.command(&Message::SetLinkTimeout { timeout_ms: 500 }, T, 3).unwrap();
-    clean.command(&Message::HilStart { period_us: 1000 }, T, 3).unwrap();
-    clean.command(&Message::ClearFaults, T, 3).unwrap();
-    clean.command(&Message::SetTarget { plane: 0, target_deg: 5.0 }, T, 3).unwrap();
-    clean.command(&Message::Arm, T, 3).unwrap();
+    start_lockstep(&mut clean, Some(500), 5.0, T);
     for (seq, r) in replies.iter().enumerate() {
         assert_eq!(&sensor(&mut clean, seq as u16, counts_for(0.0)), r, "seq {seq}");
     }
@@ -266,11 +256,7 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
 fn a_dead_link_zeroes_the_outputs_within_the_link_loss_time() {
     let (board, port) = PtyBoard::start();
     let mut link = Link::new(port);
-    host_tools::hil::handshake(&mut link).unwrap();
-    link.command(&Message::HilStart { period_us: 1000 }, T, 3).unwrap();
-    link.command(&Message::ClearFaults, T, 3).unwrap();
-    link.command(&Message::SetTarget { plane: 0, target_deg: 10.0 }, T, 3).unwrap();
-    link.command(&Message::Arm, T, 3).unwrap();
+    start_lockstep(&mut link, None, 10.0, T);
     let mut a = None;
     for seq in 0..20u16 {
         a = Some(sensor(&mut link, seq, counts_for(0.0)));

@@ -89,11 +89,7 @@ fn dead_link_zeroes_the_image_outputs() {
     let qemu = Qemu::launch(&image(), false).expect("qemu");
     let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
     let t = Duration::from_millis(300);
-    hil::handshake(&mut link).expect("handshake");
-    link.command(&Message::HilStart { period_us: 1000 }, t, 5).unwrap();
-    link.command(&Message::ClearFaults, t, 5).unwrap();
-    link.command(&Message::SetTarget { plane: 0, target_deg: 10.0 }, t, 5).unwrap();
-    link.command(&Message::Arm, t, 5).unwrap();
+    integration_tests::start_lockstep(&mut link, None, 10.0, t);
     let mut last = None;
     for seq in 0..10u16 {
         let r = link
