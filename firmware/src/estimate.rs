@@ -15,16 +15,19 @@
 //!   (paper: `α_th = −7.46°`; its `A0..C1` were not published, so they come
 //!   from calibration — see [`crate::fit`] and `softjoint calibrate wire`).
 //!
-//! Which method is active is decided on one selector signal, the mean of
-//! the two methods' estimates (the paper's "α(t)" in Eq. 4), with a
-//! hysteresis band around the threshold: the method changes only when the
-//! selector leaves the band on the far side. Deciding on the active method's
-//! own estimate instead would chatter whenever the methods disagree by more
-//! than the band (after a switch the new method may already lie beyond the
-//! opposite edge); with a single selector the band only has to exceed the
-//! noise. At a switch the output steps from one method's value to the
-//! other's, so a jump is never larger than their disagreement at that
-//! instant.
+//! Which method is active is decided on one selector signal, the
+//! differential estimate (the paper's "α(t)" in Eq. 4), with a hysteresis
+//! band around the threshold: the method changes only when the selector
+//! leaves the band on the far side. The differential law is the selector
+//! because it is valid over the whole range (it is the paper's baseline
+//! Eq. 3, degraded only by jamming), whereas the single-sensor quadratic is
+//! calibrated below the threshold only and may extrapolate wildly above it.
+//! Deciding on the active method's own estimate instead would chatter
+//! whenever the methods disagree by more than the band (after a switch the
+//! new method may already lie beyond the opposite edge); with one selector
+//! the band only has to exceed the noise. At a switch the output steps from
+//! one method's value to the other's, so a jump is never larger than their
+//! disagreement at that instant.
 //!
 //! Units: insertions in millimetres, angles in degrees.
 
@@ -301,7 +304,7 @@ impl<const S: usize> PlaneEstimator<S> {
                 let diff = high.angle_deg(sensor_mm(d_mm, plus) - sensor_mm(d_mm, minus));
                 let single = low.angle_deg(sensor_mm(d_mm, sensor));
                 let half = 0.5 * hysteresis_deg;
-                let selector = 0.5 * (diff + single);
+                let selector = diff;
                 let method = match self.active {
                     None if selector >= threshold_deg => Method::Differential,
                     None => Method::Single,

@@ -319,11 +319,15 @@ fn fit_plane<const S: usize>(
         differential = Some((d.clone(), de));
         candidates.push((d, de));
         // Threshold search on a 0.1° grid within the sweep's range, keeping
-        // at least 5 % of the rows on each side.
+        // at least 15 % of the rows on each side: a branch fitted to a
+        // sliver of the range extrapolates wildly (the selector is the
+        // differential law, so such a branch would only be used there, but
+        // its coefficients would mean nothing).
         let mut sorted: Vec<f64> = rows.iter().map(ang).collect();
         sorted.sort_by(f64::total_cmp);
-        let lo = sorted[sorted.len() / 20];
-        let hi = sorted[sorted.len() - 1 - sorted.len() / 20];
+        let margin = sorted.len() * 15 / 100;
+        let lo = sorted[margin];
+        let hi = sorted[sorted.len() - 1 - margin];
         let mut best: Option<(LawSpec, ErrorStats)> = None;
         let mut th = (lo * 10.0).ceil() / 10.0;
         while th <= hi {
@@ -354,14 +358,21 @@ fn fit_plane<const S: usize>(
             th += 0.1;
         }
         if let Some(b) = best {
-            switching = Some(b.clone());
-            candidates.push(b);
+            switching = Some(b);
         }
     }
-    let (chosen, chosen_errors) = candidates
+    // The simplest law wins unless switching lowers the worst-case error by
+    // at least 5 %: two branches and a threshold are worth it only for a
+    // real improvement, not a fitting artefact.
+    let (mut chosen, mut chosen_errors) = candidates
         .into_iter()
         .min_by(|x, y| x.1.max_error_deg.total_cmp(&y.1.max_error_deg))
         .ok_or_else(|| anyhow::anyhow!("{name}: no method could be fitted"))?;
+    if let Some((law, e)) = &switching {
+        if e.max_error_deg < 0.95 * chosen_errors.max_error_deg {
+            (chosen, chosen_errors) = (law.clone(), *e);
+        }
+    }
     Ok(PlaneFit {
         angle: name.into(),
         single: (single, single_err),
