@@ -51,8 +51,14 @@ impl RasterGrid {
     /// Range of cell indices whose centres lie in [lo, hi] along x (or y).
     #[inline]
     fn index_range(&self, lo: f64, hi: f64, origin: f64, n: usize) -> Option<(usize, usize)> {
-        let a = ((lo - origin) / self.cell_px - 0.5).ceil();
-        let b = ((hi - origin) / self.cell_px - 0.5).floor();
+        self.index_range_inv(lo, hi, origin, n, 1.0 / self.cell_px)
+    }
+
+    /// [`Self::index_range`] with the reciprocal cell size precomputed.
+    #[inline]
+    fn index_range_inv(&self, lo: f64, hi: f64, origin: f64, n: usize, inv_cell: f64) -> Option<(usize, usize)> {
+        let a = ceil_fast((lo - origin) * inv_cell - 0.5);
+        let b = floor_fast((hi - origin) * inv_cell - 0.5);
         if !(a.is_finite() && b.is_finite()) || b < 0.0 || a > (n as f64 - 1.0) || a > b {
             return None;
         }
@@ -105,6 +111,37 @@ impl Bitmap {
     }
 }
 
+/// `x.floor()` without the libm call the baseline x86-64 target makes
+/// (no SSE4.1 `roundsd`): exact for |x| < 2⁵², falls back otherwise.
+#[inline(always)]
+fn floor_fast(x: f64) -> f64 {
+    if x.abs() < 4.5e15 {
+        let t = x as i64 as f64;
+        if t > x {
+            t - 1.0
+        } else {
+            t
+        }
+    } else {
+        x.floor()
+    }
+}
+
+/// `x.ceil()`, see [`floor_fast`].
+#[inline(always)]
+fn ceil_fast(x: f64) -> f64 {
+    if x.abs() < 4.5e15 {
+        let t = x as i64 as f64;
+        if t < x {
+            t + 1.0
+        } else {
+            t
+        }
+    } else {
+        x.ceil()
+    }
+}
+
 /// Bits lo..=hi of a word set (lo ≤ hi < 64).
 #[inline]
 fn span_mask(lo: usize, hi: usize) -> u64 {
@@ -128,6 +165,7 @@ pub fn fill_triangle(grid: &RasterGrid, img: &mut Bitmap, a: V2, b: V2, c: V2) {
         core::mem::swap(&mut p0, &mut p1);
     }
     let Some((j0, j1)) = grid.index_range(p0.y, p2.y, grid.origin_px.y, grid.ny) else { return };
+    let inv_cell = 1.0 / grid.cell_px;
     let slope = |p: V2, q: V2| if q.y > p.y { (q.x - p.x) / (q.y - p.y) } else { 0.0 };
     let (s02, s01, s12) = (slope(p0, p2), slope(p0, p1), slope(p1, p2));
     for j in j0..=j1 {
@@ -135,7 +173,7 @@ pub fn fill_triangle(grid: &RasterGrid, img: &mut Bitmap, a: V2, b: V2, c: V2) {
         let xa = p0.x + (y - p0.y) * s02;
         let xb = if y < p1.y { p0.x + (y - p0.y) * s01 } else { p1.x + (y - p1.y) * s12 };
         let (xmin, xmax) = if xa <= xb { (xa, xb) } else { (xb, xa) };
-        if let Some((i0, i1)) = grid.index_range(xmin, xmax, grid.origin_px.x, grid.nx) {
+        if let Some((i0, i1)) = grid.index_range_inv(xmin, xmax, grid.origin_px.x, grid.nx, inv_cell) {
             img.set_span(j, i0, i1);
         }
     }
