@@ -8,6 +8,7 @@ use host_tools::{calibrate, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
+mod push;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -33,6 +34,9 @@ enum Command {
     /// Viscoelastic solids (seed 002): 3-element model on your data, fits,
     /// and the measured DGFM object.
     Viscoelastic(viscoelastic::ViscoArgs),
+    /// Deformable blocks under robotic pushing (seed 001): simulate,
+    /// calibrate (Algorithm 5), classify.
+    Push(push::PushArgs),
 }
 
 #[derive(Args)]
@@ -89,6 +93,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Hil(args) => serial_cmds::hil(args),
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
+        Command::Push(args) => push::run(args),
         Command::Calibrate(CalibrateCommand::Wire { sweep, output, json }) => {
             let rows = calibrate::read_sweep(&sweep)?;
             let fits = calibrate::fit(&rows)?;
