@@ -70,7 +70,9 @@ impl Default for ControllerSpec {
 pub enum EstimatorMethod {
     /// The paper's published laws: Eq. 3 (3D) or Eq. 2 (2D).
     Paper,
-    /// Threshold switching (Eq. 4/5) with calibrated coefficients (3D).
+    /// Threshold switching (Eq. 4/5) as `calibrate wire` fits it (3D): the
+    /// threshold search keeps a single-wire branch only where it lowers the
+    /// worst-case error; otherwise the law is the differential branch alone.
     Switching,
     /// One sensor, quadratic, calibrated (the jamming-prone method).
     Single,

@@ -121,12 +121,16 @@ pub fn laws_for(s: &Scenario) -> anyhow::Result<(Option<Vec<PlaneLaw>>, String)>
         None => {
             let rows = calibration_sweep(s)?;
             let fits = calibrate::fit(&rows)?;
-            let method = match s.estimator.method {
-                EstimatorMethod::Single => "single",
-                EstimatorMethod::Differential => "differential",
-                _ => "switching",
+            // `switching` is what `calibrate wire` writes: Eq. 4 with the
+            // threshold its search finds, kept only where a second branch
+            // pays (otherwise the differential branch alone, Eq. 5's form).
+            // `single` and `differential` force that method.
+            let cal = match s.estimator.method {
+                EstimatorMethod::Single => calibrate::calibration_with(&fits, "single")?,
+                EstimatorMethod::Differential => calibrate::calibration_with(&fits, "differential")?,
+                _ => calibrate::calibration_of(&fits)?,
             };
-            (calibrate::calibration_with(&fits, method)?, format!("fitted to a simulated sweep ({} rows)", rows.len()))
+            (cal, format!("fitted to a simulated sweep ({} rows)", rows.len()))
         }
     };
     let laws = fits_cal.laws()?;

@@ -38,7 +38,8 @@ fn short_default() -> Scenario {
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
 fn image_in_lockstep_reproduces_the_simulation() {
-    let s = short_default();
+    // The built-in default scenario, in full (30 s, 30 000 lockstep steps).
+    let s = Scenario::default();
     let expected = sim::run(&s).expect("sim");
     let qemu = Qemu::launch(&image(), true).expect("qemu");
     let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
@@ -47,17 +48,18 @@ fn image_in_lockstep_reproduces_the_simulation() {
     assert_eq!(got.trace.rows.len(), expected.trace.rows.len());
     for (k, (h, e)) in got.trace.rows.iter().zip(&expected.trace.rows).enumerate() {
         // Same control core, same inputs, same plant: identical trajectory
-        // and outputs. Estimates travel in centidegrees (±0.005°).
+        // and outputs. Estimates travel in centidegrees (±0.005°), rounded
+        // in f32 (≈ 1e-6 at 10°), hence 1e-5 of slack on top.
         assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
         assert_eq!(h.coil_volts, e.coil_volts, "coil voltages differ at step {k}");
         assert_eq!(h.faults, e.faults, "faults differ at step {k}");
         for p in 0..2 {
-            assert!((h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-9, "estimate {p} at step {k}");
+            assert!((h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-5, "estimate {p} at step {k}: {} vs {}", h.estimate_deg[p], e.estimate_deg[p]);
         }
     }
-    // The run did something: the joint reached its targets (2.5 s segments
-    // are short for SMA coils to settle fully, hence 1°).
-    assert!(got.report.summary.steady_state_error_deg.iter().all(|e| *e < 1.0), "{:?}", got.report.summary);
+    // The run did something: the joint reached its targets.
+    assert!(got.report.summary.steady_state_error_deg.iter().all(|e| *e < 0.5), "{:?}", got.report.summary);
+    println!("lockstep: {:.0} steps/s, {:?}", got.report.lockstep_steps_per_s, got.report.link);
     // Every frame answered (a reply slower than the timeout on a loaded host
     // costs a harmless, idempotent retry); nothing corrupted.
     let l = got.report.link;

@@ -18,7 +18,10 @@
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
-#[cfg(target_os = "none")]
+#[cfg(all(target_os = "none", not(feature = "board-mps2-an386")))]
+compile_error!("no board selected: enable a board feature such as `board-mps2-an386` (the default)");
+
+#[cfg(all(target_os = "none", feature = "board-mps2-an386"))]
 mod mps2 {
     //! QEMU mps2-an386 board support.
     #![allow(unsafe_code)] // memory-mapped registers; each access says why it is sound
