@@ -95,7 +95,7 @@ pub fn handshake<P: Port>(link: &mut Link<P>) -> anyhow::Result<()> {
 pub fn status<P: Port>(link: &mut Link<P>) -> Result<Status, LinkError> {
     match link.request(&Message::GetStatus, CMD_TIMEOUT, CMD_ATTEMPTS, |m| matches!(m, Message::Status(_)))? {
         Message::Status(s) => Ok(s),
-        _ => unreachable!("accepted only Status"),
+        other => Err(LinkError::Unexpected { request: firmware::protocol::kind::GET_STATUS, reply: other.kind() }),
     }
 }
 

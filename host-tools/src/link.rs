@@ -35,6 +35,15 @@ pub enum LinkError {
         /// The board's reason.
         code: ErrorCode,
     },
+    /// A reply was accepted that does not fit the request (a bug on one
+    /// side).
+    #[error("reply {reply:#04x} does not answer request {request:#04x}")]
+    Unexpected {
+        /// Type byte of the request.
+        request: u8,
+        /// Type byte of the reply.
+        reply: u8,
+    },
     /// The port failed.
     #[error("serial port: {0}")]
     Io(#[from] io::Error),

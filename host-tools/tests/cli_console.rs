@@ -20,7 +20,7 @@ fn console(port: &str, args: &[&str]) -> std::process::Output {
 #[test]
 fn scripted_session_with_telemetry_to_csv() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let (board, host_end) = PtyBoard::start();
+    let (board, host_end) = PtyBoard::start().expect("pty pair");
     let path = board.host_path.clone();
     drop(host_end); // the subprocess opens the pty itself
     let dir = std::env::temp_dir().join(format!("softjoint-console-{}", std::process::id()));
@@ -48,7 +48,7 @@ fn scripted_session_with_telemetry_to_csv() {
 #[test]
 fn refused_and_unknown_commands_fail_with_a_reason() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let (board, host_end) = PtyBoard::start();
+    let (board, host_end) = PtyBoard::start().expect("pty pair");
     let path = board.host_path.clone();
     drop(host_end);
     let out = console(&path, &["target", "0", "90"]);

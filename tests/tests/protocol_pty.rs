@@ -42,7 +42,7 @@ fn counts_for(deg: f32) -> [i16; 4] {
 
 #[test]
 fn every_message_over_a_real_pty() {
-    let (_board, port) = PtyBoard::start();
+    let (_board, port) = PtyBoard::start().expect("pty pair");
     let mut link = Link::new(port);
     host_tools::hil::handshake(&mut link).expect("handshake");
     assert_eq!(
@@ -141,7 +141,7 @@ fn every_message_over_a_real_pty() {
 
 #[test]
 fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
-    let (_board, port) = PtyBoard::start();
+    let (_board, port) = PtyBoard::start().expect("pty pair");
     let mut link = Link::new(port);
     host_tools::hil::handshake(&mut link).unwrap();
     let before = status(&mut link);
@@ -210,7 +210,7 @@ fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
 
 #[test]
 fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
-    let (board, port) = PtyBoard::start();
+    let (board, port) = PtyBoard::start().expect("pty pair");
     let mut link = Link::new(port);
     // Retries take longer than the default 50 ms link-loss time (which
     // would then rightly latch); give the link 500 ms for this test.
@@ -244,7 +244,7 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
     assert_eq!(board.state.lock().unwrap().dropped, 1);
     // Idempotency: the same frames on a fault-free board give the same
     // replies, so the retried steps ran exactly once.
-    let (_clean, port) = PtyBoard::start();
+    let (_clean, port) = PtyBoard::start().expect("pty pair");
     let mut clean = Link::new(port);
     start_lockstep(&mut clean, Some(500), 5.0, T);
     for (seq, r) in replies.iter().enumerate() {
@@ -254,7 +254,7 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
 
 #[test]
 fn a_dead_link_zeroes_the_outputs_within_the_link_loss_time() {
-    let (board, port) = PtyBoard::start();
+    let (board, port) = PtyBoard::start().expect("pty pair");
     let mut link = Link::new(port);
     start_lockstep(&mut link, None, 10.0, T);
     let mut a = None;
