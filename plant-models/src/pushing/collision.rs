@@ -82,6 +82,12 @@ impl Finger {
         let mut moved = 0;
         for p in positions_px.iter_mut() {
             let d = *p - self.centre_px;
+            // Squared test first (most vertices are far from the finger),
+            // with a margin of a few ulps so that it never skips a vertex
+            // the exact test below would move.
+            if d.norm_squared() > self.radius_px * self.radius_px * (1.0 + 8.0 * f64::EPSILON) {
+                continue;
+            }
             let n = d.norm();
             if n < self.radius_px {
                 let dir = if n > 1e-12 { d / n } else { fallback_dir };

@@ -143,9 +143,15 @@ pub fn length_force(pi: V2, pj: V2, vi: V2, vj: V2, d0_px: f64, rest_len_px: f64
         // (§VI-E) separates them. No force rather than NaN.
         return V2::zeros();
     }
-    let u = d / l;
-    let inv_d0_sq = 1.0 / (d0_px * d0_px);
-    u * (k_length * inv_d0_sq * (l - rest_len_px) + k_damping * inv_d0_sq * u.dot(&(vj - vi)))
+    length_force_with(d, l, vj - vi, 1.0 / (d0_px * d0_px), rest_len_px, k_length, k_damping)
+}
+
+/// Eq. 20 from the spring vector `d` = p_j − p_i, its length `l` > 0, the
+/// relative velocity and 1/D0² (precomputed per spring in [`Mesh`]).
+#[inline(always)]
+fn length_force_with(d: V2, l: f64, dv: V2, inv_d0_sq: f64, rest_len_px: f64, k_length: f64, k_damping: f64) -> V2 {
+    let u = d * (1.0 / l);
+    u * (k_length * inv_d0_sq * (l - rest_len_px) + k_damping * inv_d0_sq * u.dot(&dv))
 }
 
 /// Gradient of the signed area of triangle (a, b, c) w.r.t. each vertex,
@@ -224,6 +230,16 @@ pub fn elastic_energy(mesh: &Mesh, positions_px: &[V2], rest_len_px: &[f64], p: 
 /// Adds every internal constraint force of the mesh to `forces`.
 /// `velocities` feed the damping of Eq. 20; `rest_len_px` holds the plastic
 /// rest lengths (1 − α)·D0.
+///
+/// This is the hot loop of every simulation. Per triangle it computes the
+/// three edge vectors, their squared lengths and twice the signed area once,
+/// and compares each corner with its rest angle by rotating (dot, cross) of
+/// the corner by −φ0 (stored cos φ0, sin φ0): the deviation φ − φ0 is then
+/// atan(y/x) of a small ratio, which a short series evaluates to within
+/// an ulp; only corners deviating by more than [`SERIES_MAX_RATIO`] (or
+/// degenerate triangles) use libm's `atan2`. Same forces as
+/// [`accumulate_internal_forces_reference`] (the per-corner transcription of
+/// Eq. 20, 23, 26) up to floating-point rounding; a test compares the two.
 pub fn accumulate_internal_forces(
     mesh: &Mesh,
     positions_px: &[V2],
@@ -232,57 +248,170 @@ pub fn accumulate_internal_forces(
     p: &MaterialParams,
     forces: &mut [V2],
 ) {
-    if p.k_length != 0.0 || p.k_damping != 0.0 {
-        for (k, &[i, j]) in mesh.edges.iter().enumerate() {
-            let f = length_force(
-                positions_px[i],
-                positions_px[j],
-                velocities_px_s[i],
-                velocities_px_s[j],
-                mesh.rest_lengths_px[k],
-                rest_len_px[k],
-                p.k_length,
-                p.k_damping,
-            );
-            forces[i] += f;
-            forces[j] -= f;
-        }
-    }
+    accumulate_length_forces(mesh, positions_px, velocities_px_s, rest_len_px, p, forces);
     let do_area = p.k_area != 0.0;
     let do_angle = p.k_angle != 0.0;
     if !(do_area || do_angle) {
         return;
     }
+    let k_area = if do_area { p.k_area } else { 0.0 };
     for (t, tri) in mesh.triangles.iter().enumerate() {
         let [a, b, c] = *tri;
         let (pa, pb, pc) = (positions_px[a], positions_px[b], positions_px[c]);
+        let ab = pb - pa;
+        let ac = pc - pa;
+        let bc = pc - pb;
+        // Twice the signed area: the cross product of any corner's edges.
+        let twice_area = cross(ab, ac);
+        let (mut fa, mut fb, mut fc) = (V2::zeros(), V2::zeros(), V2::zeros());
         if do_area {
-            let f = area_forces(pa, pb, pc, mesh.rest_areas_px2[t], p.k_area);
+            // Eq. 21–23, as `area_forces`: −k_A (A − A0)/A0² ∇A.
+            let a0 = mesh.rest_areas_px2[t];
+            let s = -k_area * (0.5 * twice_area - a0) / (a0 * a0);
+            let r = |v: V2| V2::new(v.y, -v.x);
+            fa = 0.5 * r(pb - pc) * s;
+            fb = 0.5 * r(pc - pa) * s;
+            fc = 0.5 * r(pa - pb) * s;
+        }
+        if do_angle {
+            let l_ab = ab.norm_squared();
+            let l_ac = ac.norm_squared();
+            let l_bc = bc.norm_squared();
+            if l_ab <= f64::MIN_POSITIVE || l_ac <= f64::MIN_POSITIVE || l_bc <= f64::MIN_POSITIVE {
+                angle_forces_triangle_reference(mesh, t, positions_px, p.k_angle, forces);
+            } else {
+                // Dot products of the two edges leaving each corner.
+                let dots = [ab.dot(&ac), -(ab.dot(&bc)), ac.dot(&bc)];
+                let rest = &mesh.rest_angles_rad[t];
+                let cs = &mesh.rest_angle_cos_sin[t];
+                let mut s = [0.0; 3];
+                for k in 0..3 {
+                    s[k] = -p.k_angle * angle_deviation(twice_area, dots[k], rest[k], cs[k]);
+                }
+                // w_e = ∂φ/∂(far end of edge e) seen from its near end:
+                // −R⁺(e)/|e|² with R⁺ the +90° rotation. Corner a gets
+                // [−(w_ab + w_ca), w_ab, w_ca] on (a, b, c), and cyclically.
+                let rot = |v: V2| V2::new(-v.y, v.x);
+                let w_ab = -rot(ab) * (1.0 / l_ab);
+                let w_bc = -rot(bc) * (1.0 / l_bc);
+                let w_ca = rot(ac) * (1.0 / l_ac); // edge c→a is −ac
+                fa += w_ab * (s[1] - s[0]) + w_ca * (s[2] - s[0]);
+                fb += w_ab * (s[0] - s[1]) + w_bc * (s[2] - s[1]);
+                fc += w_ca * (s[0] - s[2]) + w_bc * (s[1] - s[2]);
+            }
+        }
+        forces[a] += fa;
+        forces[b] += fb;
+        forces[c] += fc;
+    }
+}
+
+/// Largest |tan(φ − φ0)| evaluated by the series in [`angle_deviation`];
+/// beyond it (about 7°) libm's `atan2` is used.
+pub const SERIES_MAX_RATIO: f64 = 0.125;
+
+/// φ − φ0 for a corner with cross product `cr` and dot product `dot` of its
+/// edges and rest angle φ0 (cos, sin in `cs`), with φ = atan2(cr, dot) in
+/// (−π, π] as in [`corner_angle`].
+#[inline(always)]
+fn angle_deviation(cr: f64, dot: f64, phi0: f64, cs: [f64; 2]) -> f64 {
+    // Rotating the corner by −φ0: (x, y) = |e1||e2| (cos δ, sin δ).
+    let x = dot * cs[0] + cr * cs[1];
+    let y = cr * cs[0] - dot * cs[1];
+    if x > 0.0 && y.abs() <= SERIES_MAX_RATIO * x {
+        let t = y / x;
+        let u = t * t;
+        // atan t = Σ (−1)^n t^(2n+1)/(2n+1); for |t| ≤ 1/8 the first omitted
+        // term (n = 9) is below 2.8e-18 |t|, a fortieth of an ulp.
+        // Estrin's scheme (shorter dependency chain than Horner).
+        let u2 = u * u;
+        let u4 = u2 * u2;
+        let p01 = 1.0 - u * (1.0 / 3.0);
+        let p23 = 1.0 / 5.0 - u * (1.0 / 7.0);
+        let p45 = 1.0 / 9.0 - u * (1.0 / 11.0);
+        let p67 = 1.0 / 13.0 - u * (1.0 / 15.0);
+        let poly = (p01 + u2 * p23) + u4 * ((p45 + u2 * p67) + u4 * (1.0 / 17.0));
+        let d = t * poly;
+        // φ in (−π, π]: a corner whose rest angle is near π and that opens
+        // beyond π reads as φ − 2π, as the atan2 form does.
+        if phi0 + d > core::f64::consts::PI {
+            d - 2.0 * core::f64::consts::PI
+        } else {
+            d
+        }
+    } else {
+        cr.atan2(dot) - phi0
+    }
+}
+
+fn accumulate_length_forces(mesh: &Mesh, positions_px: &[V2], velocities_px_s: &[V2], rest_len_px: &[f64], p: &MaterialParams, forces: &mut [V2]) {
+    if p.k_length != 0.0 || p.k_damping != 0.0 {
+        for (k, &[i, j]) in mesh.edges.iter().enumerate() {
+            // As `length_force`, with 1/D0² read from the mesh.
+            let d = positions_px[j] - positions_px[i];
+            let l = d.norm();
+            if l <= f64::EPSILON * mesh.rest_lengths_px[k] {
+                continue;
+            }
+            let f = length_force_with(d, l, velocities_px_s[j] - velocities_px_s[i], mesh.inv_rest_lengths_sq[k], rest_len_px[k], p.k_length, p.k_damping);
+            forces[i] += f;
+            forces[j] -= f;
+        }
+    }
+}
+
+/// Angle forces of one triangle as a direct transcription of Eq. 26–29:
+/// two corner angles by `atan2`, the third from the angle sum, gradients
+/// per corner.
+fn angle_forces_triangle_reference(mesh: &Mesh, t: usize, positions_px: &[V2], k_angle: f64, forces: &mut [V2]) {
+    let tri = &mesh.triangles[t];
+    let [a, b, c] = *tri;
+    let (pa, pb, pc) = (positions_px[a], positions_px[b], positions_px[c]);
+    // Two corner angles by atan2; the third from the angle sum
+    // (π for a counter-clockwise triangle, −π for a reversed one).
+    let phi_a = corner_angle(pa, pb, pc);
+    let phi_b = corner_angle(pb, pc, pa);
+    let twice_area = cross(pb - pa, pc - pa);
+    let phi_c = if twice_area.abs() > 1e-9 * (pb - pa).norm_squared().max((pc - pa).norm_squared()) {
+        core::f64::consts::PI.copysign(twice_area) - phi_a - phi_b
+    } else {
+        corner_angle(pc, pa, pb)
+    };
+    let r = &mesh.rest_angles_rad[t];
+    for (k, phi) in [phi_a, phi_b, phi_c].into_iter().enumerate() {
+        let (i, j, l) = corner(tri, k);
+        if let Some(g) = angle_gradients(positions_px[i], positions_px[j], positions_px[l]) {
+            let s = -k_angle * (phi - r[k]);
+            forces[i] += g[0] * s;
+            forces[j] += g[1] * s;
+            forces[l] += g[2] * s;
+        }
+    }
+}
+
+/// The straightforward per-corner form of [`accumulate_internal_forces`]
+/// (the implementation before the angle terms were restructured): every
+/// angle from `atan2`, gradients and accumulation corner by corner. Kept as
+/// the reference the fast version is tested against.
+pub fn accumulate_internal_forces_reference(
+    mesh: &Mesh,
+    positions_px: &[V2],
+    velocities_px_s: &[V2],
+    rest_len_px: &[f64],
+    p: &MaterialParams,
+    forces: &mut [V2],
+) {
+    accumulate_length_forces(mesh, positions_px, velocities_px_s, rest_len_px, p, forces);
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let [a, b, c] = *tri;
+        if p.k_area != 0.0 {
+            let f = area_forces(positions_px[a], positions_px[b], positions_px[c], mesh.rest_areas_px2[t], p.k_area);
             forces[a] += f[0];
             forces[b] += f[1];
             forces[c] += f[2];
         }
-        if do_angle {
-            // Two corner angles by atan2; the third from the angle sum
-            // (π for a counter-clockwise triangle, −π for a reversed one).
-            let phi_a = corner_angle(pa, pb, pc);
-            let phi_b = corner_angle(pb, pc, pa);
-            let twice_area = cross(pb - pa, pc - pa);
-            let phi_c = if twice_area.abs() > 1e-9 * (pb - pa).norm_squared().max((pc - pa).norm_squared()) {
-                core::f64::consts::PI.copysign(twice_area) - phi_a - phi_b
-            } else {
-                corner_angle(pc, pa, pb)
-            };
-            let r = &mesh.rest_angles_rad[t];
-            for (k, phi) in [phi_a, phi_b, phi_c].into_iter().enumerate() {
-                let (i, j, l) = corner(tri, k);
-                if let Some(g) = angle_gradients(positions_px[i], positions_px[j], positions_px[l]) {
-                    let s = -p.k_angle * (phi - r[k]);
-                    forces[i] += g[0] * s;
-                    forces[j] += g[1] * s;
-                    forces[l] += g[2] * s;
-                }
-            }
+        if p.k_angle != 0.0 {
+            angle_forces_triangle_reference(mesh, t, positions_px, p.k_angle, forces);
         }
     }
 }

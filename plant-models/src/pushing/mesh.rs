@@ -34,11 +34,17 @@ pub struct Mesh {
     pub edges: Vec<[usize; 2]>,
     /// Original rest length D0 of every spring, px.
     pub rest_lengths_px: Vec<f64>,
+    /// 1/D0² of every spring, px⁻² (the normalisation of Eq. 20).
+    pub inv_rest_lengths_sq: Vec<f64>,
     /// Rest area A0 of every triangle, px².
     pub rest_areas_px2: Vec<f64>,
     /// Rest angle φ0 at each corner of every triangle, rad; corner `c` of
     /// triangle `[a, b, c']` is at vertex `tri[c]`.
     pub rest_angles_rad: Vec<[f64; 3]>,
+    /// (cos φ0, sin φ0) of every entry of `rest_angles_rad`: the angle
+    /// forces compare the current corner with its rest angle by rotation,
+    /// which needs no arctangent for small deviations.
+    pub rest_angle_cos_sin: Vec<[[f64; 2]; 3]>,
     /// Outer boundary as a counter-clockwise loop of vertex indices.
     pub boundary_loop: Vec<usize>,
 }
@@ -114,7 +120,8 @@ impl Mesh {
         let rest_lengths_px = edges
             .iter()
             .map(|&[u, v]| (rest_positions_px[v] - rest_positions_px[u]).norm())
-            .collect();
+            .collect::<Vec<f64>>();
+        let inv_rest_lengths_sq = rest_lengths_px.iter().map(|d0| 1.0 / (d0 * d0)).collect();
         let rest_areas_px2 = tris
             .iter()
             .map(|&[a, b, c]| signed_area(rest_positions_px[a], rest_positions_px[b], rest_positions_px[c]))
@@ -129,15 +136,18 @@ impl Mesh {
                 }
                 ang
             })
-            .collect();
+            .collect::<Vec<[f64; 3]>>();
+        let rest_angle_cos_sin = rest_angles_rad.iter().map(|a| a.map(|phi| [phi.cos(), phi.sin()])).collect();
         let boundary_loop = boundary_loop(n, &tris)?;
         Ok(Self {
             rest_positions_px,
             triangles: tris,
             edges,
             rest_lengths_px,
+            inv_rest_lengths_sq,
             rest_areas_px2,
             rest_angles_rad,
+            rest_angle_cos_sin,
             boundary_loop,
         })
     }

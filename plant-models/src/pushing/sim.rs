@@ -191,9 +191,9 @@ impl<'m> Simulator<'m> {
     /// Current velocities as the integrator sees them, px/s.
     fn refresh_velocities(&mut self) {
         if self.config.integrator != Integrator::Euler {
-            let h = self.config.step_s;
+            let inv_h = 1.0 / self.config.step_s;
             for ((v, p), q) in self.velocities_px_s.iter_mut().zip(&self.positions_px).zip(&self.prev_positions_px) {
-                *v = (*p - *q) / h;
+                *v = (*p - *q) * inv_h;
             }
         }
     }
@@ -281,6 +281,11 @@ impl<'m> Simulator<'m> {
         self.table.resolve(&mut self.positions_px);
         for (k, &[i, j]) in self.mesh.edges.iter().enumerate() {
             let l = (self.positions_px[j] - self.positions_px[i]).norm();
+            if l >= self.rest_len_px[k] {
+                // Not compressed below its rest length: Algorithm 2 leaves
+                // α as it is (yield ≥ 0), and so the rest length.
+                continue;
+            }
             let d0 = self.mesh.rest_lengths_px[k];
             self.alpha[k] = update_alpha(self.alpha[k], l, d0, &self.params);
             self.rest_len_px[k] = (1.0 - self.alpha[k]) * d0;
@@ -298,7 +303,11 @@ impl<'m> Simulator<'m> {
             if !(p.x.is_finite() && p.y.is_finite()) {
                 return Some(Instability::NonFinite { vertex: i });
             }
-            let d = (p - self.rest_centroid_px).norm();
+            let d2 = (p - self.rest_centroid_px).norm_squared();
+            if d2 <= self.escape_distance_px * self.escape_distance_px {
+                continue;
+            }
+            let d = d2.sqrt();
             if d > self.escape_distance_px {
                 return Some(Instability::Escaped { vertex: i, distance_px: d });
             }
