@@ -184,13 +184,17 @@ fn global_classification_is_right_on_all_six_pushes() {
 }
 
 #[test]
-fn customised_integrator_outscores_euler_and_verlet_table_ii() {
-    // Same ground truth, same search budget and seed for every scheme.
-    // What this asserts is what held in every session at the full budget
-    // (4 seeds, see the README): the customised scheme beats Euler on both
-    // materials and Verlet on the plasticine. On the sponge Verlet scored
-    // higher (0.9856 ± 0.0006 vs 0.9839 ± 0.0004), so that pair is reported,
-    // not asserted.
+fn table_ii_full_model_session_customised_above_euler() {
+    // One of Table II's 24 sessions: the full model (all terms, plasticity,
+    // collisions, repair — the configuration used everywhere else), each
+    // scheme calibrated for itself on the same push with the same search
+    // budget and seed. Asserted is what held in this session at the full
+    // budget and in the reduced one: customised above Euler on both
+    // materials and above Verlet on the plasticine. On the sponge Verlet
+    // scored higher (protocol run, session 1: 0.9864 vs 0.9842), and over
+    // the seed's whole 24-session protocol (`pushing_table_ii.rs`, README
+    // "Table II") the ranking is not reproduced; both are reported, not
+    // asserted.
     for m in materials() {
         let custom = m.calibration.best_score;
         let schemes: &[Integrator] = if m.label == "plasticine" { &[Integrator::Euler, Integrator::Verlet] } else { &[Integrator::Euler] };

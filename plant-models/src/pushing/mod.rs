@@ -37,6 +37,7 @@ pub mod raster;
 pub mod reference;
 pub mod scenario;
 pub mod sim;
+pub mod table_ii;
 pub mod vec2;
 pub mod video_csv;
 
