@@ -43,15 +43,8 @@ enum Command {
 struct SimArgs {
     /// Scenario file (TOML); without it the built-in default runs.
     scenario: Option<PathBuf>,
-    /// Write the time series as CSV.
-    #[arg(long)]
-    csv: Option<PathBuf>,
-    /// Write a plot of angles and voltages against time (SVG).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Print a machine-readable summary instead of the table.
-    #[arg(long)]
-    json: bool,
+    #[command(flatten)]
+    output: report::OutputArgs,
     /// Instead of a control run, write a calibration sweep of the simulated
     /// joint (slow ±20° sweep, camera reference) to this CSV.
     #[arg(long, value_name = "PATH")]
@@ -142,13 +135,8 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let out = sim::run(&scenario)?;
-    if let Some(p) = &args.csv {
-        report::write_csv(p, &out.summary.angles, &out.trace)?;
-    }
-    if let Some(p) = &args.plot {
-        report::write_plot(p, &scenario.name, &out.summary.angles, &out.trace)?;
-    }
-    if args.json {
+    args.output.write_files(&scenario.name, &out.summary, &out.trace)?;
+    if args.output.json {
         println!("{}", serde_json::to_string_pretty(&out.summary)?);
     } else {
         print!("{}", report::table(&out.summary));

@@ -6,6 +6,33 @@ use std::path::Path;
 use anyhow::Context;
 
 use crate::sim::{Summary, Trace};
+
+/// The output flags shared by `sim` and `hil`.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct OutputArgs {
+    /// Write the time series as CSV.
+    #[arg(long)]
+    pub csv: Option<std::path::PathBuf>,
+    /// Write a plot of angles and voltages against time (SVG).
+    #[arg(long)]
+    pub plot: Option<std::path::PathBuf>,
+    /// Print a machine-readable summary instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl OutputArgs {
+    /// Writes the CSV and the plot if asked for.
+    pub fn write_files(&self, title: &str, summary: &Summary, trace: &Trace) -> anyhow::Result<()> {
+        if let Some(p) = &self.csv {
+            write_csv(p, &summary.angles, trace)?;
+        }
+        if let Some(p) = &self.plot {
+            write_plot(p, title, &summary.angles, trace)?;
+        }
+        Ok(())
+    }
+}
 use crate::svg::{Chart, Series};
 
 /// The human-readable summary.

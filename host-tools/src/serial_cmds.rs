@@ -44,15 +44,8 @@ pub struct HilArgs {
     /// so a loaded host needs more slack than a real board does.
     #[arg(long, default_value_t = 250)]
     link_timeout_ms: u16,
-    /// Write the time series as CSV.
-    #[arg(long)]
-    csv: Option<PathBuf>,
-    /// Write a plot (SVG).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Print a machine-readable summary.
-    #[arg(long)]
-    json: bool,
+    #[command(flatten)]
+    output: report::OutputArgs,
 }
 
 pub fn hil(args: HilArgs) -> anyhow::Result<()> {
@@ -78,13 +71,8 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
     };
     let mut link = Link::new(port);
     let out = hil::run(&scenario, &mut link, opts)?;
-    if let Some(p) = &args.csv {
-        report::write_csv(p, &out.report.summary.angles, &out.trace)?;
-    }
-    if let Some(p) = &args.plot {
-        report::write_plot(p, &format!("{} (HIL)", scenario.name), &out.report.summary.angles, &out.trace)?;
-    }
-    if args.json {
+    args.output.write_files(&format!("{} (HIL)", scenario.name), &out.report.summary, &out.trace)?;
+    if args.output.json {
         println!("{}", serde_json::to_string_pretty(&out.report)?);
     } else {
         print!("{}", report::table(&out.report.summary));
