@@ -10,7 +10,8 @@ fn main() {
         return;
     }
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    let manifest =
+        PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let memory = manifest.join("..").join("memory.x");
     fs::copy(&memory, out.join("memory.x")).expect("memory.x at the workspace root");
     println!("cargo:rustc-link-search={}", out.display());

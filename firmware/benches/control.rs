@@ -20,7 +20,11 @@ fn control_step(c: &mut Criterion) {
                 minus: 0,
                 high: LinearLaw::PAPER_ALPHA,
                 sensor: 2,
-                low: QuadraticLaw { a: 0.02, b: 5.4, c: 0.3 },
+                low: QuadraticLaw {
+                    a: 0.02,
+                    b: 5.4,
+                    c: 0.3,
+                },
                 threshold_deg: -7.46,
                 hysteresis_deg: 0.5,
             };
@@ -58,7 +62,9 @@ fn dgfm<T: Real>() -> Box<[[Mat3<T>; V]; V]> {
             })
         })
         .collect();
-    rows.into_boxed_slice().try_into().unwrap_or_else(|_| unreachable!())
+    rows.into_boxed_slice()
+        .try_into()
+        .unwrap_or_else(|_| unreachable!())
 }
 
 fn bench_dgfm<T: Real, const A: usize>(c: &mut Criterion, name: &str, active: usize) {
@@ -66,7 +72,9 @@ fn bench_dgfm<T: Real, const A: usize>(c: &mut Criterion, name: &str, active: us
     let params = [RayleighParams::new(T::lit(2.0), T::lit(0.05)).unwrap(); V];
     let mut model: ViscoDgfm<T, V, A> = ViscoDgfm::new(&xi, params).unwrap();
     for k in 0..active {
-        model.set_traction((k * 61) % V, Vec3::new(T::one(), T::zero(), T::lit(0.5))).unwrap();
+        model
+            .set_traction((k * 61) % V, Vec3::new(T::one(), T::zero(), T::lit(0.5)))
+            .unwrap();
     }
     let h = TimeStep::new(T::lit(1e-3)).unwrap();
     let mut u = Box::new([Vec3::zero(); V]);

@@ -49,7 +49,10 @@ pub const DEFAULT_LINK_TIMEOUT_MS: u16 = 50;
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Mode {
     FreeRunning,
-    Hil { period_us: u32, last: Option<(u16, u32, ActuatorFrame)> },
+    Hil {
+        period_us: u32,
+        last: Option<(u16, u32, ActuatorFrame)>,
+    },
 }
 
 /// The application state.
@@ -137,12 +140,22 @@ impl App {
     /// Periodic work at board time `now_ms`: the link watchdog, the
     /// free-running control step and telemetry. Call it often (every
     /// millisecond or faster).
-    pub fn poll(&mut self, now_ms: u32, sensors: &mut impl BoardSensors, send: &mut impl FnMut(&[u8])) {
+    pub fn poll(
+        &mut self,
+        now_ms: u32,
+        sensors: &mut impl BoardSensors,
+        send: &mut impl FnMut(&[u8]),
+    ) {
         match self.mode {
             Mode::Hil { .. } => {
                 if let Some(last) = self.last_frame_ms {
                     if now_ms.wrapping_sub(last) > u32::from(self.link_timeout_ms) {
-                        if !self.joint.supervisor().latched().contains(Faults::LINK_LOSS) {
+                        if !self
+                            .joint
+                            .supervisor()
+                            .latched()
+                            .contains(Faults::LINK_LOSS)
+                        {
                             log_warn!("link lost at {=u32} ms", now_ms);
                         }
                         self.joint.report_fault(Faults::LINK_LOSS);
@@ -165,7 +178,9 @@ impl App {
                     self.last_faults = out.faults;
                     self.last_estimate = out.estimate_deg;
                 }
-                if self.telemetry_hz > 0 && now_ms.wrapping_sub(self.next_telemetry_ms) < u32::MAX / 2 {
+                if self.telemetry_hz > 0
+                    && now_ms.wrapping_sub(self.next_telemetry_ms) < u32::MAX / 2
+                {
                     let interval = (1000 / u32::from(self.telemetry_hz)).max(1);
                     self.next_telemetry_ms = now_ms.wrapping_add(interval);
                     let t = Telemetry {
@@ -194,13 +209,21 @@ impl App {
                 if version != PROTOCOL_VERSION {
                     return err(ErrorCode::Version);
                 }
-                Some(Message::HelloAck { version: PROTOCOL_VERSION, schema: SCHEMA_HASH, pairs: 2, sensors: 4 })
+                Some(Message::HelloAck {
+                    version: PROTOCOL_VERSION,
+                    schema: SCHEMA_HASH,
+                    pairs: 2,
+                    sensors: 4,
+                })
             }
             Message::HilStart { period_us } => {
                 if !(100..=1_000_000).contains(&period_us) {
                     return err(ErrorCode::OutOfRange);
                 }
-                self.mode = Mode::Hil { period_us, last: None };
+                self.mode = Mode::Hil {
+                    period_us,
+                    last: None,
+                };
                 self.outputs = [PairCommand::Off; 2];
                 // Simulated time starts at seq × period: a new time base.
                 self.joint.restart_time_base();
@@ -217,8 +240,17 @@ impl App {
                     Err(_) => err(ErrorCode::OutOfRange),
                 }
             }
-            Message::SetGains { plane, kp_agonist, kp_antagonist, ki, integral_limit_v } => {
-                if ![kp_agonist, kp_antagonist, ki, integral_limit_v].iter().all(|v| v.is_finite()) {
+            Message::SetGains {
+                plane,
+                kp_agonist,
+                kp_antagonist,
+                ki,
+                integral_limit_v,
+            } => {
+                if ![kp_agonist, kp_antagonist, ki, integral_limit_v]
+                    .iter()
+                    .all(|v| v.is_finite())
+                {
                     return err(ErrorCode::NotFinite);
                 }
                 if !Self::plane_ok(plane) {
@@ -238,10 +270,12 @@ impl App {
                 }
                 match self.joint.set_law(usize::from(plane), law) {
                     Ok(()) => ack,
-                    Err(crate::joint::ConfigError::Calibration(crate::estimate::CalibrationError::CoefficientNotFinite))
-                    | Err(crate::joint::ConfigError::Calibration(crate::estimate::CalibrationError::ThresholdNotFinite)) => {
-                        err(ErrorCode::NotFinite)
-                    }
+                    Err(crate::joint::ConfigError::Calibration(
+                        crate::estimate::CalibrationError::CoefficientNotFinite,
+                    ))
+                    | Err(crate::joint::ConfigError::Calibration(
+                        crate::estimate::CalibrationError::ThresholdNotFinite,
+                    )) => err(ErrorCode::NotFinite),
                     Err(_) => err(ErrorCode::OutOfRange),
                 }
             }
@@ -294,7 +328,10 @@ impl App {
 
     fn hil_step(&mut self, frame: SensorFrame) -> Option<Message> {
         let Mode::Hil { period_us, last } = self.mode else {
-            return Some(Message::Error { request: kind::HIL_SENSOR, code: ErrorCode::WrongMode });
+            return Some(Message::Error {
+                request: kind::HIL_SENSOR,
+                code: ErrorCode::WrongMode,
+            });
         };
         if let Some((seq, _, reply)) = last {
             if seq == frame.seq {
@@ -325,7 +362,10 @@ impl App {
             estimate_cdeg: out.estimate_deg.map(deg_to_cdeg),
             faults: faults_byte(out.faults),
         };
-        self.mode = Mode::Hil { period_us, last: Some((frame.seq, step, reply)) };
+        self.mode = Mode::Hil {
+            period_us,
+            last: Some((frame.seq, step, reply)),
+        };
         Some(Message::HilActuator(reply))
     }
 

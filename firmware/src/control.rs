@@ -68,7 +68,10 @@ pub struct DriverConfig {
 impl Default for DriverConfig {
     /// The paper's driver: 1.7 V offset, 5 V supply.
     fn default() -> Self {
-        Self { offset_v: PAPER_V_OFFSET_V, supply_v: PAPER_SUPPLY_V }
+        Self {
+            offset_v: PAPER_V_OFFSET_V,
+            supply_v: PAPER_SUPPLY_V,
+        }
     }
 }
 
@@ -98,7 +101,11 @@ impl DriverConfig {
     /// Clamps a requested voltage into [0, supply]; NaN becomes 0 V (off).
     pub fn clamp(&self, volts: f32) -> DriveVolts {
         // `max`/`min` return the non-NaN operand, so NaN maps to 0.
-        let v = if volts.is_nan() { 0.0 } else { volts.max(0.0).min(self.supply_v) };
+        let v = if volts.is_nan() {
+            0.0
+        } else {
+            volts.max(0.0).min(self.supply_v)
+        };
         DriveVolts(v)
     }
 }
@@ -177,7 +184,10 @@ pub struct PairGains {
 impl PairGains {
     /// Proportional gains per actuator (the paper's `K_P1..K_P4`), integral
     /// action off.
-    pub fn proportional(kp_agonist_v_per_deg: f32, kp_antagonist_v_per_deg: f32) -> Result<Self, ControlError> {
+    pub fn proportional(
+        kp_agonist_v_per_deg: f32,
+        kp_antagonist_v_per_deg: f32,
+    ) -> Result<Self, ControlError> {
         Self::new(kp_agonist_v_per_deg, kp_antagonist_v_per_deg, 0.0, 0.0)
     }
 
@@ -199,7 +209,12 @@ impl PairGains {
         if !(integral_limit_v.is_finite() && integral_limit_v >= 0.0) {
             return Err(ControlError::IntegralLimitNegative);
         }
-        Ok(Self { kp_agonist_v_per_deg, kp_antagonist_v_per_deg, ki_v_per_deg_s, integral_limit_v })
+        Ok(Self {
+            kp_agonist_v_per_deg,
+            kp_antagonist_v_per_deg,
+            ki_v_per_deg_s,
+            integral_limit_v,
+        })
     }
 
     /// Agonist proportional gain (V/deg).
@@ -244,7 +259,11 @@ pub struct PairController {
 impl PairController {
     /// A controller with the given gains and mode, integrator empty.
     pub fn new(gains: PairGains, mode: PairMode) -> Self {
-        Self { gains, mode, integral_v: 0.0 }
+        Self {
+            gains,
+            mode,
+            integral_v: 0.0,
+        }
     }
 
     /// Current gains.
@@ -278,7 +297,13 @@ impl PairController {
     /// `desired_deg` the target, `dt_s` the time since the previous update.
     /// Non-finite inputs give `PairCommand::Off` and leave the integrator
     /// unchanged.
-    pub fn update(&mut self, driver: &DriverConfig, angle_deg: f32, desired_deg: f32, dt_s: f32) -> PairCommand {
+    pub fn update(
+        &mut self,
+        driver: &DriverConfig,
+        angle_deg: f32,
+        desired_deg: f32,
+        dt_s: f32,
+    ) -> PairCommand {
         let err_deg = desired_deg - angle_deg; // = −(θ − θd)
         if !err_deg.is_finite() || !dt_s.is_finite() || dt_s < 0.0 {
             return PairCommand::Off;
@@ -311,11 +336,17 @@ impl PairController {
         }
         let effort = proportional + self.integral_v;
         match self.mode {
-            PairMode::SingleAgonist => PairCommand::Agonist(driver.clamp(effort + driver.offset_v())),
+            PairMode::SingleAgonist => {
+                PairCommand::Agonist(driver.clamp(effort + driver.offset_v()))
+            }
             // Paper: θ < θd heats coil 1; θ ≥ θd heats coil 2 (with the
             // corrected sign: the antagonist's voltage grows with θ − θd).
-            PairMode::Antagonistic if effort > 0.0 => PairCommand::Agonist(driver.clamp(effort + driver.offset_v())),
-            PairMode::Antagonistic => PairCommand::Antagonist(driver.clamp(-effort + driver.offset_v())),
+            PairMode::Antagonistic if effort > 0.0 => {
+                PairCommand::Agonist(driver.clamp(effort + driver.offset_v()))
+            }
+            PairMode::Antagonistic => {
+                PairCommand::Antagonist(driver.clamp(-effort + driver.offset_v()))
+            }
         }
     }
 }
@@ -358,7 +389,10 @@ pub enum PairDriverError<EA, EB> {
 impl<A: SetDutyCycle, B: SetDutyCycle> PairDriver<A, B> {
     /// Wraps the two channels.
     pub fn new(agonist: A, antagonist: B) -> Self {
-        Self { agonist, antagonist }
+        Self {
+            agonist,
+            antagonist,
+        }
     }
 
     /// Gives the channels back.
@@ -367,21 +401,37 @@ impl<A: SetDutyCycle, B: SetDutyCycle> PairDriver<A, B> {
     }
 
     /// Drives the pair. Duties scale with each channel's own maximum.
-    pub fn apply(&mut self, command: PairCommand, driver: &DriverConfig) -> Result<(), PairDriverError<A::Error, B::Error>> {
+    pub fn apply(
+        &mut self,
+        command: PairCommand,
+        driver: &DriverConfig,
+    ) -> Result<(), PairDriverError<A::Error, B::Error>> {
         match command {
             PairCommand::Off => {
-                self.agonist.set_duty_cycle_fully_off().map_err(PairDriverError::Agonist)?;
-                self.antagonist.set_duty_cycle_fully_off().map_err(PairDriverError::Antagonist)
+                self.agonist
+                    .set_duty_cycle_fully_off()
+                    .map_err(PairDriverError::Agonist)?;
+                self.antagonist
+                    .set_duty_cycle_fully_off()
+                    .map_err(PairDriverError::Antagonist)
             }
             PairCommand::Agonist(v) => {
-                self.antagonist.set_duty_cycle_fully_off().map_err(PairDriverError::Antagonist)?;
+                self.antagonist
+                    .set_duty_cycle_fully_off()
+                    .map_err(PairDriverError::Antagonist)?;
                 let duty = volts_to_duty(v, driver, self.agonist.max_duty_cycle());
-                self.agonist.set_duty_cycle(duty).map_err(PairDriverError::Agonist)
+                self.agonist
+                    .set_duty_cycle(duty)
+                    .map_err(PairDriverError::Agonist)
             }
             PairCommand::Antagonist(v) => {
-                self.agonist.set_duty_cycle_fully_off().map_err(PairDriverError::Agonist)?;
+                self.agonist
+                    .set_duty_cycle_fully_off()
+                    .map_err(PairDriverError::Agonist)?;
                 let duty = volts_to_duty(v, driver, self.antagonist.max_duty_cycle());
-                self.antagonist.set_duty_cycle(duty).map_err(PairDriverError::Antagonist)
+                self.antagonist
+                    .set_duty_cycle(duty)
+                    .map_err(PairDriverError::Antagonist)
             }
         }
     }
@@ -389,8 +439,14 @@ impl<A: SetDutyCycle, B: SetDutyCycle> PairDriver<A, B> {
     /// Both coils off (the safe state). Tries both channels even if the
     /// first fails, and reports the first error.
     pub fn all_off(&mut self) -> Result<(), PairDriverError<A::Error, B::Error>> {
-        let a = self.agonist.set_duty_cycle_fully_off().map_err(PairDriverError::Agonist);
-        let b = self.antagonist.set_duty_cycle_fully_off().map_err(PairDriverError::Antagonist);
+        let a = self
+            .agonist
+            .set_duty_cycle_fully_off()
+            .map_err(PairDriverError::Agonist);
+        let b = self
+            .antagonist
+            .set_duty_cycle_fully_off()
+            .map_err(PairDriverError::Antagonist);
         a.and(b)
     }
 }
@@ -405,7 +461,10 @@ mod tests {
 
     #[test]
     fn single_actuator_follows_eq1() {
-        let mut c = PairController::new(PairGains::proportional(0.05, 0.05).unwrap(), PairMode::SingleAgonist);
+        let mut c = PairController::new(
+            PairGains::proportional(0.05, 0.05).unwrap(),
+            PairMode::SingleAgonist,
+        );
         // θ = 10°, θd = 20°: v1 = −0.05(10 − 20) + 1.7 = 2.2 V, v2 = 0.
         let cmd = c.update(&paper(), 10.0, 20.0, 0.001);
         let [v1, v2] = cmd.coil_volts();
@@ -421,14 +480,24 @@ mod tests {
 
     #[test]
     fn antagonist_pulls_back_harder_the_further_it_overshoots() {
-        let mut c = PairController::new(PairGains::proportional(2.0, 1.0).unwrap(), PairMode::Antagonistic);
+        let mut c = PairController::new(
+            PairGains::proportional(2.0, 1.0).unwrap(),
+            PairMode::Antagonistic,
+        );
         let below = c.update(&paper(), 4.0, 5.0, 0.001);
         assert_eq!(below, PairCommand::Agonist(paper().clamp(2.0 * 1.0 + 1.7)));
         let at = c.update(&paper(), 5.0, 5.0, 0.001);
-        assert_eq!(at, PairCommand::Antagonist(paper().clamp(1.7)), "θ ≥ θd selects coil 2");
+        assert_eq!(
+            at,
+            PairCommand::Antagonist(paper().clamp(1.7)),
+            "θ ≥ θd selects coil 2"
+        );
         let small = c.update(&paper(), 5.5, 5.0, 0.001).coil_volts()[1];
         let large = c.update(&paper(), 6.5, 5.0, 0.001).coil_volts()[1];
-        assert!((small - 2.2).abs() < 1e-6 && (large - 3.2).abs() < 1e-6, "{small} {large}");
+        assert!(
+            (small - 2.2).abs() < 1e-6 && (large - 3.2).abs() < 1e-6,
+            "{small} {large}"
+        );
         // Saturates at the supply.
         assert_eq!(c.update(&paper(), 60.0, 5.0, 0.001).coil_volts()[1], 5.0);
     }
@@ -437,7 +506,10 @@ mod tests {
     fn non_finite_inputs_switch_the_pair_off() {
         let mut c = PairController::new(PairGains::default(), PairMode::Antagonistic);
         assert_eq!(c.update(&paper(), f32::NAN, 5.0, 0.001), PairCommand::Off);
-        assert_eq!(c.update(&paper(), 1.0, f32::INFINITY, 0.001), PairCommand::Off);
+        assert_eq!(
+            c.update(&paper(), 1.0, f32::INFINITY, 0.001),
+            PairCommand::Off
+        );
         assert_eq!(c.update(&paper(), 1.0, 5.0, f32::NAN), PairCommand::Off);
         assert_eq!(c.update(&paper(), 1.0, 5.0, -1.0), PairCommand::Off);
     }
@@ -450,7 +522,11 @@ mod tests {
         for _ in 0..10_000 {
             c.update(&paper(), 4.9, 5.0, 0.01);
         }
-        assert!((c.integral_v() - 1.5).abs() < 1e-6, "integral {}", c.integral_v());
+        assert!(
+            (c.integral_v() - 1.5).abs() < 1e-6,
+            "integral {}",
+            c.integral_v()
+        );
         // A huge error saturates the output: the integrator must not move.
         let mut c = PairController::new(gains, PairMode::Antagonistic);
         for _ in 0..1000 {
@@ -461,11 +537,26 @@ mod tests {
 
     #[test]
     fn invalid_parameters_are_named() {
-        assert_eq!(DriverConfig::new(1.7, f32::NAN), Err(ControlError::SupplyNotPositive));
-        assert_eq!(DriverConfig::new(6.0, 5.0), Err(ControlError::OffsetOutOfRange));
-        assert_eq!(PairGains::proportional(0.0, 1.0), Err(ControlError::ProportionalGainNotPositive));
-        assert_eq!(PairGains::new(1.0, 1.0, -1.0, 1.0), Err(ControlError::IntegralGainNegative));
-        assert_eq!(PairGains::new(1.0, 1.0, 1.0, f32::NAN), Err(ControlError::IntegralLimitNegative));
+        assert_eq!(
+            DriverConfig::new(1.7, f32::NAN),
+            Err(ControlError::SupplyNotPositive)
+        );
+        assert_eq!(
+            DriverConfig::new(6.0, 5.0),
+            Err(ControlError::OffsetOutOfRange)
+        );
+        assert_eq!(
+            PairGains::proportional(0.0, 1.0),
+            Err(ControlError::ProportionalGainNotPositive)
+        );
+        assert_eq!(
+            PairGains::new(1.0, 1.0, -1.0, 1.0),
+            Err(ControlError::IntegralGainNegative)
+        );
+        assert_eq!(
+            PairGains::new(1.0, 1.0, 1.0, f32::NAN),
+            Err(ControlError::IntegralLimitNegative)
+        );
     }
 
     #[test]
@@ -500,12 +591,19 @@ mod tests {
     #[test]
     fn driver_switches_the_idle_coil_off_before_driving_the_other() {
         let log = core::cell::RefCell::new(std::vec::Vec::new());
-        let mut pair = PairDriver::new(LoggingPwm { id: 1, log: &log }, LoggingPwm { id: 2, log: &log });
+        let mut pair = PairDriver::new(
+            LoggingPwm { id: 1, log: &log },
+            LoggingPwm { id: 2, log: &log },
+        );
         let d = paper();
         pair.apply(PairCommand::Agonist(d.clamp(5.0)), &d).unwrap();
-        pair.apply(PairCommand::Antagonist(d.clamp(2.5)), &d).unwrap();
+        pair.apply(PairCommand::Antagonist(d.clamp(2.5)), &d)
+            .unwrap();
         pair.apply(PairCommand::Off, &d).unwrap();
-        assert_eq!(*log.borrow(), vec![(2, 0), (1, 1000), (1, 0), (2, 500), (1, 0), (2, 0)]);
+        assert_eq!(
+            *log.borrow(),
+            vec![(2, 0), (1, 1000), (1, 0), (2, 500), (1, 0), (2, 0)]
+        );
         // Replaying the log, never both channels above zero at any instant.
         let mut state = [0u16; 2];
         for (id, duty) in log.borrow().iter() {

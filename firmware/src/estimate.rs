@@ -72,7 +72,10 @@ impl PulseCoder {
         if !mm_per_count.is_finite() || mm_per_count == 0.0 {
             return Err(CalibrationError::ScaleNotUsable);
         }
-        Ok(Self { mm_per_count, zero_counts })
+        Ok(Self {
+            mm_per_count,
+            zero_counts,
+        })
     }
 
     /// Millimetres per count.
@@ -96,7 +99,10 @@ impl Default for PulseCoder {
     /// 0.01 mm per count, zero at count 0 (an estimate: the LEVEX coder's
     /// resolution is not given in the paper).
     fn default() -> Self {
-        Self { mm_per_count: 0.01, zero_counts: 0 }
+        Self {
+            mm_per_count: 0.01,
+            zero_counts: 0,
+        }
     }
 }
 
@@ -114,7 +120,11 @@ pub struct QuadraticLaw {
 
 impl QuadraticLaw {
     /// The paper's 2D calibration (Eq. 2): A = 0.349, B = −5.525, C = 0.753.
-    pub const PAPER_2D: QuadraticLaw = QuadraticLaw { a: 0.349, b: -5.525, c: 0.753 };
+    pub const PAPER_2D: QuadraticLaw = QuadraticLaw {
+        a: 0.349,
+        b: -5.525,
+        c: 0.753,
+    };
 
     /// Angle in degrees for insertion `d_mm`.
     pub fn angle_deg(&self, d_mm: f32) -> f32 {
@@ -134,9 +144,15 @@ pub struct LinearLaw {
 
 impl LinearLaw {
     /// The paper's α law (Eq. 3): A = 2.727, B = 0.323.
-    pub const PAPER_ALPHA: LinearLaw = LinearLaw { gain: 2.727, offset: 0.323 };
+    pub const PAPER_ALPHA: LinearLaw = LinearLaw {
+        gain: 2.727,
+        offset: 0.323,
+    };
     /// The paper's β law (Eq. 3): C = 2.670, D = 0.131.
-    pub const PAPER_BETA: LinearLaw = LinearLaw { gain: 2.670, offset: 0.131 };
+    pub const PAPER_BETA: LinearLaw = LinearLaw {
+        gain: 2.670,
+        offset: 0.131,
+    };
 
     /// Angle in degrees for a difference of insertions `diff_mm`.
     pub fn angle_deg(&self, diff_mm: f32) -> f32 {
@@ -221,8 +237,21 @@ impl PlaneLaw {
                     return Err(CalibrationError::SameSensorTwice);
                 }
             }
-            PlaneLaw::Switching { plus, minus, high, sensor, low, threshold_deg, hysteresis_deg } => {
-                PlaneLaw::Differential { plus, minus, law: high }.validate(sensors)?;
+            PlaneLaw::Switching {
+                plus,
+                minus,
+                high,
+                sensor,
+                low,
+                threshold_deg,
+                hysteresis_deg,
+            } => {
+                PlaneLaw::Differential {
+                    plus,
+                    minus,
+                    law: high,
+                }
+                .validate(sensors)?;
                 PlaneLaw::Single { sensor, law: low }.validate(sensors)?;
                 if !threshold_deg.is_finite() {
                     return Err(CalibrationError::ThresholdNotFinite);
@@ -293,14 +322,23 @@ impl<const S: usize> PlaneEstimator<S> {
     /// Estimates the angle from the sensor insertions `d_mm`.
     pub fn estimate(&mut self, d_mm: &[f32; S]) -> Estimate {
         match self.law {
-            PlaneLaw::Single { sensor, law } => {
-                Estimate { angle_deg: law.angle_deg(sensor_mm(d_mm, sensor)), method: Method::Single }
-            }
+            PlaneLaw::Single { sensor, law } => Estimate {
+                angle_deg: law.angle_deg(sensor_mm(d_mm, sensor)),
+                method: Method::Single,
+            },
             PlaneLaw::Differential { plus, minus, law } => Estimate {
                 angle_deg: law.angle_deg(sensor_mm(d_mm, plus) - sensor_mm(d_mm, minus)),
                 method: Method::Differential,
             },
-            PlaneLaw::Switching { plus, minus, high, sensor, low, threshold_deg, hysteresis_deg } => {
+            PlaneLaw::Switching {
+                plus,
+                minus,
+                high,
+                sensor,
+                low,
+                threshold_deg,
+                hysteresis_deg,
+            } => {
                 let diff = high.angle_deg(sensor_mm(d_mm, plus) - sensor_mm(d_mm, minus));
                 let single = low.angle_deg(sensor_mm(d_mm, sensor));
                 let half = 0.5 * hysteresis_deg;
@@ -309,7 +347,9 @@ impl<const S: usize> PlaneEstimator<S> {
                     None if selector >= threshold_deg => Method::Differential,
                     None => Method::Single,
                     Some(Method::Differential) if selector < threshold_deg - half => Method::Single,
-                    Some(Method::Single) if selector >= threshold_deg + half => Method::Differential,
+                    Some(Method::Single) if selector >= threshold_deg + half => {
+                        Method::Differential
+                    }
                     Some(m) => m,
                 };
                 // Do not let a non-finite reading move the switching state.
@@ -335,8 +375,18 @@ mod tests {
         // Eq. 2 at d = 2 mm: 0.349·4 − 5.525·2 + 0.753 = −8.901°
         assert!((QuadraticLaw::PAPER_2D.angle_deg(2.0) - (-8.901)).abs() < 1e-5);
         // Eq. 3: α at d3 − d1 = 1 mm: 3.05°; β at d4 − d2 = −2 mm: −5.209°
-        let mut alpha = PlaneEstimator::<4>::new(PlaneLaw::Differential { plus: 2, minus: 0, law: LinearLaw::PAPER_ALPHA }).unwrap();
-        let mut beta = PlaneEstimator::<4>::new(PlaneLaw::Differential { plus: 3, minus: 1, law: LinearLaw::PAPER_BETA }).unwrap();
+        let mut alpha = PlaneEstimator::<4>::new(PlaneLaw::Differential {
+            plus: 2,
+            minus: 0,
+            law: LinearLaw::PAPER_ALPHA,
+        })
+        .unwrap();
+        let mut beta = PlaneEstimator::<4>::new(PlaneLaw::Differential {
+            plus: 3,
+            minus: 1,
+            law: LinearLaw::PAPER_BETA,
+        })
+        .unwrap();
         let d = [0.5, 2.5, 1.5, 0.5];
         assert!((alpha.estimate(&d).angle_deg - 3.05).abs() < 1e-5);
         assert!((beta.estimate(&d).angle_deg - (-5.209)).abs() < 1e-5);
@@ -346,19 +396,51 @@ mod tests {
     fn pulse_coder_converts_and_survives_extreme_counts() {
         let c = PulseCoder::new(0.01, 100).unwrap();
         assert!((c.insertion_mm(350) - 2.5).abs() < 1e-6);
-        assert!(PulseCoder::new(0.01, i32::MAX).unwrap().insertion_mm(i32::MIN).is_finite());
-        assert_eq!(PulseCoder::new(0.0, 0), Err(CalibrationError::ScaleNotUsable));
-        assert_eq!(PulseCoder::new(f32::NAN, 0), Err(CalibrationError::ScaleNotUsable));
+        assert!(PulseCoder::new(0.01, i32::MAX)
+            .unwrap()
+            .insertion_mm(i32::MIN)
+            .is_finite());
+        assert_eq!(
+            PulseCoder::new(0.0, 0),
+            Err(CalibrationError::ScaleNotUsable)
+        );
+        assert_eq!(
+            PulseCoder::new(f32::NAN, 0),
+            Err(CalibrationError::ScaleNotUsable)
+        );
     }
 
     #[test]
     fn bad_calibrations_are_rejected_with_the_reason() {
-        let bad_idx = PlaneLaw::Single { sensor: 4, law: QuadraticLaw::PAPER_2D };
-        assert_eq!(PlaneEstimator::<4>::new(bad_idx).err(), Some(CalibrationError::SensorIndexOutOfRange));
-        let same = PlaneLaw::Differential { plus: 1, minus: 1, law: LinearLaw::PAPER_ALPHA };
-        assert_eq!(PlaneEstimator::<4>::new(same).err(), Some(CalibrationError::SameSensorTwice));
-        let nan = PlaneLaw::Single { sensor: 0, law: QuadraticLaw { a: f32::NAN, b: 0.0, c: 0.0 } };
-        assert_eq!(PlaneEstimator::<1>::new(nan).err(), Some(CalibrationError::CoefficientNotFinite));
+        let bad_idx = PlaneLaw::Single {
+            sensor: 4,
+            law: QuadraticLaw::PAPER_2D,
+        };
+        assert_eq!(
+            PlaneEstimator::<4>::new(bad_idx).err(),
+            Some(CalibrationError::SensorIndexOutOfRange)
+        );
+        let same = PlaneLaw::Differential {
+            plus: 1,
+            minus: 1,
+            law: LinearLaw::PAPER_ALPHA,
+        };
+        assert_eq!(
+            PlaneEstimator::<4>::new(same).err(),
+            Some(CalibrationError::SameSensorTwice)
+        );
+        let nan = PlaneLaw::Single {
+            sensor: 0,
+            law: QuadraticLaw {
+                a: f32::NAN,
+                b: 0.0,
+                c: 0.0,
+            },
+        };
+        assert_eq!(
+            PlaneEstimator::<1>::new(nan).err(),
+            Some(CalibrationError::CoefficientNotFinite)
+        );
         let sw = PlaneLaw::Switching {
             plus: 2,
             minus: 0,
@@ -368,6 +450,9 @@ mod tests {
             threshold_deg: -7.46,
             hysteresis_deg: -1.0,
         };
-        assert_eq!(PlaneEstimator::<4>::new(sw).err(), Some(CalibrationError::HysteresisNegative));
+        assert_eq!(
+            PlaneEstimator::<4>::new(sw).err(),
+            Some(CalibrationError::HysteresisNegative)
+        );
     }
 }

@@ -48,7 +48,13 @@ impl PolyFit {
 
     fn with_degree(degree: usize, centre: f64) -> Self {
         let centre = if centre.is_finite() { centre } else { 0.0 };
-        Self { degree, centre, sx: [0.0; 5], sxy: [0.0; 3], rejected: 0 }
+        Self {
+            degree,
+            centre,
+            sx: [0.0; 5],
+            sxy: [0.0; 3],
+            rejected: 0,
+        }
     }
 
     /// Adds one sample; non-finite samples are counted and skipped.
@@ -113,7 +119,11 @@ impl PolyFit {
 /// system (n ≤ 3). Pivots below a relative tolerance mean the data do not
 /// determine the unknowns.
 fn solve_small(m: &mut [[f64; 4]; 3], n: usize) -> Result<[f64; 3], FitError> {
-    let scale = m.iter().take(n).flat_map(|r| r.iter().take(n)).fold(0.0f64, |a, v| a.max(v.abs()));
+    let scale = m
+        .iter()
+        .take(n)
+        .flat_map(|r| r.iter().take(n))
+        .fold(0.0f64, |a, v| a.max(v.abs()));
     if !(scale.is_finite() && scale > 0.0) {
         return Err(FitError::Degenerate);
     }
@@ -163,7 +173,10 @@ mod tests {
             fit.add(d, 0.349 * d * d - 5.525 * d + 0.753);
         }
         let [a, b, c] = fit.solve().unwrap();
-        assert!((a - 0.349).abs() < 1e-9 && (b + 5.525).abs() < 1e-9 && (c - 0.753).abs() < 1e-9, "{a} {b} {c}");
+        assert!(
+            (a - 0.349).abs() < 1e-9 && (b + 5.525).abs() < 1e-9 && (c - 0.753).abs() < 1e-9,
+            "{a} {b} {c}"
+        );
     }
 
     #[test]

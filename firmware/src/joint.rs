@@ -16,8 +16,12 @@
 //! stale. The step never allocates, never panics, and every output is a
 //! [`PairCommand`] whose voltage lies in [0, supply].
 
-use crate::control::{ControlError, DriverConfig, PairCommand, PairController, PairGains, PairMode};
-use crate::estimate::{CalibrationError, LinearLaw, Method, PlaneEstimator, PlaneLaw, PulseCoder, QuadraticLaw};
+use crate::control::{
+    ControlError, DriverConfig, PairCommand, PairController, PairGains, PairMode,
+};
+use crate::estimate::{
+    CalibrationError, LinearLaw, Method, PlaneEstimator, PlaneLaw, PulseCoder, QuadraticLaw,
+};
 use crate::sensor::{SensorGuard, SensorLimits};
 use crate::supervisor::{Faults, StillFaulted, Supervisor, SupervisorConfig};
 
@@ -90,8 +94,16 @@ impl JointConfig<2, 4> {
             driver: DriverConfig::default(),
             coders: [PulseCoder::default(); 4],
             laws: [
-                PlaneLaw::Differential { plus: 2, minus: 0, law: LinearLaw::PAPER_ALPHA },
-                PlaneLaw::Differential { plus: 3, minus: 1, law: LinearLaw::PAPER_BETA },
+                PlaneLaw::Differential {
+                    plus: 2,
+                    minus: 0,
+                    law: LinearLaw::PAPER_ALPHA,
+                },
+                PlaneLaw::Differential {
+                    plus: 3,
+                    minus: 1,
+                    law: LinearLaw::PAPER_BETA,
+                },
             ],
             gains: [PairGains::default(); 2],
             modes: [PairMode::Antagonistic; 2],
@@ -110,7 +122,10 @@ impl JointConfig<1, 1> {
         Self {
             driver: DriverConfig::default(),
             coders: [PulseCoder::default()],
-            laws: [PlaneLaw::Single { sensor: 0, law: QuadraticLaw::PAPER_2D }],
+            laws: [PlaneLaw::Single {
+                sensor: 0,
+                law: QuadraticLaw::PAPER_2D,
+            }],
             gains: [PairGains::default()],
             modes: [PairMode::Antagonistic],
             wire_limits: SensorLimits::WIRE_DEFAULT,
@@ -215,7 +230,9 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             law.validate(S)?;
         }
         let estimators = config.laws.map(PlaneEstimator::from_validated);
-        let mut pairs = config.gains.map(|g| PairController::new(g, PairMode::Antagonistic));
+        let mut pairs = config
+            .gains
+            .map(|g| PairController::new(g, PairMode::Antagonistic));
         for (p, m) in pairs.iter_mut().zip(config.modes.iter()) {
             *p = PairController::new(p.gains(), *m);
         }
@@ -246,7 +263,10 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         if desired_deg.abs() > self.max_target_deg {
             return Err(ConfigError::TargetOutOfRange);
         }
-        let t = self.targets_deg.get_mut(plane).ok_or(ConfigError::NoSuchPlane)?;
+        let t = self
+            .targets_deg
+            .get_mut(plane)
+            .ok_or(ConfigError::NoSuchPlane)?;
         *t = desired_deg;
         Ok(())
     }
@@ -258,7 +278,10 @@ impl<const P: usize, const S: usize> JointController<P, S> {
 
     /// Replaces the gains of `plane`.
     pub fn set_gains(&mut self, plane: usize, gains: PairGains) -> Result<(), ConfigError> {
-        self.pairs.get_mut(plane).ok_or(ConfigError::NoSuchPlane)?.set_gains(gains);
+        self.pairs
+            .get_mut(plane)
+            .ok_or(ConfigError::NoSuchPlane)?
+            .set_gains(gains);
         Ok(())
     }
 
@@ -270,7 +293,10 @@ impl<const P: usize, const S: usize> JointController<P, S> {
     /// Replaces the estimation law of `plane` (validated).
     pub fn set_law(&mut self, plane: usize, law: PlaneLaw) -> Result<(), ConfigError> {
         let est = PlaneEstimator::new(law)?;
-        *self.estimators.get_mut(plane).ok_or(ConfigError::NoSuchPlane)? = est;
+        *self
+            .estimators
+            .get_mut(plane)
+            .ok_or(ConfigError::NoSuchPlane)? = est;
         Ok(())
     }
 
@@ -359,8 +385,11 @@ impl<const P: usize, const S: usize> JointController<P, S> {
                 // healthy, so a faulty channel cannot move the switching
                 // state; otherwise the last estimate is held.
                 if f.is_empty() {
-                    for ((est, out), method) in
-                        self.estimators.iter_mut().zip(self.estimate_deg.iter_mut()).zip(methods.iter_mut())
+                    for ((est, out), method) in self
+                        .estimators
+                        .iter_mut()
+                        .zip(self.estimate_deg.iter_mut())
+                        .zip(methods.iter_mut())
                     {
                         let e = est.estimate(&held_mm);
                         *out = e.angle_deg;
@@ -368,7 +397,12 @@ impl<const P: usize, const S: usize> JointController<P, S> {
                     }
                 }
                 let lim = self.angle_guard.limits();
-                if f.is_empty() && self.estimate_deg.iter().any(|a| !(lim.min..=lim.max).contains(a)) {
+                if f.is_empty()
+                    && self
+                        .estimate_deg
+                        .iter()
+                        .any(|a| !(lim.min..=lim.max).contains(a))
+                {
                     faults |= Faults::SENSOR_RANGE;
                 }
             }
@@ -389,7 +423,9 @@ impl<const P: usize, const S: usize> JointController<P, S> {
                 *cmd = pair.update(&self.driver, *angle, *target, input.dt_s);
             }
         }
-        let supervised = self.supervisor.supervise(input.now_s, input.dt_s, commands, faults, &self.driver);
+        let supervised =
+            self.supervisor
+                .supervise(input.now_s, input.dt_s, commands, faults, &self.driver);
         if supervised.faults.intersects(Faults::LATCHING) || !self.supervisor.is_armed() {
             // While outputs are forced off, integrators must not keep state
             // that would kick the coils when control resumes.
@@ -397,6 +433,11 @@ impl<const P: usize, const S: usize> JointController<P, S> {
                 p.reset();
             }
         }
-        StepOutput { commands: supervised.commands, estimate_deg: self.estimate_deg, methods, faults: supervised.faults }
+        StepOutput {
+            commands: supervised.commands,
+            estimate_deg: self.estimate_deg,
+            methods,
+            faults: supervised.faults,
+        }
     }
 }

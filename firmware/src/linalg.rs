@@ -225,7 +225,11 @@ mod tests {
         for r in 0..3 {
             for c in 0..3 {
                 let want = if r == c { 1.0 } else { 0.0 };
-                assert!((p.0[r][c] - want).abs() < 1e-14, "entry ({r},{c}) = {}", p.0[r][c]);
+                assert!(
+                    (p.0[r][c] - want).abs() < 1e-14,
+                    "entry ({r},{c}) = {}",
+                    p.0[r][c]
+                );
             }
         }
     }

@@ -54,13 +54,21 @@ impl SensorLimits {
     /// Eq. 2 needs for ±20°), 200 mm/s (estimate: the joint covers its range
     /// in ~0.2 s at the fastest, i.e. ~40 mm/s, with a 5× margin), stale
     /// after 50 ms (50 periods of a 1 kHz loop).
-    pub const WIRE_DEFAULT: SensorLimits =
-        SensorLimits { min: -10.0, max: 10.0, max_rate_per_s: 200.0, stale_after_s: 0.05 };
+    pub const WIRE_DEFAULT: SensorLimits = SensorLimits {
+        min: -10.0,
+        max: 10.0,
+        max_rate_per_s: 200.0,
+        stale_after_s: 0.05,
+    };
 
     /// Camera angles: ±45° (the joint moves ±20°, paper §VI-A), 1000°/s,
     /// stale after 0.2 s (six frames of a 30 frames/s NTSC camera).
-    pub const CAMERA_DEFAULT: SensorLimits =
-        SensorLimits { min: -45.0, max: 45.0, max_rate_per_s: 1000.0, stale_after_s: 0.2 };
+    pub const CAMERA_DEFAULT: SensorLimits = SensorLimits {
+        min: -45.0,
+        max: 45.0,
+        max_rate_per_s: 1000.0,
+        stale_after_s: 0.2,
+    };
 
     /// True when every limit is finite and ordered.
     pub fn is_valid(&self) -> bool {
@@ -90,7 +98,12 @@ pub struct SensorGuard<const S: usize> {
 impl<const S: usize> SensorGuard<S> {
     /// A guard with nothing read yet.
     pub fn new(limits: SensorLimits) -> Self {
-        Self { limits, value: [0.0; S], last_ok_s: [None; S], started_s: None }
+        Self {
+            limits,
+            value: [0.0; S],
+            last_ok_s: [None; S],
+            started_s: None,
+        }
     }
 
     /// The limits in use.
@@ -113,13 +126,20 @@ impl<const S: usize> SensorGuard<S> {
         let mut faults = Faults::NONE;
         let lim = self.limits;
         let started = *self.started_s.get_or_insert(now_s);
-        for ((value, last), reading) in self.value.iter_mut().zip(self.last_ok_s.iter_mut()).zip(readings.iter()) {
+        for ((value, last), reading) in self
+            .value
+            .iter_mut()
+            .zip(self.last_ok_s.iter_mut())
+            .zip(readings.iter())
+        {
             if let Some(r) = *reading {
                 if !r.is_finite() || r < lim.min || r > lim.max {
                     faults |= Faults::SENSOR_RANGE;
                 } else {
                     let plausible = match *last {
-                        Some(t) if now_s > t => (r - *value).abs() <= lim.max_rate_per_s * (now_s - t),
+                        Some(t) if now_s > t => {
+                            (r - *value).abs() <= lim.max_rate_per_s * (now_s - t)
+                        }
                         // Same instant or first reading: no rate to judge.
                         _ => true,
                     };
@@ -132,9 +152,13 @@ impl<const S: usize> SensorGuard<S> {
                 }
             }
             match *last {
-                None if !is_fresh(now_s - started, lim.stale_after_s) => faults |= Faults::SENSOR_STALE,
+                None if !is_fresh(now_s - started, lim.stale_after_s) => {
+                    faults |= Faults::SENSOR_STALE
+                }
                 None => {}
-                Some(t) if !is_fresh(now_s - t, lim.stale_after_s) => faults |= Faults::SENSOR_STALE,
+                Some(t) if !is_fresh(now_s - t, lim.stale_after_s) => {
+                    faults |= Faults::SENSOR_STALE
+                }
                 Some(_) => {}
             }
         }
@@ -156,7 +180,11 @@ mod tests {
     fn range_rate_and_staleness_are_flagged() {
         let mut g = SensorGuard::<2>::new(SensorLimits::WIRE_DEFAULT);
         let (_, f) = g.check(0.0, &[Some(1.0), None]);
-        assert_eq!(f, Faults::NONE, "a channel gets the stale limit to deliver its first reading");
+        assert_eq!(
+            f,
+            Faults::NONE,
+            "a channel gets the stale limit to deliver its first reading"
+        );
         let (_, f) = g.check(0.051, &[Some(1.0), None]);
         assert_eq!(f, Faults::SENSOR_STALE, "channel 1 never read within 50 ms");
         let mut g = SensorGuard::<2>::new(SensorLimits::WIRE_DEFAULT);
@@ -169,12 +197,21 @@ mod tests {
         assert_eq!(f, Faults::SENSOR_RATE);
         assert_eq!(v[0], 1.1);
         // Out of range and NaN.
-        assert_eq!(g.check(0.003, &[Some(11.0), Some(0.0)]).1, Faults::SENSOR_RANGE);
-        assert_eq!(g.check(0.004, &[Some(f32::NAN), Some(0.0)]).1, Faults::SENSOR_RANGE);
+        assert_eq!(
+            g.check(0.003, &[Some(11.0), Some(0.0)]).1,
+            Faults::SENSOR_RANGE
+        );
+        assert_eq!(
+            g.check(0.004, &[Some(f32::NAN), Some(0.0)]).1,
+            Faults::SENSOR_RANGE
+        );
         // Channel 0 has not been accepted since t = 0.001: stale after 50 ms.
         assert_eq!(g.check(0.050, &[None, Some(0.0)]).1, Faults::NONE);
         assert_eq!(g.check(0.052, &[None, Some(0.0)]).1, Faults::SENSOR_STALE);
         // A NaN clock is stale, not silently fresh.
-        assert!(g.check(f32::NAN, &[Some(1.0), Some(0.0)]).1.contains(Faults::SENSOR_STALE));
+        assert!(g
+            .check(f32::NAN, &[Some(1.0), Some(0.0)])
+            .1
+            .contains(Faults::SENSOR_STALE));
     }
 }

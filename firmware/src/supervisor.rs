@@ -203,7 +203,8 @@ impl CoilThermal {
     /// Semi-implicit Euler for `C dT/dt = P − C T/τ`:
     /// `T' = (T + dt P/C)/(1 + dt/τ)`, stable for any dt ≥ 0.
     fn advance(&mut self, power_w: f32, dt_s: f32, cfg: &ThermalConfig) {
-        let next = (self.rise_k + dt_s * power_w / cfg.heat_capacity_j_per_k) / (1.0 + dt_s / cfg.time_constant_s);
+        let next = (self.rise_k + dt_s * power_w / cfg.heat_capacity_j_per_k)
+            / (1.0 + dt_s / cfg.time_constant_s);
         // A non-finite update (cannot happen with validated inputs) is
         // treated as the hottest state: trip.
         self.rise_k = if next.is_finite() { next } else { f32::MAX };
@@ -228,7 +229,10 @@ pub struct SupervisorConfig {
 impl Default for SupervisorConfig {
     /// Default thermal budget, no link watchdog.
     fn default() -> Self {
-        Self { thermal: ThermalConfig::default(), link_timeout_s: None }
+        Self {
+            thermal: ThermalConfig::default(),
+            link_timeout_s: None,
+        }
     }
 }
 
@@ -269,13 +273,23 @@ impl<const P: usize> Supervisor<P> {
     /// by the default and reported as `INVALID_INPUT` (latched), so a bad
     /// parameter cannot silently disable the budget.
     pub fn new(config: SupervisorConfig) -> Self {
-        let valid_link = config.link_timeout_s.is_none_or(|t| t.is_finite() && t > 0.0);
+        let valid_link = config
+            .link_timeout_s
+            .is_none_or(|t| t.is_finite() && t > 0.0);
         let valid = config.thermal.is_valid() && valid_link;
-        let config = if valid { config } else { SupervisorConfig::default() };
+        let config = if valid {
+            config
+        } else {
+            SupervisorConfig::default()
+        };
         Self {
             config,
             coils: [[CoilThermal::default(); 2]; P],
-            latched: if valid { Faults::NONE } else { Faults::INVALID_INPUT },
+            latched: if valid {
+                Faults::NONE
+            } else {
+                Faults::INVALID_INPUT
+            },
             present: Faults::NONE,
             last_link_s: None,
             armed: false,
@@ -309,7 +323,10 @@ impl<const P: usize> Supervisor<P> {
 
     /// Modelled temperature rise of coil `coil` (0/1) of pair `pair` (K).
     pub fn coil_rise_k(&self, pair: usize, coil: usize) -> Option<f32> {
-        self.coils.get(pair).and_then(|c| c.get(coil)).map(|c| c.rise_k)
+        self.coils
+            .get(pair)
+            .and_then(|c| c.get(coil))
+            .map(|c| c.rise_k)
     }
 
     /// Records that a valid frame arrived from the host at `now_s`.
@@ -383,9 +400,17 @@ impl<const P: usize> Supervisor<P> {
         let allow = self.armed && self.latched.is_empty();
         let mut out = [PairCommand::Off; P];
         let mut over_budget = false;
-        let dt = if dt_s.is_finite() && dt_s > 0.0 { dt_s } else { 0.0 };
+        let dt = if dt_s.is_finite() && dt_s > 0.0 {
+            dt_s
+        } else {
+            0.0
+        };
         let cfg = self.config.thermal;
-        for ((slot, cmd), coils) in out.iter_mut().zip(commands.iter()).zip(self.coils.iter_mut()) {
+        for ((slot, cmd), coils) in out
+            .iter_mut()
+            .zip(commands.iter())
+            .zip(self.coils.iter_mut())
+        {
             let mut c = if allow { *cmd } else { PairCommand::Off };
             for (k, coil) in coils.iter().enumerate() {
                 if coil.tripped {
@@ -410,7 +435,10 @@ impl<const P: usize> Supervisor<P> {
         if over_budget {
             reported |= Faults::OVER_BUDGET;
         }
-        Supervised { commands: out, faults: reported }
+        Supervised {
+            commands: out,
+            faults: reported,
+        }
     }
 }
 
@@ -446,13 +474,23 @@ mod tests {
         // Closed form of the first-order rise: T(t) = T∞(1 − e^(−t/τ)) hits
         // 95 K at t = −τ ln(1 − 95/195.3) ≈ 3.34 s.
         let t_trip = tripped_at.expect("never tripped");
-        let expect = -cfg.time_constant_s * (1.0 - cfg.trip_rise_k / cfg.steady_rise_k(d.clamp(5.0), &d)).ln();
-        assert!((t_trip - expect).abs() < 0.02, "tripped at {t_trip}, expected {expect}");
+        let expect = -cfg.time_constant_s
+            * (1.0 - cfg.trip_rise_k / cfg.steady_rise_k(d.clamp(5.0), &d)).ln();
+        assert!(
+            (t_trip - expect).abs() < 0.02,
+            "tripped at {t_trip}, expected {expect}"
+        );
         // While cooling, still held off even though the command asks for 5 V;
         // the other coil of the pair is unaffected.
         let out = s.supervise(t + 0.1, 0.001, full, Faults::NONE, &d);
         assert_eq!(out.commands, [PairCommand::Off]);
-        let other = s.supervise(t + 0.2, 0.001, [PairCommand::Antagonist(d.clamp(3.0))], Faults::NONE, &d);
+        let other = s.supervise(
+            t + 0.2,
+            0.001,
+            [PairCommand::Antagonist(d.clamp(3.0))],
+            Faults::NONE,
+            &d,
+        );
         assert_eq!(other.commands, [PairCommand::Antagonist(d.clamp(3.0))]);
         // Cool-down from 95 K to 45 K takes τ ln(95/45) ≈ 3.7 s.
         let mut resumed = None;
@@ -478,17 +516,27 @@ mod tests {
             }
             let mut s: Supervisor<2> = Supervisor::new(SupervisorConfig::default());
             s.arm();
-            let cmd = [PairCommand::Agonist(d.clamp(3.0)), PairCommand::Antagonist(d.clamp(2.0))];
+            let cmd = [
+                PairCommand::Agonist(d.clamp(3.0)),
+                PairCommand::Antagonist(d.clamp(2.0)),
+            ];
             assert_eq!(s.supervise(0.0, 0.001, cmd, Faults::NONE, &d).commands, cmd);
             let out = s.supervise(0.001, 0.001, cmd, fault, &d);
-            assert_eq!(out.commands, [PairCommand::Off; 2], "{name} did not zero outputs");
+            assert_eq!(
+                out.commands,
+                [PairCommand::Off; 2],
+                "{name} did not zero outputs"
+            );
             assert!(out.faults.contains(fault), "{name} not reported");
             // The cause has gone, but the latch holds until cleared...
             let out = s.supervise(0.002, 0.001, cmd, Faults::NONE, &d);
             assert_eq!(out.commands, [PairCommand::Off; 2], "{name} did not latch");
             // ...and clearing succeeds now that the last step was clean.
             s.clear().unwrap();
-            assert_eq!(s.supervise(0.003, 0.001, cmd, Faults::NONE, &d).commands, cmd);
+            assert_eq!(
+                s.supervise(0.003, 0.001, cmd, Faults::NONE, &d).commands,
+                cmd
+            );
         }
     }
 
@@ -503,12 +551,17 @@ mod tests {
     #[test]
     fn link_loss_after_the_timeout() {
         let d = DriverConfig::default();
-        let mut s: Supervisor<1> =
-            Supervisor::new(SupervisorConfig { link_timeout_s: Some(0.05), ..Default::default() });
+        let mut s: Supervisor<1> = Supervisor::new(SupervisorConfig {
+            link_timeout_s: Some(0.05),
+            ..Default::default()
+        });
         s.arm();
         let cmd = [PairCommand::Agonist(d.clamp(3.0))];
         s.note_link_frame(0.0);
-        assert_eq!(s.supervise(0.049, 0.001, cmd, Faults::NONE, &d).commands, cmd);
+        assert_eq!(
+            s.supervise(0.049, 0.001, cmd, Faults::NONE, &d).commands,
+            cmd
+        );
         let out = s.supervise(0.051, 0.001, cmd, Faults::NONE, &d);
         assert_eq!(out.commands, [PairCommand::Off]);
         assert!(out.faults.contains(Faults::LINK_LOSS));
@@ -519,9 +572,15 @@ mod tests {
         let d = DriverConfig::default();
         let cmd = [PairCommand::Agonist(d.clamp(3.0))];
         let mut s: Supervisor<1> = Supervisor::new(SupervisorConfig::default());
-        assert_eq!(s.supervise(0.0, 0.001, cmd, Faults::NONE, &d).commands, [PairCommand::Off]);
+        assert_eq!(
+            s.supervise(0.0, 0.001, cmd, Faults::NONE, &d).commands,
+            [PairCommand::Off]
+        );
         let bad = SupervisorConfig {
-            thermal: ThermalConfig { time_constant_s: f32::NAN, ..Default::default() },
+            thermal: ThermalConfig {
+                time_constant_s: f32::NAN,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let mut s: Supervisor<1> = Supervisor::new(bad);
@@ -531,6 +590,9 @@ mod tests {
         assert!(out.faults.contains(Faults::INVALID_INPUT));
         // NaN time is an invalid input too.
         let mut s = armed();
-        assert!(s.supervise(f32::NAN, 0.001, cmd, Faults::NONE, &d).faults.contains(Faults::INVALID_INPUT));
+        assert!(s
+            .supervise(f32::NAN, 0.001, cmd, Faults::NONE, &d)
+            .faults
+            .contains(Faults::INVALID_INPUT));
     }
 }

@@ -160,7 +160,12 @@ impl<T: Real> ThreeElement<T> {
 
     /// Displacement at `t+h` for the force `f` applied at `t+h`
     /// (seed Eq. 5–6 in 1D): `x' = (f + (b/h)x)/(k1 + b/h)`, `u = f/k2 + x'`.
-    pub fn step_displacement(&self, state: &mut ThreeElementState<T>, force: T, h: TimeStep<T>) -> T {
+    pub fn step_displacement(
+        &self,
+        state: &mut ThreeElementState<T>,
+        force: T,
+        h: TimeStep<T>,
+    ) -> T {
         let bh = self.b / h.0;
         state.x = (force + bh * state.x) / (self.k1 + bh);
         force / self.k2 + state.x
@@ -169,7 +174,12 @@ impl<T: Real> ThreeElement<T> {
     /// Force at `t+h` for the displacement `u` imposed at `t+h`
     /// (seed Eq. 7–8 in 1D): `x' = (k2 u + (b/h)x)/(k1 + k2 + b/h)`,
     /// `f = k2 (u − x')`.
-    pub fn step_force(&self, state: &mut ThreeElementState<T>, displacement: T, h: TimeStep<T>) -> T {
+    pub fn step_force(
+        &self,
+        state: &mut ThreeElementState<T>,
+        displacement: T,
+        h: TimeStep<T>,
+    ) -> T {
         let bh = self.b / h.0;
         state.x = (self.k2 * displacement + bh * state.x) / (self.k1 + self.k2 + bh);
         self.k2 * (displacement - state.x)
@@ -200,9 +210,20 @@ impl<T: Real> ThreeElementTensor<T> {
         }
         let b_over_h = b.scale(T::one() / h.0);
         let k2_inv = k2.inverse().ok_or(ViscoError::SingularTensor)?;
-        let soft_inv = (k1 + b_over_h).inverse().ok_or(ViscoError::SingularTensor)?;
-        let stiff_inv = (k1 + k2 + b_over_h).inverse().ok_or(ViscoError::SingularTensor)?;
-        Ok(Self { k2, k2_inv, soft_inv, stiff_inv, b_over_h, h })
+        let soft_inv = (k1 + b_over_h)
+            .inverse()
+            .ok_or(ViscoError::SingularTensor)?;
+        let stiff_inv = (k1 + k2 + b_over_h)
+            .inverse()
+            .ok_or(ViscoError::SingularTensor)?;
+        Ok(Self {
+            k2,
+            k2_inv,
+            soft_inv,
+            stiff_inv,
+            b_over_h,
+            h,
+        })
     }
 
     /// Builds the tensors of one DGFM entry from the stiffness-ratio form
@@ -218,7 +239,12 @@ impl<T: Real> ThreeElementTensor<T> {
         let area = positive(area, ViscoError::AreaNotPositive)?;
         let r = positive(ratio, ViscoError::RatioNotPositive)?;
         let k = xi.inverse().ok_or(ViscoError::SingularTensor)?.scale(area);
-        Self::new(k.scale((T::one() + r) / r), k.scale(T::one() + r), damping, h)
+        Self::new(
+            k.scale((T::one() + r) / r),
+            k.scale(T::one() + r),
+            damping,
+            h,
+        )
     }
 
     /// The step this update was precomputed for.
@@ -356,7 +382,10 @@ pub const DEFAULT_REST_THRESHOLD: f64 = 1.0e-3;
 impl<'a, T: Real, const N: usize, const A: usize> ViscoDgfm<'a, T, N, A> {
     /// A model over `xi` (`xi[i][j]` = Ξ_ij) with per-column parameters
     /// (the seed's column spreading, §4.2). Rejects non-finite Ξ entries.
-    pub fn new(xi: &'a [[Mat3<T>; N]; N], columns: [RayleighParams<T>; N]) -> Result<Self, ViscoError> {
+    pub fn new(
+        xi: &'a [[Mat3<T>; N]; N],
+        columns: [RayleighParams<T>; N],
+    ) -> Result<Self, ViscoError> {
         if N > u16::MAX as usize {
             return Err(ViscoError::VertexOutOfRange);
         }
@@ -394,7 +423,11 @@ impl<'a, T: Real, const N: usize, const A: usize> ViscoDgfm<'a, T, N, A> {
             return Ok(()); // an inactive column at rest stays inactive
         }
         self.active
-            .push(ActiveColumn { vertex: vertex as u16, traction, x: [Vec3::zero(); N] })
+            .push(ActiveColumn {
+                vertex: vertex as u16,
+                traction,
+                x: [Vec3::zero(); N],
+            })
             .map_err(|_| ViscoError::ActiveListFull)
     }
 
@@ -421,7 +454,9 @@ impl<'a, T: Real, const N: usize, const A: usize> ViscoDgfm<'a, T, N, A> {
         let columns = &self.columns;
         for col in self.active.iter_mut() {
             let j = col.vertex as usize;
-            let Some(params) = columns.get(j) else { continue };
+            let Some(params) = columns.get(j) else {
+                continue;
+            };
             let coeff = params.coefficients(h.0);
             let p = col.traction;
             for ((u, x), row) in out.iter_mut().zip(col.x.iter_mut()).zip(xi.iter()) {
@@ -430,9 +465,8 @@ impl<'a, T: Real, const N: usize, const A: usize> ViscoDgfm<'a, T, N, A> {
             }
         }
         // Drop columns that carry no traction and whose effect has decayed.
-        self.active.retain(|col| {
-            !col.traction.is_zero() || col.x.iter().any(|x| x.max_abs() > threshold)
-        });
+        self.active
+            .retain(|col| !col.traction.is_zero() || col.x.iter().any(|x| x.max_abs() > threshold));
     }
 
     /// The quasi-static elastic answer for the current tractions,

@@ -20,18 +20,38 @@ fn joint_3d_estimates_with_the_published_eq3_from_counts() {
     let mut joint = Joint3d::new(JointConfig::paper_3d()).unwrap();
     // 0.01 mm/count (default coder). d = [0.5, 2.5, 1.5, 0.5] mm.
     let counts = [Some(50), Some(250), Some(150), Some(50)];
-    let out = joint.step(&StepInput { now_s: 0.0, dt_s: 0.001, feedback: Feedback::WireCounts(counts) });
+    let out = joint.step(&StepInput {
+        now_s: 0.0,
+        dt_s: 0.001,
+        feedback: Feedback::WireCounts(counts),
+    });
     // α = 2.727·(1.5 − 0.5) + 0.323, β = 2.670·(0.5 − 2.5) + 0.131
-    assert!((out.estimate_deg[0] - 3.050).abs() < 1e-4, "{:?}", out.estimate_deg);
-    assert!((out.estimate_deg[1] - (-5.209)).abs() < 1e-4, "{:?}", out.estimate_deg);
+    assert!(
+        (out.estimate_deg[0] - 3.050).abs() < 1e-4,
+        "{:?}",
+        out.estimate_deg
+    );
+    assert!(
+        (out.estimate_deg[1] - (-5.209)).abs() < 1e-4,
+        "{:?}",
+        out.estimate_deg
+    );
 }
 
 #[test]
 fn joint_2d_estimates_with_the_published_eq2_from_counts() {
     let mut joint = Joint2d::new(JointConfig::paper_2d_wire()).unwrap();
-    let out = joint.step(&StepInput { now_s: 0.0, dt_s: 0.001, feedback: Feedback::WireCounts([Some(-200)]) });
+    let out = joint.step(&StepInput {
+        now_s: 0.0,
+        dt_s: 0.001,
+        feedback: Feedback::WireCounts([Some(-200)]),
+    });
     // d = −2 mm: 0.349·4 + 11.05 + 0.753 = 13.199°
-    assert!((out.estimate_deg[0] - 13.199).abs() < 1e-4, "{:?}", out.estimate_deg);
+    assert!(
+        (out.estimate_deg[0] - 13.199).abs() < 1e-4,
+        "{:?}",
+        out.estimate_deg
+    );
 }
 
 #[test]
@@ -49,12 +69,21 @@ fn calibration_from_a_noisy_camera_sweep_reproduces_the_published_coefficients()
         quad.add(d_read, theta);
         let diff = -7.0 + 14.0 * i as f64 / 2000.0; // d3 − d1, mm
         let alpha = 2.727 * diff + 0.323 + 0.1 * noise(i + 7919);
-        lin.add(coder.insertion_mm((diff / 0.01).round() as i32) as f64, alpha);
+        lin.add(
+            coder.insertion_mm((diff / 0.01).round() as i32) as f64,
+            alpha,
+        );
     }
     let [a, b, c] = quad.solve().unwrap();
-    assert!((a - 0.349).abs() < 0.005 && (b + 5.525).abs() < 0.01 && (c - 0.753).abs() < 0.02, "Eq. 2 fit {a} {b} {c}");
+    assert!(
+        (a - 0.349).abs() < 0.005 && (b + 5.525).abs() < 0.01 && (c - 0.753).abs() < 0.02,
+        "Eq. 2 fit {a} {b} {c}"
+    );
     let [_, g, o] = lin.solve().unwrap();
-    assert!((g - 2.727).abs() < 0.005 && (o - 0.323).abs() < 0.02, "Eq. 3 fit {g} {o}");
+    assert!(
+        (g - 2.727).abs() < 0.005 && (o - 0.323).abs() < 0.02,
+        "Eq. 3 fit {g} {o}"
+    );
 }
 
 /// A switching estimator over a synthetic α plane: the differential law is
@@ -64,9 +93,16 @@ fn switching(hysteresis_deg: f32) -> PlaneEstimator<4> {
     PlaneEstimator::new(PlaneLaw::Switching {
         plus: 2,
         minus: 0,
-        high: LinearLaw { gain: 2.727, offset: 0.0 },
+        high: LinearLaw {
+            gain: 2.727,
+            offset: 0.0,
+        },
         sensor: 2,
-        low: QuadraticLaw { a: 0.05, b: 5.454, c: 0.3 },
+        low: QuadraticLaw {
+            a: 0.05,
+            b: 5.454,
+            c: 0.3,
+        },
         threshold_deg: PAPER_ALPHA_THRESHOLD_DEG,
         hysteresis_deg,
     })
@@ -86,7 +122,11 @@ fn sweep(est: &mut PlaneEstimator<4>) -> SweepResult {
     let mut switches = 0;
     let mut worst_excess = 0.0f32;
     for i in 0..2 * n {
-        let frac = if i < n { i as f64 / n as f64 } else { (2 * n - i) as f64 / n as f64 };
+        let frac = if i < n {
+            i as f64 / n as f64
+        } else {
+            (2 * n - i) as f64 / n as f64
+        };
         let alpha = -20.0 + 25.0 * frac;
         let d3 = alpha / 5.454 + 0.01 * noise(3 * i);
         let d1 = -alpha / 5.454 + 0.01 * noise(3 * i + 1);
@@ -106,24 +146,43 @@ fn sweep(est: &mut PlaneEstimator<4>) -> SweepResult {
         }
         prev = Some(e);
     }
-    SweepResult { switches, worst_excess_deg: worst_excess }
+    SweepResult {
+        switches,
+        worst_excess_deg: worst_excess,
+    }
 }
 
 #[test]
 fn switching_does_not_chatter_and_jumps_no_more_than_the_disagreement() {
     let r = sweep(&mut switching(DEFAULT_HYSTERESIS_DEG));
     assert_eq!(r.switches, 2, "one switch down, one up");
-    assert!(r.worst_excess_deg <= 0.0, "jump exceeded the disagreement by {}", r.worst_excess_deg);
+    assert!(
+        r.worst_excess_deg <= 0.0,
+        "jump exceeded the disagreement by {}",
+        r.worst_excess_deg
+    );
     // Without hysteresis the same sweep chatters: the test can fail.
     let r0 = sweep(&mut switching(0.0));
-    assert!(r0.switches > 2, "expected chatter without hysteresis, got {}", r0.switches);
+    assert!(
+        r0.switches > 2,
+        "expected chatter without hysteresis, got {}",
+        r0.switches
+    );
 }
 
 #[test]
 fn switching_picks_the_paper_branches_far_from_the_threshold() {
     let mut est = switching(DEFAULT_HYSTERESIS_DEG);
     let at = |alpha: f32| [-alpha / 5.454, 0.0, alpha / 5.454, 0.0];
-    assert_eq!(est.estimate(&at(10.0)).method, Method::Differential, "α ≥ α_th");
+    assert_eq!(
+        est.estimate(&at(10.0)).method,
+        Method::Differential,
+        "α ≥ α_th"
+    );
     assert_eq!(est.estimate(&at(-15.0)).method, Method::Single, "α < α_th");
-    assert_eq!(est.estimate(&at(-7.0)).method, Method::Differential, "past the band again");
+    assert_eq!(
+        est.estimate(&at(-7.0)).method,
+        Method::Differential,
+        "past the band again"
+    );
 }

@@ -13,18 +13,43 @@ fn every_message() -> Vec<Message> {
         minus: 0,
         high: LinearLaw::PAPER_ALPHA,
         sensor: 2,
-        low: QuadraticLaw { a: 0.02, b: 5.4, c: -0.3 },
+        low: QuadraticLaw {
+            a: 0.02,
+            b: 5.4,
+            c: -0.3,
+        },
         threshold_deg: -7.46,
         hysteresis_deg: 0.5,
     };
     vec![
-        Message::Hello { version: PROTOCOL_VERSION },
+        Message::Hello {
+            version: PROTOCOL_VERSION,
+        },
         Message::HilStart { period_us: 1000 },
-        Message::HilSensor(SensorFrame { seq: 0xBEEF, counts: [0, -1, 1000, i16::MIN] }),
-        Message::SetTarget { plane: 1, target_deg: -5.5 },
-        Message::SetGains { plane: 0, kp_agonist: 2.0, kp_antagonist: 1.5, ki: 0.1, integral_limit_v: 1.0 },
+        Message::HilSensor(SensorFrame {
+            seq: 0xBEEF,
+            counts: [0, -1, 1000, i16::MIN],
+        }),
+        Message::SetTarget {
+            plane: 1,
+            target_deg: -5.5,
+        },
+        Message::SetGains {
+            plane: 0,
+            kp_agonist: 2.0,
+            kp_antagonist: 1.5,
+            ki: 0.1,
+            integral_limit_v: 1.0,
+        },
         Message::SetCalibration { plane: 0, law },
-        Message::SetCalibration { plane: 1, law: PlaneLaw::Differential { plus: 3, minus: 1, law: LinearLaw::PAPER_BETA } },
+        Message::SetCalibration {
+            plane: 1,
+            law: PlaneLaw::Differential {
+                plus: 3,
+                minus: 1,
+                law: LinearLaw::PAPER_BETA,
+            },
+        },
         Message::GetCalibration { plane: 1 },
         Message::Arm,
         Message::Disarm,
@@ -32,9 +57,25 @@ fn every_message() -> Vec<Message> {
         Message::GetStatus,
         Message::SetTelemetry { rate_hz: 50 },
         Message::SetLinkTimeout { timeout_ms: 50 },
-        Message::HelloAck { version: 1, schema: SCHEMA_HASH, pairs: 2, sensors: 4 },
-        Message::HilActuator(ActuatorFrame { seq: 7, pair_mv: [3200, -1700], estimate_cdeg: [512, i16::MIN], faults: 0x11 }),
-        Message::Calibration { plane: 0, law: PlaneLaw::Single { sensor: 0, law: QuadraticLaw::PAPER_2D } },
+        Message::HelloAck {
+            version: 1,
+            schema: SCHEMA_HASH,
+            pairs: 2,
+            sensors: 4,
+        },
+        Message::HilActuator(ActuatorFrame {
+            seq: 7,
+            pair_mv: [3200, -1700],
+            estimate_cdeg: [512, i16::MIN],
+            faults: 0x11,
+        }),
+        Message::Calibration {
+            plane: 0,
+            law: PlaneLaw::Single {
+                sensor: 0,
+                law: QuadraticLaw::PAPER_2D,
+            },
+        },
         Message::Status(Status {
             armed: 1,
             mode: 1,
@@ -50,9 +91,17 @@ fn every_message() -> Vec<Message> {
             overfull: 3,
             malformed: 4,
         }),
-        Message::Telemetry(Telemetry { time_ms: 5, estimate_deg: [1.0, -1.0], pair_mv: [100, -100], faults: 0 }),
+        Message::Telemetry(Telemetry {
+            time_ms: 5,
+            estimate_deg: [1.0, -1.0],
+            pair_mv: [100, -100],
+            faults: 0,
+        }),
         Message::Ack { request: kind::ARM },
-        Message::Error { request: kind::SET_TARGET, code: ErrorCode::OutOfRange },
+        Message::Error {
+            request: kind::SET_TARGET,
+            code: ErrorCode::OutOfRange,
+        },
     ]
 }
 
@@ -92,8 +141,16 @@ fn every_message_round_trips_and_has_its_documented_length() {
 #[test]
 fn lockstep_frames_fit_the_wire_budget() {
     // ARCHITECTURE.md: ≥ 1000 round trips/s needs ~15 bytes per frame.
-    let s = frame(&Message::HilSensor(SensorFrame { seq: 1, counts: [1, 2, 3, 4] }));
-    let a = frame(&Message::HilActuator(ActuatorFrame { seq: 1, pair_mv: [1, 2], estimate_cdeg: [3, 4], faults: 0 }));
+    let s = frame(&Message::HilSensor(SensorFrame {
+        seq: 1,
+        counts: [1, 2, 3, 4],
+    }));
+    let a = frame(&Message::HilActuator(ActuatorFrame {
+        seq: 1,
+        pair_mv: [1, 2],
+        estimate_cdeg: [3, 4],
+        faults: 0,
+    }));
     assert_eq!(s.len(), 15);
     assert_eq!(a.len(), 16);
 }
@@ -113,7 +170,10 @@ fn every_single_bit_flip_is_rejected() {
                 // message.
                 g.push(0);
                 for r in feed(&mut dec, &g) {
-                    assert!(r.is_err(), "flip of bit {bit} in byte {byte} of {msg:?} accepted as {r:?}");
+                    assert!(
+                        r.is_err(),
+                        "flip of bit {bit} in byte {byte} of {msg:?} accepted as {r:?}"
+                    );
                 }
                 flips += 1;
             }
@@ -147,7 +207,12 @@ fn decoder_resyncs_after_garbage_and_counts_it() {
 #[test]
 fn unknown_types_and_wrong_lengths_are_malformed_not_crashes() {
     let mut dec = FrameDecoder::new();
-    for payload in [&[0x7Fu8][..], &[kind::ARM, 0x01][..], &[kind::HIL_SENSOR, 1, 2][..], &[kind::ERROR, 1, 99][..]] {
+    for payload in [
+        &[0x7Fu8][..],
+        &[kind::ARM, 0x01][..],
+        &[kind::HIL_SENSOR, 1, 2][..],
+        &[kind::ERROR, 1, 99][..],
+    ] {
         let mut raw = payload.to_vec();
         raw.extend(firmware::protocol::crc::crc16(payload).to_le_bytes());
         let mut enc = vec![0u8; cobs::max_encoded_len(raw.len())];
@@ -155,7 +220,10 @@ fn unknown_types_and_wrong_lengths_are_malformed_not_crashes() {
         enc.truncate(n);
         enc.push(0);
         let got = feed(&mut dec, &enc);
-        assert!(matches!(got[..], [Err(FrameError::Malformed { .. })]), "{payload:?}: {got:?}");
+        assert!(
+            matches!(got[..], [Err(FrameError::Malformed { .. })]),
+            "{payload:?}: {got:?}"
+        );
     }
     assert_eq!(dec.stats().malformed, 4);
 }
@@ -163,13 +231,24 @@ fn unknown_types_and_wrong_lengths_are_malformed_not_crashes() {
 #[test]
 fn unit_conversions_saturate_and_keep_sign() {
     let d = DriverConfig::default();
-    assert_eq!(mv_to_pair(pair_to_mv(firmware::control::PairCommand::Antagonist(d.clamp(2.5)), &d), &d).coil_volts(), [0.0, 2.5]);
+    assert_eq!(
+        mv_to_pair(
+            pair_to_mv(firmware::control::PairCommand::Antagonist(d.clamp(2.5)), &d),
+            &d
+        )
+        .coil_volts(),
+        [0.0, 2.5]
+    );
     assert_eq!(deg_to_cdeg(f32::NAN), i16::MIN);
     assert!(cdeg_to_deg(i16::MIN).is_nan());
     assert_eq!(deg_to_cdeg(1e9), i16::MAX);
     assert_eq!(deg_to_cdeg(-1e9), i16::MIN + 1);
     assert_eq!(deg_to_cdeg(-7.46), -746);
-    assert_eq!(mv_to_pair(i16::MAX, &d).coil_volts(), [5.0, 0.0], "clamped to the supply");
+    assert_eq!(
+        mv_to_pair(i16::MAX, &d).coil_volts(),
+        [5.0, 0.0],
+        "clamped to the supply"
+    );
 }
 
 #[test]

@@ -18,17 +18,31 @@ fn armed_3d() -> Joint3d {
 fn counts_for(angle_deg: f32) -> [Option<i32>; 4] {
     let da = (angle_deg - 0.323) / 2.727 / 2.0 / 0.01;
     let db = (angle_deg - 0.131) / 2.670 / 2.0 / 0.01;
-    [Some(-da as i32), Some(-db as i32), Some(da as i32), Some(db as i32)]
+    [
+        Some(-da as i32),
+        Some(-db as i32),
+        Some(da as i32),
+        Some(db as i32),
+    ]
 }
 
 fn input(now_s: f32, counts: [Option<i32>; 4]) -> StepInput<4, 2> {
-    StepInput { now_s, dt_s: DT, feedback: Feedback::WireCounts(counts) }
+    StepInput {
+        now_s,
+        dt_s: DT,
+        feedback: Feedback::WireCounts(counts),
+    }
 }
 
 /// Runs a healthy joint, then `fault` at t = 0.1 s; checks every output is
 /// zero with the fault reported, and (for latching faults) that it stays
 /// zero after the cause has gone until cleared.
-fn check_fault(name: &str, expect: Faults, mut make: impl FnMut(f32, usize) -> StepInput<4, 2>, joint: &mut Joint3d) {
+fn check_fault(
+    name: &str,
+    expect: Faults,
+    mut make: impl FnMut(f32, usize) -> StepInput<4, 2>,
+    joint: &mut Joint3d,
+) {
     joint.set_target(0, 10.0).unwrap();
     joint.set_target(1, -10.0).unwrap();
     let mut t = 0.0;
@@ -38,9 +52,17 @@ fn check_fault(name: &str, expect: Faults, mut make: impl FnMut(f32, usize) -> S
         let out = joint.step(&make(t, k));
         if out.faults.contains(expect) {
             faulted_at.get_or_insert(t);
-            assert_eq!(out.commands, [PairCommand::Off; 2], "{name}: outputs not zero at t = {t}");
+            assert_eq!(
+                out.commands,
+                [PairCommand::Off; 2],
+                "{name}: outputs not zero at t = {t}"
+            );
         } else if faulted_at.is_none() && t < 0.1 {
-            assert_ne!(out.commands, [PairCommand::Off; 2], "{name}: healthy joint should drive");
+            assert_ne!(
+                out.commands,
+                [PairCommand::Off; 2],
+                "{name}: healthy joint should drive"
+            );
         }
         t += DT;
         k += 1;
@@ -54,7 +76,16 @@ fn sensor_out_of_range_latches_the_safe_state() {
     check_fault(
         "range",
         Faults::SENSOR_RANGE,
-        |t, _| input(t, if t > 0.1 && t < 0.15 { [Some(5000), Some(0), Some(0), Some(0)] } else { counts_for(0.0) }),
+        |t, _| {
+            input(
+                t,
+                if t > 0.1 && t < 0.15 {
+                    [Some(5000), Some(0), Some(0), Some(0)]
+                } else {
+                    counts_for(0.0)
+                },
+            )
+        },
         &mut j,
     );
     // The cause went away at 0.15 s, but the latch holds until cleared.
@@ -63,7 +94,11 @@ fn sensor_out_of_range_latches_the_safe_state() {
     assert!(out.faults.contains(Faults::SENSOR_RANGE));
     j.clear_faults().unwrap();
     let out = j.step(&input(0.312, counts_for(0.0)));
-    assert_ne!(out.commands, [PairCommand::Off; 2], "cleared joint drives again");
+    assert_ne!(
+        out.commands,
+        [PairCommand::Off; 2],
+        "cleared joint drives again"
+    );
 }
 
 #[test]
@@ -72,7 +107,16 @@ fn implausible_rate_latches_the_safe_state() {
     check_fault(
         "rate",
         Faults::SENSOR_RATE,
-        |t, _| input(t, if t > 0.1 { counts_for(15.0) } else { counts_for(0.0) }),
+        |t, _| {
+            input(
+                t,
+                if t > 0.1 {
+                    counts_for(15.0)
+                } else {
+                    counts_for(0.0)
+                },
+            )
+        },
         &mut j,
     );
 }
@@ -100,7 +144,11 @@ fn invalid_time_latches_the_safe_state() {
     check_fault(
         "invalid time",
         Faults::INVALID_INPUT,
-        |t, _| StepInput { now_s: t, dt_s: if t > 0.1 { f32::NAN } else { DT }, feedback: Feedback::WireCounts(counts_for(0.0)) },
+        |t, _| StepInput {
+            now_s: t,
+            dt_s: if t > 0.1 { f32::NAN } else { DT },
+            feedback: Feedback::WireCounts(counts_for(0.0)),
+        },
         &mut j,
     );
 }
@@ -108,7 +156,10 @@ fn invalid_time_latches_the_safe_state() {
 #[test]
 fn link_loss_latches_the_safe_state() {
     let mut cfg = JointConfig::paper_3d();
-    cfg.supervisor = SupervisorConfig { link_timeout_s: Some(0.05), ..Default::default() };
+    cfg.supervisor = SupervisorConfig {
+        link_timeout_s: Some(0.05),
+        ..Default::default()
+    };
     let mut j = Joint3d::new(cfg).unwrap();
     j.arm();
     // Frames arrive until 0.1 s, then stop: link loss from 0.15 s.
@@ -135,7 +186,10 @@ fn external_faults_latch_too() {
     for f in [Faults::DRIVER, Faults::INTERNAL] {
         let mut j = armed_3d();
         j.set_target(0, 10.0).unwrap();
-        assert_ne!(j.step(&input(0.0, counts_for(0.0))).commands, [PairCommand::Off; 2]);
+        assert_ne!(
+            j.step(&input(0.0, counts_for(0.0))).commands,
+            [PairCommand::Off; 2]
+        );
         j.report_fault(f);
         let out = j.step(&input(DT, counts_for(0.0)));
         assert_eq!(out.commands, [PairCommand::Off; 2]);
@@ -152,7 +206,11 @@ fn thermal_budget_cuts_a_saturated_coil_and_reports_it() {
     while t < 10.0 {
         let out = j.step(&input(t, counts_for(0.0)));
         if out.faults.contains(Faults::OVER_BUDGET) {
-            assert_eq!(out.paper_coil_volts()[0], 0.0, "coil 1 still driven while over budget");
+            assert_eq!(
+                out.paper_coil_volts()[0],
+                0.0,
+                "coil 1 still driven while over budget"
+            );
             cut = true;
             break;
         }
@@ -165,7 +223,10 @@ fn thermal_budget_cuts_a_saturated_coil_and_reports_it() {
 fn disarmed_joint_drives_nothing() {
     let mut j = Joint3d::new(JointConfig::paper_3d()).unwrap();
     j.set_target(0, 10.0).unwrap();
-    assert_eq!(j.step(&input(0.0, counts_for(0.0))).commands, [PairCommand::Off; 2]);
+    assert_eq!(
+        j.step(&input(0.0, counts_for(0.0))).commands,
+        [PairCommand::Off; 2]
+    );
 }
 
 #[test]
@@ -190,7 +251,10 @@ fn any_f32() -> impl Strategy<Value = f32> {
 fn check_outputs(out: &firmware::joint::StepOutput<2>, supply: f32) -> Result<(), TestCaseError> {
     for [a, b] in out.pair_volts() {
         prop_assert!(!a.is_nan() && !b.is_nan(), "NaN output");
-        prop_assert!((0.0..=supply).contains(&a) && (0.0..=supply).contains(&b), "{a} {b} outside [0, {supply}]");
+        prop_assert!(
+            (0.0..=supply).contains(&a) && (0.0..=supply).contains(&b),
+            "{a} {b} outside [0, {supply}]"
+        );
         prop_assert!(a == 0.0 || b == 0.0, "both coils of a pair on: {a} {b}");
     }
     Ok(())

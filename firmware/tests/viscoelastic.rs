@@ -35,13 +35,21 @@ fn max_error(
 /// Creep under a step force F0 = 2: u(t) = F0/E1 + F0/E2 (1 − e^(−t/τc)).
 fn creep_error(h: f64) -> f64 {
     let (f0, tau) = (2.0, B / K1);
-    max_error(h, |m, s, _, hs| m.step_displacement(s, f0, hs), |t| f0 / K2 + f0 / K1 * (1.0 - (-t / tau).exp()))
+    max_error(
+        h,
+        |m, s, _, hs| m.step_displacement(s, f0, hs),
+        |t| f0 / K2 + f0 / K1 * (1.0 - (-t / tau).exp()),
+    )
 }
 
 /// Relaxation under a step displacement u0 = 0.4.
 fn relaxation_error(h: f64) -> f64 {
     let (u0, e_inf, tau) = (0.4, K1 * K2 / (K1 + K2), B / (K1 + K2));
-    max_error(h, |m, s, _, hs| m.step_force(s, u0, hs), |t| u0 * (e_inf + (K2 - e_inf) * (-t / tau).exp()))
+    max_error(
+        h,
+        |m, s, _, hs| m.step_force(s, u0, hs),
+        |t| u0 * (e_inf + (K2 - e_inf) * (-t / tau).exp()),
+    )
 }
 
 /// Constant-velocity loading u = r·t, r = 0.7.
@@ -61,10 +69,16 @@ fn assert_first_order(name: &str, err: impl Fn(f64) -> f64, scale: f64) {
     let errors: Vec<f64> = steps.iter().map(|&h| err(h)).collect();
     for w in errors.windows(2) {
         let ratio = w[0] / w[1];
-        assert!((1.8..2.2).contains(&ratio), "{name}: error ratio {ratio} for halved h ({errors:?})");
+        assert!(
+            (1.8..2.2).contains(&ratio),
+            "{name}: error ratio {ratio} for halved h ({errors:?})"
+        );
     }
     let finest = errors[errors.len() - 1];
-    assert!(finest < 2e-3 * scale, "{name}: error {finest} at h = 5e-4 (scale {scale})");
+    assert!(
+        finest < 2e-3 * scale,
+        "{name}: error {finest} at h = 5e-4 (scale {scale})"
+    );
 }
 
 #[test]
@@ -92,12 +106,30 @@ fn ratio_form_is_two_springs_in_series_equal_to_k() {
 
 #[test]
 fn invalid_parameters_are_rejected_by_name() {
-    assert_eq!(ThreeElement::new(0.0, 1.0, 1.0).err(), Some(ViscoError::K1NotPositive));
-    assert_eq!(ThreeElement::new(1.0, f64::NAN, 1.0).err(), Some(ViscoError::K2NotPositive));
-    assert_eq!(ThreeElement::new(1.0, 1.0, -1.0).err(), Some(ViscoError::DampingNegative));
-    assert_eq!(TimeStep::new(0.0_f64).err(), Some(ViscoError::StepNotPositive));
-    assert_eq!(TimeStep::new(f32::INFINITY).err(), Some(ViscoError::StepNotPositive));
-    assert_eq!(RayleighParams::new(-1.0_f64, 0.1).err(), Some(ViscoError::RatioNotPositive));
+    assert_eq!(
+        ThreeElement::new(0.0, 1.0, 1.0).err(),
+        Some(ViscoError::K1NotPositive)
+    );
+    assert_eq!(
+        ThreeElement::new(1.0, f64::NAN, 1.0).err(),
+        Some(ViscoError::K2NotPositive)
+    );
+    assert_eq!(
+        ThreeElement::new(1.0, 1.0, -1.0).err(),
+        Some(ViscoError::DampingNegative)
+    );
+    assert_eq!(
+        TimeStep::new(0.0_f64).err(),
+        Some(ViscoError::StepNotPositive)
+    );
+    assert_eq!(
+        TimeStep::new(f32::INFINITY).err(),
+        Some(ViscoError::StepNotPositive)
+    );
+    assert_eq!(
+        RayleighParams::new(-1.0_f64, 0.1).err(),
+        Some(ViscoError::RatioNotPositive)
+    );
     let singular = Mat3([[1.0_f64, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]]);
     let h = TimeStep::new(1e-3).unwrap();
     assert_eq!(
@@ -124,14 +156,21 @@ fn rayleigh_shortcut_equals_the_general_tensor_form() {
     let h = TimeStep::new(1e-3).unwrap();
     let k = xi.inverse().unwrap().scale(area);
     let damping = k.scale(params.b_s()); // B = b K (Eq. 11)
-    let general = ThreeElementTensor::from_dgfm_entry(xi, area, params.ratio(), damping, h).unwrap();
+    let general =
+        ThreeElementTensor::from_dgfm_entry(xi, area, params.ratio(), damping, h).unwrap();
     let (mut x_general, mut x_rayleigh) = (Vec3::zero(), Vec3::zero());
     let (mut xf_general, mut xf_rayleigh) = (Vec3::zero(), Vec3::zero());
     let mut worst = 0.0f64;
     for n in 0..3000 {
         let t = n as f64 * 1e-3;
         // A loading history with a ramp, a hold and a release.
-        let mag = if t < 1.0 { t } else if t < 2.0 { 1.0 } else { 0.0 };
+        let mag = if t < 1.0 {
+            t
+        } else if t < 2.0 {
+            1.0
+        } else {
+            0.0
+        };
         let p = Vec3::new(mag, -0.5 * mag, 0.25 * mag * (3.0 * t).sin());
         let u_general = general.step_displacement(&mut x_general, p.scale(area)); // force f = α p
         let u_rayleigh = rayleigh_displacement_step(&xi, p, params, h, &mut x_rayleigh);
@@ -161,14 +200,20 @@ fn test_dgfm() -> Box<[[Mat3<f64>; N]; N]> {
 }
 
 fn column_params() -> [RayleighParams<f64>; N] {
-    core::array::from_fn(|j| RayleighParams::new(0.5 + 0.25 * j as f64, 0.01 + 0.01 * (j % 4) as f64).unwrap())
+    core::array::from_fn(|j| {
+        RayleighParams::new(0.5 + 0.25 * j as f64, 0.01 + 0.01 * (j % 4) as f64).unwrap()
+    })
 }
 
 #[test]
 fn static_limit_equals_the_dgfm_product() {
     let xi = test_dgfm();
     let mut model: ViscoDgfm<f64, N, 3> = ViscoDgfm::new(&xi, column_params()).unwrap();
-    let loads = [(2, Vec3::new(1.0, 0.0, -0.5)), (7, Vec3::new(0.0, 2.0, 0.0)), (11, Vec3::new(-0.3, 0.3, 1.0))];
+    let loads = [
+        (2, Vec3::new(1.0, 0.0, -0.5)),
+        (7, Vec3::new(0.0, 2.0, 0.0)),
+        (11, Vec3::new(-0.3, 0.3, 1.0)),
+    ];
     for (j, p) in loads {
         model.set_traction(j, p).unwrap();
     }
@@ -205,7 +250,10 @@ fn dgfm_transient_equals_the_sum_of_pairwise_updates() {
     let h = TimeStep::new(2e-3).unwrap();
     let mut u = [Vec3::zero(); N];
     for n in 0..400 {
-        let p = [Vec3::new(0.01 * n as f64, 0.0, 0.0), Vec3::new(0.0, 0.0, if n < 200 { 1.0 } else { 0.0 })];
+        let p = [
+            Vec3::new(0.01 * n as f64, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, if n < 200 { 1.0 } else { 0.0 }),
+        ];
         for (c, pj) in cols.iter().zip(p) {
             model.set_traction(*c, pj).unwrap();
         }
@@ -213,9 +261,13 @@ fn dgfm_transient_equals_the_sum_of_pairwise_updates() {
         for (i, ui) in u.iter().enumerate() {
             let mut expect = Vec3::zero();
             for (k, (c, pj)) in cols.iter().zip(p).enumerate() {
-                expect = expect + rayleigh_displacement_step(&xi[i][*c], pj, params[*c], h, &mut x[k][i]);
+                expect = expect
+                    + rayleigh_displacement_step(&xi[i][*c], pj, params[*c], h, &mut x[k][i]);
             }
-            assert!((*ui - expect).max_abs() <= 1e-12 * expect.max_abs().max(1.0), "step {n} vertex {i}");
+            assert!(
+                (*ui - expect).max_abs() <= 1e-12 * expect.max_abs().max(1.0),
+                "step {n} vertex {i}"
+            );
         }
     }
 }
@@ -227,9 +279,18 @@ fn released_columns_relax_and_leave_the_active_list() {
     // Traction large enough that displacements are well above 1e-3.
     model.set_traction(5, Vec3::new(0.0, 0.0, 50.0)).unwrap();
     model.set_traction(6, Vec3::new(50.0, 0.0, 0.0)).unwrap();
-    assert_eq!(model.set_traction(7, Vec3::new(1.0, 0.0, 0.0)), Err(ViscoError::ActiveListFull));
-    assert_eq!(model.set_traction(N, Vec3::new(1.0, 0.0, 0.0)), Err(ViscoError::VertexOutOfRange));
-    assert_eq!(model.set_traction(1, Vec3::new(f64::NAN, 0.0, 0.0)), Err(ViscoError::NonFiniteInput));
+    assert_eq!(
+        model.set_traction(7, Vec3::new(1.0, 0.0, 0.0)),
+        Err(ViscoError::ActiveListFull)
+    );
+    assert_eq!(
+        model.set_traction(N, Vec3::new(1.0, 0.0, 0.0)),
+        Err(ViscoError::VertexOutOfRange)
+    );
+    assert_eq!(
+        model.set_traction(1, Vec3::new(f64::NAN, 0.0, 0.0)),
+        Err(ViscoError::NonFiniteInput)
+    );
     let h = TimeStep::new(1e-3).unwrap();
     let mut u = [Vec3::zero(); N];
     for _ in 0..500 {
@@ -238,7 +299,11 @@ fn released_columns_relax_and_leave_the_active_list() {
     assert!(u[5].max_abs() > 1e-3, "loaded displacement {:?}", u[5]);
     model.release_all();
     model.step(h, &mut u);
-    assert_eq!(model.active_count(), 2, "still relaxing right after release");
+    assert_eq!(
+        model.active_count(),
+        2,
+        "still relaxing right after release"
+    );
     let mut steps = 0;
     while model.active_count() > 0 && steps < 100_000 {
         model.step(h, &mut u);
@@ -259,7 +324,10 @@ fn single_precision_tracks_double_precision() {
     let m32 = ThreeElement::new(K1 as f32, K2 as f32, B as f32).unwrap();
     let m64 = model();
     let (mut s32, mut s64) = (ThreeElementState::default(), ThreeElementState::default());
-    let (h32, h64) = (TimeStep::new(1e-3_f32).unwrap(), TimeStep::new(1e-3_f64).unwrap());
+    let (h32, h64) = (
+        TimeStep::new(1e-3_f32).unwrap(),
+        TimeStep::new(1e-3_f64).unwrap(),
+    );
     for _ in 0..2000 {
         let a = m32.step_displacement(&mut s32, 2.0, h32) as f64;
         let b = m64.step_displacement(&mut s64, 2.0, h64);

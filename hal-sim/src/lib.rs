@@ -98,7 +98,10 @@ pub struct SimPwm {
 impl SimPwm {
     /// A channel whose full scale is the driver supply in millivolts.
     pub fn for_driver(driver: &DriverConfig) -> Self {
-        Self { state: Rc::default(), max_duty: millivolt_full_scale(driver) }
+        Self {
+            state: Rc::default(),
+            max_duty: millivolt_full_scale(driver),
+        }
     }
     /// Duty as last written.
     pub fn duty(&self) -> u16 {
@@ -197,7 +200,9 @@ impl WireSensor for SimWireSensor {
         let counts = match s.fault.get() {
             None => s.counts.get(),
             Some(SensorFault::Stuck) => s.stuck_at.get().unwrap_or(s.counts.get()),
-            Some(SensorFault::Jammed { extra_mm }) => s.counts.get() - (extra_mm / s.mm_per_count).round() as i64,
+            Some(SensorFault::Jammed { extra_mm }) => {
+                s.counts.get() - (extra_mm / s.mm_per_count).round() as i64
+            }
             Some(SensorFault::Dropout { probability }) => {
                 if s.rng.borrow_mut().gen_bool(probability.clamp(0.0, 1.0)) {
                     return Err(WireSensorError::NotReady);
@@ -214,7 +219,11 @@ impl WireSensor for SimWireSensor {
 /// and `P` angles.
 pub trait Plant<const C: usize, const S: usize, const P: usize> {
     /// Advances by `dt_s` with the driver input voltages held.
-    fn advance(&mut self, dt_s: f64, coil_input_volts: &[f64; C]) -> Result<(), plant_models::joint::PlantError>;
+    fn advance(
+        &mut self,
+        dt_s: f64,
+        coil_input_volts: &[f64; C],
+    ) -> Result<(), plant_models::joint::PlantError>;
     /// Pulse-coder counts now.
     fn counts(&self) -> [i64; S];
     /// Coder resolution (mm/count) of each sensor.
@@ -311,10 +320,13 @@ where
             return Err(LoopError::Period(period_us));
         }
         let driver = *controller.driver();
-        let pwm: [[SimPwm; 2]; P] = core::array::from_fn(|_| [SimPwm::for_driver(&driver), SimPwm::for_driver(&driver)]);
-        let drivers = core::array::from_fn(|p| PairDriver::new(pwm[p][0].clone(), pwm[p][1].clone()));
+        let pwm: [[SimPwm; 2]; P] =
+            core::array::from_fn(|_| [SimPwm::for_driver(&driver), SimPwm::for_driver(&driver)]);
+        let drivers =
+            core::array::from_fn(|p| PairDriver::new(pwm[p][0].clone(), pwm[p][1].clone()));
         let res = plant.mm_per_count();
-        let sensors = core::array::from_fn(|k| SimWireSensor::new(res[k], seed.wrapping_add(k as u64)));
+        let sensors =
+            core::array::from_fn(|k| SimWireSensor::new(res[k], seed.wrapping_add(k as u64)));
         for (s, c) in sensors.iter().zip(plant.counts()) {
             s.set_plant_counts(c);
         }
@@ -375,7 +387,11 @@ where
                 Feedback::Angles(core::array::from_fn(|p| frame.map(|f| f[p] as f32)))
             }
         };
-        let out = self.controller.step(&StepInput { now_s, dt_s, feedback });
+        let out = self.controller.step(&StepInput {
+            now_s,
+            dt_s,
+            feedback,
+        });
         let driver = *self.controller.driver();
         let mut driver_error = false;
         for (d, cmd) in self.drivers.iter_mut().zip(out.commands) {
@@ -385,7 +401,8 @@ where
             }
         }
         if driver_error {
-            self.controller.report_fault(firmware::supervisor::Faults::DRIVER);
+            self.controller
+                .report_fault(firmware::supervisor::Faults::DRIVER);
         }
         out
     }
@@ -441,7 +458,9 @@ where
 }
 
 /// Converts the paper's pair commands to coil voltages (paper numbering).
-pub fn commands_to_coil_volts<const P: usize, const C: usize>(commands: &[PairCommand; P]) -> [f64; C] {
+pub fn commands_to_coil_volts<const P: usize, const C: usize>(
+    commands: &[PairCommand; P],
+) -> [f64; C] {
     let mut v = [0.0; C];
     for (p, c) in commands.iter().enumerate() {
         let [a, b] = c.coil_volts();
@@ -487,7 +506,10 @@ mod tests {
         assert_eq!(s.read_counts(), Err(WireSensorError::Fault));
         s.set_fault(Some(SensorFault::Dropout { probability: 0.5 }));
         let dropped = (0..1000).filter(|_| s.read_counts().is_err()).count();
-        assert!((400..600).contains(&dropped), "{dropped} of 1000 dropped at p = 0.5");
+        assert!(
+            (400..600).contains(&dropped),
+            "{dropped} of 1000 dropped at p = 0.5"
+        );
     }
 
     #[test]

@@ -37,7 +37,10 @@ impl Plant<2, 1, 1> for Joint2d {
         [self.angle_deg()]
     }
     fn take_camera(&mut self) -> Option<[f64; 1]> {
-        self.camera().take_new().and_then(|f| f.angles_deg).map(|a| [a[0]])
+        self.camera()
+            .take_new()
+            .and_then(|f| f.angles_deg)
+            .map(|a| [a[0]])
     }
     fn coil_temperatures_c(&self) -> [f64; 2] {
         Joint2d::coil_temperatures_c(self)

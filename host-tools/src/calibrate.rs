@@ -19,7 +19,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{bail, Context};
-use firmware::estimate::{LinearLaw, PlaneEstimator, PlaneLaw, QuadraticLaw, DEFAULT_HYSTERESIS_DEG};
+use firmware::estimate::{
+    LinearLaw, PlaneEstimator, PlaneLaw, QuadraticLaw, DEFAULT_HYSTERESIS_DEG,
+};
 use firmware::fit::PolyFit;
 use serde::{Deserialize, Serialize};
 
@@ -44,7 +46,12 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
     s.push_str(if three_d { HEADER_3D } else { HEADER_2D });
     s.push('\n');
     for r in rows {
-        let cells: Vec<String> = r.d_mm.iter().chain(r.angle_deg.iter()).map(|v| format!("{v:.5}")).collect();
+        let cells: Vec<String> = r
+            .d_mm
+            .iter()
+            .chain(r.angle_deg.iter())
+            .map(|v| format!("{v:.5}"))
+            .collect();
         s.push_str(&cells.join(","));
         s.push('\n');
     }
@@ -53,19 +60,37 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
 
 /// Reads a sweep CSV; a bad row is an error naming the file and line.
 pub fn read_sweep(path: &Path) -> anyhow::Result<Vec<SweepRow>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     parse_sweep(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
 /// Parses sweep CSV text (header required: 3D or 2D columns, any order).
 pub fn parse_sweep(text: &str) -> anyhow::Result<Vec<SweepRow>> {
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-    let Some((_, header)) = lines.next() else { bail!("empty file: expected a header") };
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some((_, header)) = lines.next() else {
+        bail!("empty file: expected a header")
+    };
     let cols: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
     let find = |name: &str| cols.iter().position(|c| *c == name);
-    let (d_cols, a_cols): (Vec<usize>, Vec<usize>) = if let (Some(d1), Some(d2), Some(d3), Some(d4), Some(a), Some(b)) =
-        (find("d1_mm"), find("d2_mm"), find("d3_mm"), find("d4_mm"), find("alpha_deg"), find("beta_deg"))
-    {
+    let (d_cols, a_cols): (Vec<usize>, Vec<usize>) = if let (
+        Some(d1),
+        Some(d2),
+        Some(d3),
+        Some(d4),
+        Some(a),
+        Some(b),
+    ) = (
+        find("d1_mm"),
+        find("d2_mm"),
+        find("d3_mm"),
+        find("d4_mm"),
+        find("alpha_deg"),
+        find("beta_deg"),
+    ) {
         (vec![d1, d2, d3, d4], vec![a, b])
     } else if let (Some(d), Some(t)) = (find("d_mm"), find("theta_deg")) {
         (vec![d], vec![t])
@@ -77,21 +102,40 @@ pub fn parse_sweep(text: &str) -> anyhow::Result<Vec<SweepRow>> {
         let lineno = i + 1;
         let cells: Vec<&str> = line.split(',').map(|c| c.trim()).collect();
         if cells.len() != cols.len() {
-            bail!("line {lineno}: expected {} fields, got {}", cols.len(), cells.len());
+            bail!(
+                "line {lineno}: expected {} fields, got {}",
+                cols.len(),
+                cells.len()
+            );
         }
         let num = |c: usize| -> anyhow::Result<f64> {
-            let v: f64 = cells[c].parse().map_err(|_| anyhow::anyhow!("line {lineno}: column `{}`: not a number: `{}`", cols[c], cells[c]))?;
+            let v: f64 = cells[c].parse().map_err(|_| {
+                anyhow::anyhow!(
+                    "line {lineno}: column `{}`: not a number: `{}`",
+                    cols[c],
+                    cells[c]
+                )
+            })?;
             if !v.is_finite() {
                 bail!("line {lineno}: column `{}`: not finite", cols[c]);
             }
             Ok(v)
         };
-        let d_mm = d_cols.iter().map(|&c| num(c)).collect::<anyhow::Result<Vec<_>>>()?;
-        let angle_deg = a_cols.iter().map(|&c| num(c)).collect::<anyhow::Result<Vec<_>>>()?;
+        let d_mm = d_cols
+            .iter()
+            .map(|&c| num(c))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let angle_deg = a_cols
+            .iter()
+            .map(|&c| num(c))
+            .collect::<anyhow::Result<Vec<_>>>()?;
         rows.push(SweepRow { d_mm, angle_deg });
     }
     if rows.len() < 10 {
-        bail!("need at least 10 data rows to calibrate, got {}", rows.len());
+        bail!(
+            "need at least 10 data rows to calibrate, got {}",
+            rows.len()
+        );
     }
     Ok(rows)
 }
@@ -184,25 +228,54 @@ impl LawSpec {
             Ok(s - 1)
         };
         Ok(match *self {
-            LawSpec::Single { sensor, a, b, c } => {
-                PlaneLaw::Single { sensor: idx(sensor)?, law: QuadraticLaw { a: a as f32, b: b as f32, c: c as f32 } }
-            }
-            LawSpec::Differential { plus, minus, gain, offset } => PlaneLaw::Differential {
+            LawSpec::Single { sensor, a, b, c } => PlaneLaw::Single {
+                sensor: idx(sensor)?,
+                law: QuadraticLaw {
+                    a: a as f32,
+                    b: b as f32,
+                    c: c as f32,
+                },
+            },
+            LawSpec::Differential {
+                plus,
+                minus,
+                gain,
+                offset,
+            } => PlaneLaw::Differential {
                 plus: idx(plus)?,
                 minus: idx(minus)?,
-                law: LinearLaw { gain: gain as f32, offset: offset as f32 },
+                law: LinearLaw {
+                    gain: gain as f32,
+                    offset: offset as f32,
+                },
             },
-            LawSpec::Switching { plus, minus, gain, offset, sensor, a, b, c, threshold_deg, hysteresis_deg } => {
-                PlaneLaw::Switching {
-                    plus: idx(plus)?,
-                    minus: idx(minus)?,
-                    high: LinearLaw { gain: gain as f32, offset: offset as f32 },
-                    sensor: idx(sensor)?,
-                    low: QuadraticLaw { a: a as f32, b: b as f32, c: c as f32 },
-                    threshold_deg: threshold_deg as f32,
-                    hysteresis_deg: hysteresis_deg as f32,
-                }
-            }
+            LawSpec::Switching {
+                plus,
+                minus,
+                gain,
+                offset,
+                sensor,
+                a,
+                b,
+                c,
+                threshold_deg,
+                hysteresis_deg,
+            } => PlaneLaw::Switching {
+                plus: idx(plus)?,
+                minus: idx(minus)?,
+                high: LinearLaw {
+                    gain: gain as f32,
+                    offset: offset as f32,
+                },
+                sensor: idx(sensor)?,
+                low: QuadraticLaw {
+                    a: a as f32,
+                    b: b as f32,
+                    c: c as f32,
+                },
+                threshold_deg: threshold_deg as f32,
+                hysteresis_deg: hysteresis_deg as f32,
+            },
         })
     }
 
@@ -229,9 +302,10 @@ pub struct CalibrationFile {
 impl CalibrationFile {
     /// Reads and validates a calibration file.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read calibration {}", path.display()))?;
-        let c: CalibrationFile =
-            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read calibration {}", path.display()))?;
+        let c: CalibrationFile = toml::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
         for (name, law) in [("alpha", Some(&c.alpha)), ("beta", c.beta.as_ref())] {
             if let Some(l) = law {
                 let sensors = if c.beta.is_some() { 4 } else { 1 };
@@ -248,7 +322,8 @@ impl CalibrationFile {
         let text = toml::to_string_pretty(self)?;
         let header = "# Wire-sensor calibration written by `softjoint calibrate wire`.\n\
                       # Sensor numbers are 1-based (the paper's d1..d4); angles in degrees, insertions in mm.\n";
-        std::fs::write(path, format!("{header}{text}")).with_context(|| format!("cannot write {}", path.display()))
+        std::fs::write(path, format!("{header}{text}"))
+            .with_context(|| format!("cannot write {}", path.display()))
     }
 
     /// The laws for the core.
@@ -266,12 +341,16 @@ fn evaluate<const S: usize>(law: PlaneLaw, rows: &[SweepRow], plane: usize) -> O
     let mut est = PlaneEstimator::<S>::new(law).ok()?;
     let (mut max, mut sq) = (0.0f64, 0.0f64);
     for r in rows {
-        let d: [f32; S] = core::array::from_fn(|k| r.d_mm.get(k).copied().unwrap_or(f64::NAN) as f32);
+        let d: [f32; S] =
+            core::array::from_fn(|k| r.d_mm.get(k).copied().unwrap_or(f64::NAN) as f32);
         let e = f64::from(est.estimate(&d).angle_deg) - r.angle_deg[plane];
         max = max.max(e.abs());
         sq += e * e;
     }
-    Some(ErrorStats { max_error_deg: max, rms_error_deg: (sq / rows.len().max(1) as f64).sqrt() })
+    Some(ErrorStats {
+        max_error_deg: max,
+        rms_error_deg: (sq / rows.len().max(1) as f64).sqrt(),
+    })
 }
 
 fn fit_quadratic(rows: impl Iterator<Item = (f64, f64)>) -> Option<[f64; 3]> {
@@ -288,12 +367,17 @@ fn fit_linear(rows: impl Iterator<Item = (f64, f64)>) -> Option<[f64; 3]> {
 
 /// Fits every method for every angle of the sweep.
 pub fn fit(rows: &[SweepRow]) -> anyhow::Result<Vec<PlaneFit>> {
-    let Some(first) = rows.first() else { bail!("no rows") };
+    let Some(first) = rows.first() else {
+        bail!("no rows")
+    };
     if first.d_mm.len() == 1 {
         return Ok(vec![fit_plane::<1>(rows, 0, "theta", 0, None)?]);
     }
     // α: d3 − d1, single on d3; β: d4 − d2, single on d4 (0-based indices).
-    Ok(vec![fit_plane::<4>(rows, 0, "alpha", 2, Some(0))?, fit_plane::<4>(rows, 1, "beta", 3, Some(1))?])
+    Ok(vec![
+        fit_plane::<4>(rows, 0, "alpha", 2, Some(0))?,
+        fit_plane::<4>(rows, 1, "beta", 3, Some(1))?,
+    ])
 }
 
 fn fit_plane<const S: usize>(
@@ -304,18 +388,34 @@ fn fit_plane<const S: usize>(
     minus: Option<usize>,
 ) -> anyhow::Result<PlaneFit> {
     let ang = |r: &SweepRow| r.angle_deg[plane];
-    let [a, b, c] = fit_quadratic(rows.iter().map(|r| (r.d_mm[plus], ang(r))))
-        .ok_or_else(|| anyhow::anyhow!("{name}: the insertions do not determine a quadratic (sweep too narrow?)"))?;
-    let single = LawSpec::Single { sensor: plus as u8 + 1, a, b, c };
-    let single_err = evaluate::<S>(single.to_law()?, rows, plane).ok_or_else(|| anyhow::anyhow!("{name}: invalid single law"))?;
+    let [a, b, c] =
+        fit_quadratic(rows.iter().map(|r| (r.d_mm[plus], ang(r)))).ok_or_else(|| {
+            anyhow::anyhow!(
+                "{name}: the insertions do not determine a quadratic (sweep too narrow?)"
+            )
+        })?;
+    let single = LawSpec::Single {
+        sensor: plus as u8 + 1,
+        a,
+        b,
+        c,
+    };
+    let single_err = evaluate::<S>(single.to_law()?, rows, plane)
+        .ok_or_else(|| anyhow::anyhow!("{name}: invalid single law"))?;
     let mut candidates = vec![(single.clone(), single_err)];
     let (mut differential, mut switching) = (None, None);
     if let Some(minus) = minus {
         let diff = |r: &SweepRow| r.d_mm[plus] - r.d_mm[minus];
         let [_, gain, offset] = fit_linear(rows.iter().map(|r| (diff(r), ang(r))))
             .ok_or_else(|| anyhow::anyhow!("{name}: the insertions do not determine a line"))?;
-        let d = LawSpec::Differential { plus: plus as u8 + 1, minus: minus as u8 + 1, gain, offset };
-        let de = evaluate::<S>(d.to_law()?, rows, plane).ok_or_else(|| anyhow::anyhow!("{name}: invalid law"))?;
+        let d = LawSpec::Differential {
+            plus: plus as u8 + 1,
+            minus: minus as u8 + 1,
+            gain,
+            offset,
+        };
+        let de = evaluate::<S>(d.to_law()?, rows, plane)
+            .ok_or_else(|| anyhow::anyhow!("{name}: invalid law"))?;
         differential = Some((d.clone(), de));
         candidates.push((d, de));
         // Threshold search on a 0.1° grid within the sweep's range, keeping
@@ -350,7 +450,10 @@ fn fit_plane<const S: usize>(
                     hysteresis_deg: f64::from(DEFAULT_HYSTERESIS_DEG),
                 };
                 if let Some(e) = s.to_law().ok().and_then(|l| evaluate::<S>(l, rows, plane)) {
-                    if best.as_ref().is_none_or(|(_, b)| e.max_error_deg < b.max_error_deg) {
+                    if best
+                        .as_ref()
+                        .is_none_or(|(_, b)| e.max_error_deg < b.max_error_deg)
+                    {
                         best = Some((s, e));
                     }
                 }
@@ -385,8 +488,13 @@ fn fit_plane<const S: usize>(
 
 /// The calibration file of a set of fits (the chosen law per angle).
 pub fn calibration_of(fits: &[PlaneFit]) -> anyhow::Result<CalibrationFile> {
-    let Some(first) = fits.first() else { bail!("no fits") };
-    Ok(CalibrationFile { alpha: first.chosen.clone(), beta: fits.get(1).map(|f| f.chosen.clone()) })
+    let Some(first) = fits.first() else {
+        bail!("no fits")
+    };
+    Ok(CalibrationFile {
+        alpha: first.chosen.clone(),
+        beta: fits.get(1).map(|f| f.chosen.clone()),
+    })
 }
 
 /// A calibration file that forces one method for every angle (for
@@ -395,19 +503,38 @@ pub fn calibration_with(fits: &[PlaneFit], method: &str) -> anyhow::Result<Calib
     let pick = |f: &PlaneFit| -> anyhow::Result<LawSpec> {
         Ok(match method {
             "single" => f.single.0.clone(),
-            "differential" => f.differential.clone().ok_or_else(|| anyhow::anyhow!("{}: no differential fit", f.angle))?.0,
-            "switching" => f.switching.clone().ok_or_else(|| anyhow::anyhow!("{}: no switching fit", f.angle))?.0,
+            "differential" => {
+                f.differential
+                    .clone()
+                    .ok_or_else(|| anyhow::anyhow!("{}: no differential fit", f.angle))?
+                    .0
+            }
+            "switching" => {
+                f.switching
+                    .clone()
+                    .ok_or_else(|| anyhow::anyhow!("{}: no switching fit", f.angle))?
+                    .0
+            }
             _ => f.chosen.clone(),
         })
     };
-    let Some(first) = fits.first() else { bail!("no fits") };
-    Ok(CalibrationFile { alpha: pick(first)?, beta: fits.get(1).map(pick).transpose()? })
+    let Some(first) = fits.first() else {
+        bail!("no fits")
+    };
+    Ok(CalibrationFile {
+        alpha: pick(first)?,
+        beta: fits.get(1).map(pick).transpose()?,
+    })
 }
 
 /// A human-readable table of the fits.
 pub fn table(fits: &[PlaneFit]) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "{:<7} {:<13} {:>12} {:>12}  coefficients", "angle", "method", "max err (°)", "rms err (°)");
+    let _ = writeln!(
+        s,
+        "{:<7} {:<13} {:>12} {:>12}  coefficients",
+        "angle", "method", "max err (°)", "rms err (°)"
+    );
     for f in fits {
         let mut rows = vec![("single", &f.single)];
         if let Some(d) = &f.differential {
@@ -449,13 +576,22 @@ mod tests {
 
     #[test]
     fn csv_errors_name_the_line() {
-        let e = parse_sweep("d_mm,theta_deg\n1,2\n3,x\n").unwrap_err().to_string();
+        let e = parse_sweep("d_mm,theta_deg\n1,2\n3,x\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 3") && e.contains("theta_deg"), "{e}");
-        let e = parse_sweep("d_mm,theta_deg\n1,2\n3\n").unwrap_err().to_string();
-        assert!(e.contains("line 3") && e.contains("expected 2 fields"), "{e}");
+        let e = parse_sweep("d_mm,theta_deg\n1,2\n3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("line 3") && e.contains("expected 2 fields"),
+            "{e}"
+        );
         let e = parse_sweep("foo,bar\n").unwrap_err().to_string();
         assert!(e.contains("line 1") && e.contains("header"), "{e}");
-        let e = parse_sweep("d_mm,theta_deg\n1,NaN\n").unwrap_err().to_string();
+        let e = parse_sweep("d_mm,theta_deg\n1,NaN\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2"), "{e}");
         assert!(parse_sweep("").is_err());
     }
@@ -465,11 +601,16 @@ mod tests {
         let rows: Vec<SweepRow> = (0..200)
             .map(|i| {
                 let d = -3.5 + 7.0 * f64::from(i) / 199.0;
-                SweepRow { d_mm: vec![d], angle_deg: vec![0.349 * d * d - 5.525 * d + 0.753] }
+                SweepRow {
+                    d_mm: vec![d],
+                    angle_deg: vec![0.349 * d * d - 5.525 * d + 0.753],
+                }
             })
             .collect();
         let fits = fit(&rows).unwrap();
-        let LawSpec::Single { a, b, c, .. } = fits[0].chosen else { panic!("2D must choose single") };
+        let LawSpec::Single { a, b, c, .. } = fits[0].chosen else {
+            panic!("2D must choose single")
+        };
         assert!((a - 0.349).abs() < 1e-6 && (b + 5.525).abs() < 1e-6 && (c - 0.753).abs() < 1e-6);
         assert!(fits[0].chosen_errors.max_error_deg < 1e-5);
     }
@@ -493,12 +634,19 @@ mod tests {
                 }
                 // β sweeps too (clean), so its fit is determined.
                 let beta = 0.5 * alpha;
-                SweepRow { d_mm: vec![d1, -beta / 5.34, d3, beta / 5.34], angle_deg: vec![alpha, beta] }
+                SweepRow {
+                    d_mm: vec![d1, -beta / 5.34, d3, beta / 5.34],
+                    angle_deg: vec![alpha, beta],
+                }
             })
             .collect();
         let f = &fit(&rows).unwrap()[0];
         let sw = f.switching.as_ref().unwrap().1.max_error_deg;
-        assert!(sw < f.single.1.max_error_deg && sw < f.differential.as_ref().unwrap().1.max_error_deg, "{}", table(std::slice::from_ref(f)));
+        assert!(
+            sw < f.single.1.max_error_deg && sw < f.differential.as_ref().unwrap().1.max_error_deg,
+            "{}",
+            table(std::slice::from_ref(f))
+        );
         assert!(matches!(f.chosen, LawSpec::Switching { .. }));
         // Between −7° and 0° both branches are exact, so the threshold must
         // land in or near that interval (grid 0.1°).

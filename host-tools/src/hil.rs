@@ -9,7 +9,9 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use firmware::control::DriverConfig;
 use firmware::joint::JointConfig;
-use firmware::protocol::{cdeg_to_deg, ActuatorFrame, Message, SensorFrame, Status, PROTOCOL_VERSION, SCHEMA_HASH};
+use firmware::protocol::{
+    cdeg_to_deg, ActuatorFrame, Message, SensorFrame, Status, PROTOCOL_VERSION, SCHEMA_HASH,
+};
 use hal_sim::Plant;
 use serde::Serialize;
 
@@ -34,7 +36,12 @@ pub struct HilOptions {
 
 impl Default for HilOptions {
     fn default() -> Self {
-        Self { timeout: Duration::from_millis(100), attempts: 20, lose_every: None, link_timeout_ms: None }
+        Self {
+            timeout: Duration::from_millis(100),
+            attempts: 20,
+            lose_every: None,
+            link_timeout_ms: None,
+        }
     }
 }
 
@@ -75,10 +82,21 @@ const CMD_ATTEMPTS: u32 = 10;
 pub fn handshake<P: Port>(link: &mut Link<P>) -> anyhow::Result<()> {
     // A lone delimiter first: ends any partial frame in the board's decoder.
     link.send_raw(&[0])?;
-    let reply = link.request(&Message::Hello { version: PROTOCOL_VERSION }, CMD_TIMEOUT, CMD_ATTEMPTS, |m| {
-        matches!(m, Message::HelloAck { .. })
-    })?;
-    if let Message::HelloAck { version, schema, pairs, sensors } = reply {
+    let reply = link.request(
+        &Message::Hello {
+            version: PROTOCOL_VERSION,
+        },
+        CMD_TIMEOUT,
+        CMD_ATTEMPTS,
+        |m| matches!(m, Message::HelloAck { .. }),
+    )?;
+    if let Message::HelloAck {
+        version,
+        schema,
+        pairs,
+        sensors,
+    } = reply
+    {
         if version != PROTOCOL_VERSION || schema != SCHEMA_HASH {
             bail!(
                 "board speaks protocol v{version} schema {schema:#010x}; this host v{PROTOCOL_VERSION} schema {SCHEMA_HASH:#010x}: rebuild one of them"
@@ -93,14 +111,23 @@ pub fn handshake<P: Port>(link: &mut Link<P>) -> anyhow::Result<()> {
 
 /// Reads the board's status.
 pub fn status<P: Port>(link: &mut Link<P>) -> Result<Status, LinkError> {
-    match link.request(&Message::GetStatus, CMD_TIMEOUT, CMD_ATTEMPTS, |m| matches!(m, Message::Status(_)))? {
+    match link.request(&Message::GetStatus, CMD_TIMEOUT, CMD_ATTEMPTS, |m| {
+        matches!(m, Message::Status(_))
+    })? {
         Message::Status(s) => Ok(s),
-        other => Err(LinkError::Unexpected { request: firmware::protocol::kind::GET_STATUS, reply: other.kind() }),
+        other => Err(LinkError::Unexpected {
+            request: firmware::protocol::kind::GET_STATUS,
+            reply: other.kind(),
+        }),
     }
 }
 
 /// Runs a 3D wire-feedback scenario in lockstep with the board on `link`.
-pub fn run<P: Port>(s: &Scenario, link: &mut Link<P>, opts: HilOptions) -> anyhow::Result<HilOutput> {
+pub fn run<P: Port>(
+    s: &Scenario,
+    link: &mut Link<P>,
+    opts: HilOptions,
+) -> anyhow::Result<HilOutput> {
     s.validate()?;
     if s.joint != JointKind::ThreeD || s.feedback != FeedbackKind::Wire {
         bail!("hardware-in-the-loop runs the 3D joint with wire-sensor feedback (the board's sensor frame carries wire counts)");
@@ -123,12 +150,29 @@ pub fn run<P: Port>(s: &Scenario, link: &mut Link<P>, opts: HilOptions) -> anyho
             CMD_TIMEOUT,
             CMD_ATTEMPTS,
         )?;
-        link.command(&Message::SetCalibration { plane: p, law: laws[usize::from(p)] }, CMD_TIMEOUT, CMD_ATTEMPTS)?;
+        link.command(
+            &Message::SetCalibration {
+                plane: p,
+                law: laws[usize::from(p)],
+            },
+            CMD_TIMEOUT,
+            CMD_ATTEMPTS,
+        )?;
     }
     if let Some(ms) = opts.link_timeout_ms {
-        link.command(&Message::SetLinkTimeout { timeout_ms: ms }, CMD_TIMEOUT, CMD_ATTEMPTS)?;
+        link.command(
+            &Message::SetLinkTimeout { timeout_ms: ms },
+            CMD_TIMEOUT,
+            CMD_ATTEMPTS,
+        )?;
     }
-    link.command(&Message::HilStart { period_us: s.control_period_us }, CMD_TIMEOUT, CMD_ATTEMPTS)?;
+    link.command(
+        &Message::HilStart {
+            period_us: s.control_period_us,
+        },
+        CMD_TIMEOUT,
+        CMD_ATTEMPTS,
+    )?;
     // Faults latched by an earlier run (e.g. link loss) must be cleared.
     match link.command(&Message::ClearFaults, CMD_TIMEOUT, CMD_ATTEMPTS) {
         Ok(()) | Err(LinkError::Refused { .. }) => {}
@@ -148,23 +192,47 @@ pub fn run<P: Port>(s: &Scenario, link: &mut Link<P>, opts: HilOptions) -> anyho
         let t = k as f64 * period;
         if let Some(target) = targets.changed(s, t) {
             for (p, d) in target.iter().enumerate() {
-                link.command(&Message::SetTarget { plane: p as u8, target_deg: *d as f32 }, CMD_TIMEOUT, CMD_ATTEMPTS)
-                    .with_context(|| format!("setting the target at t = {t:.3} s"))?;
+                link.command(
+                    &Message::SetTarget {
+                        plane: p as u8,
+                        target_deg: *d as f32,
+                    },
+                    CMD_TIMEOUT,
+                    CMD_ATTEMPTS,
+                )
+                .with_context(|| format!("setting the target at t = {t:.3} s"))?;
             }
         }
         let target = s.target_at(t);
         let mut overrides = [None; 4];
-        disturber.apply(s, t, &mut overrides, |a, id| sim::load_3d(&mut plant, a, id))?;
-        let counts = Plant::<4, 4, 2>::counts(&plant).map(|c| c.clamp(i64::from(i16::MIN), i64::from(i16::MAX)) as i16);
+        disturber.apply(s, t, &mut overrides, |a, id| {
+            sim::load_3d(&mut plant, a, id)
+        })?;
+        let counts = Plant::<4, 4, 2>::counts(&plant)
+            .map(|c| c.clamp(i64::from(i16::MIN), i64::from(i16::MAX)) as i16);
         let seq = k as u16;
         let msg = Message::HilSensor(SensorFrame { seq, counts });
-        if opts.lose_every.is_some_and(|n| n > 0 && k % u64::from(n) == u64::from(n) - 1) {
+        if opts
+            .lose_every
+            .is_some_and(|n| n > 0 && k % u64::from(n) == u64::from(n) - 1)
+        {
             link.lose_next_send();
         }
         let reply = link
-            .request(&msg, opts.timeout, opts.attempts, |m| matches!(m, Message::HilActuator(a) if a.seq == seq))
+            .request(
+                &msg,
+                opts.timeout,
+                opts.attempts,
+                |m| matches!(m, Message::HilActuator(a) if a.seq == seq),
+            )
             .with_context(|| format!("lockstep step {k} (t = {t:.3} s)"))?;
-        let Message::HilActuator(ActuatorFrame { pair_mv, estimate_cdeg, faults, .. }) = reply else {
+        let Message::HilActuator(ActuatorFrame {
+            pair_mv,
+            estimate_cdeg,
+            faults,
+            ..
+        }) = reply
+        else {
             bail!("unexpected reply");
         };
         // The board's millivolts, exactly as a simulated PWM channel with a
@@ -184,7 +252,8 @@ pub fn run<P: Port>(s: &Scenario, link: &mut Link<P>, opts: HilOptions) -> anyho
             }
         }
         let true_deg = plant.angles_deg();
-        Plant::<4, 4, 2>::advance(&mut plant, period, &volts).with_context(|| format!("plant at t = {t:.3} s"))?;
+        Plant::<4, 4, 2>::advance(&mut plant, period, &volts)
+            .with_context(|| format!("plant at t = {t:.3} s"))?;
         for (pk, c) in peak.iter_mut().zip(plant.coil_temperatures_c()) {
             *pk = pk.max(c);
         }
@@ -202,7 +271,15 @@ pub fn run<P: Port>(s: &Scenario, link: &mut Link<P>, opts: HilOptions) -> anyho
     let _ = link.command(&Message::Disarm, CMD_TIMEOUT, CMD_ATTEMPTS);
     let board = status(link)?;
     let trace = Trace { planes: 2, rows };
-    let summary = sim::summarize(s, &trace, &["alpha", "beta"], wall, estimator, faults_seen, peak.to_vec());
+    let summary = sim::summarize(
+        s,
+        &trace,
+        &["alpha", "beta"],
+        wall,
+        estimator,
+        faults_seen,
+        peak.to_vec(),
+    );
     let report = HilReport {
         summary,
         link: link.stats(),
@@ -211,7 +288,11 @@ pub fn run<P: Port>(s: &Scenario, link: &mut Link<P>, opts: HilOptions) -> anyho
         board_cobs_errors: board.cobs_errors,
         board_overfull: board.overfull,
         board_malformed: board.malformed,
-        lockstep_steps_per_s: if wall > 0.0 { steps as f64 / wall } else { f64::INFINITY },
+        lockstep_steps_per_s: if wall > 0.0 {
+            steps as f64 / wall
+        } else {
+            f64::INFINITY
+        },
     };
     Ok(HilOutput { report, trace })
 }

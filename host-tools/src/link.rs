@@ -185,11 +185,14 @@ impl<P: Port> Link<P> {
             if now >= deadline {
                 return Ok(None);
             }
-            self.port.set_read_timeout((deadline - now).min(Duration::from_millis(100)))?;
+            self.port
+                .set_read_timeout((deadline - now).min(Duration::from_millis(100)))?;
             match self.port.read(&mut self.buf) {
                 Ok(0) => {}
                 Ok(n) => self.buffered = (0, n),
-                Err(e) if e.kind() == io::ErrorKind::TimedOut || e.kind() == io::ErrorKind::WouldBlock => {}
+                Err(e)
+                    if e.kind() == io::ErrorKind::TimedOut
+                        || e.kind() == io::ErrorKind::WouldBlock => {}
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => return Err(e),
             }
@@ -231,12 +234,27 @@ impl<P: Port> Link<P> {
                 }
             }
         }
-        Err(LinkError::Timeout { request, attempts: attempts.max(1), timeout_ms: timeout.as_millis() as u64 })
+        Err(LinkError::Timeout {
+            request,
+            attempts: attempts.max(1),
+            timeout_ms: timeout.as_millis() as u64,
+        })
     }
 
     /// A request answered by `Ack` for its type.
-    pub fn command(&mut self, msg: &Message, timeout: Duration, attempts: u32) -> Result<(), LinkError> {
+    pub fn command(
+        &mut self,
+        msg: &Message,
+        timeout: Duration,
+        attempts: u32,
+    ) -> Result<(), LinkError> {
         let kind = msg.kind();
-        self.request(msg, timeout, attempts, |r| matches!(r, Message::Ack { request } if *request == kind)).map(|_| ())
+        self.request(
+            msg,
+            timeout,
+            attempts,
+            |r| matches!(r, Message::Ack { request } if *request == kind),
+        )
+        .map(|_| ())
     }
 }

@@ -87,7 +87,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
-        Command::Calibrate(CalibrateCommand::Wire { sweep, output, json }) => {
+        Command::Calibrate(CalibrateCommand::Wire {
+            sweep,
+            output,
+            json,
+        }) => {
             let rows = calibrate::read_sweep(&sweep)?;
             let fits = calibrate::fit(&rows)?;
             calibrate::calibration_of(&fits)?.save(&output)?;
@@ -109,10 +113,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         })
                     })
                     .collect();
-                println!("{}", serde_json::to_string_pretty(&serde_json::json!({ "rows": rows.len(), "angles": out, "calibration": output }))?);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(
+                        &serde_json::json!({ "rows": rows.len(), "angles": out, "calibration": output })
+                    )?
+                );
             } else {
                 print!("{}", calibrate::table(&fits));
-                println!("{} rows; calibration written to {}", rows.len(), output.display());
+                println!(
+                    "{} rows; calibration written to {}",
+                    rows.len(),
+                    output.display()
+                );
             }
             Ok(())
         }
@@ -135,7 +148,8 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let out = sim::run(&scenario)?;
-    args.output.write_files(&scenario.name, &out.summary, &out.trace)?;
+    args.output
+        .write_files(&scenario.name, &out.summary, &out.trace)?;
     if args.output.json {
         println!("{}", serde_json::to_string_pretty(&out.summary)?);
     } else {

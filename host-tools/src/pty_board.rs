@@ -62,7 +62,16 @@ impl PtyBoard {
             let (faults, state, stop) = (faults.clone(), state.clone(), stop.clone());
             std::thread::spawn(move || board_loop(board, faults, state, stop))
         };
-        Ok((Self { host_path, faults, state, stop, thread: Some(thread) }, host))
+        Ok((
+            Self {
+                host_path,
+                faults,
+                state,
+                stop,
+                thread: Some(thread),
+            },
+            host,
+        ))
     }
 }
 
@@ -75,7 +84,12 @@ impl Drop for PtyBoard {
     }
 }
 
-fn board_loop(mut port: TTYPort, faults: Arc<Mutex<BoardFaults>>, state: Arc<Mutex<BoardState>>, stop: Arc<AtomicBool>) {
+fn board_loop(
+    mut port: TTYPort,
+    faults: Arc<Mutex<BoardFaults>>,
+    state: Arc<Mutex<BoardState>>,
+    stop: Arc<AtomicBool>,
+) {
     // The paper configuration is valid (a firmware unit test checks it); a
     // board that cannot start simply never answers, like a dead board.
     let Ok(mut app) = App::new() else { return };
@@ -96,7 +110,9 @@ fn board_loop(mut port: TTYPort, faults: Arc<Mutex<BoardFaults>>, state: Arc<Mut
                 app.on_byte(b, now_ms(), &mut |f: &[u8]| out.push(f.to_vec()));
             }
         }
-        app.poll(now_ms(), &mut NoSensors, &mut |f: &[u8]| out.push(f.to_vec()));
+        app.poll(now_ms(), &mut NoSensors, &mut |f: &[u8]| {
+            out.push(f.to_vec())
+        });
         for frame in out.drain(..) {
             let f = *faults.lock().unwrap();
             if f.drop_replies > 0 {

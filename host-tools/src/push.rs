@@ -15,8 +15,12 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::svg;
 use plant_models::pushing::classify::{classify, MaterialModel};
-use plant_models::pushing::evaluate::{score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore};
-use plant_models::pushing::evolution::{calibrate, CalibrationResult, EvolutionSettings, TABLE_III_RANGES};
+use plant_models::pushing::evaluate::{
+    score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore,
+};
+use plant_models::pushing::evolution::{
+    calibrate, CalibrationResult, EvolutionSettings, TABLE_III_RANGES,
+};
 use plant_models::pushing::force_regression::{ForcePredictor, DEFAULT_ERROR_THRESHOLD};
 use plant_models::pushing::forces::MaterialParams;
 use plant_models::pushing::reference::{record_push, ReferenceConfig, ReferenceMaterial, Video};
@@ -232,11 +236,17 @@ fn load_video(v: &VideoArgs) -> Result<Video> {
     let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
     match &v.video {
         Some(path) => {
-            let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            parse_video_csv(&text, &scenario, v.material.label()).with_context(|| format!("in {}", path.display()))
+            let text =
+                fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            parse_video_csv(&text, &scenario, v.material.label())
+                .with_context(|| format!("in {}", path.display()))
         }
         None => {
-            let cfg = ReferenceConfig { element_size_px: v.ref_element_px, seed: v.noise_seed, ..ReferenceConfig::default() };
+            let cfg = ReferenceConfig {
+                element_size_px: v.ref_element_px,
+                seed: v.noise_seed,
+                ..ReferenceConfig::default()
+            };
             Ok(record_push(v.material.label(), mat, &scenario, &cfg)?)
         }
     }
@@ -244,17 +254,26 @@ fn load_video(v: &VideoArgs) -> Result<Video> {
 
 fn prepare(v: &VideoArgs, m: &ModelArgs) -> Result<PreparedVideo> {
     let video = load_video(v)?;
-    Ok(PreparedVideo::new(video, &EvalSetup { nx: m.nx, ny: m.ny, cell_px: m.cell_px })?)
+    Ok(PreparedVideo::new(
+        video,
+        &EvalSetup {
+            nx: m.nx,
+            ny: m.ny,
+            cell_px: m.cell_px,
+        },
+    )?)
 }
 
 /// Reads parameters from a bare parameter object or from `calibrate`'s
 /// `params.json` (which holds them under `best_params`).
 fn load_params(path: &Path) -> Result<MaterialParams> {
     let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let value: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
     let inner = value.get("best_params").cloned().unwrap_or(value);
     let p: MaterialParams = serde_json::from_value(inner).with_context(|| format!("{}: expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha)", path.display()))?;
-    p.validate().with_context(|| format!("in {}", path.display()))?;
+    p.validate()
+        .with_context(|| format!("in {}", path.display()))?;
     Ok(p)
 }
 
@@ -270,23 +289,46 @@ fn write(path: &Path, text: &str) -> Result<()> {
 const SNAPSHOT_FRAMES: [usize; 5] = [0, 25, 50, 75, 99];
 
 /// Mesh positions of the model at the snapshot frames.
-fn snapshot_positions(prep: &PreparedVideo, forces: &[f64], p: &MaterialParams, sim: &SimConfig) -> Result<Vec<(usize, Vec<V2>)>> {
+fn snapshot_positions(
+    prep: &PreparedVideo,
+    forces: &[f64],
+    p: &MaterialParams,
+    sim: &SimConfig,
+) -> Result<Vec<(usize, Vec<V2>)>> {
     let n = prep.frame_count();
     let frames: Vec<usize> = SNAPSHOT_FRAMES.iter().map(|&f| f.min(n - 1)).collect();
     let mut out = Vec::new();
-    simulate_frames(&prep.mesh, &prep.video.scenario, forces, p, sim, |f, pos, _| {
-        if frames.contains(&f) {
-            out.push((f, pos.to_vec()));
-        }
-    })?;
+    simulate_frames(
+        &prep.mesh,
+        &prep.video.scenario,
+        forces,
+        p,
+        sim,
+        |f, pos, _| {
+            if frames.contains(&f) {
+                out.push((f, pos.to_vec()));
+            }
+        },
+    )?;
     Ok(out)
 }
 
 /// Mesh snapshots over frames: ground-truth outline (grey fill), the model
 /// mesh (blue), the finger (red).
-fn snapshots_svg(prep: &PreparedVideo, shots: &[(usize, Vec<V2>)], score: &RunScore, title: &str) -> String {
+fn snapshots_svg(
+    prep: &PreparedVideo,
+    shots: &[(usize, Vec<V2>)],
+    score: &RunScore,
+    title: &str,
+) -> String {
     let sc = &prep.video.scenario;
-    let (lo, hi) = (prep.grid.origin_px, V2::new(prep.grid.origin_px.x + prep.grid.nx as f64 * prep.grid.cell_px, prep.grid.origin_px.y + prep.grid.ny as f64 * prep.grid.cell_px));
+    let (lo, hi) = (
+        prep.grid.origin_px,
+        V2::new(
+            prep.grid.origin_px.x + prep.grid.nx as f64 * prep.grid.cell_px,
+            prep.grid.origin_px.y + prep.grid.ny as f64 * prep.grid.cell_px,
+        ),
+    );
     let panel_w = 300.0;
     let scale = panel_w / (hi.x - lo.x);
     let panel_h = (hi.y - lo.y) * scale;
@@ -294,37 +336,74 @@ fn snapshots_svg(prep: &PreparedVideo, shots: &[(usize, Vec<V2>)], score: &RunSc
     let width = panel_w * shots.len() as f64 + 10.0 * (shots.len() as f64 + 1.0);
     let height = panel_h + top + 40.0;
     let mut s = String::new();
-    let _ = writeln!(s, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0}" height="{height:.0}" font-family="sans-serif" font-size="12">"#);
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0}" height="{height:.0}" font-family="sans-serif" font-size="12">"#
+    );
     let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(s, r#"<text x="10" y="20" font-size="14">{}</text>"#, title.replace('&', "&amp;").replace('<', "&lt;"));
+    let _ = writeln!(
+        s,
+        r#"<text x="10" y="20" font-size="14">{}</text>"#,
+        title.replace('&', "&amp;").replace('<', "&lt;")
+    );
     for (k, (f, pos)) in shots.iter().enumerate() {
         let ox = 10.0 + k as f64 * (panel_w + 10.0);
         let tx = |p: V2| (ox + (p.x - lo.x) * scale, top + (hi.y - p.y) * scale);
-        let _ = writeln!(s, r##"<rect x="{ox:.1}" y="{top:.1}" width="{panel_w:.1}" height="{panel_h:.1}" fill="none" stroke="#ccc"/>"##);
+        let _ = writeln!(
+            s,
+            r##"<rect x="{ox:.1}" y="{top:.1}" width="{panel_w:.1}" height="{panel_h:.1}" fill="none" stroke="#ccc"/>"##
+        );
         // table
         let (tx0, ty0) = tx(V2::new(lo.x, 0.0));
-        let _ = writeln!(s, r##"<line x1="{tx0:.1}" y1="{ty0:.1}" x2="{:.1}" y2="{ty0:.1}" stroke="#964" stroke-width="2"/>"##, ox + panel_w);
+        let _ = writeln!(
+            s,
+            r##"<line x1="{tx0:.1}" y1="{ty0:.1}" x2="{:.1}" y2="{ty0:.1}" stroke="#964" stroke-width="2"/>"##,
+            ox + panel_w
+        );
         let mut pts = String::new();
         for p in &prep.video.contours_px[*f] {
             let (x, y) = tx(*p);
             let _ = write!(pts, "{x:.1},{y:.1} ");
         }
-        let _ = writeln!(s, r##"<polygon points="{pts}" fill="#ddd" stroke="#777" stroke-width="1"/>"##);
+        let _ = writeln!(
+            s,
+            r##"<polygon points="{pts}" fill="#ddd" stroke="#777" stroke-width="1"/>"##
+        );
         let mut path = String::new();
         for e in &prep.mesh.edges {
             let (x1, y1) = tx(pos[e[0]]);
             let (x2, y2) = tx(pos[e[1]]);
             let _ = write!(path, "M{x1:.1},{y1:.1}L{x2:.1},{y2:.1}");
         }
-        let _ = writeln!(s, r##"<path d="{path}" stroke="#1f5fbf" stroke-width="0.7" fill="none"/>"##);
+        let _ = writeln!(
+            s,
+            r##"<path d="{path}" stroke="#1f5fbf" stroke-width="0.7" fill="none"/>"##
+        );
         let finger = sc.finger_at(sc.frame_time_s(*f));
         let (cx, cy) = tx(finger.centre_px);
-        let _ = writeln!(s, r##"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="none" stroke="#d22" stroke-width="1.5"/>"##, finger.radius_px * scale);
+        let _ = writeln!(
+            s,
+            r##"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="none" stroke="#d22" stroke-width="1.5"/>"##,
+            finger.radius_px * scale
+        );
         let fscore = score.f_per_frame.get(*f).copied().unwrap_or(f64::NAN);
-        let phase = if sc.is_push_frame(*f) { "push" } else { "retrieval" };
-        let _ = writeln!(s, r#"<text x="{:.1}" y="{:.1}">frame {f} ({phase}), F = {fscore:.3}</text>"#, ox, top + panel_h + 18.0);
+        let phase = if sc.is_push_frame(*f) {
+            "push"
+        } else {
+            "retrieval"
+        };
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{:.1}">frame {f} ({phase}), F = {fscore:.3}</text>"#,
+            ox,
+            top + panel_h + 18.0
+        );
     }
-    let _ = writeln!(s, r##"<text x="10" y="{:.1}" fill="#555">grey: ground-truth contour · blue: mass-spring mesh · red: finger · brown: table</text>"##, height - 6.0);
+    let _ = writeln!(
+        s,
+        r##"<text x="10" y="{:.1}" fill="#555">grey: ground-truth contour · blue: mass-spring mesh · red: finger · brown: table</text>"##,
+        height - 6.0
+    );
     s.push_str("</svg>\n");
     s
 }
@@ -332,13 +411,19 @@ fn snapshots_svg(prep: &PreparedVideo, shots: &[(usize, Vec<V2>)], score: &RunSc
 fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> String {
     let sc = &prep.video.scenario;
     let mean = plant_models::pushing::raster::running_mean(&score.f_per_frame);
-    let mut s = String::from("frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f\n");
+    let mut s = String::from(
+        "frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f\n",
+    );
     for f in 0..prep.frame_count() {
         let t = sc.frame_time_s(f);
         let _ = writeln!(
             s,
             "{f},{t:.3},{},{:.3},{:.4},{:.4},{:.5},{:.5}",
-            if sc.is_push_frame(f) { "push" } else { "retrieval" },
+            if sc.is_push_frame(f) {
+                "push"
+            } else {
+                "retrieval"
+            },
             sc.finger_depth_px(t),
             prep.video.forces_n[f],
             forces_used[f],
@@ -360,23 +445,58 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
         },
     };
     let forces = if a.predicted_forces {
-        ForcePredictor::fit(&prep.video.scenario, &prep.video.forces_n, DEFAULT_ERROR_THRESHOLD)?.predict_series(&prep.video.scenario)
+        ForcePredictor::fit(
+            &prep.video.scenario,
+            &prep.video.forces_n,
+            DEFAULT_ERROR_THRESHOLD,
+        )?
+        .predict_series(&prep.video.scenario)
     } else {
         prep.video.forces_n.clone()
     };
     let score = score_run(&prep, &forces, &params, &sim)?;
     out_dir(&a.out)?;
-    write(&a.out.join("frames.csv"), &frames_csv(&prep, &forces, &score))?;
+    write(
+        &a.out.join("frames.csv"),
+        &frames_csv(&prep, &forces, &score),
+    )?;
     write(&a.out.join("video.csv"), &write_video_csv(&prep.video))?;
     let shots = snapshot_positions(&prep, &forces, &params, &sim)?;
-    let title = format!("{} pushed at {}: μ(F) = {:.4}", prep.video.material, prep.video.scenario.site.name(), score.mean_f);
-    write(&a.out.join("snapshots.svg"), &snapshots_svg(&prep, &shots, &score, &title))?;
+    let title = format!(
+        "{} pushed at {}: μ(F) = {:.4}",
+        prep.video.material,
+        prep.video.scenario.site.name(),
+        score.mean_f
+    );
+    write(
+        &a.out.join("snapshots.svg"),
+        &snapshots_svg(&prep, &shots, &score, &title),
+    )?;
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
     let chart = svg::render(
         &t,
         &[
-            svg::Chart { title: "F-score per frame (x: frame)".into(), y_label: "F".into(), series: vec![svg::Series::new("F".into(), "#1f5fbf", false, score.f_per_frame.clone()), svg::Series::new("μ(F)".into(), "#d22", true, plant_models::pushing::raster::running_mean(&score.f_per_frame))] },
-            svg::Chart { title: "Finger force".into(), y_label: "N".into(), series: vec![svg::Series::new("sensed".into(), "#555", false, prep.video.forces_n.clone()), svg::Series::new("driving the model".into(), "#e80", true, forces.clone())] },
+            svg::Chart {
+                title: "F-score per frame (x: frame)".into(),
+                y_label: "F".into(),
+                series: vec![
+                    svg::Series::new("F".into(), "#1f5fbf", false, score.f_per_frame.clone()),
+                    svg::Series::new(
+                        "μ(F)".into(),
+                        "#d22",
+                        true,
+                        plant_models::pushing::raster::running_mean(&score.f_per_frame),
+                    ),
+                ],
+            },
+            svg::Chart {
+                title: "Finger force".into(),
+                y_label: "N".into(),
+                series: vec![
+                    svg::Series::new("sensed".into(), "#555", false, prep.video.forces_n.clone()),
+                    svg::Series::new("driving the model".into(), "#e80", true, forces.clone()),
+                ],
+            },
         ],
     );
     write(&a.out.join("f_per_frame.svg"), &chart)?;
@@ -399,9 +519,15 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     } else {
         println!("{title}");
         if let Some(f) = score.unstable_from_frame {
-            println!("unstable from frame {f} ({:?}): scored 0 from there", score.instability);
+            println!(
+                "unstable from frame {f} ({:?}): scored 0 from there",
+                score.instability
+            );
         }
-        println!("wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}", a.out.display());
+        println!(
+            "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
+            a.out.display()
+        );
     }
     Ok(())
 }
@@ -415,12 +541,22 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     let mut st = EvolutionSettings::table_iii(a.seed);
     st.generations = a.generations;
     let bar = indicatif::ProgressBar::new(a.generations as u64);
-    bar.set_style(indicatif::ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} generations, {msg} ({elapsed})").map_err(|e| anyhow::anyhow!("{e}"))?.progress_chars("=> "));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} generations, {msg} ({elapsed})",
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .progress_chars("=> "),
+    );
     bar.set_prefix("calibrating");
     let result: CalibrationResult = calibrate(
         &st,
         &TABLE_III_RANGES,
-        |p| score_run(&prep, &prep.video.forces_n, p, &sim).map(|s| s.mean_f).unwrap_or(f64::NAN),
+        |p| {
+            score_run(&prep, &prep.video.forces_n, p, &sim)
+                .map(|s| s.mean_f)
+                .unwrap_or(f64::NAN)
+        },
         |g| {
             bar.set_message(format!("best μ(F) {:.4}", g.best));
             bar.inc(1);
@@ -428,29 +564,56 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     )?;
     bar.finish_and_clear();
     out_dir(&a.out)?;
-    write(&a.out.join("params.json"), &serde_json::to_string_pretty(&result)?)?;
+    write(
+        &a.out.join("params.json"),
+        &serde_json::to_string_pretty(&result)?,
+    )?;
     let mut csv = String::from("generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n");
     for g in &result.history {
-        let _ = writeln!(csv, "{},{:.6},{:.6},{:.6},{:.2}", g.generation, g.best, g.mean, g.worst, g.sigma);
+        let _ = writeln!(
+            csv,
+            "{},{:.6},{:.6},{:.6},{:.2}",
+            g.generation, g.best, g.mean, g.worst, g.sigma
+        );
     }
     write(&a.out.join("generations.csv"), &csv)?;
     let t: Vec<f64> = result.history.iter().map(|g| g.generation as f64).collect();
     let chart = svg::render(
         &t,
         &[svg::Chart {
-            title: format!("μ(F) per generation (x: generation), {} at {}", prep.video.material, prep.video.scenario.site.name()),
+            title: format!(
+                "μ(F) per generation (x: generation), {} at {}",
+                prep.video.material,
+                prep.video.scenario.site.name()
+            ),
             y_label: "μ(F)".into(),
             series: vec![
-                svg::Series::new("best".into(), "#1f5fbf", false, result.history.iter().map(|g| g.best).collect()),
-                svg::Series::new("population mean".into(), "#e80", true, result.history.iter().map(|g| g.mean).collect()),
+                svg::Series::new(
+                    "best".into(),
+                    "#1f5fbf",
+                    false,
+                    result.history.iter().map(|g| g.best).collect(),
+                ),
+                svg::Series::new(
+                    "population mean".into(),
+                    "#e80",
+                    true,
+                    result.history.iter().map(|g| g.mean).collect(),
+                ),
             ],
         }],
     );
     write(&a.out.join("mu_per_generation.svg"), &chart)?;
     let score = score_run(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
     let shots = snapshot_positions(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
-    let title = format!("calibrated {} model on its training push: μ(F) = {:.4}", prep.video.material, score.mean_f);
-    write(&a.out.join("snapshots.svg"), &snapshots_svg(&prep, &shots, &score, &title))?;
+    let title = format!(
+        "calibrated {} model on its training push: μ(F) = {:.4}",
+        prep.video.material, score.mean_f
+    );
+    write(
+        &a.out.join("snapshots.svg"),
+        &snapshots_svg(&prep, &shots, &score, &title),
+    )?;
     if a.json {
         println!(
             "{}",
@@ -467,9 +630,17 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             }))?
         );
     } else {
-        println!("best μ(F) {:.4} after {} generations ({} simulations)", result.best_score, result.history.len(), result.evaluations);
+        println!(
+            "best μ(F) {:.4} after {} generations ({} simulations)",
+            result.best_score,
+            result.history.len(),
+            result.evaluations
+        );
         println!("{:?}", result.best_params);
-        println!("wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}", a.out.display());
+        println!(
+            "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
+            a.out.display()
+        );
     }
     Ok(())
 }
@@ -481,11 +652,18 @@ fn parse_model(spec: &str) -> Result<MaterialModel> {
     if label.trim().is_empty() {
         bail!("--model `{spec}`: the label is empty");
     }
-    Ok(MaterialModel { label: label.trim().to_string(), params: load_params(Path::new(path.trim()))? })
+    Ok(MaterialModel {
+        label: label.trim().to_string(),
+        params: load_params(Path::new(path.trim()))?,
+    })
 }
 
 fn classify_cmd(a: ClassifyArgs) -> Result<()> {
-    let models: Vec<MaterialModel> = a.models.iter().map(|s| parse_model(s)).collect::<Result<_>>()?;
+    let models: Vec<MaterialModel> = a
+        .models
+        .iter()
+        .map(|s| parse_model(s))
+        .collect::<Result<_>>()?;
     if models.len() < 2 {
         bail!("classification needs at least two --model LABEL=PARAMS.json");
     }
@@ -503,7 +681,13 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
         for k in 0..models.len() {
             let _ = write!(csv, ",{:.5}", c.f_per_frame[k][f]);
         }
-        let _ = writeln!(csv, ",{}", c.frame_winner[f].map(|k| c.labels[k].as_str()).unwrap_or("tie"));
+        let _ = writeln!(
+            csv,
+            ",{}",
+            c.frame_winner[f]
+                .map(|k| c.labels[k].as_str())
+                .unwrap_or("tie")
+        );
     }
     write(&a.out.join("classification.csv"), &csv)?;
     const COLOURS: [&str; 6] = ["#1f5fbf", "#d22", "#2a2", "#e80", "#808", "#555"];
@@ -511,9 +695,23 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     let chart = svg::render(
         &t,
         &[svg::Chart {
-            title: format!("F per frame of each model (x: frame) — global vote: {}", c.winner_label()),
+            title: format!(
+                "F per frame of each model (x: frame) — global vote: {}",
+                c.winner_label()
+            ),
             y_label: "F".into(),
-            series: models.iter().enumerate().map(|(k, m)| svg::Series::new(m.label.clone(), COLOURS[k % COLOURS.len()], k % 2 == 1, c.f_per_frame[k].clone())).collect(),
+            series: models
+                .iter()
+                .enumerate()
+                .map(|(k, m)| {
+                    svg::Series::new(
+                        m.label.clone(),
+                        COLOURS[k % COLOURS.len()],
+                        k % 2 == 1,
+                        c.f_per_frame[k].clone(),
+                    )
+                })
+                .collect(),
         }],
     );
     write(&a.out.join("classification.svg"), &chart)?;
@@ -533,9 +731,15 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     } else {
         println!("global vote: {}", c.winner_label());
         for (k, l) in c.labels.iter().enumerate() {
-            println!("  {l:>12}: {} frames won, weighted vote {:+.4}", c.frames_won[k], c.vote[k]);
+            println!(
+                "  {l:>12}: {} frames won, weighted vote {:+.4}",
+                c.frames_won[k], c.vote[k]
+            );
         }
-        println!("wrote classification.csv, classification.svg to {}", a.out.display());
+        println!(
+            "wrote classification.csv, classification.svg to {}",
+            a.out.display()
+        );
     }
     Ok(())
 }
@@ -551,26 +755,49 @@ mod tests {
     }
 
     fn small_video(material: MaterialArg) -> VideoArgs {
-        VideoArgs { material, site: SiteArg::MiddleLong, video: None, ref_element_px: 30.0, noise_seed: 1 }
+        VideoArgs {
+            material,
+            site: SiteArg::MiddleLong,
+            video: None,
+            ref_element_px: 30.0,
+            noise_seed: 1,
+        }
     }
 
     fn small_model() -> ModelArgs {
-        ModelArgs { integrator: IntegratorArg::Customised, mode: ModeArg::Both, nx: 3, ny: 2, cell_px: 8.0, no_repair: false }
+        ModelArgs {
+            integrator: IntegratorArg::Customised,
+            mode: ModeArg::Both,
+            nx: 3,
+            ny: 2,
+            cell_px: 8.0,
+            no_repair: false,
+        }
     }
 
     #[test]
     fn bad_model_specs_and_parameter_files_are_refused_clearly() {
         let dir = tmp("bad");
         fs::create_dir_all(&dir).unwrap();
-        assert!(parse_model("sponge").unwrap_err().to_string().contains("expected LABEL=PARAMS.json"));
-        assert!(parse_model(" =x.json").unwrap_err().to_string().contains("label is empty"));
-        assert!(format!("{:#}", parse_model("a=/nonexistent/p.json").unwrap_err()).contains("reading /nonexistent/p.json"));
+        assert!(parse_model("sponge")
+            .unwrap_err()
+            .to_string()
+            .contains("expected LABEL=PARAMS.json"));
+        assert!(parse_model(" =x.json")
+            .unwrap_err()
+            .to_string()
+            .contains("label is empty"));
+        assert!(
+            format!("{:#}", parse_model("a=/nonexistent/p.json").unwrap_err())
+                .contains("reading /nonexistent/p.json")
+        );
         let p = dir.join("notjson.json");
         fs::write(&p, "k_length = 3").unwrap();
         assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("is not JSON"));
         let p = dir.join("missing.json");
         fs::write(&p, r#"{"k_length": 1.0}"#).unwrap();
-        assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("expected the eight model parameters"));
+        assert!(format!("{:#}", load_params(&p).unwrap_err())
+            .contains("expected the eight model parameters"));
         let p = dir.join("negative.json");
         let mut bad = serde_json::to_value(MaterialParams::SEED_FIG14_SPONGE).unwrap();
         bad["k_area"] = serde_json::json!(-1.0);
@@ -583,10 +810,20 @@ mod tests {
     fn simulate_calibrate_and_classify_write_their_files() {
         let dir = tmp("run");
         let sim_out = dir.join("sim");
-        simulate_cmd(SimulateArgs { video: small_video(MaterialArg::Sponge), model: small_model(), params: None, predicted_forces: true, out: sim_out.clone(), json: true }).unwrap();
+        simulate_cmd(SimulateArgs {
+            video: small_video(MaterialArg::Sponge),
+            model: small_model(),
+            params: None,
+            predicted_forces: true,
+            out: sim_out.clone(),
+            json: true,
+        })
+        .unwrap();
         let frames = fs::read_to_string(sim_out.join("frames.csv")).unwrap();
         assert_eq!(frames.lines().count(), 101);
-        assert!(fs::read_to_string(sim_out.join("snapshots.svg")).unwrap().starts_with("<svg"));
+        assert!(fs::read_to_string(sim_out.join("snapshots.svg"))
+            .unwrap()
+            .starts_with("<svg"));
         // The written video reads back through --video.
         let mut v = small_video(MaterialArg::Sponge);
         v.video = Some(sim_out.join("video.csv"));
@@ -594,17 +831,62 @@ mod tests {
         assert_eq!(again.contours_px.len(), 100);
 
         for (mat, name) in [(MaterialArg::Sponge, "s"), (MaterialArg::Plasticine, "p")] {
-            calibrate_cmd(CalibrateArgs { video: small_video(mat), model: small_model(), generations: 2, seed: 3, out: dir.join(name), json: true }).unwrap();
+            calibrate_cmd(CalibrateArgs {
+                video: small_video(mat),
+                model: small_model(),
+                generations: 2,
+                seed: 3,
+                out: dir.join(name),
+                json: true,
+            })
+            .unwrap();
             let p = load_params(&dir.join(name).join("params.json")).unwrap();
             p.validate().unwrap();
-            assert_eq!(fs::read_to_string(dir.join(name).join("generations.csv")).unwrap().lines().count(), 3);
+            assert_eq!(
+                fs::read_to_string(dir.join(name).join("generations.csv"))
+                    .unwrap()
+                    .lines()
+                    .count(),
+                3
+            );
         }
-        let models = vec![format!("sponge={}", dir.join("s/params.json").display()), format!("plasticine={}", dir.join("p/params.json").display())];
-        classify_cmd(ClassifyArgs { video: small_video(MaterialArg::Plasticine), model: small_model(), models, out: dir.join("c"), json: true }).unwrap();
-        assert_eq!(fs::read_to_string(dir.join("c/classification.csv")).unwrap().lines().count(), 101);
+        let models = vec![
+            format!("sponge={}", dir.join("s/params.json").display()),
+            format!("plasticine={}", dir.join("p/params.json").display()),
+        ];
+        classify_cmd(ClassifyArgs {
+            video: small_video(MaterialArg::Plasticine),
+            model: small_model(),
+            models,
+            out: dir.join("c"),
+            json: true,
+        })
+        .unwrap();
+        assert_eq!(
+            fs::read_to_string(dir.join("c/classification.csv"))
+                .unwrap()
+                .lines()
+                .count(),
+            101
+        );
         let one = vec![format!("sponge={}", dir.join("s/params.json").display())];
-        assert!(classify_cmd(ClassifyArgs { video: small_video(MaterialArg::Plasticine), model: small_model(), models: one, out: dir.join("c"), json: true }).is_err());
-        assert!(calibrate_cmd(CalibrateArgs { video: small_video(MaterialArg::Sponge), model: small_model(), generations: 0, seed: 3, out: dir.join("z"), json: true }).is_err());
+        assert!(classify_cmd(ClassifyArgs {
+            video: small_video(MaterialArg::Plasticine),
+            model: small_model(),
+            models: one,
+            out: dir.join("c"),
+            json: true
+        })
+        .is_err());
+        assert!(calibrate_cmd(CalibrateArgs {
+            video: small_video(MaterialArg::Sponge),
+            model: small_model(),
+            generations: 0,
+            seed: 3,
+            out: dir.join("z"),
+            json: true
+        })
+        .is_err());
         let _ = fs::remove_dir_all(&dir);
     }
 }

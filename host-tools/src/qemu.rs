@@ -12,7 +12,8 @@ use anyhow::{bail, Context};
 pub const DEFAULT_IMAGE: &str = "target/thumbv7em-none-eabihf/release/softjoint-fw";
 
 /// The command that builds the image.
-pub const BUILD_IMAGE: &str = "cargo build -p firmware --release --target thumbv7em-none-eabihf --bin softjoint-fw";
+pub const BUILD_IMAGE: &str =
+    "cargo build -p firmware --release --target thumbv7em-none-eabihf --bin softjoint-fw";
 
 /// A running QEMU; killed when dropped.
 pub struct Qemu {
@@ -28,16 +29,38 @@ impl Qemu {
     /// instruction per virtual ns, for instruction counting).
     pub fn launch(image: &Path, icount: bool) -> anyhow::Result<Self> {
         if !image.exists() {
-            bail!("firmware image {} not found; build it with `{BUILD_IMAGE}`", image.display());
+            bail!(
+                "firmware image {} not found; build it with `{BUILD_IMAGE}`",
+                image.display()
+            );
         }
         let mut cmd = Command::new("qemu-system-arm");
-        cmd.args(["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic", "-monitor", "none"])
-            .args(["-semihosting-config", "enable=on,target=native", "-serial", "pty"]);
+        cmd.args([
+            "-cpu",
+            "cortex-m4",
+            "-machine",
+            "mps2-an386",
+            "-nographic",
+            "-monitor",
+            "none",
+        ])
+        .args([
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-serial",
+            "pty",
+        ]);
         if icount {
             cmd.args(["-icount", "shift=0"]);
         }
-        cmd.arg("-kernel").arg(image).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
-        let mut child = cmd.spawn().context("cannot start qemu-system-arm (is it installed? apt-get install qemu-system-arm)")?;
+        cmd.arg("-kernel")
+            .arg(image)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        let mut child = cmd.spawn().context(
+            "cannot start qemu-system-arm (is it installed? apt-get install qemu-system-arm)",
+        )?;
         let stdout = child.stdout.take().context("qemu stdout")?;
         let stderr = child.stderr.take().context("qemu stderr")?;
         let (tx, rx) = mpsc::channel();
@@ -69,11 +92,18 @@ impl Qemu {
                 }
                 Err(_) => {
                     let _ = child.kill();
-                    bail!("qemu did not report its pty within 10 s; it printed: {}", seen.join(" | "));
+                    bail!(
+                        "qemu did not report its pty within 10 s; it printed: {}",
+                        seen.join(" | ")
+                    );
                 }
             }
         };
-        Ok(Self { child, pty, lines: rx })
+        Ok(Self {
+            child,
+            pty,
+            lines: rx,
+        })
     }
 
     /// Lines QEMU printed since the last call (semihosting output, errors).

@@ -43,7 +43,13 @@ pub fn table(s: &Summary) -> String {
     let _ = writeln!(out);
     let mut head = format!("{:>8} {:>8}", "from s", "to s");
     for a in &s.angles {
-        let _ = write!(head, " {:>10} {:>10} {:>11}", format!("{a} target"), "ss err", "overshoot");
+        let _ = write!(
+            head,
+            " {:>10} {:>10} {:>11}",
+            format!("{a} target"),
+            "ss err",
+            "overshoot"
+        );
     }
     let _ = writeln!(out, "{head}");
     for g in &s.segments {
@@ -65,9 +71,17 @@ pub fn table(s: &Summary) -> String {
             s.steady_state_error_deg[p], s.max_estimation_error_deg[p]
         );
     }
-    let temps: Vec<String> = s.peak_coil_temperature_c.iter().map(|t| format!("{t:.0}")).collect();
+    let temps: Vec<String> = s
+        .peak_coil_temperature_c
+        .iter()
+        .map(|t| format!("{t:.0}"))
+        .collect();
     let _ = writeln!(out, "peak coil temperatures (°C): {}", temps.join(", "));
-    let faults = if s.faults_seen.is_empty() { "none".to_string() } else { s.faults_seen.join(", ") };
+    let faults = if s.faults_seen.is_empty() {
+        "none".to_string()
+    } else {
+        s.faults_seen.join(", ")
+    };
     let _ = writeln!(out, "faults seen: {faults}");
     let _ = writeln!(
         out,
@@ -91,7 +105,11 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
     for r in &trace.rows {
         let _ = write!(s, "{:.4}", r.t_s);
         for p in 0..angles.len() {
-            let _ = write!(s, ",{:.4},{:.4},{:.4}", r.true_deg[p], r.estimate_deg[p], r.desired_deg[p]);
+            let _ = write!(
+                s,
+                ",{:.4},{:.4},{:.4}",
+                r.true_deg[p], r.estimate_deg[p], r.desired_deg[p]
+            );
         }
         for v in r.coil_volts.iter().take(coils) {
             let _ = write!(s, ",{v:.3}");
@@ -103,7 +121,12 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
 
 /// Writes an SVG of angles (true, estimated, desired) and coil voltages
 /// against time.
-pub fn write_plot(path: &Path, title: &str, angles: &[String], trace: &Trace) -> anyhow::Result<()> {
+pub fn write_plot(
+    path: &Path,
+    title: &str,
+    angles: &[String],
+    trace: &Trace,
+) -> anyhow::Result<()> {
     // Thin the series to ≤ 4000 points per line; plots need no more.
     let stride = (trace.rows.len() / 4000).max(1);
     let rows: Vec<_> = trace.rows.iter().step_by(stride).collect();
@@ -112,17 +135,48 @@ pub fn write_plot(path: &Path, title: &str, angles: &[String], trace: &Trace) ->
     let mut angle_series = Vec::new();
     for (p, a) in angles.iter().enumerate() {
         let c = colours[p % colours.len()];
-        angle_series.push(Series::new(format!("{a} true"), c, false, rows.iter().map(|r| r.true_deg[p]).collect()));
-        angle_series.push(Series::new(format!("{a} estimate"), c, true, rows.iter().map(|r| r.estimate_deg[p]).collect()));
-        angle_series.push(Series::new(format!("{a} desired"), "#555555", true, rows.iter().map(|r| r.desired_deg[p]).collect()));
+        angle_series.push(Series::new(
+            format!("{a} true"),
+            c,
+            false,
+            rows.iter().map(|r| r.true_deg[p]).collect(),
+        ));
+        angle_series.push(Series::new(
+            format!("{a} estimate"),
+            c,
+            true,
+            rows.iter().map(|r| r.estimate_deg[p]).collect(),
+        ));
+        angle_series.push(Series::new(
+            format!("{a} desired"),
+            "#555555",
+            true,
+            rows.iter().map(|r| r.desired_deg[p]).collect(),
+        ));
     }
     let coils = 2 * trace.planes;
     let volt_series = (0..coils)
-        .map(|c| Series::new(format!("v{}", c + 1), colours[c % colours.len()], false, rows.iter().map(|r| r.coil_volts[c]).collect()))
+        .map(|c| {
+            Series::new(
+                format!("v{}", c + 1),
+                colours[c % colours.len()],
+                false,
+                rows.iter().map(|r| r.coil_volts[c]).collect(),
+            )
+        })
         .collect();
     let charts = [
-        Chart { title: format!("{title} — angles"), y_label: "angle (deg)".into(), series: angle_series },
-        Chart { title: "driver input voltages".into(), y_label: "voltage (V)".into(), series: volt_series },
+        Chart {
+            title: format!("{title} — angles"),
+            y_label: "angle (deg)".into(),
+            series: angle_series,
+        },
+        Chart {
+            title: "driver input voltages".into(),
+            y_label: "voltage (V)".into(),
+            series: volt_series,
+        },
     ];
-    std::fs::write(path, crate::svg::render(&t, &charts)).with_context(|| format!("cannot write {}", path.display()))
+    std::fs::write(path, crate::svg::render(&t, &charts))
+        .with_context(|| format!("cannot write {}", path.display()))
 }

@@ -60,7 +60,12 @@ pub struct ControllerSpec {
 
 impl Default for ControllerSpec {
     fn default() -> Self {
-        Self { mode: ControlMode::Antagonistic, kp_v_per_deg: vec![2.0], ki_v_per_deg_s: 0.0, integral_limit_v: 1.0 }
+        Self {
+            mode: ControlMode::Antagonistic,
+            kp_v_per_deg: vec![2.0],
+            ki_v_per_deg_s: 0.0,
+            integral_limit_v: 1.0,
+        }
     }
 }
 
@@ -94,7 +99,10 @@ pub struct EstimatorSpec {
 
 impl Default for EstimatorSpec {
     fn default() -> Self {
-        Self { method: EstimatorMethod::Switching, calibration: None }
+        Self {
+            method: EstimatorMethod::Switching,
+            calibration: None,
+        }
     }
 }
 
@@ -191,9 +199,18 @@ impl Default for Scenario {
             controller: ControllerSpec::default(),
             estimator: EstimatorSpec::default(),
             targets: vec![
-                TargetStep { t_s: 0.0, deg: vec![0.0, 0.0] },
-                TargetStep { t_s: 10.0, deg: vec![5.0, 5.0] },
-                TargetStep { t_s: 20.0, deg: vec![10.0, 10.0] },
+                TargetStep {
+                    t_s: 0.0,
+                    deg: vec![0.0, 0.0],
+                },
+                TargetStep {
+                    t_s: 10.0,
+                    deg: vec![5.0, 5.0],
+                },
+                TargetStep {
+                    t_s: 20.0,
+                    deg: vec![10.0, 10.0],
+                },
             ],
             disturbances: vec![],
             plant: PlantSpec::default(),
@@ -218,16 +235,18 @@ impl Scenario {
     /// Reads and validates a scenario file; errors name the file, the field
     /// and the reason.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read scenario {}", path.display()))?;
-        let mut s: Scenario =
-            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read scenario {}", path.display()))?;
+        let mut s: Scenario = toml::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
         if let Some(c) = &s.estimator.calibration {
             if c.is_relative() {
                 let base = path.parent().unwrap_or(Path::new("."));
                 s.estimator.calibration = Some(base.join(c));
             }
         }
-        s.validate().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        s.validate()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         Ok(s)
     }
 
@@ -241,10 +260,16 @@ impl Scenario {
         };
         finite_pos("duration_s", self.duration_s)?;
         if self.duration_s > 3600.0 {
-            bail!("field `duration_s`: at most 3600 s, got {}", self.duration_s);
+            bail!(
+                "field `duration_s`: at most 3600 s, got {}",
+                self.duration_s
+            );
         }
         if !(100..=1_000_000).contains(&self.control_period_us) {
-            bail!("field `control_period_us`: must be 100..=1000000, got {}", self.control_period_us);
+            bail!(
+                "field `control_period_us`: must be 100..=1000000, got {}",
+                self.control_period_us
+            );
         }
         let kp = &self.controller.kp_v_per_deg;
         if !(kp.len() == 1 || kp.len() == self.coils()) {
@@ -258,12 +283,23 @@ impl Scenario {
         for (i, k) in kp.iter().enumerate() {
             finite_pos(&format!("controller.kp_v_per_deg[{i}]"), *k)?;
         }
-        for (f, v) in [("controller.ki_v_per_deg_s", self.controller.ki_v_per_deg_s), ("controller.integral_limit_v", self.controller.integral_limit_v)] {
+        for (f, v) in [
+            ("controller.ki_v_per_deg_s", self.controller.ki_v_per_deg_s),
+            (
+                "controller.integral_limit_v",
+                self.controller.integral_limit_v,
+            ),
+        ] {
             if !(v.is_finite() && v >= 0.0) {
                 bail!("field `{f}`: must be a finite number ≥ 0, got {v}");
             }
         }
-        if self.planes() == 1 && matches!(self.estimator.method, EstimatorMethod::Switching | EstimatorMethod::Differential) {
+        if self.planes() == 1
+            && matches!(
+                self.estimator.method,
+                EstimatorMethod::Switching | EstimatorMethod::Differential
+            )
+        {
             bail!("field `estimator.method`: the 2D joint has one wire sensor; use \"paper\" or \"single\"");
         }
         if self.targets.is_empty() {
@@ -272,17 +308,29 @@ impl Scenario {
         let mut last_t = f64::NEG_INFINITY;
         for (i, t) in self.targets.iter().enumerate() {
             if !(t.t_s.is_finite() && t.t_s >= 0.0) {
-                bail!("field `targets[{i}].t_s`: must be a finite time ≥ 0, got {}", t.t_s);
+                bail!(
+                    "field `targets[{i}].t_s`: must be a finite time ≥ 0, got {}",
+                    t.t_s
+                );
             }
             if t.t_s < last_t {
-                bail!("field `targets[{i}].t_s`: targets must be in time order ({} after {})", t.t_s, last_t);
+                bail!(
+                    "field `targets[{i}].t_s`: targets must be in time order ({} after {})",
+                    t.t_s,
+                    last_t
+                );
             }
             last_t = t.t_s;
             if t.deg.len() != self.planes() {
-                bail!("field `targets[{i}].deg`: need {} angle(s) for this joint, got {}", self.planes(), t.deg.len());
+                bail!(
+                    "field `targets[{i}].deg`: need {} angle(s) for this joint, got {}",
+                    self.planes(),
+                    t.deg.len()
+                );
             }
             for (k, d) in t.deg.iter().enumerate() {
-                if !(d.is_finite() && d.abs() <= f64::from(firmware::joint::DEFAULT_MAX_TARGET_DEG)) {
+                if !(d.is_finite() && d.abs() <= f64::from(firmware::joint::DEFAULT_MAX_TARGET_DEG))
+                {
                     bail!(
                         "field `targets[{i}].deg[{k}]`: must be within ±{}°, got {d}",
                         firmware::joint::DEFAULT_MAX_TARGET_DEG
@@ -292,20 +340,36 @@ impl Scenario {
         }
         for (i, d) in self.disturbances.iter().enumerate() {
             let (from, to) = match d {
-                Disturbance::CoilVoltage { coil, volts, from_s, to_s } => {
+                Disturbance::CoilVoltage {
+                    coil,
+                    volts,
+                    from_s,
+                    to_s,
+                } => {
                     if !(1..=self.coils()).contains(coil) {
-                        bail!("field `disturbances[{i}].coil`: must be 1..={}, got {coil}", self.coils());
+                        bail!(
+                            "field `disturbances[{i}].coil`: must be 1..={}, got {coil}",
+                            self.coils()
+                        );
                     }
                     if !(volts.is_finite() && (0.0..=5.0).contains(volts)) {
                         bail!("field `disturbances[{i}].volts`: must be within 0–5 V, got {volts}");
                     }
                     (*from_s, *to_s)
                 }
-                Disturbance::Weight { mass_g, plane, direction, from_s, to_s } => {
+                Disturbance::Weight {
+                    mass_g,
+                    plane,
+                    direction,
+                    from_s,
+                    to_s,
+                } => {
                     finite_pos(&format!("disturbances[{i}].mass_g"), *mass_g)?;
                     if let Some(p) = plane {
                         if p != "alpha" && p != "beta" {
-                            bail!("field `disturbances[{i}].plane`: \"alpha\" or \"beta\", got {p:?}");
+                            bail!(
+                                "field `disturbances[{i}].plane`: \"alpha\" or \"beta\", got {p:?}"
+                            );
                         }
                     }
                     if let Some(dir) = direction {
@@ -390,7 +454,12 @@ mod tests {
         assert!(bad("bogus = 1").contains("bogus"));
         assert!(bad("[[targets]]\nt_s = 0\ndeg = [1.0]").contains("targets[0].deg"));
         assert!(bad("[[targets]]\nt_s = 0\ndeg = [40.0, 0.0]").contains("targets[0].deg[0]"));
-        assert!(bad("[[disturbances]]\nkind = \"coil_voltage\"\ncoil = 9\nvolts = 5\nfrom_s = 1\nto_s = 2").contains("coil"));
-        assert!(bad("joint = \"2d\"\n[[targets]]\nt_s = 0\ndeg = [1.0]").contains("estimator.method"));
+        assert!(bad(
+            "[[disturbances]]\nkind = \"coil_voltage\"\ncoil = 9\nvolts = 5\nfrom_s = 1\nto_s = 2"
+        )
+        .contains("coil"));
+        assert!(
+            bad("joint = \"2d\"\n[[targets]]\nt_s = 0\ndeg = [1.0]").contains("estimator.method")
+        );
     }
 }

@@ -71,7 +71,11 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
     };
     let mut link = Link::new(port);
     let out = hil::run(&scenario, &mut link, opts)?;
-    args.output.write_files(&format!("{} (HIL)", scenario.name), &out.report.summary, &out.trace)?;
+    args.output.write_files(
+        &format!("{} (HIL)", scenario.name),
+        &out.report.summary,
+        &out.trace,
+    )?;
     if args.output.json {
         println!("{}", serde_json::to_string_pretty(&out.report)?);
     } else {
@@ -121,7 +125,8 @@ const HELP: &str = "commands:
 pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
     let mut lines: Vec<(String, String)> = Vec::new();
     if let Some(path) = &args.script {
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read script {}", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read script {}", path.display()))?;
         for (i, l) in text.lines().enumerate() {
             let l = l.split('#').next().unwrap_or("").trim();
             if !l.is_empty() {
@@ -145,7 +150,8 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
     };
     for (origin, line) in &lines {
         for cmd in line.split(';').map(str::trim).filter(|c| !c.is_empty()) {
-            run_console_command(&mut link, cmd, csv.as_mut()).with_context(|| format!("{origin}: `{cmd}`"))?;
+            run_console_command(&mut link, cmd, csv.as_mut())
+                .with_context(|| format!("{origin}: `{cmd}`"))?;
         }
     }
     Ok(())
@@ -153,9 +159,16 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
 
 fn open_csv(path: &Path) -> anyhow::Result<std::fs::File> {
     let new = !path.exists();
-    let mut f = std::fs::OpenOptions::new().create(true).append(true).open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .with_context(|| format!("cannot open {}", path.display()))?;
     if new {
-        writeln!(f, "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults")?;
+        writeln!(
+            f,
+            "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults"
+        )?;
     }
     Ok(f)
 }
@@ -163,11 +176,18 @@ fn open_csv(path: &Path) -> anyhow::Result<std::fs::File> {
 const T: Duration = Duration::from_millis(300);
 
 fn arg<T: std::str::FromStr>(words: &[&str], i: usize, what: &str) -> anyhow::Result<T> {
-    let w = words.get(i).ok_or_else(|| anyhow::anyhow!("missing {what}"))?;
-    w.parse().map_err(|_| anyhow::anyhow!("{what}: cannot parse `{w}`"))
+    let w = words
+        .get(i)
+        .ok_or_else(|| anyhow::anyhow!("missing {what}"))?;
+    w.parse()
+        .map_err(|_| anyhow::anyhow!("{what}: cannot parse `{w}`"))
 }
 
-fn run_console_command<P: Port>(link: &mut Link<P>, cmd: &str, csv: Option<&mut std::fs::File>) -> anyhow::Result<()> {
+fn run_console_command<P: Port>(
+    link: &mut Link<P>,
+    cmd: &str,
+    csv: Option<&mut std::fs::File>,
+) -> anyhow::Result<()> {
     let words: Vec<&str> = cmd.split_whitespace().collect();
     match words.as_slice() {
         ["hello"] => {
@@ -189,7 +209,13 @@ fn run_console_command<P: Port>(link: &mut Link<P>, cmd: &str, csv: Option<&mut 
         ["arm"] => ack(link, Message::Arm)?,
         ["disarm"] => ack(link, Message::Disarm)?,
         ["clear"] => ack(link, Message::ClearFaults)?,
-        ["target", ..] => ack(link, Message::SetTarget { plane: arg(&words, 1, "PLANE")?, target_deg: arg(&words, 2, "DEG")? })?,
+        ["target", ..] => ack(
+            link,
+            Message::SetTarget {
+                plane: arg(&words, 1, "PLANE")?,
+                target_deg: arg(&words, 2, "DEG")?,
+            },
+        )?,
         ["gains", ..] => ack(
             link,
             Message::SetGains {
@@ -202,7 +228,9 @@ fn run_console_command<P: Port>(link: &mut Link<P>, cmd: &str, csv: Option<&mut 
         )?,
         ["calibration", "get", ..] => {
             let plane: u8 = arg(&words, 2, "PLANE")?;
-            let r = link.request(&Message::GetCalibration { plane }, T, 5, |m| matches!(m, Message::Calibration { .. }))?;
+            let r = link.request(&Message::GetCalibration { plane }, T, 5, |m| {
+                matches!(m, Message::Calibration { .. })
+            })?;
             if let Message::Calibration { plane, law } = r {
                 println!("plane {plane}: {law:?}");
             }
@@ -210,11 +238,27 @@ fn run_console_command<P: Port>(link: &mut Link<P>, cmd: &str, csv: Option<&mut 
         ["calibration", "set", file] => {
             let cal = CalibrationFile::load(Path::new(file))?;
             for (p, law) in cal.laws()?.into_iter().enumerate() {
-                ack(link, Message::SetCalibration { plane: p as u8, law })?;
+                ack(
+                    link,
+                    Message::SetCalibration {
+                        plane: p as u8,
+                        law,
+                    },
+                )?;
             }
         }
-        ["telemetry", ..] => ack(link, Message::SetTelemetry { rate_hz: arg(&words, 1, "HZ")? })?,
-        ["link-timeout", ..] => ack(link, Message::SetLinkTimeout { timeout_ms: arg(&words, 1, "MS")? })?,
+        ["telemetry", ..] => ack(
+            link,
+            Message::SetTelemetry {
+                rate_hz: arg(&words, 1, "HZ")?,
+            },
+        )?,
+        ["link-timeout", ..] => ack(
+            link,
+            Message::SetLinkTimeout {
+                timeout_ms: arg(&words, 1, "MS")?,
+            },
+        )?,
         ["stream", ..] => {
             let secs: f64 = arg(&words, 1, "SECONDS")?;
             if !(secs.is_finite() && secs >= 0.0) {
@@ -228,7 +272,12 @@ fn run_console_command<P: Port>(link: &mut Link<P>, cmd: &str, csv: Option<&mut 
                     n += 1;
                     let line = format!(
                         "{},{:.3},{:.3},{},{},{}",
-                        t.time_ms, t.estimate_deg[0], t.estimate_deg[1], t.pair_mv[0], t.pair_mv[1], t.faults
+                        t.time_ms,
+                        t.estimate_deg[0],
+                        t.estimate_deg[1],
+                        t.pair_mv[0],
+                        t.pair_mv[1],
+                        t.faults
                     );
                     match csv.as_deref_mut() {
                         Some(f) => writeln!(f, "{line}")?,
@@ -238,7 +287,9 @@ fn run_console_command<P: Port>(link: &mut Link<P>, cmd: &str, csv: Option<&mut 
             }
             eprintln!("{n} telemetry frames in {secs} s");
         }
-        ["wait", ..] => std::thread::sleep(Duration::from_secs_f64(arg::<f64>(&words, 1, "SECONDS")?.clamp(0.0, 3600.0))),
+        ["wait", ..] => std::thread::sleep(Duration::from_secs_f64(
+            arg::<f64>(&words, 1, "SECONDS")?.clamp(0.0, 3600.0),
+        )),
         _ => bail!("unknown command; try `help`\n{HELP}"),
     }
     Ok(())

@@ -9,11 +9,15 @@ use firmware::estimate::PlaneLaw;
 use firmware::joint::{JointConfig, JointController};
 use firmware::supervisor::Faults;
 use hal_sim::{ClosedLoop, FeedbackSource, Plant};
-use plant_models::joint::{Joint2d, Joint2dParams, Joint3d, Joint3dParams, LoadId, Plane, PointLoad};
+use plant_models::joint::{
+    Joint2d, Joint2dParams, Joint3d, Joint3dParams, LoadId, Plane, PointLoad,
+};
 use serde::Serialize;
 
 use crate::calibrate::{self, CalibrationFile, SweepRow};
-use crate::scenario::{ControlMode, Disturbance, EstimatorMethod, FeedbackKind, JointKind, Scenario, TargetTracker};
+use crate::scenario::{
+    ControlMode, Disturbance, EstimatorMethod, FeedbackKind, JointKind, Scenario, TargetTracker,
+};
 
 /// One row of the time series. Fixed-size so recording a step does not
 /// allocate: a 2D joint uses index 0 of the angle arrays and coils 0–1.
@@ -106,8 +110,13 @@ fn gains(s: &Scenario, pair: usize) -> anyhow::Result<PairGains> {
     let k = |coil: usize| kp.get(coil).or(kp.first()).copied().unwrap_or(2.0) as f32;
     // Pair p's agonist is coil p+1, its antagonist coil p+1+planes.
     let planes = s.planes();
-    PairGains::new(k(pair), k(pair + planes), s.controller.ki_v_per_deg_s as f32, s.controller.integral_limit_v as f32)
-        .map_err(|e| anyhow::anyhow!("controller gains: {e:?}"))
+    PairGains::new(
+        k(pair),
+        k(pair + planes),
+        s.controller.ki_v_per_deg_s as f32,
+        s.controller.integral_limit_v as f32,
+    )
+    .map_err(|e| anyhow::anyhow!("controller gains: {e:?}"))
 }
 
 /// Builds the estimation laws for the scenario: the paper's, a calibration
@@ -117,7 +126,10 @@ pub fn laws_for(s: &Scenario) -> anyhow::Result<(Option<Vec<PlaneLaw>>, String)>
         return Ok((None, "paper (Eq. 2 / Eq. 3, published constants)".into()));
     }
     let (fits_cal, source) = match &s.estimator.calibration {
-        Some(path) => (CalibrationFile::load(path)?, format!("calibration file {}", path.display())),
+        Some(path) => (
+            CalibrationFile::load(path)?,
+            format!("calibration file {}", path.display()),
+        ),
         None => {
             let rows = calibration_sweep(s)?;
             let fits = calibrate::fit(&rows)?;
@@ -127,15 +139,24 @@ pub fn laws_for(s: &Scenario) -> anyhow::Result<(Option<Vec<PlaneLaw>>, String)>
             // `single` and `differential` force that method.
             let cal = match s.estimator.method {
                 EstimatorMethod::Single => calibrate::calibration_with(&fits, "single")?,
-                EstimatorMethod::Differential => calibrate::calibration_with(&fits, "differential")?,
+                EstimatorMethod::Differential => {
+                    calibrate::calibration_with(&fits, "differential")?
+                }
                 _ => calibrate::calibration_of(&fits)?,
             };
-            (cal, format!("fitted to a simulated sweep ({} rows)", rows.len()))
+            (
+                cal,
+                format!("fitted to a simulated sweep ({} rows)", rows.len()),
+            )
         }
     };
     let laws = fits_cal.laws()?;
     if laws.len() != s.planes() {
-        bail!("calibration has {} angle(s), the scenario's joint has {}", laws.len(), s.planes());
+        bail!(
+            "calibration has {} angle(s), the scenario's joint has {}",
+            laws.len(),
+            s.planes()
+        );
     }
     let method = match laws[0] {
         PlaneLaw::Single { .. } => "single-sensor quadratic",
@@ -170,8 +191,10 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
             if s.controller.mode == ControlMode::Single {
                 cfg.modes = [firmware::control::PairMode::SingleAgonist; 2];
             }
-            let ctl = JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
-            let cl: ClosedLoop<Joint3d, 2, 4, 4> = ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
+            let ctl =
+                JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
+            let cl: ClosedLoop<Joint3d, 2, 4, 4> =
+                ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
             run_loop(s, cl, estimator, &["alpha", "beta"], load_3d)
         }
         JointKind::TwoD => {
@@ -189,8 +212,10 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
             if s.controller.mode == ControlMode::Single {
                 cfg.modes = [firmware::control::PairMode::SingleAgonist];
             }
-            let ctl = JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
-            let cl: ClosedLoop<Joint2d, 1, 1, 2> = ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
+            let ctl =
+                JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
+            let cl: ClosedLoop<Joint2d, 1, 1, 2> =
+                ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
             run_loop(s, cl, estimator, &["theta"], |plant, load, on| match load {
                 LoadAction::Weight { load, .. } => {
                     if let Some(id) = on {
@@ -212,7 +237,11 @@ pub fn load_3d(
     id: Option<LoadId>,
 ) -> Result<Option<LoadId>, plant_models::joint::PlantError> {
     let LoadAction::Weight { plane, load } = action;
-    let which = if plane == 1 { Plane::Beta } else { Plane::Alpha };
+    let which = if plane == 1 {
+        Plane::Beta
+    } else {
+        Plane::Alpha
+    };
     match id {
         Some(id) => {
             plant.remove_load(which, id);
@@ -268,7 +297,11 @@ fn run_loop<Pl, const P: usize, const S: usize, const C: usize>(
     mut cl: ClosedLoop<Pl, P, S, C>,
     estimator: String,
     names: &[&str],
-    mut apply_load: impl FnMut(&mut Pl, LoadAction, Option<LoadId>) -> Result<Option<LoadId>, plant_models::joint::PlantError>,
+    mut apply_load: impl FnMut(
+        &mut Pl,
+        LoadAction,
+        Option<LoadId>,
+    ) -> Result<Option<LoadId>, plant_models::joint::PlantError>,
 ) -> anyhow::Result<RunOutput>
 where
     Pl: Plant<C, S, P>,
@@ -284,11 +317,15 @@ where
         let t = k as f64 * period;
         if let Some(target) = targets.changed(s, t) {
             for (p, d) in target.iter().enumerate() {
-                cl.controller.set_target(p, *d as f32).map_err(|e| anyhow::anyhow!("target: {e:?}"))?;
+                cl.controller
+                    .set_target(p, *d as f32)
+                    .map_err(|e| anyhow::anyhow!("target: {e:?}"))?;
             }
         }
         cl.overrides = [None; C];
-        disturber.apply(s, t, &mut cl.overrides, |action, id| apply_load(&mut cl.plant, action, id))?;
+        disturber.apply(s, t, &mut cl.overrides, |action, id| {
+            apply_load(&mut cl.plant, action, id)
+        })?;
         let sample = cl.tick().with_context(|| format!("at t = {t:.3} s"))?;
         faults_seen |= sample.faults;
         for (p, c) in peak_temp.iter_mut().zip(cl.plant.coil_temperatures_c()) {
@@ -305,7 +342,15 @@ where
     }
     let wall = started.elapsed().as_secs_f64();
     let trace = Trace { planes: P, rows };
-    let summary = summarize(s, &trace, names, wall, estimator, faults_seen, peak_temp.to_vec());
+    let summary = summarize(
+        s,
+        &trace,
+        names,
+        wall,
+        estimator,
+        faults_seen,
+        peak_temp.to_vec(),
+    );
     Ok(RunOutput { summary, trace })
 }
 
@@ -318,7 +363,9 @@ pub struct Disturber {
 impl Disturber {
     /// Nothing applied yet.
     pub fn new(s: &Scenario) -> Self {
-        Self { loads: vec![None; s.disturbances.len()] }
+        Self {
+            loads: vec![None; s.disturbances.len()],
+        }
     }
 
     /// Sets the coil overrides active at `t_s` (coil index = paper number
@@ -329,18 +376,32 @@ impl Disturber {
         s: &Scenario,
         t_s: f64,
         overrides: &mut [Option<f64>; C],
-        mut load: impl FnMut(LoadAction, Option<LoadId>) -> Result<Option<LoadId>, plant_models::joint::PlantError>,
+        mut load: impl FnMut(
+            LoadAction,
+            Option<LoadId>,
+        ) -> Result<Option<LoadId>, plant_models::joint::PlantError>,
     ) -> anyhow::Result<()> {
         for (i, d) in s.disturbances.iter().enumerate() {
             match d {
-                Disturbance::CoilVoltage { coil, volts, from_s, to_s } => {
+                Disturbance::CoilVoltage {
+                    coil,
+                    volts,
+                    from_s,
+                    to_s,
+                } => {
                     if t_s >= *from_s && t_s < *to_s {
                         if let Some(o) = overrides.get_mut(coil.saturating_sub(1)) {
                             *o = Some(*volts);
                         }
                     }
                 }
-                Disturbance::Weight { mass_g, plane, direction, from_s, to_s } => {
+                Disturbance::Weight {
+                    mass_g,
+                    plane,
+                    direction,
+                    from_s,
+                    to_s,
+                } => {
                     let active = t_s >= *from_s && t_s < *to_s;
                     let plane = usize::from(plane.as_deref() == Some("beta"));
                     let dir = direction.unwrap_or([-1.0, 0.0]);
@@ -370,23 +431,44 @@ pub fn summarize(
 ) -> Summary {
     let planes = trace.planes;
     let segments = segments(s, trace);
-    let sse: Vec<f64> =
-        (0..planes).map(|p| segments.iter().map(|g| g.steady_state_error_deg[p]).fold(0.0, f64::max)).collect();
+    let sse: Vec<f64> = (0..planes)
+        .map(|p| {
+            segments
+                .iter()
+                .map(|g| g.steady_state_error_deg[p])
+                .fold(0.0, f64::max)
+        })
+        .collect();
     let est: Vec<f64> = (0..planes)
-        .map(|p| trace.rows.iter().map(|r| (r.estimate_deg[p] - r.true_deg[p]).abs()).filter(|e| e.is_finite()).fold(0.0, f64::max))
+        .map(|p| {
+            trace
+                .rows
+                .iter()
+                .map(|r| (r.estimate_deg[p] - r.true_deg[p]).abs())
+                .filter(|e| e.is_finite())
+                .fold(0.0, f64::max)
+        })
         .collect();
     let period = f64::from(s.control_period_us) * 1e-6;
     let sim_seconds = trace.rows.len() as f64 * period;
     Summary {
         scenario: s.name.clone(),
-        joint: if planes == 1 { "2d".into() } else { "3d".into() },
+        joint: if planes == 1 {
+            "2d".into()
+        } else {
+            "3d".into()
+        },
         angles: names.iter().map(|n| n.to_string()).collect(),
         steady_state_error_deg: sse,
         max_estimation_error_deg: est,
         segments,
         sim_seconds,
         wall_seconds,
-        realtime_factor: if wall_seconds > 0.0 { sim_seconds / wall_seconds } else { f64::INFINITY },
+        realtime_factor: if wall_seconds > 0.0 {
+            sim_seconds / wall_seconds
+        } else {
+            f64::INFINITY
+        },
         steps: trace.rows.len() as u64,
         faults_seen: fault_names(faults_seen),
         estimator,
@@ -405,7 +487,11 @@ pub fn segments(s: &Scenario, trace: &Trace) -> Vec<Segment> {
         if to <= from {
             continue;
         }
-        let rows: Vec<&Row> = trace.rows.iter().filter(|r| r.t_s >= from && r.t_s < to).collect();
+        let rows: Vec<&Row> = trace
+            .rows
+            .iter()
+            .filter(|r| r.t_s >= from && r.t_s < to)
+            .collect();
         if rows.is_empty() {
             continue;
         }
@@ -414,21 +500,33 @@ pub fn segments(s: &Scenario, trace: &Trace) -> Vec<Segment> {
         let planes = t.deg.len();
         let sse = (0..planes)
             .map(|p| {
-                let mean = tail.iter().map(|r| r.true_deg[p]).sum::<f64>() / tail.len().max(1) as f64;
+                let mean =
+                    tail.iter().map(|r| r.true_deg[p]).sum::<f64>() / tail.len().max(1) as f64;
                 (mean - t.deg[p]).abs()
             })
             .collect();
         let overshoot = (0..planes)
             .map(|p| {
-                let start = prev_target.as_ref().map(|v| v[p]).unwrap_or(rows[0].true_deg[p]);
+                let start = prev_target
+                    .as_ref()
+                    .map(|v| v[p])
+                    .unwrap_or(rows[0].true_deg[p]);
                 let dir = (t.deg[p] - start).signum();
                 if dir == 0.0 {
                     return 0.0;
                 }
-                rows.iter().map(|r| dir * (r.true_deg[p] - t.deg[p])).fold(0.0, f64::max)
+                rows.iter()
+                    .map(|r| dir * (r.true_deg[p] - t.deg[p]))
+                    .fold(0.0, f64::max)
             })
             .collect();
-        out.push(Segment { from_s: from, to_s: to, desired_deg: t.deg.clone(), steady_state_error_deg: sse, overshoot_deg: overshoot });
+        out.push(Segment {
+            from_s: from,
+            to_s: to,
+            desired_deg: t.deg.clone(),
+            steady_state_error_deg: sse,
+            overshoot_deg: overshoot,
+        });
         prev_target = Some(t.deg.clone());
     }
     out
@@ -477,19 +575,27 @@ pub fn calibration_sweep(s: &Scenario) -> anyhow::Result<Vec<SweepRow>> {
             let mut cfg = JointConfig::paper_3d();
             cfg.gains = [PairGains::default(); 2];
             let ctl = JointController::new(cfg).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let mut cl: ClosedLoop<Joint3d, 2, 4, 4> = ClosedLoop::new(plant, ctl, FeedbackSource::Wire, period_us, s.seed)?;
+            let mut cl: ClosedLoop<Joint3d, 2, 4, 4> =
+                ClosedLoop::new(plant, ctl, FeedbackSource::Wire, period_us, s.seed)?;
             for k in 0..steps {
                 let t = k as f64 * 1e-3;
                 let d = target(t) as f32;
-                cl.controller.set_target(0, d).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-                cl.controller.set_target(1, d).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                cl.controller
+                    .set_target(0, d)
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                cl.controller
+                    .set_target(1, d)
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
                 let faults = cl.control().faults;
                 cl.advance()?;
                 if let Some(frame) = cl.plant.camera().latest().cloned() {
                     if last_frame != Some(frame.index) {
                         last_frame = Some(frame.index);
                         if let (true, Some(a)) = (faults.is_empty(), frame.angles_deg) {
-                            rows.push(SweepRow { d_mm: cl.plant.wire_insertions_mm().to_vec(), angle_deg: a.to_vec() });
+                            rows.push(SweepRow {
+                                d_mm: cl.plant.wire_insertions_mm().to_vec(),
+                                angle_deg: a.to_vec(),
+                            });
                         }
                     }
                 }
@@ -499,18 +605,25 @@ pub fn calibration_sweep(s: &Scenario) -> anyhow::Result<Vec<SweepRow>> {
             let mut params = Joint2dParams::default();
             params.sim.seed = s.seed ^ 0xCA1B;
             let plant = Joint2d::new(params)?;
-            let ctl = JointController::new(JointConfig::paper_2d_wire()).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let mut cl: ClosedLoop<Joint2d, 1, 1, 2> = ClosedLoop::new(plant, ctl, FeedbackSource::Wire, period_us, s.seed)?;
+            let ctl = JointController::new(JointConfig::paper_2d_wire())
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let mut cl: ClosedLoop<Joint2d, 1, 1, 2> =
+                ClosedLoop::new(plant, ctl, FeedbackSource::Wire, period_us, s.seed)?;
             for k in 0..steps {
                 let t = k as f64 * 1e-3;
-                cl.controller.set_target(0, target(t) as f32).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                cl.controller
+                    .set_target(0, target(t) as f32)
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
                 let faults = cl.control().faults;
                 cl.advance()?;
                 if let Some(frame) = cl.plant.camera().latest().cloned() {
                     if last_frame != Some(frame.index) {
                         last_frame = Some(frame.index);
                         if let (true, Some(a)) = (faults.is_empty(), frame.angles_deg) {
-                            rows.push(SweepRow { d_mm: vec![cl.plant.wire_insertion_mm()], angle_deg: vec![a[0]] });
+                            rows.push(SweepRow {
+                                d_mm: vec![cl.plant.wire_insertion_mm()],
+                                angle_deg: vec![a[0]],
+                            });
                         }
                     }
                 }

@@ -8,7 +8,9 @@ use firmware::viscoelastic::TimeStep;
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
 use plant_models::viscoelastic::estimate::{estimate_all, spread_columns};
 use plant_models::viscoelastic::fem::{LinearElastic, DEFAULT_SHELL_SCALES};
-use plant_models::viscoelastic::fit::{fit_trial, fit_trials, simulate_displacement, simulate_force, NelderMeadOptions, Weighting};
+use plant_models::viscoelastic::fit::{
+    fit_trial, fit_trials, simulate_displacement, simulate_force, NelderMeadOptions, Weighting,
+};
 use plant_models::viscoelastic::io::{header, read_columns, read_probe_script};
 use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, Trial, VertexTruth};
 use plant_models::viscoelastic::object::{run_script, Contact, ProbeEvent, HAPTIC_PERIOD_S};
@@ -100,11 +102,42 @@ enum ViscoCommand {
 /// Runs a `softjoint viscoelastic` subcommand.
 pub fn run(args: ViscoArgs) -> Result<()> {
     match args.command {
-        ViscoCommand::Simulate { input, k1, k2, b, output } => simulate(&input, k1, k2, b, output.as_deref()),
-        ViscoCommand::Fit { input, uniform, plot, json } => fit(&input, uniform, plot.as_deref(), json),
-        ViscoCommand::Object { mesh, script, duration_s, probe_every, seed, tensor, trials_dir, out_dir } => {
-            let o = ObjectRun { duration_s, every: probe_every, seed, tensor };
-            object(mesh.as_deref(), script.as_deref(), &o, trials_dir.as_deref(), &out_dir)
+        ViscoCommand::Simulate {
+            input,
+            k1,
+            k2,
+            b,
+            output,
+        } => simulate(&input, k1, k2, b, output.as_deref()),
+        ViscoCommand::Fit {
+            input,
+            uniform,
+            plot,
+            json,
+        } => fit(&input, uniform, plot.as_deref(), json),
+        ViscoCommand::Object {
+            mesh,
+            script,
+            duration_s,
+            probe_every,
+            seed,
+            tensor,
+            trials_dir,
+            out_dir,
+        } => {
+            let o = ObjectRun {
+                duration_s,
+                every: probe_every,
+                seed,
+                tensor,
+            };
+            object(
+                mesh.as_deref(),
+                script.as_deref(),
+                &o,
+                trials_dir.as_deref(),
+                &out_dir,
+            )
         }
     }
 }
@@ -151,10 +184,20 @@ fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Re
 fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<()> {
     let text = read_text(input)?;
     let name = input.display().to_string();
-    let c = read_columns(&text, &name, &["time_s", "displacement", "force"], Some("time_s"))?;
+    let c = read_columns(
+        &text,
+        &name,
+        &["time_s", "displacement", "force"],
+        Some("time_s"),
+    )?;
     let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
-    let weighting = if uniform { Weighting::Uniform } else { Weighting::Seed };
-    let r = fit_trial(t, u, f, weighting, NelderMeadOptions::default()).with_context(|| format!("fitting {name}"))?;
+    let weighting = if uniform {
+        Weighting::Uniform
+    } else {
+        Weighting::Seed
+    };
+    let r = fit_trial(t, u, f, weighting, NelderMeadOptions::default())
+        .with_context(|| format!("fitting {name}"))?;
     if let Some(p) = plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
@@ -179,7 +222,13 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
         println!("k1 = {:.6e} N/m", r.k1_n_per_m);
         println!("k2 = {:.6e} N/m", r.k2_n_per_m);
         println!("b  = {:.6e} N s/m", r.b_n_s_per_m);
-        println!("rms residual = {:.4e} N over {} samples ({:?} weighting, {} evaluations)", r.rms_residual_n, t.len(), weighting, r.evaluations);
+        println!(
+            "rms residual = {:.4e} N over {} samples ({:?} weighting, {} evaluations)",
+            r.rms_residual_n,
+            t.len(),
+            weighting,
+            r.evaluations
+        );
     }
     Ok(())
 }
@@ -189,11 +238,21 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
 /// Fig. 9), ratio from the seed's Fig. 8 fit. Estimates, not measurements.
 fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
     let mesh = dgfm.mesh();
-    let x_max = mesh.vertices_m.iter().map(|v| v[0].abs()).fold(0.0, f64::max).max(1e-12);
+    let x_max = mesh
+        .vertices_m
+        .iter()
+        .map(|v| v[0].abs())
+        .fold(0.0, f64::max)
+        .max(1e-12);
     let mut out = Vec::new();
     for j in (0..dgfm.len()).step_by(every.max(1)) {
         let x = mesh.vertices_m[dgfm.traction_vertices()[j]][0].abs() / x_max;
-        out.push(VertexTruth::from_dgfm(dgfm, j, 0.29, 0.1 + 0.4 * (1.0 - x))?);
+        out.push(VertexTruth::from_dgfm(
+            dgfm,
+            j,
+            0.29,
+            0.1 + 0.4 * (1.0 - x),
+        )?);
     }
     Ok(out)
 }
@@ -208,24 +267,48 @@ struct ObjectRun {
 
 fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let mut index = String::from("file,vertex,speed_m_per_s,ux,uy,uz,true_k1_n_per_m,true_k2_n_per_m,true_b_n_s_per_m\n");
+    let mut index = String::from(
+        "file,vertex,speed_m_per_s,ux,uy,uz,true_k1_n_per_m,true_k2_n_per_m,true_b_n_s_per_m\n",
+    );
     for (k, t) in trials.iter().enumerate() {
         let name = format!("trial_{k:04}.csv");
         let mut s = String::from("time_s,displacement,force\n");
         for i in 0..t.time_s.len() {
-            let _ = writeln!(s, "{},{:e},{:e}", t.time_s[i], t.displacement_m[i], t.force_n[i]);
+            let _ = writeln!(
+                s,
+                "{},{:e},{:e}",
+                t.time_s[i], t.displacement_m[i], t.force_n[i]
+            );
         }
         write_text(&dir.join(&name), &s)?;
-        let truth = truths.iter().find(|v| v.vertex == t.vertex).context("trial without truth")?;
+        let truth = truths
+            .iter()
+            .find(|v| v.vertex == t.vertex)
+            .context("trial without truth")?;
         let (k1, k2, b) = truth.trial_scalars(t.direction);
         let d = t.direction;
-        let _ = writeln!(index, "{name},{},{},{},{},{},{k1:e},{k2:e},{b:e}", t.vertex, t.speed_m_per_s, d[0], d[1], d[2]);
+        let _ = writeln!(
+            index,
+            "{name},{},{},{},{},{},{k1:e},{k2:e},{b:e}",
+            t.vertex, t.speed_m_per_s, d[0], d[1], d[2]
+        );
     }
     write_text(&dir.join("trials.csv"), &index)
 }
 
-fn object(mesh_path: Option<&Path>, script: Option<&Path>, run: &ObjectRun, trials_dir: Option<&Path>, out_dir: &Path) -> Result<()> {
-    let ObjectRun { duration_s, every, seed, tensor } = *run;
+fn object(
+    mesh_path: Option<&Path>,
+    script: Option<&Path>,
+    run: &ObjectRun,
+    trials_dir: Option<&Path>,
+    out_dir: &Path,
+) -> Result<()> {
+    let ObjectRun {
+        duration_s,
+        every,
+        seed,
+        tensor,
+    } = *run;
     if !(duration_s.is_finite() && duration_s > 0.0) {
         bail!("--duration-s must be finite and > 0, got {duration_s}");
     }
@@ -237,7 +320,10 @@ fn object(mesh_path: Option<&Path>, script: Option<&Path>, run: &ObjectRun, tria
     let dgfm = Dgfm::from_mesh(mesh, LinearElastic::default(), fixed, &DEFAULT_SHELL_SCALES)?;
     // Measure (simulated), fit, estimate and spread, as in seed §4.
     let truths = synthetic_truth(&dgfm, every)?;
-    let protocol = ProbeProtocol { speeds_m_per_s: vec![20.0e-3], ..ProbeProtocol::default() };
+    let protocol = ProbeProtocol {
+        speeds_m_per_s: vec![20.0e-3],
+        ..ProbeProtocol::default()
+    };
     let trials = simulate_campaign(&dgfm, &truths, &protocol, seed)?;
     if let Some(dir) = trials_dir {
         write_trials(dir, &trials, &truths)?;
@@ -256,11 +342,21 @@ fn object(mesh_path: Option<&Path>, script: Option<&Path>, run: &ObjectRun, tria
         None => {
             let top = (0..nv)
                 .filter(|&v| !dgfm.fixed()[v])
-                .max_by(|&a, &b| dgfm.mesh().vertices_m[a][2].total_cmp(&dgfm.mesh().vertices_m[b][2]))
+                .max_by(|&a, &b| {
+                    dgfm.mesh().vertices_m[a][2].total_cmp(&dgfm.mesh().vertices_m[b][2])
+                })
                 .context("no traction vertex")?;
             vec![
-                ProbeEvent { time_s: 0.0, contact: Some(Contact::Vertex(top)), force_n: [0.0, 0.0, -1.0] },
-                ProbeEvent { time_s: 0.5, contact: None, force_n: [0.0; 3] },
+                ProbeEvent {
+                    time_s: 0.0,
+                    contact: Some(Contact::Vertex(top)),
+                    force_n: [0.0, 0.0, -1.0],
+                },
+                ProbeEvent {
+                    time_s: 0.5,
+                    contact: None,
+                    force_n: [0.0; 3],
+                },
             ]
         }
     };
@@ -270,19 +366,28 @@ fn object(mesh_path: Option<&Path>, script: Option<&Path>, run: &ObjectRun, tria
     let obj = ViscoObject::new(dgfm, params.clone(), h)?;
     let mut haptic = HapticLoop::new(obj)?;
     let samples = run_script(&mut haptic, &events, duration_s)?;
-    std::fs::create_dir_all(out_dir).with_context(|| format!("cannot create {}", out_dir.display()))?;
+    std::fs::create_dir_all(out_dir)
+        .with_context(|| format!("cannot create {}", out_dir.display()))?;
     let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");
     for fr in &haptic.frames {
         for v in 0..nv {
             let (u, f) = (fr.displacement_m[v], fr.force_n[v]);
-            let _ = writeln!(frames, "{},{v},{:e},{:e},{:e},{:e},{:e},{:e}", fr.time_s, u[0], u[1], u[2], f[0], f[1], f[2]);
+            let _ = writeln!(
+                frames,
+                "{},{v},{:e},{:e},{:e},{:e},{:e},{:e}",
+                fr.time_s, u[0], u[1], u[2], f[0], f[1], f[2]
+            );
         }
     }
     write_text(&out_dir.join("frames.csv"), &frames)?;
     let mut hs = String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m\n");
     for s in &samples {
         let (f, u) = (s.force_n, s.contact_displacement_m);
-        let _ = writeln!(hs, "{},{},{},{},{:e},{:e},{:e}", s.time_s, f[0], f[1], f[2], u[0], u[1], u[2]);
+        let _ = writeln!(
+            hs,
+            "{},{},{},{},{:e},{:e},{:e}",
+            s.time_s, f[0], f[1], f[2], u[0], u[1], u[2]
+        );
     }
     write_text(&out_dir.join("haptic.csv"), &hs)?;
     let mut ps = String::from("vertex,fixed,damping_magnitude_n_s_per_m\n");
@@ -290,8 +395,15 @@ fn object(mesh_path: Option<&Path>, script: Option<&Path>, run: &ObjectRun, tria
         let _ = writeln!(ps, "{v},{},{:e}", u8::from(fixed_flags[v]), per_vertex[v]);
     }
     write_text(&out_dir.join("params.csv"), &ps)?;
-    let caption = format!("damping magnitude ({} trials, {} vertices estimated)", trials.len(), estimates.len());
-    write_text(&out_dir.join("damping.svg"), &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption))?;
+    let caption = format!(
+        "damping magnitude ({} trials, {} vertices estimated)",
+        trials.len(),
+        estimates.len()
+    );
+    write_text(
+        &out_dir.join("damping.svg"),
+        &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption),
+    )?;
     println!(
         "{} vertices ({} traction), {} trials fitted, {} vertices estimated; {} haptic steps, {} display frames written to {}",
         nv,

@@ -36,13 +36,23 @@ fn scripted_session_with_telemetry_to_csv() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "stdout {stdout} stderr {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "stdout {stdout} stderr {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(stdout.contains("protocol and schema match"), "{stdout}");
-    assert!(stdout.contains("target α 5.00°"), "status shows the target: {stdout}");
+    assert!(
+        stdout.contains("target α 5.00°"),
+        "status shows the target: {stdout}"
+    );
     let rows = std::fs::read_to_string(&csv).unwrap();
     let n = rows.lines().count() - 1;
     assert!(rows.starts_with("time_ms,alpha_deg"), "{rows}");
-    assert!((10..=30).contains(&n), "{n} telemetry rows in 0.4 s at 50 Hz");
+    assert!(
+        (10..=30).contains(&n),
+        "{n} telemetry rows in 0.4 s at 50 Hz"
+    );
 }
 
 #[test]
@@ -54,7 +64,10 @@ fn refused_and_unknown_commands_fail_with_a_reason() {
     let out = console(&path, &["target", "0", "90"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("OutOfRange") && err.contains("command line"), "{err}");
+    assert!(
+        err.contains("OutOfRange") && err.contains("command line"),
+        "{err}"
+    );
     let out = console(&path, &["frobnicate"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown command"));

@@ -9,7 +9,10 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 fn softjoint(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_softjoint")).args(args).output().expect("binary runs")
+    Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(args)
+        .output()
+        .expect("binary runs")
 }
 
 fn stdout(o: &Output) -> String {
@@ -21,7 +24,13 @@ fn stderr(o: &Output) -> String {
 }
 
 fn ok(o: &Output) {
-    assert!(o.status.success(), "exit {:?}\nstdout:\n{}\nstderr:\n{}", o.status, stdout(o), stderr(o));
+    assert!(
+        o.status.success(),
+        "exit {:?}\nstdout:\n{}\nstderr:\n{}",
+        o.status,
+        stdout(o),
+        stderr(o)
+    );
 }
 
 fn scratch(test: &str) -> PathBuf {
@@ -39,7 +48,10 @@ fn numbers(v: &Value, key: &str) -> Vec<f64> {
         .as_array()
         .unwrap_or_else(|| panic!("`{key}` is not an array in {v}"))
         .iter()
-        .map(|x| x.as_f64().unwrap_or_else(|| panic!("`{key}` holds a non-number: {x}")))
+        .map(|x| {
+            x.as_f64()
+                .unwrap_or_else(|| panic!("`{key}` holds a non-number: {x}"))
+        })
         .collect()
 }
 
@@ -48,29 +60,56 @@ fn numbers(v: &Value, key: &str) -> Vec<f64> {
 fn sim_json_of_the_default_scenario_has_the_summary_fields() {
     let o = softjoint(&["sim", "--json"]);
     ok(&o);
-    let v: Value = serde_json::from_str(&stdout(&o)).unwrap_or_else(|e| panic!("not JSON ({e}):\n{}", stdout(&o)));
+    let v: Value = serde_json::from_str(&stdout(&o))
+        .unwrap_or_else(|e| panic!("not JSON ({e}):\n{}", stdout(&o)));
     let sse = numbers(&v, "steady_state_error_deg");
     let est = numbers(&v, "max_estimation_error_deg");
-    assert_eq!(sse.len(), 2, "one steady-state error per controlled angle (α, β): {sse:?}");
+    assert_eq!(
+        sse.len(),
+        2,
+        "one steady-state error per controlled angle (α, β): {sse:?}"
+    );
     assert_eq!(est.len(), 2, "{est:?}");
     // The default converges (measured 0.15°, 0.26°; estimation 0.47°, 0.49°).
-    assert!(sse.iter().all(|e| e.is_finite() && *e < 1.0), "steady-state error {sse:?}");
-    assert!(est.iter().all(|e| e.is_finite() && *e < 1.0), "estimation error {est:?}");
+    assert!(
+        sse.iter().all(|e| e.is_finite() && *e < 1.0),
+        "steady-state error {sse:?}"
+    );
+    assert!(
+        est.iter().all(|e| e.is_finite() && *e < 1.0),
+        "estimation error {est:?}"
+    );
     assert_eq!(v["sim_seconds"].as_f64(), Some(30.0), "{v}");
-    let rtf = v["realtime_factor"].as_f64().expect("realtime_factor is a number");
+    let rtf = v["realtime_factor"]
+        .as_f64()
+        .expect("realtime_factor is a number");
     assert!(rtf.is_finite() && rtf > 1.0, "realtime_factor {rtf}");
-    assert!(v["faults_seen"].as_array().is_some_and(|f| f.is_empty()), "faults: {}", v["faults_seen"]);
+    assert!(
+        v["faults_seen"].as_array().is_some_and(|f| f.is_empty()),
+        "faults: {}",
+        v["faults_seen"]
+    );
 }
 
 #[test]
 fn sim_without_json_prints_a_readable_table() {
     let dir = scratch("table");
     let scen = dir.join("short.toml");
-    std::fs::write(&scen, "joint = \"3d\"\nduration_s = 2.0\n[estimator]\nmethod = \"paper\"\n").unwrap();
+    std::fs::write(
+        &scen,
+        "joint = \"3d\"\nduration_s = 2.0\n[estimator]\nmethod = \"paper\"\n",
+    )
+    .unwrap();
     let o = softjoint(&["sim", s(&scen)]);
     ok(&o);
     let out = stdout(&o);
-    for needle in ["steady-state error", "estimation error", "alpha", "beta", "real time"] {
+    for needle in [
+        "steady-state error",
+        "estimation error",
+        "alpha",
+        "beta",
+        "real time",
+    ] {
         assert!(out.contains(needle), "table lacks `{needle}`:\n{out}");
     }
 }
@@ -95,16 +134,33 @@ fn malformed_scenarios_name_the_file_and_field_and_fail() {
         let path = dir.join(name);
         std::fs::write(&path, text).unwrap();
         let o = softjoint(&["sim", s(&path), "--json"]);
-        assert!(!o.status.success(), "{name}: exit 0 for a malformed scenario");
+        assert!(
+            !o.status.success(),
+            "{name}: exit 0 for a malformed scenario"
+        );
         let err = stderr(&o);
-        assert!(err.contains(s(&path)), "{name}: error does not name the file:\n{err}");
-        assert!(err.contains(field), "{name}: error does not name `{field}`:\n{err}");
-        assert!(stdout(&o).is_empty(), "{name}: printed a summary anyway:\n{}", stdout(&o));
+        assert!(
+            err.contains(s(&path)),
+            "{name}: error does not name the file:\n{err}"
+        );
+        assert!(
+            err.contains(field),
+            "{name}: error does not name `{field}`:\n{err}"
+        );
+        assert!(
+            stdout(&o).is_empty(),
+            "{name}: printed a summary anyway:\n{}",
+            stdout(&o)
+        );
     }
     // A missing file is an error naming it, too.
     let missing = dir.join("missing.toml");
     let o = softjoint(&["sim", s(&missing)]);
-    assert!(!o.status.success() && stderr(&o).contains(s(&missing)), "{}", stderr(&o));
+    assert!(
+        !o.status.success() && stderr(&o).contains(s(&missing)),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
@@ -123,15 +179,28 @@ fn calibrate_wire_names_the_line_of_a_bad_row() {
     let o = softjoint(&["calibrate", "wire", s(&path), "-o", s(&out)]);
     assert!(!o.status.success(), "exit 0 for a bad row");
     let err = stderr(&o);
-    assert!(err.contains("line 14"), "error does not name line 14:\n{err}");
-    assert!(err.contains(s(&path)), "error does not name the file:\n{err}");
-    assert!(!out.exists(), "a calibration file was written from a bad sweep");
+    assert!(
+        err.contains("line 14"),
+        "error does not name line 14:\n{err}"
+    );
+    assert!(
+        err.contains(s(&path)),
+        "error does not name the file:\n{err}"
+    );
+    assert!(
+        !out.exists(),
+        "a calibration file was written from a bad sweep"
+    );
 
     // A short row, too.
     let path2 = dir.join("short.csv");
     std::fs::write(&path2, "d_mm,theta_deg\n0.1,1.0\n0.2\n").unwrap();
     let o = softjoint(&["calibrate", "wire", s(&path2), "-o", s(&out)]);
-    assert!(!o.status.success() && stderr(&o).contains("line 3"), "{}", stderr(&o));
+    assert!(
+        !o.status.success() && stderr(&o).contains("line 3"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// The workflow a user of a real prototype follows, on the simulated joint:
@@ -144,7 +213,11 @@ fn calibration_sweep_then_calibrate_then_sim_with_the_file() {
     let o = softjoint(&["sim", "--calibration-sweep", s(&sweep)]);
     ok(&o);
     let text = std::fs::read_to_string(&sweep).expect("sweep written");
-    assert!(text.starts_with("d1_mm,d2_mm,d3_mm,d4_mm,alpha_deg,beta_deg"), "{}", &text[..text.len().min(200)]);
+    assert!(
+        text.starts_with("d1_mm,d2_mm,d3_mm,d4_mm,alpha_deg,beta_deg"),
+        "{}",
+        &text[..text.len().min(200)]
+    );
     // 80 s at the camera's 30 frames/s.
     let rows = text.lines().count() - 1;
     assert!((2300..=2450).contains(&rows), "{rows} sweep rows");
@@ -152,12 +225,17 @@ fn calibration_sweep_then_calibrate_then_sim_with_the_file() {
     let cal = dir.join("cal.toml");
     let o = softjoint(&["calibrate", "wire", s(&sweep), "-o", s(&cal), "--json"]);
     ok(&o);
-    let v: Value = serde_json::from_str(&stdout(&o)).unwrap_or_else(|e| panic!("not JSON ({e}):\n{}", stdout(&o)));
+    let v: Value = serde_json::from_str(&stdout(&o))
+        .unwrap_or_else(|e| panic!("not JSON ({e}):\n{}", stdout(&o)));
     let angles = v["angles"].as_array().expect("angles");
     assert_eq!(angles.len(), 2);
     for a in angles {
         let max = a["max_error_deg"].as_f64().expect("max_error_deg");
-        assert!(max < 1.0, "{}: chosen estimator off by {max}° on its own sweep", a["angle"]);
+        assert!(
+            max < 1.0,
+            "{}: chosen estimator off by {max}° on its own sweep",
+            a["angle"]
+        );
         assert!(a.get("threshold_deg").is_some(), "no threshold_deg: {a}");
         assert!(a["chosen"].is_object(), "no coefficients: {a}");
     }
@@ -174,11 +252,20 @@ fn calibration_sweep_then_calibrate_then_sim_with_the_file() {
     ok(&o);
     let v: Value = serde_json::from_str(&stdout(&o)).expect("JSON");
     let estimator = v["estimator"].as_str().expect("estimator");
-    assert!(estimator.contains(s(&cal)), "the scenario did not use the calibration file: {estimator}");
+    assert!(
+        estimator.contains(s(&cal)),
+        "the scenario did not use the calibration file: {estimator}"
+    );
     let est = numbers(&v, "max_estimation_error_deg");
-    assert!(est.iter().all(|e| *e < 1.0), "estimation error with the calibration {est:?}");
+    assert!(
+        est.iter().all(|e| *e < 1.0),
+        "estimation error with the calibration {est:?}"
+    );
     let sse = numbers(&v, "steady_state_error_deg");
-    assert!(sse.iter().all(|e| *e < 1.0), "steady-state error with the calibration {sse:?}");
+    assert!(
+        sse.iter().all(|e| *e < 1.0),
+        "steady-state error with the calibration {sse:?}"
+    );
 }
 
 #[test]
@@ -202,15 +289,33 @@ fn csv_and_plot_are_written() {
         "CSV header"
     );
     let rows: Vec<Vec<f64>> = lines
-        .map(|l| l.split(',').map(|c| c.parse().unwrap_or_else(|_| panic!("bad cell in `{l}`"))).collect())
+        .map(|l| {
+            l.split(',')
+                .map(|c| c.parse().unwrap_or_else(|_| panic!("bad cell in `{l}`")))
+                .collect()
+        })
         .collect();
     assert_eq!(rows.len(), 3000, "one row per 1 ms control period");
     assert!(rows.iter().all(|r| r.len() == 7));
-    assert_eq!(rows.last().map(|r| r[3]), Some(10.0), "desired angle column");
+    assert_eq!(
+        rows.last().map(|r| r[3]),
+        Some(10.0),
+        "desired angle column"
+    );
     // The joint has moved towards the target by the end (it starts at 0°).
-    assert!(rows.last().is_some_and(|r| r[1] > 5.0), "true angle at 3 s: {:?}", rows.last());
+    assert!(
+        rows.last().is_some_and(|r| r[1] > 5.0),
+        "true angle at 3 s: {:?}",
+        rows.last()
+    );
 
     let plot = std::fs::read_to_string(&svg).expect("plot written");
-    assert!(plot.contains("<svg") && plot.trim_end().ends_with("</svg>"), "not an SVG document");
-    assert!(plot.contains("theta true") && plot.contains("v1"), "plot lacks the angle or voltage series");
+    assert!(
+        plot.contains("<svg") && plot.trim_end().ends_with("</svg>"),
+        "not an SVG document"
+    );
+    assert!(
+        plot.contains("theta true") && plot.contains("v1"),
+        "plot lacks the angle or voltage series"
+    );
 }

@@ -6,7 +6,10 @@ use std::path::PathBuf;
 use std::process::{Command, Output};
 
 fn softjoint(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_softjoint")).args(args).output().expect("binary runs")
+    Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(args)
+        .output()
+        .expect("binary runs")
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -16,7 +19,10 @@ fn tmp(name: &str) -> PathBuf {
 }
 
 fn parse_csv(text: &str) -> Vec<Vec<f64>> {
-    text.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect()
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
 }
 
 // Seed 002 Fig. 5's 3-element example (k1 = 1.5, k2 = 3.0, b = 0.5), as N/m, N·s/m.
@@ -34,8 +40,22 @@ fn simulate_force_to_displacement_matches_the_creep_closed_form() {
         s.push_str(&format!("{},{f0}\n", k as f64 * h));
     }
     std::fs::write(&input, s).unwrap();
-    let out = softjoint(&["viscoelastic", "simulate", input.to_str().unwrap(), "--k1", "1.5", "--k2", "3", "--b", "0.5"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = softjoint(&[
+        "viscoelastic",
+        "simulate",
+        input.to_str().unwrap(),
+        "--k1",
+        "1.5",
+        "--k2",
+        "3",
+        "--b",
+        "0.5",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let rows = parse_csv(&String::from_utf8(out.stdout).unwrap());
     assert_eq!(rows.len(), 1001);
     // x(t) = F0/E1 + F0/E2 (1 − e^(−t/τc)), E1 = k2, E2 = k1, τc = b/k1.
@@ -60,18 +80,57 @@ fn simulate_then_fit_recovers_the_parameters_and_writes_a_plot() {
     std::fs::write(&input, s).unwrap();
     let trial = tmp("trial.csv");
     let out = softjoint(&[
-        "viscoelastic", "simulate", input.to_str().unwrap(), "--k1", "2250", "--k2", "650", "--b", "120", "-o", trial.to_str().unwrap(),
+        "viscoelastic",
+        "simulate",
+        input.to_str().unwrap(),
+        "--k1",
+        "2250",
+        "--k2",
+        "650",
+        "--b",
+        "120",
+        "-o",
+        trial.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let plot = tmp("fit.svg");
-    let out = softjoint(&["viscoelastic", "fit", trial.to_str().unwrap(), "--json", "--plot", plot.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = softjoint(&[
+        "viscoelastic",
+        "fit",
+        trial.to_str().unwrap(),
+        "--json",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let json = String::from_utf8(out.stdout).unwrap();
     let field = |name: &str| -> f64 {
-        let i = json.find(&format!("\"{name}\": ")).unwrap_or_else(|| panic!("{name} in {json}")) + name.len() + 4;
-        json[i..].split([',', '}']).next().unwrap().trim().parse().unwrap()
+        let i = json
+            .find(&format!("\"{name}\": "))
+            .unwrap_or_else(|| panic!("{name} in {json}"))
+            + name.len()
+            + 4;
+        json[i..]
+            .split([',', '}'])
+            .next()
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap()
     };
-    for (name, want) in [("k1_n_per_m", 2250.0), ("k2_n_per_m", 650.0), ("b_n_s_per_m", 120.0)] {
+    for (name, want) in [
+        ("k1_n_per_m", 2250.0),
+        ("k2_n_per_m", 650.0),
+        ("b_n_s_per_m", 120.0),
+    ] {
         let got = field(name);
         assert!((got / want - 1.0).abs() < 1e-3, "{name}: {got} vs {want}");
     }
@@ -83,7 +142,10 @@ fn expect_error(args: &[&str], needles: &[&str]) {
     let out = softjoint(args);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "should fail: {args:?}");
-    assert!(!err.contains("panicked"), "panic instead of an error: {err}");
+    assert!(
+        !err.contains("panicked"),
+        "panic instead of an error: {err}"
+    );
     for n in needles {
         assert!(err.contains(n), "stderr lacks `{n}`: {err}");
     }
@@ -92,25 +154,81 @@ fn expect_error(args: &[&str], needles: &[&str]) {
 #[test]
 fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
     let cases = [
-        ("missing.csv", "time_s,displacement\n0,0\n0.001,0.1\n", "missing column `force`", ":1:"),
-        ("nonmono.csv", "time_s,displacement,force\n0,0,0\n0.001,0.1,1\n0.001,0.2,2\n", "strictly increase", ":4:"),
-        ("nan.csv", "time_s,displacement,force\n0,0,0\n0.001,NaN,1\n", "not finite", ":3:"),
-        ("text.csv", "time_s,displacement,force\n0,0,0\n0.001,abc,1\n", "not a number", ":3:"),
-        ("fields.csv", "time_s,displacement,force\n0,0,0\n0.001,1\n", "fields", ":3:"),
+        (
+            "missing.csv",
+            "time_s,displacement\n0,0\n0.001,0.1\n",
+            "missing column `force`",
+            ":1:",
+        ),
+        (
+            "nonmono.csv",
+            "time_s,displacement,force\n0,0,0\n0.001,0.1,1\n0.001,0.2,2\n",
+            "strictly increase",
+            ":4:",
+        ),
+        (
+            "nan.csv",
+            "time_s,displacement,force\n0,0,0\n0.001,NaN,1\n",
+            "not finite",
+            ":3:",
+        ),
+        (
+            "text.csv",
+            "time_s,displacement,force\n0,0,0\n0.001,abc,1\n",
+            "not a number",
+            ":3:",
+        ),
+        (
+            "fields.csv",
+            "time_s,displacement,force\n0,0,0\n0.001,1\n",
+            "fields",
+            ":3:",
+        ),
     ];
     for (name, text, reason, line) in cases {
         let p = tmp(name);
         std::fs::write(&p, text).unwrap();
         let loc = format!("{name}{line}");
-        expect_error(&["viscoelastic", "fit", p.to_str().unwrap()], &[reason, &loc]);
+        expect_error(
+            &["viscoelastic", "fit", p.to_str().unwrap()],
+            &[reason, &loc],
+        );
     }
     let p = tmp("neither.csv");
     std::fs::write(&p, "time_s,pressure\n0,1\n1,2\n").unwrap();
-    expect_error(&["viscoelastic", "simulate", p.to_str().unwrap(), "--k1", "1", "--k2", "1", "--b", "1"], &["missing column"]);
+    expect_error(
+        &[
+            "viscoelastic",
+            "simulate",
+            p.to_str().unwrap(),
+            "--k1",
+            "1",
+            "--k2",
+            "1",
+            "--b",
+            "1",
+        ],
+        &["missing column"],
+    );
     let p = tmp("ok.csv");
     std::fs::write(&p, "time_s,force\n0,1\n1,2\n").unwrap();
-    expect_error(&["viscoelastic", "simulate", p.to_str().unwrap(), "--k1=-1", "--k2", "1", "--b", "1"], &["K1NotPositive"]);
-    expect_error(&["viscoelastic", "fit", "/nonexistent/x.csv"], &["cannot read"]);
+    expect_error(
+        &[
+            "viscoelastic",
+            "simulate",
+            p.to_str().unwrap(),
+            "--k1=-1",
+            "--k2",
+            "1",
+            "--b",
+            "1",
+        ],
+        &["K1NotPositive"],
+    );
+    expect_error(
+        &["viscoelastic", "fit", "/nonexistent/x.csv"],
+        &["cannot read"],
+    );
 }
 
 #[test]
@@ -118,9 +236,22 @@ fn object_writes_frames_trace_parameters_and_a_damping_image() {
     let dir = tmp("object_out");
     let trials = tmp("trials");
     let out = softjoint(&[
-        "viscoelastic", "object", "--duration-s", "0.4", "--probe-every", "15", "--trials-dir", trials.to_str().unwrap(), "--out-dir", dir.to_str().unwrap(),
+        "viscoelastic",
+        "object",
+        "--duration-s",
+        "0.4",
+        "--probe-every",
+        "15",
+        "--trials-dir",
+        trials.to_str().unwrap(),
+        "--out-dir",
+        dir.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let frames = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
     // Frames at 0, 1/30, … ≤ 0.4 s: 13 frames × 198 vertices.
     assert_eq!(frames.lines().count(), 1 + 13 * 198);
@@ -129,9 +260,15 @@ fn object_writes_frames_trace_parameters_and_a_damping_image() {
     // Pushing down (−z) moves the contact down.
     assert!(haptic[399][6] < 0.0 && haptic[399][3] == -1.0);
     let params = parse_csv(&std::fs::read_to_string(dir.join("params.csv")).unwrap());
-    assert!(params.iter().filter(|r| r[2] > 0.0).count() >= 5, "several vertices carry damping");
+    assert!(
+        params.iter().filter(|r| r[2] > 0.0).count() >= 5,
+        "several vertices carry damping"
+    );
     let svg = std::fs::read_to_string(dir.join("damping.svg")).unwrap();
-    let colours: std::collections::BTreeSet<&str> = svg.match_indices("fill=\"rgb(").map(|(i, _)| &svg[i..i + 24]).collect();
+    let colours: std::collections::BTreeSet<&str> = svg
+        .match_indices("fill=\"rgb(")
+        .map(|(i, _)| &svg[i..i + 24])
+        .collect();
     assert!(colours.len() > 5, "false colour uses several colours");
     // Fig. 8 through the CLI: a written trial (contact-area artefact, noise)
     // fitted with the seed's weighting and uniformly, against the 1D
@@ -144,28 +281,64 @@ fn object_writes_frames_trace_parameters_and_a_damping_image() {
         let mut args = vec!["viscoelastic", "fit", trial.to_str().unwrap(), "--json"];
         args.extend_from_slice(extra);
         let out = softjoint(&args);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let json = String::from_utf8(out.stdout).unwrap();
         ["k1_n_per_m", "k2_n_per_m", "b_n_s_per_m"]
             .iter()
             .zip(&truth)
             .map(|(name, want)| {
                 let i = json.find(&format!("\"{name}\": ")).unwrap() + name.len() + 4;
-                let got: f64 = json[i..].split([',', '}']).next().unwrap().trim().parse().unwrap();
+                let got: f64 = json[i..]
+                    .split([',', '}'])
+                    .next()
+                    .unwrap()
+                    .trim()
+                    .parse()
+                    .unwrap();
                 (got / want - 1.0).abs()
             })
             .fold(0.0, f64::max)
     };
     let (weighted, uniform) = (fit_err(&[]), fit_err(&["--uniform"]));
-    assert!(weighted < 0.05 && weighted < uniform, "weighted {weighted} vs uniform {uniform}");
+    assert!(
+        weighted < 0.05 && weighted < uniform,
+        "weighted {weighted} vs uniform {uniform}"
+    );
     // A broken mesh file is an error naming the line.
     let bad = tmp("bad.obj");
     std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap();
-    expect_error(&["viscoelastic", "object", "--mesh", bad.to_str().unwrap(), "--out-dir", dir.to_str().unwrap()], &["bad.obj:3:"]);
-    let script = tmp("script.csv");
-    std::fs::write(&script, "time_s,vertex,fx_n,fy_n,fz_n\n0,5,0,0,-1\n0.2,9999,0,0,0\n").unwrap();
     expect_error(
-        &["viscoelastic", "object", "--script", script.to_str().unwrap(), "--probe-every", "50", "--out-dir", dir.to_str().unwrap()],
+        &[
+            "viscoelastic",
+            "object",
+            "--mesh",
+            bad.to_str().unwrap(),
+            "--out-dir",
+            dir.to_str().unwrap(),
+        ],
+        &["bad.obj:3:"],
+    );
+    let script = tmp("script.csv");
+    std::fs::write(
+        &script,
+        "time_s,vertex,fx_n,fy_n,fz_n\n0,5,0,0,-1\n0.2,9999,0,0,0\n",
+    )
+    .unwrap();
+    expect_error(
+        &[
+            "viscoelastic",
+            "object",
+            "--script",
+            script.to_str().unwrap(),
+            "--probe-every",
+            "50",
+            "--out-dir",
+            dir.to_str().unwrap(),
+        ],
         &["script.csv:3:", "9999"],
     );
 }

@@ -40,7 +40,8 @@ fn bench(c: &mut Criterion) {
             let t = target(k3);
             let va = p_law(a, t);
             let vb = p_law(be, -t);
-            j3.step(black_box(1e-3), &[va[0], vb[0], va[1], vb[1]]).unwrap();
+            j3.step(black_box(1e-3), &[va[0], vb[0], va[1], vb[1]])
+                .unwrap();
             k3 += 1;
         })
     });

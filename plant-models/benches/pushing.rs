@@ -4,7 +4,9 @@
 //! Table III calibration (M = 30, N = 20) on the sponge's training push,
 //! parallel over candidates. Inputs are generated with fixed seeds.
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use plant_models::pushing::evaluate::{score_with_measured_forces, simulate_frames, EvalSetup, PreparedVideo};
+use plant_models::pushing::evaluate::{
+    score_with_measured_forces, simulate_frames, EvalSetup, PreparedVideo,
+};
 use plant_models::pushing::evolution::{calibrate, EvolutionSettings, TABLE_III_RANGES};
 use plant_models::pushing::forces::MaterialParams;
 use plant_models::pushing::reference::{record_push, ReferenceConfig, ReferenceMaterial};
@@ -38,18 +40,35 @@ fn steps(c: &mut Criterion) {
     let mut g = c.benchmark_group("pushing_20x10_push_run");
     g.throughput(Throughput::Elements(steps));
     for integ in Integrator::ALL {
-        let sim = SimConfig { integrator: integ, ..SimConfig::default() };
+        let sim = SimConfig {
+            integrator: integ,
+            ..SimConfig::default()
+        };
         g.bench_function(integ.name(), |b| {
             b.iter(|| {
                 let mut last = 0.0;
-                simulate_frames(&prep.mesh, &prep.video.scenario, &prep.video.forces_n, black_box(&PARAMS), &sim, |_, pos, _| last = pos[0].x).unwrap();
+                simulate_frames(
+                    &prep.mesh,
+                    &prep.video.scenario,
+                    &prep.video.forces_n,
+                    black_box(&PARAMS),
+                    &sim,
+                    |_, pos, _| last = pos[0].x,
+                )
+                .unwrap();
                 last
             })
         });
     }
     g.finish();
     let mut g = c.benchmark_group("pushing_20x10_scored_run");
-    g.bench_function("customised_cell_1px", |b| b.iter(|| score_with_measured_forces(&prep, black_box(&PARAMS), &SimConfig::default()).unwrap().mean_f));
+    g.bench_function("customised_cell_1px", |b| {
+        b.iter(|| {
+            score_with_measured_forces(&prep, black_box(&PARAMS), &SimConfig::default())
+                .unwrap()
+                .mean_f
+        })
+    });
     g.finish();
 }
 
@@ -59,7 +78,20 @@ fn calibration(c: &mut Criterion) {
     let mut g = c.benchmark_group("pushing_calibration_table_iii");
     g.sample_size(10).measurement_time(Duration::from_secs(60));
     g.bench_function("sponge_20x10_cell_1px", |b| {
-        b.iter(|| calibrate(&EvolutionSettings::table_iii(7), &TABLE_III_RANGES, |p| score_with_measured_forces(&prep, p, &sim).map(|s| s.mean_f).unwrap_or(f64::NAN), |_| {}).unwrap().best_score)
+        b.iter(|| {
+            calibrate(
+                &EvolutionSettings::table_iii(7),
+                &TABLE_III_RANGES,
+                |p| {
+                    score_with_measured_forces(&prep, p, &sim)
+                        .map(|s| s.mean_f)
+                        .unwrap_or(f64::NAN)
+                },
+                |_| {},
+            )
+            .unwrap()
+            .best_score
+        })
     });
     g.finish();
 }

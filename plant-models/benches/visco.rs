@@ -7,7 +7,9 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use firmware::linalg::{Mat3, Vec3};
 use firmware::viscoelastic::TimeStep;
 use plant_models::viscoelastic::dgfm::Dgfm;
-use plant_models::viscoelastic::fit::{fit_trials, fit_trials_serial, NelderMeadOptions, Weighting};
+use plant_models::viscoelastic::fit::{
+    fit_trials, fit_trials_serial, NelderMeadOptions, Weighting,
+};
 use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, VertexTruth};
 use plant_models::viscoelastic::{ColumnParams, ViscoObject};
 use std::hint::black_box;
@@ -15,7 +17,8 @@ use std::hint::black_box;
 fn loaded_object(d: &Dgfm, params: ColumnParams, columns: &[usize]) -> ViscoObject {
     let mut obj = ViscoObject::new(d.clone(), params, TimeStep::new(1e-3).unwrap()).unwrap();
     for &j in columns {
-        obj.set_traction(j, Vec3::new(100.0, -50.0, -2.0e3)).unwrap();
+        obj.set_traction(j, Vec3::new(100.0, -50.0, -2.0e3))
+            .unwrap();
     }
     obj
 }
@@ -24,12 +27,17 @@ fn object_update(c: &mut Criterion) {
     let d = Dgfm::default_object().unwrap();
     let n = d.len();
     let h = TimeStep::new(1e-3).unwrap();
-    let tri: Vec<usize> = d.mesh().triangles[60].iter().map(|&v| d.index_of(v).unwrap()).collect();
+    let tri: Vec<usize> = d.mesh().triangles[60]
+        .iter()
+        .map(|&v| d.index_of(v).unwrap())
+        .collect();
     let all: Vec<usize> = (0..n).collect();
     let rayleigh = ColumnParams::uniform_rayleigh(n, 0.29, 0.33).unwrap();
     let tensor = ColumnParams::Tensor {
         ratios: vec![0.29; n],
-        damping_n_s_per_m: (0..n).map(|j| d.stiffness(j, j).unwrap().scale(0.33) + Mat3::diagonal(5.0, 5.0, 5.0)).collect(),
+        damping_n_s_per_m: (0..n)
+            .map(|j| d.stiffness(j, j).unwrap().scale(0.33) + Mat3::diagonal(5.0, 5.0, 5.0))
+            .collect(),
     };
     let mut g = c.benchmark_group("visco_object_update");
     for (name, params, cols) in [
@@ -54,7 +62,9 @@ fn object_update(c: &mut Criterion) {
 fn dgfm_build(c: &mut Criterion) {
     let mut g = c.benchmark_group("visco_dgfm");
     g.sample_size(10);
-    g.bench_function("default_object_fem_to_dgfm", |b| b.iter(|| black_box(Dgfm::default_object().unwrap())));
+    g.bench_function("default_object_fem_to_dgfm", |b| {
+        b.iter(|| black_box(Dgfm::default_object().unwrap()))
+    });
     g.finish();
 }
 
@@ -64,7 +74,13 @@ fn trials_1258(d: &Dgfm) -> Vec<plant_models::viscoelastic::measure::Trial> {
     let truths: Vec<VertexTruth> = (0..126)
         .map(|k| {
             let j = k % d.len();
-            VertexTruth::from_dgfm(d, j, 0.2 + 0.01 * (k % 20) as f64, 0.1 + 0.004 * (k % 50) as f64).unwrap()
+            VertexTruth::from_dgfm(
+                d,
+                j,
+                0.2 + 0.01 * (k % 20) as f64,
+                0.1 + 0.004 * (k % 50) as f64,
+            )
+            .unwrap()
         })
         .collect();
     let mut t = simulate_campaign(d, &truths, &ProbeProtocol::default(), 2004).unwrap();
@@ -79,10 +95,30 @@ fn fitting(c: &mut Criterion) {
     let mut g = c.benchmark_group("visco_fit_1258_trials");
     g.sample_size(10);
     g.bench_function("parallel_rayon", |b| {
-        b.iter_batched(|| (), |_| black_box(fit_trials(&trials, Weighting::Seed, NelderMeadOptions::default())), BatchSize::PerIteration)
+        b.iter_batched(
+            || (),
+            |_| {
+                black_box(fit_trials(
+                    &trials,
+                    Weighting::Seed,
+                    NelderMeadOptions::default(),
+                ))
+            },
+            BatchSize::PerIteration,
+        )
     });
     g.bench_function("serial", |b| {
-        b.iter_batched(|| (), |_| black_box(fit_trials_serial(&trials, Weighting::Seed, NelderMeadOptions::default())), BatchSize::PerIteration)
+        b.iter_batched(
+            || (),
+            |_| {
+                black_box(fit_trials_serial(
+                    &trials,
+                    Weighting::Seed,
+                    NelderMeadOptions::default(),
+                ))
+            },
+            BatchSize::PerIteration,
+        )
     });
     g.finish();
 }

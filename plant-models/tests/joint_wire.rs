@@ -69,7 +69,10 @@ fn eq3_holds_on_the_quasi_static_path_without_jamming() {
             worst[1] = worst[1].max((be - b).abs());
         }
     }
-    println!("Eq. 3 on the simulated 3D joint, no jamming: worst α {:.2}°, β {:.2}°", worst[0], worst[1]);
+    println!(
+        "Eq. 3 on the simulated 3D joint, no jamming: worst α {:.2}°, β {:.2}°",
+        worst[0], worst[1]
+    );
     assert!(worst[0] < 1.0 && worst[1] < 1.0, "Eq. 3 off by {worst:?}°");
 }
 
@@ -103,7 +106,10 @@ fn jamming_errs_when_pushing_and_not_when_pulling() {
     // an order of magnitude more (Eq. 2 flattens at deep insertion, so the
     // 2D error in degrees is smaller than the 3D single-sensor one).
     assert!(worst_pull < 0.1, "error while pulling {worst_pull}");
-    assert!(worst_push > 0.5 && worst_push > 10.0 * worst_pull, "jamming error while pushing only {worst_push}");
+    assert!(
+        worst_push > 0.5 && worst_push > 10.0 * worst_pull,
+        "jamming error while pushing only {worst_push}"
+    );
 }
 
 #[test]
@@ -112,11 +118,17 @@ fn only_the_pushed_wire_of_a_pair_jams() {
     let (mut single, mut diff) = (0.0f64, 0.0f64);
     let lags = |j: &Joint3d| {
         let w = j.wires();
-        (w[0].ideal_insertion_mm() - w[0].insertion_mm(), w[2].ideal_insertion_mm() - w[2].insertion_mm())
+        (
+            w[0].ideal_insertion_mm() - w[0].insertion_mm(),
+            w[2].ideal_insertion_mm() - w[2].insertion_mm(),
+        )
     };
     let mut at_top = (0.0, 0.0);
     let mut at_bottom = (0.0, 0.0);
-    let sweep = (0..=20).chain((-20..20).rev()).chain(-20..=0).map(f64::from);
+    let sweep = (0..=20)
+        .chain((-20..20).rev())
+        .chain(-20..=0)
+        .map(f64::from);
     for (k, t) in sweep.enumerate() {
         for _ in 0..2000 {
             let [a, _] = j.angles_deg();
@@ -124,7 +136,9 @@ fn only_the_pushed_wire_of_a_pair_jams() {
             j.step(DT, &[va[0], 0.0, va[1], 0.0]).unwrap();
             let (lag1, lag3) = lags(&j);
             // Single sensor: each wire carries half of Eq. 3's 2.727 °/mm.
-            single = single.max(2.0 * 2.727 * lag1.abs()).max(2.0 * 2.727 * lag3.abs());
+            single = single
+                .max(2.0 * 2.727 * lag1.abs())
+                .max(2.0 * 2.727 * lag3.abs());
             // Differential law: what the jam does to Eq. 3's α.
             diff = diff.max((2.727 * (lag3 - lag1)).abs());
         }
@@ -140,9 +154,18 @@ fn only_the_pushed_wire_of_a_pair_jams() {
     assert!(single > 1.0, "single-sensor jamming error only {single}");
     // At +20° wire 3 was pushed in and lags; wire 1 was pulled out and has
     // shed its lag. At −20° the other way round.
-    assert!(at_top.1 > 0.1 && at_top.0 < at_top.1 / 3.0, "at +20°: {at_top:?}");
-    assert!(at_bottom.0 > 0.1 && at_bottom.1 < at_bottom.0 / 3.0, "at −20°: {at_bottom:?}");
-    assert!(diff < 0.6 * single, "differential error {diff} vs single {single}");
+    assert!(
+        at_top.1 > 0.1 && at_top.0 < at_top.1 / 3.0,
+        "at +20°: {at_top:?}"
+    );
+    assert!(
+        at_bottom.0 > 0.1 && at_bottom.1 < at_bottom.0 / 3.0,
+        "at −20°: {at_bottom:?}"
+    );
+    assert!(
+        diff < 0.6 * single,
+        "differential error {diff} vs single {single}"
+    );
 }
 
 /// Least-squares fit of `y ≈ Σ c_k f_k(x)`; returns the coefficients.
@@ -184,13 +207,32 @@ fn stepped_sweep_supports_threshold_switching() {
         samples.push((j.wire_insertions_mm(), j.angles_deg()));
     }
     for (plane, minus, plus) in [(0usize, 0usize, 2usize), (1, 1, 3)] {
-        let data: Vec<(f64, f64, f64)> = samples.iter().map(|(d, a)| (d[minus], d[plus], a[plane])).collect();
-        let single_c = lstsq(&data.iter().map(|&(_, p, a)| ([p * p, p, 1.0], a)).collect::<Vec<_>>());
-        let single = data.iter().map(|&(_, p, a)| (eval(&single_c, [p * p, p, 1.0]) - a).abs()).fold(0.0, f64::max);
+        let data: Vec<(f64, f64, f64)> = samples
+            .iter()
+            .map(|(d, a)| (d[minus], d[plus], a[plane]))
+            .collect();
+        let single_c = lstsq(
+            &data
+                .iter()
+                .map(|&(_, p, a)| ([p * p, p, 1.0], a))
+                .collect::<Vec<_>>(),
+        );
+        let single = data
+            .iter()
+            .map(|&(_, p, a)| (eval(&single_c, [p * p, p, 1.0]) - a).abs())
+            .fold(0.0, f64::max);
         let mut best = (f64::MAX, 0.0);
         for th in (-150..=150).step_by(5).map(|k| k as f64 / 10.0) {
-            let hi: Vec<_> = data.iter().filter(|s| s.2 >= th).map(|&(m, p, a)| ([p - m, 1.0], a)).collect();
-            let lo: Vec<_> = data.iter().filter(|s| s.2 < th).map(|&(_, p, a)| ([p * p, p, 1.0], a)).collect();
+            let hi: Vec<_> = data
+                .iter()
+                .filter(|s| s.2 >= th)
+                .map(|&(m, p, a)| ([p - m, 1.0], a))
+                .collect();
+            let lo: Vec<_> = data
+                .iter()
+                .filter(|s| s.2 < th)
+                .map(|&(_, p, a)| ([p * p, p, 1.0], a))
+                .collect();
             if hi.len() < 4 || lo.len() < 4 {
                 continue;
             }
@@ -199,7 +241,11 @@ fn stepped_sweep_supports_threshold_switching() {
                 .iter()
                 .map(|&(m, p, a)| {
                     let diff = eval(&c0, [p - m, 1.0]);
-                    let est = if diff >= th { diff } else { eval(&c1, [p * p, p, 1.0]) };
+                    let est = if diff >= th {
+                        diff
+                    } else {
+                        eval(&c1, [p * p, p, 1.0])
+                    };
                     (est - a).abs()
                 })
                 .fold(0.0, f64::max);
@@ -209,6 +255,10 @@ fn stepped_sweep_supports_threshold_switching() {
         }
         println!("plane {plane}: single-sensor quadratic max error {single:.2}°, threshold switching {:.2}° at θ_th = {:.1}°", best.0, best.1);
         assert!(single > 1.0, "plane {plane}: single sensor only {single}°");
-        assert!(best.0 < 1.0, "plane {plane}: threshold switching {}°", best.0);
+        assert!(
+            best.0 < 1.0,
+            "plane {plane}: threshold switching {}°",
+            best.0
+        );
     }
 }

@@ -14,7 +14,9 @@
 //! `cargo test --release -p plant-models --test pushing_table_ii -- --ignored --nocapture`
 //! (`CELL_PX` raster cell, default 2; `GENERATIONS`, default 30; `SESSIONS`
 //! runs only the first n of the 24).
-use plant_models::pushing::evaluate::{score_run, score_with_measured_forces, EvalSetup, PreparedVideo};
+use plant_models::pushing::evaluate::{
+    score_run, score_with_measured_forces, EvalSetup, PreparedVideo,
+};
 use plant_models::pushing::evolution::{calibrate, EvolutionSettings, TABLE_III_RANGES};
 use plant_models::pushing::reference::{record_push, ReferenceConfig, ReferenceMaterial};
 use plant_models::pushing::scenario::{PushScenario, PushSite};
@@ -23,11 +25,17 @@ use plant_models::pushing::table_ii::{skill, Session};
 
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     let m = v.iter().sum::<f64>() / v.len() as f64;
-    (m, (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt())
+    (
+        m,
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt(),
+    )
 }
 
 fn env<T: std::str::FromStr>(name: &str, default: T) -> T {
-    std::env::var(name).ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+    std::env::var(name)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
 }
 
 #[derive(Default)]
@@ -45,16 +53,40 @@ struct Column {
 fn table_ii_sessions() {
     let cell_px: f64 = env("CELL_PX", 2.0);
     let generations: usize = env("GENERATIONS", 30);
-    let sessions: Vec<Session> = Session::all().into_iter().take(env("SESSIONS", 24)).collect();
+    let sessions: Vec<Session> = Session::all()
+        .into_iter()
+        .take(env("SESSIONS", 24))
+        .collect();
     // Per session: best μ(F) of each scheme and, in brackets, its mean F
     // over the push / retrieval frames.
-    let setup = EvalSetup { nx: 20, ny: 10, cell_px };
+    let setup = EvalSetup {
+        nx: 20,
+        ny: 10,
+        cell_px,
+    };
     println!("Table II protocol: {} sessions per scheme, 20×10 mesh, {cell_px} px cells, Table III search ({generations} generations)", sessions.len());
-    for (label, mat) in [("sponge", ReferenceMaterial::SPONGE), ("plasticine", ReferenceMaterial::PLASTICINE)] {
+    for (label, mat) in [
+        ("sponge", ReferenceMaterial::SPONGE),
+        ("plasticine", ReferenceMaterial::PLASTICINE),
+    ] {
         let sc = PushScenario::seed(PushSite::MiddleLongSide, mat.scale_px_per_m).unwrap();
-        let pv = PreparedVideo::new(record_push(label, mat, &sc, &ReferenceConfig::default()).unwrap(), &setup).unwrap();
-        let still_cfg = SimConfig { mode: DrivingMode::ForcesOnVertices, ..SimConfig::default() };
-        let still = score_run(&pv, &vec![0.0; pv.frame_count()], &plant_models::pushing::forces::MaterialParams::SEED_FIG14_SPONGE, &still_cfg).unwrap().mean_f;
+        let pv = PreparedVideo::new(
+            record_push(label, mat, &sc, &ReferenceConfig::default()).unwrap(),
+            &setup,
+        )
+        .unwrap();
+        let still_cfg = SimConfig {
+            mode: DrivingMode::ForcesOnVertices,
+            ..SimConfig::default()
+        };
+        let still = score_run(
+            &pv,
+            &vec![0.0; pv.frame_count()],
+            &plant_models::pushing::forces::MaterialParams::SEED_FIG14_SPONGE,
+            &still_cfg,
+        )
+        .unwrap()
+        .mean_f;
         println!("{label}: undeformed block μ(F) = {still:.4}");
         let n_push = sc.frames_push;
         let mut cols: Vec<Column> = Integrator::ALL.iter().map(|_| Column::default()).collect();
@@ -64,10 +96,24 @@ fn table_ii_sessions() {
                 let cfg = session.sim_config(integ);
                 let mut st = EvolutionSettings::table_iii(1 + s_idx as u64);
                 st.generations = generations;
-                let r = calibrate(&st, &TABLE_III_RANGES, |p| score_with_measured_forces(&pv, &session.mask(p), &cfg).map(|s| s.mean_f).unwrap_or(f64::NAN), |_| {}).unwrap();
+                let r = calibrate(
+                    &st,
+                    &TABLE_III_RANGES,
+                    |p| {
+                        score_with_measured_forces(&pv, &session.mask(p), &cfg)
+                            .map(|s| s.mean_f)
+                            .unwrap_or(f64::NAN)
+                    },
+                    |_| {},
+                )
+                .unwrap();
                 let last = r.history.last().unwrap();
-                let best = score_with_measured_forces(&pv, &session.mask(&r.best_params), &cfg).unwrap();
-                assert_eq!(best.mean_f, r.best_score, "the calibration's score is reproducible");
+                let best =
+                    score_with_measured_forces(&pv, &session.mask(&r.best_params), &cfg).unwrap();
+                assert_eq!(
+                    best.mean_f, r.best_score,
+                    "the calibration's score is reproducible"
+                );
                 let col = &mut cols[c];
                 col.best.push(r.best_score);
                 col.worst.push(last.worst.max(0.0));
@@ -75,14 +121,25 @@ fn table_ii_sessions() {
                 col.skill.push(skill(r.best_score, still));
                 col.push.push(mean_sd(&best.f_per_frame[..n_push]).0);
                 col.retrieval.push(mean_sd(&best.f_per_frame[n_push..]).0);
-                line += &format!("  {} {:.4} ({:.4}/{:.4})", integ.name(), r.best_score, col.push.last().unwrap(), col.retrieval.last().unwrap());
+                line += &format!(
+                    "  {} {:.4} ({:.4}/{:.4})",
+                    integ.name(),
+                    r.best_score,
+                    col.push.last().unwrap(),
+                    col.retrieval.last().unwrap()
+                );
             }
             println!("{line}");
         }
         println!("{label:>10} {:>10}  best             worst          average          skill of best    F push   F retrieval", "scheme");
         for (c, integ) in Integrator::ALL.into_iter().enumerate() {
             let col = &cols[c];
-            let (b, w, a, k) = (mean_sd(&col.best), mean_sd(&col.worst), mean_sd(&col.average), mean_sd(&col.skill));
+            let (b, w, a, k) = (
+                mean_sd(&col.best),
+                mean_sd(&col.worst),
+                mean_sd(&col.average),
+                mean_sd(&col.skill),
+            );
             println!(
                 "{label:>10} {:>10}  {:.4} ± {:.4}  {:.3} ± {:.3}  {:.4} ± {:.4}  {:.3} ± {:.3}  {:.4}   {:.4}",
                 integ.name(),
@@ -98,7 +155,20 @@ fn table_ii_sessions() {
                 mean_sd(&col.retrieval).0
             );
         }
-        let wins = |i: usize, j: usize| cols[i].best.iter().zip(&cols[j].best).filter(|(a, b)| a > b).count();
-        println!("{label:>10} sessions where customised's best beats Euler's: {}/{}, Verlet's: {}/{}", wins(0, 1), sessions.len(), wins(0, 2), sessions.len());
+        let wins = |i: usize, j: usize| {
+            cols[i]
+                .best
+                .iter()
+                .zip(&cols[j].best)
+                .filter(|(a, b)| a > b)
+                .count()
+        };
+        println!(
+            "{label:>10} sessions where customised's best beats Euler's: {}/{}, Verlet's: {}/{}",
+            wins(0, 1),
+            sessions.len(),
+            wins(0, 2),
+            sessions.len()
+        );
     }
 }

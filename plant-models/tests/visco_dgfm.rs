@@ -9,7 +9,9 @@ use firmware::viscoelastic::{RayleighParams, TimeStep};
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm};
 use plant_models::viscoelastic::fem::{FemSystem, LinearElastic, TetMesh, DEFAULT_SHELL_SCALES};
 use plant_models::viscoelastic::object::{run_script, ProbeEvent};
-use plant_models::viscoelastic::{ColumnParams, Contact, HapticLoop, SurfaceMesh, VeError, ViscoObject};
+use plant_models::viscoelastic::{
+    ColumnParams, Contact, HapticLoop, SurfaceMesh, VeError, ViscoObject,
+};
 use std::sync::OnceLock;
 
 /// The shipped default object, computed once per test binary (~3 s debug).
@@ -23,7 +25,10 @@ fn max_abs(v: &[Vec3<f64>]) -> f64 {
 }
 
 fn max_diff(a: &[Vec3<f64>], b: &[Vec3<f64>]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (*x - *y).max_abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).max_abs())
+        .fold(0.0, f64::max)
 }
 
 #[test]
@@ -31,11 +36,17 @@ fn default_object_is_a_closed_198_vertex_mesh_with_consistent_node_areas() {
     let mesh = SurfaceMesh::default_object();
     mesh.validate().unwrap();
     assert_eq!(mesh.len(), 198);
-    let total: f64 = (0..mesh.triangles.len()).map(|t| mesh.triangle_area_m2(t)).sum();
+    let total: f64 = (0..mesh.triangles.len())
+        .map(|t| mesh.triangle_area_m2(t))
+        .sum();
     let alpha: f64 = mesh.node_areas_m2().iter().sum();
     assert!((alpha - total).abs() < 1e-12 * total);
     let d = object_dgfm();
-    assert!(d.len() > 140 && d.len() < 198, "Λv has {} vertices", d.len());
+    assert!(
+        d.len() > 140 && d.len() < 198,
+        "Λv has {} vertices",
+        d.len()
+    );
     assert_eq!(d.fixed().iter().filter(|f| **f).count() + d.len(), 198);
 }
 
@@ -47,12 +58,23 @@ fn fem_reproduces_the_exact_uniaxial_solution_of_a_cube() {
     let side_m = 0.05;
     let mesh = SurfaceMesh::cube(3, side_m);
     let fixed: Vec<bool> = mesh.vertices_m.iter().map(|v| v[2] < 1e-12).collect();
-    let mat = LinearElastic { youngs_modulus_pa: 1.0e5, poisson_ratio: 0.0 };
-    let fem = FemSystem::new(TetMesh::layered(&mesh, &DEFAULT_SHELL_SCALES).unwrap(), mat, &fixed).unwrap();
+    let mat = LinearElastic {
+        youngs_modulus_pa: 1.0e5,
+        poisson_ratio: 0.0,
+    };
+    let fem = FemSystem::new(
+        TetMesh::layered(&mesh, &DEFAULT_SHELL_SCALES).unwrap(),
+        mat,
+        &fixed,
+    )
+    .unwrap();
     let p_pa = 2.0e3;
     let mut forces = vec![[0.0; 3]; mesh.len()];
     for (t, tri) in mesh.triangles.iter().enumerate() {
-        if tri.iter().all(|&v| (mesh.vertices_m[v][2] - side_m).abs() < 1e-12) {
+        if tri
+            .iter()
+            .all(|&v| (mesh.vertices_m[v][2] - side_m).abs() < 1e-12)
+        {
             for &v in tri {
                 forces[v][2] += p_pa * mesh.triangle_area_m2(t) / 3.0;
             }
@@ -62,8 +84,15 @@ fn fem_reproduces_the_exact_uniaxial_solution_of_a_cube() {
     let top = p_pa * side_m / mat.youngs_modulus_pa;
     for (k, node) in fem.tet_mesh().nodes_m.iter().enumerate() {
         let exact = p_pa * node[2] / mat.youngs_modulus_pa;
-        let err = (u[k][2] - exact).abs().max(u[k][0].abs()).max(u[k][1].abs());
-        assert!(err < 1e-9 * top, "node {k} at {node:?}: u = {:?}, exact z {exact}", u[k]);
+        let err = (u[k][2] - exact)
+            .abs()
+            .max(u[k][0].abs())
+            .max(u[k][1].abs());
+        assert!(
+            err < 1e-9 * top,
+            "node {k} at {node:?}: u = {:?}, exact z {exact}",
+            u[k]
+        );
     }
     // Layered volume equals the cube's.
     assert!((fem.tet_mesh().volume_m3() - side_m.powi(3)).abs() < 1e-12 * side_m.powi(3));
@@ -74,7 +103,12 @@ fn dgfm_equals_a_direct_fem_solve_and_is_reciprocal() {
     let d = object_dgfm();
     let mesh = d.mesh().clone();
     let fixed = support_below(&mesh, 0.12);
-    let fem = FemSystem::new(TetMesh::layered(&mesh, &DEFAULT_SHELL_SCALES).unwrap(), LinearElastic::default(), &fixed).unwrap();
+    let fem = FemSystem::new(
+        TetMesh::layered(&mesh, &DEFAULT_SHELL_SCALES).unwrap(),
+        LinearElastic::default(),
+        &fixed,
+    )
+    .unwrap();
     // Tractions on five vertices in different directions.
     let mut p = vec![Vec3::zero(); d.len()];
     let mut forces = vec![[0.0; 3]; mesh.len()];
@@ -85,7 +119,11 @@ fn dgfm_equals_a_direct_fem_solve_and_is_reciprocal() {
     }
     let u_dgfm = d.static_displacement(&p).unwrap();
     let u_fem = fem.solve_surface_forces(&forces).unwrap();
-    let u_fem: Vec<Vec3<f64>> = d.traction_vertices().iter().map(|&v| Vec3(u_fem[v])).collect();
+    let u_fem: Vec<Vec3<f64>> = d
+        .traction_vertices()
+        .iter()
+        .map(|&v| Vec3(u_fem[v]))
+        .collect();
     let rel = max_diff(&u_dgfm, &u_fem) / max_abs(&u_fem);
     assert!(rel < 1e-9, "DGFM vs direct FEM: relative error {rel:e}");
     // Maxwell–Betti: G_ij = G_jiᵀ with G_ij = Ξ_ij / α_j.
@@ -95,7 +133,10 @@ fn dgfm_equals_a_direct_fem_solve_and_is_reciprocal() {
         let scale = gij.max_abs().max(1e-30);
         for r in 0..3 {
             for c in 0..3 {
-                assert!((gij.0[r][c] - gji.0[r][c]).abs() < 1e-9 * scale, "reciprocity ({i},{j})");
+                assert!(
+                    (gij.0[r][c] - gji.0[r][c]).abs() < 1e-9 * scale,
+                    "reciprocity ({i},{j})"
+                );
             }
         }
     }
@@ -106,7 +147,12 @@ fn three_tractions(d: &Dgfm) -> Vec<(usize, Vec3<f64>)> {
     let tri = d.mesh().triangles[60];
     tri.iter()
         .enumerate()
-        .map(|(k, &v)| (d.index_of(v).unwrap(), Vec3::new(300.0, -150.0 * k as f64, -2.0e3)))
+        .map(|(k, &v)| {
+            (
+                d.index_of(v).unwrap(),
+                Vec3::new(300.0, -150.0 * k as f64, -2.0e3),
+            )
+        })
         .collect()
 }
 
@@ -134,7 +180,10 @@ fn static_limit_equals_the_dgfm_with_rayleigh_columns() {
     let n = object_dgfm().len();
     let params = ColumnParams::Rayleigh(
         (0..n)
-            .map(|j| RayleighParams::new(0.5 + (j % 7) as f64 * 0.4, 0.02 + (j % 5) as f64 * 0.03).unwrap())
+            .map(|j| {
+                RayleighParams::new(0.5 + (j % 7) as f64 * 0.4, 0.02 + (j % 5) as f64 * 0.03)
+                    .unwrap()
+            })
             .collect(),
     );
     // Any step is valid for Eq. 12; 0.05 s steps reach rest in a few hundred.
@@ -153,7 +202,10 @@ fn static_limit_equals_the_dgfm_with_tensor_damping() {
             k.scale(0.03) + Mat3::diagonal(20.0, 5.0, 10.0)
         })
         .collect();
-    let params = ColumnParams::Tensor { ratios: (0..n).map(|j| 0.8 + (j % 3) as f64).collect(), damping_n_s_per_m: damping };
+    let params = ColumnParams::Tensor {
+        ratios: (0..n).map(|j| 0.8 + (j % 3) as f64).collect(),
+        damping_n_s_per_m: damping,
+    };
     let rel = static_limit_error(params, 0.01, 1500);
     assert!(rel < 1e-9, "static limit relative error {rel:e}");
 }
@@ -184,10 +236,17 @@ fn a_transient_differs_from_the_static_answer_and_released_columns_relax_and_lea
         obj.step(h, &mut u).unwrap();
         steps += 1;
     }
-    assert_eq!(obj.active_count(), 0, "columns still active after {steps} steps");
+    assert_eq!(
+        obj.active_count(),
+        0,
+        "columns still active after {steps} steps"
+    );
     assert!(max_abs(&u) < 1e-5, "residual displacement {}", max_abs(&u));
     // Wrong inputs are errors, not panics.
-    assert!(matches!(obj.set_traction(d.len(), Vec3::new(1.0, 0.0, 0.0)), Err(VeError::VertexNotInTractionSet { .. })));
+    assert!(matches!(
+        obj.set_traction(d.len(), Vec3::new(1.0, 0.0, 0.0)),
+        Err(VeError::VertexNotInTractionSet { .. })
+    ));
     assert!(obj.set_traction(0, Vec3::new(f64::NAN, 0.0, 0.0)).is_err());
     assert!(obj.step(h, &mut u[1..]).is_err());
 }
@@ -201,8 +260,19 @@ fn haptic_loop_runs_at_1khz_with_30hz_frames_and_is_deterministic() {
         let mut hl = HapticLoop::new(obj).unwrap();
         let top = d.mesh().triangles[5];
         let events = [
-            ProbeEvent { time_s: 0.0, contact: Some(Contact::Triangle { triangle: 5, barycentric: [0.2, 0.3, 0.5] }), force_n: [0.0, 0.0, -1.5] },
-            ProbeEvent { time_s: 0.4, contact: None, force_n: [0.0; 3] },
+            ProbeEvent {
+                time_s: 0.0,
+                contact: Some(Contact::Triangle {
+                    triangle: 5,
+                    barycentric: [0.2, 0.3, 0.5],
+                }),
+                force_n: [0.0, 0.0, -1.5],
+            },
+            ProbeEvent {
+                time_s: 0.4,
+                contact: None,
+                force_n: [0.0; 3],
+            },
         ];
         let samples = run_script(&mut hl, &events, 1.0).unwrap();
         (samples, hl.frames.clone(), top)
@@ -213,14 +283,25 @@ fn haptic_loop_runs_at_1khz_with_30hz_frames_and_is_deterministic() {
     assert_eq!(frames.len(), 31);
     for w in frames.windows(2) {
         let dt = w[1].time_s - w[0].time_s;
-        assert!((dt - 1.0 / 30.0).abs() <= 1.0e-3 + 1e-12, "frame spacing {dt}");
+        assert!(
+            (dt - 1.0 / 30.0).abs() <= 1.0e-3 + 1e-12,
+            "frame spacing {dt}"
+        );
     }
     // Pushing down moves the contact down, creeping while loaded (the
     // 3-element creep), then it recovers after release.
     let z = |k: usize| samples[k].contact_displacement_m[2];
-    assert!(z(0) < 0.0 && z(399) < z(0), "creep: {} then {}", z(0), z(399));
+    assert!(
+        z(0) < 0.0 && z(399) < z(0),
+        "creep: {} then {}",
+        z(0),
+        z(399)
+    );
     let last = frames.last().unwrap();
-    let peak = frames.iter().map(|f| f.displacement_m[top[0]][2].abs()).fold(0.0, f64::max);
+    let peak = frames
+        .iter()
+        .map(|f| f.displacement_m[top[0]][2].abs())
+        .fold(0.0, f64::max);
     assert!(last.displacement_m[top[0]][2].abs() < 0.01 * peak);
     // Bit-identical rerun.
     let (again, frames2, _) = run();
@@ -238,7 +319,11 @@ fn meshes_that_cannot_be_used_are_rejected_with_a_reason() {
     for t in &mut flipped.triangles {
         t.swap(1, 2);
     }
-    assert!(flipped.validate().unwrap_err().to_string().contains("volume"));
+    assert!(flipped
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("volume"));
     // A closed, oriented mesh that is not star-shaped about its vertex mean
     // (a ring pushed through to the far side folds its triangles towards
     // the centre): the layered tetrahedralisation refuses it.
@@ -246,8 +331,12 @@ fn meshes_that_cannot_be_used_are_rejected_with_a_reason() {
     for v in folded.vertices_m.iter_mut().skip(1).take(8) {
         v[2] = -0.9 * v[2].abs();
     }
-    folded.validate().expect("still closed, oriented, positive volume");
-    let e = TetMesh::layered(&folded, &DEFAULT_SHELL_SCALES).unwrap_err().to_string();
+    folded
+        .validate()
+        .expect("still closed, oriented, positive volume");
+    let e = TetMesh::layered(&folded, &DEFAULT_SHELL_SCALES)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("star-shaped"), "{e}");
     // Nothing fixed: the body floats, the FEM refuses.
     let mesh = SurfaceMesh::blob(5, 6, [0.05, 0.04, 0.03]);
@@ -266,10 +355,14 @@ fn obj_round_trips_and_bad_obj_names_the_line() {
         }
     }
     let bad = "v 0 0 0\nv 1 0 0\nv 0 1 x\n";
-    let e = SurfaceMesh::from_obj_str(bad, "bad.obj").unwrap_err().to_string();
+    let e = SurfaceMesh::from_obj_str(bad, "bad.obj")
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("bad.obj:3:"), "{e}");
     let bad = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n";
-    let e = SurfaceMesh::from_obj_str(bad, "bad.obj").unwrap_err().to_string();
+    let e = SurfaceMesh::from_obj_str(bad, "bad.obj")
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("bad.obj:4:") && e.contains("7"), "{e}");
 }
 
@@ -292,10 +385,18 @@ fn runtime_driver_equals_the_cores_compile_time_visco_dgfm() {
             *blk = d.xi(i, j);
         }
     }
-    let cols: [RayleighParams<f64>; N] = core::array::from_fn(|j| RayleighParams::new(0.3 + 0.2 * j as f64, 0.01 + 0.02 * (j % 4) as f64).unwrap());
+    let cols: [RayleighParams<f64>; N] = core::array::from_fn(|j| {
+        RayleighParams::new(0.3 + 0.2 * j as f64, 0.01 + 0.02 * (j % 4) as f64).unwrap()
+    });
     let mut core = ViscoDgfm::<f64, N, N>::new(&xi, cols).unwrap();
-    core.set_rest_threshold(plant_models::viscoelastic::object::DEFAULT_REST_THRESHOLD_M).unwrap();
-    let mut ours = ViscoObject::new(d.clone(), ColumnParams::Rayleigh(cols.to_vec()), TimeStep::new(1e-3).unwrap()).unwrap();
+    core.set_rest_threshold(plant_models::viscoelastic::object::DEFAULT_REST_THRESHOLD_M)
+        .unwrap();
+    let mut ours = ViscoObject::new(
+        d.clone(),
+        ColumnParams::Rayleigh(cols.to_vec()),
+        TimeStep::new(1e-3).unwrap(),
+    )
+    .unwrap();
     let h = TimeStep::new(1e-3).unwrap();
     let mut u_core = [Vec3::zero(); N];
     let mut u_ours = vec![Vec3::zero(); N];
@@ -321,7 +422,10 @@ fn runtime_driver_equals_the_cores_compile_time_visco_dgfm() {
         core.step(h, &mut u_core);
         ours.step(h, &mut u_ours).unwrap();
         let diff = max_diff(&u_core, &u_ours);
-        assert!(diff <= 1e-15 * max_abs(&u_core).max(1e-12), "step {step}: differ by {diff:e}");
+        assert!(
+            diff <= 1e-15 * max_abs(&u_core).max(1e-12),
+            "step {step}: differ by {diff:e}"
+        );
         assert_eq!(core.active_count(), ours.active_count(), "step {step}");
     }
     assert_eq!(ours.active_count(), 0, "all columns relaxed and left");

@@ -41,21 +41,39 @@ fn camera_p_control_converges_at_both_gains_of_fig7() {
     // windows, each ≈ 3 limit cycles, agree within 0.2°).
     let band = err_stats(&high, 0, 10.0, 40.0);
     println!("Kp = 2.0, 10–40 s: {band:?}");
-    assert!(band.max_abs < 1.0, "Kp = 2.0 leaves the ±1° band after 10 s: {band:?}");
-    let (a, b) = (err_stats(&high, 0, 20.0, 30.0).mean, err_stats(&high, 0, 30.0, 40.0).mean);
-    assert!((a - b).abs() < 0.2, "Kp = 2.0 drifts: mean error {a:.3}° (20–30 s) vs {b:.3}° (30–40 s)");
+    assert!(
+        band.max_abs < 1.0,
+        "Kp = 2.0 leaves the ±1° band after 10 s: {band:?}"
+    );
+    let (a, b) = (
+        err_stats(&high, 0, 20.0, 30.0).mean,
+        err_stats(&high, 0, 30.0, 40.0).mean,
+    );
+    assert!(
+        (a - b).abs() < 0.2,
+        "Kp = 2.0 drifts: mean error {a:.3}° (20–30 s) vs {b:.3}° (30–40 s)"
+    );
 
     // Kp = 0.05 converges to a steady value: over the last 10 s the (true,
     // noise-free) angle moves by less than 0.1° peak to peak.
     let ptp = peak_to_peak(&low, 0, 30.0, 40.0);
-    assert!(ptp < 0.1, "Kp = 0.05 still moving: {ptp:.3}° peak to peak over 30–40 s");
+    assert!(
+        ptp < 0.1,
+        "Kp = 0.05 still moving: {ptp:.3}° peak to peak over 30–40 s"
+    );
     // ... with the larger steady-state error: below θd by more than 1°, and
     // at least 5 times the Kp = 2.0 offset.
     let low_err = err_stats(&low, 0, 30.0, 40.0).mean;
     let high_err = err_stats(&high, 0, 20.0, 40.0).mean;
     println!("mean error: Kp = 0.05 {low_err:+.3}° (30–40 s, {ptp:.3}° p-p), Kp = 2.0 {high_err:+.3}° (20–40 s)");
-    assert!(low_err < -1.0, "Kp = 0.05 offset {low_err:.3}°: expected the P law's droop below θd");
-    assert!(low_err.abs() > 5.0 * high_err.abs(), "offsets: Kp = 0.05 {low_err:.3}°, Kp = 2.0 {high_err:.3}°");
+    assert!(
+        low_err < -1.0,
+        "Kp = 0.05 offset {low_err:.3}°: expected the P law's droop below θd"
+    );
+    assert!(
+        low_err.abs() > 5.0 * high_err.abs(),
+        "offsets: Kp = 0.05 {low_err:.3}°, Kp = 2.0 {high_err:.3}°"
+    );
 }
 
 /// Paper §III-B: "even when the gain Kp [is] 2.0, the steady-state error is
@@ -96,7 +114,10 @@ fn camera_p_steady_state_error_below_0_15_deg_at_kp_2() {
         println!("seed {seed}: mean error over 10–60 s {e:+.3}°");
         worst = worst.max(e.abs());
     }
-    assert!(worst < 0.15, "steady-state error up to {worst:.3}° (paper: < 0.15°)");
+    assert!(
+        worst < 0.15,
+        "steady-state error up to {worst:.3}° (paper: < 0.15°)"
+    );
 }
 
 /// Paper §III-C, Fig. 9: Kp = 2.0, θd = 5°, coil 2 driven at 5 V from 4 s
@@ -120,13 +141,23 @@ fn coil_2_disturbance_pushes_the_angle_away_and_it_returns() {
     // to let go) the angle is pushed clearly below θd.
     let during = err_stats(&t, 0, 4.0, 6.5);
     println!("during 4–6.5 s: {during:?}");
-    assert!(during.min < -1.0, "coil 2 at 5 V did not push the angle away: {during:?}");
+    assert!(
+        during.min < -1.0,
+        "coil 2 at 5 V did not push the angle away: {during:?}"
+    );
 
     // Returns: 8 s after the disturbance ends the angle is back at θd.
     let after = err_stats(&t, 0, 14.0, 20.0);
     println!("after 14–20 s: {after:?}");
-    assert!(after.max_abs < 0.75, "not back within ±0.75° of θd = {target}° over 14–20 s: {after:?}");
-    assert!(after.mean.abs() < 0.3, "mean offset {:.3}° over 14–20 s", after.mean);
+    assert!(
+        after.max_abs < 0.75,
+        "not back within ±0.75° of θd = {target}° over 14–20 s: {after:?}"
+    );
+    assert!(
+        after.mean.abs() < 0.3,
+        "mean offset {:.3}° over 14–20 s",
+        after.mean
+    );
 }
 
 /// Paper §III-D, Fig. 7 vs Fig. 11: the same Eq. 1 law on a rigid bearing
@@ -147,11 +178,20 @@ fn rigid_bearing_oscillates_more_than_the_cartilage_joint() {
     let overshoot = |t| err_stats(t, 0, 0.0, 10.0).max;
     let (o_c, o_r) = (overshoot(&cartilage), overshoot(&rigid));
     println!("overshoot: cartilage {o_c:.2}°, rigid {o_r:.2}°");
-    assert!(o_r > 2.0 * o_c, "overshoot: rigid {o_r:.2}° vs cartilage {o_c:.2}°");
+    assert!(
+        o_r > 2.0 * o_c,
+        "overshoot: rigid {o_r:.2}° vs cartilage {o_c:.2}°"
+    );
 
-    let (n_c, n_r) = (reversals(&cartilage, 0, 0.2, 0.0, 10.0), reversals(&rigid, 0, 0.2, 0.0, 10.0));
+    let (n_c, n_r) = (
+        reversals(&cartilage, 0, 0.2, 0.0, 10.0),
+        reversals(&rigid, 0, 0.2, 0.0, 10.0),
+    );
     println!("reversals > 0.2° in 10 s: cartilage {n_c}, rigid {n_r}");
-    assert!(n_r >= 10 && n_r >= 5 * n_c, "reversals > 0.2° in 10 s: rigid {n_r} vs cartilage {n_c}");
+    assert!(
+        n_r >= 10 && n_r >= 5 * n_c,
+        "reversals > 0.2° in 10 s: rigid {n_r} vs cartilage {n_c}"
+    );
 }
 
 /// Paper §III-B, Fig. 8: P control leaves a steady-state error, I action
@@ -179,19 +219,37 @@ fn integral_action_removes_the_p_offset_without_supervisor_faults() {
         pi.summary.peak_coil_temperature_c
     );
     assert!(e_pi.abs() < 0.1, "P + I leaves a {e_pi:.3}° offset");
-    assert!(e_pi.abs() < 0.5 * e_p.abs(), "P + I offset {e_pi:.3}° vs P {e_p:.3}°: not removed");
+    assert!(
+        e_pi.abs() < 0.5 * e_p.abs(),
+        "P + I offset {e_pi:.3}° vs P {e_p:.3}°: not removed"
+    );
     // It still converges (same band as the P law).
     let band = err_stats(&pi.trace, 0, 10.0, 40.0);
-    assert!(band.max_abs < 1.0, "P + I leaves the ±1° band after 10 s: {band:?}");
+    assert!(
+        band.max_abs < 1.0,
+        "P + I leaves the ±1° band after 10 s: {band:?}"
+    );
 
     // The supervisor never had to step in: no thermal cut-off, no latched
     // fault, at any step.
-    assert!(pi.summary.faults_seen.is_empty(), "faults: {:?}", pi.summary.faults_seen);
-    assert!(pi.trace.rows.iter().all(|r| r.faults == 0), "a step reported faults");
+    assert!(
+        pi.summary.faults_seen.is_empty(),
+        "faults: {:?}",
+        pi.summary.faults_seen
+    );
+    assert!(
+        pi.trace.rows.iter().all(|r| r.faults == 0),
+        "a step reported faults"
+    );
     // Coil temperatures stay bounded: below the supervisor's trip level
     // (ambient + trip rise), both coils.
-    let trip_c = Joint2dParams::default().plane.coil.ambient_c + f64::from(ThermalConfig::default().trip_rise_k);
+    let trip_c = Joint2dParams::default().plane.coil.ambient_c
+        + f64::from(ThermalConfig::default().trip_rise_k);
     for (i, t) in pi.summary.peak_coil_temperature_c.iter().enumerate() {
-        assert!(t.is_finite() && *t < trip_c, "coil {} peaked at {t:.1} °C (trip {trip_c:.0} °C)", i + 1);
+        assert!(
+            t.is_finite() && *t < trip_c,
+            "coil {} peaked at {t:.1} °C (trip {trip_c:.0} °C)",
+            i + 1
+        );
     }
 }

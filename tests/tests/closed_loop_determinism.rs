@@ -36,11 +36,34 @@ fn scenario(seed: u64) -> Scenario {
         name: "determinism".into(),
         seed,
         duration_s: 8.0,
-        estimator: host_tools::scenario::EstimatorSpec { method: EstimatorMethod::Switching, calibration: None },
-        targets: vec![TargetStep { t_s: 0.0, deg: vec![0.0, 0.0] }, TargetStep { t_s: 2.0, deg: vec![5.0, -5.0] }],
+        estimator: host_tools::scenario::EstimatorSpec {
+            method: EstimatorMethod::Switching,
+            calibration: None,
+        },
+        targets: vec![
+            TargetStep {
+                t_s: 0.0,
+                deg: vec![0.0, 0.0],
+            },
+            TargetStep {
+                t_s: 2.0,
+                deg: vec![5.0, -5.0],
+            },
+        ],
         disturbances: vec![
-            Disturbance::Weight { mass_g: 20.0, plane: Some("beta".into()), direction: None, from_s: 3.0, to_s: 5.0 },
-            Disturbance::CoilVoltage { coil: 3, volts: 4.0, from_s: 6.0, to_s: 6.5 },
+            Disturbance::Weight {
+                mass_g: 20.0,
+                plane: Some("beta".into()),
+                direction: None,
+                from_s: 3.0,
+                to_s: 5.0,
+            },
+            Disturbance::CoilVoltage {
+                coil: 3,
+                volts: 4.0,
+                from_s: 6.0,
+                to_s: 6.5,
+            },
         ],
         ..Scenario::default()
     }
@@ -53,7 +76,10 @@ fn same_scenario_gives_a_bit_identical_trace() {
     assert_eq!(a.trace.rows.len(), 8000);
     let (ba, bb) = (bits(&a.trace), bits(&b.trace));
     if let Some(k) = ba.iter().zip(&bb).position(|(x, y)| x != y) {
-        panic!("traces differ first at row {k}: {:?} vs {:?}", a.trace.rows[k], b.trace.rows[k]);
+        panic!(
+            "traces differ first at row {k}: {:?} vs {:?}",
+            a.trace.rows[k], b.trace.rows[k]
+        );
     }
     assert_eq!(ba, bb);
     // The summary too, apart from the wall-clock fields.
@@ -67,6 +93,10 @@ fn same_scenario_gives_a_bit_identical_trace() {
 
     // A different seed changes the trace (the seed is not ignored).
     let c = run(&scenario(22));
-    let differing = bits(&c.trace).iter().zip(&ba).filter(|(x, y)| x != y).count();
+    let differing = bits(&c.trace)
+        .iter()
+        .zip(&ba)
+        .filter(|(x, y)| x != y)
+        .count();
     assert!(differing > 0, "seed 22 gave the same trace as seed 21");
 }

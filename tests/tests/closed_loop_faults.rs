@@ -26,14 +26,28 @@ fn run(cl: &mut Loop, ms: usize) -> Vec<hal_sim::Sample<2, 4>> {
 fn a_dead_sensor_latches_the_safe_state_within_the_stale_limit() {
     let mut cl = closed_loop(8.0);
     let before = run(&mut cl, 3000);
-    assert!(before.last().unwrap().coil_volts.iter().any(|v| *v > 0.0), "driving before the fault");
+    assert!(
+        before.last().unwrap().coil_volts.iter().any(|v| *v > 0.0),
+        "driving before the fault"
+    );
     cl.sensors()[2].set_fault(Some(SensorFault::Dead));
     let after = run(&mut cl, 200);
-    let first_off = after.iter().position(|s| s.coil_volts.iter().all(|v| *v == 0.0)).expect("outputs never went off");
+    let first_off = after
+        .iter()
+        .position(|s| s.coil_volts.iter().all(|v| *v == 0.0))
+        .expect("outputs never went off");
     // Stale after 50 ms (default wire limits), one period to act.
-    assert!((49..=51).contains(&first_off), "outputs off after {first_off} ms");
+    assert!(
+        (49..=51).contains(&first_off),
+        "outputs off after {first_off} ms"
+    );
     assert!(Faults::from_bits(after[first_off].faults).contains(Faults::SENSOR_STALE));
-    assert!(after[first_off..].iter().all(|s| s.coil_volts.iter().all(|v| *v == 0.0)), "latched off");
+    assert!(
+        after[first_off..]
+            .iter()
+            .all(|s| s.coil_volts.iter().all(|v| *v == 0.0)),
+        "latched off"
+    );
 }
 
 #[test]
@@ -43,10 +57,17 @@ fn dropped_samples_are_held_and_control_carries_on() {
         s.set_fault(Some(SensorFault::Dropout { probability: 0.3 }));
     }
     let samples = run(&mut cl, 12_000);
-    assert!(samples.iter().all(|s| s.faults == 0), "30 % dropouts are not a fault (held values, never 50 ms stale)");
+    assert!(
+        samples.iter().all(|s| s.faults == 0),
+        "30 % dropouts are not a fault (held values, never 50 ms stale)"
+    );
     let last = samples.last().unwrap();
     for p in 0..2 {
-        assert!((last.true_deg[p] - 8.0).abs() < 1.5, "plane {p} at {:.2}° with dropouts", last.true_deg[p]);
+        assert!(
+            (last.true_deg[p] - 8.0).abs() < 1.5,
+            "plane {p} at {:.2}° with dropouts",
+            last.true_deg[p]
+        );
     }
 }
 
@@ -61,7 +82,10 @@ fn a_jammed_sensor_misleads_the_estimate_by_its_jam() {
     let b = run(&mut jammed, 10_000);
     let (ta, tb) = (a.last().unwrap().true_deg[0], b.last().unwrap().true_deg[0]);
     let shift = tb - ta;
-    assert!((shift - 2.727 * 0.5).abs() < 0.5, "jam shifted α by {shift:.2}°, expected ≈ 1.36°");
+    assert!(
+        (shift - 2.727 * 0.5).abs() < 0.5,
+        "jam shifted α by {shift:.2}°, expected ≈ 1.36°"
+    );
     // Nothing flags it: a consistent offset is plausible — which is why the
     // paper cross-checks methods (threshold switching).
     assert!(b.iter().all(|s| s.faults == 0));
@@ -78,8 +102,15 @@ fn a_stuck_sensor_freezes_the_estimate() {
     // The α estimate cannot follow; the agonist saturates while the true
     // angle climbs past the target: nothing in the signals reveals it.
     let est: Vec<f64> = s.iter().map(|x| x.estimate_deg[0]).collect();
-    assert!(est.iter().all(|e| (e - est[0]).abs() < 1e-9), "estimate moved with frozen sensors");
-    assert!(s.last().unwrap().true_deg[0] > 8.0, "true α {:.2}°", s.last().unwrap().true_deg[0]);
+    assert!(
+        est.iter().all(|e| (e - est[0]).abs() < 1e-9),
+        "estimate moved with frozen sensors"
+    );
+    assert!(
+        s.last().unwrap().true_deg[0] > 8.0,
+        "true α {:.2}°",
+        s.last().unwrap().true_deg[0]
+    );
 }
 
 #[test]
@@ -88,18 +119,35 @@ fn an_open_coil_cannot_pull_and_a_failing_channel_is_a_driver_fault() {
     cl.pwm()[0][0].set_fault(Some(CoilFault::Open)); // coil 1 (α agonist) open
     let s = run(&mut cl, 8000);
     let last = s.last().unwrap();
-    assert!(last.true_deg[0] < 1.0, "α rose to {:.2}° with its agonist open", last.true_deg[0]);
-    assert!((last.true_deg[1] - 8.0).abs() < 1.5, "β unaffected: {:.2}°", last.true_deg[1]);
+    assert!(
+        last.true_deg[0] < 1.0,
+        "α rose to {:.2}° with its agonist open",
+        last.true_deg[0]
+    );
+    assert!(
+        (last.true_deg[1] - 8.0).abs() < 1.5,
+        "β unaffected: {:.2}°",
+        last.true_deg[1]
+    );
 
     let mut cl = closed_loop(8.0);
     run(&mut cl, 500);
     cl.pwm()[1][0].set_fault(Some(CoilFault::ChannelError));
     let s = run(&mut cl, 5);
-    let bad = s.iter().position(|x| Faults::from_bits(x.faults).contains(Faults::DRIVER)).expect("driver fault reported");
+    let bad = s
+        .iter()
+        .position(|x| Faults::from_bits(x.faults).contains(Faults::DRIVER))
+        .expect("driver fault reported");
     assert!(bad <= 1, "reported after {bad} periods");
-    assert_eq!(cl.controller.step(&firmware::joint::StepInput {
-        now_s: 0.6,
-        dt_s: 0.001,
-        feedback: firmware::joint::Feedback::WireCounts([Some(0); 4]),
-    }).commands, [PairCommand::Off; 2], "latched: every output off");
+    assert_eq!(
+        cl.controller
+            .step(&firmware::joint::StepInput {
+                now_s: 0.6,
+                dt_s: 0.001,
+                feedback: firmware::joint::Feedback::WireCounts([Some(0); 4]),
+            })
+            .commands,
+        [PairCommand::Off; 2],
+        "latched: every output off"
+    );
 }

@@ -45,10 +45,22 @@ fn wire_feedback_2d_converges_for_each_target_of_fig16() {
         let est = estimate_err_stats(&t, 0, 8.0, 12.0);
         let tru = err_stats(&t, 0, 8.0, 12.0);
         let ptp = peak_to_peak(&t, 0, 8.0, 12.0);
-        println!("θd = {target:+5.1}°: estimate error {:+.3}°, true error {:+.3}°, {ptp:.3}° p-p", est.mean, tru.mean);
-        assert!(est.max_abs < 0.2, "θd = {target}°: estimate not held at θd: {est:?}");
-        assert!(ptp < 0.3, "θd = {target}°: still moving, {ptp:.3}° peak to peak over 8–12 s");
-        assert!(tru.max_abs < 2.5, "θd = {target}°: true angle off by {tru:?}");
+        println!(
+            "θd = {target:+5.1}°: estimate error {:+.3}°, true error {:+.3}°, {ptp:.3}° p-p",
+            est.mean, tru.mean
+        );
+        assert!(
+            est.max_abs < 0.2,
+            "θd = {target}°: estimate not held at θd: {est:?}"
+        );
+        assert!(
+            ptp < 0.3,
+            "θd = {target}°: still moving, {ptp:.3}° peak to peak over 8–12 s"
+        );
+        assert!(
+            tru.max_abs < 2.5,
+            "θd = {target}°: true angle off by {tru:?}"
+        );
     }
 }
 
@@ -67,13 +79,24 @@ fn wire_feedback_2d_converges_for_each_target_of_fig16() {
 #[test]
 fn wire_feedback_3d_converges_to_the_targets_of_fig21() {
     for method in [EstimatorMethod::Paper, EstimatorMethod::Switching] {
-        let s = Scenario { seed: 7, estimator: EstimatorSpec { method, calibration: None }, ..Scenario::default() };
+        let s = Scenario {
+            seed: 7,
+            estimator: EstimatorSpec {
+                method,
+                calibration: None,
+            },
+            ..Scenario::default()
+        };
         let out = run(&s);
         println!(
             "{method:?}: steady-state error {:?}°, estimation error up to {:?}°",
             out.summary.steady_state_error_deg, out.summary.max_estimation_error_deg
         );
-        assert!(out.summary.faults_seen.is_empty(), "{method:?}: faults {:?}", out.summary.faults_seen);
+        assert!(
+            out.summary.faults_seen.is_empty(),
+            "{method:?}: faults {:?}",
+            out.summary.faults_seen
+        );
         assert_eq!(out.summary.segments.len(), 3);
         for g in &out.summary.segments {
             for p in 0..2 {
@@ -85,7 +108,11 @@ fn wire_feedback_3d_converges_to_the_targets_of_fig21() {
                 );
                 let tail = g.to_s - 0.2 * (g.to_s - g.from_s);
                 let est = estimate_err_stats(&out.trace, p, tail, g.to_s);
-                assert!(est.mean.abs() < 0.3, "{method:?}: target {:?}, plane {p}: estimate {est:?}", g.desired_deg);
+                assert!(
+                    est.mean.abs() < 0.3,
+                    "{method:?}: target {:?}, plane {p}: estimate {est:?}",
+                    g.desired_deg
+                );
             }
         }
     }
@@ -152,7 +179,10 @@ fn evaluation_run(seed: u64, sign: f64) -> Vec<EvalStep> {
 /// Largest |estimate − true| per plane along a run, the estimator running
 /// step by step as the firmware runs it (switching state included).
 fn max_errors(laws: &[PlaneLaw], run: &[EvalStep]) -> [f64; 2] {
-    let mut est: Vec<PlaneEstimator<4>> = laws.iter().map(|l| PlaneEstimator::new(*l).expect("valid law")).collect();
+    let mut est: Vec<PlaneEstimator<4>> = laws
+        .iter()
+        .map(|l| PlaneEstimator::new(*l).expect("valid law"))
+        .collect();
     let mut worst = [0.0f64; 2];
     for s in run {
         for (p, e) in est.iter_mut().enumerate() {
@@ -181,7 +211,10 @@ struct Calibrated {
 /// --calibration-sweep` + `softjoint calibrate wire` + a scenario's
 /// `estimator.calibration`.
 fn calibrate_from_simulated_sweep(seed: u64, dir: &std::path::Path) -> Calibrated {
-    let s = Scenario { seed, ..Scenario::default() };
+    let s = Scenario {
+        seed,
+        ..Scenario::default()
+    };
     let rows = sim::calibration_sweep(&s).expect("sweep");
     let csv = dir.join(format!("sweep_{seed}.csv"));
     calibrate::write_sweep(&csv, &rows).expect("write sweep");
@@ -189,10 +222,21 @@ fn calibrate_from_simulated_sweep(seed: u64, dir: &std::path::Path) -> Calibrate
     let fits = calibrate::fit(&rows).expect("fit");
     print!("calibration seed {seed}:\n{}", calibrate::table(&fits));
     let path = dir.join(format!("calibration_{seed}.toml"));
-    calibrate::calibration_of(&fits).expect("calibration").save(&path).expect("save");
-    let laws = |m| calibrate::calibration_with(&fits, m).expect("fit has the method").laws().expect("laws");
+    calibrate::calibration_of(&fits)
+        .expect("calibration")
+        .save(&path)
+        .expect("save");
+    let laws = |m| {
+        calibrate::calibration_with(&fits, m)
+            .expect("fit has the method")
+            .laws()
+            .expect("laws")
+    };
     Calibrated {
-        chosen: CalibrationFile::load(&path).expect("load").laws().expect("laws"),
+        chosen: CalibrationFile::load(&path)
+            .expect("load")
+            .laws()
+            .expect("laws"),
         single: laws("single"),
         differential: laws("differential"),
     }
@@ -232,8 +276,16 @@ fn single_sensor_jams_on_the_pushing_side_and_two_wire_laws_stay_below_1_deg() {
         let e_chosen = max_errors(&cal.chosen, &eval);
         println!("seed {seed}: single {e_single:.3?}°, differential {e_diff:.3?}°, chosen {e_chosen:.3?}°");
         for (p, name) in ["α", "β"].iter().enumerate() {
-            assert!(e_single[p] > 1.0, "seed {seed}, {name}: single sensor only off by {:.3}°", e_single[p]);
-            assert!(e_diff[p] < 1.0, "seed {seed}, {name}: differential law off by {:.3}° (paper: < 1.0°)", e_diff[p]);
+            assert!(
+                e_single[p] > 1.0,
+                "seed {seed}, {name}: single sensor only off by {:.3}°",
+                e_single[p]
+            );
+            assert!(
+                e_diff[p] < 1.0,
+                "seed {seed}, {name}: differential law off by {:.3}° (paper: < 1.0°)",
+                e_diff[p]
+            );
         }
 
         // The jam's share of the single-sensor estimate, by direction of
@@ -241,14 +293,18 @@ fn single_sensor_jams_on_the_pushing_side_and_two_wire_laws_stay_below_1_deg() {
         // in, a falling one pulls it out.
         let mut pushing = [(0.0f64, 0usize, 0.0f64); 2];
         let mut pulling = [(0.0f64, 0usize); 2];
-        let mut on_meas: Vec<PlaneEstimator<4>> =
-            cal.single.iter().map(|l| PlaneEstimator::new(*l).expect("law")).collect();
+        let mut on_meas: Vec<PlaneEstimator<4>> = cal
+            .single
+            .iter()
+            .map(|l| PlaneEstimator::new(*l).expect("law"))
+            .collect();
         let mut on_ideal = on_meas.clone();
         for s in &eval {
             let rising = !(20.0..60.0).contains(&s.t_s);
             for p in 0..2 {
                 let jam = f64::from(
-                    on_meas[p].estimate(&s.measured_mm).angle_deg - on_ideal[p].estimate(&s.ideal_mm).angle_deg,
+                    on_meas[p].estimate(&s.measured_mm).angle_deg
+                        - on_ideal[p].estimate(&s.ideal_mm).angle_deg,
                 )
                 .abs();
                 if rising {
@@ -308,7 +364,10 @@ fn threshold_switching_below_1_deg_on_independent_runs() {
             }
         }
     }
-    assert!(failures.is_empty(), "estimation error ≥ 1.0° (paper: < 1.0°): {failures:.3?}");
+    assert!(
+        failures.is_empty(),
+        "estimation error ≥ 1.0° (paper: < 1.0°): {failures:.3?}"
+    );
 }
 
 /// The claim "over the ±20° range" on a sweep taken the other way round
@@ -326,5 +385,8 @@ fn threshold_switching_holds_on_a_sweep_in_the_other_direction() {
     let cal = calibrate_from_simulated_sweep(CALIBRATION_SEED, &dir);
     let e = max_errors(&cal.chosen, &evaluation_run(12, -1.0));
     println!("reverse sweep: {e:.3?}°");
-    assert!(e[0] < 1.0 && e[1] < 1.0, "reverse sweep estimation error {e:.3?}° (paper: < 1.0°)");
+    assert!(
+        e[0] < 1.0 && e[1] < 1.0,
+        "reverse sweep estimation error {e:.3?}° (paper: < 1.0°)"
+    );
 }

@@ -23,9 +23,18 @@ fn status<P: host_tools::link::Port>(link: &mut Link<P>) -> Status {
     host_tools::hil::status(link).expect("status")
 }
 
-fn sensor(link: &mut Link<impl host_tools::link::Port>, seq: u16, counts: [i16; 4]) -> ActuatorFrame {
+fn sensor(
+    link: &mut Link<impl host_tools::link::Port>,
+    seq: u16,
+    counts: [i16; 4],
+) -> ActuatorFrame {
     match link
-        .request(&Message::HilSensor(SensorFrame { seq, counts }), T, 10, |m| matches!(m, Message::HilActuator(a) if a.seq == seq))
+        .request(
+            &Message::HilSensor(SensorFrame { seq, counts }),
+            T,
+            10,
+            |m| matches!(m, Message::HilActuator(a) if a.seq == seq),
+        )
         .expect("actuator frame")
     {
         Message::HilActuator(a) => a,
@@ -46,59 +55,215 @@ fn every_message_over_a_real_pty() {
     let mut link = Link::new(port);
     host_tools::hil::handshake(&mut link).expect("handshake");
     assert_eq!(
-        link.request(&Message::Hello { version: 9 }, T, 3, |m| matches!(m, Message::HelloAck { .. })).err().map(|e| e.to_string()),
-        Some(LinkError::Refused { request: kind::HELLO, code: ErrorCode::Version }.to_string())
+        link.request(&Message::Hello { version: 9 }, T, 3, |m| matches!(
+            m,
+            Message::HelloAck { .. }
+        ))
+        .err()
+        .map(|e| e.to_string()),
+        Some(
+            LinkError::Refused {
+                request: kind::HELLO,
+                code: ErrorCode::Version
+            }
+            .to_string()
+        )
     );
 
     // Configuration round trips.
     let law = PlaneLaw::Switching {
         plus: 2,
         minus: 0,
-        high: LinearLaw { gain: 2.7, offset: 0.3 },
+        high: LinearLaw {
+            gain: 2.7,
+            offset: 0.3,
+        },
         sensor: 2,
-        low: QuadraticLaw { a: 0.02, b: 5.4, c: 0.25 },
+        low: QuadraticLaw {
+            a: 0.02,
+            b: 5.4,
+            c: 0.25,
+        },
         threshold_deg: -7.46,
         hysteresis_deg: 0.5,
     };
-    link.command(&Message::SetCalibration { plane: 0, law }, T, 3).unwrap();
-    match link.request(&Message::GetCalibration { plane: 0 }, T, 3, |m| matches!(m, Message::Calibration { .. })).unwrap() {
-        Message::Calibration { plane: 0, law: back } => assert_eq!(back, law),
+    link.command(&Message::SetCalibration { plane: 0, law }, T, 3)
+        .unwrap();
+    match link
+        .request(&Message::GetCalibration { plane: 0 }, T, 3, |m| {
+            matches!(m, Message::Calibration { .. })
+        })
+        .unwrap()
+    {
+        Message::Calibration {
+            plane: 0,
+            law: back,
+        } => assert_eq!(back, law),
         other => panic!("{other:?}"),
     }
-    let bad_law = PlaneLaw::Single { sensor: 7, law: QuadraticLaw::PAPER_2D };
-    assert_eq!(refused(link.command(&Message::SetCalibration { plane: 0, law: bad_law }, T, 3)), ErrorCode::OutOfRange);
-    let nan_law = PlaneLaw::Single { sensor: 0, law: QuadraticLaw { a: f32::NAN, b: 0.0, c: 0.0 } };
-    assert_eq!(refused(link.command(&Message::SetCalibration { plane: 1, law: nan_law }, T, 3)), ErrorCode::NotFinite);
+    let bad_law = PlaneLaw::Single {
+        sensor: 7,
+        law: QuadraticLaw::PAPER_2D,
+    };
     assert_eq!(
-        refused(link.request(&Message::GetCalibration { plane: 4 }, T, 3, |m| matches!(m, Message::Calibration { .. })).map(|_| ())),
+        refused(link.command(
+            &Message::SetCalibration {
+                plane: 0,
+                law: bad_law
+            },
+            T,
+            3
+        )),
         ErrorCode::OutOfRange
     );
-    link.command(&Message::SetGains { plane: 1, kp_agonist: 1.5, kp_antagonist: 1.0, ki: 0.2, integral_limit_v: 1.0 }, T, 3).unwrap();
+    let nan_law = PlaneLaw::Single {
+        sensor: 0,
+        law: QuadraticLaw {
+            a: f32::NAN,
+            b: 0.0,
+            c: 0.0,
+        },
+    };
     assert_eq!(
-        refused(link.command(&Message::SetGains { plane: 1, kp_agonist: -1.0, kp_antagonist: 1.0, ki: 0.0, integral_limit_v: 0.0 }, T, 3)),
-        ErrorCode::OutOfRange
-    );
-    assert_eq!(
-        refused(link.command(&Message::SetGains { plane: 0, kp_agonist: f32::INFINITY, kp_antagonist: 1.0, ki: 0.0, integral_limit_v: 0.0 }, T, 3)),
+        refused(link.command(
+            &Message::SetCalibration {
+                plane: 1,
+                law: nan_law
+            },
+            T,
+            3
+        )),
         ErrorCode::NotFinite
     );
-    link.command(&Message::SetTarget { plane: 0, target_deg: 5.0 }, T, 3).unwrap();
-    assert_eq!(refused(link.command(&Message::SetTarget { plane: 0, target_deg: f32::NAN }, T, 3)), ErrorCode::NotFinite);
-    assert_eq!(refused(link.command(&Message::SetTarget { plane: 0, target_deg: 90.0 }, T, 3)), ErrorCode::OutOfRange);
-    assert_eq!(refused(link.command(&Message::SetTarget { plane: 3, target_deg: 1.0 }, T, 3)), ErrorCode::OutOfRange);
-    assert_eq!(refused(link.command(&Message::SetLinkTimeout { timeout_ms: 0 }, T, 3)), ErrorCode::OutOfRange);
-    assert_eq!(refused(link.command(&Message::SetTelemetry { rate_hz: 5000 }, T, 3)), ErrorCode::OutOfRange);
-    assert_eq!(refused(link.command(&Message::HilStart { period_us: 10 }, T, 3)), ErrorCode::OutOfRange);
+    assert_eq!(
+        refused(
+            link.request(&Message::GetCalibration { plane: 4 }, T, 3, |m| matches!(
+                m,
+                Message::Calibration { .. }
+            ))
+            .map(|_| ())
+        ),
+        ErrorCode::OutOfRange
+    );
+    link.command(
+        &Message::SetGains {
+            plane: 1,
+            kp_agonist: 1.5,
+            kp_antagonist: 1.0,
+            ki: 0.2,
+            integral_limit_v: 1.0,
+        },
+        T,
+        3,
+    )
+    .unwrap();
+    assert_eq!(
+        refused(link.command(
+            &Message::SetGains {
+                plane: 1,
+                kp_agonist: -1.0,
+                kp_antagonist: 1.0,
+                ki: 0.0,
+                integral_limit_v: 0.0
+            },
+            T,
+            3
+        )),
+        ErrorCode::OutOfRange
+    );
+    assert_eq!(
+        refused(link.command(
+            &Message::SetGains {
+                plane: 0,
+                kp_agonist: f32::INFINITY,
+                kp_antagonist: 1.0,
+                ki: 0.0,
+                integral_limit_v: 0.0
+            },
+            T,
+            3
+        )),
+        ErrorCode::NotFinite
+    );
+    link.command(
+        &Message::SetTarget {
+            plane: 0,
+            target_deg: 5.0,
+        },
+        T,
+        3,
+    )
+    .unwrap();
+    assert_eq!(
+        refused(link.command(
+            &Message::SetTarget {
+                plane: 0,
+                target_deg: f32::NAN
+            },
+            T,
+            3
+        )),
+        ErrorCode::NotFinite
+    );
+    assert_eq!(
+        refused(link.command(
+            &Message::SetTarget {
+                plane: 0,
+                target_deg: 90.0
+            },
+            T,
+            3
+        )),
+        ErrorCode::OutOfRange
+    );
+    assert_eq!(
+        refused(link.command(
+            &Message::SetTarget {
+                plane: 3,
+                target_deg: 1.0
+            },
+            T,
+            3
+        )),
+        ErrorCode::OutOfRange
+    );
+    assert_eq!(
+        refused(link.command(&Message::SetLinkTimeout { timeout_ms: 0 }, T, 3)),
+        ErrorCode::OutOfRange
+    );
+    assert_eq!(
+        refused(link.command(&Message::SetTelemetry { rate_hz: 5000 }, T, 3)),
+        ErrorCode::OutOfRange
+    );
+    assert_eq!(
+        refused(link.command(&Message::HilStart { period_us: 10 }, T, 3)),
+        ErrorCode::OutOfRange
+    );
     // A board-to-host message sent to the board is not a request.
-    assert_eq!(refused(link.command(&Message::Ack { request: 1 }, T, 3)), ErrorCode::UnknownType);
+    assert_eq!(
+        refused(link.command(&Message::Ack { request: 1 }, T, 3)),
+        ErrorCode::UnknownType
+    );
     // Lockstep frames before HilStart.
     assert_eq!(
-        refused(link.request(&Message::HilSensor(SensorFrame { seq: 0, counts: [0; 4] }), T, 3, |_| false).map(|_| ())),
+        refused(
+            link.request(
+                &Message::HilSensor(SensorFrame {
+                    seq: 0,
+                    counts: [0; 4]
+                }),
+                T,
+                3,
+                |_| false
+            )
+            .map(|_| ())
+        ),
         ErrorCode::WrongMode
     );
 
     // Free-running telemetry: a 100 Hz stream, then off.
-    link.command(&Message::SetTelemetry { rate_hz: 100 }, T, 3).unwrap();
+    link.command(&Message::SetTelemetry { rate_hz: 100 }, T, 3)
+        .unwrap();
     let end = Instant::now() + Duration::from_millis(300);
     let mut n = 0;
     while let Some(m) = link.recv_until(end).unwrap() {
@@ -106,19 +271,47 @@ fn every_message_over_a_real_pty() {
             n += 1;
         }
     }
-    assert!((15..=40).contains(&n), "{n} telemetry frames in 0.3 s at 100 Hz");
-    link.command(&Message::SetTelemetry { rate_hz: 0 }, T, 3).unwrap();
+    assert!(
+        (15..=40).contains(&n),
+        "{n} telemetry frames in 0.3 s at 100 Hz"
+    );
+    link.command(&Message::SetTelemetry { rate_hz: 0 }, T, 3)
+        .unwrap();
     // The board without sensors latches a stale-sensor fault in free-running
     // mode and reports it.
     let s = status(&mut link);
     assert_eq!(s.mode, 0);
-    assert!(Faults::from_bits(u16::from(s.latched)).contains(Faults::SENSOR_STALE), "{s:?}");
+    assert!(
+        Faults::from_bits(u16::from(s.latched)).contains(Faults::SENSOR_STALE),
+        "{s:?}"
+    );
 
     // Lockstep: HilStart, clear, arm, frames.
-    link.command(&Message::HilStart { period_us: 1000 }, T, 3).unwrap();
+    link.command(&Message::HilStart { period_us: 1000 }, T, 3)
+        .unwrap();
     link.command(&Message::ClearFaults, T, 3).unwrap();
-    link.command(&Message::SetTarget { plane: 1, target_deg: 0.0 }, T, 3).unwrap();
-    link.command(&Message::SetCalibration { plane: 0, law: PlaneLaw::Differential { plus: 2, minus: 0, law: LinearLaw::PAPER_ALPHA } }, T, 3).unwrap();
+    link.command(
+        &Message::SetTarget {
+            plane: 1,
+            target_deg: 0.0,
+        },
+        T,
+        3,
+    )
+    .unwrap();
+    link.command(
+        &Message::SetCalibration {
+            plane: 0,
+            law: PlaneLaw::Differential {
+                plus: 2,
+                minus: 0,
+                law: LinearLaw::PAPER_ALPHA,
+            },
+        },
+        T,
+        3,
+    )
+    .unwrap();
     link.command(&Message::Arm, T, 3).unwrap();
     let mut last = None;
     for seq in 0..50u16 {
@@ -127,10 +320,17 @@ fn every_message_over_a_real_pty() {
         last = Some(a);
     }
     let a = last.unwrap();
-    assert!(a.pair_mv[0] > 1700, "α below its 5° target: agonist driven ({a:?})");
+    assert!(
+        a.pair_mv[0] > 1700,
+        "α below its 5° target: agonist driven ({a:?})"
+    );
     assert!((cdeg_to_deg(a.estimate_cdeg[0]) - 0.0).abs() < 0.1, "{a:?}");
     // A repeated seq is answered from the cache, identically.
-    assert_eq!(sensor(&mut link, 49, counts_for(3.0)), a, "retry of seq 49 must not step again");
+    assert_eq!(
+        sensor(&mut link, 49, counts_for(3.0)),
+        a,
+        "retry of seq 49 must not step again"
+    );
     let s = status(&mut link);
     assert_eq!((s.mode, s.armed), (1, 1));
     assert_eq!(s.pair_mv, a.pair_mv);
@@ -152,7 +352,13 @@ fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
     let mut stream = Vec::new();
     let mut frame = [0u8; MAX_FRAME];
     for i in 0..200u16 {
-        let n = encode_frame(&Message::SetTarget { plane: 0, target_deg: f32::from(i % 20) }, &mut frame);
+        let n = encode_frame(
+            &Message::SetTarget {
+                plane: 0,
+                target_deg: f32::from(i % 20),
+            },
+            &mut frame,
+        );
         match i % 5 {
             0 => stream.extend((0..rng.gen_range(1..40)).map(|_| rng.gen::<u8>())),
             1 => stream.extend_from_slice(&frame[..rng.gen_range(1..n - 1)]),
@@ -197,13 +403,32 @@ fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
             break;
         }
     }
-    assert_eq!((acks, errors), (expected_acks, expected_errors), "replies to the valid frames in the garbage");
+    assert_eq!(
+        (acks, errors),
+        (expected_acks, expected_errors),
+        "replies to the valid frames in the garbage"
+    );
     let after = status(&mut link);
     let m = model.stats();
-    assert_eq!(u32::from(after.crc_errors - before.crc_errors), m.crc_errors, "CRC errors counted");
-    assert_eq!(u32::from(after.cobs_errors - before.cobs_errors), m.cobs_errors, "COBS errors counted");
-    assert_eq!(u32::from(after.overfull - before.overfull), m.overfull, "oversized frames counted");
-    assert!(m.crc_errors + m.cobs_errors > 50 && m.overfull == 40, "the stream exercised every kind: {m:?}");
+    assert_eq!(
+        u32::from(after.crc_errors - before.crc_errors),
+        m.crc_errors,
+        "CRC errors counted"
+    );
+    assert_eq!(
+        u32::from(after.cobs_errors - before.cobs_errors),
+        m.cobs_errors,
+        "COBS errors counted"
+    );
+    assert_eq!(
+        u32::from(after.overfull - before.overfull),
+        m.overfull,
+        "oversized frames counted"
+    );
+    assert!(
+        m.crc_errors + m.cobs_errors > 50 && m.overfull == 40,
+        "the stream exercised every kind: {m:?}"
+    );
     // And the board still answers normally.
     host_tools::hil::handshake(&mut link).unwrap();
 }
@@ -218,9 +443,15 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
     let timeout = Duration::from_millis(60);
     let step = |link: &mut Link<_>, seq: u16| -> ActuatorFrame {
         match link
-            .request(&Message::HilSensor(SensorFrame { seq, counts: counts_for(0.0) }), timeout, 10, |m| {
-                matches!(m, Message::HilActuator(a) if a.seq == seq)
-            })
+            .request(
+                &Message::HilSensor(SensorFrame {
+                    seq,
+                    counts: counts_for(0.0),
+                }),
+                timeout,
+                10,
+                |m| matches!(m, Message::HilActuator(a) if a.seq == seq),
+            )
             .unwrap()
         {
             Message::HilActuator(a) => a,
@@ -230,8 +461,8 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
     let mut replies = Vec::new();
     for seq in 0..30u16 {
         match seq {
-            5 => link.lose_next_send(),                               // request lost
-            10 => board.faults.lock().unwrap().drop_replies = 1,      // reply lost
+            5 => link.lose_next_send(),                          // request lost
+            10 => board.faults.lock().unwrap().drop_replies = 1, // reply lost
             20 => board.faults.lock().unwrap().delay_replies = Duration::from_millis(90), // late
             21 => board.faults.lock().unwrap().delay_replies = Duration::ZERO,
             _ => {}
@@ -239,8 +470,14 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
         replies.push(step(&mut link, seq));
     }
     let stats = link.stats();
-    assert!(stats.retries >= 3, "one retry each for the lost request, lost reply and late reply: {stats:?}");
-    assert!(stats.unexpected >= 1, "the late reply arrives after its retry was sent: {stats:?}");
+    assert!(
+        stats.retries >= 3,
+        "one retry each for the lost request, lost reply and late reply: {stats:?}"
+    );
+    assert!(
+        stats.unexpected >= 1,
+        "the late reply arrives after its retry was sent: {stats:?}"
+    );
     assert_eq!(board.state.lock().unwrap().dropped, 1);
     // Idempotency: the same frames on a fault-free board give the same
     // replies, so the retried steps ran exactly once.
@@ -248,7 +485,11 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
     let mut clean = Link::new(port);
     start_lockstep(&mut clean, Some(500), 5.0, T);
     for (seq, r) in replies.iter().enumerate() {
-        assert_eq!(&sensor(&mut clean, seq as u16, counts_for(0.0)), r, "seq {seq}");
+        assert_eq!(
+            &sensor(&mut clean, seq as u16, counts_for(0.0)),
+            r,
+            "seq {seq}"
+        );
     }
 }
 
@@ -265,13 +506,22 @@ fn a_dead_link_zeroes_the_outputs_within_the_link_loss_time() {
     // The host goes silent.
     std::thread::sleep(Duration::from_millis(300));
     let st = board.state.lock().unwrap();
-    let (last_rx, off_at) = (st.last_rx_ms.unwrap(), st.outputs_off_at_ms.expect("outputs never went off"));
-    assert!(st.outputs.iter().all(|c| *c == firmware::control::PairCommand::Off));
+    let (last_rx, off_at) = (
+        st.last_rx_ms.unwrap(),
+        st.outputs_off_at_ms.expect("outputs never went off"),
+    );
+    assert!(st
+        .outputs
+        .iter()
+        .all(|c| *c == firmware::control::PairCommand::Off));
     let waited = off_at - last_rx;
     // Default link-loss time 50 ms. The board thread polls every ~1 ms; the
     // upper bound leaves room for thread scheduling on a shared 2-core CI
     // machine (the firmware image polls the same way, without that jitter).
-    assert!((50..=75).contains(&waited), "outputs off {waited} ms after the last frame");
+    assert!(
+        (50..=75).contains(&waited),
+        "outputs off {waited} ms after the last frame"
+    );
     drop(st);
     let s = status(&mut link);
     assert!(Faults::from_bits(u16::from(s.latched)).contains(Faults::LINK_LOSS));

@@ -17,8 +17,15 @@ use host_tools::sim;
 
 fn image() -> PathBuf {
     // Tests run in the crate directory; the image is under the workspace.
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(DEFAULT_IMAGE);
-    assert!(p.exists(), "{} missing: run `{}`", p.display(), host_tools::qemu::BUILD_IMAGE);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(DEFAULT_IMAGE);
+    assert!(
+        p.exists(),
+        "{} missing: run `{}`",
+        p.display(),
+        host_tools::qemu::BUILD_IMAGE
+    );
     p
 }
 
@@ -27,9 +34,18 @@ fn short_default() -> Scenario {
         name: "short 3D default".into(),
         duration_s: 6.0,
         targets: vec![
-            TargetStep { t_s: 0.0, deg: vec![0.0, 0.0] },
-            TargetStep { t_s: 1.0, deg: vec![5.0, 5.0] },
-            TargetStep { t_s: 3.5, deg: vec![10.0, 10.0] },
+            TargetStep {
+                t_s: 0.0,
+                deg: vec![0.0, 0.0],
+            },
+            TargetStep {
+                t_s: 1.0,
+                deg: vec![5.0, 5.0],
+            },
+            TargetStep {
+                t_s: 3.5,
+                deg: vec![10.0, 10.0],
+            },
         ],
         ..Scenario::default()
     }
@@ -43,7 +59,10 @@ fn image_in_lockstep_reproduces_the_simulation() {
     let expected = sim::run(&s).expect("sim");
     let qemu = Qemu::launch(&image(), true).expect("qemu");
     let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
-    let opts = HilOptions { link_timeout_ms: Some(250), ..HilOptions::default() };
+    let opts = HilOptions {
+        link_timeout_ms: Some(250),
+        ..HilOptions::default()
+    };
     let got = hil::run(&s, &mut link, opts).expect("hil run");
     assert_eq!(got.trace.rows.len(), expected.trace.rows.len());
     for (k, (h, e)) in got.trace.rows.iter().zip(&expected.trace.rows).enumerate() {
@@ -51,36 +70,82 @@ fn image_in_lockstep_reproduces_the_simulation() {
         // and outputs. Estimates travel in centidegrees (±0.005°), rounded
         // in f32 (≈ 1e-6 at 10°), hence 1e-5 of slack on top.
         assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
-        assert_eq!(h.coil_volts, e.coil_volts, "coil voltages differ at step {k}");
+        assert_eq!(
+            h.coil_volts, e.coil_volts,
+            "coil voltages differ at step {k}"
+        );
         assert_eq!(h.faults, e.faults, "faults differ at step {k}");
         for p in 0..2 {
-            assert!((h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-5, "estimate {p} at step {k}: {} vs {}", h.estimate_deg[p], e.estimate_deg[p]);
+            assert!(
+                (h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-5,
+                "estimate {p} at step {k}: {} vs {}",
+                h.estimate_deg[p],
+                e.estimate_deg[p]
+            );
         }
     }
     // The run did something: the joint reached its targets.
-    assert!(got.report.summary.steady_state_error_deg.iter().all(|e| *e < 0.5), "{:?}", got.report.summary);
-    println!("lockstep: {:.0} steps/s, {:?}", got.report.lockstep_steps_per_s, got.report.link);
+    assert!(
+        got.report
+            .summary
+            .steady_state_error_deg
+            .iter()
+            .all(|e| *e < 0.5),
+        "{:?}",
+        got.report.summary
+    );
+    println!(
+        "lockstep: {:.0} steps/s, {:?}",
+        got.report.lockstep_steps_per_s, got.report.link
+    );
     // Every frame answered (a reply slower than the timeout on a loaded host
     // costs a harmless, idempotent retry); nothing corrupted.
     let l = got.report.link;
     assert_eq!(l.frames_received, l.frames_sent, "{l:?}");
-    assert_eq!((got.report.board_crc_errors, got.report.board_cobs_errors, l.crc_errors), (0, 0, 0));
+    assert_eq!(
+        (
+            got.report.board_crc_errors,
+            got.report.board_cobs_errors,
+            l.crc_errors
+        ),
+        (0, 0, 0)
+    );
 }
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
 fn lost_frames_are_retried_through_qemu() {
-    let s = Scenario { duration_s: 1.5, ..short_default() };
+    let s = Scenario {
+        duration_s: 1.5,
+        ..short_default()
+    };
     let qemu = Qemu::launch(&image(), true).expect("qemu");
     let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
-    let opts = HilOptions { lose_every: Some(100), link_timeout_ms: Some(1000), timeout: Duration::from_millis(100), ..HilOptions::default() };
+    let opts = HilOptions {
+        lose_every: Some(100),
+        link_timeout_ms: Some(1000),
+        timeout: Duration::from_millis(100),
+        ..HilOptions::default()
+    };
     let got = hil::run(&s, &mut link, opts).expect("hil run with losses");
     // Each of the 15 lost frames (1500 steps / 100) costs at least one
     // retry; a loaded host can add a few more (a reply later than 100 ms).
-    assert!(got.report.link.retries >= 15, "retries {}", got.report.link.retries);
+    assert!(
+        got.report.link.retries >= 15,
+        "retries {}",
+        got.report.link.retries
+    );
     let l = got.report.link;
-    assert_eq!(l.frames_received + 15, l.frames_sent, "every frame written was answered once; 15 were never written: {l:?}");
-    assert!(got.report.summary.faults_seen.is_empty(), "{:?}", got.report.summary.faults_seen);
+    assert_eq!(
+        l.frames_received + 15,
+        l.frames_sent,
+        "every frame written was answered once; 15 were never written: {l:?}"
+    );
+    assert!(
+        got.report.summary.faults_seen.is_empty(),
+        "{:?}",
+        got.report.summary.faults_seen
+    );
 }
 
 #[test]
@@ -95,16 +160,29 @@ fn dead_link_zeroes_the_image_outputs() {
     let mut last = None;
     for seq in 0..10u16 {
         let r = link
-            .request(&Message::HilSensor(SensorFrame { seq, counts: [0, 0, -6, -2] }), t, 5, |m| matches!(m, Message::HilActuator(_)))
+            .request(
+                &Message::HilSensor(SensorFrame {
+                    seq,
+                    counts: [0, 0, -6, -2],
+                }),
+                t,
+                5,
+                |m| matches!(m, Message::HilActuator(_)),
+            )
             .unwrap();
         last = Some(r);
     }
     match last {
-        Some(Message::HilActuator(a)) => assert!(a.pair_mv[0] > 0, "driving before the link dies: {a:?}"),
+        Some(Message::HilActuator(a)) => {
+            assert!(a.pair_mv[0] > 0, "driving before the link dies: {a:?}")
+        }
         other => panic!("{other:?}"),
     }
     std::thread::sleep(Duration::from_millis(500));
     let s = hil::status(&mut link).unwrap();
-    assert!(Faults::from_bits(u16::from(s.latched)).contains(Faults::LINK_LOSS), "{s:?}");
+    assert!(
+        Faults::from_bits(u16::from(s.latched)).contains(Faults::LINK_LOSS),
+        "{s:?}"
+    );
     assert_eq!(s.pair_mv, [0, 0], "outputs zero after link loss");
 }

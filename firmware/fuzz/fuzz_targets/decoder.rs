@@ -23,7 +23,10 @@ fuzz_target!(|data: &[u8]| {
         }
     }
     let s = dec.stats();
-    assert_eq!(frames, s.frames_ok + s.crc_errors + s.cobs_errors + s.overfull + s.malformed);
+    assert_eq!(
+        frames,
+        s.frames_ok + s.crc_errors + s.cobs_errors + s.overfull + s.malformed
+    );
 
     // The same bytes into the board application, time advancing 1 ms per byte.
     let Ok(mut app) = App::new() else { return };

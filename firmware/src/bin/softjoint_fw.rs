@@ -19,7 +19,9 @@
 #![cfg_attr(target_os = "none", no_main)]
 
 #[cfg(all(target_os = "none", not(feature = "board-mps2-an386")))]
-compile_error!("no board selected: enable a board feature such as `board-mps2-an386` (the default)");
+compile_error!(
+    "no board selected: enable a board feature such as `board-mps2-an386` (the default)"
+);
 
 #[cfg(all(target_os = "none", feature = "board-mps2-an386"))]
 mod mps2 {
@@ -123,7 +125,9 @@ mod mps2 {
     #[entry]
     fn main() -> ! {
         all_outputs_off();
-        let Some(mut core) = cortex_m::Peripherals::take() else { halt() };
+        let Some(mut core) = cortex_m::Peripherals::take() else {
+            halt()
+        };
         core.SYST.set_clock_source(SystClkSource::Core);
         core.SYST.set_reload(SYSCLK_HZ / 1000 - 1);
         core.SYST.clear_current();

@@ -73,12 +73,19 @@ mod image {
             cortex_m::asm::nop();
         }
         let nop_insns = (ticks() - t0) * INSNS_PER_TICK;
-        hprintln!("nop loop: {} instructions measured for 100000 iterations", nop_insns);
+        hprintln!(
+            "nop loop: {} instructions measured for 100000 iterations",
+            nop_insns
+        );
         let ok = match Joint3d::new(JointConfig::paper_3d()) {
             Ok(mut joint) => run(&mut joint),
             Err(_) => false,
         };
-        debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+        debug::exit(if ok {
+            debug::EXIT_SUCCESS
+        } else {
+            debug::EXIT_FAILURE
+        });
         #[allow(clippy::empty_loop)]
         loop {}
     }
@@ -97,7 +104,11 @@ mod image {
             let phase = (k % 400) - 200;
             let d = black_box(phase.abs() - 100);
             let counts = [Some(-d), Some(d / 2), Some(d), Some(-d / 2)];
-            let input = StepInput { now_s: k as f32 * DT_S, dt_s: DT_S, feedback: Feedback::WireCounts(counts) };
+            let input = StepInput {
+                now_s: k as f32 * DT_S,
+                dt_s: DT_S,
+                feedback: Feedback::WireCounts(counts),
+            };
             let out = black_box(joint.step(&input));
             for v in out.paper_coil_volts() {
                 bounded &= (0.0..=joint.driver().supply_v()).contains(&v);
@@ -108,8 +119,17 @@ mod image {
         let insns = (ticks() - t0) * INSNS_PER_TICK;
         hprintln!("3D control step: {} instructions per step (mean of {} steps, loop and input setup included)", insns / STEPS as u64, STEPS);
         #[cfg(feature = "defmt")]
-        defmt::info!("step-probe: {=i32} steps, {=u32} coil-steps driven", STEPS, driven);
-        hprintln!("step-probe: {} steps, {} coil-steps driven, faults {:#06x}", STEPS, driven, faults);
+        defmt::info!(
+            "step-probe: {=i32} steps, {=u32} coil-steps driven",
+            STEPS,
+            driven
+        );
+        hprintln!(
+            "step-probe: {} steps, {} coil-steps driven, faults {:#06x}",
+            STEPS,
+            driven,
+            faults
+        );
         bounded && driven > 0 && faults == 0
     }
 

@@ -67,7 +67,9 @@ pub fn decode(src: &[u8], dst: &mut [u8]) -> Result<usize, CobsError> {
         if chunk.contains(&0) {
             return Err(CobsError::ZeroInFrame);
         }
-        dst.get_mut(out..out + run).ok_or(CobsError::OutputFull)?.copy_from_slice(chunk);
+        dst.get_mut(out..out + run)
+            .ok_or(CobsError::OutputFull)?
+            .copy_from_slice(chunk);
         out += run;
         i += run;
         if code != 0xFF && i < src.len() {
@@ -99,7 +101,10 @@ mod tests {
         assert_eq!(roundtrip(&[0]), [1, 1]);
         assert_eq!(roundtrip(&[0, 0]), [1, 1, 1]);
         assert_eq!(roundtrip(&[0x11, 0x22, 0, 0x33]), [3, 0x11, 0x22, 2, 0x33]);
-        assert_eq!(roundtrip(&[0x11, 0x22, 0x33, 0x44]), [5, 0x11, 0x22, 0x33, 0x44]);
+        assert_eq!(
+            roundtrip(&[0x11, 0x22, 0x33, 0x44]),
+            [5, 0x11, 0x22, 0x33, 0x44]
+        );
         assert_eq!(roundtrip(&[0x11, 0, 0, 0]), [2, 0x11, 1, 1, 1]);
     }
 
@@ -119,6 +124,9 @@ mod tests {
         assert_eq!(decode(&[5, 1, 2], &mut out), Err(CobsError::Truncated));
         assert_eq!(decode(&[3, 1, 0, 4], &mut out), Err(CobsError::ZeroInFrame));
         assert_eq!(decode(&[0], &mut out), Err(CobsError::ZeroInFrame));
-        assert_eq!(decode(&[4, 1, 2, 3], &mut [0u8; 2]), Err(CobsError::OutputFull));
+        assert_eq!(
+            decode(&[4, 1, 2, 3], &mut [0u8; 2]),
+            Err(CobsError::OutputFull)
+        );
     }
 }

@@ -334,7 +334,9 @@ struct Writer<'a> {
 
 impl Writer<'_> {
     fn put(&mut self, bytes: &[u8]) -> Option<()> {
-        self.buf.get_mut(self.at..self.at + bytes.len())?.copy_from_slice(bytes);
+        self.buf
+            .get_mut(self.at..self.at + bytes.len())?
+            .copy_from_slice(bytes);
         self.at += bytes.len();
         Some(())
     }
@@ -367,16 +369,38 @@ impl Writer<'_> {
 /// `[gain, offset, a, b, c, threshold, hysteresis]` (unused fields 0).
 fn law_fields(law: &PlaneLaw) -> (u8, u8, u8, u8, [f32; 7]) {
     match *law {
-        PlaneLaw::Single { sensor, law } => (0, 0, 0, sensor, [0.0, 0.0, law.a, law.b, law.c, 0.0, 0.0]),
-        PlaneLaw::Differential { plus, minus, law } => {
-            (1, plus, minus, 0, [law.gain, law.offset, 0.0, 0.0, 0.0, 0.0, 0.0])
+        PlaneLaw::Single { sensor, law } => {
+            (0, 0, 0, sensor, [0.0, 0.0, law.a, law.b, law.c, 0.0, 0.0])
         }
-        PlaneLaw::Switching { plus, minus, high, sensor, low, threshold_deg, hysteresis_deg } => (
+        PlaneLaw::Differential { plus, minus, law } => (
+            1,
+            plus,
+            minus,
+            0,
+            [law.gain, law.offset, 0.0, 0.0, 0.0, 0.0, 0.0],
+        ),
+        PlaneLaw::Switching {
+            plus,
+            minus,
+            high,
+            sensor,
+            low,
+            threshold_deg,
+            hysteresis_deg,
+        } => (
             2,
             plus,
             minus,
             sensor,
-            [high.gain, high.offset, low.a, low.b, low.c, threshold_deg, hysteresis_deg],
+            [
+                high.gain,
+                high.offset,
+                low.a,
+                low.b,
+                low.c,
+                threshold_deg,
+                hysteresis_deg,
+            ],
         ),
     }
 }
@@ -419,8 +443,15 @@ impl Reader<'_> {
         }
         let [gain, offset, a, b, c, threshold_deg, hysteresis_deg] = f;
         Some(match kind {
-            0 => Some(PlaneLaw::Single { sensor, law: QuadraticLaw { a, b, c } }),
-            1 => Some(PlaneLaw::Differential { plus, minus, law: LinearLaw { gain, offset } }),
+            0 => Some(PlaneLaw::Single {
+                sensor,
+                law: QuadraticLaw { a, b, c },
+            }),
+            1 => Some(PlaneLaw::Differential {
+                plus,
+                minus,
+                law: LinearLaw { gain, offset },
+            }),
             2 => Some(PlaneLaw::Switching {
                 plus,
                 minus,
@@ -502,9 +533,17 @@ impl Message {
                 w.u8(*plane)?;
                 w.f32(*target_deg)?;
             }
-            Message::SetGains { plane, kp_agonist, kp_antagonist, ki, integral_limit_v } => {
+            Message::SetGains {
+                plane,
+                kp_agonist,
+                kp_antagonist,
+                ki,
+                integral_limit_v,
+            } => {
                 w.u8(*plane)?;
-                [*kp_agonist, *kp_antagonist, *ki, *integral_limit_v].iter().try_for_each(|v| w.f32(*v))?;
+                [*kp_agonist, *kp_antagonist, *ki, *integral_limit_v]
+                    .iter()
+                    .try_for_each(|v| w.f32(*v))?;
             }
             Message::SetCalibration { plane, law } | Message::Calibration { plane, law } => {
                 w.u8(*plane)?;
@@ -514,7 +553,12 @@ impl Message {
             Message::Arm | Message::Disarm | Message::ClearFaults | Message::GetStatus => {}
             Message::SetTelemetry { rate_hz } => w.u16(*rate_hz)?,
             Message::SetLinkTimeout { timeout_ms } => w.u16(*timeout_ms)?,
-            Message::HelloAck { version, schema, pairs, sensors } => {
+            Message::HelloAck {
+                version,
+                schema,
+                pairs,
+                sensors,
+            } => {
                 w.u8(*version)?;
                 w.u32(*schema)?;
                 w.u8(*pairs)?;
@@ -527,12 +571,19 @@ impl Message {
                 w.u8(a.faults)?;
             }
             Message::Status(s) => {
-                [s.armed, s.mode, s.faults, s.latched].iter().try_for_each(|v| w.u8(*v))?;
-                s.estimate_deg.iter().chain(s.target_deg.iter()).try_for_each(|v| w.f32(*v))?;
+                [s.armed, s.mode, s.faults, s.latched]
+                    .iter()
+                    .try_for_each(|v| w.u8(*v))?;
+                s.estimate_deg
+                    .iter()
+                    .chain(s.target_deg.iter())
+                    .try_for_each(|v| w.f32(*v))?;
                 s.pair_mv.iter().try_for_each(|v| w.i16(*v))?;
                 w.u32(s.time_ms)?;
                 w.u32(s.frames_ok)?;
-                [s.crc_errors, s.cobs_errors, s.overfull, s.malformed].iter().try_for_each(|v| w.u16(*v))?;
+                [s.crc_errors, s.cobs_errors, s.overfull, s.malformed]
+                    .iter()
+                    .try_for_each(|v| w.u16(*v))?;
             }
             Message::Telemetry(t) => {
                 w.u32(t.time_ms)?;
@@ -552,18 +603,26 @@ impl Message {
     /// Parses a payload (type byte first, CRC already removed).
     pub fn read_payload(payload: &[u8]) -> Result<Message, FrameError> {
         let kind_byte = payload.first().copied().ok_or(FrameError::TooShort)?;
-        let malformed = |code| FrameError::Malformed { request: kind_byte, code };
+        let malformed = |code| FrameError::Malformed {
+            request: kind_byte,
+            code,
+        };
         let expect = payload_len(kind_byte).ok_or(malformed(ErrorCode::UnknownType))?;
         if payload.len() != expect {
             return Err(malformed(ErrorCode::BadLength));
         }
-        let mut r = Reader { buf: payload, at: 1 };
+        let mut r = Reader {
+            buf: payload,
+            at: 1,
+        };
         let bad_len = malformed(ErrorCode::BadLength);
         let parsed = (|| -> Option<Result<Message, FrameError>> {
             use kind::*;
             Some(Ok(match kind_byte {
                 HELLO => Message::Hello { version: r.u8()? },
-                HIL_START => Message::HilStart { period_us: r.u32()? },
+                HIL_START => Message::HilStart {
+                    period_us: r.u32()?,
+                },
                 HIL_SENSOR => {
                     let seq = r.u16()?;
                     let mut counts = [0i16; 4];
@@ -572,7 +631,10 @@ impl Message {
                     }
                     Message::HilSensor(SensorFrame { seq, counts })
                 }
-                SET_TARGET => Message::SetTarget { plane: r.u8()?, target_deg: r.f32()? },
+                SET_TARGET => Message::SetTarget {
+                    plane: r.u8()?,
+                    target_deg: r.f32()?,
+                },
                 SET_GAINS => Message::SetGains {
                     plane: r.u8()?,
                     kp_agonist: r.f32()?,
@@ -597,8 +659,15 @@ impl Message {
                 CLEAR_FAULTS => Message::ClearFaults,
                 GET_STATUS => Message::GetStatus,
                 SET_TELEMETRY => Message::SetTelemetry { rate_hz: r.u16()? },
-                SET_LINK_TIMEOUT => Message::SetLinkTimeout { timeout_ms: r.u16()? },
-                HELLO_ACK => Message::HelloAck { version: r.u8()?, schema: r.u32()?, pairs: r.u8()?, sensors: r.u8()? },
+                SET_LINK_TIMEOUT => Message::SetLinkTimeout {
+                    timeout_ms: r.u16()?,
+                },
+                HELLO_ACK => Message::HelloAck {
+                    version: r.u8()?,
+                    schema: r.u32()?,
+                    pairs: r.u8()?,
+                    sensors: r.u8()?,
+                },
                 HIL_ACTUATOR => Message::HilActuator(ActuatorFrame {
                     seq: r.u16()?,
                     pair_mv: [r.i16()?, r.i16()?],
@@ -647,7 +716,9 @@ pub fn encode_frame(msg: &Message, out: &mut [u8; MAX_FRAME]) -> usize {
     let mut raw = [0u8; MAX_PAYLOAD + 2];
     // Every message fits MAX_PAYLOAD by construction (checked in tests);
     // a failure here yields an empty frame, which receivers ignore.
-    let Some(n) = msg.write_payload(&mut raw[..MAX_PAYLOAD]) else { return 0 };
+    let Some(n) = msg.write_payload(&mut raw[..MAX_PAYLOAD]) else {
+        return 0;
+    };
     let crc = crc::crc16(&raw[..n]).to_le_bytes();
     raw[n..n + 2].copy_from_slice(&crc);
     match cobs::encode(&raw[..n + 2], &mut out[..MAX_FRAME - 1]) {
@@ -678,13 +749,18 @@ impl Default for FrameDecoder {
 impl FrameDecoder {
     /// An empty decoder.
     pub const fn new() -> Self {
-        Self { buf: [0; MAX_FRAME], len: 0, overflowed: false, stats: LinkStats {
-            frames_ok: 0,
-            crc_errors: 0,
-            cobs_errors: 0,
-            overfull: 0,
-            malformed: 0,
-        } }
+        Self {
+            buf: [0; MAX_FRAME],
+            len: 0,
+            overflowed: false,
+            stats: LinkStats {
+                frames_ok: 0,
+                crc_errors: 0,
+                cobs_errors: 0,
+                overfull: 0,
+                malformed: 0,
+            },
+        }
     }
 
     /// Counters so far.
@@ -717,7 +793,9 @@ impl FrameDecoder {
         match result {
             Ok(_) => s.frames_ok = s.frames_ok.saturating_add(1),
             Err(FrameError::Crc) => s.crc_errors = s.crc_errors.saturating_add(1),
-            Err(FrameError::Cobs | FrameError::TooShort) => s.cobs_errors = s.cobs_errors.saturating_add(1),
+            Err(FrameError::Cobs | FrameError::TooShort) => {
+                s.cobs_errors = s.cobs_errors.saturating_add(1)
+            }
             Err(FrameError::Overfull) => s.overfull = s.overfull.saturating_add(1),
             Err(FrameError::Malformed { .. }) => s.malformed = s.malformed.saturating_add(1),
         }
@@ -753,7 +831,8 @@ fn crc16_le(b: &[u8]) -> u16 {
 /// identical values.
 pub fn pair_to_mv(cmd: PairCommand, driver: &DriverConfig) -> i16 {
     let full_scale = millivolt_full_scale(driver);
-    let mv = |v| i16::try_from(crate::control::volts_to_duty(v, driver, full_scale)).unwrap_or(i16::MAX);
+    let mv =
+        |v| i16::try_from(crate::control::volts_to_duty(v, driver, full_scale)).unwrap_or(i16::MAX);
     match cmd {
         PairCommand::Off => 0,
         PairCommand::Agonist(v) => mv(v),
@@ -764,7 +843,13 @@ pub fn pair_to_mv(cmd: PairCommand, driver: &DriverConfig) -> i16 {
 /// The supply in millivolts, as a duty-cycle full scale (saturating).
 pub fn millivolt_full_scale(driver: &DriverConfig) -> u16 {
     let mv = num_traits::Float::round(driver.supply_v() * 1000.0);
-    if mv >= f32::from(i16::MAX) { i16::MAX as u16 } else if mv >= 1.0 { mv as u16 } else { 1 }
+    if mv >= f32::from(i16::MAX) {
+        i16::MAX as u16
+    } else if mv >= 1.0 {
+        mv as u16
+    } else {
+        1
+    }
 }
 
 /// Decodes signed millivolts into a pair command, clamped to the driver.
@@ -794,7 +879,11 @@ pub fn deg_to_cdeg(deg: f32) -> i16 {
 
 /// Centidegrees from the wire to degrees (NaN for `i16::MIN`).
 pub fn cdeg_to_deg(c: i16) -> f32 {
-    if c == i16::MIN { f32::NAN } else { f32::from(c) / 100.0 }
+    if c == i16::MIN {
+        f32::NAN
+    } else {
+        f32::from(c) / 100.0
+    }
 }
 
 /// Fault flags to their wire byte (all defined flags fit in 8 bits).

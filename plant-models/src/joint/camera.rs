@@ -60,7 +60,10 @@ impl CameraParams {
         if self.latency_frames > 3 {
             return Err(PlantError::param(&p("latency_frames"), "must be ≤ 3"));
         }
-        for (name, v) in [("angle_noise_deg", self.angle_noise_deg), ("pixel_noise_px", self.pixel_noise_px)] {
+        for (name, v) in [
+            ("angle_noise_deg", self.angle_noise_deg),
+            ("pixel_noise_px", self.pixel_noise_px),
+        ] {
             check_finite(&p(name), v)?;
             if v < 0.0 {
                 return Err(PlantError::param(&p(name), "must be ≥ 0"));
@@ -133,11 +136,21 @@ impl Camera {
     /// Called after each plant step at time `t_s` with the true angles (deg)
     /// and link end (mm): captures a frame if one is due and publishes frames
     /// whose latency has elapsed.
-    pub fn update(&mut self, t_s: f64, angles_deg: [f64; 2], end_mm: [f64; 2], rng: &mut ChaCha8Rng) {
+    pub fn update(
+        &mut self,
+        t_s: f64,
+        angles_deg: [f64; 2],
+        end_mm: [f64; 2],
+        rng: &mut ChaCha8Rng,
+    ) {
         let eps = 1e-9;
         while self.next_index as f64 * self.period_s <= t_s + eps {
             let capture = self.next_index as f64 * self.period_s;
-            let occluded = self.params.occlusions_s.iter().any(|w| capture >= w[0] && capture < w[1]);
+            let occluded = self
+                .params
+                .occlusions_s
+                .iter()
+                .any(|w| capture >= w[0] && capture < w[1]);
             // Always draw the noise, so occlusions do not shift later frames.
             let n: [f64; 4] = core::array::from_fn(|_| StandardNormal.sample(rng));
             let sa = self.params.angle_noise_deg;
@@ -146,7 +159,16 @@ impl Camera {
                 index: self.next_index,
                 capture_time_s: capture,
                 available_time_s: capture + self.params.latency_frames as f64 * self.period_s,
-                angles_deg: (!occluded).then(|| [angles_deg[0] + sa * n[0], if self.two_angles { angles_deg[1] + sa * n[1] } else { 0.0 }]),
+                angles_deg: (!occluded).then(|| {
+                    [
+                        angles_deg[0] + sa * n[0],
+                        if self.two_angles {
+                            angles_deg[1] + sa * n[1]
+                        } else {
+                            0.0
+                        },
+                    ]
+                }),
                 end_mm: (!occluded).then(|| [end_mm[0] + sp * n[2], end_mm[1] + sp * n[3]]),
             };
             self.queue[(self.next_index as usize) % QUEUE] = Some(frame);
@@ -190,7 +212,10 @@ mod tests {
 
     #[test]
     fn frame_rate_latency_and_occlusion() {
-        let p = CameraParams { occlusions_s: vec![[0.5, 0.6]], ..CameraParams::default() };
+        let p = CameraParams {
+            occlusions_s: vec![[0.5, 0.6]],
+            ..CameraParams::default()
+        };
         let mut cam = Camera::new(p, false).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let mut frames = Vec::new();
@@ -212,13 +237,24 @@ mod tests {
                 assert!((t - f.capture_time_s - 1.0 / 30.0).abs() < 1.001e-3);
             }
         }
-        let occluded: Vec<u64> = frames.iter().filter(|(_, f)| f.angles_deg.is_none()).map(|(_, f)| f.index).collect();
+        let occluded: Vec<u64> = frames
+            .iter()
+            .filter(|(_, f)| f.angles_deg.is_none())
+            .map(|(_, f)| f.index)
+            .collect();
         assert_eq!(occluded, vec![15, 16, 17]);
     }
 
     #[test]
     fn noise_has_the_stated_spread() {
-        let mut cam = Camera::new(CameraParams { angle_noise_deg: 0.5, ..CameraParams::default() }, false).unwrap();
+        let mut cam = Camera::new(
+            CameraParams {
+                angle_noise_deg: 0.5,
+                ..CameraParams::default()
+            },
+            false,
+        )
+        .unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         let mut sum = 0.0;
         let mut sq = 0.0;
@@ -234,6 +270,9 @@ mod tests {
         }
         let mean = sum / n;
         let sd = (sq / n - mean * mean).sqrt();
-        assert!(mean.abs() < 0.05 && (sd - 0.5).abs() < 0.05, "mean {mean}, sd {sd}");
+        assert!(
+            mean.abs() < 0.05 && (sd - 0.5).abs() < 0.05,
+            "mean {mean}, sd {sd}"
+        );
     }
 }

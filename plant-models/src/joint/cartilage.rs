@@ -204,7 +204,11 @@ mod tests {
             w = c.step(h, 0.0, -1e-4, 0.0, 1.0);
         }
         let expect = p.youngs_modulus_pa * p.width_m * p.depth_m / p.thickness_m * 1e-4;
-        assert!((w.fy_n - expect).abs() < 1e-6 * expect.max(1.0) + 1e-9, "{} vs {expect}", w.fy_n);
+        assert!(
+            (w.fy_n - expect).abs() < 1e-6 * expect.max(1.0) + 1e-9,
+            "{} vs {expect}",
+            w.fy_n
+        );
         assert!(w.torque_cw_nm.abs() < 1e-12);
         // Small rotation: torque → −E D w³/(12 t) θ · (1 − 1/N²) for N
         // discrete columns (sum of s_i² vs the integral).
@@ -215,7 +219,11 @@ mod tests {
         }
         let n = p.columns as f64;
         let expect = -p.relaxed_rotational_stiffness() * (1.0 - 1.0 / (n * n)) * th;
-        assert!((w.torque_cw_nm - expect).abs() < 1e-3 * expect.abs(), "{} vs {expect}", w.torque_cw_nm);
+        assert!(
+            (w.torque_cw_nm - expect).abs() < 1e-3 * expect.abs(),
+            "{} vs {expect}",
+            w.torque_cw_nm
+        );
     }
 
     #[test]
@@ -231,9 +239,21 @@ mod tests {
 
     #[test]
     fn bad_parameters_name_the_field() {
-        let p = CartilageParams { width_m: -1.0, ..CartilageParams::default() };
-        assert!(Cartilage::new(p).unwrap_err().to_string().contains("cartilage.width_m"));
-        let p = CartilageParams { columns: 1, ..CartilageParams::default() };
-        assert!(Cartilage::new(p).unwrap_err().to_string().contains("cartilage.columns"));
+        let p = CartilageParams {
+            width_m: -1.0,
+            ..CartilageParams::default()
+        };
+        assert!(Cartilage::new(p)
+            .unwrap_err()
+            .to_string()
+            .contains("cartilage.width_m"));
+        let p = CartilageParams {
+            columns: 1,
+            ..CartilageParams::default()
+        };
+        assert!(Cartilage::new(p)
+            .unwrap_err()
+            .to_string()
+            .contains("cartilage.columns"));
     }
 }

@@ -110,7 +110,14 @@ mod tests {
 
     #[test]
     fn bad_parameters_name_the_field() {
-        let d = DriverParams { supply_v: -1.0, ..DriverParams::default() };
-        assert!(d.validate("driver.").unwrap_err().to_string().contains("driver.supply_v"));
+        let d = DriverParams {
+            supply_v: -1.0,
+            ..DriverParams::default()
+        };
+        assert!(d
+            .validate("driver.")
+            .unwrap_err()
+            .to_string()
+            .contains("driver.supply_v"));
     }
 }

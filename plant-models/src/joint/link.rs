@@ -52,7 +52,13 @@ pub struct LinkParams {
 
 impl Default for LinkParams {
     fn default() -> Self {
-        Self { mass_kg: 0.012, com_height_m: 0.0135, inertia_kg_m2: 8.3e-7, end_length_m: 0.027, gravity_m_s2: 9.81 }
+        Self {
+            mass_kg: 0.012,
+            com_height_m: 0.0135,
+            inertia_kg_m2: 8.3e-7,
+            end_length_m: 0.027,
+            gravity_m_s2: 9.81,
+        }
     }
 }
 
@@ -81,7 +87,12 @@ pub struct CoilGeometry {
 
 impl Default for CoilGeometry {
     fn default() -> Self {
-        Self { attach_lateral_m: 12.5e-3, attach_height_m: 8.0e-3, anchor_lateral_m: 12.5e-3, anchor_height_m: -12.0e-3 }
+        Self {
+            attach_lateral_m: 12.5e-3,
+            attach_height_m: 8.0e-3,
+            anchor_lateral_m: 12.5e-3,
+            anchor_height_m: -12.0e-3,
+        }
     }
 }
 
@@ -96,7 +107,9 @@ pub struct BearingParams {
 
 impl Default for BearingParams {
     fn default() -> Self {
-        Self { damping_nm_s_rad: 2.0e-6 }
+        Self {
+            damping_nm_s_rad: 2.0e-6,
+        }
     }
 }
 
@@ -153,7 +166,10 @@ impl PlaneParams {
             SupportParams::RigidBearing(b) => {
                 check_finite(&p("support.damping_nm_s_rad"), b.damping_nm_s_rad)?;
                 if b.damping_nm_s_rad < 0.0 {
-                    return Err(PlantError::param(&p("support.damping_nm_s_rad"), "must be ≥ 0"));
+                    return Err(PlantError::param(
+                        &p("support.damping_nm_s_rad"),
+                        "must be ≥ 0",
+                    ));
                 }
             }
         }
@@ -163,9 +179,13 @@ impl PlaneParams {
         check_finite(&p("coil_geometry.attach_height_m"), g.attach_height_m)?;
         check_positive(&p("coil_geometry.anchor_lateral_m"), g.anchor_lateral_m)?;
         check_finite(&p("coil_geometry.anchor_height_m"), g.anchor_height_m)?;
-        let installed = (g.anchor_lateral_m - g.attach_lateral_m).hypot(g.anchor_height_m - g.attach_height_m);
+        let installed =
+            (g.anchor_lateral_m - g.attach_lateral_m).hypot(g.anchor_height_m - g.attach_height_m);
         if installed < 1e-3 {
-            return Err(PlantError::param(&p("coil_geometry.anchor_height_m"), "coil shorter than 1 mm as installed"));
+            return Err(PlantError::param(
+                &p("coil_geometry.anchor_height_m"),
+                "coil shorter than 1 mm as installed",
+            ));
         }
         self.driver.validate(&p("driver."))
     }
@@ -188,7 +208,10 @@ impl PointLoad {
     pub fn weight(mass_kg: f64, g: f64, point_link_m: [f64; 2], direction: [f64; 2]) -> Self {
         let n = direction[0].hypot(direction[1]);
         let f = mass_kg * g / n;
-        Self { force_n: [f * direction[0], f * direction[1]], point_link_m }
+        Self {
+            force_n: [f * direction[0], f * direction[1]],
+            point_link_m,
+        }
     }
 }
 
@@ -246,7 +269,10 @@ impl PlanarJoint {
             SupportParams::RigidBearing(b) => (None, b.damping_nm_s_rad),
         };
         let coil = SmaCoil::new(params.coil.clone())?;
-        let state = LinkState { com_m: [0.0, params.link.com_height_m], ..LinkState::default() };
+        let state = LinkState {
+            com_m: [0.0, params.link.com_height_m],
+            ..LinkState::default()
+        };
         Ok(Self {
             cartilage,
             bearing_damping,
@@ -332,7 +358,11 @@ impl PlanarJoint {
         ] {
             check_finite(name, v)?;
         }
-        let slot = self.loads.iter().position(Option::is_none).ok_or(PlantError::TooManyLoads)?;
+        let slot = self
+            .loads
+            .iter()
+            .position(Option::is_none)
+            .ok_or(PlantError::TooManyLoads)?;
         self.loads[slot] = Some(load);
         Ok(LoadId(slot))
     }
@@ -383,7 +413,10 @@ impl PlanarJoint {
             let u = [d[0] / len, d[1] / len];
             // Velocity of the attachment: v_com + ω × (a − com) (clockwise ω).
             let ra = [a[0] - st.com_m[0], a[1] - st.com_m[1]];
-            let va = [st.com_vel_m_s[0] + st.omega_rad_s * ra[1], st.com_vel_m_s[1] - st.omega_rad_s * ra[0]];
+            let va = [
+                st.com_vel_m_s[0] + st.omega_rad_s * ra[1],
+                st.com_vel_m_s[1] - st.omega_rad_s * ra[0],
+            ];
             let rate = -(u[0] * va[0] + u[1] * va[1]);
             let t = self.coils[k].tension_n(len, rate);
             self.coil_tension_n[k] = t;
@@ -453,19 +486,33 @@ impl PlanarJoint {
         if !vals.iter().map(|v| v.1).sum::<f64>().is_finite() {
             for (name, v) in vals {
                 if !v.is_finite() {
-                    return Err(PlantError::NonFinite { plane, quantity: name });
+                    return Err(PlantError::NonFinite {
+                        plane,
+                        quantity: name,
+                    });
                 }
             }
             // Finite values whose sum overflows (absurd magnitudes).
-            return Err(PlantError::NonFinite { plane, quantity: "state sum" });
+            return Err(PlantError::NonFinite {
+                plane,
+                quantity: "state sum",
+            });
         }
         let ke = self.kinetic_energy_j();
         if ke > max_kinetic_j {
-            return Err(PlantError::EnergyRunaway { plane, kinetic_j: ke, limit_j: max_kinetic_j });
+            return Err(PlantError::EnergyRunaway {
+                plane,
+                kinetic_j: ke,
+                limit_j: max_kinetic_j,
+            });
         }
         let b = self.base_m();
         if s.theta_rad.abs() > 1.2 || b[0] * b[0] + b[1] * b[1] > 0.02 * 0.02 {
-            return Err(PlantError::PoseOutOfRange { plane, theta_deg: s.theta_rad.to_degrees(), base_offset_mm: 1e3 * b[0].hypot(b[1]) });
+            return Err(PlantError::PoseOutOfRange {
+                plane,
+                theta_deg: s.theta_rad.to_degrees(),
+                base_offset_mm: 1e3 * b[0].hypot(b[1]),
+            });
         }
         Ok(())
     }

@@ -70,7 +70,10 @@ use serde::{Deserialize, Serialize};
 pub use camera::{Camera, CameraFrame, CameraParams};
 pub use cartilage::CartilageParams;
 pub use driver::DriverParams;
-pub use link::{BearingParams, CoilGeometry, LinkParams, LoadId, PlanarJoint, PlaneParams, PointLoad, SupportParams};
+pub use link::{
+    BearingParams, CoilGeometry, LinkParams, LoadId, PlanarJoint, PlaneParams, PointLoad,
+    SupportParams,
+};
 pub use sma::{SmaCoil, SmaParams};
 pub use wire_sensor::{JamParams, WireGeometry, WireSensor, WireSensorParams};
 
@@ -115,7 +118,9 @@ pub enum PlantError {
         quantity: &'static str,
     },
     /// The link's kinetic energy exceeded the physical bound.
-    #[error("numerical instability in plane {plane}: kinetic energy {kinetic_j} J exceeds {limit_j} J")]
+    #[error(
+        "numerical instability in plane {plane}: kinetic energy {kinetic_j} J exceeds {limit_j} J"
+    )]
     EnergyRunaway {
         /// Plane.
         plane: &'static str,
@@ -126,7 +131,9 @@ pub enum PlantError {
     },
     /// The link left the mechanism's range (|θ| > 1.2 rad or the base more
     /// than 20 mm from the joint origin).
-    #[error("plane {plane}: link out of range (θ = {theta_deg}°, base offset {base_offset_mm} mm)")]
+    #[error(
+        "plane {plane}: link out of range (θ = {theta_deg}°, base offset {base_offset_mm} mm)"
+    )]
     PoseOutOfRange {
         /// Plane.
         plane: &'static str,
@@ -142,7 +149,10 @@ pub enum PlantError {
 
 impl PlantError {
     pub(crate) fn param(field: &str, reason: &str) -> Self {
-        PlantError::InvalidParameter { field: field.to_string(), reason: reason.to_string() }
+        PlantError::InvalidParameter {
+            field: field.to_string(),
+            reason: reason.to_string(),
+        }
     }
 }
 
@@ -184,7 +194,12 @@ pub struct SimParams {
 
 impl Default for SimParams {
     fn default() -> Self {
-        Self { substep_s: 1e-3, settle_s: 1.0, seed: 0x5eed, max_kinetic_energy_j: 0.5 }
+        Self {
+            substep_s: 1e-3,
+            settle_s: 1.0,
+            seed: 0x5eed,
+            max_kinetic_energy_j: 0.5,
+        }
     }
 }
 
@@ -192,7 +207,10 @@ impl SimParams {
     fn validate(&self) -> Result<(), PlantError> {
         check_positive("sim.substep_s", self.substep_s)?;
         if self.substep_s > 2e-3 {
-            return Err(PlantError::param("sim.substep_s", "must be ≤ 2 ms (stability)"));
+            return Err(PlantError::param(
+                "sim.substep_s",
+                "must be ≤ 2 ms (stability)",
+            ));
         }
         check_finite("sim.settle_s", self.settle_s)?;
         if self.settle_s < 0.0 {
@@ -213,7 +231,10 @@ impl SimParams {
 
 fn check_inputs<const N: usize>(v: &[f64]) -> Result<[f64; N], PlantError> {
     if v.len() != N {
-        return Err(PlantError::InputLength { expected: N, got: v.len() });
+        return Err(PlantError::InputLength {
+            expected: N,
+            got: v.len(),
+        });
     }
     let mut out = [0.0; N];
     for (i, (o, x)) in out.iter_mut().zip(v).enumerate() {
@@ -291,7 +312,9 @@ impl Joint2d {
     pub fn new(params: Joint2dParams) -> Result<Self, PlantError> {
         params.validate()?;
         let mut plane = PlanarJoint::new(params.plane.clone())?;
-        let (n, h) = params.sim.split(params.sim.settle_s.max(params.sim.substep_s))?;
+        let (n, h) = params
+            .sim
+            .split(params.sim.settle_s.max(params.sim.substep_s))?;
         if params.sim.settle_s > 0.0 {
             for _ in 0..n {
                 plane.substep(h, [0.0; 2]);
@@ -299,10 +322,23 @@ impl Joint2d {
             }
         }
         let b = plane.base_m();
-        let wire = WireSensor::new(params.wire.clone(), 1e3 * b[0], 1e3 * b[1], plane.angle_rad())?;
+        let wire = WireSensor::new(
+            params.wire.clone(),
+            1e3 * b[0],
+            1e3 * b[1],
+            plane.angle_rad(),
+        )?;
         let camera = Camera::new(params.camera.clone(), false)?;
         let seed = params.sim.seed;
-        let mut j = Self { plane, wire, camera, rng_wire: rng_stream(seed, 1), rng_camera: rng_stream(seed, 0), time_s: 0.0, params };
+        let mut j = Self {
+            plane,
+            wire,
+            camera,
+            rng_wire: rng_stream(seed, 1),
+            rng_camera: rng_stream(seed, 0),
+            time_s: 0.0,
+            params,
+        };
         j.observe();
         Ok(j)
     }
@@ -310,7 +346,12 @@ impl Joint2d {
     fn observe(&mut self) {
         let th = self.plane.angle_rad().to_degrees();
         let e = self.plane.end_m();
-        self.camera.update(self.time_s, [th, 0.0], [1e3 * e[0], 1e3 * e[1]], &mut self.rng_camera);
+        self.camera.update(
+            self.time_s,
+            [th, 0.0],
+            [1e3 * e[0], 1e3 * e[1]],
+            &mut self.rng_camera,
+        );
     }
 
     /// Advances by `dt_s` with driver input voltages `[v1, v2]` held.
@@ -319,10 +360,12 @@ impl Joint2d {
         let (n, h) = self.params.sim.split(dt_s)?;
         for _ in 0..n {
             self.plane.substep(h, v);
-            self.plane.check("2d", self.params.sim.max_kinetic_energy_j)?;
+            self.plane
+                .check("2d", self.params.sim.max_kinetic_energy_j)?;
             let b = self.plane.base_m();
             let (sn, cs) = self.plane.sin_cos();
-            self.wire.update_sin_cos(1e3 * b[0], 1e3 * b[1], sn, cs, &mut self.rng_wire);
+            self.wire
+                .update_sin_cos(1e3 * b[0], 1e3 * b[1], sn, cs, &mut self.rng_wire);
         }
         self.time_s += dt_s;
         self.observe();
@@ -369,7 +412,10 @@ impl Joint2d {
     }
     /// Martensite fractions.
     pub fn martensite_fractions(&self) -> [f64; 2] {
-        self.plane.coils().each_ref().map(SmaCoil::martensite_fraction)
+        self.plane
+            .coils()
+            .each_ref()
+            .map(SmaCoil::martensite_fraction)
     }
     /// The wire sensor.
     pub fn wire(&self) -> &WireSensor {
@@ -397,10 +443,19 @@ impl Joint2d {
     }
     /// Hangs `mass_kg` from the link end, the thread led along `direction`
     /// (socket frame, e.g. `[-1, 0]`: horizontal over a pulley, towards −θ).
-    pub fn add_weight_at_end(&mut self, mass_kg: f64, direction: [f64; 2]) -> Result<LoadId, PlantError> {
+    pub fn add_weight_at_end(
+        &mut self,
+        mass_kg: f64,
+        direction: [f64; 2],
+    ) -> Result<LoadId, PlantError> {
         check_positive("load.mass_kg", mass_kg)?;
         let lp = &self.params.plane.link;
-        self.plane.add_load(PointLoad::weight(mass_kg, lp.gravity_m_s2, [0.0, lp.end_length_m], direction))
+        self.plane.add_load(PointLoad::weight(
+            mass_kg,
+            lp.gravity_m_s2,
+            [0.0, lp.end_length_m],
+            direction,
+        ))
     }
     /// Removes a load (cuts the thread).
     pub fn remove_load(&mut self, id: LoadId) -> Option<PointLoad> {
@@ -441,7 +496,9 @@ impl Default for Joint3dParams {
         Self {
             alpha: PlaneParams::default(),
             beta: PlaneParams::default(),
-            wires: core::array::from_fn(|i| WireSensorParams::with_geometry(WireGeometry::paper_3d(i + 1))),
+            wires: core::array::from_fn(|i| {
+                WireSensorParams::with_geometry(WireGeometry::paper_3d(i + 1))
+            }),
             camera: CameraParams::default(),
             sim: SimParams::default(),
         }
@@ -480,7 +537,10 @@ impl Joint3d {
     /// Validates, builds and settles the joint.
     pub fn new(params: Joint3dParams) -> Result<Self, PlantError> {
         params.validate()?;
-        let mut planes = [PlanarJoint::new(params.alpha.clone())?, PlanarJoint::new(params.beta.clone())?];
+        let mut planes = [
+            PlanarJoint::new(params.alpha.clone())?,
+            PlanarJoint::new(params.beta.clone())?,
+        ];
         let names = ["alpha", "beta"];
         if params.sim.settle_s > 0.0 {
             let (n, h) = params.sim.split(params.sim.settle_s)?;
@@ -495,9 +555,16 @@ impl Joint3d {
         for (k, w) in params.wires.iter().enumerate() {
             let p = &planes[PLANE_OF[k]];
             let b = p.base_m();
-            wires.push(WireSensor::new(w.clone(), 1e3 * b[0], 1e3 * b[1], p.angle_rad())?);
+            wires.push(WireSensor::new(
+                w.clone(),
+                1e3 * b[0],
+                1e3 * b[1],
+                p.angle_rad(),
+            )?);
         }
-        let wires: [WireSensor; 4] = wires.try_into().map_err(|_| PlantError::param("wires", "need 4"))?;
+        let wires: [WireSensor; 4] = wires
+            .try_into()
+            .map_err(|_| PlantError::param("wires", "need 4"))?;
         let seed = params.sim.seed;
         let mut j = Self {
             camera: Camera::new(params.camera.clone(), true)?,
@@ -515,7 +582,12 @@ impl Joint3d {
     fn observe(&mut self) {
         let a = self.angles_deg();
         let e = self.planes[0].end_m();
-        self.camera.update(self.time_s, a, [1e3 * e[0], 1e3 * e[1]], &mut self.rng_camera);
+        self.camera.update(
+            self.time_s,
+            a,
+            [1e3 * e[0], 1e3 * e[1]],
+            &mut self.rng_camera,
+        );
     }
 
     /// Advances by `dt_s` with driver inputs `[v1, v2, v3, v4]` (V), the
@@ -530,7 +602,12 @@ impl Joint3d {
                 p.substep(h, vin);
                 p.check(name, self.params.sim.max_kinetic_energy_j)?;
             }
-            for (k, (w, rng)) in self.wires.iter_mut().zip(self.rng_wires.iter_mut()).enumerate() {
+            for (k, (w, rng)) in self
+                .wires
+                .iter_mut()
+                .zip(self.rng_wires.iter_mut())
+                .enumerate()
+            {
                 let p = &self.planes[PLANE_OF[k]];
                 let b = p.base_m();
                 let (sn, cs) = p.sin_cos();
@@ -560,7 +637,10 @@ impl Joint3d {
     }
     /// True projection angles [α, β] (deg).
     pub fn angles_deg(&self) -> [f64; 2] {
-        [self.planes[0].angle_rad().to_degrees(), self.planes[1].angle_rad().to_degrees()]
+        [
+            self.planes[0].angle_rad().to_degrees(),
+            self.planes[1].angle_rad().to_degrees(),
+        ]
     }
     /// Link end in each projection plane (mm): [[x_α, y_α], [x_β, y_β]].
     pub fn end_mm(&self) -> [[f64; 2]; 2] {
@@ -572,12 +652,22 @@ impl Joint3d {
     /// Coil temperatures, coils 1..4 (°C).
     pub fn coil_temperatures_c(&self) -> [f64; 4] {
         let [a, b] = &self.planes;
-        [a.coils()[0].temperature_c(), b.coils()[0].temperature_c(), a.coils()[1].temperature_c(), b.coils()[1].temperature_c()]
+        [
+            a.coils()[0].temperature_c(),
+            b.coils()[0].temperature_c(),
+            a.coils()[1].temperature_c(),
+            b.coils()[1].temperature_c(),
+        ]
     }
     /// Coil currents, coils 1..4 (A).
     pub fn coil_currents_a(&self) -> [f64; 4] {
         let [a, b] = &self.planes;
-        [a.coils()[0].current_a(), b.coils()[0].current_a(), a.coils()[1].current_a(), b.coils()[1].current_a()]
+        [
+            a.coils()[0].current_a(),
+            b.coils()[0].current_a(),
+            a.coils()[1].current_a(),
+            b.coils()[1].current_a(),
+        ]
     }
     /// Wire sensors 1..4.
     pub fn wires(&self) -> &[WireSensor; 4] {
@@ -611,7 +701,12 @@ impl Joint3d {
     }
     /// Hangs `mass_kg` from the link end in one plane, the thread led along
     /// `direction` (that plane's socket frame).
-    pub fn add_weight_at_end(&mut self, which: Plane, mass_kg: f64, direction: [f64; 2]) -> Result<LoadId, PlantError> {
+    pub fn add_weight_at_end(
+        &mut self,
+        which: Plane,
+        mass_kg: f64,
+        direction: [f64; 2],
+    ) -> Result<LoadId, PlantError> {
         check_positive("load.mass_kg", mass_kg)?;
         let p = &mut self.planes[which as usize];
         let (g, l) = (p.params().link.gravity_m_s2, p.params().link.end_length_m);

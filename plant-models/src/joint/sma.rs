@@ -132,23 +132,41 @@ impl SmaParams {
         if self.latent_heat_j_kg < 0.0 {
             return Err(PlantError::param(&p("latent_heat_j_kg"), "must be ≥ 0"));
         }
-        check_positive(&p("resistivity_martensite_ohm_m"), self.resistivity_martensite_ohm_m)?;
-        check_positive(&p("resistivity_austenite_ohm_m"), self.resistivity_austenite_ohm_m)?;
+        check_positive(
+            &p("resistivity_martensite_ohm_m"),
+            self.resistivity_martensite_ohm_m,
+        )?;
+        check_positive(
+            &p("resistivity_austenite_ohm_m"),
+            self.resistivity_austenite_ohm_m,
+        )?;
         check_finite(&p("austenite_start_c"), self.austenite_start_c)?;
         check_finite(&p("austenite_finish_c"), self.austenite_finish_c)?;
         check_finite(&p("martensite_start_c"), self.martensite_start_c)?;
         check_finite(&p("martensite_finish_c"), self.martensite_finish_c)?;
         if self.austenite_finish_c <= self.austenite_start_c {
-            return Err(PlantError::param(&p("austenite_finish_c"), "must exceed austenite_start_c"));
+            return Err(PlantError::param(
+                &p("austenite_finish_c"),
+                "must exceed austenite_start_c",
+            ));
         }
         if self.martensite_start_c <= self.martensite_finish_c {
-            return Err(PlantError::param(&p("martensite_start_c"), "must exceed martensite_finish_c"));
+            return Err(PlantError::param(
+                &p("martensite_start_c"),
+                "must exceed martensite_finish_c",
+            ));
         }
         check_positive(&p("convection_w_m2_k"), self.convection_w_m2_k)?;
         check_finite(&p("ambient_c"), self.ambient_c)?;
-        check_positive(&p("stiffness_martensite_n_m"), self.stiffness_martensite_n_m)?;
+        check_positive(
+            &p("stiffness_martensite_n_m"),
+            self.stiffness_martensite_n_m,
+        )?;
         check_positive(&p("stiffness_austenite_n_m"), self.stiffness_austenite_n_m)?;
-        check_positive(&p("rest_length_martensite_m"), self.rest_length_martensite_m)?;
+        check_positive(
+            &p("rest_length_martensite_m"),
+            self.rest_length_martensite_m,
+        )?;
         check_positive(&p("rest_length_austenite_m"), self.rest_length_austenite_m)?;
         check_finite(&p("damping_n_s_m"), self.damping_n_s_m)?;
         if self.damping_n_s_m < 0.0 {
@@ -184,7 +202,8 @@ impl SmaParams {
     /// Resistance at martensite fraction `xi` (Ω), resistivities mixed
     /// linearly by phase.
     pub fn resistance_ohm(&self, xi: f64) -> f64 {
-        let rho = xi * self.resistivity_martensite_ohm_m + (1.0 - xi) * self.resistivity_austenite_ohm_m;
+        let rho =
+            xi * self.resistivity_martensite_ohm_m + (1.0 - xi) * self.resistivity_austenite_ohm_m;
         rho * self.wire_length_m / self.wire_area_m2()
     }
 
@@ -222,7 +241,9 @@ impl SmaParams {
             if g_old <= 0.0 {
                 return xi_old;
             }
-            (xi_old * self.g_heat(t_new) / g_old).min(xi_old).clamp(0.0, 1.0)
+            (xi_old * self.g_heat(t_new) / g_old)
+                .min(xi_old)
+                .clamp(0.0, 1.0)
         } else if t_new < t_old {
             if t_new <= self.martensite_finish_c {
                 return 1.0;
@@ -262,7 +283,10 @@ impl SmaCoil {
         // Cold start below A_s: fully martensite. (A coil above A_f would be
         // austenite; we only start at ambient, validated < A_s below.)
         if t >= params.austenite_start_c {
-            return Err(PlantError::param("coil.ambient_c", "must be below austenite_start_c"));
+            return Err(PlantError::param(
+                "coil.ambient_c",
+                "must be below austenite_start_c",
+            ));
         }
         Ok(Self {
             heat_capacity_j_k: params.heat_capacity_j_k(),
@@ -330,10 +354,17 @@ impl SmaCoil {
     }
 
     /// Sets temperature and phase directly (tests, warm starts).
-    pub fn set_state(&mut self, temperature_c: f64, martensite_fraction: f64) -> Result<(), PlantError> {
+    pub fn set_state(
+        &mut self,
+        temperature_c: f64,
+        martensite_fraction: f64,
+    ) -> Result<(), PlantError> {
         check_finite("coil.temperature_c", temperature_c)?;
         if !(0.0..=1.0).contains(&martensite_fraction) {
-            return Err(PlantError::param("coil.martensite_fraction", "must be in [0, 1]"));
+            return Err(PlantError::param(
+                "coil.martensite_fraction",
+                "must be in [0, 1]",
+            ));
         }
         self.temperature_c = temperature_c;
         self.martensite_fraction = martensite_fraction;
@@ -358,7 +389,8 @@ impl SmaCoil {
             let xi_old = self.martensite_fraction;
             let xi_new = self.params.phase_update(t_old, xi_old, t_new);
             // Latent heat: m ΔH dξ — M→A (ξ falls) absorbs, A→M releases.
-            t_new += self.params.latent_heat_j_kg * (xi_new - xi_old) / self.params.specific_heat_j_kg_k;
+            t_new +=
+                self.params.latent_heat_j_kg * (xi_new - xi_old) / self.params.specific_heat_j_kg_k;
             self.martensite_fraction = xi_new;
         }
         self.temperature_c = t_new;
@@ -442,7 +474,11 @@ mod tests {
             c.step(dt, i, true);
             let t = n as f64 * dt;
             let expect = p.ambient_c + i * i * r / ga * (1.0 - (-t / tau).exp());
-            assert!((c.temperature_c() - expect).abs() < 1e-9, "t={t}: {} vs {expect}", c.temperature_c());
+            assert!(
+                (c.temperature_c() - expect).abs() < 1e-9,
+                "t={t}: {} vs {expect}",
+                c.temperature_c()
+            );
         }
         // Independent forward-Euler check of the ODE at a small step, so a
         // wrong formula for T_eq or τ cannot pass by construction.
@@ -451,14 +487,22 @@ mod tests {
         for _ in 0..100_000 {
             te += h * (i * i * r - ga * (te - p.ambient_c)) / p.heat_capacity_j_k();
         }
-        assert!((c.temperature_c() - te).abs() < 0.01, "{} vs Euler {te}", c.temperature_c());
+        assert!(
+            (c.temperature_c() - te).abs() < 0.01,
+            "{} vs Euler {te}",
+            c.temperature_c()
+        );
     }
 
     #[test]
     fn latent_heat_slows_heating_through_the_band() {
         let p = SmaParams::default();
         let mut with = SmaCoil::new(p.clone()).unwrap();
-        let mut without = SmaCoil::new(SmaParams { latent_heat_j_kg: 0.0, ..p }).unwrap();
+        let mut without = SmaCoil::new(SmaParams {
+            latent_heat_j_kg: 0.0,
+            ..p
+        })
+        .unwrap();
         let mut steps = 0;
         while without.martensite_fraction() > 0.5 {
             with.step(1e-3, 0.3, false);
@@ -485,10 +529,19 @@ mod tests {
 
     #[test]
     fn bad_parameters_name_the_field() {
-        let p = SmaParams { convection_w_m2_k: f64::NAN, ..SmaParams::default() };
+        let p = SmaParams {
+            convection_w_m2_k: f64::NAN,
+            ..SmaParams::default()
+        };
         let e = SmaCoil::new(p).unwrap_err();
         assert!(e.to_string().contains("coil.convection_w_m2_k"), "{e}");
-        let p = SmaParams { austenite_finish_c: 60.0, ..SmaParams::default() };
-        assert!(SmaCoil::new(p).unwrap_err().to_string().contains("austenite_finish_c"));
+        let p = SmaParams {
+            austenite_finish_c: 60.0,
+            ..SmaParams::default()
+        };
+        assert!(SmaCoil::new(p)
+            .unwrap_err()
+            .to_string()
+            .contains("austenite_finish_c"));
     }
 }

@@ -77,28 +77,60 @@ impl WireGeometry {
     /// The 2D sensor (see the module docs; estimate fitted to Eq. 2 on the
     /// simulated joint's quasi-static path).
     pub fn paper_2d() -> Self {
-        Self { attach_link_mm: [-4.0, 14.4], tube_entry_mm: [-24.0, -7.9], insertion_at_rest_mm: EQ2_REST_MM }
+        Self {
+            attach_link_mm: [-4.0, 14.4],
+            tube_entry_mm: [-24.0, -7.9],
+            insertion_at_rest_mm: EQ2_REST_MM,
+        }
     }
 
     /// The 3D sensor `index` ∈ 1..=4 (see the module docs; estimates fitted
     /// to Eq. 3). Sensors 1, 3 lie in the α plane, 2, 4 in the β plane.
     pub fn paper_3d(index: usize) -> Self {
-        let (qx, tx) = if index % 2 == 1 { (7.5, 13.5) } else { (6.5, 15.0) };
+        let (qx, tx) = if index % 2 == 1 {
+            (7.5, 13.5)
+        } else {
+            (6.5, 15.0)
+        };
         match index {
-            1 | 2 => Self { attach_link_mm: [-qx, 27.0], tube_entry_mm: [-tx, -25.0], insertion_at_rest_mm: 0.0 },
-            3 => Self { attach_link_mm: [qx, 27.0], tube_entry_mm: [tx, -25.0], insertion_at_rest_mm: -0.323 / 2.727 },
-            _ => Self { attach_link_mm: [qx, 27.0], tube_entry_mm: [tx, -25.0], insertion_at_rest_mm: -0.131 / 2.670 },
+            1 | 2 => Self {
+                attach_link_mm: [-qx, 27.0],
+                tube_entry_mm: [-tx, -25.0],
+                insertion_at_rest_mm: 0.0,
+            },
+            3 => Self {
+                attach_link_mm: [qx, 27.0],
+                tube_entry_mm: [tx, -25.0],
+                insertion_at_rest_mm: -0.323 / 2.727,
+            },
+            _ => Self {
+                attach_link_mm: [qx, 27.0],
+                tube_entry_mm: [tx, -25.0],
+                insertion_at_rest_mm: -0.131 / 2.670,
+            },
         }
     }
 
     fn validate(&self, prefix: &str) -> Result<(), PlantError> {
-        check_finite(&format!("{prefix}attach_link_mm[0]"), self.attach_link_mm[0])?;
-        check_finite(&format!("{prefix}attach_link_mm[1]"), self.attach_link_mm[1])?;
+        check_finite(
+            &format!("{prefix}attach_link_mm[0]"),
+            self.attach_link_mm[0],
+        )?;
+        check_finite(
+            &format!("{prefix}attach_link_mm[1]"),
+            self.attach_link_mm[1],
+        )?;
         check_finite(&format!("{prefix}tube_entry_mm[0]"), self.tube_entry_mm[0])?;
         check_finite(&format!("{prefix}tube_entry_mm[1]"), self.tube_entry_mm[1])?;
-        check_finite(&format!("{prefix}insertion_at_rest_mm"), self.insertion_at_rest_mm)?;
+        check_finite(
+            &format!("{prefix}insertion_at_rest_mm"),
+            self.insertion_at_rest_mm,
+        )?;
         if free_length_mm(self, 0.0, 0.0, 0.0) < 1.0 {
-            return Err(PlantError::param(&format!("{prefix}tube_entry_mm"), "wire shorter than 1 mm at rest"));
+            return Err(PlantError::param(
+                &format!("{prefix}tube_entry_mm"),
+                "wire shorter than 1 mm at rest",
+            ));
         }
         Ok(())
     }
@@ -129,15 +161,23 @@ fn free_length_sc_mm(g: &WireGeometry, x_mm: f64, y_mm: f64, s: f64, c: f64) -> 
 /// `d = d_rest + L(0) − L(θ)`. This is the rigid-bearing answer; with the
 /// cartilage use [`ideal_insertion_at_pose_mm`] with the link base position.
 pub fn ideal_insertion_mm(g: &WireGeometry, theta_rad: f64) -> f64 {
-    g.insertion_at_rest_mm + free_length_mm(g, 0.0, 0.0, 0.0) - free_length_mm(g, 0.0, 0.0, theta_rad)
+    g.insertion_at_rest_mm + free_length_mm(g, 0.0, 0.0, 0.0)
+        - free_length_mm(g, 0.0, 0.0, theta_rad)
 }
 
 /// Ideal insertion (mm) with the link base at (`x_mm`, `y_mm`) and angle
 /// `theta_rad`, the coder zeroed at the pose `zero` = (x, y, θ) (mm, mm,
 /// rad): `d = d_rest + L(zero) − L(pose)`. The plant's sensors report this
 /// (before jamming and quantisation), zeroed at the settled rest pose.
-pub fn ideal_insertion_at_pose_mm(g: &WireGeometry, zero: (f64, f64, f64), x_mm: f64, y_mm: f64, theta_rad: f64) -> f64 {
-    g.insertion_at_rest_mm + free_length_mm(g, zero.0, zero.1, zero.2) - free_length_mm(g, x_mm, y_mm, theta_rad)
+pub fn ideal_insertion_at_pose_mm(
+    g: &WireGeometry,
+    zero: (f64, f64, f64),
+    x_mm: f64,
+    y_mm: f64,
+    theta_rad: f64,
+) -> f64 {
+    g.insertion_at_rest_mm + free_length_mm(g, zero.0, zero.1, zero.2)
+        - free_length_mm(g, x_mm, y_mm, theta_rad)
 }
 
 /// Paper Eq. 2 (2D single-sensor law), degrees from mm.
@@ -147,7 +187,10 @@ pub fn paper_eq2_deg(d_mm: f64) -> f64 {
 
 /// Paper Eq. 3 (3D differential laws): (α, β) in degrees from d1..d4 (mm).
 pub fn paper_eq3_deg(d_mm: [f64; 4]) -> (f64, f64) {
-    (2.727 * (d_mm[2] - d_mm[0]) + 0.323, 2.670 * (d_mm[3] - d_mm[1]) + 0.131)
+    (
+        2.727 * (d_mm[2] - d_mm[0]) + 0.323,
+        2.670 * (d_mm[3] - d_mm[1]) + 0.131,
+    )
 }
 
 /// Jamming (stick and buckling) parameters; all estimates. The defaults
@@ -190,7 +233,14 @@ impl Default for JamParams {
 impl JamParams {
     /// No jamming at all (the geometric reading, quantised).
     pub fn none() -> Self {
-        Self { buckling_gain: 0.0, max_lag_mm: 0.0, max_lag_per_mm: 0.0, stick_per_mm: 0.0, stick_min_mm: 0.0, stick_max_mm: 0.0 }
+        Self {
+            buckling_gain: 0.0,
+            max_lag_mm: 0.0,
+            max_lag_per_mm: 0.0,
+            stick_per_mm: 0.0,
+            stick_min_mm: 0.0,
+            stick_max_mm: 0.0,
+        }
     }
 
     fn validate(&self, prefix: &str) -> Result<(), PlantError> {
@@ -209,10 +259,16 @@ impl JamParams {
             }
         }
         if self.buckling_gain > 1.0 {
-            return Err(PlantError::param(&format!("{prefix}buckling_gain"), "must be ≤ 1"));
+            return Err(PlantError::param(
+                &format!("{prefix}buckling_gain"),
+                "must be ≤ 1",
+            ));
         }
         if self.stick_max_mm < self.stick_min_mm {
-            return Err(PlantError::param(&format!("{prefix}stick_max_mm"), "must be ≥ stick_min_mm"));
+            return Err(PlantError::param(
+                &format!("{prefix}stick_max_mm"),
+                "must be ≥ stick_min_mm",
+            ));
         }
         Ok(())
     }
@@ -239,7 +295,11 @@ fn default_mm_per_count() -> f64 {
 impl WireSensorParams {
     /// Default quantisation and jamming for `geometry`.
     pub fn with_geometry(geometry: WireGeometry) -> Self {
-        Self { geometry, mm_per_count: default_mm_per_count(), jam: JamParams::default() }
+        Self {
+            geometry,
+            mm_per_count: default_mm_per_count(),
+            jam: JamParams::default(),
+        }
     }
 
     /// Rejects bad values, naming the field.
@@ -271,12 +331,24 @@ pub struct WireSensor {
 impl WireSensor {
     /// A sensor zeroed at the pose (`x_mm`, `y_mm`, `theta_rad`): the reading
     /// there is `insertion_at_rest_mm`.
-    pub fn new(params: WireSensorParams, x_mm: f64, y_mm: f64, theta_rad: f64) -> Result<Self, PlantError> {
+    pub fn new(
+        params: WireSensorParams,
+        x_mm: f64,
+        y_mm: f64,
+        theta_rad: f64,
+    ) -> Result<Self, PlantError> {
         params.validate("wire.")?;
         let ref_length_mm = free_length_mm(&params.geometry, x_mm, y_mm, theta_rad);
         let ideal_mm = params.geometry.insertion_at_rest_mm;
         let counts = (ideal_mm / params.mm_per_count).round() as i64;
-        Ok(Self { params, ref_length_mm, ideal_mm, lag_mm: 0.0, stick_left_mm: 0.0, counts })
+        Ok(Self {
+            params,
+            ref_length_mm,
+            ideal_mm,
+            lag_mm: 0.0,
+            stick_left_mm: 0.0,
+            counts,
+        })
     }
 
     /// Parameters.
@@ -292,9 +364,17 @@ impl WireSensor {
 
     /// [`Self::update`] with (sin θ, cos θ) already known.
     #[inline]
-    pub fn update_sin_cos(&mut self, x_mm: f64, y_mm: f64, sin_t: f64, cos_t: f64, rng: &mut ChaCha8Rng) {
+    pub fn update_sin_cos(
+        &mut self,
+        x_mm: f64,
+        y_mm: f64,
+        sin_t: f64,
+        cos_t: f64,
+        rng: &mut ChaCha8Rng,
+    ) {
         let g = &self.params.geometry;
-        let ideal = g.insertion_at_rest_mm + self.ref_length_mm - free_length_sc_mm(g, x_mm, y_mm, sin_t, cos_t);
+        let ideal = g.insertion_at_rest_mm + self.ref_length_mm
+            - free_length_sc_mm(g, x_mm, y_mm, sin_t, cos_t);
         let delta = ideal - self.ideal_mm;
         self.ideal_mm = ideal;
         let j = &self.params.jam;
@@ -303,7 +383,8 @@ impl WireSensor {
                 self.lag_mm += delta;
                 self.stick_left_mm -= delta;
             } else {
-                let e_max = j.max_lag_mm + j.max_lag_per_mm * (ideal - g.insertion_at_rest_mm).max(0.0);
+                let e_max =
+                    j.max_lag_mm + j.max_lag_per_mm * (ideal - g.insertion_at_rest_mm).max(0.0);
                 if e_max > 0.0 {
                     let grow = j.buckling_gain * delta * (1.0 - self.lag_mm / e_max);
                     // Above the ceiling (after a slip from a stick) the
@@ -364,7 +445,10 @@ mod tests {
         let dd = ideal_insertion_mm(&g, h) - ideal_insertion_mm(&g, -h);
         let slope_deg_per_mm = 1.0 / dd;
         let eq2_slope = 2.0 * 0.349 * EQ2_REST_MM - 5.525;
-        assert!((slope_deg_per_mm / eq2_slope - 1.0).abs() < 0.4, "{slope_deg_per_mm} vs {eq2_slope}");
+        assert!(
+            (slope_deg_per_mm / eq2_slope - 1.0).abs() < 0.4,
+            "{slope_deg_per_mm} vs {eq2_slope}"
+        );
         assert!((paper_eq2_deg(EQ2_REST_MM)).abs() < 1e-6);
         // Pushed in (d grows) when θ falls.
         assert!(ideal_insertion_mm(&g, -0.1) > ideal_insertion_mm(&g, 0.0));
@@ -387,7 +471,9 @@ mod tests {
                 ideal_insertion_mm(&g[3], b),
             ];
             let (ae, be) = paper_eq3_deg(d);
-            worst = worst.max((ae - a.to_degrees()).abs()).max((be - b.to_degrees()).abs());
+            worst = worst
+                .max((ae - a.to_degrees()).abs())
+                .max((be - b.to_degrees()).abs());
         }
         assert!(worst < 0.1, "Eq. 3 vs geometry: worst {worst}°");
         // Sensor 3 is pushed in when α rises, sensor 1 when it falls.
@@ -398,7 +484,11 @@ mod tests {
     #[test]
     fn quantisation_and_no_jam_follow_geometry() {
         let g = WireGeometry::paper_2d();
-        let p = WireSensorParams { geometry: g, mm_per_count: 0.01, jam: JamParams::none() };
+        let p = WireSensorParams {
+            geometry: g,
+            mm_per_count: 0.01,
+            jam: JamParams::none(),
+        };
         let mut s = WireSensor::new(p, 0.0, 0.0, 0.0).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         for i in -300..=300 {

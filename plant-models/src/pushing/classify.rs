@@ -39,9 +39,18 @@ impl Classification {
 }
 
 /// Classifies one video among `models`, driving each with `forces_n`.
-pub fn classify(prepared: &PreparedVideo, forces_n: &[f64], models: &[MaterialModel], sim: &SimConfig) -> Result<Classification> {
+pub fn classify(
+    prepared: &PreparedVideo,
+    forces_n: &[f64],
+    models: &[MaterialModel],
+    sim: &SimConfig,
+) -> Result<Classification> {
     if models.len() < 2 {
-        return Err(PushError::InvalidParameter { name: "models", value: models.len() as f64, reason: "classification needs at least two material models" });
+        return Err(PushError::InvalidParameter {
+            name: "models",
+            value: models.len() as f64,
+            reason: "classification needs at least two material models",
+        });
     }
     let mut f_per_frame = Vec::with_capacity(models.len());
     for m in models {
@@ -66,6 +75,15 @@ pub fn classify(prepared: &PreparedVideo, forces_n: &[f64], models: &[MaterialMo
             frame_winner.push(None);
         }
     }
-    let winner = (0..models.len()).max_by(|&a, &b| vote[a].total_cmp(&vote[b]).then(b.cmp(&a))).unwrap_or(0);
-    Ok(Classification { labels: models.iter().map(|m| m.label.clone()).collect(), f_per_frame, frame_winner, frames_won, vote, winner })
+    let winner = (0..models.len())
+        .max_by(|&a, &b| vote[a].total_cmp(&vote[b]).then(b.cmp(&a)))
+        .unwrap_or(0);
+    Ok(Classification {
+        labels: models.iter().map(|m| m.label.clone()).collect(),
+        f_per_frame,
+        frame_winner,
+        frames_won,
+        vote,
+        winner,
+    })
 }

@@ -100,14 +100,23 @@ impl Finger {
 
     /// Edge stage, Algorithm 4 on every spring: an edge crossing the circle
     /// is translated along (closest − centre) until it clears it by ε.
-    pub fn resolve_edges(&self, edges: &[[usize; 2]], positions_px: &mut [V2], fallback_dir: V2) -> usize {
+    pub fn resolve_edges(
+        &self,
+        edges: &[[usize; 2]],
+        positions_px: &mut [V2],
+        fallback_dir: V2,
+    ) -> usize {
         let mut moved = 0;
         let r = self.radius_px;
         let c = self.centre_px;
         for &[i, j] in edges {
             let (a, b) = (positions_px[i], positions_px[j]);
             // Cheap reject by bounding box.
-            if a.x.max(b.x) < c.x - r || a.x.min(b.x) > c.x + r || a.y.max(b.y) < c.y - r || a.y.min(b.y) > c.y + r {
+            if a.x.max(b.x) < c.x - r
+                || a.x.min(b.x) > c.x + r
+                || a.y.max(b.y) < c.y - r
+                || a.y.min(b.y) > c.y + r
+            {
                 continue;
             }
             let closest = closest_point_on_segment(a, b, c);

@@ -31,7 +31,11 @@ pub struct EvalSetup {
 
 impl Default for EvalSetup {
     fn default() -> Self {
-        Self { nx: 20, ny: 10, cell_px: 1.0 }
+        Self {
+            nx: 20,
+            ny: 10,
+            cell_px: 1.0,
+        }
     }
 }
 
@@ -62,7 +66,11 @@ impl PreparedVideo {
         check_range("cell_px", setup.cell_px, 1e-3, 1e3)?;
         for (name, n) in [("nx", setup.nx), ("ny", setup.ny)] {
             if n == 0 || n > 2000 {
-                return Err(PushError::InvalidParameter { name, value: n as f64, reason: "needs between 1 and 2000 squares" });
+                return Err(PushError::InvalidParameter {
+                    name,
+                    value: n as f64,
+                    reason: "needs between 1 and 2000 squares",
+                });
             }
         }
         let grid = raster_grid(&video.scenario, setup.cell_px)?;
@@ -84,7 +92,12 @@ impl PreparedVideo {
         let (long, short) = (setup.nx.max(setup.ny), setup.nx.min(setup.ny));
         let (nx, ny) = if w >= h { (long, short) } else { (short, long) };
         let mesh = Mesh::grid(lo, w, h, nx, ny)?;
-        Ok(Self { video, grid, truth, mesh })
+        Ok(Self {
+            video,
+            grid,
+            truth,
+            mesh,
+        })
     }
 
     pub fn frame_count(&self) -> usize {
@@ -136,7 +149,11 @@ pub fn simulate_frames(
 ) -> Result<()> {
     let n_frames = scenario.frame_count();
     if forces_n.len() != n_frames {
-        return Err(PushError::LengthMismatch { what: "forces_n", got: forces_n.len(), expected: n_frames });
+        return Err(PushError::LengthMismatch {
+            what: "forces_n",
+            got: forces_n.len(),
+            expected: n_frames,
+        });
     }
     let mut s = Simulator::new(mesh, *params, *sim, scenario.table())?;
     let h = sim.step_s;
@@ -157,28 +174,49 @@ pub fn simulate_frames(
 }
 
 /// Scores `params` on a prepared video with the given per-frame forces.
-pub fn score_run(prepared: &PreparedVideo, forces_n: &[f64], params: &MaterialParams, sim: &SimConfig) -> Result<RunScore> {
+pub fn score_run(
+    prepared: &PreparedVideo,
+    forces_n: &[f64],
+    params: &MaterialParams,
+    sim: &SimConfig,
+) -> Result<RunScore> {
     let mut img = prepared.grid.empty();
     let mut f_per_frame = Vec::with_capacity(prepared.frame_count());
     let mut unstable_from = None;
     let mut why = None;
-    simulate_frames(&prepared.mesh, &prepared.video.scenario, forces_n, params, sim, |f, pos, inst| {
-        if let Some(i) = inst {
-            unstable_from.get_or_insert(f);
-            why.get_or_insert(i);
-            f_per_frame.push(0.0);
-            return;
-        }
-        rasterise_mesh(&prepared.grid, &mut img, &prepared.mesh, pos);
-        f_per_frame.push(f_score(&prepared.truth[f], &img).f_score);
-    })?;
+    simulate_frames(
+        &prepared.mesh,
+        &prepared.video.scenario,
+        forces_n,
+        params,
+        sim,
+        |f, pos, inst| {
+            if let Some(i) = inst {
+                unstable_from.get_or_insert(f);
+                why.get_or_insert(i);
+                f_per_frame.push(0.0);
+                return;
+            }
+            rasterise_mesh(&prepared.grid, &mut img, &prepared.mesh, pos);
+            f_per_frame.push(f_score(&prepared.truth[f], &img).f_score);
+        },
+    )?;
     let mean_f = f_per_frame.iter().sum::<f64>() / f_per_frame.len().max(1) as f64;
-    Ok(RunScore { f_per_frame, mean_f, unstable_from_frame: unstable_from, instability: why })
+    Ok(RunScore {
+        f_per_frame,
+        mean_f,
+        unstable_from_frame: unstable_from,
+        instability: why,
+    })
 }
 
 /// Scores with the video's own sensed forces (the calibration setting of
 /// §VIII-C: "the reaction forces measured with the force sensor were used").
-pub fn score_with_measured_forces(prepared: &PreparedVideo, params: &MaterialParams, sim: &SimConfig) -> Result<RunScore> {
+pub fn score_with_measured_forces(
+    prepared: &PreparedVideo,
+    params: &MaterialParams,
+    sim: &SimConfig,
+) -> Result<RunScore> {
     score_run(prepared, &prepared.video.forces_n, params, sim)
 }
 

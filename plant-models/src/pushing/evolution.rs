@@ -38,14 +38,46 @@ pub struct ParamRange {
 /// Table III ranges, in the order of [`MaterialParams::to_array`]:
 /// k_d, k_L, k_A, k_φ, max(F), max α, yield, creep.
 pub const TABLE_III_RANGES: [ParamRange; 8] = [
-    ParamRange { min: 1e-5, max: 2.0, allows_zero: true },
-    ParamRange { min: 1e-5, max: 1e4, allows_zero: true },
-    ParamRange { min: 1e-5, max: 1e4, allows_zero: true },
-    ParamRange { min: 1e-5, max: 100.0, allows_zero: true },
-    ParamRange { min: 5.0, max: 1e5, allows_zero: false },
-    ParamRange { min: 1e-5, max: 0.9, allows_zero: false },
-    ParamRange { min: 1e-5, max: 1.0, allows_zero: false },
-    ParamRange { min: 1e-5, max: 1.0, allows_zero: false },
+    ParamRange {
+        min: 1e-5,
+        max: 2.0,
+        allows_zero: true,
+    },
+    ParamRange {
+        min: 1e-5,
+        max: 1e4,
+        allows_zero: true,
+    },
+    ParamRange {
+        min: 1e-5,
+        max: 1e4,
+        allows_zero: true,
+    },
+    ParamRange {
+        min: 1e-5,
+        max: 100.0,
+        allows_zero: true,
+    },
+    ParamRange {
+        min: 5.0,
+        max: 1e5,
+        allows_zero: false,
+    },
+    ParamRange {
+        min: 1e-5,
+        max: 0.9,
+        allows_zero: false,
+    },
+    ParamRange {
+        min: 1e-5,
+        max: 1.0,
+        allows_zero: false,
+    },
+    ParamRange {
+        min: 1e-5,
+        max: 1.0,
+        allows_zero: false,
+    },
 ];
 
 /// Settings of Algorithm 5.
@@ -95,7 +127,13 @@ impl EvolutionSettings {
     }
 
     pub fn validate(&self) -> Result<()> {
-        let bad = |name: &'static str, v: usize, reason: &'static str| Err(PushError::InvalidParameter { name, value: v as f64, reason });
+        let bad = |name: &'static str, v: usize, reason: &'static str| {
+            Err(PushError::InvalidParameter {
+                name,
+                value: v as f64,
+                reason,
+            })
+        };
         if self.generations == 0 {
             return bad("generations", 0, "needs at least one generation");
         }
@@ -103,10 +141,23 @@ impl EvolutionSettings {
             return bad("survivors", 0, "needs at least one survivor");
         }
         if self.population() < 2 {
-            return bad("population", self.population(), "needs at least two candidates");
+            return bad(
+                "population",
+                self.population(),
+                "needs at least two candidates",
+            );
         }
-        if self.crossovers > 0 && self.population().saturating_sub(self.crossover_exclude_worst) < 2 {
-            return bad("crossover_exclude_worst", self.crossover_exclude_worst, "leaves fewer than two parents");
+        if self.crossovers > 0
+            && self
+                .population()
+                .saturating_sub(self.crossover_exclude_worst)
+                < 2
+        {
+            return bad(
+                "crossover_exclude_worst",
+                self.crossover_exclude_worst,
+                "leaves fewer than two parents",
+            );
         }
         check_range("sigma_max", self.sigma_max, 0.0, 1e6)?;
         check_range("sigma_min", self.sigma_min, 0.0, self.sigma_max)?;
@@ -141,7 +192,11 @@ pub struct CalibrationResult {
 fn check_ranges(ranges: &[ParamRange; 8]) -> Result<()> {
     for r in ranges {
         if !(r.min.is_finite() && r.max.is_finite() && r.min > 0.0 && r.max > r.min) {
-            return Err(PushError::InvalidParameter { name: "parameter range", value: r.min, reason: "needs 0 < min < max, finite" });
+            return Err(PushError::InvalidParameter {
+                name: "parameter range",
+                value: r.min,
+                reason: "needs 0 < min < max, finite",
+            });
         }
     }
     Ok(())
@@ -186,7 +241,12 @@ fn mutate(rng: &mut ChaCha8Rng, value: f64, r: &ParamRange, sigma: f64, p_specia
 /// Runs Algorithm 5, maximising `fitness` (μ(F) in the seed). Candidates
 /// whose fitness is NaN are ranked last. `on_generation` is called after
 /// each generation (progress bars, logs).
-pub fn calibrate<F>(settings: &EvolutionSettings, ranges: &[ParamRange; 8], fitness: F, mut on_generation: impl FnMut(&GenerationReport)) -> Result<CalibrationResult>
+pub fn calibrate<F>(
+    settings: &EvolutionSettings,
+    ranges: &[ParamRange; 8],
+    fitness: F,
+    mut on_generation: impl FnMut(&GenerationReport),
+) -> Result<CalibrationResult>
 where
     F: Fn(&MaterialParams) -> f64 + Sync,
 {
@@ -194,7 +254,9 @@ where
     check_ranges(ranges)?;
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
     let n = settings.population();
-    let mut pop: Vec<[f64; 8]> = (0..n).map(|_| new_candidate(&mut rng, ranges, settings.p_special)).collect();
+    let mut pop: Vec<[f64; 8]> = (0..n)
+        .map(|_| new_candidate(&mut rng, ranges, settings.p_special))
+        .collect();
     let mut scores: Vec<Option<f64>> = vec![None; n];
     let d_sigma = (settings.sigma_max - settings.sigma_min) / settings.generations as f64;
     let mut sigma = settings.sigma_max;
@@ -204,14 +266,25 @@ where
     for g in 1..=settings.generations {
         // Line 6: run the simulations not run yet, in parallel.
         let todo: Vec<usize> = (0..n).filter(|&i| scores[i].is_none()).collect();
-        let fresh: Vec<f64> = todo.par_iter().map(|&i| fitness(&MaterialParams::from_array(pop[i]))).collect();
+        let fresh: Vec<f64> = todo
+            .par_iter()
+            .map(|&i| fitness(&MaterialParams::from_array(pop[i])))
+            .collect();
         evaluations += todo.len();
         for (i, s) in todo.into_iter().zip(fresh) {
             scores[i] = Some(if s.is_nan() { f64::NEG_INFINITY } else { s });
         }
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| scores[b].unwrap_or(f64::NEG_INFINITY).total_cmp(&scores[a].unwrap_or(f64::NEG_INFINITY)).then(a.cmp(&b)));
-        let vals: Vec<f64> = order.iter().map(|&i| scores[i].unwrap_or(f64::NEG_INFINITY)).collect();
+        order.sort_by(|&a, &b| {
+            scores[b]
+                .unwrap_or(f64::NEG_INFINITY)
+                .total_cmp(&scores[a].unwrap_or(f64::NEG_INFINITY))
+                .then(a.cmp(&b))
+        });
+        let vals: Vec<f64> = order
+            .iter()
+            .map(|&i| scores[i].unwrap_or(f64::NEG_INFINITY))
+            .collect();
         let gen_best = vals[0];
         if best.as_ref().is_none_or(|b| gen_best > b.1) {
             best = Some((pop[order[0]], gen_best));
@@ -221,7 +294,11 @@ where
         let report = GenerationReport {
             generation: g,
             best: gen_best,
-            mean: if finite.is_empty() { f64::NAN } else { finite.iter().sum::<f64>() / finite.len() as f64 },
+            mean: if finite.is_empty() {
+                f64::NAN
+            } else {
+                finite.iter().sum::<f64>() / finite.len() as f64
+            },
             worst: *vals.last().unwrap_or(&f64::NAN),
             sigma,
             best_params: MaterialParams::from_array(pop[order[0]]),
@@ -241,7 +318,9 @@ where
         }
         for m in 0..settings.mutants {
             let parent = pop[elite[m % elite.len()]];
-            next.push(core::array::from_fn(|k| mutate(&mut rng, parent[k], &ranges[k], sigma, settings.p_special)));
+            next.push(core::array::from_fn(|k| {
+                mutate(&mut rng, parent[k], &ranges[k], sigma, settings.p_special)
+            }));
             next_scores.push(None);
         }
         let pool: Vec<usize> = order[..n - settings.crossover_exclude_worst.min(n - 2)].to_vec();
@@ -252,7 +331,13 @@ where
                 b = pool[pool.len() - 1];
             }
             let (pa, pb) = (pop[a], pop[b]);
-            next.push(core::array::from_fn(|k| if rng.gen::<bool>() { pa[k] } else { pb[k] }));
+            next.push(core::array::from_fn(|k| {
+                if rng.gen::<bool>() {
+                    pa[k]
+                } else {
+                    pb[k]
+                }
+            }));
             next_scores.push(None);
         }
         for _ in 0..settings.newcomers {
@@ -262,6 +347,15 @@ where
         pop = next;
         scores = next_scores;
     }
-    let (p, s) = best.ok_or(PushError::InvalidParameter { name: "generations", value: 0.0, reason: "nothing evaluated" })?;
-    Ok(CalibrationResult { best_params: MaterialParams::from_array(p), best_score: s, history, evaluations })
+    let (p, s) = best.ok_or(PushError::InvalidParameter {
+        name: "generations",
+        value: 0.0,
+        reason: "nothing evaluated",
+    })?;
+    Ok(CalibrationResult {
+        best_params: MaterialParams::from_array(p),
+        best_score: s,
+        history,
+        evaluations,
+    })
 }

@@ -68,7 +68,11 @@ pub fn fit_line(x: &[f64], y: &[f64]) -> Option<(f64, f64, f64)> {
     }
     let m = (n * sxy - sx * sy) / den;
     let y0 = sy / n - m * sx / n;
-    let err = x.iter().zip(y).map(|(a, b)| (b - (m * a + y0)).powi(2)).sum();
+    let err = x
+        .iter()
+        .zip(y)
+        .map(|(a, b)| (b - (m * a + y0)).powi(2))
+        .sum();
     Some((m, y0, err))
 }
 
@@ -76,7 +80,12 @@ pub fn fit_line(x: &[f64], y: &[f64]) -> Option<(f64, f64, f64)> {
 pub fn segment_family(family: Family, x: &[f64], y: &[f64], threshold: f64) -> Vec<Segment> {
     let (xs, ys): (Vec<f64>, Vec<f64>) = match family {
         Family::Linear => (x.to_vec(), y.to_vec()),
-        Family::Logarithmic => x.iter().zip(y).filter(|(a, _)| **a > 0.0).map(|(a, b)| (a.ln(), *b)).unzip(),
+        Family::Logarithmic => x
+            .iter()
+            .zip(y)
+            .filter(|(a, _)| **a > 0.0)
+            .map(|(a, b)| (a.ln(), *b))
+            .unzip(),
     };
     let xs_raw: Vec<f64> = match family {
         Family::Linear => x.to_vec(),
@@ -115,9 +124,19 @@ pub fn segment_family(family: Family, x: &[f64], y: &[f64], threshold: f64) -> V
         }
         let (m, y0) = match best {
             Some((m, y0, _)) => (m, y0),
-            None => (0.0, ys[start..end].iter().sum::<f64>() / (end - start) as f64),
+            None => (
+                0.0,
+                ys[start..end].iter().sum::<f64>() / (end - start) as f64,
+            ),
         };
-        segs.push(Segment { family, x_start_px: xs_raw[start], x_end_px: xs_raw[end - 1], slope: m, intercept_n: y0, points: end - start });
+        segs.push(Segment {
+            family,
+            x_start_px: xs_raw[start],
+            x_end_px: xs_raw[end - 1],
+            slope: m,
+            intercept_n: y0,
+            points: end - start,
+        });
         start = end;
     }
     segs
@@ -163,39 +182,81 @@ impl ForcePredictor {
         check_range("threshold", threshold, 1e-6, 1.0)?;
         let n = scenario.frame_count();
         if forces_n.len() != n {
-            return Err(PushError::LengthMismatch { what: "forces_n", got: forces_n.len(), expected: n });
+            return Err(PushError::LengthMismatch {
+                what: "forces_n",
+                got: forces_n.len(),
+                expected: n,
+            });
         }
         if let Some(i) = forces_n.iter().position(|f| !f.is_finite()) {
-            return Err(PushError::MalformedInput { location: format!("frame {i}"), reason: "force is not finite".into() });
+            return Err(PushError::MalformedInput {
+                location: format!("frame {i}"),
+                reason: "force is not finite".into(),
+            });
         }
-        let depth: Vec<f64> = (0..n).map(|f| scenario.finger_depth_px(scenario.frame_time_s(f))).collect();
+        let depth: Vec<f64> = (0..n)
+            .map(|f| scenario.finger_depth_px(scenario.frame_time_s(f)))
+            .collect();
         let push: Vec<usize> = (0..n).filter(|&f| scenario.is_push_frame(f)).collect();
         let peak = push.iter().map(|&f| forces_n[f]).fold(0.0, f64::max);
         if peak <= 0.0 {
-            return Err(PushError::MalformedInput { location: "push phase".into(), reason: "the force never rises: no contact to learn from".into() });
+            return Err(PushError::MalformedInput {
+                location: "push phase".into(),
+                reason: "the force never rises: no contact to learn from".into(),
+            });
         }
         let contact = push
             .iter()
             .copied()
             .find(|&f| forces_n[f] > CONTACT_FRACTION * peak)
-            .ok_or_else(|| PushError::MalformedInput { location: "push phase".into(), reason: "no contact found".into() })?;
+            .ok_or_else(|| PushError::MalformedInput {
+                location: "push phase".into(),
+                reason: "no contact found".into(),
+            })?;
         // The deformation at the contact frame is taken as zero (§V).
         let contact_depth = depth[contact];
-        let (px, py): (Vec<f64>, Vec<f64>) = push.iter().filter(|&&f| f >= contact).map(|&f| (depth[f] - contact_depth, forces_n[f])).unzip();
+        let (px, py): (Vec<f64>, Vec<f64>) = push
+            .iter()
+            .filter(|&&f| f >= contact)
+            .map(|&f| (depth[f] - contact_depth, forces_n[f]))
+            .unzip();
         if px.len() < MIN_SEGMENT_POINTS {
-            return Err(PushError::MalformedInput { location: "push phase".into(), reason: format!("only {} frames in contact, need {MIN_SEGMENT_POINTS}", px.len()) });
+            return Err(PushError::MalformedInput {
+                location: "push phase".into(),
+                reason: format!(
+                    "only {} frames in contact, need {MIN_SEGMENT_POINTS}",
+                    px.len()
+                ),
+            });
         }
         let lin = segment_family(Family::Linear, &px, &py, threshold);
         let log = segment_family(Family::Logarithmic, &px, &py, threshold);
         let cover = |s: &[Segment]| s.iter().map(|x| x.points).max().unwrap_or(0);
         let coverage = (cover(&lin), cover(&log));
-        let (push_family, push_segments) = if coverage.1 > coverage.0 { (Family::Logarithmic, log) } else { (Family::Linear, lin) };
+        let (push_family, push_segments) = if coverage.1 > coverage.0 {
+            (Family::Logarithmic, log)
+        } else {
+            (Family::Linear, lin)
+        };
         // Retrieval: x decreases with time; fit on sorted x.
-        let mut rx: Vec<(f64, f64)> = (0..n).filter(|&f| !scenario.is_push_frame(f) && depth[f] >= contact_depth).map(|f| (depth[f] - contact_depth, forces_n[f])).collect();
+        let mut rx: Vec<(f64, f64)> = (0..n)
+            .filter(|&f| !scenario.is_push_frame(f) && depth[f] >= contact_depth)
+            .map(|f| (depth[f] - contact_depth, forces_n[f]))
+            .collect();
         rx.sort_by(|a, b| a.0.total_cmp(&b.0));
         let (rxx, rxy): (Vec<f64>, Vec<f64>) = rx.into_iter().unzip();
-        let retrieval_segments = if rxx.len() >= 2 { segment_family(Family::Linear, &rxx, &rxy, threshold) } else { Vec::new() };
-        Ok(Self { contact_depth_px: contact_depth, push_family, push_segments, retrieval_segments, coverage })
+        let retrieval_segments = if rxx.len() >= 2 {
+            segment_family(Family::Linear, &rxx, &rxy, threshold)
+        } else {
+            Vec::new()
+        };
+        Ok(Self {
+            contact_depth_px: contact_depth,
+            push_family,
+            push_segments,
+            retrieval_segments,
+            coverage,
+        })
     }
 
     /// Predicted force for a finger `depth_px` below the block top, N.
@@ -204,14 +265,23 @@ impl ForcePredictor {
         if x < 0.0 {
             return 0.0;
         }
-        let segs = if pushing || self.retrieval_segments.is_empty() { &self.push_segments } else { &self.retrieval_segments };
+        let segs = if pushing || self.retrieval_segments.is_empty() {
+            &self.push_segments
+        } else {
+            &self.retrieval_segments
+        };
         eval_segments(segs, x).max(0.0)
     }
 
     /// Predicted force per frame of any scenario (same finger-path shape).
     pub fn predict_series(&self, scenario: &PushScenario) -> Vec<f64> {
         (0..scenario.frame_count())
-            .map(|f| self.predict(scenario.finger_depth_px(scenario.frame_time_s(f)), scenario.is_push_frame(f)))
+            .map(|f| {
+                self.predict(
+                    scenario.finger_depth_px(scenario.frame_time_s(f)),
+                    scenario.is_push_frame(f),
+                )
+            })
             .collect()
     }
 }

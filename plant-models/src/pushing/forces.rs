@@ -127,7 +127,14 @@ impl MaterialParams {
 
 /// Names of the entries of [`MaterialParams::to_array`].
 pub const PARAM_NAMES: [&str; 8] = [
-    "k_damping", "k_length", "k_area", "k_angle", "max_force", "max_alpha", "yield", "creep",
+    "k_damping",
+    "k_length",
+    "k_area",
+    "k_angle",
+    "max_force",
+    "max_alpha",
+    "yield",
+    "creep",
 ];
 
 /// Length force on vertex i from the spring (i, j), Eq. 20, with plastic
@@ -135,7 +142,16 @@ pub const PARAM_NAMES: [&str; 8] = [
 /// The force on j is the negative.
 #[inline]
 #[allow(clippy::too_many_arguments)] // the eight quantities of Eq. 20, kept flat on the hot path
-pub fn length_force(pi: V2, pj: V2, vi: V2, vj: V2, d0_px: f64, rest_len_px: f64, k_length: f64, k_damping: f64) -> V2 {
+pub fn length_force(
+    pi: V2,
+    pj: V2,
+    vi: V2,
+    vj: V2,
+    d0_px: f64,
+    rest_len_px: f64,
+    k_length: f64,
+    k_damping: f64,
+) -> V2 {
     let d = pj - pi;
     let l = d.norm();
     if l <= f64::EPSILON * d0_px {
@@ -143,13 +159,29 @@ pub fn length_force(pi: V2, pj: V2, vi: V2, vj: V2, d0_px: f64, rest_len_px: f64
         // (§VI-E) separates them. No force rather than NaN.
         return V2::zeros();
     }
-    length_force_with(d, l, vj - vi, 1.0 / (d0_px * d0_px), rest_len_px, k_length, k_damping)
+    length_force_with(
+        d,
+        l,
+        vj - vi,
+        1.0 / (d0_px * d0_px),
+        rest_len_px,
+        k_length,
+        k_damping,
+    )
 }
 
 /// Eq. 20 from the spring vector `d` = p_j − p_i, its length `l` > 0, the
 /// relative velocity and 1/D0² (precomputed per spring in [`Mesh`]).
 #[inline(always)]
-fn length_force_with(d: V2, l: f64, dv: V2, inv_d0_sq: f64, rest_len_px: f64, k_length: f64, k_damping: f64) -> V2 {
+fn length_force_with(
+    d: V2,
+    l: f64,
+    dv: V2,
+    inv_d0_sq: f64,
+    rest_len_px: f64,
+    k_length: f64,
+    k_damping: f64,
+) -> V2 {
     let u = d * (1.0 / l);
     u * (k_length * inv_d0_sq * (l - rest_len_px) + k_damping * inv_d0_sq * u.dot(&dv))
 }
@@ -205,7 +237,12 @@ pub fn angle_forces(pi: V2, pj: V2, pk: V2, phi0_rad: f64, k_angle: f64) -> [V2;
 
 /// Energy of the whole mesh (Eq. 7 summed over all constraints), model units.
 /// Used by tests to check that the forces are its negative gradient.
-pub fn elastic_energy(mesh: &Mesh, positions_px: &[V2], rest_len_px: &[f64], p: &MaterialParams) -> f64 {
+pub fn elastic_energy(
+    mesh: &Mesh,
+    positions_px: &[V2],
+    rest_len_px: &[f64],
+    p: &MaterialParams,
+) -> f64 {
     let mut e = 0.0;
     for (k, &[i, j]) in mesh.edges.iter().enumerate() {
         let d0 = mesh.rest_lengths_px[k];
@@ -215,12 +252,17 @@ pub fn elastic_energy(mesh: &Mesh, positions_px: &[V2], rest_len_px: &[f64], p: 
     for (t, tri) in mesh.triangles.iter().enumerate() {
         let [a, b, c] = *tri;
         let a0 = mesh.rest_areas_px2[t];
-        let area = 0.5 * cross(positions_px[b] - positions_px[a], positions_px[c] - positions_px[a]);
+        let area = 0.5
+            * cross(
+                positions_px[b] - positions_px[a],
+                positions_px[c] - positions_px[a],
+            );
         let ca = (area - a0) / a0;
         e += 0.5 * p.k_area * ca * ca;
         for k in 0..3 {
             let (i, j, l) = corner(tri, k);
-            let cphi = corner_angle(positions_px[i], positions_px[j], positions_px[l]) - mesh.rest_angles_rad[t][k];
+            let cphi = corner_angle(positions_px[i], positions_px[j], positions_px[l])
+                - mesh.rest_angles_rad[t][k];
             e += 0.5 * p.k_angle * cphi * cphi;
         }
     }
@@ -344,7 +386,14 @@ fn angle_deviation(cr: f64, dot: f64, phi0: f64, cs: [f64; 2]) -> f64 {
     }
 }
 
-fn accumulate_length_forces(mesh: &Mesh, positions_px: &[V2], velocities_px_s: &[V2], rest_len_px: &[f64], p: &MaterialParams, forces: &mut [V2]) {
+fn accumulate_length_forces(
+    mesh: &Mesh,
+    positions_px: &[V2],
+    velocities_px_s: &[V2],
+    rest_len_px: &[f64],
+    p: &MaterialParams,
+    forces: &mut [V2],
+) {
     if p.k_length != 0.0 || p.k_damping != 0.0 {
         for (k, &[i, j]) in mesh.edges.iter().enumerate() {
             // As `length_force`, with 1/D0² read from the mesh.
@@ -353,7 +402,15 @@ fn accumulate_length_forces(mesh: &Mesh, positions_px: &[V2], velocities_px_s: &
             if l <= f64::EPSILON * mesh.rest_lengths_px[k] {
                 continue;
             }
-            let f = length_force_with(d, l, velocities_px_s[j] - velocities_px_s[i], mesh.inv_rest_lengths_sq[k], rest_len_px[k], p.k_length, p.k_damping);
+            let f = length_force_with(
+                d,
+                l,
+                velocities_px_s[j] - velocities_px_s[i],
+                mesh.inv_rest_lengths_sq[k],
+                rest_len_px[k],
+                p.k_length,
+                p.k_damping,
+            );
             forces[i] += f;
             forces[j] -= f;
         }
@@ -363,7 +420,13 @@ fn accumulate_length_forces(mesh: &Mesh, positions_px: &[V2], velocities_px_s: &
 /// Angle forces of one triangle as a direct transcription of Eq. 26–29:
 /// two corner angles by `atan2`, the third from the angle sum, gradients
 /// per corner.
-fn angle_forces_triangle_reference(mesh: &Mesh, t: usize, positions_px: &[V2], k_angle: f64, forces: &mut [V2]) {
+fn angle_forces_triangle_reference(
+    mesh: &Mesh,
+    t: usize,
+    positions_px: &[V2],
+    k_angle: f64,
+    forces: &mut [V2],
+) {
     let tri = &mesh.triangles[t];
     let [a, b, c] = *tri;
     let (pa, pb, pc) = (positions_px[a], positions_px[b], positions_px[c]);
@@ -372,7 +435,8 @@ fn angle_forces_triangle_reference(mesh: &Mesh, t: usize, positions_px: &[V2], k
     let phi_a = corner_angle(pa, pb, pc);
     let phi_b = corner_angle(pb, pc, pa);
     let twice_area = cross(pb - pa, pc - pa);
-    let phi_c = if twice_area.abs() > 1e-9 * (pb - pa).norm_squared().max((pc - pa).norm_squared()) {
+    let phi_c = if twice_area.abs() > 1e-9 * (pb - pa).norm_squared().max((pc - pa).norm_squared())
+    {
         core::f64::consts::PI.copysign(twice_area) - phi_a - phi_b
     } else {
         corner_angle(pc, pa, pb)
@@ -405,7 +469,13 @@ pub fn accumulate_internal_forces_reference(
     for (t, tri) in mesh.triangles.iter().enumerate() {
         let [a, b, c] = *tri;
         if p.k_area != 0.0 {
-            let f = area_forces(positions_px[a], positions_px[b], positions_px[c], mesh.rest_areas_px2[t], p.k_area);
+            let f = area_forces(
+                positions_px[a],
+                positions_px[b],
+                positions_px[c],
+                mesh.rest_areas_px2[t],
+                p.k_area,
+            );
             forces[a] += f[0];
             forces[b] += f[1];
             forces[c] += f[2];

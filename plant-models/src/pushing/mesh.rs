@@ -91,7 +91,11 @@ impl Mesh {
                     "triangle {t} repeats a vertex: {tri:?}"
                 )));
             }
-            let area = signed_area(rest_positions_px[a], rest_positions_px[b], rest_positions_px[c]);
+            let area = signed_area(
+                rest_positions_px[a],
+                rest_positions_px[b],
+                rest_positions_px[c],
+            );
             if area.abs() < MIN_REST_AREA_PX2 {
                 return Err(PushError::InvalidMesh(format!(
                     "triangle {t} is degenerate (area {area:e} px²)"
@@ -124,7 +128,13 @@ impl Mesh {
         let inv_rest_lengths_sq = rest_lengths_px.iter().map(|d0| 1.0 / (d0 * d0)).collect();
         let rest_areas_px2 = tris
             .iter()
-            .map(|&[a, b, c]| signed_area(rest_positions_px[a], rest_positions_px[b], rest_positions_px[c]))
+            .map(|&[a, b, c]| {
+                signed_area(
+                    rest_positions_px[a],
+                    rest_positions_px[b],
+                    rest_positions_px[c],
+                )
+            })
             .collect();
         let rest_angles_rad = tris
             .iter()
@@ -132,12 +142,19 @@ impl Mesh {
                 let mut ang = [0.0; 3];
                 for (k, a) in ang.iter_mut().enumerate() {
                     let (i, j, l) = corner(tri, k);
-                    *a = corner_angle(rest_positions_px[i], rest_positions_px[j], rest_positions_px[l]);
+                    *a = corner_angle(
+                        rest_positions_px[i],
+                        rest_positions_px[j],
+                        rest_positions_px[l],
+                    );
                 }
                 ang
             })
             .collect::<Vec<[f64; 3]>>();
-        let rest_angle_cos_sin = rest_angles_rad.iter().map(|a| a.map(|phi| [phi.cos(), phi.sin()])).collect();
+        let rest_angle_cos_sin = rest_angles_rad
+            .iter()
+            .map(|a| a.map(|phi| [phi.cos(), phi.sin()]))
+            .collect();
         let boundary_loop = boundary_loop(n, &tris)?;
         Ok(Self {
             rest_positions_px,
@@ -154,12 +171,26 @@ impl Mesh {
 
     /// A rectangular block `width_px × height_px` with lower-left corner at
     /// `origin_px`, cut into `nx × ny` squares with alternating diagonals.
-    pub fn grid(origin_px: V2, width_px: f64, height_px: f64, nx: usize, ny: usize) -> Result<Self> {
+    pub fn grid(
+        origin_px: V2,
+        width_px: f64,
+        height_px: f64,
+        nx: usize,
+        ny: usize,
+    ) -> Result<Self> {
         if nx == 0 {
-            return Err(PushError::InvalidParameter { name: "nx", value: 0.0, reason: "needs at least one square" });
+            return Err(PushError::InvalidParameter {
+                name: "nx",
+                value: 0.0,
+                reason: "needs at least one square",
+            });
         }
         if ny == 0 {
-            return Err(PushError::InvalidParameter { name: "ny", value: 0.0, reason: "needs at least one square" });
+            return Err(PushError::InvalidParameter {
+                name: "ny",
+                value: 0.0,
+                reason: "needs at least one square",
+            });
         }
         if nx > 2000 || ny > 2000 {
             return Err(PushError::InvalidParameter {
@@ -171,7 +202,11 @@ impl Mesh {
         super::error::check_positive("width_px", width_px)?;
         super::error::check_positive("height_px", height_px)?;
         if !origin_px.x.is_finite() || !origin_px.y.is_finite() {
-            return Err(PushError::InvalidParameter { name: "origin_px", value: f64::NAN, reason: "must be finite" });
+            return Err(PushError::InvalidParameter {
+                name: "origin_px",
+                value: f64::NAN,
+                reason: "must be finite",
+            });
         }
         let idx = |i: usize, j: usize| j * (nx + 1) + i;
         let mut pos = Vec::with_capacity((nx + 1) * (ny + 1));
@@ -214,7 +249,10 @@ impl Mesh {
 
     /// The boundary polygon for the given positions, px.
     pub fn contour_px(&self, positions_px: &[V2]) -> Vec<V2> {
-        self.boundary_loop.iter().map(|&i| positions_px[i]).collect()
+        self.boundary_loop
+            .iter()
+            .map(|&i| positions_px[i])
+            .collect()
     }
 }
 
@@ -263,7 +301,9 @@ fn boundary_loop(n: usize, tris: &[[usize; 3]]) -> Result<Vec<usize>> {
     let mut cur = next[start];
     while cur != start {
         if cur == usize::MAX || lp.len() > count {
-            return Err(PushError::InvalidMesh("boundary is not a single closed loop".into()));
+            return Err(PushError::InvalidMesh(
+                "boundary is not a single closed loop".into(),
+            ));
         }
         lp.push(cur);
         cur = next[cur];

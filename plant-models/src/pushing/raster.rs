@@ -27,25 +27,46 @@ impl RasterGrid {
         check_positive("cell_px", cell_px)?;
         let span = hi_px - lo_px;
         if !(span.x.is_finite() && span.y.is_finite()) || span.x <= 0.0 || span.y <= 0.0 {
-            return Err(PushError::InvalidParameter { name: "raster region", value: span.x.min(span.y), reason: "must have a positive finite size" });
+            return Err(PushError::InvalidParameter {
+                name: "raster region",
+                value: span.x.min(span.y),
+                reason: "must have a positive finite size",
+            });
         }
         let nx = (span.x / cell_px).ceil() as usize;
         let ny = (span.y / cell_px).ceil() as usize;
         if nx.saturating_mul(ny) > 50_000_000 {
-            return Err(PushError::InvalidParameter { name: "cell_px", value: cell_px, reason: "too small for the region (over 5e7 cells)" });
+            return Err(PushError::InvalidParameter {
+                name: "cell_px",
+                value: cell_px,
+                reason: "too small for the region (over 5e7 cells)",
+            });
         }
-        Ok(Self { origin_px: lo_px, cell_px, nx, ny })
+        Ok(Self {
+            origin_px: lo_px,
+            cell_px,
+            nx,
+            ny,
+        })
     }
 
     /// An empty image on this grid.
     pub fn empty(&self) -> Bitmap {
-        Bitmap { nx: self.nx, ny: self.ny, words_per_row: self.nx.div_ceil(64), bits: vec![0; self.nx.div_ceil(64) * self.ny] }
+        Bitmap {
+            nx: self.nx,
+            ny: self.ny,
+            words_per_row: self.nx.div_ceil(64),
+            bits: vec![0; self.nx.div_ceil(64) * self.ny],
+        }
     }
 
     /// Centre of cell (i, j), px.
     #[inline]
     pub fn cell_centre(&self, i: usize, j: usize) -> V2 {
-        V2::new(self.origin_px.x + (i as f64 + 0.5) * self.cell_px, self.origin_px.y + (j as f64 + 0.5) * self.cell_px)
+        V2::new(
+            self.origin_px.x + (i as f64 + 0.5) * self.cell_px,
+            self.origin_px.y + (j as f64 + 0.5) * self.cell_px,
+        )
     }
 
     /// Range of cell indices whose centres lie in [lo, hi] along x (or y).
@@ -56,7 +77,14 @@ impl RasterGrid {
 
     /// [`Self::index_range`] with the reciprocal cell size precomputed.
     #[inline]
-    fn index_range_inv(&self, lo: f64, hi: f64, origin: f64, n: usize, inv_cell: f64) -> Option<(usize, usize)> {
+    fn index_range_inv(
+        &self,
+        lo: f64,
+        hi: f64,
+        origin: f64,
+        n: usize,
+        inv_cell: f64,
+    ) -> Option<(usize, usize)> {
         let a = ceil_fast((lo - origin) * inv_cell - 0.5);
         let b = floor_fast((hi - origin) * inv_cell - 0.5);
         if !(a.is_finite() && b.is_finite()) || b < 0.0 || a > (n as f64 - 1.0) || a > b {
@@ -145,7 +173,11 @@ fn ceil_fast(x: f64) -> f64 {
 /// Bits lo..=hi of a word set (lo ≤ hi < 64).
 #[inline]
 fn span_mask(lo: usize, hi: usize) -> u64 {
-    let upper = if hi == 63 { u64::MAX } else { (1u64 << (hi + 1)) - 1 };
+    let upper = if hi == 63 {
+        u64::MAX
+    } else {
+        (1u64 << (hi + 1)) - 1
+    };
     upper & !((1u64 << lo) - 1)
 }
 
@@ -164,16 +196,30 @@ pub fn fill_triangle(grid: &RasterGrid, img: &mut Bitmap, a: V2, b: V2, c: V2) {
     if p1.y < p0.y {
         core::mem::swap(&mut p0, &mut p1);
     }
-    let Some((j0, j1)) = grid.index_range(p0.y, p2.y, grid.origin_px.y, grid.ny) else { return };
+    let Some((j0, j1)) = grid.index_range(p0.y, p2.y, grid.origin_px.y, grid.ny) else {
+        return;
+    };
     let inv_cell = 1.0 / grid.cell_px;
-    let slope = |p: V2, q: V2| if q.y > p.y { (q.x - p.x) / (q.y - p.y) } else { 0.0 };
+    let slope = |p: V2, q: V2| {
+        if q.y > p.y {
+            (q.x - p.x) / (q.y - p.y)
+        } else {
+            0.0
+        }
+    };
     let (s02, s01, s12) = (slope(p0, p2), slope(p0, p1), slope(p1, p2));
     for j in j0..=j1 {
         let y = grid.origin_px.y + (j as f64 + 0.5) * grid.cell_px;
         let xa = p0.x + (y - p0.y) * s02;
-        let xb = if y < p1.y { p0.x + (y - p0.y) * s01 } else { p1.x + (y - p1.y) * s12 };
+        let xb = if y < p1.y {
+            p0.x + (y - p0.y) * s01
+        } else {
+            p1.x + (y - p1.y) * s12
+        };
         let (xmin, xmax) = if xa <= xb { (xa, xb) } else { (xb, xa) };
-        if let Some((i0, i1)) = grid.index_range_inv(xmin, xmax, grid.origin_px.x, grid.nx, inv_cell) {
+        if let Some((i0, i1)) =
+            grid.index_range_inv(xmin, xmax, grid.origin_px.x, grid.nx, inv_cell)
+        {
             img.set_span(j, i0, i1);
         }
     }
@@ -234,8 +280,17 @@ pub fn f_score(truth: &Bitmap, predicted: &Bitmap) -> FrameScore {
         fp += (!t & p).count_ones() as u64;
         fneg += (t & !p).count_ones() as u64;
     }
-    let f = if tp == 0 { 0.0 } else { 1.0 / (1.0 + (fneg + fp) as f64 / (2.0 * tp as f64)) };
-    FrameScore { true_positive: tp, false_positive: fp, false_negative: fneg, f_score: f }
+    let f = if tp == 0 {
+        0.0
+    } else {
+        1.0 / (1.0 + (fneg + fp) as f64 / (2.0 * tp as f64))
+    };
+    FrameScore {
+        true_positive: tp,
+        false_positive: fp,
+        false_negative: fneg,
+        f_score: f,
+    }
 }
 
 /// Running mean μ(F) after every frame (Eq. 19 as the mean over the frames

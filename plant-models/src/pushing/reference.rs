@@ -20,8 +20,8 @@
 use super::error::{check_positive, check_range, PushError, Result};
 use super::mesh::Mesh;
 use super::scenario::{PushScenario, PushSite, PLASTICINE_SCALE_PX_PER_M, SPONGE_SCALE_PX_PER_M};
-use super::V2;
 use super::vec2::M2;
+use super::V2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -82,9 +82,18 @@ impl ReferenceMaterial {
         check_range("poisson_ratio", self.poisson_ratio, 0.0, 0.49)?;
         check_positive("density_kg_m3", self.density_kg_m3)?;
         if self.yield_strain.is_nan() || self.yield_strain <= 0.0 {
-            return Err(PushError::InvalidParameter { name: "yield_strain", value: self.yield_strain, reason: "must be > 0 (∞ for elastic)" });
+            return Err(PushError::InvalidParameter {
+                name: "yield_strain",
+                value: self.yield_strain,
+                reason: "must be > 0 (∞ for elastic)",
+            });
         }
-        check_range("plastic_flow_rate_per_s", self.plastic_flow_rate_per_s, 0.0, 1e6)?;
+        check_range(
+            "plastic_flow_rate_per_s",
+            self.plastic_flow_rate_per_s,
+            0.0,
+            1e6,
+        )?;
         check_range("damping_rate_per_s", self.damping_rate_per_s, 0.0, 1e6)?;
         check_positive("scale_px_per_m", self.scale_px_per_m)?;
         Ok(())
@@ -107,7 +116,12 @@ pub struct ReferenceConfig {
 
 impl Default for ReferenceConfig {
     fn default() -> Self {
-        Self { element_size_px: 8.0, contour_noise_px: 1.0, force_noise_n: 0.05, seed: 1 }
+        Self {
+            element_size_px: 8.0,
+            contour_noise_px: 1.0,
+            force_noise_n: 0.05,
+            seed: 1,
+        }
     }
 }
 
@@ -130,21 +144,38 @@ impl Video {
         self.scenario.validate()?;
         let n = self.scenario.frame_count();
         if self.contours_px.len() != n {
-            return Err(PushError::LengthMismatch { what: "contours_px", got: self.contours_px.len(), expected: n });
+            return Err(PushError::LengthMismatch {
+                what: "contours_px",
+                got: self.contours_px.len(),
+                expected: n,
+            });
         }
         if self.forces_n.len() != n {
-            return Err(PushError::LengthMismatch { what: "forces_n", got: self.forces_n.len(), expected: n });
+            return Err(PushError::LengthMismatch {
+                what: "forces_n",
+                got: self.forces_n.len(),
+                expected: n,
+            });
         }
         for (f, c) in self.contours_px.iter().enumerate() {
             if c.len() < 3 {
-                return Err(PushError::MalformedInput { location: format!("frame {f}"), reason: "contour has fewer than 3 points".into() });
+                return Err(PushError::MalformedInput {
+                    location: format!("frame {f}"),
+                    reason: "contour has fewer than 3 points".into(),
+                });
             }
             if c.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
-                return Err(PushError::MalformedInput { location: format!("frame {f}"), reason: "contour has a non-finite point".into() });
+                return Err(PushError::MalformedInput {
+                    location: format!("frame {f}"),
+                    reason: "contour has a non-finite point".into(),
+                });
             }
         }
         if let Some(f) = self.forces_n.iter().position(|x| !x.is_finite()) {
-            return Err(PushError::MalformedInput { location: format!("frame {f}"), reason: "force reading is not finite".into() });
+            return Err(PushError::MalformedInput {
+                location: format!("frame {f}"),
+                reason: "force reading is not finite".into(),
+            });
         }
         Ok(())
     }
@@ -181,12 +212,22 @@ pub struct ReferenceBlock {
 fn rotation_of(f: &M2) -> M2 {
     let th = (f.c - f.b).atan2(f.a + f.d);
     let (s, c) = th.sin_cos();
-    M2 { a: c, b: -s, c: s, d: c }
+    M2 {
+        a: c,
+        b: -s,
+        c: s,
+        d: c,
+    }
 }
 
 impl ReferenceBlock {
     /// A block of `width_px × height_px` on the table, at rest.
-    pub fn new(material: ReferenceMaterial, width_px: f64, height_px: f64, element_size_px: f64) -> Result<Self> {
+    pub fn new(
+        material: ReferenceMaterial,
+        width_px: f64,
+        height_px: f64,
+        element_size_px: f64,
+    ) -> Result<Self> {
         material.validate()?;
         check_positive("element_size_px", element_size_px)?;
         let nx = ((width_px / element_size_px).round() as usize).max(2);
@@ -207,18 +248,29 @@ impl ReferenceBlock {
             let p = &mesh.rest_positions_px;
             let rest = M2::from_columns(p[b] - p[a], p[c] - p[a]);
             let area = 0.5 * rest.det();
-            let rest_inv = rest.inverse().ok_or_else(|| PushError::InvalidMesh("singular reference element".into()))?;
+            let rest_inv = rest
+                .inverse()
+                .ok_or_else(|| PushError::InvalidMesh("singular reference element".into()))?;
             for v in [a, b, c] {
                 mass[v] += areal_mass * area / 3.0;
             }
-            elements.push(Element { nodes: [a, b, c], rest, rest_inv, area_px2: area });
+            elements.push(Element {
+                nodes: [a, b, c],
+                rest,
+                rest_inv,
+                area_px2: area,
+            });
         }
         // Stable explicit step: a fraction of the time a P-wave needs to
         // cross the smallest element side.
         let wave_speed = ((lambda + 2.0 * mu) / areal_mass).sqrt(); // px/s
         let h_min = (width_px / nx as f64).min(height_px / ny as f64);
         let dt_s = 0.3 * h_min / wave_speed;
-        let table_anchor_x = mesh.rest_positions_px.iter().map(|p| if p.y <= 0.0 { Some(p.x) } else { None }).collect();
+        let table_anchor_x = mesh
+            .rest_positions_px
+            .iter()
+            .map(|p| if p.y <= 0.0 { Some(p.x) } else { None })
+            .collect();
         Ok(Self {
             pos: mesh.rest_positions_px.clone(),
             vel: vec![V2::zeros(); n],
@@ -345,20 +397,43 @@ impl ReferenceBlock {
 
 /// Records a push of `material` as a [`Video`]: the fine finite-element
 /// block driven by the scenario's finger, observed with noise.
-pub fn record_push(label: &str, material: ReferenceMaterial, scenario: &PushScenario, config: &ReferenceConfig) -> Result<Video> {
+pub fn record_push(
+    label: &str,
+    material: ReferenceMaterial,
+    scenario: &PushScenario,
+    config: &ReferenceConfig,
+) -> Result<Video> {
     scenario.validate()?;
     check_range("contour_noise_px", config.contour_noise_px, 0.0, 1e3)?;
     check_range("force_noise_n", config.force_noise_n, 0.0, 1e6)?;
-    let mut block = ReferenceBlock::new(material, scenario.block_width_px, scenario.block_height_px, config.element_size_px)?;
+    let mut block = ReferenceBlock::new(
+        material,
+        scenario.block_width_px,
+        scenario.block_height_px,
+        config.element_size_px,
+    )?;
     // Different seeds per site so the three pushes get independent noise.
     let site_salt = match scenario.site {
         PushSite::MiddleLongSide => 11,
         PushSite::NearCorner => 23,
         PushSite::MiddleShortSide => 37,
     };
-    let mut rng = ChaCha8Rng::seed_from_u64(config.seed.wrapping_mul(1_000_003).wrapping_add(site_salt));
-    let contour_noise = Normal::new(0.0, config.contour_noise_px.max(1e-300)).map_err(|_| PushError::InvalidParameter { name: "contour_noise_px", value: config.contour_noise_px, reason: "not a valid standard deviation" })?;
-    let force_noise = Normal::new(0.0, config.force_noise_n.max(1e-300)).map_err(|_| PushError::InvalidParameter { name: "force_noise_n", value: config.force_noise_n, reason: "not a valid standard deviation" })?;
+    let mut rng =
+        ChaCha8Rng::seed_from_u64(config.seed.wrapping_mul(1_000_003).wrapping_add(site_salt));
+    let contour_noise = Normal::new(0.0, config.contour_noise_px.max(1e-300)).map_err(|_| {
+        PushError::InvalidParameter {
+            name: "contour_noise_px",
+            value: config.contour_noise_px,
+            reason: "not a valid standard deviation",
+        }
+    })?;
+    let force_noise = Normal::new(0.0, config.force_noise_n.max(1e-300)).map_err(|_| {
+        PushError::InvalidParameter {
+            name: "force_noise_n",
+            value: config.force_noise_n,
+            reason: "not a valid standard deviation",
+        }
+    })?;
     let n_frames = scenario.frame_count();
     let push_dir = scenario.push_direction();
     let mut contours = Vec::with_capacity(n_frames);
@@ -382,7 +457,11 @@ pub fn record_push(label: &str, material: ReferenceMaterial, scenario: &PushScen
             block.dt_s = saved;
             t = t_frame;
         }
-        if let Some(i) = block.pos.iter().position(|p| !(p.x.is_finite() && p.y.is_finite())) {
+        if let Some(i) = block
+            .pos
+            .iter()
+            .position(|p| !(p.x.is_finite() && p.y.is_finite()))
+        {
             return Err(PushError::MalformedInput {
                 location: format!("reference simulation, frame {f}, node {i}"),
                 reason: "the finite-element block became unstable (non-finite position); try a larger element_size_px".into(),
@@ -395,23 +474,38 @@ pub fn record_push(label: &str, material: ReferenceMaterial, scenario: &PushScen
             .map(|&i| {
                 let p = block.pos[i];
                 if config.contour_noise_px > 0.0 {
-                    V2::new(p.x + contour_noise.sample(&mut rng), p.y + contour_noise.sample(&mut rng))
+                    V2::new(
+                        p.x + contour_noise.sample(&mut rng),
+                        p.y + contour_noise.sample(&mut rng),
+                    )
                 } else {
                     p
                 }
             })
             .collect();
         contours.push(contour);
-        let noise = if config.force_noise_n > 0.0 { force_noise.sample(&mut rng) } else { 0.0 };
+        let noise = if config.force_noise_n > 0.0 {
+            force_noise.sample(&mut rng)
+        } else {
+            0.0
+        };
         forces.push(reaction + noise);
     }
-    Ok(Video { material: label.to_string(), scenario: *scenario, contours_px: contours, forces_n: forces })
+    Ok(Video {
+        material: label.to_string(),
+        scenario: *scenario,
+        contours_px: contours,
+        forces_n: forces,
+    })
 }
 
 /// The six videos of §VIII: sponge and plasticine, three sites each.
 pub fn seed_videos(config: &ReferenceConfig) -> Result<Vec<Video>> {
     let mut out = Vec::new();
-    for (label, mat) in [("sponge", ReferenceMaterial::SPONGE), ("plasticine", ReferenceMaterial::PLASTICINE)] {
+    for (label, mat) in [
+        ("sponge", ReferenceMaterial::SPONGE),
+        ("plasticine", ReferenceMaterial::PLASTICINE),
+    ] {
         for site in PushSite::ALL {
             let sc = PushScenario::seed(site, mat.scale_px_per_m)?;
             out.push(record_push(label, mat, &sc, config)?);
@@ -426,11 +520,16 @@ mod contours_serde {
     use super::V2;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
     pub fn serialize<S: Serializer>(c: &[Vec<V2>], s: S) -> Result<S::Ok, S::Error> {
-        let v: Vec<Vec<[f64; 2]>> = c.iter().map(|f| f.iter().map(|p| [p.x, p.y]).collect()).collect();
+        let v: Vec<Vec<[f64; 2]>> = c
+            .iter()
+            .map(|f| f.iter().map(|p| [p.x, p.y]).collect())
+            .collect();
         v.serialize(s)
     }
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec<V2>>, D::Error> {
         let v: Vec<Vec<[f64; 2]>> = Vec::deserialize(d)?;
-        Ok(v.into_iter().map(|f| f.into_iter().map(|p| V2::new(p[0], p[1])).collect()).collect())
+        Ok(v.into_iter()
+            .map(|f| f.into_iter().map(|p| V2::new(p[0], p[1])).collect())
+            .collect())
     }
 }

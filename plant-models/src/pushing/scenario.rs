@@ -47,7 +47,11 @@ pub enum PushSite {
 
 impl PushSite {
     /// All three, in the seed's order.
-    pub const ALL: [PushSite; 3] = [PushSite::MiddleLongSide, PushSite::NearCorner, PushSite::MiddleShortSide];
+    pub const ALL: [PushSite; 3] = [
+        PushSite::MiddleLongSide,
+        PushSite::NearCorner,
+        PushSite::MiddleShortSide,
+    ];
 
     /// Short lowercase name for files and command lines.
     pub fn name(self) -> &'static str {
@@ -113,11 +117,20 @@ impl PushScenario {
         check_positive("block_height_px", self.block_height_px)?;
         check_range("finger_x_px", self.finger_x_px, 0.0, self.block_width_px)?;
         check_positive("finger_radius_px", self.finger_radius_px)?;
-        check_range("push_depth_px", self.push_depth_px, 0.0, 0.9 * self.block_height_px)?;
+        check_range(
+            "push_depth_px",
+            self.push_depth_px,
+            0.0,
+            0.9 * self.block_height_px,
+        )?;
         check_range("approach_gap_px", self.approach_gap_px, 0.0, f64::MAX)?;
         check_positive("frame_interval_s", self.frame_interval_s)?;
         if self.frames_push == 0 {
-            return Err(super::PushError::InvalidParameter { name: "frames_push", value: 0.0, reason: "needs at least one frame" });
+            return Err(super::PushError::InvalidParameter {
+                name: "frames_push",
+                value: 0.0,
+                reason: "needs at least one frame",
+            });
         }
         Ok(())
     }
@@ -152,7 +165,10 @@ impl PushScenario {
     pub fn finger_at(&self, t_s: f64) -> Finger {
         let depth = self.finger_depth_px(t_s);
         Finger {
-            centre_px: V2::new(self.finger_x_px, self.block_height_px + self.finger_radius_px - depth),
+            centre_px: V2::new(
+                self.finger_x_px,
+                self.block_height_px + self.finger_radius_px - depth,
+            ),
             radius_px: self.finger_radius_px,
         }
     }
@@ -169,6 +185,9 @@ impl PushScenario {
 
     /// The table the block rests on: y ≥ 0.
     pub fn table(&self) -> Table {
-        Table { point_px: V2::new(0.0, 0.0), normal: V2::new(0.0, 1.0) }
+        Table {
+            point_px: V2::new(0.0, 0.0),
+            normal: V2::new(0.0, 1.0),
+        }
     }
 }

@@ -39,7 +39,11 @@ pub enum Integrator {
 }
 
 impl Integrator {
-    pub const ALL: [Integrator; 3] = [Integrator::Customised, Integrator::Euler, Integrator::Verlet];
+    pub const ALL: [Integrator; 3] = [
+        Integrator::Customised,
+        Integrator::Euler,
+        Integrator::Verlet,
+    ];
     pub fn name(self) -> &'static str {
         match self {
             Integrator::Customised => "customised",
@@ -131,7 +135,12 @@ pub struct Simulator<'m> {
 
 impl<'m> Simulator<'m> {
     /// A simulation at rest in the mesh's rest shape.
-    pub fn new(mesh: &'m Mesh, params: MaterialParams, config: SimConfig, table: Table) -> Result<Self> {
+    pub fn new(
+        mesh: &'m Mesh,
+        params: MaterialParams,
+        config: SimConfig,
+        table: Table,
+    ) -> Result<Self> {
         params.validate()?;
         check_positive("step_s", config.step_s)?;
         let n = mesh.vertex_count();
@@ -185,14 +194,21 @@ impl<'m> Simulator<'m> {
     pub fn set_positions(&mut self, positions_px: &[V2]) {
         self.positions_px.copy_from_slice(positions_px);
         self.prev_positions_px.copy_from_slice(positions_px);
-        self.velocities_px_s.iter_mut().for_each(|v| *v = V2::zeros());
+        self.velocities_px_s
+            .iter_mut()
+            .for_each(|v| *v = V2::zeros());
     }
 
     /// Current velocities as the integrator sees them, px/s.
     fn refresh_velocities(&mut self) {
         if self.config.integrator != Integrator::Euler {
             let inv_h = 1.0 / self.config.step_s;
-            for ((v, p), q) in self.velocities_px_s.iter_mut().zip(&self.positions_px).zip(&self.prev_positions_px) {
+            for ((v, p), q) in self
+                .velocities_px_s
+                .iter_mut()
+                .zip(&self.positions_px)
+                .zip(&self.prev_positions_px)
+            {
                 *v = (*p - *q) * inv_h;
             }
         }
@@ -216,7 +232,11 @@ impl<'m> Simulator<'m> {
             let d = p - finger.centre_px;
             let n = d.norm();
             if n <= reach {
-                let radial = if n > 1e-12 { d / n } else { force_on_object.normalize() };
+                let radial = if n > 1e-12 {
+                    d / n
+                } else {
+                    force_on_object.normalize()
+                };
                 let along = force_on_object.dot(&radial);
                 if along > 0.0 {
                     *f += radial * (along * share);
@@ -229,14 +249,25 @@ impl<'m> Simulator<'m> {
     /// Advances one step h. `finger` is the finger at t + h; `force_on_object`
     /// is the sensed force at t + h (what the finger exerts on the block).
     /// Once unstable, the state is frozen and the reason returned.
-    pub fn step(&mut self, finger: Option<&Finger>, force_on_object: Option<V2>) -> core::result::Result<(), Instability> {
+    pub fn step(
+        &mut self,
+        finger: Option<&Finger>,
+        force_on_object: Option<V2>,
+    ) -> core::result::Result<(), Instability> {
         if let Some(i) = self.instability {
             return Err(i);
         }
         let h = self.config.step_s;
         self.refresh_velocities();
         self.forces.iter_mut().for_each(|f| *f = V2::zeros());
-        accumulate_internal_forces(self.mesh, &self.positions_px, &self.velocities_px_s, &self.rest_len_px, &self.params, &mut self.forces);
+        accumulate_internal_forces(
+            self.mesh,
+            &self.positions_px,
+            &self.velocities_px_s,
+            &self.rest_len_px,
+            &self.params,
+            &mut self.forces,
+        );
         if self.config.mode.uses_forces() {
             if let (Some(fg), Some(fo)) = (finger, force_on_object) {
                 if fo.norm() > 0.0 {
@@ -248,20 +279,36 @@ impl<'m> Simulator<'m> {
         let inv_m = 1.0 / VERTEX_MASS;
         match self.config.integrator {
             Integrator::Customised => {
-                for ((p, q), f) in self.positions_px.iter_mut().zip(self.prev_positions_px.iter_mut()).zip(&self.forces) {
+                for ((p, q), f) in self
+                    .positions_px
+                    .iter_mut()
+                    .zip(self.prev_positions_px.iter_mut())
+                    .zip(&self.forces)
+                {
                     *q = *p;
                     *p += f * (h * inv_m);
                 }
             }
             Integrator::Euler => {
-                for (((p, q), v), f) in self.positions_px.iter_mut().zip(self.prev_positions_px.iter_mut()).zip(self.velocities_px_s.iter_mut()).zip(&self.forces) {
+                for (((p, q), v), f) in self
+                    .positions_px
+                    .iter_mut()
+                    .zip(self.prev_positions_px.iter_mut())
+                    .zip(self.velocities_px_s.iter_mut())
+                    .zip(&self.forces)
+                {
                     *q = *p;
                     *p += *v * h;
                     *v += f * (h * inv_m);
                 }
             }
             Integrator::Verlet => {
-                for ((p, q), f) in self.positions_px.iter_mut().zip(self.prev_positions_px.iter_mut()).zip(&self.forces) {
+                for ((p, q), f) in self
+                    .positions_px
+                    .iter_mut()
+                    .zip(self.prev_positions_px.iter_mut())
+                    .zip(&self.forces)
+                {
                     let next = *p * 2.0 - *q + f * (h * h * inv_m);
                     *q = *p;
                     *p = next;
@@ -309,7 +356,10 @@ impl<'m> Simulator<'m> {
             }
             let d = d2.sqrt();
             if d > self.escape_distance_px {
-                return Some(Instability::Escaped { vertex: i, distance_px: d });
+                return Some(Instability::Escaped {
+                    vertex: i,
+                    distance_px: d,
+                });
             }
         }
         let ratio = self.mesh.total_area_px2(&self.positions_px) / self.rest_area_px2;

@@ -46,7 +46,12 @@ impl Session {
             for plasticity in [true, false] {
                 for collisions in [true, false] {
                     for geometric_repair in [true, false] {
-                        v.push(Session { terms, plasticity, collisions, geometric_repair });
+                        v.push(Session {
+                            terms,
+                            plasticity,
+                            collisions,
+                            geometric_repair,
+                        });
                     }
                 }
             }
@@ -77,8 +82,17 @@ impl Session {
 
     /// Simulation settings of the session under `integrator`.
     pub fn sim_config(&self, integrator: Integrator) -> SimConfig {
-        let mode = if self.collisions { DrivingMode::CollisionAndForces } else { DrivingMode::ForcesOnVertices };
-        SimConfig { integrator, mode, geometric_repair: self.geometric_repair, ..SimConfig::default() }
+        let mode = if self.collisions {
+            DrivingMode::CollisionAndForces
+        } else {
+            DrivingMode::ForcesOnVertices
+        };
+        SimConfig {
+            integrator,
+            mode,
+            geometric_repair: self.geometric_repair,
+            ..SimConfig::default()
+        }
     }
 
     /// Short label, e.g. `all+plastic+coll+repair`.

@@ -148,11 +148,21 @@ pub struct M2 {
 }
 
 impl M2 {
-    pub const IDENTITY: M2 = M2 { a: 1.0, b: 0.0, c: 0.0, d: 1.0 };
+    pub const IDENTITY: M2 = M2 {
+        a: 1.0,
+        b: 0.0,
+        c: 0.0,
+        d: 1.0,
+    };
     /// The matrix with columns `u` and `v`.
     #[inline(always)]
     pub fn from_columns(u: V2, v: V2) -> M2 {
-        M2 { a: u.x, b: v.x, c: u.y, d: v.y }
+        M2 {
+            a: u.x,
+            b: v.x,
+            c: u.y,
+            d: v.y,
+        }
     }
     #[inline(always)]
     pub fn col0(&self) -> V2 {
@@ -172,18 +182,33 @@ impl M2 {
     }
     #[inline(always)]
     pub fn transpose(&self) -> M2 {
-        M2 { a: self.a, b: self.c, c: self.b, d: self.d }
+        M2 {
+            a: self.a,
+            b: self.c,
+            c: self.b,
+            d: self.d,
+        }
     }
     /// Inverse, or `None` when (nearly) singular.
     #[inline(always)]
     pub fn inverse(&self) -> Option<M2> {
         let det = self.det();
-        let scale = self.a.abs().max(self.b.abs()).max(self.c.abs()).max(self.d.abs());
+        let scale = self
+            .a
+            .abs()
+            .max(self.b.abs())
+            .max(self.c.abs())
+            .max(self.d.abs());
         if !det.is_finite() || det.abs() <= 1e-14 * scale * scale {
             return None;
         }
         let k = 1.0 / det;
-        Some(M2 { a: self.d * k, b: -self.b * k, c: -self.c * k, d: self.a * k })
+        Some(M2 {
+            a: self.d * k,
+            b: -self.b * k,
+            c: -self.c * k,
+            d: self.a * k,
+        })
     }
     /// Frobenius norm.
     #[inline(always)]
@@ -192,7 +217,12 @@ impl M2 {
     }
     #[inline(always)]
     pub fn scale(&self, s: f64) -> M2 {
-        M2 { a: self.a * s, b: self.b * s, c: self.c * s, d: self.d * s }
+        M2 {
+            a: self.a * s,
+            b: self.b * s,
+            c: self.c * s,
+            d: self.d * s,
+        }
     }
 }
 
@@ -212,13 +242,23 @@ impl Add for M2 {
     type Output = M2;
     #[inline(always)]
     fn add(self, o: M2) -> M2 {
-        M2 { a: self.a + o.a, b: self.b + o.b, c: self.c + o.c, d: self.d + o.d }
+        M2 {
+            a: self.a + o.a,
+            b: self.b + o.b,
+            c: self.c + o.c,
+            d: self.d + o.d,
+        }
     }
 }
 impl Sub for M2 {
     type Output = M2;
     #[inline(always)]
     fn sub(self, o: M2) -> M2 {
-        M2 { a: self.a - o.a, b: self.b - o.b, c: self.c - o.c, d: self.d - o.d }
+        M2 {
+            a: self.a - o.a,
+            b: self.b - o.b,
+            c: self.c - o.c,
+            d: self.d - o.d,
+        }
     }
 }

@@ -19,7 +19,12 @@ pub const HEADER: &str = "frame,force_n,x_px,y_px";
 /// Writes `video` in the format above.
 pub fn write_video_csv(video: &Video) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# push video: material {}, site {}", video.material, video.scenario.site.name());
+    let _ = writeln!(
+        s,
+        "# push video: material {}, site {}",
+        video.material,
+        video.scenario.site.name()
+    );
     let _ = writeln!(s, "{HEADER}");
     for (f, (contour, force)) in video.contours_px.iter().zip(&video.forces_n).enumerate() {
         for p in contour {
@@ -30,7 +35,10 @@ pub fn write_video_csv(video: &Video) -> String {
 }
 
 fn bad(line: usize, reason: impl Into<String>) -> PushError {
-    PushError::MalformedInput { location: format!("line {line}"), reason: reason.into() }
+    PushError::MalformedInput {
+        location: format!("line {line}"),
+        reason: reason.into(),
+    }
 }
 
 /// Parses a video CSV for `scenario`, labelled `material`.
@@ -48,18 +56,31 @@ pub fn parse_video_csv(text: &str, scenario: &PushScenario, material: &str) -> R
         if !saw_header {
             let cols: Vec<&str> = line.split(',').map(str::trim).collect();
             if cols != ["frame", "force_n", "x_px", "y_px"] {
-                return Err(bad(line_no, format!("expected the header `{HEADER}`, found `{line}`")));
+                return Err(bad(
+                    line_no,
+                    format!("expected the header `{HEADER}`, found `{line}`"),
+                ));
             }
             saw_header = true;
             continue;
         }
         let cols: Vec<&str> = line.split(',').map(str::trim).collect();
         if cols.len() != 4 {
-            return Err(bad(line_no, format!("expected 4 columns, found {}", cols.len())));
+            return Err(bad(
+                line_no,
+                format!("expected 4 columns, found {}", cols.len()),
+            ));
         }
-        let frame: usize = cols[0].parse().map_err(|_| bad(line_no, format!("frame `{}` is not a non-negative integer", cols[0])))?;
+        let frame: usize = cols[0].parse().map_err(|_| {
+            bad(
+                line_no,
+                format!("frame `{}` is not a non-negative integer", cols[0]),
+            )
+        })?;
         let num = |k: usize, name: &str| -> Result<f64> {
-            let v: f64 = cols[k].parse().map_err(|_| bad(line_no, format!("{name} `{}` is not a number", cols[k])))?;
+            let v: f64 = cols[k]
+                .parse()
+                .map_err(|_| bad(line_no, format!("{name} `{}` is not a number", cols[k])))?;
             if !v.is_finite() {
                 return Err(bad(line_no, format!("{name} is not finite")));
             }
@@ -70,16 +91,37 @@ pub fn parse_video_csv(text: &str, scenario: &PushScenario, material: &str) -> R
             contours.push(Vec::new());
             forces.push(force);
         } else if frame + 1 != contours.len() {
-            return Err(bad(line_no, format!("frame {frame} out of order (expected {} or {})", contours.len().saturating_sub(1), contours.len())));
+            return Err(bad(
+                line_no,
+                format!(
+                    "frame {frame} out of order (expected {} or {})",
+                    contours.len().saturating_sub(1),
+                    contours.len()
+                ),
+            ));
         } else if forces[frame] != force {
-            return Err(bad(line_no, format!("frame {frame} has two force readings ({} and {force})", forces[frame])));
+            return Err(bad(
+                line_no,
+                format!(
+                    "frame {frame} has two force readings ({} and {force})",
+                    forces[frame]
+                ),
+            ));
         }
         contours[frame].push(V2::new(x, y));
     }
     if !saw_header {
-        return Err(bad(1, format!("empty file: expected the header `{HEADER}`")));
+        return Err(bad(
+            1,
+            format!("empty file: expected the header `{HEADER}`"),
+        ));
     }
-    let video = Video { material: material.to_string(), scenario: *scenario, contours_px: contours, forces_n: forces };
+    let video = Video {
+        material: material.to_string(),
+        scenario: *scenario,
+        contours_px: contours,
+        forces_n: forces,
+    };
     video.validate()?;
     Ok(video)
 }

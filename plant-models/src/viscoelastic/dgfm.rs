@@ -39,7 +39,9 @@ pub fn support_below(mesh: &SurfaceMesh, fraction: f64) -> Vec<bool> {
     let (lo, hi) = mesh
         .vertices_m
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v[2]), hi.max(v[2])));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v[2]), hi.max(v[2]))
+        });
     let limit = lo + fraction * (hi - lo);
     mesh.vertices_m.iter().map(|v| v[2] <= limit).collect()
 }
@@ -55,16 +57,29 @@ impl Dgfm {
 
     /// Computes the DGFM of `mesh` (validated) filled with `material`, with
     /// `fixed[v]` marking Λu, from the layered FEM with `shell_scales`.
-    pub fn from_mesh(mesh: SurfaceMesh, material: LinearElastic, fixed: Vec<bool>, shell_scales: &[f64]) -> Result<Self> {
+    pub fn from_mesh(
+        mesh: SurfaceMesh,
+        material: LinearElastic,
+        fixed: Vec<bool>,
+        shell_scales: &[f64],
+    ) -> Result<Self> {
         if fixed.len() != mesh.len() {
-            return Err(VeError::LengthMismatch { what: "fixed", got: fixed.len(), expected: mesh.len() });
+            return Err(VeError::LengthMismatch {
+                what: "fixed",
+                got: fixed.len(),
+                expected: mesh.len(),
+            });
         }
         let tet = TetMesh::layered(&mesh, shell_scales)?;
         let fem = FemSystem::new(tet, material, &fixed)?;
         let all_areas = mesh.node_areas_m2();
         let traction_vertices: Vec<usize> = (0..mesh.len()).filter(|&v| !fixed[v]).collect();
         if traction_vertices.is_empty() {
-            return Err(VeError::InvalidParameter { name: "fixed vertices", value: mesh.len() as f64, reason: "every vertex is fixed; Λv is empty" });
+            return Err(VeError::InvalidParameter {
+                name: "fixed vertices",
+                value: mesh.len() as f64,
+                reason: "every vertex is fixed; Λv is empty",
+            });
         }
         let mut index_of = vec![None; mesh.len()];
         for (k, &v) in traction_vertices.iter().enumerate() {
@@ -78,7 +93,14 @@ impl Dgfm {
                 xi_col.push(Mat3(*blk).scale(alpha));
             }
         }
-        Ok(Dgfm { mesh, fixed, traction_vertices, index_of, areas_m2, xi_col })
+        Ok(Dgfm {
+            mesh,
+            fixed,
+            traction_vertices,
+            index_of,
+            areas_m2,
+            xi_col,
+        })
     }
 
     /// The surface mesh.
@@ -107,7 +129,10 @@ impl Dgfm {
             .get(mesh_vertex)
             .copied()
             .flatten()
-            .ok_or(VeError::VertexNotInTractionSet { vertex: mesh_vertex, n: self.mesh.len() })
+            .ok_or(VeError::VertexNotInTractionSet {
+                vertex: mesh_vertex,
+                n: self.mesh.len(),
+            })
     }
     /// Node areas α_j (m²) in DGFM order.
     pub fn areas_m2(&self) -> &[f64] {
@@ -129,7 +154,11 @@ impl Dgfm {
     /// The elastic answer of Eq. 1, `u_i = Σ_j Ξ_ij p_j`, by a dense product.
     pub fn static_displacement(&self, tractions_pa: &[Vec3<f64>]) -> Result<Vec<Vec3<f64>>> {
         if tractions_pa.len() != self.len() {
-            return Err(VeError::LengthMismatch { what: "tractions_pa", got: tractions_pa.len(), expected: self.len() });
+            return Err(VeError::LengthMismatch {
+                what: "tractions_pa",
+                got: tractions_pa.len(),
+                expected: self.len(),
+            });
         }
         let mut u = vec![Vec3::zero(); self.len()];
         for (j, p) in tractions_pa.iter().enumerate() {

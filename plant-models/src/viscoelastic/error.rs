@@ -68,7 +68,11 @@ pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err(VeError::InvalidParameter { name, value, reason: "must be finite and > 0" })
+        Err(VeError::InvalidParameter {
+            name,
+            value,
+            reason: "must be finite and > 0",
+        })
     }
 }
 
@@ -77,6 +81,10 @@ pub(crate) fn check_non_negative(name: &'static str, value: f64) -> Result<f64> 
     if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {
-        Err(VeError::InvalidParameter { name, value, reason: "must be finite and >= 0" })
+        Err(VeError::InvalidParameter {
+            name,
+            value,
+            reason: "must be finite and >= 0",
+        })
     }
 }

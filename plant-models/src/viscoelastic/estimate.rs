@@ -32,16 +32,29 @@ pub const SINGULAR_RATIO: f64 = 1.0e-10;
 pub const K1_ZERO_N_PER_M: f64 = 1.0e-9;
 
 fn from_na(m: &Matrix3<f64>) -> Mat3<f64> {
-    Mat3([[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]])
+    Mat3([
+        [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+        [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+        [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+    ])
 }
 
 /// Damping tensor B minimising `Σ |B û_n − b_n f̂_n|²` (seed §4.1) with the
 /// DSVD filter `σ/(σ² + λ²)`, `λ = damping_rel · σ_max`. `None` when P Pᵀ
 /// is singular (fewer than three independent directions).
-pub fn damping_tensor(directions: &[[f64; 3]], force_directions: &[[f64; 3]], b_n_s_per_m: &[f64], damping_rel: f64) -> Result<Option<Mat3<f64>>> {
+pub fn damping_tensor(
+    directions: &[[f64; 3]],
+    force_directions: &[[f64; 3]],
+    b_n_s_per_m: &[f64],
+    damping_rel: f64,
+) -> Result<Option<Mat3<f64>>> {
     let n = directions.len();
     if force_directions.len() != n || b_n_s_per_m.len() != n {
-        return Err(VeError::LengthMismatch { what: "trial directions / forces / dampings", got: force_directions.len().min(b_n_s_per_m.len()), expected: n });
+        return Err(VeError::LengthMismatch {
+            what: "trial directions / forces / dampings",
+            got: force_directions.len().min(b_n_s_per_m.len()),
+            expected: n,
+        });
     }
     let mut ppt = Matrix3::<f64>::zeros();
     let mut qpt = Matrix3::<f64>::zeros();
@@ -52,7 +65,9 @@ pub fn damping_tensor(directions: &[[f64; 3]], force_directions: &[[f64; 3]], b_
         qpt += q * u.transpose();
     }
     let svd = ppt.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else { return Ok(None) };
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return Ok(None);
+    };
     let s = svd.singular_values;
     let smax = s.max();
     if smax.is_nan() || smax <= 0.0 || s.min() / smax < SINGULAR_RATIO {
@@ -84,7 +99,12 @@ pub fn rayleigh_coefficient(stiffness: &Mat3<f64>, damping: &Mat3<f64>) -> f64 {
 
 /// Least-squares multiplier `k_l` minimising `Σ |k_l K û_n − k_l,n f̂_n|²`
 /// (seed §4.1, solved like Eq. 13).
-pub fn stiffness_multiplier(stiffness: &Mat3<f64>, directions: &[[f64; 3]], force_directions: &[[f64; 3]], k_n: &[f64]) -> f64 {
+pub fn stiffness_multiplier(
+    stiffness: &Mat3<f64>,
+    directions: &[[f64; 3]],
+    force_directions: &[[f64; 3]],
+    k_n: &[f64],
+) -> f64 {
     let (mut pq, mut pp) = (0.0, 0.0);
     for ((u, f), k) in directions.iter().zip(force_directions).zip(k_n) {
         let p = stiffness.mul_vec(Vec3(*u));
@@ -120,12 +140,24 @@ pub struct VertexEstimate {
 
 /// Estimates one vertex from its trials at one speed and their fits, given
 /// its stiffness tensor K_ii (N/m).
-pub fn estimate_vertex(stiffness: &Mat3<f64>, trials: &[&Trial], fits: &[TrialFit]) -> Result<VertexEstimate> {
+pub fn estimate_vertex(
+    stiffness: &Mat3<f64>,
+    trials: &[&Trial],
+    fits: &[TrialFit],
+) -> Result<VertexEstimate> {
     let Some(first) = trials.first() else {
-        return Err(VeError::InvalidParameter { name: "trials", value: 0.0, reason: "a vertex estimate needs trials" });
+        return Err(VeError::InvalidParameter {
+            name: "trials",
+            value: 0.0,
+            reason: "a vertex estimate needs trials",
+        });
     };
     if fits.len() != trials.len() {
-        return Err(VeError::LengthMismatch { what: "fits", got: fits.len(), expected: trials.len() });
+        return Err(VeError::LengthMismatch {
+            what: "fits",
+            got: fits.len(),
+            expected: trials.len(),
+        });
     }
     let dirs: Vec<[f64; 3]> = trials.iter().map(|t| t.direction).collect();
     let fdirs: Vec<[f64; 3]> = trials.iter().map(|t| t.force_direction).collect();
@@ -136,7 +168,12 @@ pub fn estimate_vertex(stiffness: &Mat3<f64>, trials: &[&Trial], fits: &[TrialFi
     let k2 = stiffness_multiplier(stiffness, &dirs, &fdirs, &k2_n);
     let mut tensor = damping_tensor(&dirs, &fdirs, &b_n, DSVD_DAMPING_REL)?;
     let (mut b, ratio) = if k1 > K1_ZERO_N_PER_M && k2 > 0.0 {
-        (tensor.map(|t| rayleigh_coefficient(stiffness, &t)).unwrap_or(0.0), k2 / k1)
+        (
+            tensor
+                .map(|t| rayleigh_coefficient(stiffness, &t))
+                .unwrap_or(0.0),
+            k2 / k1,
+        )
     } else {
         tensor = tensor.map(|_| Mat3::zero());
         (0.0, 1.0)
@@ -144,11 +181,23 @@ pub fn estimate_vertex(stiffness: &Mat3<f64>, trials: &[&Trial], fits: &[TrialFi
     if b.is_nan() || b < 0.0 {
         b = 0.0; // a negative Rayleigh fit means no usable damping
     }
-    Ok(VertexEstimate { vertex: first.vertex, speed_m_per_s: first.speed_m_per_s, damping_tensor_n_s_per_m: tensor, rayleigh_b_s: b, k1, k2, ratio })
+    Ok(VertexEstimate {
+        vertex: first.vertex,
+        speed_m_per_s: first.speed_m_per_s,
+        damping_tensor_n_s_per_m: tensor,
+        rayleigh_b_s: b,
+        k1,
+        k2,
+        ratio,
+    })
 }
 
 /// Groups trials by (vertex, speed) and estimates each group.
-pub fn estimate_all(dgfm: &super::dgfm::Dgfm, trials: &[Trial], fits: &[Result<TrialFit>]) -> Result<Vec<VertexEstimate>> {
+pub fn estimate_all(
+    dgfm: &super::dgfm::Dgfm,
+    trials: &[Trial],
+    fits: &[Result<TrialFit>],
+) -> Result<Vec<VertexEstimate>> {
     let mut groups: Vec<((usize, u64), Vec<usize>)> = Vec::new();
     for (k, t) in trials.iter().enumerate() {
         if fits.get(k).is_none_or(|f| f.is_err()) {
@@ -163,9 +212,17 @@ pub fn estimate_all(dgfm: &super::dgfm::Dgfm, trials: &[Trial], fits: &[Result<T
     groups
         .iter()
         .map(|((vertex, _), idx)| {
-            let k = dgfm.stiffness(*vertex, *vertex).ok_or(VeError::VertexNotInTractionSet { vertex: *vertex, n: dgfm.len() })?;
+            let k = dgfm
+                .stiffness(*vertex, *vertex)
+                .ok_or(VeError::VertexNotInTractionSet {
+                    vertex: *vertex,
+                    n: dgfm.len(),
+                })?;
             let ts: Vec<&Trial> = idx.iter().map(|&i| &trials[i]).collect();
-            let fs: Vec<TrialFit> = idx.iter().filter_map(|&i| fits[i].as_ref().ok().copied()).collect();
+            let fs: Vec<TrialFit> = idx
+                .iter()
+                .filter_map(|&i| fits[i].as_ref().ok().copied())
+                .collect();
             estimate_vertex(&k, &ts, &fs)
         })
         .collect()
@@ -175,13 +232,21 @@ pub fn estimate_all(dgfm: &super::dgfm::Dgfm, trials: &[Trial], fits: &[Result<T
 /// parameters down the whole column; unmeasured (or abandoned) columns get
 /// `default_ratio` and no damping (the seed's k1 = 0 rule: elastic only).
 /// `tensor` chooses general damping tensors instead of Rayleigh.
-pub fn spread_columns(n: usize, estimates: &[VertexEstimate], default_ratio: f64, tensor: bool) -> Result<ColumnParams> {
+pub fn spread_columns(
+    n: usize,
+    estimates: &[VertexEstimate],
+    default_ratio: f64,
+    tensor: bool,
+) -> Result<ColumnParams> {
     let mut ratios = vec![default_ratio; n];
     let mut b = vec![0.0; n];
     let mut bt = vec![Mat3::zero(); n];
     for e in estimates {
         if e.vertex >= n {
-            return Err(VeError::VertexNotInTractionSet { vertex: e.vertex, n });
+            return Err(VeError::VertexNotInTractionSet {
+                vertex: e.vertex,
+                n,
+            });
         }
         if let Some(t) = e.damping_tensor_n_s_per_m {
             ratios[e.vertex] = e.ratio;
@@ -190,9 +255,18 @@ pub fn spread_columns(n: usize, estimates: &[VertexEstimate], default_ratio: f64
         }
     }
     if tensor {
-        Ok(ColumnParams::Tensor { ratios, damping_n_s_per_m: bt })
+        Ok(ColumnParams::Tensor {
+            ratios,
+            damping_n_s_per_m: bt,
+        })
     } else {
-        let p: std::result::Result<Vec<_>, _> = ratios.iter().zip(&b).map(|(&r, &b)| RayleighParams::new(r, b)).collect();
-        Ok(ColumnParams::Rayleigh(p.map_err(|e| VeError::Core(e, "spread column parameters"))?))
+        let p: std::result::Result<Vec<_>, _> = ratios
+            .iter()
+            .zip(&b)
+            .map(|(&r, &b)| RayleighParams::new(r, b))
+            .collect();
+        Ok(ColumnParams::Rayleigh(p.map_err(|e| {
+            VeError::Core(e, "spread column parameters")
+        })?))
     }
 }

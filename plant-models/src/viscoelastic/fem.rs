@@ -40,7 +40,10 @@ impl Default for LinearElastic {
     /// E = 200 kPa, ν = 0.45 (nearly incompressible rubber, kept below 0.5
     /// because linear tetrahedra lock as ν → 0.5).
     fn default() -> Self {
-        LinearElastic { youngs_modulus_pa: 2.0e5, poisson_ratio: 0.45 }
+        LinearElastic {
+            youngs_modulus_pa: 2.0e5,
+            poisson_ratio: 0.45,
+        }
     }
 }
 
@@ -49,7 +52,11 @@ impl LinearElastic {
         check_positive("youngs_modulus_pa", self.youngs_modulus_pa)?;
         let nu = self.poisson_ratio;
         if !(nu.is_finite() && nu > -1.0 && nu < 0.5) {
-            return Err(VeError::InvalidParameter { name: "poisson_ratio", value: nu, reason: "must be in (-1, 0.5)" });
+            return Err(VeError::InvalidParameter {
+                name: "poisson_ratio",
+                value: nu,
+                reason: "must be in (-1, 0.5)",
+            });
         }
         Ok(())
     }
@@ -116,7 +123,11 @@ impl TetMesh {
         let mut nodes = mesh.vertices_m.clone();
         for &s in shell_scales {
             for p in &mesh.vertices_m {
-                nodes.push([c[0] + s * (p[0] - c[0]), c[1] + s * (p[1] - c[1]), c[2] + s * (p[2] - c[2])]);
+                nodes.push([
+                    c[0] + s * (p[0] - c[0]),
+                    c[1] + s * (p[1] - c[1]),
+                    c[2] + s * (p[2] - c[2]),
+                ]);
             }
         }
         nodes.push(c);
@@ -159,12 +170,19 @@ impl TetMesh {
                 )));
             }
         }
-        Ok(TetMesh { nodes_m: nodes, tets, surface_nodes: v })
+        Ok(TetMesh {
+            nodes_m: nodes,
+            tets,
+            surface_nodes: v,
+        })
     }
 
     /// Total volume (m³).
     pub fn volume_m3(&self) -> f64 {
-        self.tets.iter().map(|t| tet_volume(t.map(|n| self.nodes_m[n]))).sum()
+        self.tets
+            .iter()
+            .map(|t| tet_volume(t.map(|n| self.nodes_m[n])))
+            .sum()
     }
 }
 
@@ -224,7 +242,11 @@ impl SkylineCholesky {
         }
         offset.push(total);
         let first = first.iter().enumerate().map(|(i, &f)| f.min(i)).collect();
-        SkylineCholesky { first, offset, data: vec![0.0; total] }
+        SkylineCholesky {
+            first,
+            offset,
+            data: vec![0.0; total],
+        }
     }
 
     /// Number of stored entries (the profile size).
@@ -249,7 +271,10 @@ impl SkylineCholesky {
             for j in fi..=i {
                 let (fj, oj) = (self.first[j], self.offset[j]);
                 let k0 = fi.max(fj);
-                let (row_i, row_j) = (&self.data[oi + k0 - fi..oi + j - fi], &self.data[oj + k0 - fj..oj + j - fj]);
+                let (row_i, row_j) = (
+                    &self.data[oi + k0 - fi..oi + j - fi],
+                    &self.data[oj + k0 - fj..oj + j - fj],
+                );
                 let s: f64 = row_i.iter().zip(row_j).map(|(a, b)| a * b).sum();
                 let a = self.data[oi + j - fi] - s;
                 if i == j {
@@ -305,13 +330,19 @@ fn reverse_cuthill_mckee(adj: &[Vec<usize>], keep: &[bool]) -> Vec<usize> {
     let mut order = Vec::with_capacity(n);
     loop {
         // Start each component at a kept, unseen node of minimum degree.
-        let start = (0..n).filter(|&i| keep[i] && !seen[i]).min_by_key(|&i| (degree(i), i));
+        let start = (0..n)
+            .filter(|&i| keep[i] && !seen[i])
+            .min_by_key(|&i| (degree(i), i));
         let Some(start) = start else { break };
         seen[start] = true;
         let mut queue = VecDeque::from([start]);
         while let Some(i) = queue.pop_front() {
             order.push(i);
-            let mut next: Vec<usize> = adj[i].iter().copied().filter(|&j| keep[j] && !seen[j]).collect();
+            let mut next: Vec<usize> = adj[i]
+                .iter()
+                .copied()
+                .filter(|&j| keep[j] && !seen[j])
+                .collect();
             next.sort_by_key(|&j| (degree(j), j));
             for j in next {
                 seen[j] = true;
@@ -340,7 +371,11 @@ impl FemSystem {
     pub fn new(tet: TetMesh, material: LinearElastic, fixed_surface: &[bool]) -> Result<Self> {
         material.validate()?;
         if fixed_surface.len() != tet.surface_nodes {
-            return Err(VeError::LengthMismatch { what: "fixed_surface", got: fixed_surface.len(), expected: tet.surface_nodes });
+            return Err(VeError::LengthMismatch {
+                what: "fixed_surface",
+                got: fixed_surface.len(),
+                expected: tet.surface_nodes,
+            });
         }
         if !fixed_surface.iter().any(|&f| f) {
             return Err(VeError::InvalidParameter {
@@ -408,7 +443,11 @@ impl FemSystem {
             }
         }
         chol.factor()?;
-        Ok(FemSystem { tet, dof_base, chol })
+        Ok(FemSystem {
+            tet,
+            dof_base,
+            chol,
+        })
     }
 
     /// The volume mesh.
@@ -431,7 +470,11 @@ impl FemSystem {
     /// nodes go to the support and are ignored).
     pub fn solve_surface_forces(&self, forces_n: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
         if forces_n.len() != self.tet.surface_nodes {
-            return Err(VeError::LengthMismatch { what: "forces_n", got: forces_n.len(), expected: self.tet.surface_nodes });
+            return Err(VeError::LengthMismatch {
+                what: "forces_n",
+                got: forces_n.len(),
+                expected: self.tet.surface_nodes,
+            });
         }
         let mut rhs = vec![0.0; self.equations()];
         for (k, f) in forces_n.iter().enumerate() {
@@ -461,7 +504,9 @@ impl FemSystem {
             .par_iter()
             .map(|&j| {
                 let mut blocks = vec![[[0.0; 3]; 3]; rows.len()];
-                let Some(bj) = self.dof_base[j] else { return blocks };
+                let Some(bj) = self.dof_base[j] else {
+                    return blocks;
+                };
                 for c in 0..3 {
                     let mut rhs = vec![0.0; self.equations()];
                     rhs[bj + c] = 1.0;
@@ -506,15 +551,28 @@ mod tests {
         let b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
         let mut x = b.clone();
         sky.solve_in_place(&mut x);
-        let want = dense.cholesky().unwrap().solve(&nalgebra::DVector::from_vec(b));
+        let want = dense
+            .cholesky()
+            .unwrap()
+            .solve(&nalgebra::DVector::from_vec(b));
         for i in 0..n {
-            assert!((x[i] - want[i]).abs() < 1e-13, "row {i}: {} vs {}", x[i], want[i]);
+            assert!(
+                (x[i] - want[i]).abs() < 1e-13,
+                "row {i}: {} vs {}",
+                x[i],
+                want[i]
+            );
         }
     }
 
     #[test]
     fn element_stiffness_has_rigid_body_null_space() {
-        let p = [[0.0, 0.0, 0.0], [0.02, 0.001, 0.0], [0.003, 0.015, 0.002], [0.001, 0.004, 0.018]];
+        let p = [
+            [0.0, 0.0, 0.0],
+            [0.02, 0.001, 0.0],
+            [0.003, 0.015, 0.002],
+            [0.001, 0.004, 0.018],
+        ];
         let ke = element_stiffness(p, &LinearElastic::default().d_matrix()).unwrap();
         let scale = ke.amax();
         // Translation in x and a small rotation about z: zero force.

@@ -40,7 +40,12 @@ impl Default for NelderMeadOptions {
         // below the fits' noise-driven error; one restart. Measured on the
         // recovery trials: same worst error as (1e-7, 1e-10, 2 restarts)
         // with about half the evaluations (364 vs 700 per trial).
-        NelderMeadOptions { max_evaluations: 2000, cost_tolerance_rel: 1e-7, x_tolerance: 1e-4, restarts: 1 }
+        NelderMeadOptions {
+            max_evaluations: 2000,
+            cost_tolerance_rel: 1e-7,
+            x_tolerance: 1e-4,
+            restarts: 1,
+        }
     }
 }
 
@@ -58,7 +63,12 @@ pub struct NelderMeadResult<const N: usize> {
 /// Minimises `f` from `x0` with initial simplex steps `step` (Nelder–Mead
 /// with reflection 1, expansion 2, contraction ½, shrink ½). Non-finite
 /// costs are treated as +∞.
-pub fn nelder_mead<const N: usize>(mut f: impl FnMut(&[f64; N]) -> f64, x0: [f64; N], step: [f64; N], opts: NelderMeadOptions) -> NelderMeadResult<N> {
+pub fn nelder_mead<const N: usize>(
+    mut f: impl FnMut(&[f64; N]) -> f64,
+    x0: [f64; N],
+    step: [f64; N],
+    opts: NelderMeadOptions,
+) -> NelderMeadResult<N> {
     let mut eval = |x: &[f64; N], count: &mut usize| {
         *count += 1;
         let c = f(x);
@@ -86,9 +96,14 @@ pub fn nelder_mead<const N: usize>(mut f: impl FnMut(&[f64; N]) -> f64, x0: [f64
             let (lo, hi) = (simplex[0].1, simplex[N].1);
             let spread = simplex
                 .iter()
-                .flat_map(|(x, _)| x.iter().zip(simplex[0].0.iter()).map(|(a, b)| (a - b).abs()))
+                .flat_map(|(x, _)| {
+                    x.iter()
+                        .zip(simplex[0].0.iter())
+                        .map(|(a, b)| (a - b).abs())
+                })
                 .fold(0.0, f64::max);
-            if (hi - lo).abs() <= opts.cost_tolerance_rel * lo.abs().max(f64::MIN_POSITIVE) && spread <= opts.x_tolerance
+            if (hi - lo).abs() <= opts.cost_tolerance_rel * lo.abs().max(f64::MIN_POSITIVE)
+                && spread <= opts.x_tolerance
                 || spread <= opts.x_tolerance * 1e-3
                 || evaluations >= budget_end
             {
@@ -142,7 +157,11 @@ pub fn nelder_mead<const N: usize>(mut f: impl FnMut(&[f64; N]) -> f64, x0: [f64
             best_cost = simplex[0].1;
         }
     }
-    NelderMeadResult { x: best, cost: best_cost, evaluations }
+    NelderMeadResult {
+        x: best,
+        cost: best_cost,
+        evaluations,
+    }
 }
 
 /// How the residuals of a trial are weighted.
@@ -169,7 +188,13 @@ pub fn weights(force_n: &[f64], weighting: Weighting) -> Vec<f64> {
             let peak = force_n
                 .iter()
                 .enumerate()
-                .fold((0, f64::NEG_INFINITY), |(bi, bv), (i, &v)| if v > bv { (i, v) } else { (bi, bv) })
+                .fold((0, f64::NEG_INFINITY), |(bi, bv), (i, &v)| {
+                    if v > bv {
+                        (i, v)
+                    } else {
+                        (bi, bv)
+                    }
+                })
                 .0;
             (0..force_n.len())
                 .map(|i| {
@@ -189,18 +214,34 @@ pub fn weights(force_n: &[f64], weighting: Weighting) -> Vec<f64> {
 /// A time series that has passed the checks every model run needs.
 fn check_series(time_s: &[f64], other: &[f64], what: &'static str) -> Result<()> {
     if time_s.len() != other.len() {
-        return Err(VeError::LengthMismatch { what, got: other.len(), expected: time_s.len() });
+        return Err(VeError::LengthMismatch {
+            what,
+            got: other.len(),
+            expected: time_s.len(),
+        });
     }
     if time_s.len() < 2 {
-        return Err(VeError::InvalidParameter { name: "samples", value: time_s.len() as f64, reason: "need at least 2 samples" });
+        return Err(VeError::InvalidParameter {
+            name: "samples",
+            value: time_s.len() as f64,
+            reason: "need at least 2 samples",
+        });
     }
     for w in time_s.windows(2) {
         if w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater) {
-            return Err(VeError::InvalidParameter { name: "time_s", value: w[1], reason: "must be strictly increasing" });
+            return Err(VeError::InvalidParameter {
+                name: "time_s",
+                value: w[1],
+                reason: "must be strictly increasing",
+            });
         }
     }
     if time_s.iter().chain(other).any(|v| !v.is_finite()) {
-        return Err(VeError::InvalidParameter { name: what, value: f64::NAN, reason: "must be finite" });
+        return Err(VeError::InvalidParameter {
+            name: what,
+            value: f64::NAN,
+            reason: "must be finite",
+        });
     }
     Ok(())
 }
@@ -210,28 +251,42 @@ fn model(k1: f64, k2: f64, b: f64) -> Result<ThreeElement<f64>> {
 }
 
 /// Force (N) of the 1D model for a displacement series (m) at times (s).
-pub fn simulate_force(k1_n_per_m: f64, k2_n_per_m: f64, b_n_s_per_m: f64, time_s: &[f64], displacement_m: &[f64]) -> Result<Vec<f64>> {
+pub fn simulate_force(
+    k1_n_per_m: f64,
+    k2_n_per_m: f64,
+    b_n_s_per_m: f64,
+    time_s: &[f64],
+    displacement_m: &[f64],
+) -> Result<Vec<f64>> {
     check_series(time_s, displacement_m, "displacement")?;
     let m = model(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
     let mut s = ThreeElementState::default();
     let mut out = Vec::with_capacity(time_s.len());
     out.push(m.k2() * displacement_m[0]);
     for k in 1..time_s.len() {
-        let h = TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
+        let h =
+            TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
         out.push(m.step_force(&mut s, displacement_m[k], h));
     }
     Ok(out)
 }
 
 /// Displacement (m) of the 1D model for a force series (N) at times (s).
-pub fn simulate_displacement(k1_n_per_m: f64, k2_n_per_m: f64, b_n_s_per_m: f64, time_s: &[f64], force_n: &[f64]) -> Result<Vec<f64>> {
+pub fn simulate_displacement(
+    k1_n_per_m: f64,
+    k2_n_per_m: f64,
+    b_n_s_per_m: f64,
+    time_s: &[f64],
+    force_n: &[f64],
+) -> Result<Vec<f64>> {
     check_series(time_s, force_n, "force")?;
     let m = model(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
     let mut s = ThreeElementState::default();
     let mut out = Vec::with_capacity(time_s.len());
     out.push(force_n[0] / m.k2());
     for k in 1..time_s.len() {
-        let h = TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
+        let h =
+            TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
         out.push(m.step_displacement(&mut s, force_n[k], h));
     }
     Ok(out)
@@ -256,12 +311,16 @@ pub struct TrialFit {
 
 /// Weighted squared force error of parameters `(k1, k2, b)`; allocation-free.
 fn cost(k1: f64, k2: f64, b: f64, time_s: &[f64], u: &[f64], f: &[f64], w: &[f64]) -> f64 {
-    let Ok(m) = ThreeElement::new(k1, k2, b) else { return f64::INFINITY };
+    let Ok(m) = ThreeElement::new(k1, k2, b) else {
+        return f64::INFINITY;
+    };
     let mut s = ThreeElementState::default();
     let r0 = m.k2() * u[0] - f[0];
     let mut total = w[0] * r0 * r0;
     for k in 1..time_s.len() {
-        let Ok(h) = TimeStep::new(time_s[k] - time_s[k - 1]) else { return f64::INFINITY };
+        let Ok(h) = TimeStep::new(time_s[k] - time_s[k - 1]) else {
+            return f64::INFINITY;
+        };
         let r = m.step_force(&mut s, u[k], h) - f[k];
         total += w[k] * r * r;
     }
@@ -269,17 +328,38 @@ fn cost(k1: f64, k2: f64, b: f64, time_s: &[f64], u: &[f64], f: &[f64], w: &[f64
 }
 
 /// Fits (k1, k2, b) to a force-vs-time trial with the given weighting.
-pub fn fit_trial(time_s: &[f64], displacement_m: &[f64], force_n: &[f64], weighting: Weighting, opts: NelderMeadOptions) -> Result<TrialFit> {
+pub fn fit_trial(
+    time_s: &[f64],
+    displacement_m: &[f64],
+    force_n: &[f64],
+    weighting: Weighting,
+    opts: NelderMeadOptions,
+) -> Result<TrialFit> {
     check_series(time_s, displacement_m, "displacement")?;
     check_series(time_s, force_n, "force")?;
     let n = time_s.len();
-    let (peak_i, peak_f) = force_n.iter().enumerate().fold((0, f64::NEG_INFINITY), |(bi, bv), (i, &v)| if v > bv { (i, v) } else { (bi, bv) });
-    let (u_peak, u_end, f_end) = (displacement_m[peak_i], displacement_m[n - 1], force_n[n - 1]);
+    let (peak_i, peak_f) =
+        force_n
+            .iter()
+            .enumerate()
+            .fold((0, f64::NEG_INFINITY), |(bi, bv), (i, &v)| {
+                if v > bv {
+                    (i, v)
+                } else {
+                    (bi, bv)
+                }
+            });
+    let (u_peak, u_end, f_end) = (
+        displacement_m[peak_i],
+        displacement_m[n - 1],
+        force_n[n - 1],
+    );
     if !(u_peak > 0.0 && u_end > 0.0 && peak_f > 0.0 && f_end > 0.0) {
         return Err(VeError::InvalidParameter {
             name: "trial",
             value: peak_f,
-            reason: "needs positive displacement and force at the peak and at the end (a loading trial)",
+            reason:
+                "needs positive displacement and force at the peak and at the end (a loading trial)",
         });
     }
     // Initial guess from the data: relaxed stiffness from the end, the
@@ -292,17 +372,49 @@ pub fn fit_trial(time_s: &[f64], displacement_m: &[f64], force_n: &[f64], weight
     let b_0 = tau_0 * (k1_0 + k2_0);
     let w = weights(force_n, weighting);
     let norm = w.iter().sum::<f64>();
-    let objective = |x: &[f64; 3]| cost(x[0].exp(), x[1].exp(), x[2].exp(), time_s, displacement_m, force_n, &w) / norm;
+    let objective = |x: &[f64; 3]| {
+        cost(
+            x[0].exp(),
+            x[1].exp(),
+            x[2].exp(),
+            time_s,
+            displacement_m,
+            force_n,
+            &w,
+        ) / norm
+    };
     let ln2 = std::f64::consts::LN_2;
-    let res = nelder_mead(objective, [k1_0.ln(), k2_0.ln(), b_0.ln()], [ln2, ln2, ln2], opts);
+    let res = nelder_mead(
+        objective,
+        [k1_0.ln(), k2_0.ln(), b_0.ln()],
+        [ln2, ln2, ln2],
+        opts,
+    );
     let [k1, k2, b] = res.x.map(f64::exp);
     let sim = simulate_force(k1, k2, b, time_s, displacement_m)?;
-    let rms = (sim.iter().zip(force_n).map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / n as f64).sqrt();
-    Ok(TrialFit { k1_n_per_m: k1, k2_n_per_m: k2, b_n_s_per_m: b, rms_residual_n: rms, weighted_cost_n2: res.cost, evaluations: res.evaluations })
+    let rms = (sim
+        .iter()
+        .zip(force_n)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        / n as f64)
+        .sqrt();
+    Ok(TrialFit {
+        k1_n_per_m: k1,
+        k2_n_per_m: k2,
+        b_n_s_per_m: b,
+        rms_residual_n: rms,
+        weighted_cost_n2: res.cost,
+        evaluations: res.evaluations,
+    })
 }
 
 /// Fits every trial in parallel (order preserved; identical to serial).
-pub fn fit_trials(trials: &[super::measure::Trial], weighting: Weighting, opts: NelderMeadOptions) -> Vec<Result<TrialFit>> {
+pub fn fit_trials(
+    trials: &[super::measure::Trial],
+    weighting: Weighting,
+    opts: NelderMeadOptions,
+) -> Vec<Result<TrialFit>> {
     trials
         .par_iter()
         .map(|t| fit_trial(&t.time_s, &t.displacement_m, &t.force_n, weighting, opts))
@@ -310,7 +422,11 @@ pub fn fit_trials(trials: &[super::measure::Trial], weighting: Weighting, opts: 
 }
 
 /// The same as [`fit_trials`] on one thread (for the equality test/bench).
-pub fn fit_trials_serial(trials: &[super::measure::Trial], weighting: Weighting, opts: NelderMeadOptions) -> Vec<Result<TrialFit>> {
+pub fn fit_trials_serial(
+    trials: &[super::measure::Trial],
+    weighting: Weighting,
+    opts: NelderMeadOptions,
+) -> Vec<Result<TrialFit>> {
     trials
         .iter()
         .map(|t| fit_trial(&t.time_s, &t.displacement_m, &t.force_n, weighting, opts))
@@ -325,7 +441,11 @@ mod tests {
     fn nelder_mead_finds_the_rosenbrock_minimum() {
         let rosen = |x: &[f64; 2]| (1.0 - x[0]).powi(2) + 100.0 * (x[1] - x[0] * x[0]).powi(2);
         let r = nelder_mead(rosen, [-1.2, 1.0], [0.5, 0.5], NelderMeadOptions::default());
-        assert!((r.x[0] - 1.0).abs() < 1e-4 && (r.x[1] - 1.0).abs() < 1e-4, "{:?}", r);
+        assert!(
+            (r.x[0] - 1.0).abs() < 1e-4 && (r.x[1] - 1.0).abs() < 1e-4,
+            "{:?}",
+            r
+        );
     }
 
     #[test]

@@ -17,7 +17,10 @@ pub struct Columns {
 impl Columns {
     /// The values of column `name` (which must have been asked for).
     pub fn get(&self, name: &str) -> Option<&[f64]> {
-        self.names.iter().position(|n| n == name).map(|i| self.values[i].as_slice())
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| self.values[i].as_slice())
     }
 }
 
@@ -33,8 +36,17 @@ pub fn header(text: &str) -> Vec<String> {
 /// Reads the columns `wanted` from CSV `text` (`file` names it in errors).
 /// Blank lines and lines starting with `#` are skipped. If `time_column`
 /// is given it must strictly increase.
-pub fn read_columns(text: &str, file: &str, wanted: &[&str], time_column: Option<&str>) -> Result<Columns> {
-    let err = |line: usize, reason: String| VeError::Parse { file: file.to_string(), line, reason };
+pub fn read_columns(
+    text: &str,
+    file: &str,
+    wanted: &[&str],
+    time_column: Option<&str>,
+) -> Result<Columns> {
+    let err = |line: usize, reason: String| VeError::Parse {
+        file: file.to_string(),
+        line,
+        reason,
+    };
     let mut lines = text.lines().enumerate().filter(|(_, l)| {
         let t = l.trim();
         !t.is_empty() && !t.starts_with('#')
@@ -48,7 +60,10 @@ pub fn read_columns(text: &str, file: &str, wanted: &[&str], time_column: Option
         match names.iter().position(|n| n == w) {
             Some(i) => idx.push(i),
             None => {
-                return Err(err(hline + 1, format!("missing column `{w}` (header has: {})", names.join(", "))));
+                return Err(err(
+                    hline + 1,
+                    format!("missing column `{w}` (header has: {})", names.join(", ")),
+                ));
             }
         }
     }
@@ -58,18 +73,33 @@ pub fn read_columns(text: &str, file: &str, wanted: &[&str], time_column: Option
         let line_no = k + 1;
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if fields.len() != names.len() {
-            return Err(err(line_no, format!("{} fields, but the header has {}", fields.len(), names.len())));
+            return Err(err(
+                line_no,
+                format!(
+                    "{} fields, but the header has {}",
+                    fields.len(),
+                    names.len()
+                ),
+            ));
         }
         for (c, &i) in idx.iter().enumerate() {
             let s = fields[i];
-            let v: f64 = s.parse().map_err(|_| err(line_no, format!("`{}` = `{s}` is not a number", wanted[c])))?;
+            let v: f64 = s
+                .parse()
+                .map_err(|_| err(line_no, format!("`{}` = `{s}` is not a number", wanted[c])))?;
             if !v.is_finite() {
-                return Err(err(line_no, format!("`{}` = `{s}` is not finite (NaN or infinite)", wanted[c])));
+                return Err(err(
+                    line_no,
+                    format!("`{}` = `{s}` is not finite (NaN or infinite)", wanted[c]),
+                ));
             }
             if Some(c) == time_pos {
                 if let Some(&prev) = values[c].last() {
                     if v <= prev {
-                        return Err(err(line_no, format!("time must strictly increase: {v} after {prev}")));
+                        return Err(err(
+                            line_no,
+                            format!("time must strictly increase: {v} after {prev}"),
+                        ));
                     }
                 }
             }
@@ -79,16 +109,30 @@ pub fn read_columns(text: &str, file: &str, wanted: &[&str], time_column: Option
     if values.first().is_none_or(|v| v.len() < 2) {
         return Err(err(hline + 1, "need at least 2 data rows".into()));
     }
-    Ok(Columns { names: wanted.iter().map(|s| s.to_string()).collect(), values })
+    Ok(Columns {
+        names: wanted.iter().map(|s| s.to_string()).collect(),
+        values,
+    })
 }
 
 /// Reads a probe script: columns `time_s,vertex,fx_n,fy_n,fz_n`; from each
 /// row's time on the probe pushes mesh vertex `vertex` with that force, or
 /// releases the object when `vertex` is −1.
 pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result<Vec<ProbeEvent>> {
-    let cols = read_columns(text, file, &["time_s", "vertex", "fx_n", "fy_n", "fz_n"], Some("time_s"))?;
+    let cols = read_columns(
+        text,
+        file,
+        &["time_s", "vertex", "fx_n", "fy_n", "fz_n"],
+        Some("time_s"),
+    )?;
     let get = |n: &str| cols.get(n).unwrap_or(&[]);
-    let (t, v, fx, fy, fz) = (get("time_s"), get("vertex"), get("fx_n"), get("fy_n"), get("fz_n"));
+    let (t, v, fx, fy, fz) = (
+        get("time_s"),
+        get("vertex"),
+        get("fx_n"),
+        get("fy_n"),
+        get("fz_n"),
+    );
     // Data line numbers for errors: recompute by scanning.
     let data_lines: Vec<usize> = text
         .lines()
@@ -108,10 +152,16 @@ pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result
             return Err(VeError::Parse {
                 file: file.to_string(),
                 line: data_lines.get(k).copied().unwrap_or(0),
-                reason: format!("vertex {vertex} is not −1 or a mesh vertex index below {mesh_vertices}"),
+                reason: format!(
+                    "vertex {vertex} is not −1 or a mesh vertex index below {mesh_vertices}"
+                ),
             });
         };
-        events.push(ProbeEvent { time_s: t[k], contact, force_n: [fx[k], fy[k], fz[k]] });
+        events.push(ProbeEvent {
+            time_s: t[k],
+            contact,
+            force_n: [fx[k], fy[k], fz[k]],
+        });
     }
     Ok(events)
 }

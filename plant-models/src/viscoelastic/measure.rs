@@ -45,10 +45,17 @@ impl VertexTruth {
     pub fn from_dgfm(dgfm: &Dgfm, i: usize, ratio: f64, rayleigh_b_s: f64) -> Result<Self> {
         check_positive("ratio", ratio)?;
         check_non_negative("rayleigh_b_s", rayleigh_b_s)?;
-        let stiffness_n_per_m = dgfm
-            .stiffness(i, i)
-            .ok_or(VeError::InvalidParameter { name: "vertex", value: i as f64, reason: "Ξ_ii is singular" })?;
-        Ok(VertexTruth { vertex: i, stiffness_n_per_m, ratio, rayleigh_b_s })
+        let stiffness_n_per_m = dgfm.stiffness(i, i).ok_or(VeError::InvalidParameter {
+            name: "vertex",
+            value: i as f64,
+            reason: "Ξ_ii is singular",
+        })?;
+        Ok(VertexTruth {
+            vertex: i,
+            stiffness_n_per_m,
+            ratio,
+            rayleigh_b_s,
+        })
     }
 
     /// k1 = (1+r)/r and k2 = 1+r (Eq. 9–10 multipliers of K).
@@ -122,7 +129,11 @@ impl ProbeProtocol {
         check_non_negative("contact_growth_fraction", self.contact_growth_fraction)?;
         check_non_negative("tilt_rad", self.tilt_rad)?;
         if self.speeds_m_per_s.is_empty() {
-            return Err(VeError::InvalidParameter { name: "speeds_m_per_s", value: 0.0, reason: "need at least one speed" });
+            return Err(VeError::InvalidParameter {
+                name: "speeds_m_per_s",
+                value: 0.0,
+                reason: "need at least one speed",
+            });
         }
         for &v in &self.speeds_m_per_s {
             check_positive("speeds_m_per_s", v)?;
@@ -135,7 +146,11 @@ impl ProbeProtocol {
     pub fn directions(&self, outward_normal: [f64; 3]) -> Vec<[f64; 3]> {
         let n = Vec3(outward_normal).scale(-1.0 / Vec3(outward_normal).norm());
         // Any unit vector orthogonal to n, then the third axis.
-        let helper = if n.0[0].abs() < 0.9 { Vec3::new(1.0, 0.0, 0.0) } else { Vec3::new(0.0, 1.0, 0.0) };
+        let helper = if n.0[0].abs() < 0.9 {
+            Vec3::new(1.0, 0.0, 0.0)
+        } else {
+            Vec3::new(0.0, 1.0, 0.0)
+        };
         let cross = |a: Vec3<f64>, b: Vec3<f64>| Vec3(super::mesh::cross(a.0, b.0));
         let e1 = cross(n, helper);
         let e1 = e1.scale(1.0 / e1.norm());
@@ -143,7 +158,8 @@ impl ProbeProtocol {
         let mut dirs = vec![n.0];
         for k in 0..self.tilted_directions {
             let phi = 2.0 * std::f64::consts::PI * k as f64 / self.tilted_directions as f64;
-            let d = n.scale(self.tilt_rad.cos()) + (e1.scale(phi.cos()) + e2.scale(phi.sin())).scale(self.tilt_rad.sin());
+            let d = n.scale(self.tilt_rad.cos())
+                + (e1.scale(phi.cos()) + e2.scale(phi.sin())).scale(self.tilt_rad.sin());
             dirs.push(d.0);
         }
         dirs
@@ -170,14 +186,26 @@ pub struct Trial {
 }
 
 /// Simulates one trial of `truth` along `dir` at `speed`, noise from `rng`.
-pub fn simulate_trial(truth: &VertexTruth, dir: [f64; 3], speed_m_per_s: f64, protocol: &ProbeProtocol, rng: &mut ChaCha8Rng) -> Result<Trial> {
+pub fn simulate_trial(
+    truth: &VertexTruth,
+    dir: [f64; 3],
+    speed_m_per_s: f64,
+    protocol: &ProbeProtocol,
+    rng: &mut ChaCha8Rng,
+) -> Result<Trial> {
     protocol.validate()?;
     check_positive("speed_m_per_s", speed_m_per_s)?;
-    let h = TimeStep::new(protocol.sample_period_s).map_err(|e| VeError::Core(e, "sample period"))?;
+    let h =
+        TimeStep::new(protocol.sample_period_s).map_err(|e| VeError::Core(e, "sample period"))?;
     let (k1, k2) = truth.multipliers();
     let k = truth.stiffness_n_per_m;
-    let model = ThreeElementTensor::new(k.scale(k1), k.scale(k2), truth.damping_tensor_n_s_per_m(), h)
-        .map_err(|e| VeError::Core(e, "probe trial tensors"))?;
+    let model = ThreeElementTensor::new(
+        k.scale(k1),
+        k.scale(k2),
+        truth.damping_tensor_n_s_per_m(),
+        h,
+    )
+    .map_err(|e| VeError::Core(e, "probe trial tensors"))?;
     let ramp_s = protocol.depth_m / speed_m_per_s;
     let samples = ((ramp_s + protocol.hold_s) / protocol.sample_period_s).round() as usize + 1;
     let u_hat = Vec3(dir).scale(1.0 / Vec3(dir).norm());
@@ -189,7 +217,11 @@ pub fn simulate_trial(truth: &VertexTruth, dir: [f64; 3], speed_m_per_s: f64, pr
     for s in 0..samples {
         let t = s as f64 * protocol.sample_period_s;
         let u = (speed_m_per_s * t).min(protocol.depth_m);
-        let f = if s == 0 { Vec3::zero() } else { model.step_force(&mut x, u_hat.scale(u)) };
+        let f = if s == 0 {
+            Vec3::zero()
+        } else {
+            model.step_force(&mut x, u_hat.scale(u))
+        };
         if t > ramp_s {
             hold_sum = hold_sum + f;
         }
@@ -204,24 +236,52 @@ pub fn simulate_trial(truth: &VertexTruth, dir: [f64; 3], speed_m_per_s: f64, pr
     }
     let sigma = protocol.force_noise_std_n;
     if sigma > 0.0 {
-        let normal = Normal::new(0.0, sigma).map_err(|_| VeError::InvalidParameter { name: "noise", value: sigma, reason: "bad sigma" })?;
+        let normal = Normal::new(0.0, sigma).map_err(|_| VeError::InvalidParameter {
+            name: "noise",
+            value: sigma,
+            reason: "bad sigma",
+        })?;
         for f in force.iter_mut() {
             *f += normal.sample(rng);
         }
     }
-    let hold_dir = if hold_sum.norm() > 0.0 { hold_sum.scale(1.0 / hold_sum.norm()) } else { u_hat };
-    Ok(Trial { vertex: truth.vertex, direction: u_hat.0, speed_m_per_s, time_s, displacement_m, force_n: force, force_direction: hold_dir.0 })
+    let hold_dir = if hold_sum.norm() > 0.0 {
+        hold_sum.scale(1.0 / hold_sum.norm())
+    } else {
+        u_hat
+    };
+    Ok(Trial {
+        vertex: truth.vertex,
+        direction: u_hat.0,
+        speed_m_per_s,
+        time_s,
+        displacement_m,
+        force_n: force,
+        force_direction: hold_dir.0,
+    })
 }
 
 /// A measurement campaign: every vertex in `truths`, every direction of
 /// the protocol (around each vertex's outward normal), every speed. Each
 /// trial has its own RNG stream `(seed, trial index)`, so the result is the
 /// same however it is scheduled (it is generated in parallel).
-pub fn simulate_campaign(dgfm: &Dgfm, truths: &[VertexTruth], protocol: &ProbeProtocol, seed: u64) -> Result<Vec<Trial>> {
+pub fn simulate_campaign(
+    dgfm: &Dgfm,
+    truths: &[VertexTruth],
+    protocol: &ProbeProtocol,
+    seed: u64,
+) -> Result<Vec<Trial>> {
     let normals = dgfm.mesh().vertex_normals();
     let mut plan = Vec::new();
     for t in truths {
-        let mesh_v = *dgfm.traction_vertices().get(t.vertex).ok_or(VeError::VertexNotInTractionSet { vertex: t.vertex, n: dgfm.len() })?;
+        let mesh_v =
+            *dgfm
+                .traction_vertices()
+                .get(t.vertex)
+                .ok_or(VeError::VertexNotInTractionSet {
+                    vertex: t.vertex,
+                    n: dgfm.len(),
+                })?;
         for &speed in &protocol.speeds_m_per_s {
             for dir in protocol.directions(normals[mesh_v]) {
                 plan.push((*t, dir, speed));

@@ -25,7 +25,11 @@ pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -86,7 +90,10 @@ impl SurfaceMesh {
         for s in 0..segments {
             t.push([bottom, at(rings - 1, s + 1), at(rings - 1, s)]);
         }
-        SurfaceMesh { vertices_m: v, triangles: t }
+        SurfaceMesh {
+            vertices_m: v,
+            triangles: t,
+        }
     }
 
     /// An axis-aligned cube `[0, side]³` with `n × n` quads per face, each
@@ -134,7 +141,10 @@ impl SurfaceMesh {
                 }
             }
         }
-        SurfaceMesh { vertices_m: v, triangles: t }
+        SurfaceMesh {
+            vertices_m: v,
+            triangles: t,
+        }
     }
 
     /// Number of vertices.
@@ -208,9 +218,17 @@ impl SurfaceMesh {
     pub fn validate(&self) -> Result<()> {
         let bad = |s: String| Err(VeError::InvalidMesh(s));
         if self.len() < 4 || self.triangles.len() < 4 {
-            return bad(format!("{} vertices / {} triangles: a closed surface needs at least 4 of each", self.len(), self.triangles.len()));
+            return bad(format!(
+                "{} vertices / {} triangles: a closed surface needs at least 4 of each",
+                self.len(),
+                self.triangles.len()
+            ));
         }
-        if let Some(i) = self.vertices_m.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+        if let Some(i) = self
+            .vertices_m
+            .iter()
+            .position(|v| !v.iter().all(|c| c.is_finite()))
+        {
             return bad(format!("vertex {i} has a non-finite coordinate"));
         }
         let mut used = vec![false; self.len()];
@@ -219,7 +237,10 @@ impl SurfaceMesh {
         for (t, tri) in self.triangles.iter().enumerate() {
             for &i in tri {
                 if i >= self.len() {
-                    return bad(format!("triangle {t} uses vertex {i}, but there are only {}", self.len()));
+                    return bad(format!(
+                        "triangle {t} uses vertex {i}, but there are only {}",
+                        self.len()
+                    ));
                 }
                 used[i] = true;
             }
@@ -278,7 +299,11 @@ impl SurfaceMesh {
     /// triangulated). Other records are ignored. `source` names the input
     /// in errors. The result is validated.
     pub fn from_obj_str(text: &str, source: &str) -> Result<Self> {
-        let err = |line: usize, reason: String| VeError::Parse { file: source.to_string(), line, reason };
+        let err = |line: usize, reason: String| VeError::Parse {
+            file: source.to_string(),
+            line,
+            reason,
+        };
         let mut v: Vec<[f64; 3]> = Vec::new();
         let mut t: Vec<[usize; 3]> = Vec::new();
         for (k, raw) in text.lines().enumerate() {
@@ -289,15 +314,21 @@ impl SurfaceMesh {
                 Some("v") => {
                     let c: Vec<&str> = it.collect();
                     if c.len() < 3 {
-                        return Err(err(line_no, format!("vertex needs 3 coordinates, found {}", c.len())));
+                        return Err(err(
+                            line_no,
+                            format!("vertex needs 3 coordinates, found {}", c.len()),
+                        ));
                     }
                     let mut p = [0.0; 3];
                     for (slot, s) in p.iter_mut().zip(c.iter()) {
-                        *slot = s
-                            .parse::<f64>()
-                            .map_err(|_| err(line_no, format!("vertex coordinate `{s}` is not a number")))?;
+                        *slot = s.parse::<f64>().map_err(|_| {
+                            err(line_no, format!("vertex coordinate `{s}` is not a number"))
+                        })?;
                         if !slot.is_finite() {
-                            return Err(err(line_no, format!("vertex coordinate `{s}` is not finite")));
+                            return Err(err(
+                                line_no,
+                                format!("vertex coordinate `{s}` is not finite"),
+                            ));
                         }
                     }
                     v.push(p);
@@ -306,9 +337,9 @@ impl SurfaceMesh {
                     let mut idx = Vec::new();
                     for s in it {
                         let first = s.split('/').next().unwrap_or("");
-                        let i: i64 = first
-                            .parse()
-                            .map_err(|_| err(line_no, format!("face index `{s}` is not an integer")))?;
+                        let i: i64 = first.parse().map_err(|_| {
+                            err(line_no, format!("face index `{s}` is not an integer"))
+                        })?;
                         let resolved = if i > 0 {
                             i - 1
                         } else if i < 0 {
@@ -322,7 +353,10 @@ impl SurfaceMesh {
                         idx.push(resolved as usize);
                     }
                     if idx.len() < 3 {
-                        return Err(err(line_no, format!("face needs at least 3 vertices, found {}", idx.len())));
+                        return Err(err(
+                            line_no,
+                            format!("face needs at least 3 vertices, found {}", idx.len()),
+                        ));
                     }
                     for k in 1..idx.len() - 1 {
                         t.push([idx[0], idx[k], idx[k + 1]]);
@@ -331,7 +365,10 @@ impl SurfaceMesh {
                 _ => {}
             }
         }
-        let mesh = SurfaceMesh { vertices_m: v, triangles: t };
+        let mesh = SurfaceMesh {
+            vertices_m: v,
+            triangles: t,
+        };
         mesh.validate().map_err(|e| match e {
             VeError::InvalidMesh(m) => VeError::InvalidMesh(format!("{source}: {m}")),
             other => other,

@@ -22,7 +22,9 @@
 use super::dgfm::Dgfm;
 use super::error::{Result, VeError};
 use firmware::linalg::{Mat3, Vec3};
-use firmware::viscoelastic::{rayleigh_displacement_step, RayleighParams, ThreeElementTensor, TimeStep};
+use firmware::viscoelastic::{
+    rayleigh_displacement_step, RayleighParams, ThreeElementTensor, TimeStep,
+};
 
 /// Rest threshold on `max_i |x_ij|∞` below which an unloaded column leaves
 /// the active list (m). The seed uses 1e-3 in its own mesh units (§5); for
@@ -52,7 +54,8 @@ pub enum ColumnParams {
 impl ColumnParams {
     /// The same Rayleigh parameters for every column.
     pub fn uniform_rayleigh(n: usize, ratio: f64, b_s: f64) -> Result<Self> {
-        let p = RayleighParams::new(ratio, b_s).map_err(|e| VeError::Core(e, "uniform Rayleigh parameters"))?;
+        let p = RayleighParams::new(ratio, b_s)
+            .map_err(|e| VeError::Core(e, "uniform Rayleigh parameters"))?;
         Ok(ColumnParams::Rayleigh(vec![p; n]))
     }
 
@@ -79,7 +82,9 @@ impl ColumnParams {
                 .enumerate()
                 .map(|(j, q)| q.b_s() * dgfm.stiffness(j, j).map(|k| frob(&k)).unwrap_or(0.0))
                 .collect(),
-            ColumnParams::Tensor { damping_n_s_per_m, .. } => damping_n_s_per_m.iter().map(frob).collect(),
+            ColumnParams::Tensor {
+                damping_n_s_per_m, ..
+            } => damping_n_s_per_m.iter().map(frob).collect(),
         }
     }
 }
@@ -87,7 +92,10 @@ impl ColumnParams {
 enum Update {
     Rayleigh(Vec<RayleighParams<f64>>),
     /// Column-major precomputed pairs for one fixed step.
-    Tensor { pairs: Vec<ThreeElementTensor<f64>>, h: TimeStep<f64> },
+    Tensor {
+        pairs: Vec<ThreeElementTensor<f64>>,
+        h: TimeStep<f64>,
+    },
 }
 
 struct ActiveColumn {
@@ -112,27 +120,51 @@ impl ViscoObject {
     pub fn new(dgfm: Dgfm, params: ColumnParams, h: TimeStep<f64>) -> Result<Self> {
         let n = dgfm.len();
         if params.len() != n {
-            return Err(VeError::LengthMismatch { what: "column parameters", got: params.len(), expected: n });
+            return Err(VeError::LengthMismatch {
+                what: "column parameters",
+                got: params.len(),
+                expected: n,
+            });
         }
         let update = match params {
             ColumnParams::Rayleigh(p) => Update::Rayleigh(p),
-            ColumnParams::Tensor { ratios, damping_n_s_per_m } => {
+            ColumnParams::Tensor {
+                ratios,
+                damping_n_s_per_m,
+            } => {
                 if damping_n_s_per_m.len() != n {
-                    return Err(VeError::LengthMismatch { what: "damping tensors", got: damping_n_s_per_m.len(), expected: n });
+                    return Err(VeError::LengthMismatch {
+                        what: "damping tensors",
+                        got: damping_n_s_per_m.len(),
+                        expected: n,
+                    });
                 }
                 let mut pairs = Vec::with_capacity(n * n);
                 for j in 0..n {
                     for i in 0..n {
                         pairs.push(
-                            ThreeElementTensor::from_dgfm_entry(dgfm.xi(i, j), dgfm.areas_m2()[j], ratios[j], damping_n_s_per_m[j], h)
-                                .map_err(|e| VeError::Core(e, "tensor pair (check Ξ_ij invertible, ratio > 0)"))?,
+                            ThreeElementTensor::from_dgfm_entry(
+                                dgfm.xi(i, j),
+                                dgfm.areas_m2()[j],
+                                ratios[j],
+                                damping_n_s_per_m[j],
+                                h,
+                            )
+                            .map_err(|e| {
+                                VeError::Core(e, "tensor pair (check Ξ_ij invertible, ratio > 0)")
+                            })?,
                         );
                     }
                 }
                 Update::Tensor { pairs, h }
             }
         };
-        Ok(ViscoObject { dgfm, update, active: Vec::new(), rest_threshold_m: DEFAULT_REST_THRESHOLD_M })
+        Ok(ViscoObject {
+            dgfm,
+            update,
+            active: Vec::new(),
+            rest_threshold_m: DEFAULT_REST_THRESHOLD_M,
+        })
     }
 
     /// The DGFM.
@@ -154,12 +186,19 @@ impl ViscoObject {
             return Err(VeError::VertexNotInTractionSet { vertex: j, n });
         }
         if !traction_pa.is_finite() {
-            return Err(VeError::Core(firmware::viscoelastic::ViscoError::NonFiniteInput, "traction"));
+            return Err(VeError::Core(
+                firmware::viscoelastic::ViscoError::NonFiniteInput,
+                "traction",
+            ));
         }
         if let Some(col) = self.active.iter_mut().find(|c| c.column == j) {
             col.traction_pa = traction_pa;
         } else if !traction_pa.is_zero() {
-            self.active.push(ActiveColumn { column: j, traction_pa, x_m: vec![Vec3::zero(); n] });
+            self.active.push(ActiveColumn {
+                column: j,
+                traction_pa,
+                x_m: vec![Vec3::zero(); n],
+            });
         }
         Ok(())
     }
@@ -178,7 +217,11 @@ impl ViscoObject {
 
     /// Current traction on column j (Pa; zero if inactive).
     pub fn traction_pa(&self, j: usize) -> Vec3<f64> {
-        self.active.iter().find(|c| c.column == j).map(|c| c.traction_pa).unwrap_or_else(Vec3::zero)
+        self.active
+            .iter()
+            .find(|c| c.column == j)
+            .map(|c| c.traction_pa)
+            .unwrap_or_else(Vec3::zero)
     }
 
     /// Advances one step of `h` and writes `u_i = Σ_j u_ij` (m) for every
@@ -186,7 +229,11 @@ impl ViscoObject {
     pub fn step(&mut self, h: TimeStep<f64>, out: &mut [Vec3<f64>]) -> Result<()> {
         let n = self.dgfm.len();
         if out.len() != n {
-            return Err(VeError::LengthMismatch { what: "displacement output", got: out.len(), expected: n });
+            return Err(VeError::LengthMismatch {
+                what: "displacement output",
+                got: out.len(),
+                expected: n,
+            });
         }
         out.iter_mut().for_each(|u| *u = Vec3::zero());
         match &self.update {
@@ -194,7 +241,11 @@ impl ViscoObject {
                 for col in &mut self.active {
                     let j = col.column;
                     let (p, q) = (col.traction_pa, params[j]);
-                    for ((u, x), blk) in out.iter_mut().zip(col.x_m.iter_mut()).zip(self.dgfm.xi_column(j)) {
+                    for ((u, x), blk) in out
+                        .iter_mut()
+                        .zip(col.x_m.iter_mut())
+                        .zip(self.dgfm.xi_column(j))
+                    {
                         *u = *u + rayleigh_displacement_step(blk, p, q, h, x);
                     }
                 }
@@ -278,7 +329,15 @@ impl HapticLoop {
     pub fn new(object: ViscoObject) -> Result<Self> {
         let h = TimeStep::new(HAPTIC_PERIOD_S).map_err(|e| VeError::Core(e, "haptic period"))?;
         let n = object.dgfm().len();
-        Ok(HapticLoop { object, h, step_count: 0, frames_emitted: 0, loaded: Vec::with_capacity(3), u: vec![Vec3::zero(); n], frames: Vec::new() })
+        Ok(HapticLoop {
+            object,
+            h,
+            step_count: 0,
+            frames_emitted: 0,
+            loaded: Vec::with_capacity(3),
+            u: vec![Vec3::zero(); n],
+            frames: Vec::new(),
+        })
     }
 
     /// The object.
@@ -297,18 +356,40 @@ impl HapticLoop {
         let mesh = self.object.dgfm().mesh();
         match contact {
             Contact::Vertex(v) if v < mesh.len() => Ok(([(v, 1.0), (0, 0.0), (0, 0.0)], 1)),
-            Contact::Vertex(v) => Err(VeError::VertexNotInTractionSet { vertex: v, n: mesh.len() }),
-            Contact::Triangle { triangle, barycentric } => {
-                let tri = mesh.triangles.get(triangle).ok_or(VeError::InvalidParameter {
-                    name: "triangle",
-                    value: triangle as f64,
-                    reason: "no such triangle",
-                })?;
+            Contact::Vertex(v) => Err(VeError::VertexNotInTractionSet {
+                vertex: v,
+                n: mesh.len(),
+            }),
+            Contact::Triangle {
+                triangle,
+                barycentric,
+            } => {
+                let tri = mesh
+                    .triangles
+                    .get(triangle)
+                    .ok_or(VeError::InvalidParameter {
+                        name: "triangle",
+                        value: triangle as f64,
+                        reason: "no such triangle",
+                    })?;
                 let sum: f64 = barycentric.iter().sum();
-                if !(barycentric.iter().all(|w| w.is_finite() && *w >= 0.0) && (sum - 1.0).abs() < 1e-9) {
-                    return Err(VeError::InvalidParameter { name: "barycentric", value: sum, reason: "weights must be >= 0 and sum to 1" });
+                if !(barycentric.iter().all(|w| w.is_finite() && *w >= 0.0)
+                    && (sum - 1.0).abs() < 1e-9)
+                {
+                    return Err(VeError::InvalidParameter {
+                        name: "barycentric",
+                        value: sum,
+                        reason: "weights must be >= 0 and sum to 1",
+                    });
                 }
-                Ok(([(tri[0], barycentric[0]), (tri[1], barycentric[1]), (tri[2], barycentric[2])], 3))
+                Ok((
+                    [
+                        (tri[0], barycentric[0]),
+                        (tri[1], barycentric[1]),
+                        (tri[2], barycentric[2]),
+                    ],
+                    3,
+                ))
             }
         }
     }
@@ -320,7 +401,11 @@ impl HapticLoop {
         let (weights, count, force) = match contact {
             Some((c, f)) => {
                 if !f.iter().all(|v| v.is_finite()) {
-                    return Err(VeError::InvalidParameter { name: "force_n", value: f64::NAN, reason: "must be finite" });
+                    return Err(VeError::InvalidParameter {
+                        name: "force_n",
+                        value: f64::NAN,
+                        reason: "must be finite",
+                    });
                 }
                 let (w, n) = self.contact_weights(c)?;
                 (w, n, f)
@@ -343,7 +428,8 @@ impl HapticLoop {
             // A contact on Λu pushes on the support: no traction on the object.
             if let Ok(j) = self.object.dgfm().index_of(v) {
                 let alpha = self.object.dgfm().areas_m2()[j];
-                self.object.set_traction(j, Vec3::new(force[0], force[1], force[2]).scale(w / alpha))?;
+                self.object
+                    .set_traction(j, Vec3::new(force[0], force[1], force[2]).scale(w / alpha))?;
             }
         }
         self.object.step(self.h, &mut self.u)?;
@@ -376,7 +462,11 @@ impl HapticLoop {
             displacement_m[v] = self.u[j].0;
             force_n[v] = self.object.traction_pa(j).scale(d.areas_m2()[j]).0;
         }
-        DisplayFrame { time_s, displacement_m, force_n }
+        DisplayFrame {
+            time_s,
+            displacement_m,
+            force_n,
+        }
     }
 }
 
@@ -394,10 +484,21 @@ pub struct ProbeEvent {
 
 /// Runs `events` (sorted by time) on the loop for `duration_s`, returning
 /// every haptic sample.
-pub fn run_script(haptic: &mut HapticLoop, events: &[ProbeEvent], duration_s: f64) -> Result<Vec<HapticSample>> {
+pub fn run_script(
+    haptic: &mut HapticLoop,
+    events: &[ProbeEvent],
+    duration_s: f64,
+) -> Result<Vec<HapticSample>> {
     super::error::check_positive("duration_s", duration_s)?;
-    if events.windows(2).any(|w| w[1].time_s.partial_cmp(&w[0].time_s) != Some(std::cmp::Ordering::Greater)) {
-        return Err(VeError::InvalidParameter { name: "probe events", value: f64::NAN, reason: "event times must be strictly increasing" });
+    if events
+        .windows(2)
+        .any(|w| w[1].time_s.partial_cmp(&w[0].time_s) != Some(std::cmp::Ordering::Greater))
+    {
+        return Err(VeError::InvalidParameter {
+            name: "probe events",
+            value: f64::NAN,
+            reason: "event times must be strictly increasing",
+        });
     }
     let steps = (duration_s / HAPTIC_PERIOD_S).round() as u64;
     let mut samples = Vec::with_capacity(steps as usize);

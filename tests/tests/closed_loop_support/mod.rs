@@ -3,8 +3,8 @@
 #![allow(dead_code)]
 
 use host_tools::scenario::{
-    ControlMode, ControllerSpec, Disturbance, EstimatorMethod, EstimatorSpec, FeedbackKind, JointKind, PlantSpec,
-    Scenario, TargetStep,
+    ControlMode, ControllerSpec, Disturbance, EstimatorMethod, EstimatorSpec, FeedbackKind,
+    JointKind, PlantSpec, Scenario, TargetStep,
 };
 use host_tools::sim::{self, RunOutput, Trace};
 
@@ -25,8 +25,14 @@ pub fn camera_p(kp: f64, target_deg: f64, duration_s: f64, seed: u64) -> Scenari
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 1.0,
         },
-        estimator: EstimatorSpec { method: EstimatorMethod::Paper, calibration: None },
-        targets: vec![TargetStep { t_s: 0.0, deg: vec![target_deg] }],
+        estimator: EstimatorSpec {
+            method: EstimatorMethod::Paper,
+            calibration: None,
+        },
+        targets: vec![TargetStep {
+            t_s: 0.0,
+            deg: vec![target_deg],
+        }],
         disturbances: vec![],
         plant: PlantSpec::default(),
     }
@@ -42,9 +48,18 @@ pub fn wire_2d(target_deg: f64, duration_s: f64, seed: u64) -> Scenario {
         control_period_us: 1000,
         seed,
         feedback: FeedbackKind::Wire,
-        controller: ControllerSpec { mode: ControlMode::Antagonistic, ..ControllerSpec::default() },
-        estimator: EstimatorSpec { method: EstimatorMethod::Paper, calibration: None },
-        targets: vec![TargetStep { t_s: 0.0, deg: vec![target_deg] }],
+        controller: ControllerSpec {
+            mode: ControlMode::Antagonistic,
+            ..ControllerSpec::default()
+        },
+        estimator: EstimatorSpec {
+            method: EstimatorMethod::Paper,
+            calibration: None,
+        },
+        targets: vec![TargetStep {
+            t_s: 0.0,
+            deg: vec![target_deg],
+        }],
         disturbances: vec![],
         plant: PlantSpec::default(),
     }
@@ -52,7 +67,12 @@ pub fn wire_2d(target_deg: f64, duration_s: f64, seed: u64) -> Scenario {
 
 /// Coil `coil` (paper numbering) forced to `volts` from `from_s` to `to_s`.
 pub fn coil_disturbance(coil: usize, volts: f64, from_s: f64, to_s: f64) -> Disturbance {
-    Disturbance::CoilVoltage { coil, volts, from_s, to_s }
+    Disturbance::CoilVoltage {
+        coil,
+        volts,
+        from_s,
+        to_s,
+    }
 }
 
 /// Runs a scenario; a run that errors is a test failure with the reason.
@@ -85,7 +105,12 @@ pub fn err_stats(trace: &Trace, plane: usize, from_s: f64, to_s: f64) -> ErrStat
     let mean = errs.iter().sum::<f64>() / errs.len() as f64;
     let min = errs.iter().copied().fold(f64::INFINITY, f64::min);
     let max = errs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    ErrStats { mean, min, max, max_abs: min.abs().max(max.abs()) }
+    ErrStats {
+        mean,
+        min,
+        max,
+        max_abs: min.abs().max(max.abs()),
+    }
 }
 
 /// Same as [`err_stats`] for the controller's estimate (what it regulates).
@@ -100,7 +125,12 @@ pub fn estimate_err_stats(trace: &Trace, plane: usize, from_s: f64, to_s: f64) -
     let mean = errs.iter().sum::<f64>() / errs.len() as f64;
     let min = errs.iter().copied().fold(f64::INFINITY, f64::min);
     let max = errs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    ErrStats { mean, min, max, max_abs: min.abs().max(max.abs()) }
+    ErrStats {
+        mean,
+        min,
+        max,
+        max_abs: min.abs().max(max.abs()),
+    }
 }
 
 /// Peak-to-peak of the true angle `plane` over `[from_s, to_s)` (deg).
@@ -113,11 +143,21 @@ pub fn peak_to_peak(trace: &Trace, plane: usize, from_s: f64, to_s: f64) -> f64 
 /// `[from_s, to_s)`, counting a reversal only once the angle has come back
 /// by more than `hysteresis_deg` from its last extreme (so quantisation and
 /// noise do not count; a full oscillation period is two reversals).
-pub fn reversals(trace: &Trace, plane: usize, hysteresis_deg: f64, from_s: f64, to_s: f64) -> usize {
+pub fn reversals(
+    trace: &Trace,
+    plane: usize,
+    hysteresis_deg: f64,
+    from_s: f64,
+    to_s: f64,
+) -> usize {
     let mut n = 0;
     let mut dir = 0i8;
     let mut extreme: Option<f64> = None;
-    for r in trace.rows.iter().filter(|r| r.t_s >= from_s && r.t_s < to_s) {
+    for r in trace
+        .rows
+        .iter()
+        .filter(|r| r.t_s >= from_s && r.t_s < to_s)
+    {
         let x = r.true_deg[plane];
         let Some(ext) = extreme.as_mut() else {
             extreme = Some(x);
