@@ -103,11 +103,6 @@ impl App {
         self.outputs
     }
 
-    /// Link counters.
-    pub fn link_stats(&self) -> LinkStats {
-        self.decoder.stats()
-    }
-
     /// The joint (read-only).
     pub fn joint(&self) -> &Joint3d {
         &self.joint
@@ -195,10 +190,6 @@ impl App {
         }
     }
 
-    fn plane_ok(plane: u8) -> bool {
-        plane < 2
-    }
-
     /// Handles one decoded message; returns the reply, if any.
     pub fn handle(&mut self, msg: Message, now_ms: u32) -> Option<Message> {
         let request = msg.kind();
@@ -253,21 +244,17 @@ impl App {
                 {
                     return err(ErrorCode::NotFinite);
                 }
-                if !Self::plane_ok(plane) {
-                    return err(ErrorCode::OutOfRange);
-                }
-                match PairGains::new(kp_agonist, kp_antagonist, ki, integral_limit_v) {
-                    Ok(g) => match self.joint.set_gains(usize::from(plane), g) {
-                        Ok(()) => ack,
-                        Err(_) => err(ErrorCode::OutOfRange),
-                    },
+                // Bad gains and a plane the joint does not have are both
+                // out of range; the joint owns the plane check.
+                let set = PairGains::new(kp_agonist, kp_antagonist, ki, integral_limit_v)
+                    .map_err(crate::joint::ConfigError::from)
+                    .and_then(|g| self.joint.set_gains(usize::from(plane), g));
+                match set {
+                    Ok(()) => ack,
                     Err(_) => err(ErrorCode::OutOfRange),
                 }
             }
             Message::SetCalibration { plane, law } => {
-                if !Self::plane_ok(plane) {
-                    return err(ErrorCode::OutOfRange);
-                }
                 match self.joint.set_law(usize::from(plane), law) {
                     Ok(()) => ack,
                     Err(crate::joint::ConfigError::Calibration(

@@ -22,7 +22,7 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 use embedded_hal::pwm::{ErrorKind, ErrorType, SetDutyCycle};
-use firmware::control::{DriverConfig, PairCommand, PairDriver};
+use firmware::control::{DriverConfig, PairDriver};
 use firmware::joint::{Feedback, JointController, StepInput, StepOutput};
 use firmware::protocol::millivolt_full_scale;
 use firmware::sensor::{WireSensor, WireSensorError};
@@ -455,23 +455,6 @@ where
             faults: out.faults.bits(),
         })
     }
-}
-
-/// Converts the paper's pair commands to coil voltages (paper numbering).
-pub fn commands_to_coil_volts<const P: usize, const C: usize>(
-    commands: &[PairCommand; P],
-) -> [f64; C] {
-    let mut v = [0.0; C];
-    for (p, c) in commands.iter().enumerate() {
-        let [a, b] = c.coil_volts();
-        if let Some(slot) = v.get_mut(coil_index::<P>(p, false)) {
-            *slot = f64::from(a);
-        }
-        if let Some(slot) = v.get_mut(coil_index::<P>(p, true)) {
-            *slot = f64::from(b);
-        }
-    }
-    v
 }
 
 #[cfg(test)]

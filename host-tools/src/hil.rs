@@ -203,7 +203,6 @@ pub fn run<P: Port>(
                 .with_context(|| format!("setting the target at t = {t:.3} s"))?;
             }
         }
-        let target = s.target_at(t);
         let mut overrides = [None; 4];
         disturber.apply(s, t, &mut overrides, |a, id| {
             sim::load_3d(&mut plant, a, id)
@@ -262,7 +261,7 @@ pub fn run<P: Port>(
             t_s: t,
             true_deg,
             estimate_deg: estimate_cdeg.map(|c| f64::from(cdeg_to_deg(c))),
-            desired_deg: [target[0], target[1]],
+            desired_deg: [targets.current()[0], targets.current()[1]],
             coil_volts: volts,
             faults: u16::from(faults),
         });

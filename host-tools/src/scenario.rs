@@ -425,6 +425,11 @@ impl TargetTracker {
         self.current = target.to_vec();
         Some(target)
     }
+
+    /// The targets last returned by [`Self::changed`].
+    pub fn current(&self) -> &[f64] {
+        &self.current
+    }
 }
 
 #[cfg(test)]

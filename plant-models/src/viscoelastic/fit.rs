@@ -250,6 +250,25 @@ fn model(k1: f64, k2: f64, b: f64) -> Result<ThreeElement<f64>> {
     ThreeElement::new(k1, k2, b).map_err(|e| VeError::Core(e, "3-element parameters k1, k2, b"))
 }
 
+/// Runs the 1D model over a series: `first` gives the output at the first
+/// sample (the instantaneous response), `step` each later one.
+fn run_series(
+    time_s: &[f64],
+    input: &[f64],
+    first: f64,
+    mut step: impl FnMut(&mut ThreeElementState<f64>, f64, TimeStep<f64>) -> f64,
+) -> Result<Vec<f64>> {
+    let mut s = ThreeElementState::default();
+    let mut out = Vec::with_capacity(time_s.len());
+    out.push(first);
+    for k in 1..time_s.len() {
+        let h =
+            TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
+        out.push(step(&mut s, input[k], h));
+    }
+    Ok(out)
+}
+
 /// Force (N) of the 1D model for a displacement series (m) at times (s).
 pub fn simulate_force(
     k1_n_per_m: f64,
@@ -260,15 +279,12 @@ pub fn simulate_force(
 ) -> Result<Vec<f64>> {
     check_series(time_s, displacement_m, "displacement")?;
     let m = model(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
-    let mut s = ThreeElementState::default();
-    let mut out = Vec::with_capacity(time_s.len());
-    out.push(m.k2() * displacement_m[0]);
-    for k in 1..time_s.len() {
-        let h =
-            TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
-        out.push(m.step_force(&mut s, displacement_m[k], h));
-    }
-    Ok(out)
+    run_series(
+        time_s,
+        displacement_m,
+        m.k2() * displacement_m[0],
+        |s, u, h| m.step_force(s, u, h),
+    )
 }
 
 /// Displacement (m) of the 1D model for a force series (N) at times (s).
@@ -281,15 +297,9 @@ pub fn simulate_displacement(
 ) -> Result<Vec<f64>> {
     check_series(time_s, force_n, "force")?;
     let m = model(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
-    let mut s = ThreeElementState::default();
-    let mut out = Vec::with_capacity(time_s.len());
-    out.push(force_n[0] / m.k2());
-    for k in 1..time_s.len() {
-        let h =
-            TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
-        out.push(m.step_displacement(&mut s, force_n[k], h));
-    }
-    Ok(out)
+    run_series(time_s, force_n, force_n[0] / m.k2(), |s, f, h| {
+        m.step_displacement(s, f, h)
+    })
 }
 
 /// Fitted 1D parameters of one trial.

@@ -6,7 +6,7 @@ use host_tools::scenario::{
     ControlMode, ControllerSpec, Disturbance, EstimatorMethod, EstimatorSpec, FeedbackKind,
     JointKind, PlantSpec, Scenario, TargetStep,
 };
-use host_tools::sim::{self, RunOutput, Trace};
+use host_tools::sim::{self, Row, RunOutput, Trace};
 
 /// The paper's visual-feedback experiment (§III-B, Eq. 1): 2D joint, camera
 /// feedback, one actuator (coil 2 unpowered, a bias spring), gain `kp`,
@@ -93,13 +93,19 @@ pub struct ErrStats {
     pub max_abs: f64,
 }
 
-/// Error statistics of the true angle `plane` against its desired angle.
-pub fn err_stats(trace: &Trace, plane: usize, from_s: f64, to_s: f64) -> ErrStats {
+/// Statistics of `angle(row) − desired` over `[from_s, to_s)`.
+fn stats_of(
+    trace: &Trace,
+    plane: usize,
+    from_s: f64,
+    to_s: f64,
+    angle: impl Fn(&Row) -> f64,
+) -> ErrStats {
     let errs: Vec<f64> = trace
         .rows
         .iter()
         .filter(|r| r.t_s >= from_s && r.t_s < to_s)
-        .map(|r| r.true_deg[plane] - r.desired_deg[plane])
+        .map(|r| angle(r) - r.desired_deg[plane])
         .collect();
     assert!(!errs.is_empty(), "no samples in [{from_s}, {to_s})");
     let mean = errs.iter().sum::<f64>() / errs.len() as f64;
@@ -113,24 +119,14 @@ pub fn err_stats(trace: &Trace, plane: usize, from_s: f64, to_s: f64) -> ErrStat
     }
 }
 
+/// Error statistics of the true angle `plane` against its desired angle.
+pub fn err_stats(trace: &Trace, plane: usize, from_s: f64, to_s: f64) -> ErrStats {
+    stats_of(trace, plane, from_s, to_s, |r| r.true_deg[plane])
+}
+
 /// Same as [`err_stats`] for the controller's estimate (what it regulates).
 pub fn estimate_err_stats(trace: &Trace, plane: usize, from_s: f64, to_s: f64) -> ErrStats {
-    let errs: Vec<f64> = trace
-        .rows
-        .iter()
-        .filter(|r| r.t_s >= from_s && r.t_s < to_s)
-        .map(|r| r.estimate_deg[plane] - r.desired_deg[plane])
-        .collect();
-    assert!(!errs.is_empty(), "no samples in [{from_s}, {to_s})");
-    let mean = errs.iter().sum::<f64>() / errs.len() as f64;
-    let min = errs.iter().copied().fold(f64::INFINITY, f64::min);
-    let max = errs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    ErrStats {
-        mean,
-        min,
-        max,
-        max_abs: min.abs().max(max.abs()),
-    }
+    stats_of(trace, plane, from_s, to_s, |r| r.estimate_deg[plane])
 }
 
 /// Peak-to-peak of the true angle `plane` over `[from_s, to_s)` (deg).
