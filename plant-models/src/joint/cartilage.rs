@@ -22,7 +22,7 @@
 //! no bending of the sponge as a plate), large-strain stiffening of the foam
 //! and contact/lift-off (the sponge is glued, as in the paper).
 
-use firmware::viscoelastic::{ThreeElement, ThreeElementState, TimeStep};
+use firmware::viscoelastic::{ThreeElement, TimeStep};
 use serde::{Deserialize, Serialize};
 
 use super::{check_positive, PlantError};
@@ -98,21 +98,58 @@ impl CartilageParams {
     }
 }
 
-#[derive(Clone, Debug)]
-struct Column {
-    /// Lateral position on the link base (m), link frame.
-    s_m: f64,
-    normal: ThreeElement<f64>,
-    shear: ThreeElement<f64>,
-    xn: ThreeElementState<f64>,
-    xt: ThreeElementState<f64>,
+/// The shear and normal 3-element models' updates for a fixed step `h`,
+/// precomputed (index 0 shear, 1 normal). [`ThreeElement::step_force`] is
+/// `x' = (k2 u + (b/h) x)/(k1 + k2 + b/h)`, `f = k2 (u − x')`, and `b/h`
+/// and the denominator only change with `h`. Computed with the same
+/// operations in the same order, so the result is bit-identical to
+/// `step_force`, with one division per model and step instead of two; the
+/// pair layout lets both models of a column share one SIMD division.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct FixedStep {
+    k2: [f64; 2],
+    b_over_h: [f64; 2],
+    denominator: [f64; 2],
 }
 
-/// The sponge's state: its columns.
+impl FixedStep {
+    fn new(models: [&ThreeElement<f64>; 2], h: TimeStep<f64>) -> Self {
+        let b_over_h = models.map(|e| e.b() / h.seconds());
+        Self {
+            k2: models.map(ThreeElement::k2),
+            b_over_h,
+            denominator: [0, 1].map(|i| models[i].k1() + models[i].k2() + b_over_h[i]),
+        }
+    }
+
+    /// The force of each model for displacements `u`, advancing the states
+    /// `x` (as `ThreeElement::step_force` for the step this was built for).
+    #[inline(always)]
+    fn step_force(&self, x: &mut [f64; 2], u: [f64; 2]) -> [f64; 2] {
+        let mut f = [0.0; 2];
+        for i in 0..2 {
+            x[i] = (self.k2[i] * u[i] + self.b_over_h[i] * x[i]) / self.denominator[i];
+            f[i] = self.k2[i] * (u[i] - x[i]);
+        }
+        f
+    }
+}
+
+/// The sponge's state: its columns. Every column has the same normal and
+/// shear models (equal widths), so they are stored once; the columns keep
+/// only their position and their two dashpot states.
 #[derive(Clone, Debug)]
 pub struct Cartilage {
     params: CartilageParams,
-    columns: Vec<Column>,
+    shear: ThreeElement<f64>,
+    normal: ThreeElement<f64>,
+    /// Lateral position of each column on the link base (m), link frame.
+    s_m: Vec<f64>,
+    /// Dashpot displacement of each column, [shear, normal] (m).
+    x: Vec<[f64; 2]>,
+    /// Step `fixed` is for (s; 0 = none yet).
+    cached_h_s: f64,
+    fixed: FixedStep,
 }
 
 /// Force (N) and clockwise torque about the link-base origin (N·m) on the
@@ -139,18 +176,18 @@ impl Cartilage {
             ThreeElement::from_ratio(k, params.stiffness_ratio, params.rayleigh_damping_s)
                 .map_err(|e| PlantError::param("cartilage", &format!("{e:?}")))
         };
-        let mut columns = Vec::with_capacity(n);
-        for i in 0..n {
-            let s_m = -0.5 * params.width_m + (i as f64 + 0.5) * params.width_m / n as f64;
-            columns.push(Column {
-                s_m,
-                normal: mk(kn)?,
-                shear: mk(kt)?,
-                xn: ThreeElementState::default(),
-                xt: ThreeElementState::default(),
-            });
-        }
-        Ok(Self { params, columns })
+        let s_m = (0..n)
+            .map(|i| -0.5 * params.width_m + (i as f64 + 0.5) * params.width_m / n as f64)
+            .collect();
+        Ok(Self {
+            normal: mk(kn)?,
+            shear: mk(kt)?,
+            s_m,
+            x: vec![[0.0; 2]; n],
+            cached_h_s: 0.0,
+            fixed: FixedStep::default(),
+            params,
+        })
     }
 
     /// Parameters.
@@ -164,15 +201,19 @@ impl Cartilage {
     /// Eq. 7–8), so this part is unconditionally stable.
     #[inline]
     pub fn step(&mut self, h: TimeStep<f64>, x: f64, y: f64, sin_t: f64, cos_t: f64) -> Wrench {
+        if h.seconds() != self.cached_h_s {
+            self.cached_h_s = h.seconds();
+            self.fixed = FixedStep::new([&self.shear, &self.normal], h);
+        }
+        let fixed = self.fixed;
         let mut w = Wrench::default();
-        for c in self.columns.iter_mut() {
+        for (&s_m, state) in self.s_m.iter().zip(&mut self.x) {
             // Glued point (s, 0) in the link frame → world offset r from p.
-            let rx = c.s_m * cos_t;
-            let ry = -c.s_m * sin_t;
-            let ux = x + rx - c.s_m;
+            let rx = s_m * cos_t;
+            let ry = -s_m * sin_t;
+            let ux = x + rx - s_m;
             let uy = y + ry;
-            let ft = -c.shear.step_force(&mut c.xt, ux, h);
-            let fnn = -c.normal.step_force(&mut c.xn, uy, h);
+            let [ft, fnn] = fixed.step_force(state, [ux, uy]).map(|f| -f);
             w.fx_n += ft;
             w.fy_n += fnn;
             w.torque_cw_nm += ry * ft - rx * fnn;
@@ -182,10 +223,7 @@ impl Cartilage {
 
     /// Resets the viscous states (unloaded sponge).
     pub fn reset(&mut self) {
-        for c in self.columns.iter_mut() {
-            c.xn = ThreeElementState::default();
-            c.xt = ThreeElementState::default();
-        }
+        self.x.fill([0.0; 2]);
     }
 }
 
@@ -224,6 +262,39 @@ mod tests {
             "{} vs {expect}",
             w.torque_cw_nm
         );
+    }
+
+    #[test]
+    fn precomputed_update_is_bit_identical_to_step_force() {
+        use firmware::viscoelastic::ThreeElementState;
+        let p = CartilageParams::default();
+        let mut c = Cartilage::new(p.clone()).unwrap();
+        let n = p.columns;
+        let area = p.width_m / n as f64 * p.depth_m;
+        let kn = p.youngs_modulus_pa * area / p.thickness_m;
+        let mk = |k: f64| ThreeElement::from_ratio(k, p.stiffness_ratio, p.rayleigh_damping_s);
+        let (normal, shear) = (mk(kn).unwrap(), mk(kn * p.shear_fraction).unwrap());
+        let mut xn = vec![ThreeElementState::default(); n];
+        let mut xt = vec![ThreeElementState::default(); n];
+        for k in 0..500 {
+            // The step changes now and then (the cache must follow it).
+            let h = TimeStep::new(if k % 100 < 50 { 1e-3 } else { 0.25e-3 }).unwrap();
+            let t = k as f64 * 1e-3;
+            let (x, y, th) = (1e-4 * t.sin(), -2e-4 * t, 0.2 * (3.0 * t).sin());
+            let (sn, cs) = th.sin_cos();
+            let got = c.step(h, x, y, sn, cs);
+            let mut want = Wrench::default();
+            for i in 0..n {
+                let s_m = c.s_m[i];
+                let (rx, ry) = (s_m * cs, -s_m * sn);
+                let ft = -shear.step_force(&mut xt[i], x + rx - s_m, h);
+                let fnn = -normal.step_force(&mut xn[i], y + ry, h);
+                want.fx_n += ft;
+                want.fy_n += fnn;
+                want.torque_cw_nm += ry * ft - rx * fnn;
+            }
+            assert_eq!(got, want, "step {k}");
+        }
     }
 
     #[test]
