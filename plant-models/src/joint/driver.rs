@@ -75,6 +75,11 @@ impl DriverParams {
     #[inline]
     pub fn current_a(&self, input_v: f64, coil_ohm: f64) -> f64 {
         let linear = self.transconductance_a_v * (input_v - self.turn_on_v);
+        if linear < 0.0 {
+            // Below turn-on the clamp gives 0 whatever the limit: skip the
+            // saturation current's division.
+            return 0.0;
+        }
         let limit = self.max_current_a.min(self.saturation_current_a(coil_ohm));
         linear.clamp(0.0, limit)
     }

@@ -207,57 +207,91 @@ impl SmaParams {
         rho * self.wire_length_m / self.wire_area_m2()
     }
 
+    /// The constants of [`Self::phase_update`]'s two cosine branches.
+    fn phase_shape(&self) -> PhaseShape {
+        PhaseShape {
+            heat_scale: core::f64::consts::PI / (self.austenite_finish_c - self.austenite_start_c),
+            cool_scale: core::f64::consts::PI
+                / (self.martensite_start_c - self.martensite_finish_c),
+        }
+    }
+
     /// Heating-branch shape g_A(T): 1 below A_s, 0 above A_f.
-    fn g_heat(&self, t: f64) -> f64 {
+    fn g_heat(&self, shape: &PhaseShape, t: f64) -> f64 {
         if t <= self.austenite_start_c {
             1.0
         } else if t >= self.austenite_finish_c {
             0.0
         } else {
-            let a = core::f64::consts::PI / (self.austenite_finish_c - self.austenite_start_c);
-            0.5 * (1.0 + (a * (t - self.austenite_start_c)).cos())
+            0.5 * (1.0 + (shape.heat_scale * (t - self.austenite_start_c)).cos())
         }
     }
 
     /// Cooling-branch shape g_M(T): 1 above M_s, 0 below M_f.
-    fn g_cool(&self, t: f64) -> f64 {
+    fn g_cool(&self, shape: &PhaseShape, t: f64) -> f64 {
         if t >= self.martensite_start_c {
             1.0
         } else if t <= self.martensite_finish_c {
             0.0
         } else {
-            let a = core::f64::consts::PI / (self.martensite_start_c - self.martensite_finish_c);
-            0.5 * (1.0 - (a * (t - self.martensite_finish_c)).cos())
+            0.5 * (1.0 - (shape.cool_scale * (t - self.martensite_finish_c)).cos())
         }
     }
 
     /// One Liang–Rogers phase update from (`t_old`, `xi_old`) to `t_new`.
     pub fn phase_update(&self, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
+        self.phase_update_with(&self.phase_shape(), t_old, xi_old, t_new)
+    }
+
+    /// [`Self::phase_update`] with the branch constants already computed.
+    /// Outside the transformation bands both shapes are 1, and the update
+    /// is evaluated without the divisions and cosines that would give 1/1:
+    /// same operations on the same values otherwise, so the result is
+    /// bit-identical.
+    #[inline]
+    fn phase_update_with(&self, shape: &PhaseShape, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
         if t_new > t_old {
             if t_new >= self.austenite_finish_c {
                 return 0.0;
             }
-            let g_old = self.g_heat(t_old);
+            if t_new <= self.austenite_start_c {
+                // g_A(t_old) = g_A(t_new) = 1: ξ·1/1 = ξ.
+                return xi_old.min(xi_old).clamp(0.0, 1.0);
+            }
+            let g_old = self.g_heat(shape, t_old);
             if g_old <= 0.0 {
                 return xi_old;
             }
-            (xi_old * self.g_heat(t_new) / g_old)
+            (xi_old * self.g_heat(shape, t_new) / g_old)
                 .min(xi_old)
                 .clamp(0.0, 1.0)
         } else if t_new < t_old {
             if t_new <= self.martensite_finish_c {
                 return 1.0;
             }
-            let g_old = self.g_cool(t_old);
+            if t_new >= self.martensite_start_c {
+                // g_M(t_old) = g_M(t_new) = 1: (1 − ξ)·1/1 = 1 − ξ.
+                let aus = (1.0 - xi_old).min(1.0 - xi_old);
+                return (1.0 - aus).clamp(0.0, 1.0);
+            }
+            let g_old = self.g_cool(shape, t_old);
             if g_old <= 0.0 {
                 return xi_old;
             }
-            let aus = ((1.0 - xi_old) * self.g_cool(t_new) / g_old).min(1.0 - xi_old);
+            let aus = ((1.0 - xi_old) * self.g_cool(shape, t_new) / g_old).min(1.0 - xi_old);
             (1.0 - aus).clamp(0.0, 1.0)
         } else {
             xi_old
         }
     }
+}
+
+/// Constants of the phase law's cosine branches, π/(A_f − A_s) and
+/// π/(M_s − M_f).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PhaseShape {
+    heat_scale: f64,
+    cool_scale: f64,
 }
 
 /// State of one coil.
@@ -268,6 +302,7 @@ pub struct SmaCoil {
     conductance_w_k: f64,
     resistance_martensite_ohm: f64,
     resistance_austenite_ohm: f64,
+    phase_shape: PhaseShape,
     cached_dt_s: f64,
     cached_decay: f64,
     temperature_c: f64,
@@ -293,6 +328,7 @@ impl SmaCoil {
             conductance_w_k: params.conductance_w_k(),
             resistance_martensite_ohm: params.resistance_ohm(1.0),
             resistance_austenite_ohm: params.resistance_ohm(0.0),
+            phase_shape: params.phase_shape(),
             cached_dt_s: 0.0,
             cached_decay: 1.0,
             temperature_c: t,
@@ -382,15 +418,28 @@ impl SmaCoil {
         }
         self.current_a = current_a;
         let power_w = current_a * current_a * self.resistance_ohm();
-        let t_eq = self.params.ambient_c + power_w / self.conductance_w_k;
+        // An idle coil (the usual case for one coil of a pair) has
+        // power_w = +0 and power_w / G = +0 exactly; skip the division.
+        let heating_k = if power_w == 0.0 {
+            0.0
+        } else {
+            power_w / self.conductance_w_k
+        };
+        let t_eq = self.params.ambient_c + heating_k;
         let t_old = self.temperature_c;
         let mut t_new = t_eq + (t_old - t_eq) * self.cached_decay;
         if !freeze_phase {
             let xi_old = self.martensite_fraction;
-            let xi_new = self.params.phase_update(t_old, xi_old, t_new);
+            let xi_new = self
+                .params
+                .phase_update_with(&self.phase_shape, t_old, xi_old, t_new);
             // Latent heat: m ΔH dξ — M→A (ξ falls) absorbs, A→M releases.
-            t_new +=
-                self.params.latent_heat_j_kg * (xi_new - xi_old) / self.params.specific_heat_j_kg_k;
+            // With ξ unchanged the term is +0 exactly (no division needed).
+            t_new += if xi_new == xi_old {
+                0.0
+            } else {
+                self.params.latent_heat_j_kg * (xi_new - xi_old) / self.params.specific_heat_j_kg_k
+            };
             self.martensite_fraction = xi_new;
         }
         self.temperature_c = t_new;
@@ -459,6 +508,80 @@ mod tests {
             t += 0.1;
         }
         assert!((xs - p.phase_update(47.0, xi3, t)).abs() < 1e-9);
+    }
+
+    /// The phase law as first written (no fast paths, constants per call).
+    fn phase_update_reference(p: &SmaParams, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
+        let pi = core::f64::consts::PI;
+        let g_heat = |t: f64| {
+            if t <= p.austenite_start_c {
+                1.0
+            } else if t >= p.austenite_finish_c {
+                0.0
+            } else {
+                let a = pi / (p.austenite_finish_c - p.austenite_start_c);
+                0.5 * (1.0 + (a * (t - p.austenite_start_c)).cos())
+            }
+        };
+        let g_cool = |t: f64| {
+            if t >= p.martensite_start_c {
+                1.0
+            } else if t <= p.martensite_finish_c {
+                0.0
+            } else {
+                let a = pi / (p.martensite_start_c - p.martensite_finish_c);
+                0.5 * (1.0 - (a * (t - p.martensite_finish_c)).cos())
+            }
+        };
+        if t_new > t_old {
+            if t_new >= p.austenite_finish_c {
+                return 0.0;
+            }
+            let g_old = g_heat(t_old);
+            if g_old <= 0.0 {
+                return xi_old;
+            }
+            (xi_old * g_heat(t_new) / g_old).min(xi_old).clamp(0.0, 1.0)
+        } else if t_new < t_old {
+            if t_new <= p.martensite_finish_c {
+                return 1.0;
+            }
+            let g_old = g_cool(t_old);
+            if g_old <= 0.0 {
+                return xi_old;
+            }
+            let aus = ((1.0 - xi_old) * g_cool(t_new) / g_old).min(1.0 - xi_old);
+            (1.0 - aus).clamp(0.0, 1.0)
+        } else {
+            xi_old
+        }
+    }
+
+    #[test]
+    fn phase_update_fast_paths_are_bit_identical() {
+        let p = SmaParams::default();
+        let temps: Vec<f64> = (0..=600).map(|k| 20.0 + k as f64 * 0.1 + 1e-3).collect();
+        let xis = [
+            0.0,
+            1e-17,
+            0.1,
+            0.3,
+            1.0 / 3.0,
+            0.5,
+            0.7,
+            0.9,
+            1.0 - 1e-16,
+            1.0,
+        ];
+        for &xi in &xis {
+            for (i, &a) in temps.iter().enumerate() {
+                for &b in temps[i.saturating_sub(40)..(i + 40).min(temps.len())].iter() {
+                    let fast = p.phase_update(a, xi, b);
+                    let reference = phase_update_reference(&p, a, xi, b);
+                    assert_eq!(fast.to_bits(), reference.to_bits(), "{a} → {b}, ξ = {xi}");
+                }
+            }
+        }
     }
 
     #[test]
