@@ -110,6 +110,10 @@ pub struct Camera {
     latest: Option<CameraFrame>,
     fresh: bool,
     two_angles: bool,
+    /// Earliest `available_time_s` of a queued frame not yet published
+    /// (∞ if none): with no capture due before it, `update` has nothing to
+    /// do (see [`Camera::is_due`]).
+    pending_available_s: f64,
 }
 
 impl Camera {
@@ -125,6 +129,7 @@ impl Camera {
             latest: None,
             fresh: false,
             two_angles,
+            pending_available_s: f64::INFINITY,
         })
     }
 
@@ -187,6 +192,24 @@ impl Camera {
                 self.fresh = true;
             }
         }
+        let published = self.latest.map(|l| l.index);
+        self.pending_available_s = self
+            .queue
+            .iter()
+            .flatten()
+            .filter(|f| published.is_none_or(|i| f.index > i))
+            .map(|f| f.available_time_s)
+            .fold(f64::INFINITY, f64::min);
+    }
+
+    /// Whether [`Self::update`] at `t_s` would capture or publish a frame.
+    /// When it would not, the update leaves the camera (and its noise
+    /// stream) untouched, so a caller may skip it — and skip computing the
+    /// measurement it would be given.
+    #[inline]
+    pub fn is_due(&self, t_s: f64) -> bool {
+        let eps = 1e-9;
+        self.next_index as f64 * self.period_s <= t_s + eps || self.pending_available_s <= t_s + eps
     }
 
     /// The newest available frame (occluded or not), if any.
@@ -243,6 +266,31 @@ mod tests {
             .map(|(_, f)| f.index)
             .collect();
         assert_eq!(occluded, vec![15, 16, 17]);
+    }
+
+    #[test]
+    fn skipping_updates_that_are_not_due_changes_nothing() {
+        let p = CameraParams {
+            occlusions_s: vec![[0.5, 0.6]],
+            latency_frames: 2,
+            ..CameraParams::default()
+        };
+        let mut every = Camera::new(p.clone(), true).unwrap();
+        let mut skipping = Camera::new(p, true).unwrap();
+        let (mut rng_a, mut rng_b) = (ChaCha8Rng::seed_from_u64(5), ChaCha8Rng::seed_from_u64(5));
+        let mut skipped = 0;
+        for k in 0..=3000 {
+            let t = k as f64 * 1e-3;
+            let m = ([t, -t], [0.1 * t, 27.0]);
+            every.update(t, m.0, m.1, &mut rng_a);
+            if skipping.is_due(t) {
+                skipping.update(t, m.0, m.1, &mut rng_b);
+            } else {
+                skipped += 1;
+            }
+            assert_eq!(every.take_new(), skipping.take_new(), "t = {t}");
+        }
+        assert!(skipped > 2800, "{skipped}");
     }
 
     #[test]

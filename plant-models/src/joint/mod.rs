@@ -229,6 +229,32 @@ impl SimParams {
     }
 }
 
+/// The last `SimParams::split` answer: a closed loop steps by the same
+/// `dt` every period, and the split (a division and a `ceil`, a libm call
+/// on baseline x86-64) is a pure function of `dt` and the substep.
+#[derive(Clone, Copy, Debug, Default)]
+struct SplitCache {
+    dt_s: f64,
+    split: Option<(usize, TimeStep<f64>)>,
+}
+
+impl SplitCache {
+    #[inline]
+    fn get(&mut self, sim: &SimParams, dt_s: f64) -> Result<(usize, TimeStep<f64>), PlantError> {
+        match self.split {
+            Some(hit) if self.dt_s == dt_s => Ok(hit),
+            _ => {
+                let split = sim.split(dt_s)?;
+                *self = Self {
+                    dt_s,
+                    split: Some(split),
+                };
+                Ok(split)
+            }
+        }
+    }
+}
+
 fn check_inputs<const N: usize>(v: &[f64]) -> Result<[f64; N], PlantError> {
     if v.len() != N {
         return Err(PlantError::InputLength {
@@ -305,6 +331,7 @@ pub struct Joint2d {
     rng_wire: ChaCha8Rng,
     rng_camera: ChaCha8Rng,
     time_s: f64,
+    split: SplitCache,
 }
 
 impl Joint2d {
@@ -337,6 +364,7 @@ impl Joint2d {
             rng_wire: rng_stream(seed, 1),
             rng_camera: rng_stream(seed, 0),
             time_s: 0.0,
+            split: SplitCache::default(),
             params,
         };
         j.observe();
@@ -344,6 +372,9 @@ impl Joint2d {
     }
 
     fn observe(&mut self) {
+        if !self.camera.is_due(self.time_s) {
+            return;
+        }
         let th = self.plane.angle_rad().to_degrees();
         let e = self.plane.end_m();
         self.camera.update(
@@ -357,7 +388,7 @@ impl Joint2d {
     /// Advances by `dt_s` with driver input voltages `[v1, v2]` held.
     pub fn step(&mut self, dt_s: f64, coil_input_volts: &[f64]) -> Result<(), PlantError> {
         let v: [f64; 2] = check_inputs(coil_input_volts)?;
-        let (n, h) = self.params.sim.split(dt_s)?;
+        let (n, h) = self.split.get(&self.params.sim, dt_s)?;
         for _ in 0..n {
             self.plane.substep(h, v);
             self.plane
@@ -528,6 +559,7 @@ pub struct Joint3d {
     rng_wires: [ChaCha8Rng; 4],
     rng_camera: ChaCha8Rng,
     time_s: f64,
+    split: SplitCache,
 }
 
 /// Plane index (0 = α, 1 = β) of 3D sensor/coil `k` (0-based, paper's k+1).
@@ -573,6 +605,7 @@ impl Joint3d {
             rng_wires: core::array::from_fn(|k| rng_stream(seed, 1 + k as u64)),
             rng_camera: rng_stream(seed, 0),
             time_s: 0.0,
+            split: SplitCache::default(),
             params,
         };
         j.observe();
@@ -580,6 +613,9 @@ impl Joint3d {
     }
 
     fn observe(&mut self) {
+        if !self.camera.is_due(self.time_s) {
+            return;
+        }
         let a = self.angles_deg();
         let e = self.planes[0].end_m();
         self.camera.update(
@@ -594,7 +630,7 @@ impl Joint3d {
     /// paper's coil numbering: 1 raises α, 3 lowers α, 2 raises β, 4 lowers β.
     pub fn step(&mut self, dt_s: f64, coil_input_volts: &[f64]) -> Result<(), PlantError> {
         let v: [f64; 4] = check_inputs(coil_input_volts)?;
-        let (n, h) = self.params.sim.split(dt_s)?;
+        let (n, h) = self.split.get(&self.params.sim, dt_s)?;
         let plane_inputs = [[v[0], v[2]], [v[1], v[3]]];
         let names = ["alpha", "beta"];
         for _ in 0..n {
@@ -602,16 +638,19 @@ impl Joint3d {
                 p.substep(h, vin);
                 p.check(name, self.params.sim.max_kinetic_energy_j)?;
             }
+            // Each plane's pose once for its two wires.
+            let poses = self.planes.each_ref().map(|p| {
+                let b = p.base_m();
+                (1e3 * b[0], 1e3 * b[1], p.sin_cos())
+            });
             for (k, (w, rng)) in self
                 .wires
                 .iter_mut()
                 .zip(self.rng_wires.iter_mut())
                 .enumerate()
             {
-                let p = &self.planes[PLANE_OF[k]];
-                let b = p.base_m();
-                let (sn, cs) = p.sin_cos();
-                w.update_sin_cos(1e3 * b[0], 1e3 * b[1], sn, cs, rng);
+                let (x, y, (sn, cs)) = poses[PLANE_OF[k]];
+                w.update_sin_cos(x, y, sn, cs, rng);
             }
         }
         self.time_s += dt_s;
