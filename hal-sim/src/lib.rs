@@ -429,8 +429,13 @@ where
     /// Advances the plant one control period with the current outputs.
     pub fn advance(&mut self) -> Result<(), LoopError> {
         let v = self.coil_volts();
+        self.advance_with(&v)
+    }
+
+    /// [`Self::advance`] with the voltages already read.
+    fn advance_with(&mut self, v: &[f64; C]) -> Result<(), LoopError> {
         let dt = self.period_s();
-        self.plant.advance(dt, &v)?;
+        self.plant.advance(dt, v)?;
         for (s, c) in self.sensors.iter().zip(self.plant.counts()) {
             s.set_plant_counts(c);
         }
@@ -445,7 +450,7 @@ where
         let true_deg = self.plant.true_angles_deg();
         let out = self.control();
         let coil_volts = self.coil_volts();
-        self.advance()?;
+        self.advance_with(&coil_volts)?;
         Ok(Sample {
             t_s,
             true_deg,
