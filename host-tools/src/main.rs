@@ -147,7 +147,7 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         println!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }
-    let out = sim::run(&scenario)?;
+    let out = sim::run_with(&scenario, args.output.wants_trace())?;
     args.output
         .write_files(&scenario.name, &out.summary, &out.trace)?;
     if args.output.json {

@@ -22,6 +22,11 @@ pub struct OutputArgs {
 }
 
 impl OutputArgs {
+    /// Whether a file that needs the time series (CSV, plot) is asked for.
+    pub fn wants_trace(&self) -> bool {
+        self.csv.is_some() || self.plot.is_some()
+    }
+
     /// Writes the CSV and the plot if asked for.
     pub fn write_files(&self, title: &str, summary: &Summary, trace: &Trace) -> anyhow::Result<()> {
         if let Some(p) = &self.csv {

@@ -174,8 +174,17 @@ pub struct RunOutput {
     pub trace: Trace,
 }
 
-/// Runs a scenario to completion.
+/// Runs a scenario to completion, keeping the time series.
 pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
+    run_with(s, true)
+}
+
+/// Runs a scenario to completion; the time series is kept only with
+/// `keep_trace` (otherwise `trace.rows` is empty). The summary is the same
+/// either way: it is accumulated row by row ([`SummaryBuilder`]). A 600 s
+/// run's series is 58 MB, which costs page faults and memory traffic when
+/// nobody asked for `--csv` or `--plot`.
+pub fn run_with(s: &Scenario, keep_trace: bool) -> anyhow::Result<RunOutput> {
     s.validate()?;
     let (laws, estimator) = laws_for(s)?;
     match s.joint {
@@ -195,7 +204,7 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
                 JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
             let cl: ClosedLoop<Joint3d, 2, 4, 4> =
                 ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
-            run_loop(s, cl, estimator, &["alpha", "beta"], load_3d)
+            run_loop(s, cl, keep_trace, estimator, &["alpha", "beta"], load_3d)
         }
         JointKind::TwoD => {
             let mut params = Joint2dParams::default();
@@ -216,16 +225,23 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
                 JointController::new(cfg).map_err(|e| anyhow::anyhow!("controller: {e:?}"))?;
             let cl: ClosedLoop<Joint2d, 1, 1, 2> =
                 ClosedLoop::new(plant, ctl, feedback(s), s.control_period_us, s.seed)?;
-            run_loop(s, cl, estimator, &["theta"], |plant, load, on| match load {
-                LoadAction::Weight { load, .. } => {
-                    if let Some(id) = on {
-                        plant.remove_load(id);
-                        Ok(None)
-                    } else {
-                        Ok(Some(plant.add_load(load)?))
+            run_loop(
+                s,
+                cl,
+                keep_trace,
+                estimator,
+                &["theta"],
+                |plant, load, on| match load {
+                    LoadAction::Weight { load, .. } => {
+                        if let Some(id) = on {
+                            plant.remove_load(id);
+                            Ok(None)
+                        } else {
+                            Ok(Some(plant.add_load(load)?))
+                        }
                     }
-                }
-            })
+                },
+            )
         }
     }
 }
@@ -295,6 +311,7 @@ const G_M_S2: f64 = 9.80665;
 fn run_loop<Pl, const P: usize, const S: usize, const C: usize>(
     s: &Scenario,
     mut cl: ClosedLoop<Pl, P, S, C>,
+    keep_trace: bool,
     estimator: String,
     names: &[&str],
     mut apply_load: impl FnMut(
@@ -307,7 +324,8 @@ where
     Pl: Plant<C, S, P>,
 {
     let (period, steps) = (s.period_s(), s.steps());
-    let mut rows = Vec::with_capacity(steps as usize);
+    let mut rows = Vec::with_capacity(if keep_trace { steps as usize } else { 0 });
+    let mut stats = SummaryBuilder::new(s, P);
     let mut disturber = Disturber::new(s);
     let mut faults_seen = 0u16;
     let mut peak_temp = [f64::NEG_INFINITY; C];
@@ -331,27 +349,25 @@ where
         for (p, c) in peak_temp.iter_mut().zip(cl.plant.coil_temperatures_c()) {
             *p = p.max(c);
         }
-        rows.push(Row {
+        let row = Row {
             t_s: sample.t_s,
             true_deg: pad(sample.true_deg),
             estimate_deg: pad(sample.estimate_deg),
             desired_deg: pad(sample.desired_deg),
             coil_volts: pad(sample.coil_volts),
             faults: sample.faults,
-        });
+        };
+        stats.push(&row);
+        if keep_trace {
+            rows.push(row);
+        }
     }
     let wall = started.elapsed().as_secs_f64();
-    let trace = Trace { planes: P, rows };
-    let summary = summarize(
-        s,
-        &trace,
-        names,
-        wall,
-        estimator,
-        faults_seen,
-        peak_temp.to_vec(),
-    );
-    Ok(RunOutput { summary, trace })
+    let summary = stats.finish(s, names, wall, estimator, faults_seen, peak_temp.to_vec());
+    Ok(RunOutput {
+        summary,
+        trace: Trace { planes: P, rows },
+    })
 }
 
 /// Applies a scenario's disturbances as time passes (shared by `sim` and
@@ -403,13 +419,18 @@ impl Disturber {
                     to_s,
                 } => {
                     let active = t_s >= *from_s && t_s < *to_s;
+                    // Hung and not to be, or the reverse: build the load
+                    // only then, not on every step.
+                    if active == self.loads[i].is_some() {
+                        continue;
+                    }
                     let plane = usize::from(plane.as_deref() == Some("beta"));
                     let dir = direction.unwrap_or([-1.0, 0.0]);
                     let w = PointLoad::weight(mass_g * 1e-3, G_M_S2, [0.0, LINK_END_M], dir);
                     let action = LoadAction::Weight { plane, load: w };
-                    if active && self.loads[i].is_none() {
+                    if active {
                         self.loads[i] = load(action, None)?;
-                    } else if !active && self.loads[i].is_some() {
+                    } else {
                         load(action, self.loads[i].take())?;
                     }
                 }
@@ -429,107 +450,225 @@ pub fn summarize(
     faults_seen: u16,
     peak_coil_temperature_c: Vec<f64>,
 ) -> Summary {
-    let planes = trace.planes;
-    let segments = segments(s, trace);
-    let sse: Vec<f64> = (0..planes)
-        .map(|p| {
-            segments
-                .iter()
-                .map(|g| g.steady_state_error_deg[p])
-                .fold(0.0, f64::max)
-        })
-        .collect();
-    let est: Vec<f64> = (0..planes)
-        .map(|p| {
-            trace
-                .rows
-                .iter()
-                .map(|r| (r.estimate_deg[p] - r.true_deg[p]).abs())
-                .filter(|e| e.is_finite())
-                .fold(0.0, f64::max)
-        })
-        .collect();
-    let period = f64::from(s.control_period_us) * 1e-6;
-    let sim_seconds = trace.rows.len() as f64 * period;
-    Summary {
-        scenario: s.name.clone(),
-        joint: if planes == 1 {
-            "2d".into()
-        } else {
-            "3d".into()
-        },
-        angles: names.iter().map(|n| n.to_string()).collect(),
-        steady_state_error_deg: sse,
-        max_estimation_error_deg: est,
-        segments,
-        sim_seconds,
-        wall_seconds,
-        realtime_factor: if wall_seconds > 0.0 {
-            sim_seconds / wall_seconds
-        } else {
-            f64::INFINITY
-        },
-        steps: trace.rows.len() as u64,
-        faults_seen: fault_names(faults_seen),
-        estimator,
-        peak_coil_temperature_c,
+    let mut b = SummaryBuilder::new(s, trace.planes);
+    for r in &trace.rows {
+        b.push(r);
     }
+    b.finish(
+        s,
+        names,
+        wall_seconds,
+        estimator,
+        faults_seen,
+        peak_coil_temperature_c,
+    )
 }
 
 /// Splits the run at target changes and measures each segment.
 pub fn segments(s: &Scenario, trace: &Trace) -> Vec<Segment> {
-    let end = s.duration_s;
-    let mut out = Vec::new();
-    let mut prev_target: Option<Vec<f64>> = None;
-    for (i, t) in s.targets.iter().enumerate() {
-        let from = t.t_s;
-        let to = s.targets.get(i + 1).map(|n| n.t_s).unwrap_or(end).min(end);
-        if to <= from {
-            continue;
-        }
-        let rows: Vec<&Row> = trace
-            .rows
+    let mut b = SummaryBuilder::new(s, trace.planes);
+    for r in &trace.rows {
+        b.push(r);
+    }
+    b.segments()
+}
+
+/// The neutral element of `Iterator::sum` for `f64` (−0.0 in current Rust,
+/// +0.0 in older), so running sums match a `sum()` over the same values.
+fn sum_start() -> f64 {
+    core::iter::empty::<f64>().sum()
+}
+
+/// Running statistics of one target segment (see [`SummaryBuilder`]).
+#[derive(Clone, Debug)]
+struct SegmentStats {
+    from_s: f64,
+    to_s: f64,
+    /// Start of the last 20 % of the segment.
+    tail_from_s: f64,
+    desired_deg: Vec<f64>,
+    rows: u64,
+    first_true_deg: [f64; 2],
+    tail_sum_deg: [f64; 2],
+    tail_rows: usize,
+    /// Running max (from 0) of `true − desired`: the overshoot if the
+    /// segment moves upwards.
+    above_deg: [f64; 2],
+    /// Running max (from 0) of `−(true − desired)`: the overshoot if it
+    /// moves downwards.
+    below_deg: [f64; 2],
+}
+
+/// The run summary accumulated one row at a time, so a run need not keep
+/// its time series to be summarised. Each statistic sees the same values
+/// in the same order as a pass over the stored rows would (sums start from
+/// `sum()`'s neutral element, maxima from 0), so the figures are identical.
+#[derive(Clone, Debug)]
+pub struct SummaryBuilder {
+    planes: usize,
+    rows: u64,
+    max_estimation_error_deg: [f64; 2],
+    segments: Vec<SegmentStats>,
+}
+
+impl SummaryBuilder {
+    /// Nothing seen yet, for a run of `s` with `planes` angles.
+    pub fn new(s: &Scenario, planes: usize) -> Self {
+        let end = s.duration_s;
+        let segments = s
+            .targets
             .iter()
-            .filter(|r| r.t_s >= from && r.t_s < to)
-            .collect();
-        if rows.is_empty() {
-            continue;
-        }
-        let tail_from = to - 0.2 * (to - from);
-        let tail: Vec<&&Row> = rows.iter().filter(|r| r.t_s >= tail_from).collect();
-        let planes = t.deg.len();
-        let sse = (0..planes)
-            .map(|p| {
-                let mean =
-                    tail.iter().map(|r| r.true_deg[p]).sum::<f64>() / tail.len().max(1) as f64;
-                (mean - t.deg[p]).abs()
+            .enumerate()
+            .filter_map(|(i, t)| {
+                let from = t.t_s;
+                let to = s.targets.get(i + 1).map(|n| n.t_s).unwrap_or(end).min(end);
+                (to > from).then(|| SegmentStats {
+                    from_s: from,
+                    to_s: to,
+                    tail_from_s: to - 0.2 * (to - from),
+                    desired_deg: t.deg.clone(),
+                    rows: 0,
+                    first_true_deg: [0.0; 2],
+                    tail_sum_deg: [sum_start(); 2],
+                    tail_rows: 0,
+                    above_deg: [0.0; 2],
+                    below_deg: [0.0; 2],
+                })
             })
             .collect();
-        let overshoot = (0..planes)
-            .map(|p| {
-                let start = prev_target
-                    .as_ref()
-                    .map(|v| v[p])
-                    .unwrap_or(rows[0].true_deg[p]);
-                let dir = (t.deg[p] - start).signum();
-                if dir == 0.0 {
-                    return 0.0;
+        Self {
+            planes,
+            rows: 0,
+            max_estimation_error_deg: [0.0; 2],
+            segments,
+        }
+    }
+
+    /// Adds one control period's row.
+    #[inline]
+    pub fn push(&mut self, r: &Row) {
+        self.rows += 1;
+        for (p, m) in self
+            .max_estimation_error_deg
+            .iter_mut()
+            .enumerate()
+            .take(self.planes)
+        {
+            let e = (r.estimate_deg[p] - r.true_deg[p]).abs();
+            if e.is_finite() {
+                *m = m.max(e);
+            }
+        }
+        for g in &mut self.segments {
+            if !(r.t_s >= g.from_s && r.t_s < g.to_s) {
+                continue;
+            }
+            if g.rows == 0 {
+                g.first_true_deg = r.true_deg;
+            }
+            g.rows += 1;
+            let tail = r.t_s >= g.tail_from_s;
+            if tail {
+                g.tail_rows += 1;
+            }
+            for (p, d) in g.desired_deg.iter().enumerate() {
+                let x = r.true_deg[p];
+                if tail {
+                    g.tail_sum_deg[p] += x;
                 }
-                rows.iter()
-                    .map(|r| dir * (r.true_deg[p] - t.deg[p]))
+                let e = x - d;
+                g.above_deg[p] = g.above_deg[p].max(e);
+                g.below_deg[p] = g.below_deg[p].max(-e);
+            }
+        }
+    }
+
+    /// The target segments that saw rows, measured: steady-state error over
+    /// the last 20 %, overshoot in the direction of travel from the previous
+    /// segment's target (the first from its first true angle).
+    pub fn segments(&self) -> Vec<Segment> {
+        let mut out = Vec::new();
+        let mut prev_target: Option<&[f64]> = None;
+        for g in self.segments.iter().filter(|g| g.rows > 0) {
+            let planes = g.desired_deg.len();
+            let sse = (0..planes)
+                .map(|p| {
+                    let mean = g.tail_sum_deg[p] / g.tail_rows.max(1) as f64;
+                    (mean - g.desired_deg[p]).abs()
+                })
+                .collect();
+            let overshoot = (0..planes)
+                .map(|p| {
+                    let start = prev_target.map(|v| v[p]).unwrap_or(g.first_true_deg[p]);
+                    let dir = (g.desired_deg[p] - start).signum();
+                    if dir == 1.0 {
+                        g.above_deg[p]
+                    } else if dir == -1.0 {
+                        g.below_deg[p]
+                    } else {
+                        // 0 or NaN: no direction of travel.
+                        0.0
+                    }
+                })
+                .collect();
+            out.push(Segment {
+                from_s: g.from_s,
+                to_s: g.to_s,
+                desired_deg: g.desired_deg.clone(),
+                steady_state_error_deg: sse,
+                overshoot_deg: overshoot,
+            });
+            prev_target = Some(&g.desired_deg);
+        }
+        out
+    }
+
+    /// The summary (`wall_seconds` and the rest as for [`summarize`]).
+    pub fn finish(
+        &self,
+        s: &Scenario,
+        names: &[&str],
+        wall_seconds: f64,
+        estimator: String,
+        faults_seen: u16,
+        peak_coil_temperature_c: Vec<f64>,
+    ) -> Summary {
+        let planes = self.planes;
+        let segments = self.segments();
+        let sse: Vec<f64> = (0..planes)
+            .map(|p| {
+                segments
+                    .iter()
+                    .map(|g| g.steady_state_error_deg[p])
                     .fold(0.0, f64::max)
             })
             .collect();
-        out.push(Segment {
-            from_s: from,
-            to_s: to,
-            desired_deg: t.deg.clone(),
+        let period = f64::from(s.control_period_us) * 1e-6;
+        let sim_seconds = self.rows as f64 * period;
+        Summary {
+            scenario: s.name.clone(),
+            joint: if planes == 1 {
+                "2d".into()
+            } else {
+                "3d".into()
+            },
+            angles: names.iter().map(|n| n.to_string()).collect(),
             steady_state_error_deg: sse,
-            overshoot_deg: overshoot,
-        });
-        prev_target = Some(t.deg.clone());
+            max_estimation_error_deg: self.max_estimation_error_deg[..planes].to_vec(),
+            segments,
+            sim_seconds,
+            wall_seconds,
+            realtime_factor: if wall_seconds > 0.0 {
+                sim_seconds / wall_seconds
+            } else {
+                f64::INFINITY
+            },
+            steps: self.rows,
+            faults_seen: fault_names(faults_seen),
+            estimator,
+            peak_coil_temperature_c,
+        }
     }
-    out
 }
 
 /// A calibration sweep of the scenario's joint: the link follows a slow
@@ -638,4 +777,112 @@ where
         }
     }
     Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::TargetStep;
+
+    /// The segment statistics as a pass over the stored rows (the form the
+    /// running [`SummaryBuilder`] replaced).
+    fn segments_from_rows(s: &Scenario, trace: &Trace) -> Vec<Segment> {
+        let end = s.duration_s;
+        let mut out = Vec::new();
+        let mut prev_target: Option<Vec<f64>> = None;
+        for (i, t) in s.targets.iter().enumerate() {
+            let from = t.t_s;
+            let to = s.targets.get(i + 1).map(|n| n.t_s).unwrap_or(end).min(end);
+            if to <= from {
+                continue;
+            }
+            let rows: Vec<&Row> = trace
+                .rows
+                .iter()
+                .filter(|r| r.t_s >= from && r.t_s < to)
+                .collect();
+            if rows.is_empty() {
+                continue;
+            }
+            let tail_from = to - 0.2 * (to - from);
+            let tail: Vec<&&Row> = rows.iter().filter(|r| r.t_s >= tail_from).collect();
+            let planes = t.deg.len();
+            let sse = (0..planes)
+                .map(|p| {
+                    let mean =
+                        tail.iter().map(|r| r.true_deg[p]).sum::<f64>() / tail.len().max(1) as f64;
+                    (mean - t.deg[p]).abs()
+                })
+                .collect();
+            let overshoot = (0..planes)
+                .map(|p| {
+                    let start = prev_target
+                        .as_ref()
+                        .map(|v| v[p])
+                        .unwrap_or(rows[0].true_deg[p]);
+                    let dir = (t.deg[p] - start).signum();
+                    if dir == 0.0 {
+                        return 0.0;
+                    }
+                    rows.iter()
+                        .map(|r| dir * (r.true_deg[p] - t.deg[p]))
+                        .fold(0.0, f64::max)
+                })
+                .collect();
+            out.push(Segment {
+                from_s: from,
+                to_s: to,
+                desired_deg: t.deg.clone(),
+                steady_state_error_deg: sse,
+                overshoot_deg: overshoot,
+            });
+            prev_target = Some(t.deg.clone());
+        }
+        out
+    }
+
+    #[test]
+    fn running_summary_equals_the_pass_over_the_rows() {
+        let mut s = Scenario {
+            duration_s: 6.0,
+            ..Scenario::default()
+        };
+        s.estimator.method = EstimatorMethod::Paper;
+        // Up, down (overshoot the other way), an empty segment past the end.
+        s.targets = [(0.0, 0.0), (1.0, 6.0), (3.5, -4.0), (9.0, 1.0)]
+            .map(|(t_s, d)| TargetStep {
+                t_s,
+                deg: vec![d, -d],
+            })
+            .to_vec();
+        let kept = run(&s).unwrap();
+        assert_eq!(kept.trace.rows.len(), 6000);
+        let want = segments_from_rows(&s, &kept.trace);
+        assert_eq!(want.len(), 3);
+        assert_eq!(kept.summary.segments, want);
+        assert_eq!(segments(&s, &kept.trace), want);
+        let again = summarize(
+            &s,
+            &kept.trace,
+            &["alpha", "beta"],
+            1.0,
+            "x".into(),
+            0,
+            vec![],
+        );
+        assert_eq!(again.segments, want);
+        assert_eq!(
+            again.max_estimation_error_deg,
+            kept.summary.max_estimation_error_deg
+        );
+        // Without the trace: the same summary, no rows.
+        let lean = run_with(&s, false).unwrap();
+        assert!(lean.trace.rows.is_empty());
+        let strip = |mut m: Summary| {
+            m.wall_seconds = 0.0;
+            m.realtime_factor = 0.0;
+            m
+        };
+        assert_eq!(strip(lean.summary), strip(kept.summary));
+    }
 }
