@@ -687,6 +687,51 @@ fn finger_forces_push_the_touched_vertices_only() {
     }
 }
 
+/// §VIII-A: "the radial component of the registered force is applied at
+/// any vertex that happens to be located within the radius of the robotic
+/// finger" — every touched vertex gets the reading's component along its
+/// own radius, the reading is not divided between them (it was, before:
+/// each of three touched vertices moved a third as far).
+#[test]
+fn each_touched_vertex_gets_the_radial_component_of_the_whole_reading() {
+    let mesh = Mesh::grid(V2::zeros(), 100.0, 50.0, 4, 2).unwrap();
+    let cfg = SimConfig {
+        integrator: Integrator::Customised,
+        mode: DrivingMode::ForcesOnVertices,
+        step_s: 0.1,
+        geometric_repair: false,
+    };
+    // No internal forces at all, so only the finger's force moves vertices.
+    let mut sim = Simulator::new(&mesh, params(0.0, 0.0, 0.0), cfg, table_far_below()).unwrap();
+    // Reaches the three top vertices (25, 50), (50, 50), (75, 50) and
+    // nothing else (the next row is 35 px from the centre).
+    let finger = Finger {
+        centre_px: V2::new(50.0, 60.0),
+        radius_px: 27.0,
+    };
+    let reading = V2::new(0.0, -3.0);
+    sim.step(Some(&finger), Some(reading)).unwrap();
+    let mut touched = 0;
+    for (a, b) in mesh.rest_positions_px.iter().zip(sim.positions_px()) {
+        let d = *a - finger.centre_px;
+        if d.norm() <= finger.radius_px + plant_models::pushing::sim::CONTACT_MARGIN_PX {
+            touched += 1;
+            let radial = d / d.norm();
+            let expected = *a + radial * (0.1 * reading.dot(&radial));
+            assert!(
+                (*b - expected).norm() < 1e-12,
+                "{a:?} → {b:?}, expected {expected:?}"
+            );
+        } else {
+            assert!((*a - *b).norm() < 1e-12, "{a:?} → {b:?}");
+        }
+    }
+    assert_eq!(touched, 3);
+    // The vertex straight under the finger moves by the whole h·F = 0.3 px.
+    let top_mid = 2 * 5 + 2;
+    assert!((sim.positions_px()[top_mid].y - (50.0 - 0.3)).abs() < 1e-12);
+}
+
 #[test]
 fn reruns_are_bit_identical() {
     let mesh = Mesh::grid(V2::zeros(), 100.0, 50.0, 10, 5).unwrap();

@@ -3,7 +3,7 @@
 //! step and detection of unstable runs.
 //!
 //! One step, in order: internal forces at p(t) (Eq. 20, 23, 26) plus the
-//! finger's sensed force on the vertices it touches (§VIII-A), capped per
+//! finger's sensed force on each vertex it touches (§VIII-A), capped per
 //! vertex at max(F); the integrator; repair of reversed and flat triangles
 //! (§VI-E, optional); finger collision by vertex then by edge (§VI-D, in the
 //! collision modes); the table; Algorithm 2 on every spring; the stability
@@ -22,9 +22,9 @@ use serde::{Deserialize, Serialize};
 pub const VERTEX_MASS: f64 = 1.0;
 
 /// Extra distance beyond the finger radius within which a vertex counts as
-/// touched by the finger and receives part of the sensed force, px
-/// (estimate: twice the collision clearance ε, so vertices the collision
-/// routine parked at radius + ε are still counted).
+/// touched by the finger and receives the sensed force, px (estimate: twice
+/// the collision clearance ε, so vertices the collision routine parked at
+/// radius + ε are still counted).
 pub const CONTACT_MARGIN_PX: f64 = 1.0;
 
 /// The integration schemes of §VI-C and Table II.
@@ -214,24 +214,25 @@ impl<'m> Simulator<'m> {
         }
     }
 
-    /// Adds the radial part of the sensed finger force to the touched
-    /// vertices (§VIII-A), shared equally between them. Returns how many.
+    /// Adds the radial component of the sensed finger force at every
+    /// vertex within the finger's reach (§VIII-A: "the radial component of
+    /// the registered force is applied at any vertex that happens to be
+    /// located within the radius of the robotic finger"; §VI-F mode 2: "the
+    /// forces to be applied on the vertices around the actuator are
+    /// approximated by the measured reaction forces"). Each touched vertex
+    /// gets the reading's component along its own radius, not a share of
+    /// it: the seed divides the reading nowhere, and with unit masses a
+    /// share (1/3 to 1/16 of a few N on a 20×10 mesh) moves a vertex by
+    /// less than 0.1 px per step, so forces alone could not dent the block.
+    /// Returns how many vertices were touched.
     fn add_finger_force(&mut self, finger: &Finger, force_on_object: V2) -> usize {
         let reach = finger.radius_px + CONTACT_MARGIN_PX;
         let mut touched = 0usize;
-        for p in &self.positions_px {
-            if (p - finger.centre_px).norm() <= reach {
-                touched += 1;
-            }
-        }
-        if touched == 0 {
-            return 0;
-        }
-        let share = 1.0 / touched as f64;
         for (p, f) in self.positions_px.iter().zip(self.forces.iter_mut()) {
             let d = p - finger.centre_px;
             let n = d.norm();
             if n <= reach {
+                touched += 1;
                 let radial = if n > 1e-12 {
                     d / n
                 } else {
@@ -239,7 +240,7 @@ impl<'m> Simulator<'m> {
                 };
                 let along = force_on_object.dot(&radial);
                 if along > 0.0 {
-                    *f += radial * (along * share);
+                    *f += radial * along;
                 }
             }
         }
