@@ -191,6 +191,45 @@ fn ground_truth_sponge_recovers_and_plasticine_keeps_its_dent() {
     assert!(clay.forces_n[60..].iter().all(|f| f.abs() < 0.5));
 }
 
+/// The sponge ground truth is viscoelastic (standard linear solid, τ = 1 s):
+/// at the same finger depth the sensor reads less on the way out than on
+/// the way in, clearly more so than the same block without the relaxing
+/// arm (whose only loss is the mass-proportional damping), and the dent
+/// recovers with a delay.
+#[test]
+fn sponge_ground_truth_has_viscoelastic_hysteresis() {
+    let cfg = ReferenceConfig {
+        element_size_px: 16.0,
+        contour_noise_px: 0.0,
+        force_noise_n: 0.0,
+        ..Default::default()
+    };
+    let m = ReferenceMaterial::SPONGE;
+    assert!(m.relaxing_modulus_pa > 0.0);
+    let sc = PushScenario::seed(PushSite::MiddleLongSide, m.scale_px_per_m).unwrap();
+    let visco = record_push("sponge", m, &sc, &cfg).unwrap();
+    let elastic = record_push(
+        "sponge",
+        ReferenceMaterial {
+            relaxing_modulus_pa: 0.0,
+            ..m
+        },
+        &sc,
+        &cfg,
+    )
+    .unwrap();
+    // Frames 25 and 75 have the finger at the same depth (linear in, out).
+    let ratio = |v: &Video| v.forces_n[75] / v.forces_n[25];
+    let (rv, re) = (ratio(&visco), ratio(&elastic));
+    println!("force out/in at equal depth: viscoelastic {rv:.3}, elastic {re:.3}; at 45 {:.3} vs {:.3}; dent at 99 {:.1} vs {:.1} px", visco.forces_n[45], elastic.forces_n[45], dent_px(&visco, 99), dent_px(&elastic, 99));
+    assert!(rv < 0.75 && re > 0.8 && rv < re - 0.1, "{rv} vs {re}");
+    // On the way in the arm stiffens the block: more force at frame 45.
+    assert!(visco.forces_n[45] > 1.05 * elastic.forces_n[45]);
+    // The dent recovers with a delay: after the finger has left (frame
+    // 99), the viscoelastic block is still dented, the elastic one not.
+    assert!(dent_px(&visco, 99) > dent_px(&elastic, 99) + 1.0);
+}
+
 #[test]
 fn ground_truth_is_bit_identical_and_refuses_bad_materials() {
     let cfg = ReferenceConfig {
