@@ -244,6 +244,8 @@ pub struct PlanarJoint {
     coils: [SmaCoil; 2],
     coil_tension_n: [f64; 2],
     loads: [Option<PointLoad>; MAX_LOADS],
+    /// Slots in use: the substep skips the load scan when none are.
+    loads_attached: usize,
     state: LinkState,
     /// (sin θ, cos θ) of the present state, kept to avoid recomputing.
     sin_cos: (f64, f64),
@@ -279,6 +281,7 @@ impl PlanarJoint {
             coils: [coil.clone(), coil],
             coil_tension_n: [0.0; 2],
             loads: [None; MAX_LOADS],
+            loads_attached: 0,
             state,
             sin_cos: (0.0, 1.0),
             params,
@@ -364,12 +367,17 @@ impl PlanarJoint {
             .position(Option::is_none)
             .ok_or(PlantError::TooManyLoads)?;
         self.loads[slot] = Some(load);
+        self.loads_attached += 1;
         Ok(LoadId(slot))
     }
 
     /// Removes a load (cutting the thread). Returns it if it was attached.
     pub fn remove_load(&mut self, id: LoadId) -> Option<PointLoad> {
-        self.loads.get_mut(id.0).and_then(Option::take)
+        let removed = self.loads.get_mut(id.0).and_then(Option::take);
+        if removed.is_some() {
+            self.loads_attached -= 1;
+        }
+        removed
     }
 
     /// Kinetic energy of the link (J).
@@ -425,7 +433,12 @@ impl PlanarJoint {
             f[1] += fk[1];
             tau_cm += torque_cw(ra, fk);
         }
-        for load in self.loads.iter().flatten() {
+        let loads = if self.loads_attached > 0 {
+            &self.loads[..]
+        } else {
+            &[]
+        };
+        for load in loads.iter().flatten() {
             let r = rotate(load.point_link_m, s, c);
             let ra = [base[0] + r[0] - st.com_m[0], base[1] + r[1] - st.com_m[1]];
             f[0] += load.force_n[0];

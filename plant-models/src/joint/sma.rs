@@ -307,7 +307,18 @@ pub struct SmaCoil {
     cached_decay: f64,
     temperature_c: f64,
     martensite_fraction: f64,
+    /// Resistance, spring rate and rest length at `martensite_fraction`,
+    /// refreshed whenever it changes (read several times per step).
+    mix: PhaseMix,
     current_a: f64,
+}
+
+/// The phase-mixed coil properties at one martensite fraction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PhaseMix {
+    resistance_ohm: f64,
+    stiffness_n_m: f64,
+    rest_length_m: f64,
 }
 
 impl SmaCoil {
@@ -323,7 +334,7 @@ impl SmaCoil {
                 "must be below austenite_start_c",
             ));
         }
-        Ok(Self {
+        let mut coil = Self {
             heat_capacity_j_k: params.heat_capacity_j_k(),
             conductance_w_k: params.conductance_w_k(),
             resistance_martensite_ohm: params.resistance_ohm(1.0),
@@ -333,9 +344,29 @@ impl SmaCoil {
             cached_decay: 1.0,
             temperature_c: t,
             martensite_fraction: 1.0,
+            mix: PhaseMix {
+                resistance_ohm: 0.0,
+                stiffness_n_m: 0.0,
+                rest_length_m: 0.0,
+            },
             current_a: 0.0,
             params,
-        })
+        };
+        coil.refresh_mix();
+        Ok(coil)
+    }
+
+    /// Recomputes the phase-mixed properties for the present ξ (each mixed
+    /// linearly by phase).
+    fn refresh_mix(&mut self) {
+        let xi = self.martensite_fraction;
+        let p = &self.params;
+        self.mix = PhaseMix {
+            resistance_ohm: xi * self.resistance_martensite_ohm
+                + (1.0 - xi) * self.resistance_austenite_ohm,
+            stiffness_n_m: xi * p.stiffness_martensite_n_m + (1.0 - xi) * p.stiffness_austenite_n_m,
+            rest_length_m: xi * p.rest_length_martensite_m + (1.0 - xi) * p.rest_length_austenite_m,
+        };
     }
 
     /// Parameters.
@@ -361,20 +392,19 @@ impl SmaCoil {
     /// Present resistance (Ω) (resistivity mixed linearly by phase).
     #[inline]
     pub fn resistance_ohm(&self) -> f64 {
-        let xi = self.martensite_fraction;
-        xi * self.resistance_martensite_ohm + (1.0 - xi) * self.resistance_austenite_ohm
+        self.mix.resistance_ohm
     }
 
     /// Present spring rate (N/m), mixed linearly by phase.
+    #[inline]
     pub fn stiffness_n_m(&self) -> f64 {
-        let xi = self.martensite_fraction;
-        xi * self.params.stiffness_martensite_n_m + (1.0 - xi) * self.params.stiffness_austenite_n_m
+        self.mix.stiffness_n_m
     }
 
     /// Present rest length (m), mixed linearly by phase.
+    #[inline]
     pub fn rest_length_m(&self) -> f64 {
-        let xi = self.martensite_fraction;
-        xi * self.params.rest_length_martensite_m + (1.0 - xi) * self.params.rest_length_austenite_m
+        self.mix.rest_length_m
     }
 
     /// Axial tension (N) at `length_m` stretching at `rate_m_s`; a coil
@@ -404,6 +434,7 @@ impl SmaCoil {
         }
         self.temperature_c = temperature_c;
         self.martensite_fraction = martensite_fraction;
+        self.refresh_mix();
         Ok(())
     }
 
@@ -440,7 +471,10 @@ impl SmaCoil {
             } else {
                 self.params.latent_heat_j_kg * (xi_new - xi_old) / self.params.specific_heat_j_kg_k
             };
-            self.martensite_fraction = xi_new;
+            if xi_new != xi_old {
+                self.martensite_fraction = xi_new;
+                self.refresh_mix();
+            }
         }
         self.temperature_c = t_new;
     }

@@ -363,7 +363,7 @@ impl WireSensor {
     }
 
     /// [`Self::update`] with (sin θ, cos θ) already known.
-    #[inline]
+    #[inline(always)]
     pub fn update_sin_cos(
         &mut self,
         x_mm: f64,
