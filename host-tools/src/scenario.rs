@@ -409,15 +409,46 @@ impl Scenario {
     }
 }
 
-/// Follows a scenario's targets over time and tells when they change.
-#[derive(Clone, Debug, Default)]
+/// Follows a scenario's targets over time and tells when they change. One
+/// tracker follows one scenario.
+#[derive(Clone, Debug)]
 pub struct TargetTracker {
     current: Vec<f64>,
+    /// Times `[from, to)` over which `target_at` gives the same targets as
+    /// at the last call: no target time lies inside, so the answer there is
+    /// known without a search (the closed loop asks every period).
+    unchanged_s: [f64; 2],
+}
+
+impl Default for TargetTracker {
+    fn default() -> Self {
+        Self {
+            current: Vec::new(),
+            // Empty: the first call searches.
+            unchanged_s: [f64::INFINITY, f64::NEG_INFINITY],
+        }
+    }
 }
 
 impl TargetTracker {
     /// The targets at `t_s` if they differ from the last ones returned.
     pub fn changed<'a>(&mut self, s: &'a Scenario, t_s: f64) -> Option<&'a [f64]> {
+        if t_s >= self.unchanged_s[0] && t_s < self.unchanged_s[1] {
+            return None;
+        }
+        // `target_at` takes the last target with t_s ≤ t: its answer only
+        // changes at target times, so it holds from the latest of them
+        // ≤ t_s to the earliest after.
+        self.unchanged_s =
+            s.targets
+                .iter()
+                .fold([f64::NEG_INFINITY, f64::INFINITY], |[lo, hi], g| {
+                    if g.t_s <= t_s {
+                        [lo.max(g.t_s), hi]
+                    } else {
+                        [lo, hi.min(g.t_s)]
+                    }
+                });
         let target = s.target_at(t_s);
         if target == self.current.as_slice() {
             return None;
@@ -435,6 +466,27 @@ impl TargetTracker {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn target_tracker_reports_each_change_once() {
+        let mut s = Scenario::default();
+        s.targets = [(0.0, 0.0), (1.0, 5.0), (1.0, 6.0), (2.5, 6.0), (3.0, -2.0)]
+            .map(|(t_s, d)| TargetStep {
+                t_s,
+                deg: vec![d, d],
+            })
+            .to_vec();
+        let mut tr = TargetTracker::default();
+        let mut seen = Vec::new();
+        for k in 0..4000 {
+            let t = k as f64 * 1e-3;
+            if let Some(d) = tr.changed(&s, t) {
+                seen.push((k, d[0]));
+            }
+            assert_eq!(tr.current(), s.target_at(t), "t = {t}");
+        }
+        assert_eq!(seen, vec![(0, 0.0), (1000, 6.0), (3000, -2.0)]);
+    }
 
     #[test]
     fn default_is_valid_and_round_trips_through_toml() {
