@@ -24,13 +24,13 @@ const FIG7_TARGET_DEG: f64 = 20.0;
 /// reaches a steady value, albeit there is some fluctuation", with a
 /// steady-state error that depends on Kp.
 ///
-/// Measured (seed 3, 40 s): Kp = 2.0 enters ±1° of θd at ≈ 2.3 s and then
-/// cycles between ≈ −0.4° and +0.5° around θd (the SMA's hysteresis: an
-/// overshoot is held while the unpowered coil cools through the hysteresis
-/// band, then the coil is reheated — a ≈ 3.5 s limit cycle), mean +0.27°
-/// over 20–40 s. Kp = 0.05 settles smoothly at 16.37° (error −3.63°, no
-/// fluctuation): the lower gain leaves the larger P offset, as the paper's
-/// mass–spring argument (Fig. 8) predicts.
+/// Measured (seed 3, 40 s): Kp = 2.0 stays within −0.21…+0.14° of θd over
+/// 10–40 s (the SMA's hysteresis: a small overshoot is held while the
+/// unpowered coil cools through the hysteresis band, then the coil is
+/// reheated), mean −0.035° over 20–40 s. Kp = 0.05 settles smoothly at
+/// 16.31° (error −3.69° over 30–40 s, 0.05° peak to peak): the lower gain
+/// leaves the larger P offset, as the paper's mass–spring argument (Fig. 8)
+/// predicts.
 #[test]
 fn camera_p_control_converges_at_both_gains_of_fig7() {
     let high = run(&camera_p(2.0, FIG7_TARGET_DEG, 40.0, SEED)).trace;
@@ -38,7 +38,7 @@ fn camera_p_control_converges_at_both_gains_of_fig7() {
 
     // Kp = 2.0 converges: after 10 s the angle never leaves a ±1° band
     // around θd, and it does not drift (the means of two consecutive 10 s
-    // windows, each ≈ 3 limit cycles, agree within 0.2°).
+    // windows agree within 0.2°).
     let band = err_stats(&high, 0, 10.0, 40.0);
     println!("Kp = 2.0, 10–40 s: {band:?}");
     assert!(
@@ -79,33 +79,18 @@ fn camera_p_control_converges_at_both_gains_of_fig7() {
 /// Paper §III-B: "even when the gain Kp [is] 2.0, the steady-state error is
 /// acceptable, being less than 0.15 deg".
 ///
-/// NOT reproduced by the current plant. Measured with Kp = 2.0, θd = 20°
-/// (the hysteresis limit cycle described above, +0.5° / −0.4° around θd):
-/// - time mean of θ − θd over 10–60 s: +0.182° (seed 1), +0.169° (2),
-///   +0.215° (3), +0.121° (4), +0.150° (5);
-/// - `softjoint sim`'s own metric (|mean| over the last 20 % of a 30 s
-///   run): 0.268°, 0.213°, 0.311°, 0.090°, 0.129° for seeds 1–5 (one 6 s
-///   window holds less than two limit cycles, hence the spread).
+/// The steady-state error is the time mean of θ − θd over 10–60 s, worst
+/// over seeds 1–5 (each seed a different camera-noise and jamming stream).
+/// The joint does not rest exactly: each reheat overshoots θd a little and
+/// the overshoot is held while the unpowered coil cools through its
+/// hysteresis band (the paper's "albeit there is some fluctuation").
 ///
-/// The offset is positive: each reheat overshoots θd and the overshoot is
-/// held while the unpowered coil cools through its hysteresis band. Reported
-/// to the plant owner; not loosened here.
-///
-/// Cause (plant README, "Camera P control: the hysteresis limit cycle"):
-/// the camera's delay (1 frame latency + frame hold ≈ 50 ms) against a
-/// reheat at the driver's saturated 0.5 A — with `latency_frames = 0` there
-/// is no limit cycle (−0.07…−0.08° on seeds 1–5), with zero camera noise
-/// the cycle is unchanged. Lowering the driver transconductance (1.0 A/V)
-/// and h (45–52 W/(m²·K)) within SPEC §2 brings every seed below 0.15°, but
-/// no such setting was found that keeps all other tests passing for a
-/// reason rather than by chance: g = 1.0 A/V with h ≥ 48 (0.95 A/V with
-/// h = 45) trips the firmware's thermal budget during the wire calibration
-/// sweep, g = 1.0 A/V with h = 45 breaks the coil-2 disturbance and the
-/// wire-jamming tests, and where those pass (g = 1.05, h = 50) the
-/// integral-action test below fails at h ± 1 because the P offset of its
-/// one seed is then ≈ 0 (the plant README lists the measurements).
+/// History: this failed at +0.12…+0.22° until the SMA coil's latent heat
+/// was settled together with the phase (plant `sma.rs`,
+/// `settle_latent_heat`). The old split step squeezed the A_s–A_f
+/// transformation into ≈ 2.5 K, so a saturated reheat moved the link faster
+/// than the 30 frames/s camera could report it.
 #[test]
-#[ignore = "plant: Kp = 2.0 camera P control holds a +0.12…+0.22° mean offset (hysteresis limit cycle), paper < 0.15°; see the plant README"]
 fn camera_p_steady_state_error_below_0_15_deg_at_kp_2() {
     let mut worst: f64 = 0.0;
     for seed in 1..=5 {
@@ -124,12 +109,10 @@ fn camera_p_steady_state_error_below_0_15_deg_at_kp_2() {
 /// to 6 s (≈ 150 g of pull, as large as coil 1's own moment); "the angle
 /// converges to a stable location after v2 breaks contact".
 ///
-/// Measured (seed 3): pushed down to 2.32° (−2.68°) during the disturbance;
-/// when coil 2 is released the still-hot coil 1 lifts the link to ≈ 7.9°
-/// (held while it cools, as in Fig. 7), back within 0.1° of θd by 12.5 s;
-/// over 14–20 s the error stays within −0.14…−0.02°, mean −0.08°.
-/// Tolerance: the same ±0.75° band that covers the P law's own limit cycle
-/// (−0.4…+0.5° at this gain, see above) and a mean within 0.3°.
+/// Measured (seed 3): pushed down to −5.0° (error −10.0°) during the
+/// disturbance; over 14–20 s the error stays within −0.16…+0.12°, mean
+/// −0.02°. Tolerance: ±0.75° and a mean within 0.3° (set when the P law
+/// still limit-cycled at −0.4…+0.5°; kept, not tightened to the new run).
 #[test]
 fn coil_2_disturbance_pushes_the_angle_away_and_it_returns() {
     let target = 5.0;
@@ -165,9 +148,13 @@ fn coil_2_disturbance_pushes_the_angle_away_and_it_returns() {
 /// oscillation in the angle".
 ///
 /// Measured (seed 3, first 10 s of a θd = 20° step at Kp = 2.0): overshoot
-/// 2.62° (rigid) vs 0.74° (cartilage); direction reversals larger than 0.2°:
-/// 102 (rigid: it rings at ≈ 3 Hz whenever the coil is switched) vs 4
-/// (cartilage: only the slow hysteresis cycle).
+/// 2.73° (rigid) vs 1.44° (cartilage); direction reversals larger than 0.2°:
+/// 47 (rigid: it rings at ≈ 3 Hz whenever the coil is switched) vs 3
+/// (cartilage: only the slow hysteresis cycle). The reversal count is the
+/// oscillation; the overshoot margin (1.5×) only checks that the rigid
+/// joint's first swing is also the larger one. (Before the latent-heat fix
+/// in the SMA coil the cartilage overshot 0.74°, the rigid joint 2.62°,
+/// with 102 vs 4 reversals.)
 #[test]
 fn rigid_bearing_oscillates_more_than_the_cartilage_joint() {
     let cartilage = run(&camera_p(2.0, FIG7_TARGET_DEG, 10.0, SEED)).trace;
@@ -179,7 +166,7 @@ fn rigid_bearing_oscillates_more_than_the_cartilage_joint() {
     let (o_c, o_r) = (overshoot(&cartilage), overshoot(&rigid));
     println!("overshoot: cartilage {o_c:.2}°, rigid {o_r:.2}°");
     assert!(
-        o_r > 2.0 * o_c,
+        o_r > 1.5 * o_c,
         "overshoot: rigid {o_r:.2}° vs cartilage {o_c:.2}°"
     );
 
@@ -196,38 +183,41 @@ fn rigid_bearing_oscillates_more_than_the_cartilage_joint() {
 
 /// Paper §III-B, Fig. 8: P control leaves a steady-state error, I action
 /// would remove it ("we have not verified it experimentally", future work).
-/// Here: Eq. 1 with Kp = 2.0 plus ki = 0.2 V/(deg·s) limited to 1 V (the
-/// scenario default). ki is chosen so the integral time Kp/ki = 10 s is
-/// about two coil cooling time constants (≈ 5 s, plant README): slower than
-/// the coil, so it trims the offset without driving the limit cycle.
+/// Eq. 1 at Kp = 0.5 V/° droops by ≈ 0.35° (the coil needs ≈ 0.18 V above
+/// the offset to hold 20°); ki = 0.05 V/(deg·s) — integral time Kp/ki =
+/// 10 s, about two coil cooling time constants (≈ 5 s, plant README), so it
+/// trims the offset without driving the hysteresis — limited to 1 V (the
+/// scenario default). (At Kp = 2.0 the P offset is already below 0.1°,
+/// nothing to remove; at Kp = 0.05 it is 3.7°.)
 ///
-/// Measured (seed 3, 20–40 s): mean error +0.269° (P) vs +0.040° (P + I);
-/// no fault of any kind; peak coil temperature 73 °C (supervisor trips at
-/// 120 °C).
+/// Measured (`softjoint sim`, 40–60 s mean, seeds 1–5): P −0.342…−0.353°,
+/// P + I −0.009…−0.004°, no fault (the test runs seed 3).
 #[test]
 fn integral_action_removes_the_p_offset_without_supervisor_faults() {
-    let p_only = run(&camera_p(2.0, FIG7_TARGET_DEG, 40.0, SEED));
-    let mut s = camera_p(2.0, FIG7_TARGET_DEG, 40.0, SEED);
-    s.controller.ki_v_per_deg_s = 0.2;
+    let (kp, ki) = (0.5, 0.05);
+    let p_only = run(&camera_p(kp, FIG7_TARGET_DEG, 60.0, SEED));
+    let mut s = camera_p(kp, FIG7_TARGET_DEG, 60.0, SEED);
+    s.controller.ki_v_per_deg_s = ki;
     s.controller.integral_limit_v = 1.0;
     let pi = run(&s);
 
-    let e_p = err_stats(&p_only.trace, 0, 20.0, 40.0).mean;
-    let e_pi = err_stats(&pi.trace, 0, 20.0, 40.0).mean;
+    let e_p = err_stats(&p_only.trace, 0, 40.0, 60.0).mean;
+    let e_pi = err_stats(&pi.trace, 0, 40.0, 60.0).mean;
     println!(
-        "mean error 20–40 s: P {e_p:+.3}°, P + I {e_pi:+.3}°; peak coil °C {:?}",
+        "mean error 40–60 s: P {e_p:+.3}°, P + I {e_pi:+.3}°; peak coil °C {:?}",
         pi.summary.peak_coil_temperature_c
     );
-    assert!(e_pi.abs() < 0.1, "P + I leaves a {e_pi:.3}° offset");
+    assert!(e_p < -0.2, "the P law alone should droop: {e_p:.3}°");
+    assert!(e_pi.abs() < 0.05, "P + I leaves a {e_pi:.3}° offset");
     assert!(
-        e_pi.abs() < 0.5 * e_p.abs(),
+        e_pi.abs() < 0.2 * e_p.abs(),
         "P + I offset {e_pi:.3}° vs P {e_p:.3}°: not removed"
     );
-    // It still converges (same band as the P law).
-    let band = err_stats(&pi.trace, 0, 10.0, 40.0);
+    // It settles: within ±0.15° of θd over the last 30 s.
+    let band = err_stats(&pi.trace, 0, 30.0, 60.0);
     assert!(
-        band.max_abs < 1.0,
-        "P + I leaves the ±1° band after 10 s: {band:?}"
+        band.max_abs < 0.15,
+        "P + I leaves the ±0.15° band after 30 s: {band:?}"
     );
 
     // The supervisor never had to step in: no thermal cut-off, no latched

@@ -12,8 +12,11 @@
 //! convection terms are integrated **exactly** over a step for the power at
 //! the start of the step (`T ← T_eq + (T − T_eq) e^{−h/τ}`), which is
 //! unconditionally stable and makes the frozen-phase step response the
-//! analytic exponential. Latent heat is then applied as an energy correction
-//! `ΔT = ΔH Δξ / c` (heating M→A absorbs heat, cooling A→M releases it).
+//! analytic exponential. The latent heat (heating M→A absorbs it, cooling
+//! A→M releases it) is then settled together with the phase: the step ends
+//! at the temperature `T` with `c (T − T_sensible) = ΔH (ξ(T) − ξ₀)`, so the
+//! phase is always on its branch at the coil's actual temperature (see
+//! [`SmaParams::settle_latent_heat`]).
 //!
 //! Phase (Liang–Rogers cosine law with separate branches):
 //! - heating, `A_s ≤ T ≤ A_f`: `ξ = ξ₀ · g_A(T)/g_A(T₀)`,
@@ -238,6 +241,93 @@ impl SmaParams {
         }
     }
 
+    /// Temperature rise equivalent to a full transformation, ΔH/c (K).
+    fn latent_rise_k(&self) -> f64 {
+        self.latent_heat_j_kg / self.specific_heat_j_kg_k
+    }
+
+    /// End of a step whose Joule and convective heat alone would take the
+    /// coil from `t_old` to `t_sensible`: the temperature `T` and phase
+    /// `ξ(T)` that satisfy the energy balance with the latent heat,
+    ///
+    /// ```text
+    ///   T = t_sensible + (ΔH/c) · (ξ(T) − ξ_old),   ξ(T) = phase_update(t_old, ξ_old, T),
+    /// ```
+    ///
+    /// so the phase stays on its Liang–Rogers branch at the temperature the
+    /// coil actually ends at. (Applying the latent heat *after* a phase step
+    /// taken to `t_sensible` — the obvious split — transforms the coil
+    /// against a temperature it never reaches; the error does not shrink
+    /// with the step and squeezed 80 % of the heating transformation into
+    /// the first 2.5 K of the 10 K A_s–A_f band.)
+    ///
+    /// The residual `T − t_sensible − (ΔH/c)(ξ(T) − ξ_old)` is strictly
+    /// increasing in `T` and changes sign between `t_old` and `t_sensible`
+    /// (the latent heat slows a temperature change but cannot reverse it),
+    /// so the root is bracketed; it is found by the Illinois variant of
+    /// regula falsi to 1e-9 K.
+    pub fn settle_latent_heat(&self, t_old: f64, xi_old: f64, t_sensible: f64) -> (f64, f64) {
+        self.settle_latent_heat_with(&self.phase_shape(), t_old, xi_old, t_sensible)
+    }
+
+    /// [`Self::settle_latent_heat`] with the branch constants precomputed.
+    fn settle_latent_heat_with(
+        &self,
+        shape: &PhaseShape,
+        t_old: f64,
+        xi_old: f64,
+        t_sensible: f64,
+    ) -> (f64, f64) {
+        let xi_at = |t: f64| self.phase_update_with(shape, t_old, xi_old, t);
+        let xi_sensible = xi_at(t_sensible);
+        let l = self.latent_rise_k();
+        if xi_sensible == xi_old || l == 0.0 {
+            return (t_sensible, xi_sensible);
+        }
+        let residual = |t: f64| t - t_sensible - l * (xi_at(t) - xi_old);
+        // Bracket [lo, hi] with residual(lo) < 0 < residual(hi).
+        let (mut lo, mut hi) = if t_sensible > t_old {
+            (t_old, t_sensible)
+        } else {
+            (t_sensible, t_old)
+        };
+        let (mut r_lo, mut r_hi) = (residual(lo), residual(hi));
+        if r_lo >= 0.0 {
+            return (lo, xi_at(lo));
+        }
+        if r_hi <= 0.0 {
+            return (hi, xi_at(hi));
+        }
+        let mut side = 0i8;
+        let mut t = 0.5 * (lo + hi);
+        for _ in 0..60 {
+            t = (lo * r_hi - hi * r_lo) / (r_hi - r_lo);
+            if !(t > lo && t < hi) {
+                t = 0.5 * (lo + hi);
+            }
+            let r = residual(t);
+            if r == 0.0 || hi - lo < 1e-9 {
+                break;
+            }
+            if r < 0.0 {
+                lo = t;
+                r_lo = r;
+                if side == -1 {
+                    r_hi *= 0.5;
+                }
+                side = -1;
+            } else {
+                hi = t;
+                r_hi = r;
+                if side == 1 {
+                    r_lo *= 0.5;
+                }
+                side = 1;
+            }
+        }
+        (t, xi_at(t))
+    }
+
     /// One Liang–Rogers phase update from (`t_old`, `xi_old`) to `t_new`.
     pub fn phase_update(&self, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
         self.phase_update_with(&self.phase_shape(), t_old, xi_old, t_new)
@@ -458,25 +548,20 @@ impl SmaCoil {
         };
         let t_eq = self.params.ambient_c + heating_k;
         let t_old = self.temperature_c;
-        let mut t_new = t_eq + (t_old - t_eq) * self.cached_decay;
-        if !freeze_phase {
+        let t_sensible = t_eq + (t_old - t_eq) * self.cached_decay;
+        if freeze_phase {
+            self.temperature_c = t_sensible;
+        } else {
             let xi_old = self.martensite_fraction;
-            let xi_new = self
-                .params
-                .phase_update_with(&self.phase_shape, t_old, xi_old, t_new);
-            // Latent heat: m ΔH dξ — M→A (ξ falls) absorbs, A→M releases.
-            // With ξ unchanged the term is +0 exactly (no division needed).
-            t_new += if xi_new == xi_old {
-                0.0
-            } else {
-                self.params.latent_heat_j_kg * (xi_new - xi_old) / self.params.specific_heat_j_kg_k
-            };
+            let (t_new, xi_new) =
+                self.params
+                    .settle_latent_heat_with(&self.phase_shape, t_old, xi_old, t_sensible);
+            self.temperature_c = t_new;
             if xi_new != xi_old {
                 self.martensite_fraction = xi_new;
                 self.refresh_mix();
             }
         }
-        self.temperature_c = t_new;
     }
 }
 
@@ -671,6 +756,74 @@ mod tests {
         // cooler and less transformed.
         assert!(with.temperature_c() < without.temperature_c() - 1.0);
         assert!(with.martensite_fraction() > without.martensite_fraction() + 0.1);
+    }
+
+    #[test]
+    fn latent_heat_keeps_the_phase_on_its_branch_through_both_bands() {
+        // Heating from cold (ξ₀ = 1 below A_s) the phase must read
+        // ξ = g_A(T) at the temperature the coil is actually at, and cooling
+        // from fully austenite 1 − ξ = g_M(T): the latent heat changes how
+        // fast T moves, never the ξ–T relation. At 1 ms steps with 0.5 A
+        // the coil crosses the A band in ≈ 1 s, so each step carries a
+        // latent correction of up to ≈ 0.2 K.
+        let p = SmaParams::default();
+        let mut c = SmaCoil::new(p.clone()).unwrap();
+        let mut in_band = 0;
+        for _ in 0..10_000 {
+            c.step(1e-3, 0.5, false);
+            let (t, xi) = (c.temperature_c(), c.martensite_fraction());
+            if t > p.austenite_start_c && t < p.austenite_finish_c {
+                in_band += 1;
+            }
+            assert!(
+                (xi - p.g_heat(&p.phase_shape(), t)).abs() < 1e-6,
+                "heating: ξ = {xi} at {t} °C, branch says {}",
+                p.g_heat(&p.phase_shape(), t)
+            );
+        }
+        assert!(in_band > 100, "only {in_band} steps inside the A band");
+        assert_eq!(c.martensite_fraction(), 0.0);
+        in_band = 0;
+        for _ in 0..60_000 {
+            c.step(1e-3, 0.0, false);
+            let (t, xi) = (c.temperature_c(), c.martensite_fraction());
+            if t > p.martensite_finish_c && t < p.martensite_start_c {
+                in_band += 1;
+            }
+            assert!(
+                ((1.0 - xi) - p.g_cool(&p.phase_shape(), t)).abs() < 1e-6,
+                "cooling: ξ = {xi} at {t} °C, branch says {}",
+                1.0 - p.g_cool(&p.phase_shape(), t)
+            );
+        }
+        assert!(in_band > 100, "only {in_band} steps inside the M band");
+        assert_eq!(c.martensite_fraction(), 1.0);
+    }
+
+    #[test]
+    fn latent_heat_balances_the_energy_of_each_step() {
+        // c·(T − T_sensible) = ΔH·(ξ − ξ₀): the settled state closes the
+        // step's energy balance, and the step never reverses the direction
+        // the sensible heat was taking the coil.
+        let p = SmaParams::default();
+        for (t_old, xi_old, t_sensible) in [
+            (69.0, p.g_heat(&p.phase_shape(), 69.0), 69.5),
+            (73.0, p.g_heat(&p.phase_shape(), 73.0), 74.0),
+            (77.5, p.g_heat(&p.phase_shape(), 77.5), 79.0),
+            (50.0, 1.0 - p.g_cool(&p.phase_shape(), 50.0), 49.0),
+            (45.0, 1.0 - p.g_cool(&p.phase_shape(), 45.0), 44.9),
+        ] {
+            let (t, xi) = p.settle_latent_heat(t_old, xi_old, t_sensible);
+            let lhs = p.specific_heat_j_kg_k * (t - t_sensible);
+            let rhs = p.latent_heat_j_kg * (xi - xi_old);
+            assert!(
+                (lhs - rhs).abs() < 1e-6,
+                "{t_old}→{t_sensible}: {lhs} vs {rhs}"
+            );
+            assert!(xi != xi_old, "{t_old}→{t_sensible}: no transformation");
+            assert_eq!((t - t_old).signum(), (t_sensible - t_old).signum());
+            assert!((t - t_old).abs() <= (t_sensible - t_old).abs());
+        }
     }
 
     #[test]
