@@ -84,6 +84,9 @@ impl embedded_hal::pwm::Error for PwmFailure {
 #[derive(Debug, Default)]
 struct PwmState {
     duty: Cell<u16>,
+    /// `duty / 1000` (V), computed when the duty is written: the plant
+    /// reads it every period, the controller writes it less often.
+    volts: Cell<f64>,
     fault: Cell<Option<CoilFault>>,
 }
 
@@ -111,7 +114,7 @@ impl SimPwm {
     pub fn coil_input_volts(&self) -> f64 {
         match self.state.fault.get() {
             Some(CoilFault::Open) => 0.0,
-            _ => f64::from(self.state.duty.get()) / 1000.0,
+            _ => self.state.volts.get(),
         }
     }
     /// Injects or clears a fault.
@@ -132,7 +135,11 @@ impl SetDutyCycle for SimPwm {
         if self.state.fault.get() == Some(CoilFault::ChannelError) {
             return Err(PwmFailure);
         }
-        self.state.duty.set(duty.min(self.max_duty));
+        let duty = duty.min(self.max_duty);
+        if duty != self.state.duty.get() {
+            self.state.duty.set(duty);
+            self.state.volts.set(f64::from(duty) / 1000.0);
+        }
         Ok(())
     }
 }
