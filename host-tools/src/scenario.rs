@@ -469,13 +469,15 @@ mod tests {
 
     #[test]
     fn target_tracker_reports_each_change_once() {
-        let mut s = Scenario::default();
-        s.targets = [(0.0, 0.0), (1.0, 5.0), (1.0, 6.0), (2.5, 6.0), (3.0, -2.0)]
-            .map(|(t_s, d)| TargetStep {
-                t_s,
-                deg: vec![d, d],
-            })
-            .to_vec();
+        let s = Scenario {
+            targets: [(0.0, 0.0), (1.0, 5.0), (1.0, 6.0), (2.5, 6.0), (3.0, -2.0)]
+                .map(|(t_s, d)| TargetStep {
+                    t_s,
+                    deg: vec![d, d],
+                })
+                .to_vec(),
+            ..Scenario::default()
+        };
         let mut tr = TargetTracker::default();
         let mut seen = Vec::new();
         for k in 0..4000 {
