@@ -461,7 +461,11 @@ impl PlanarJoint {
                 self.state.omega_rad_s = om;
                 self.state.com_m = [st.com_m[0] + dt * vx, st.com_m[1] + dt * vy];
                 self.state.theta_rad = st.theta_rad + dt * om;
-                self.sin_cos = self.state.theta_rad.sin_cos();
+                // A link at rest keeps θ to the bit: sin_cos (a libm call)
+                // of the same argument gives the same pair.
+                if self.state.theta_rad.to_bits() != st.theta_rad.to_bits() {
+                    self.sin_cos = self.state.theta_rad.sin_cos();
+                }
             }
             None => {
                 // Pivot at the joint origin: torque about it, the reaction
