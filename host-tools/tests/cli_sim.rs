@@ -319,3 +319,24 @@ fn csv_and_plot_are_written() {
         "plot lacks the angle or voltage series"
     );
 }
+
+/// The scenario files shipped in `scenarios/` (the README's benchmark runs)
+/// load and validate, so the README's commands keep working.
+#[test]
+fn shipped_scenarios_load() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).expect("scenarios/ exists") {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            host_tools::scenario::Scenario::load(&path)
+                .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+            n += 1;
+        }
+    }
+    assert!(
+        n >= 2,
+        "expected the benchmark scenarios in {}",
+        dir.display()
+    );
+}
