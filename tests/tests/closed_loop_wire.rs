@@ -31,7 +31,7 @@ use plant_models::joint::{Joint3d, Joint3dParams};
 /// to ≈ 2.1° on the simulated joint (plant README), so the true angle cannot
 /// be held closer than the law's own error.
 ///
-/// Measured (seed 5, 8–12 s): true angle 0.00, 5.56, 16.58, −3.59, −13.28°
+/// Measured (seed 5, 8–12 s): true angle 0.00, 5.58, 16.59, −3.58, −13.29°
 /// for θd = 0, 5, 15, −5, −15° (estimate within 0.1° of θd in every case).
 /// The paper saw accurate convergence for negative θd and sensor–camera
 /// differences for positive θd (its pushing side); in the simulation the
@@ -74,8 +74,8 @@ fn wire_feedback_2d_converges_for_each_target_of_fig16() {
 /// the last 20 % of each 10 s segment (the paper's own sensor accuracy,
 /// §VI-D), the estimates within 0.3°, no fault.
 ///
-/// Measured (seed 7): Eq. 3 — worst steady-state error 0.12° (α), 0.05° (β);
-/// switching — 0.18° (α), 0.13° (β) (seed 1 of the default: 0.15°, 0.26°).
+/// Measured (seed 7): Eq. 3 — worst steady-state error 0.11° (α), 0.11° (β);
+/// switching — 0.43° (α), 0.42° (β).
 #[test]
 fn wire_feedback_3d_converges_to_the_targets_of_fig21() {
     for method in [EstimatorMethod::Paper, EstimatorMethod::Switching] {
@@ -254,15 +254,15 @@ const EVALUATION_SEEDS: [u64; 3] = [12, 22, 32];
 ///
 /// Calibrated on a simulated sweep (seed 11), evaluated along independent
 /// sweeps of the same ±20° range (seeds 12, 22, 32). Measured:
-/// - single-sensor quadratic: 15.3° / 15.0° (α / β) on every seed. Mostly
+/// - single-sensor quadratic: 14.6–15.2° / 14.3–15.0° (α / β). Mostly
 ///   not jamming: once both coils of a pair have been hot the sponge has
 ///   sunk ≈ 3.3 mm, moving both wires of the pair alike (plant README,
 ///   "left out"); the differential law cancels that;
 /// - the jamming share of the single-sensor estimate, isolated by applying
 ///   the same law to the measured and to the jam-free (geometric)
-///   insertions: mean 0.34–0.37° while the wire is pushed in (rising
-///   angle), 0.008–0.011° while it is pulled out; up to 0.84–0.99°;
-/// - the differential law of the same fit: 0.74–0.82° (α), 0.73–0.78° (β).
+///   insertions: mean 0.35–0.37° while the wire is pushed in (rising
+///   angle), 0.010–0.044° while it is pulled out; up to 0.79–1.14°;
+/// - the differential law of the same fit: 0.72–0.83° (α), 0.68–0.76° (β).
 ///
 /// The paper's claim with threshold switching is the next test.
 #[test]
@@ -341,7 +341,7 @@ fn single_sensor_jams_on_the_pushing_side_and_two_wire_laws_stay_below_1_deg() {
 /// switching estimator in the loop; switching only if it beats the simpler
 /// laws' worst case by ≥ 5 %) on sweeps of three calibration seeds,
 /// evaluated on independent runs of three other seeds, worst error α / β:
-/// 0.72–0.83° / 0.72–0.78° (all nine pairs below 1.0°). On this plant the
+/// 0.72–0.83° / 0.67–0.78° (all nine pairs below 1.0°). On this plant the
 /// search finds no threshold that pays: the single-wire branch carries the
 /// sponge's history-dependent sink (see plant-models/src/joint/README.md),
 /// so the chosen law is the differential one over the whole range — Eq. 4
@@ -374,7 +374,7 @@ fn threshold_switching_below_1_deg_on_independent_runs() {
 /// (0 → −20 → +20 → 0, seed 12), i.e. reaching α < α_th with both coils
 /// still cold instead of after the +20° excursion as in the calibration.
 ///
-/// Measured: α 0.78°, β 0.72° (paper < 1.0°). With the earlier calibration
+/// Measured: α 0.72°, β 0.82° (paper < 1.0°). With the earlier calibration
 /// (a switching law whose single-wire branch was fitted on readings taken
 /// with the sponge sunk) this read α 11.67°: from cold the same angle reads
 /// ≈ 3 mm differently on that wire. The calibration now only keeps a
