@@ -155,20 +155,58 @@ fn table_ii_sessions() {
                 mean_sd(&col.retrieval).0
             );
         }
-        let wins = |i: usize, j: usize| {
-            cols[i]
-                .best
-                .iter()
-                .zip(&cols[j].best)
-                .filter(|(a, b)| a > b)
+        // Sessions where customised's best beats scheme j's, among those
+        // selected by `keep`.
+        let wins = |j: usize, keep: &dyn Fn(&Session) -> bool| {
+            (0..sessions.len())
+                .filter(|&k| keep(&sessions[k]) && cols[0].best[k] > cols[j].best[k])
                 .count()
         };
+        let all = |_: &Session| true;
         println!(
             "{label:>10} sessions where customised's best beats Euler's: {}/{}, Verlet's: {}/{}",
-            wins(0, 1),
+            wins(1, &all),
             sessions.len(),
-            wins(0, 2),
+            wins(2, &all),
             sessions.len()
         );
+        // The same split by the collision switch (forces-only sessions
+        // drive the mesh through the sensed force alone, §VI-F mode 2).
+        for collisions in [true, false] {
+            let keep = |s: &Session| s.collisions == collisions;
+            let idx: Vec<usize> = (0..sessions.len())
+                .filter(|&k| keep(&sessions[k]))
+                .collect();
+            if idx.is_empty() {
+                continue;
+            }
+            let mut line = format!(
+                "{label:>10} {:<16}",
+                if collisions {
+                    "with collisions"
+                } else {
+                    "forces only"
+                }
+            );
+            for (c, integ) in Integrator::ALL.into_iter().enumerate() {
+                let pick = |v: &[f64]| idx.iter().map(|&k| v[k]).collect::<Vec<f64>>();
+                let b = mean_sd(&pick(&cols[c].best));
+                line += &format!(
+                    "  {} {:.4} ± {:.4} ({:.4}/{:.4})",
+                    integ.name(),
+                    b.0,
+                    b.1,
+                    mean_sd(&pick(&cols[c].push)).0,
+                    mean_sd(&pick(&cols[c].retrieval)).0
+                );
+            }
+            println!(
+                "{line}  customised wins vs Euler {}/{}, vs Verlet {}/{}",
+                wins(1, &keep),
+                idx.len(),
+                wins(2, &keep),
+                idx.len()
+            );
+        }
     }
 }
