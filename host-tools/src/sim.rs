@@ -509,6 +509,10 @@ pub struct SummaryBuilder {
     rows: u64,
     max_estimation_error_deg: [f64; 2],
     segments: Vec<SegmentStats>,
+    /// First segment that has not ended at the last row's time: targets are
+    /// validated in time order, so segments are ordered and disjoint and
+    /// each row belongs to this one or to none.
+    cursor: usize,
 }
 
 impl SummaryBuilder {
@@ -541,10 +545,11 @@ impl SummaryBuilder {
             rows: 0,
             max_estimation_error_deg: [0.0; 2],
             segments,
+            cursor: 0,
         }
     }
 
-    /// Adds one control period's row.
+    /// Adds one control period's row; rows come in time order.
     #[inline]
     pub fn push(&mut self, r: &Row) {
         self.rows += 1;
@@ -559,9 +564,16 @@ impl SummaryBuilder {
                 *m = m.max(e);
             }
         }
-        for g in &mut self.segments {
-            if !(r.t_s >= g.from_s && r.t_s < g.to_s) {
-                continue;
+        while self
+            .segments
+            .get(self.cursor)
+            .is_some_and(|g| r.t_s >= g.to_s)
+        {
+            self.cursor += 1;
+        }
+        if let Some(g) = self.segments.get_mut(self.cursor) {
+            if r.t_s < g.from_s {
+                return;
             }
             if g.rows == 0 {
                 g.first_true_deg = r.true_deg;
