@@ -13,7 +13,9 @@
 //! Tens of minutes of CPU, so it is ignored by default; run it with
 //! `cargo test --release -p plant-models --test pushing_table_ii -- --ignored --nocapture`
 //! (`CELL_PX` raster cell, default 2; `GENERATIONS`, default 30; `SESSIONS`
-//! runs only the first n of the 24).
+//! runs only the first n of the 24; `SCHEMES`, default
+//! `customised,euler,verlet`, the first compared with the others, e.g.
+//! `SCHEMES=customised-seq,euler,verlet` for the spring-by-spring reading).
 use plant_models::pushing::evaluate::{
     score_run, score_with_measured_forces, EvalSetup, PreparedVideo,
 };
@@ -53,6 +55,13 @@ struct Column {
 fn table_ii_sessions() {
     let cell_px: f64 = env("CELL_PX", 2.0);
     let generations: usize = env("GENERATIONS", 30);
+    let schemes: Vec<Integrator> = std::env::var("SCHEMES")
+        .unwrap_or_else(|_| "customised,euler,verlet".into())
+        .split(',')
+        .map(|n| {
+            Integrator::from_name(n.trim()).unwrap_or_else(|| panic!("SCHEMES: unknown `{n}`"))
+        })
+        .collect();
     let sessions: Vec<Session> = Session::all()
         .into_iter()
         .take(env("SESSIONS", 24))
@@ -88,11 +97,34 @@ fn table_ii_sessions() {
         .unwrap()
         .mean_f;
         println!("{label}: undeformed block μ(F) = {still:.4}");
+        // The parameters the seed prints under Fig. 14 and 15 (found with
+        // its customised scheme on its own videos), on this video.
+        for (fig, p) in [
+            (
+                "Fig. 14",
+                plant_models::pushing::forces::MaterialParams::SEED_FIG14_SPONGE,
+            ),
+            (
+                "Fig. 15",
+                plant_models::pushing::forces::MaterialParams::SEED_FIG15_PLASTICINE,
+            ),
+        ] {
+            let mut line = format!("{label}: seed {fig} parameters μ(F)");
+            for &integ in &schemes {
+                let cfg = SimConfig {
+                    integrator: integ,
+                    ..SimConfig::default()
+                };
+                let r = score_with_measured_forces(&pv, &p, &cfg).unwrap();
+                line += &format!("  {} {:.4}", integ.name(), r.mean_f);
+            }
+            println!("{line}");
+        }
         let n_push = sc.frames_push;
-        let mut cols: Vec<Column> = Integrator::ALL.iter().map(|_| Column::default()).collect();
+        let mut cols: Vec<Column> = schemes.iter().map(|_| Column::default()).collect();
         for (s_idx, session) in sessions.iter().enumerate() {
             let mut line = format!("{label:>10} {:<28}", session.label());
-            for (c, integ) in Integrator::ALL.into_iter().enumerate() {
+            for (c, &integ) in schemes.iter().enumerate() {
                 let cfg = session.sim_config(integ);
                 let mut st = EvolutionSettings::table_iii(1 + s_idx as u64);
                 st.generations = generations;
@@ -132,7 +164,7 @@ fn table_ii_sessions() {
             println!("{line}");
         }
         println!("{label:>10} {:>10}  best             worst          average          skill of best    F push   F retrieval", "scheme");
-        for (c, integ) in Integrator::ALL.into_iter().enumerate() {
+        for (c, &integ) in schemes.iter().enumerate() {
             let col = &cols[c];
             let (b, w, a, k) = (
                 mean_sd(&col.best),
@@ -155,21 +187,27 @@ fn table_ii_sessions() {
                 mean_sd(&col.retrieval).0
             );
         }
-        // Sessions where customised's best beats scheme j's, among those
-        // selected by `keep`.
-        let wins = |j: usize, keep: &dyn Fn(&Session) -> bool| {
-            (0..sessions.len())
-                .filter(|&k| keep(&sessions[k]) && cols[0].best[k] > cols[j].best[k])
-                .count()
+        // Per other scheme: sessions among those selected by `keep` where
+        // the first scheme's best beats that scheme's.
+        let wins = |keep: &dyn Fn(&Session) -> bool| {
+            let n = (0..sessions.len()).filter(|&k| keep(&sessions[k])).count();
+            (1..schemes.len())
+                .map(|j| {
+                    let w = (0..sessions.len())
+                        .filter(|&k| keep(&sessions[k]) && cols[0].best[k] > cols[j].best[k])
+                        .count();
+                    format!("vs {} {w}/{n}", schemes[j].name())
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
         };
-        let all = |_: &Session| true;
-        println!(
-            "{label:>10} sessions where customised's best beats Euler's: {}/{}, Verlet's: {}/{}",
-            wins(1, &all),
-            sessions.len(),
-            wins(2, &all),
-            sessions.len()
-        );
+        if schemes.len() > 1 {
+            println!(
+                "{label:>10} sessions where {}'s best is higher: {}",
+                schemes[0].name(),
+                wins(&|_| true)
+            );
+        }
         // The same split by the collision switch (forces-only sessions
         // drive the mesh through the sensed force alone, §VI-F mode 2).
         for collisions in [true, false] {
@@ -188,7 +226,7 @@ fn table_ii_sessions() {
                     "forces only"
                 }
             );
-            for (c, integ) in Integrator::ALL.into_iter().enumerate() {
+            for (c, &integ) in schemes.iter().enumerate() {
                 let pick = |v: &[f64]| idx.iter().map(|&k| v[k]).collect::<Vec<f64>>();
                 let b = mean_sd(&pick(&cols[c].best));
                 line += &format!(
@@ -200,13 +238,10 @@ fn table_ii_sessions() {
                     mean_sd(&pick(&cols[c].retrieval)).0
                 );
             }
-            println!(
-                "{line}  customised wins vs Euler {}/{}, vs Verlet {}/{}",
-                wins(1, &keep),
-                idx.len(),
-                wins(2, &keep),
-                idx.len()
-            );
+            if schemes.len() > 1 {
+                line += &format!("  {} wins {}", schemes[0].name(), wins(&keep));
+            }
+            println!("{line}");
         }
     }
 }
