@@ -42,10 +42,11 @@ pub enum Integrator {
     /// finger forces are summed at p(t) and applied after the sweep, as in
     /// [`Integrator::Customised`]. Not in the seed's text: a reading of it.
     /// The seed's own Fig. 14 sponge parameters (k_L = 3034.48 on a 20×10
-    /// mesh, h = 0.1 s, which the seed found no better at h = 0.01 s) grow
-    /// any perturbation without bound under the printed simultaneous update
-    /// on a block of the seed's size in pixels, and stay at rest under this
-    /// one (`seed_fig14_parameters_need_the_spring_by_spring_update`).
+    /// mesh, h = 0.1 s, which the seed found no better at h = 0.01 s)
+    /// amplify any perturbation into a torn mesh (bounded only by max(F))
+    /// under the printed simultaneous update on a block of the seed's size
+    /// in pixels, and stay at rest under this one
+    /// (`seed_fig14_parameters_need_the_spring_by_spring_update`).
     /// Not one of Table II's three schemes ([`Integrator::ALL`]).
     CustomisedSequential,
 }
