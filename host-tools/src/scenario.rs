@@ -11,6 +11,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use serde::{Deserialize, Serialize};
 
+/// Gains the control core can hold: it computes in f32, where a smaller
+/// positive gain rounds to zero (or a subnormal) and a larger one to infinity.
+const F32_GAIN_RANGE: std::ops::RangeInclusive<f64> =
+    (f32::MIN_POSITIVE as f64)..=(f32::MAX as f64);
+
 /// Which joint to simulate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum JointKind {
@@ -271,6 +276,13 @@ impl Scenario {
                 self.control_period_us
             );
         }
+        if self.steps() == 0 {
+            bail!(
+                "field `duration_s`: {} s is shorter than one control period ({} s): nothing would be simulated",
+                self.duration_s,
+                self.period_s()
+            );
+        }
         let kp = &self.controller.kp_v_per_deg;
         if !(kp.len() == 1 || kp.len() == self.coils()) {
             bail!(
@@ -280,8 +292,18 @@ impl Scenario {
                 kp.len()
             );
         }
+        // The control core computes in f32: a gain that rounds to 0 or to
+        // infinity there is refused here, by name, rather than by the core.
         for (i, k) in kp.iter().enumerate() {
-            finite_pos(&format!("controller.kp_v_per_deg[{i}]"), *k)?;
+            let field = format!("controller.kp_v_per_deg[{i}]");
+            finite_pos(&field, *k)?;
+            if !(F32_GAIN_RANGE.contains(k)) {
+                bail!(
+                    "field `{field}`: outside the controller's f32 range {:e}..={:e}, got {k:e}",
+                    F32_GAIN_RANGE.start(),
+                    F32_GAIN_RANGE.end()
+                );
+            }
         }
         for (f, v) in [
             ("controller.ki_v_per_deg_s", self.controller.ki_v_per_deg_s),
@@ -292,6 +314,12 @@ impl Scenario {
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 bail!("field `{f}`: must be a finite number ≥ 0, got {v}");
+            }
+            if v > *F32_GAIN_RANGE.end() {
+                bail!(
+                    "field `{f}`: above the controller's f32 range (at most {:e}), got {v:e}",
+                    F32_GAIN_RANGE.end()
+                );
             }
         }
         if self.planes() == 1
@@ -373,8 +401,11 @@ impl Scenario {
                         }
                     }
                     if let Some(dir) = direction {
-                        if !(dir.iter().all(|v| v.is_finite()) && dir[0].hypot(dir[1]) > 0.0) {
-                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector");
+                        // The weight's force is mass·g/|direction|·direction:
+                        // a subnormal length overflows it.
+                        if !(dir.iter().all(|v| v.is_finite()) && dir[0].hypot(dir[1]).is_normal())
+                        {
+                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector (length at least {:e}), got {dir:?}", f64::MIN_POSITIVE);
                         }
                     }
                     (*from_s, *to_s)

@@ -1,0 +1,105 @@
+//! Inputs that used to crash `softjoint`, hang it, or let it report garbage
+//! as success: each must now fail with a non-zero exit and an error that
+//! names the bad field, flag or line, and never with a panic.
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn softjoint(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn scratch(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cli_bad_input_{test}_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs `args` and checks a clean refusal whose stderr holds every needle.
+fn refused(args: &[&str], needles: &[&str]) {
+    let o = softjoint(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success(),
+        "{args:?}: exit 0\nstdout:\n{}\nstderr:\n{err}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{args:?}: not an error exit:\n{err}"
+    );
+    assert!(!err.contains("panicked"), "{args:?}: panic:\n{err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: stderr lacks `{n}`:\n{err}");
+    }
+}
+
+/// Writes `text` to `dir/name` and returns the path as a string.
+fn file(dir: &std::path::Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_str().expect("utf-8 temp path").to_string()
+}
+
+/// A duration shorter than half a control period rounded to zero steps:
+/// the run "succeeded" with 0.000° errors and −inf coil temperatures.
+#[test]
+fn sim_refuses_a_duration_shorter_than_one_control_period() {
+    let dir = scratch("short");
+    let p = file(&dir, "short.toml", "duration_s = 1e-9\n");
+    refused(
+        &["sim", &p, "--json"],
+        &[&p, "duration_s", "control period"],
+    );
+}
+
+/// The control core computes in f32: 1e-300 rounded to 0 there and 1e39
+/// to infinity, and the error was the core's `ProportionalGainNotPositive`
+/// / `IntegralLimitNegative`, naming neither the file nor the field.
+#[test]
+fn sim_names_gains_outside_the_controllers_f32_range() {
+    let dir = scratch("gains");
+    for (name, text, field) in [
+        (
+            "kp_tiny.toml",
+            "[controller]\nkp_v_per_deg = [1e-300]\n",
+            "controller.kp_v_per_deg[0]",
+        ),
+        (
+            "kp_huge.toml",
+            "[controller]\nkp_v_per_deg = [2.0, 2.0, 1e39, 2.0]\n",
+            "controller.kp_v_per_deg[2]",
+        ),
+        (
+            "ki_huge.toml",
+            "[controller]\nki_v_per_deg_s = 1e300\n",
+            "controller.ki_v_per_deg_s",
+        ),
+        (
+            "limit_huge.toml",
+            "[controller]\nki_v_per_deg_s = 1.0\nintegral_limit_v = 1e39\n",
+            "controller.integral_limit_v",
+        ),
+    ] {
+        let p = file(&dir, name, text);
+        refused(&["sim", &p, "--json"], &[&p, field, "f32"]);
+    }
+}
+
+/// A subnormal thread direction passed the "non-zero" check and the
+/// weight's force overflowed inside the plant: the error named
+/// `load.force_n[0]`, not the scenario field.
+#[test]
+fn sim_names_a_weight_direction_too_short_to_normalise() {
+    let dir = scratch("direction");
+    let p = file(
+        &dir,
+        "dir.toml",
+        "duration_s = 2.0\n[[disturbances]]\nkind = \"weight\"\nmass_g = 10.0\n\
+         direction = [1e-320, 0.0]\nfrom_s = 0.5\nto_s = 1.0\n",
+    );
+    refused(&["sim", &p, "--json"], &[&p, "disturbances[0].direction"]);
+}
