@@ -168,6 +168,18 @@ fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Re
     } else {
         bail!("{name}:1: missing column: need `displacement` or `force` beside `time_s` (header has: {})", head.join(", "));
     };
+    // Parameters or samples near the f64 range overflow the model; a NaN or
+    // infinite result is refused rather than written.
+    for k in 0..t.len() {
+        if !(u[k].is_finite() && f[k].is_finite()) {
+            bail!(
+                "{name}: the model overflowed at the sample at time_s = {} (displacement {}, force {}): k1 = {k1:e}, k2 = {k2:e}, b = {b:e} and the input are too large together",
+                t[k],
+                u[k],
+                f[k]
+            );
+        }
+    }
     let mut s = String::from("time_s,displacement,force\n");
     for k in 0..t.len() {
         let _ = writeln!(s, "{},{},{}", t[k], u[k], f[k]);
@@ -198,6 +210,12 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
     };
     let r = fit_trial(t, u, f, weighting, NelderMeadOptions::default())
         .with_context(|| format!("fitting {name}"))?;
+    if !(r.rms_residual_n.is_finite() && r.weighted_cost_n2.is_finite()) {
+        bail!(
+            "fitting {name}: the model's force overflowed (rms residual {} N): displacements and forces this large cannot be fitted",
+            r.rms_residual_n
+        );
+    }
     if let Some(p) = plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
@@ -257,6 +275,11 @@ fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
     Ok(out)
 }
 
+/// Longest `object` run: every haptic step and every 30 Hz frame of every
+/// vertex is kept in memory before it is written. Estimate for the default
+/// ~200-vertex mesh at this length: 0.2 GB of frames, 0.5 GB of CSV text.
+const MAX_OBJECT_DURATION_S: f64 = 600.0;
+
 /// Scalar options of `object`.
 struct ObjectRun {
     duration_s: f64,
@@ -309,8 +332,14 @@ fn object(
         seed,
         tensor,
     } = *run;
-    if !(duration_s.is_finite() && duration_s > 0.0) {
-        bail!("--duration-s must be finite and > 0, got {duration_s}");
+    if !(duration_s.is_finite() && (HAPTIC_PERIOD_S..=MAX_OBJECT_DURATION_S).contains(&duration_s))
+    {
+        bail!(
+            "--duration-s must be between one haptic period ({HAPTIC_PERIOD_S} s) and {MAX_OBJECT_DURATION_S} s, got {duration_s:e}"
+        );
+    }
+    if every == 0 {
+        bail!("--probe-every must be at least 1 (probe every N-th traction vertex)");
     }
     let mesh = match mesh_path {
         Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,

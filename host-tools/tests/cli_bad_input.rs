@@ -103,3 +103,108 @@ fn sim_names_a_weight_direction_too_short_to_normalise() {
     );
     refused(&["sim", &p, "--json"], &[&p, "disturbances[0].direction"]);
 }
+
+/// k1 = k2 = b = 1e308 overflowed the 3-element model: the output CSV held
+/// NaN forces and the exit was 0. So did displacements of ±1e308.
+#[test]
+fn viscoelastic_simulate_refuses_to_write_an_overflowed_result() {
+    let dir = scratch("visco_sim");
+    let mut ramp = String::from("time_s,displacement\n");
+    for k in 0..20 {
+        ramp.push_str(&format!("{},{}\n", f64::from(k) * 0.01, 1e-3));
+    }
+    let ramp = file(&dir, "ramp.csv", &ramp);
+    let out = dir.join("out.csv");
+    let out = out.to_str().unwrap();
+    refused(
+        &[
+            "viscoelastic",
+            "simulate",
+            &ramp,
+            "--k1",
+            "1e308",
+            "--k2",
+            "1e308",
+            "--b",
+            "1e308",
+            "-o",
+            out,
+        ],
+        &[&ramp, "overflowed", "time_s = 0.01"],
+    );
+    assert!(
+        !std::path::Path::new(out).exists(),
+        "an output file was written anyway"
+    );
+    let big = file(
+        &dir,
+        "big.csv",
+        "time_s,displacement\n0,0\n0.2,1e308\n0.3,-1e308\n",
+    );
+    refused(
+        &[
+            "viscoelastic",
+            "simulate",
+            &big,
+            "--k1",
+            "100",
+            "--k2",
+            "200",
+            "--b",
+            "5",
+        ],
+        &[&big, "overflowed", "time_s = 0.2"],
+    );
+}
+
+/// A trial of values near 1e300 overflowed every model force: `fit --json`
+/// printed `"rms_residual_n": inf` (not even JSON) with the starting
+/// parameters as the "fit", and exit 0.
+#[test]
+fn viscoelastic_fit_refuses_an_overflowed_fit() {
+    let dir = scratch("visco_fit");
+    let mut text = String::from("time_s,displacement,force\n");
+    for k in 0..21 {
+        text.push_str(&format!("{k},{k}e300,{k}e300\n"));
+    }
+    let p = file(&dir, "big.csv", &text);
+    refused(&["viscoelastic", "fit", &p, "--json"], &[&p, "overflowed"]);
+}
+
+/// `--duration-s 1e300` panicked with "capacity overflow"; `1e-9` ran zero
+/// haptic steps and wrote header-only CSVs with exit 0; `--probe-every 0`
+/// was silently taken as 1.
+#[test]
+fn viscoelastic_object_refuses_durations_it_cannot_run_and_probe_every_zero() {
+    let dir = scratch("visco_object");
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    for d in ["1e300", "1e9", "1e-9", "0.0009"] {
+        refused(
+            &[
+                "viscoelastic",
+                "object",
+                "--out-dir",
+                out,
+                "--duration-s",
+                d,
+            ],
+            &["--duration-s", "600 s"],
+        );
+    }
+    refused(
+        &[
+            "viscoelastic",
+            "object",
+            "--out-dir",
+            out,
+            "--probe-every",
+            "0",
+        ],
+        &["--probe-every"],
+    );
+    assert!(
+        !std::path::Path::new(out).exists(),
+        "files were written for a refused run"
+    );
+}
