@@ -539,9 +539,17 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     Ok(())
 }
 
+/// Most generations `calibrate` runs: the history of every generation is
+/// allocated up front, and at Table III's 30 simulations per generation this
+/// is already hours of work.
+const MAX_GENERATIONS: usize = 10_000;
+
 fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
-    if a.generations == 0 {
-        bail!("--generations must be at least 1");
+    if !(1..=MAX_GENERATIONS).contains(&a.generations) {
+        bail!(
+            "--generations must be 1..={MAX_GENERATIONS} (Table III: 30), got {}",
+            a.generations
+        );
     }
     let prep = prepare(&a.video, &a.model)?;
     let sim = sim_config(&a.model);
@@ -659,6 +667,10 @@ fn parse_model(spec: &str) -> Result<MaterialModel> {
     if label.trim().is_empty() {
         bail!("--model `{spec}`: the label is empty");
     }
+    // The label becomes a CSV column name (`f_LABEL`) and a legend entry.
+    if label.contains([',', '"', '\n', '\r']) {
+        bail!("--model `{spec}`: the label may not contain a comma, a quote or a line break");
+    }
     Ok(MaterialModel {
         label: label.trim().to_string(),
         params: load_params(Path::new(path.trim()))?,
@@ -673,6 +685,14 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
         .collect::<Result<_>>()?;
     if models.len() < 2 {
         bail!("classification needs at least two --model LABEL=PARAMS.json");
+    }
+    for (k, m) in models.iter().enumerate() {
+        if models[..k].iter().any(|o| o.label == m.label) {
+            bail!(
+                "--model: the label `{}` is given twice; the results could not be told apart",
+                m.label
+            );
+        }
     }
     let prep = prepare(&a.video, &a.model)?;
     let sim = sim_config(&a.model);

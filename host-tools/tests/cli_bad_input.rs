@@ -208,3 +208,86 @@ fn viscoelastic_object_refuses_durations_it_cannot_run_and_probe_every_zero() {
         "files were written for a refused run"
     );
 }
+
+/// `--generations 100000000` aborted the process: the generation history is
+/// allocated up front (10.4 GB) and the allocation failed.
+#[test]
+fn push_calibrate_refuses_an_absurd_generation_count() {
+    let dir = scratch("push_gen");
+    let out = dir.join("out");
+    refused(
+        &[
+            "push",
+            "calibrate",
+            "--generations",
+            "100000000",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &["--generations", "100000000"],
+    );
+}
+
+/// An element size far below a pixel was refused as "invalid parameter
+/// `nx` = 391000", naming a flag the user had not given.
+#[test]
+fn push_names_the_reference_element_size_when_it_is_too_small() {
+    let dir = scratch("push_elem");
+    let out = dir.join("out");
+    let o = softjoint(&[
+        "push",
+        "simulate",
+        "--ref-element-px",
+        "1e-3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    refused(
+        &[
+            "push",
+            "simulate",
+            "--ref-element-px",
+            "1e-3",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &["element_size_px", "2000"],
+    );
+    assert!(!err.contains("`nx`"), "names `nx`:\n{err}");
+}
+
+/// Two models with one label were classified as if they were different:
+/// the CSV had two `f_a` columns and the vote could not be read; a comma
+/// in a label split the CSV header.
+#[test]
+fn push_classify_refuses_duplicate_and_csv_breaking_labels() {
+    let dir = scratch("push_labels");
+    let params = file(
+        &dir,
+        "p.json",
+        r#"{"k_length": 3034.48, "k_damping": 0.000237, "k_area": 103.568,
+            "k_angle": 66.774, "max_force": 1218.81, "yield_strain": 0.000434973,
+            "creep": 0.00890343, "max_alpha": 0.45204}"#,
+    );
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    let a = format!("a={params}");
+    refused(
+        &[
+            "push", "classify", "--model", &a, "--model", &a, "--out", out,
+        ],
+        &["label `a` is given twice"],
+    );
+    let comma = format!("a,b={params}");
+    refused(
+        &[
+            "push", "classify", "--model", &comma, "--model", &a, "--out", out,
+        ],
+        &["a,b", "comma"],
+    );
+    assert!(
+        !std::path::Path::new(out).exists(),
+        "files were written for a refused run"
+    );
+}

@@ -256,6 +256,10 @@ fn rotation_of(f: &M2) -> M2 {
     }
 }
 
+/// Most elements along a side of the reference block (the limit of
+/// [`Mesh::grid`]).
+const MAX_ELEMENTS_PER_SIDE: f64 = 2000.0;
+
 impl ReferenceBlock {
     /// A block of `width_px × height_px` on the table, at rest.
     pub fn new(
@@ -266,8 +270,21 @@ impl ReferenceBlock {
     ) -> Result<Self> {
         material.validate()?;
         check_positive("element_size_px", element_size_px)?;
-        let nx = ((width_px / element_size_px).round() as usize).max(2);
-        let ny = ((height_px / element_size_px).round() as usize).max(2);
+        let (nx, ny) = (
+            (width_px / element_size_px).round(),
+            (height_px / element_size_px).round(),
+        );
+        // Mesh::grid's own limit, checked here so that the error names the
+        // element size the caller chose rather than the grid's `nx`/`ny`.
+        if nx.max(ny) > MAX_ELEMENTS_PER_SIDE {
+            return Err(PushError::InvalidParameter {
+                name: "element_size_px",
+                value: element_size_px,
+                reason: "too small for the block: more than 2000 elements per side",
+            });
+        }
+        let nx = (nx as usize).max(2);
+        let ny = (ny as usize).max(2);
         let mesh = Mesh::grid(V2::zeros(), width_px, height_px, nx, ny)?;
         let scale = material.scale_px_per_m;
         // Plane stress with the slab thickness folded into the modulus:
