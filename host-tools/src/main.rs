@@ -70,7 +70,29 @@ enum CalibrateCommand {
     },
 }
 
+/// A reader that goes away early (`softjoint sim --json | head -1`) makes
+/// the next `println!` fail with EPIPE, which std turns into a panic. End
+/// quietly instead, with the status a shell gives a process killed by
+/// SIGPIPE (128 + 13), as other command-line tools do; any other panic
+/// still reports as usual.
+fn exit_quietly_on_broken_pipe() {
+    let report = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let message = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to std") && message.contains("Broken pipe") {
+            std::process::exit(141);
+        }
+        report(info)
+    }));
+}
+
 fn main() -> ExitCode {
+    exit_quietly_on_broken_pipe();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

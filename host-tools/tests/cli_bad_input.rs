@@ -291,3 +291,28 @@ fn push_classify_refuses_duplicate_and_csv_breaking_labels() {
         "files were written for a refused run"
     );
 }
+
+/// A reader that has gone away (`softjoint sim --print-default | true`):
+/// stdout is a socket whose other end is already closed, so the very first
+/// write fails with EPIPE, every time. The process must end quietly with
+/// the shell's SIGPIPE status, not with a panic.
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_ends_the_program_quietly() {
+    use std::os::fd::OwnedFd;
+    use std::os::unix::net::UnixStream;
+    use std::process::Stdio;
+    for args in [&["sim", "--print-default"][..], &["sim", "--json"][..]] {
+        let (ours, theirs) = UnixStream::pair().unwrap();
+        drop(ours);
+        let o = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+            .args(args)
+            .stdout(Stdio::from(OwnedFd::from(theirs)))
+            .stderr(Stdio::piped())
+            .output()
+            .expect("binary runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert_eq!(o.status.code(), Some(141), "{args:?}: {err}");
+    }
+}
