@@ -293,12 +293,21 @@ pub struct ClosedLoop<Pl, const P: usize, const S: usize, const C: usize> {
 /// Why the closed loop stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum LoopError {
-    /// The plant refused a step (instability, bad input).
+    /// The plant refused a step (instability, bad input). The plant's
+    /// error is part of this message and deliberately not also returned
+    /// as `source()`: reporters that print the chain (`anyhow`'s `{:#}`)
+    /// would otherwise print it twice.
     #[error("plant: {0}")]
-    Plant(#[from] plant_models::joint::PlantError),
+    Plant(plant_models::joint::PlantError),
     /// The control period is not usable.
     #[error("control period must be 100 µs..=1 s, got {0} µs")]
     Period(u32),
+}
+
+impl From<plant_models::joint::PlantError> for LoopError {
+    fn from(e: plant_models::joint::PlantError) -> Self {
+        LoopError::Plant(e)
+    }
 }
 
 /// Coil index (paper numbering, 0-based) of pair `p`'s agonist/antagonist.
@@ -473,6 +482,17 @@ where
 mod tests {
     use super::*;
     use embedded_hal::delay::DelayNs;
+
+    #[test]
+    fn a_plant_error_is_printed_once() {
+        use std::error::Error as _;
+        let e = LoopError::from(plant_models::joint::PlantError::BadStep { dt_s: -1.0 });
+        assert_eq!(
+            e.to_string(),
+            "plant: step length -1 s must be finite and > 0"
+        );
+        assert!(e.source().is_none(), "the plant error would print twice");
+    }
 
     #[test]
     fn pwm_counts_millivolts_and_faults_bite() {

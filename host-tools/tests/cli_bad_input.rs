@@ -316,3 +316,27 @@ fn a_closed_stdout_ends_the_program_quietly() {
         assert_eq!(o.status.code(), Some(141), "{args:?}: {err}");
     }
 }
+
+/// A 1000 kg weight makes the plant blow up, which is refused; but the
+/// message said it twice (`…exceeds 0.5 J: …exceeds 0.5 J`): the closed
+/// loop's error printed the plant's error and also returned it as its source.
+#[test]
+fn sim_reports_a_plant_instability_once() {
+    let dir = scratch("heavy");
+    let p = file(
+        &dir,
+        "heavy.toml",
+        "duration_s = 2.0\n[[disturbances]]\nkind = \"weight\"\nmass_g = 1e6\n\
+         direction = [1.0, 0.0]\nfrom_s = 0.5\nto_s = 1.0\n",
+    );
+    refused(
+        &["sim", &p, "--json"],
+        &["numerical instability", "t = 0.500 s"],
+    );
+    let err = String::from_utf8_lossy(&softjoint(&["sim", &p, "--json"]).stderr).into_owned();
+    assert_eq!(
+        err.matches("numerical instability").count(),
+        1,
+        "repeated:\n{err}"
+    );
+}
