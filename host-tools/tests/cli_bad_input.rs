@@ -340,3 +340,19 @@ fn sim_reports_a_plant_instability_once() {
         "repeated:\n{err}"
     );
 }
+
+/// Two samples "fitted" three parameters (k1, k2, b) with an rms residual
+/// of 3e-13 N and exit 0: any of infinitely many triples fits them.
+#[test]
+fn viscoelastic_fit_refuses_fewer_samples_than_parameters() {
+    let dir = scratch("visco_fit_two");
+    let p = file(
+        &dir,
+        "two.csv",
+        "time_s,displacement,force\n0,0,0\n0.1,0.001,1\n",
+    );
+    refused(
+        &["viscoelastic", "fit", &p, "--json"],
+        &[&p, "at least 3 samples", "got 2"],
+    );
+}

@@ -48,6 +48,17 @@ pub enum VeError {
     /// The portable core refused a parameter or a step.
     #[error("viscoelastic core: {0:?} ({1})")]
     Core(ViscoError, &'static str),
+    /// A fit was given fewer samples than it has parameters, so the data
+    /// cannot determine them.
+    #[error("the {needed} parameters ({parameters}) need at least {needed} samples to be determined, got {got}")]
+    TooFewSamples {
+        /// The parameters of the fit, as the user knows them.
+        parameters: &'static str,
+        /// Samples needed (the number of parameters).
+        needed: usize,
+        /// Samples given.
+        got: usize,
+    },
     /// Two series that must line up do not.
     #[error("length mismatch: {what} has {got} entries, expected {expected}")]
     LengthMismatch {

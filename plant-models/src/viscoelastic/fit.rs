@@ -348,6 +348,15 @@ pub fn fit_trial(
     check_series(time_s, displacement_m, "displacement")?;
     check_series(time_s, force_n, "force")?;
     let n = time_s.len();
+    // Fewer samples than parameters: infinitely many (k1, k2, b) fit them
+    // exactly, and the minimiser would return whichever it met first.
+    if n < 3 {
+        return Err(VeError::TooFewSamples {
+            parameters: "k1, k2 and b",
+            needed: 3,
+            got: n,
+        });
+    }
     let (peak_i, peak_f) =
         force_n
             .iter()
@@ -456,6 +465,27 @@ mod tests {
             "{:?}",
             r
         );
+    }
+
+    #[test]
+    fn a_fit_needs_a_sample_per_parameter() {
+        let e = fit_trial(
+            &[0.0, 0.1],
+            &[0.0, 1e-3],
+            &[0.0, 1.0],
+            Weighting::Seed,
+            NelderMeadOptions::default(),
+        )
+        .unwrap_err();
+        assert_eq!(
+            e,
+            VeError::TooFewSamples {
+                parameters: "k1, k2 and b",
+                needed: 3,
+                got: 2
+            }
+        );
+        assert!(e.to_string().contains("at least 3 samples"), "{e}");
     }
 
     #[test]
