@@ -69,6 +69,23 @@ pub enum ViscoError {
     ActiveListFull,
 }
 
+impl core::fmt::Display for ViscoError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            ViscoError::K1NotPositive => "k1 (delayed spring) must be finite and > 0",
+            ViscoError::K2NotPositive => "k2 (series spring) must be finite and > 0",
+            ViscoError::DampingNegative => "b (damping) must be finite and >= 0",
+            ViscoError::RatioNotPositive => "the stiffness ratio r = k2/k1 must be finite and > 0",
+            ViscoError::AreaNotPositive => "the node area must be finite and > 0",
+            ViscoError::StepNotPositive => "the time step must be finite and > 0",
+            ViscoError::SingularTensor => "a tensor to invert is singular or not finite",
+            ViscoError::NonFiniteInput => "a force, traction or displacement is not finite",
+            ViscoError::VertexOutOfRange => "a vertex index is outside the DGFM",
+            ViscoError::ActiveListFull => "more columns would be active than the capacity allows",
+        })
+    }
+}
+
 /// A validated, strictly positive, finite time step in seconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TimeStep<T>(T);

@@ -105,6 +105,18 @@ fn ratio_form_is_two_springs_in_series_equal_to_k() {
 }
 
 #[test]
+fn errors_read_as_sentences_not_variant_names() {
+    assert_eq!(
+        ViscoError::K1NotPositive.to_string(),
+        "k1 (delayed spring) must be finite and > 0"
+    );
+    assert_eq!(
+        ViscoError::StepNotPositive.to_string(),
+        "the time step must be finite and > 0"
+    );
+}
+
+#[test]
 fn invalid_parameters_are_rejected_by_name() {
     assert_eq!(
         ThreeElement::new(0.0, 1.0, 1.0).err(),

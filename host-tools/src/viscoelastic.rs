@@ -6,12 +6,13 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use firmware::viscoelastic::TimeStep;
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
+use plant_models::viscoelastic::error::VeError;
 use plant_models::viscoelastic::estimate::{estimate_all, spread_columns};
 use plant_models::viscoelastic::fem::{LinearElastic, DEFAULT_SHELL_SCALES};
 use plant_models::viscoelastic::fit::{
     fit_trial, fit_trials, simulate_displacement, simulate_force, NelderMeadOptions, Weighting,
 };
-use plant_models::viscoelastic::io::{header, read_columns, read_probe_script};
+use plant_models::viscoelastic::io::{data_line_numbers, header, read_columns, read_probe_script};
 use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, Trial, VertexTruth};
 use plant_models::viscoelastic::object::{run_script, Contact, ProbeEvent, HAPTIC_PERIOD_S};
 use plant_models::viscoelastic::svg::{false_colour_mesh, fit_plot};
@@ -150,7 +151,20 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
 }
 
+/// Checks a model parameter flag: finite and > 0 (or ≥ 0 if `zero_ok`).
+fn check_flag(flag: &str, value: f64, zero_ok: bool, unit: &str) -> Result<()> {
+    let ok = value.is_finite() && (value > 0.0 || zero_ok && value == 0.0);
+    if !ok {
+        let range = if zero_ok { ">= 0" } else { "> 0" };
+        bail!("{flag} must be finite and {range} ({unit}), got {value}");
+    }
+    Ok(())
+}
+
 fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Result<()> {
+    check_flag("--k1", k1, false, "N/m")?;
+    check_flag("--k2", k2, false, "N/m")?;
+    check_flag("--b", b, true, "N s/m")?;
     let text = read_text(input)?;
     let name = input.display().to_string();
     let head = header(&text);
@@ -366,9 +380,10 @@ fn object(
     for (j, &v) in dgfm.traction_vertices().iter().enumerate() {
         per_vertex[v] = magnitude[j];
     }
-    let events = match script {
-        Some(p) => read_probe_script(&read_text(p)?, &p.display().to_string(), nv)?,
-        None => {
+    let script_text = script.map(read_text).transpose()?;
+    let events = match (script, &script_text) {
+        (Some(p), Some(text)) => read_probe_script(text, &p.display().to_string(), nv)?,
+        _ => {
             let top = (0..nv)
                 .filter(|&v| !dgfm.fixed()[v])
                 .max_by(|&a, &b| {
@@ -394,7 +409,18 @@ fn object(
     let fixed_flags = dgfm.fixed().to_vec();
     let obj = ViscoObject::new(dgfm, params.clone(), h)?;
     let mut haptic = HapticLoop::new(obj)?;
-    let samples = run_script(&mut haptic, &events, duration_s)?;
+    let samples = run_script(&mut haptic, &events, duration_s).map_err(|e| {
+        // An event of the user's script is named by its file and line.
+        match (&e, script, &script_text) {
+            (VeError::ProbeEvent { index, error, .. }, Some(p), Some(text)) => {
+                match data_line_numbers(text).get(*index) {
+                    Some(line) => anyhow::anyhow!("{}:{line}: {error}", p.display()),
+                    None => anyhow::Error::new(e),
+                }
+            }
+            _ => anyhow::Error::new(e),
+        }
+    })?;
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
     let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");

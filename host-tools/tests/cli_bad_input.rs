@@ -356,3 +356,108 @@ fn viscoelastic_fit_refuses_fewer_samples_than_parameters() {
         &[&p, "at least 3 samples", "got 2"],
     );
 }
+
+/// `--k1 NaN` (or 0) was refused as `viscoelastic core: K1NotPositive`,
+/// naming neither the flag nor the value; the same for `--k2` and `--b`.
+#[test]
+fn viscoelastic_simulate_names_the_parameter_flag() {
+    let dir = scratch("visco_flags");
+    let ramp = file(
+        &dir,
+        "ramp.csv",
+        "time_s,displacement\n0,0\n0.01,0.001\n0.02,0.001\n",
+    );
+    for (k1, k2, b, flag, value) in [
+        ("NaN", "1", "1", "--k1", "NaN"),
+        ("0", "1", "1", "--k1", "0"),
+        ("1", "0", "1", "--k2", "0"),
+        ("1", "inf", "1", "--k2", "inf"),
+        ("1", "1", "NaN", "--b", "NaN"),
+    ] {
+        refused(
+            &[
+                "viscoelastic",
+                "simulate",
+                &ramp,
+                "--k1",
+                k1,
+                "--k2",
+                k2,
+                "--b",
+                b,
+            ],
+            &[flag, value],
+        );
+    }
+    for (k1, k2, b) in [("1", "1", "-1"), ("-1", "1", "1")] {
+        let o = softjoint(&[
+            "viscoelastic",
+            "simulate",
+            &ramp,
+            &format!("--k1={k1}"),
+            &format!("--k2={k2}"),
+            &format!("--b={b}"),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && !err.contains("NotPositive") && !err.contains("Negative"),
+            "{err}"
+        );
+    }
+}
+
+/// Times of −1e308 then 1e308 are each finite and increasing, but the step
+/// between them overflows: the error was the core's `StepNotPositive
+/// (time step)`, with no file or line.
+#[test]
+fn viscoelastic_names_the_line_of_a_time_step_that_overflows() {
+    let dir = scratch("visco_time");
+    let p = file(
+        &dir,
+        "t.csv",
+        "time_s,displacement,force\n-1e308,0,0\n1e308,0.001,1\n",
+    );
+    for args in [
+        &[
+            "viscoelastic",
+            "simulate",
+            &p,
+            "--k1",
+            "1",
+            "--k2",
+            "1",
+            "--b",
+            "1",
+        ][..],
+        &["viscoelastic", "fit", &p][..],
+    ] {
+        refused(args, &[&format!("{p}:3:"), "time_s"]);
+    }
+}
+
+/// A probe force of 1e308 N is finite, but divided by the vertex's area it
+/// is not: the error was `NonFiniteInput (traction)`, with no file or line.
+#[test]
+fn viscoelastic_object_names_the_probe_script_line_of_an_overflowing_force() {
+    let dir = scratch("visco_probe");
+    let script = file(
+        &dir,
+        "probe.csv",
+        "time_s,vertex,fx_n,fy_n,fz_n\n0,10,0,0,-1\n0.01,10,0,0,1e308\n0.5,-1,0,0,0\n",
+    );
+    let out = dir.join("out");
+    refused(
+        &[
+            "viscoelastic",
+            "object",
+            "--script",
+            &script,
+            "--duration-s",
+            "0.1",
+            "--out-dir",
+            out.to_str().unwrap(),
+        ],
+        &[&format!("{script}:3:"), "force"],
+    );
+    assert!(!out.exists(), "files were written for a refused run");
+}

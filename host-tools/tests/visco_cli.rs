@@ -223,7 +223,7 @@ fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
             "--b",
             "1",
         ],
-        &["K1NotPositive"],
+        &["--k1", "-1"],
     );
     expect_error(
         &["viscoelastic", "fit", "/nonexistent/x.csv"],

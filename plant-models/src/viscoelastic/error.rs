@@ -9,7 +9,7 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum VeError {
     /// A named scalar parameter is NaN/infinite or outside its valid range.
-    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    #[error("invalid parameter `{name}` = {}: {reason}", short(*.value))]
     InvalidParameter {
         /// Parameter name as the user knows it.
         name: &'static str,
@@ -46,7 +46,7 @@ pub enum VeError {
         n: usize,
     },
     /// The portable core refused a parameter or a step.
-    #[error("viscoelastic core: {0:?} ({1})")]
+    #[error("{1}: {0}")]
     Core(ViscoError, &'static str),
     /// A fit was given fewer samples than it has parameters, so the data
     /// cannot determine them.
@@ -59,6 +59,19 @@ pub enum VeError {
         /// Samples given.
         got: usize,
     },
+    /// A probe-script event could not be applied (`index` counts the
+    /// script's events from 0, so a reader can name the file's line).
+    /// `error` is shown in this message and not also returned as the
+    /// source, so that chain-printing reporters show it once.
+    #[error("probe event {index} (time_s = {time_s}): {error}")]
+    ProbeEvent {
+        /// Index of the event in the script.
+        index: usize,
+        /// Its time (s).
+        time_s: f64,
+        /// Why it could not be applied.
+        error: Box<VeError>,
+    },
     /// Two series that must line up do not.
     #[error("length mismatch: {what} has {got} entries, expected {expected}")]
     LengthMismatch {
@@ -69,6 +82,17 @@ pub enum VeError {
         /// The length it should have.
         expected: usize,
     },
+}
+
+/// A number for a message: as `{}` prints it, or in exponent form when
+/// that would be a long run of digits (1e308 has 309).
+pub(crate) fn short(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && a.is_finite() && !(1e-4..1e15).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// Result alias of the viscoelastic module.

@@ -247,6 +247,11 @@ fn check_series(time_s: &[f64], other: &[f64], what: &'static str) -> Result<()>
 }
 
 fn model(k1: f64, k2: f64, b: f64) -> Result<ThreeElement<f64>> {
+    // The core checks these too, but its error names neither the value nor
+    // (for NaN) that the value is not a number.
+    let k1 = super::error::check_positive("k1", k1)?;
+    let k2 = super::error::check_positive("k2", k2)?;
+    let b = super::error::check_non_negative("b", b)?;
     ThreeElement::new(k1, k2, b).map_err(|e| VeError::Core(e, "3-element parameters k1, k2, b"))
 }
 
@@ -262,8 +267,11 @@ fn run_series(
     let mut out = Vec::with_capacity(time_s.len());
     out.push(first);
     for k in 1..time_s.len() {
-        let h =
-            TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|e| VeError::Core(e, "time step"))?;
+        let h = TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|_| VeError::InvalidParameter {
+            name: "time_s",
+            value: time_s[k],
+            reason: "the step from the previous sample is not finite (the times are too far apart for f64)",
+        })?;
         out.push(step(&mut s, input[k], h));
     }
     Ok(out)

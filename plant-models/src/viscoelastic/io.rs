@@ -101,6 +101,17 @@ pub fn read_columns(
                             format!("time must strictly increase: {v} after {prev}"),
                         ));
                     }
+                    if !(v - prev).is_finite() {
+                        return Err(err(
+                            line_no,
+                            format!(
+                                "`{}` = {}: the step from {} is not finite (the times are too far apart for f64)",
+                                wanted[c],
+                                super::error::short(v),
+                                super::error::short(prev)
+                            ),
+                        ));
+                    }
                 }
             }
             values[c].push(v);
@@ -113,6 +124,18 @@ pub fn read_columns(
         names: wanted.iter().map(|s| s.to_string()).collect(),
         values,
     })
+}
+
+/// The 1-based line numbers of the data rows of CSV `text` (the lines
+/// after the header that are neither blank nor comments), in order: entry
+/// `k` is the line of the `k`-th value [`read_columns`] returns.
+pub fn data_line_numbers(text: &str) -> Vec<usize> {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim().starts_with('#'))
+        .map(|(k, _)| k + 1)
+        .skip(1)
+        .collect()
 }
 
 /// Reads a probe script: columns `time_s,vertex,fx_n,fy_n,fz_n`; from each
@@ -133,14 +156,7 @@ pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result
         get("fy_n"),
         get("fz_n"),
     );
-    // Data line numbers for errors: recompute by scanning.
-    let data_lines: Vec<usize> = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim().starts_with('#'))
-        .map(|(k, _)| k + 1)
-        .skip(1)
-        .collect();
+    let data_lines = data_line_numbers(text);
     let mut events = Vec::with_capacity(t.len());
     for k in 0..t.len() {
         let vertex = v[k];

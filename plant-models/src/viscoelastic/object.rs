@@ -428,8 +428,15 @@ impl HapticLoop {
             // A contact on Λu pushes on the support: no traction on the object.
             if let Ok(j) = self.object.dgfm().index_of(v) {
                 let alpha = self.object.dgfm().areas_m2()[j];
-                self.object
-                    .set_traction(j, Vec3::new(force[0], force[1], force[2]).scale(w / alpha))?;
+                let traction = Vec3::new(force[0], force[1], force[2]).scale(w / alpha);
+                if !traction.is_finite() {
+                    return Err(VeError::InvalidParameter {
+                        name: "force_n",
+                        value: force.iter().fold(0.0, |m, f| f.abs().max(m)),
+                        reason: "too large: divided by the contact vertex's area it is not a finite traction",
+                    });
+                }
+                self.object.set_traction(j, traction)?;
             }
         }
         self.object.step(self.h, &mut self.u)?;
@@ -504,9 +511,20 @@ pub fn run_script(
     let mut samples = Vec::with_capacity(steps as usize);
     for k in 0..steps {
         let t = k as f64 * HAPTIC_PERIOD_S;
-        let ev = events.iter().take_while(|e| e.time_s <= t + 1e-12).last();
-        let input = ev.and_then(|e| e.contact.map(|c| (c, e.force_n)));
-        let u = haptic.step(input)?;
+        let ev = events
+            .iter()
+            .enumerate()
+            .take_while(|(_, e)| e.time_s <= t + 1e-12)
+            .last();
+        let input = ev.and_then(|(_, e)| e.contact.map(|c| (c, e.force_n)));
+        let u = haptic.step(input).map_err(|error| match ev {
+            Some((index, e)) => VeError::ProbeEvent {
+                index,
+                time_s: e.time_s,
+                error: Box::new(error),
+            },
+            None => error,
+        })?;
         samples.push(HapticSample {
             time_s: haptic.time_s(),
             force_n: input.map(|(_, f)| f).unwrap_or([0.0; 3]),
