@@ -48,6 +48,27 @@ pub enum CalibrationError {
     HysteresisNegative,
     /// The pulse coder's mm per count must be finite and non-zero.
     ScaleNotUsable,
+    /// The differential law's gain is zero: the estimate would be its
+    /// offset whatever the sensors read.
+    GainZero,
+}
+
+impl core::fmt::Display for CalibrationError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            CalibrationError::CoefficientNotFinite => "a coefficient is not finite",
+            CalibrationError::SensorIndexOutOfRange => "a sensor index is outside the sensor array",
+            CalibrationError::SameSensorTwice => "the differential law needs two different sensors",
+            CalibrationError::ThresholdNotFinite => "the switching threshold is not finite",
+            CalibrationError::HysteresisNegative => "the hysteresis band must be finite and >= 0",
+            CalibrationError::ScaleNotUsable => {
+                "the pulse coder's mm per count must be finite and non-zero"
+            }
+            CalibrationError::GainZero => {
+                "the differential gain must be non-zero (with 0 the estimate ignores the sensors)"
+            }
+        })
+    }
 }
 
 fn finite(values: &[f32]) -> Result<(), CalibrationError> {
@@ -230,6 +251,9 @@ impl PlaneLaw {
             }
             PlaneLaw::Differential { plus, minus, law } => {
                 finite(&[law.gain, law.offset])?;
+                if law.gain == 0.0 {
+                    return Err(CalibrationError::GainZero);
+                }
                 if !idx_ok(plus) || !idx_ok(minus) {
                     return Err(CalibrationError::SensorIndexOutOfRange);
                 }
@@ -453,6 +477,18 @@ mod tests {
         assert_eq!(
             PlaneEstimator::<4>::new(sw).err(),
             Some(CalibrationError::HysteresisNegative)
+        );
+        let flat = PlaneLaw::Differential {
+            plus: 2,
+            minus: 0,
+            law: LinearLaw {
+                gain: 0.0,
+                offset: 1.0,
+            },
+        };
+        assert_eq!(
+            PlaneEstimator::<4>::new(flat).err(),
+            Some(CalibrationError::GainZero)
         );
     }
 }

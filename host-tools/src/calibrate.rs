@@ -279,6 +279,103 @@ impl LawSpec {
         })
     }
 
+    /// Sensor fields (name, 1-based number) of the law.
+    fn sensor_fields(&self) -> Vec<(&'static str, u8)> {
+        match *self {
+            LawSpec::Single { sensor, .. } => vec![("sensor", sensor)],
+            LawSpec::Differential { plus, minus, .. } => vec![("plus", plus), ("minus", minus)],
+            LawSpec::Switching {
+                plus,
+                minus,
+                sensor,
+                ..
+            } => vec![("plus", plus), ("minus", minus), ("sensor", sensor)],
+        }
+    }
+
+    /// Numeric fields (name, value) of the law.
+    fn number_fields(&self) -> Vec<(&'static str, f64)> {
+        match *self {
+            LawSpec::Single { a, b, c, .. } => vec![("a", a), ("b", b), ("c", c)],
+            LawSpec::Differential { gain, offset, .. } => vec![("gain", gain), ("offset", offset)],
+            LawSpec::Switching {
+                gain,
+                offset,
+                a,
+                b,
+                c,
+                threshold_deg,
+                hysteresis_deg,
+                ..
+            } => vec![
+                ("gain", gain),
+                ("offset", offset),
+                ("a", a),
+                ("b", b),
+                ("c", c),
+                ("threshold_deg", threshold_deg),
+                ("hysteresis_deg", hysteresis_deg),
+            ],
+        }
+    }
+
+    /// The largest sensor number the law reads (1-based).
+    pub fn max_sensor(&self) -> u8 {
+        self.sensor_fields()
+            .into_iter()
+            .map(|(_, s)| s)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Checks the law for an array of `sensors` sensors the way the
+    /// firmware will (it computes in f32), naming the offending field.
+    pub fn check(&self, sensors: usize) -> anyhow::Result<()> {
+        for (name, s) in self.sensor_fields() {
+            if s == 0 || usize::from(s) > sensors {
+                bail!(
+                    "field `{name}` = {s}: sensor numbers run from 1 to {sensors} (d1..d{sensors}) for this joint"
+                );
+            }
+        }
+        if let LawSpec::Differential { plus, minus, .. } | LawSpec::Switching { plus, minus, .. } =
+            *self
+        {
+            if plus == minus {
+                bail!("fields `plus` and `minus` are both sensor {plus}: the differential law needs two different sensors");
+            }
+        }
+        for (name, v) in self.number_fields() {
+            let v32 = v as f32;
+            if !v.is_finite() {
+                bail!("field `{name}` = {v} is not finite");
+            }
+            if !v32.is_finite() {
+                bail!(
+                    "field `{name}` = {v:e} is outside the f32 range the firmware computes in (|value| <= {:e})",
+                    f32::MAX
+                );
+            }
+            if name == "gain" && v32 == 0.0 {
+                let shown = if v == 0.0 {
+                    format!("{v}")
+                } else {
+                    format!("{v:e} (0 in f32)")
+                };
+                bail!(
+                    "field `gain` = {shown}: the differential gain must be non-zero (with 0 the estimate is the offset whatever the sensors read)"
+                );
+            }
+            if name == "hysteresis_deg" && v < 0.0 {
+                bail!("field `hysteresis_deg` = {v} must be >= 0");
+            }
+        }
+        // The firmware's own check, in case it knows more than this one.
+        self.to_law()?
+            .validate(sensors)
+            .map_err(|e| anyhow::anyhow!("{e}"))
+    }
+
     /// The threshold (switching only).
     pub fn threshold_deg(&self) -> Option<f64> {
         match self {
@@ -306,15 +403,29 @@ impl CalibrationFile {
             .with_context(|| format!("cannot read calibration {}", path.display()))?;
         let c: CalibrationFile = toml::from_str(&text)
             .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
-        for (name, law) in [("alpha", Some(&c.alpha)), ("beta", c.beta.as_ref())] {
+        c.check()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Ok(c)
+    }
+
+    /// Checks both laws, naming the table and field at fault. A file with
+    /// `[beta]` is a 3D calibration (sensors d1..d4), one without a 2D one
+    /// (sensor d1).
+    pub fn check(&self) -> anyhow::Result<()> {
+        if self.beta.is_none() && self.alpha.max_sensor() > 1 {
+            bail!(
+                "the `[beta]` table is missing: `[alpha]` reads sensor d{}, so this is a 3D calibration (sensors d1..d4), which needs a `[beta]` law too; a 2D calibration has `[alpha]` only, on sensor 1",
+                self.alpha.max_sensor()
+            );
+        }
+        let sensors = if self.beta.is_some() { 4 } else { 1 };
+        for (name, law) in [("alpha", Some(&self.alpha)), ("beta", self.beta.as_ref())] {
             if let Some(l) = law {
-                let sensors = if c.beta.is_some() { 4 } else { 1 };
-                l.to_law()
-                    .and_then(|pl| pl.validate(sensors).map_err(|e| anyhow::anyhow!("{e:?}")))
-                    .map_err(|e| anyhow::anyhow!("{}: law `{name}`: {e}", path.display()))?;
+                l.check(sensors)
+                    .map_err(|e| anyhow::anyhow!("`[{name}]`: {e}"))?;
             }
         }
-        Ok(c)
+        Ok(())
     }
 
     /// Writes it as TOML.

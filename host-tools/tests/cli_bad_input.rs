@@ -461,3 +461,51 @@ fn viscoelastic_object_names_the_probe_script_line_of_an_overflowing_force() {
     );
     assert!(!out.exists(), "files were written for a refused run");
 }
+
+/// A 3D calibration (α on d3 − d1) without its `[beta]` table was read as
+/// a 2D one and refused as `law \`alpha\`: SensorIndexOutOfRange`.
+#[test]
+fn sim_says_a_3d_calibration_lacks_its_beta_table() {
+    let dir = scratch("cal_beta");
+    let cal = file(
+        &dir,
+        "cal.toml",
+        "[alpha]\nmethod = \"differential\"\nplus = 3\nminus = 1\ngain = 2.727\noffset = 0.323\n",
+    );
+    let s = file(
+        &dir,
+        "s.toml",
+        "duration_s = 1.0\n[estimator]\nmethod = \"differential\"\ncalibration = \"cal.toml\"\n",
+    );
+    let o = softjoint(&["sim", &s, "--json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("SensorIndexOutOfRange"), "{err}");
+    refused(&["sim", &s, "--json"], &[&cal, "[beta]", "missing"]);
+}
+
+/// `gain = 0` makes the differential law ignore the sensors (the estimate
+/// is the offset, whatever the joint does); it was accepted and the run
+/// reported success.
+#[test]
+fn sim_refuses_a_calibration_gain_of_zero() {
+    let dir = scratch("cal_gain");
+    let law = |table: &str, plus: u8, minus: u8, gain: &str| {
+        format!(
+            "[{table}]\nmethod = \"differential\"\nplus = {plus}\nminus = {minus}\n\
+             gain = {gain}\noffset = 0.1\n"
+        )
+    };
+    for (alpha_gain, beta_gain, table) in [("0.0", "2.67", "[alpha]"), ("2.7", "1e-50", "[beta]")] {
+        let cal = file(
+            &dir,
+            "cal.toml",
+            &(law("alpha", 3, 1, alpha_gain) + &law("beta", 4, 2, beta_gain)),
+        );
+        let s = file(
+            &dir,
+            "s.toml",
+            "duration_s = 1.0\n[estimator]\nmethod = \"differential\"\ncalibration = \"cal.toml\"\n",
+        );
+        refused(&["sim", &s, "--json"], &[&cal, table, "gain", "non-zero"]);
+    }
+}
