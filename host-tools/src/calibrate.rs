@@ -119,6 +119,15 @@ pub fn parse_sweep(text: &str) -> anyhow::Result<Vec<SweepRow>> {
             if !v.is_finite() {
                 bail!("line {lineno}: column `{}`: not finite", cols[c]);
             }
+            // The firmware estimates in f32: a value it cannot hold would
+            // only surface later as an unusable fit.
+            if !(v as f32).is_finite() {
+                bail!(
+                    "line {lineno}: column `{}`: {v:e} is outside the f32 range the firmware computes in (|value| <= {:e})",
+                    cols[c],
+                    f32::MAX
+                );
+            }
             Ok(v)
         };
         let d_mm = d_cols
@@ -491,6 +500,22 @@ pub fn fit(rows: &[SweepRow]) -> anyhow::Result<Vec<PlaneFit>> {
     ])
 }
 
+/// A number for a message: as `{}` prints it, or in exponent form when
+/// that would be a long run of digits.
+fn short(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && a.is_finite() && !(1e-4..1e15).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// Step of the threshold search (deg).
+const THRESHOLD_GRID_DEG: f64 = 0.1;
+/// Most thresholds the search tries (a 10 000° span at 0.1°).
+const MAX_THRESHOLD_CANDIDATES: f64 = 100_000.0;
+
 fn fit_plane<const S: usize>(
     rows: &[SweepRow],
     plane: usize,
@@ -511,8 +536,55 @@ fn fit_plane<const S: usize>(
         b,
         c,
     };
-    let single_err = evaluate::<S>(single.to_law()?, rows, plane)
-        .ok_or_else(|| anyhow::anyhow!("{name}: invalid single law"))?;
+    let range = |f: &dyn Fn(&SweepRow) -> f64| {
+        rows.iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            })
+    };
+    let (a_lo, a_hi) = range(&ang);
+    let sensors = if S == 1 { 1 } else { 4 };
+    // Why a fitted law cannot be used, and the data range behind it.
+    let unusable = |what: &str, law: &LawSpec, x: &str, (x_lo, x_hi): (f64, f64)| {
+        let (why, hint) = match law.check(sensors) {
+            Err(e) => {
+                let e = e.to_string();
+                let f32_range = e.contains("f32 range");
+                (e, f32_range)
+            }
+            Ok(()) => (
+                "its estimates are not finite in f32 on the sweep".into(),
+                true,
+            ),
+        };
+        let hint = if hint {
+            ": angles this large over insertions this small need coefficients beyond f32"
+        } else {
+            ""
+        };
+        anyhow::anyhow!(
+            "{name}: the {what} fit cannot be used: {why}; the sweep's {name} runs from {}° to {}° over {x} from {} to {} mm{hint}",
+            short(a_lo),
+            short(a_hi),
+            short(x_lo),
+            short(x_hi)
+        )
+    };
+    let usable = |law: &LawSpec| -> Option<ErrorStats> {
+        law.check(sensors).ok()?;
+        let e = evaluate::<S>(law.to_law().ok()?, rows, plane)?;
+        (e.max_error_deg.is_finite() && e.rms_error_deg.is_finite()).then_some(e)
+    };
+    let d_plus = format!("d{}", plus + 1);
+    let single_err = usable(&single).ok_or_else(|| {
+        unusable(
+            "single-sensor quadratic (Eq. 2)",
+            &single,
+            &d_plus,
+            range(&|r: &SweepRow| r.d_mm[plus]),
+        )
+    })?;
     let mut candidates = vec![(single.clone(), single_err)];
     let (mut differential, mut switching) = (None, None);
     if let Some(minus) = minus {
@@ -525,8 +597,14 @@ fn fit_plane<const S: usize>(
             gain,
             offset,
         };
-        let de = evaluate::<S>(d.to_law()?, rows, plane)
-            .ok_or_else(|| anyhow::anyhow!("{name}: invalid law"))?;
+        let de = usable(&d).ok_or_else(|| {
+            unusable(
+                "differential (Eq. 3)",
+                &d,
+                &format!("{d_plus} − d{}", minus + 1),
+                range(&diff),
+            )
+        })?;
         differential = Some((d.clone(), de));
         candidates.push((d, de));
         // Threshold search on a 0.1° grid within the sweep's range, keeping
@@ -539,6 +617,15 @@ fn fit_plane<const S: usize>(
         let margin = sorted.len() * 15 / 100;
         let lo = sorted[margin];
         let hi = sorted[sorted.len() - 1 - margin];
+        // Beyond this many candidates the search would take hours, and
+        // beyond 2^53 · 0.1° `th += 0.1` no longer moves: it never ends.
+        if (hi - lo) / THRESHOLD_GRID_DEG > MAX_THRESHOLD_CANDIDATES {
+            bail!(
+                "{name}: the threshold search would try every {THRESHOLD_GRID_DEG}° from {}° to {}°, more than {MAX_THRESHOLD_CANDIDATES} candidates: a joint sweep spans tens of degrees (is `{name}_deg` in degrees?)",
+                short(lo),
+                short(hi)
+            );
+        }
         let mut best: Option<(LawSpec, ErrorStats)> = None;
         let mut th = (lo * 10.0).ceil() / 10.0;
         while th <= hi {
@@ -569,7 +656,7 @@ fn fit_plane<const S: usize>(
                     }
                 }
             }
-            th += 0.1;
+            th += THRESHOLD_GRID_DEG;
         }
         if let Some(b) = best {
             switching = Some(b);

@@ -115,7 +115,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         }) => {
             let rows = calibrate::read_sweep(&sweep)?;
-            let fits = calibrate::fit(&rows)?;
+            let fits =
+                calibrate::fit(&rows).map_err(|e| anyhow::anyhow!("{}: {e}", sweep.display()))?;
             calibrate::calibration_of(&fits)?.save(&output)?;
             if json {
                 let out: Vec<serde_json::Value> = fits

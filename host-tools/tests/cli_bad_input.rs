@@ -509,3 +509,62 @@ fn sim_refuses_a_calibration_gain_of_zero() {
         refused(&["sim", &s, "--json"], &[&cal, table, "gain", "non-zero"]);
     }
 }
+
+/// A sweep with angles around 1e300 was refused as `theta: invalid single
+/// law`: no line, and no hint that the firmware's f32 cannot hold them.
+#[test]
+fn calibrate_names_the_line_of_an_angle_the_firmware_cannot_hold() {
+    let dir = scratch("cal_big");
+    let mut text = String::from("d_mm,theta_deg\n");
+    for i in 0..20 {
+        let k = f64::from(i) - 10.0;
+        text.push_str(&format!("{},{:e}\n", 0.3 * k, k * 1e299));
+    }
+    let p = file(&dir, "big.csv", &text);
+    // Row 1 is −1e300: line 2.
+    refused(
+        &["calibrate", "wire", &p],
+        &[&p, "line 2", "theta_deg", "f32"],
+    );
+}
+
+/// Angles the firmware can hold, but so steep over a 0.2 mm sweep that the
+/// quadratic's coefficients cannot be held in f32: the error said `theta:
+/// invalid single law`, naming neither the fit nor the reason.
+#[test]
+fn calibrate_says_which_fit_failed_and_why() {
+    let dir = scratch("cal_steep");
+    let mut text = String::from("d_mm,theta_deg\n");
+    for i in 0..21 {
+        let d = (f64::from(i) - 10.0) * 0.01;
+        text.push_str(&format!("{d},{:e}\n", 3e40 * d * d + 1e30 * d));
+    }
+    let p = file(&dir, "steep.csv", &text);
+    refused(
+        &["calibrate", "wire", &p],
+        &[&p, "theta", "single-sensor quadratic", "field `a`", "f32"],
+    );
+}
+
+/// Angles spanning ±2e20° (each one within f32) made the 0.1° threshold
+/// search loop forever: `th += 0.1` no longer changes a number that large.
+#[test]
+fn calibrate_refuses_a_threshold_search_it_could_never_finish() {
+    let dir = scratch("cal_span");
+    let mut text = String::from("d1_mm,d2_mm,d3_mm,d4_mm,alpha_deg,beta_deg\n");
+    for i in 0..40 {
+        let x = (f64::from(i) - 20.0) * 0.1;
+        text.push_str(&format!(
+            "{},{},{x},{x},{:e},{}\n",
+            -x,
+            -x,
+            x * 1e20,
+            5.0 * x
+        ));
+    }
+    let p = file(&dir, "span.csv", &text);
+    refused(
+        &["calibrate", "wire", &p],
+        &[&p, "alpha", "threshold search", "alpha_deg"],
+    );
+}
