@@ -20,7 +20,7 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use firmware::estimate::{
-    LinearLaw, PlaneEstimator, PlaneLaw, QuadraticLaw, DEFAULT_HYSTERESIS_DEG,
+    CalibrationError, LinearLaw, PlaneEstimator, PlaneLaw, QuadraticLaw, DEFAULT_HYSTERESIS_DEG,
 };
 use firmware::fit::PolyFit;
 use serde::{Deserialize, Serialize};
@@ -338,51 +338,33 @@ impl LawSpec {
     }
 
     /// Checks the law for an array of `sensors` sensors the way the
-    /// firmware will (it computes in f32), naming the offending field.
+    /// firmware will. The firmware's own check decides; this one only
+    /// names the field when a number cannot be held in the f32 the
+    /// firmware computes in, and says when a gain is 0 only after rounding.
     pub fn check(&self, sensors: usize) -> anyhow::Result<()> {
-        for (name, s) in self.sensor_fields() {
-            if s == 0 || usize::from(s) > sensors {
-                bail!(
-                    "field `{name}` = {s}: sensor numbers run from 1 to {sensors} (d1..d{sensors}) for this joint"
-                );
-            }
-        }
-        if let LawSpec::Differential { plus, minus, .. } | LawSpec::Switching { plus, minus, .. } =
-            *self
-        {
-            if plus == minus {
-                bail!("fields `plus` and `minus` are both sensor {plus}: the differential law needs two different sensors");
-            }
-        }
         for (name, v) in self.number_fields() {
-            let v32 = v as f32;
             if !v.is_finite() {
                 bail!("field `{name}` = {v} is not finite");
             }
-            if !v32.is_finite() {
+            if !(v as f32).is_finite() {
                 bail!(
                     "field `{name}` = {v:e} is outside the f32 range the firmware computes in (|value| <= {:e})",
                     f32::MAX
                 );
             }
-            if name == "gain" && v32 == 0.0 {
-                let shown = if v == 0.0 {
-                    format!("{v}")
-                } else {
-                    format!("{v:e} (0 in f32)")
-                };
-                bail!(
-                    "field `gain` = {shown}: the differential gain must be non-zero (with 0 the estimate is the offset whatever the sensors read)"
-                );
-            }
-            if name == "hysteresis_deg" && v < 0.0 {
-                bail!("field `hysteresis_deg` = {v} must be >= 0");
-            }
         }
-        // The firmware's own check, in case it knows more than this one.
-        self.to_law()?
-            .validate(sensors)
-            .map_err(|e| anyhow::anyhow!("{e}"))
+        self.to_law()?.validate(sensors).map_err(|e| {
+            let gain = self
+                .number_fields()
+                .into_iter()
+                .find_map(|(n, v)| (n == "gain").then_some(v));
+            match gain {
+                Some(g) if e == CalibrationError::GainZero && g != 0.0 => {
+                    anyhow::anyhow!("field `gain` = {g:e}, 0 in f32: {e}")
+                }
+                _ => anyhow::anyhow!("{e}"),
+            }
+        })
     }
 
     /// The threshold (switching only).
@@ -547,12 +529,12 @@ fn fit_plane<const S: usize>(
     let sensors = if S == 1 { 1 } else { 4 };
     // Why a fitted law cannot be used, and the data range behind it.
     let unusable = |what: &str, law: &LawSpec, x: &str, (x_lo, x_hi): (f64, f64)| {
+        let beyond_f32 = law
+            .number_fields()
+            .iter()
+            .any(|&(_, v)| !(v as f32).is_finite());
         let (why, hint) = match law.check(sensors) {
-            Err(e) => {
-                let e = e.to_string();
-                let f32_range = e.contains("f32 range");
-                (e, f32_range)
-            }
+            Err(e) => (e.to_string(), beyond_f32),
             Ok(()) => (
                 "its estimates are not finite in f32 on the sweep".into(),
                 true,
