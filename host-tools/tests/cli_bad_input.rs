@@ -17,8 +17,9 @@ fn scratch(test: &str) -> PathBuf {
     dir
 }
 
-/// Runs `args` and checks a clean refusal whose stderr holds every needle.
-fn refused(args: &[&str], needles: &[&str]) {
+/// Runs `args`, checks a clean refusal whose stderr holds every needle, and
+/// returns that stderr.
+fn refused(args: &[&str], needles: &[&str]) -> String {
     let o = softjoint(args);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
@@ -35,6 +36,7 @@ fn refused(args: &[&str], needles: &[&str]) {
     for n in needles {
         assert!(err.contains(n), "{args:?}: stderr lacks `{n}`:\n{err}");
     }
+    err.into_owned()
 }
 
 /// Writes `text` to `dir/name` and returns the path as a string.
@@ -329,11 +331,10 @@ fn sim_reports_a_plant_instability_once() {
         "duration_s = 2.0\n[[disturbances]]\nkind = \"weight\"\nmass_g = 1e6\n\
          direction = [1.0, 0.0]\nfrom_s = 0.5\nto_s = 1.0\n",
     );
-    refused(
+    let err = refused(
         &["sim", &p, "--json"],
         &["numerical instability", "t = 0.500 s"],
     );
-    let err = String::from_utf8_lossy(&softjoint(&["sim", &p, "--json"]).stderr).into_owned();
     assert_eq!(
         err.matches("numerical instability").count(),
         1,
@@ -477,10 +478,8 @@ fn sim_says_a_3d_calibration_lacks_its_beta_table() {
         "s.toml",
         "duration_s = 1.0\n[estimator]\nmethod = \"differential\"\ncalibration = \"cal.toml\"\n",
     );
-    let o = softjoint(&["sim", &s, "--json"]);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = refused(&["sim", &s, "--json"], &[&cal, "[beta]", "missing"]);
     assert!(!err.contains("SensorIndexOutOfRange"), "{err}");
-    refused(&["sim", &s, "--json"], &[&cal, "[beta]", "missing"]);
 }
 
 /// `gain = 0` makes the differential law ignore the sensors (the estimate
