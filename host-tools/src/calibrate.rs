@@ -23,6 +23,7 @@ use firmware::estimate::{
     CalibrationError, LinearLaw, PlaneEstimator, PlaneLaw, QuadraticLaw, DEFAULT_HYSTERESIS_DEG,
 };
 use firmware::fit::PolyFit;
+use plant_models::short_number as short;
 use serde::{Deserialize, Serialize};
 
 /// One calibration sample: insertions (mm) and reference angles (deg).
@@ -480,17 +481,6 @@ pub fn fit(rows: &[SweepRow]) -> anyhow::Result<Vec<PlaneFit>> {
         fit_plane::<4>(rows, 0, "alpha", 2, Some(0))?,
         fit_plane::<4>(rows, 1, "beta", 3, Some(1))?,
     ])
-}
-
-/// A number for a message: as `{}` prints it, or in exponent form when
-/// that would be a long run of digits.
-fn short(v: f64) -> String {
-    let a = v.abs();
-    if a != 0.0 && a.is_finite() && !(1e-4..1e15).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
 }
 
 /// Step of the threshold search (deg).

@@ -9,7 +9,7 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum VeError {
     /// A named scalar parameter is NaN/infinite or outside its valid range.
-    #[error("invalid parameter `{name}` = {}: {reason}", short(*.value))]
+    #[error("invalid parameter `{name}` = {}: {reason}", crate::short_number(*.value))]
     InvalidParameter {
         /// Parameter name as the user knows it.
         name: &'static str,
@@ -82,17 +82,6 @@ pub enum VeError {
         /// The length it should have.
         expected: usize,
     },
-}
-
-/// A number for a message: as `{}` prints it, or in exponent form when
-/// that would be a long run of digits (1e308 has 309).
-pub(crate) fn short(v: f64) -> String {
-    let a = v.abs();
-    if a != 0.0 && a.is_finite() && !(1e-4..1e15).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
 }
 
 /// Result alias of the viscoelastic module.

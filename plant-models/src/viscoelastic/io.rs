@@ -107,8 +107,8 @@ pub fn read_columns(
                             format!(
                                 "`{}` = {}: the step from {} is not finite (the times are too far apart for f64)",
                                 wanted[c],
-                                super::error::short(v),
-                                super::error::short(prev)
+                                crate::short_number(v),
+                                crate::short_number(prev)
                             ),
                         ));
                     }
