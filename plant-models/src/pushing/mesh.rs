@@ -54,6 +54,9 @@ pub struct Mesh {
 /// flat threshold so that fine reference meshes stay valid).
 const MIN_REST_AREA_PX2: f64 = 1e-6;
 
+/// Most squares along a side of [`Mesh::grid`] (a bound on memory and time).
+pub const MAX_SQUARES_PER_SIDE: usize = 2000;
+
 impl Mesh {
     /// Builds and validates a mesh from vertices and triangles. Clockwise
     /// triangles are re-ordered to counter-clockwise. Errors name the first
@@ -192,9 +195,13 @@ impl Mesh {
                 reason: "needs at least one square",
             });
         }
-        if nx > 2000 || ny > 2000 {
+        if nx > MAX_SQUARES_PER_SIDE || ny > MAX_SQUARES_PER_SIDE {
             return Err(PushError::InvalidParameter {
-                name: if nx > 2000 { "nx" } else { "ny" },
+                name: if nx > MAX_SQUARES_PER_SIDE {
+                    "nx"
+                } else {
+                    "ny"
+                },
                 value: nx.max(ny) as f64,
                 reason: "more than 2000 squares per side",
             });

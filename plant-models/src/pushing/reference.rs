@@ -256,10 +256,6 @@ fn rotation_of(f: &M2) -> M2 {
     }
 }
 
-/// Most elements along a side of the reference block (the limit of
-/// [`Mesh::grid`]).
-const MAX_ELEMENTS_PER_SIDE: f64 = 2000.0;
-
 impl ReferenceBlock {
     /// A block of `width_px × height_px` on the table, at rest.
     pub fn new(
@@ -276,7 +272,7 @@ impl ReferenceBlock {
         );
         // Mesh::grid's own limit, checked here so that the error names the
         // element size the caller chose rather than the grid's `nx`/`ny`.
-        if nx.max(ny) > MAX_ELEMENTS_PER_SIDE {
+        if nx.max(ny) > super::mesh::MAX_SQUARES_PER_SIDE as f64 {
             return Err(PushError::InvalidParameter {
                 name: "element_size_px",
                 value: element_size_px,
