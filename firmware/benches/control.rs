@@ -8,6 +8,7 @@ use firmware::estimate::{LinearLaw, PlaneLaw, QuadraticLaw};
 use firmware::joint::{Feedback, Joint3d, JointConfig, StepInput};
 use firmware::linalg::{Mat3, Vec3};
 use firmware::real::Real;
+use firmware::time::{Duration, Instant};
 use firmware::viscoelastic::{RayleighParams, TimeStep, ViscoDgfm};
 
 fn control_step(c: &mut Criterion) {
@@ -39,8 +40,8 @@ fn control_step(c: &mut Criterion) {
                 k = k.wrapping_add(1);
                 let d = (k % 400 - 200).abs() - 100;
                 let input = StepInput {
-                    now_s: (k as f32) * 1e-3,
-                    dt_s: 1e-3,
+                    now: Instant::from_millis(k as u32 as u64),
+                    dt: Duration::from_millis(1),
                     feedback: Feedback::WireCounts([Some(-d), Some(d / 2), Some(d), Some(-d / 2)]),
                 };
                 black_box(joint.step(black_box(&input)))

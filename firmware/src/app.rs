@@ -1,30 +1,41 @@
 //! The board application: the protocol state machine around a [`Joint3d`].
 //!
 //! Portable and clock-free like the rest of the core. The firmware image
-//! feeds it UART bytes and its SysTick time in milliseconds; the host test
+//! feeds it UART bytes and its monotonic time (SysTick milliseconds
+//! extended by [`MillisCounter`](crate::time::MillisCounter)); the host test
 //! harness feeds it bytes from one end of a pty pair. Replies go out through
 //! a callback, one complete frame at a time.
 //!
 //! Modes:
-//! - **free-running** (after reset): the board steps the joint itself every
-//!   `period`, reading its own sensors through [`BoardSensors`], and streams
-//!   [`Telemetry`] when asked. On QEMU there are no sensors, so the joint
-//!   reports stale sensors and stays unpowered — as it should.
-//! - **lockstep HIL** (after [`Message::HilStart`]): the host owns time. Each
-//!   [`Message::HilSensor`] runs exactly one control step at simulated time
-//!   `seq × period` and is answered with a [`Message::HilActuator`]. A
-//!   repeated `seq` is answered from a cache without stepping again
-//!   (idempotent retries). If no frame arrives for the link timeout (default
-//!   50 ms of the board's clock), [`Faults::LINK_LOSS`] is latched and every
-//!   output is zero until the host clears it.
+//! - **free-running** (after reset, and after [`HilStop`]): the board steps
+//!   the joint itself every millisecond, reading its own sensors through
+//!   [`BoardSensors`], and streams [`Telemetry`] when asked. There is no
+//!   link watchdog in this mode: the board controls itself, and a console
+//!   that goes away does not stop it. On QEMU there are no sensors, so the
+//!   joint keeps its outputs off (no sensor has ever delivered) and then
+//!   latches sensor-stale — as it should.
+//! - **lockstep HIL** (after [`HilStart`]): the host owns time. Each
+//!   [`HilSensor`] runs exactly one control step and is answered with a
+//!   [`HilActuator`]. The core's clock in this mode is the board's clock at
+//!   `HilStart` plus `step × period`, where `step` counts periods from the
+//!   first sensor frame (the seq difference to the previous frame, so a
+//!   host may start at any seq). A repeated `seq` is answered from a cache
+//!   without stepping again (idempotent retries); a seq *behind* the last
+//!   one (a late retransmission) is ignored and counted. A forward gap
+//!   longer than the link timeout is a link loss (the board was not in
+//!   control for that long), and the step's `dt` is capped at the timeout.
+//!   If no frame arrives for the link timeout (default 50 ms of the board's
+//!   clock), [`Faults::LINK_LOSS`] is latched and every output is zero until
+//!   the host clears it.
 //!
 //! The pair rule and output bounds are the core's: outputs are
 //! [`PairCommand`]s straight from the supervisor.
 
 use crate::control::{PairCommand, PairGains};
-use crate::joint::{Feedback, Joint3d, JointConfig, StepInput};
+use crate::joint::{ConfigError, Feedback, Joint3d, JointConfig, StepInput};
 use crate::protocol::*;
 use crate::supervisor::Faults;
+use crate::time::{Duration, Instant};
 
 /// The board's own wire sensors in free-running mode.
 pub trait BoardSensors {
@@ -41,18 +52,45 @@ impl BoardSensors for NoSensors {
     }
 }
 
-/// Default free-running control period: 1 ms (1 kHz loop).
-pub const DEFAULT_PERIOD_US: u32 = 1000;
+/// Free-running control period: 1 ms (1 kHz loop).
+pub const FREE_RUNNING_PERIOD: Duration = Duration::from_millis(1);
 /// Default link-loss timeout in lockstep mode (ms of the board's clock).
 pub const DEFAULT_LINK_TIMEOUT_MS: u16 = 50;
+/// Accepted lockstep periods (µs).
+pub const LOCKSTEP_PERIOD_US: core::ops::RangeInclusive<u32> = 100..=1_000_000;
+/// Accepted link timeouts (ms).
+pub const LINK_TIMEOUT_MS: core::ops::RangeInclusive<u16> = 1..=60_000;
+/// Highest telemetry rate (frames per second).
+pub const MAX_TELEMETRY_HZ: u16 = 1000;
+
+/// The last lockstep step, for idempotent retries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LastStep {
+    seq: u16,
+    step: u64,
+    reply: HilActuator,
+}
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Mode {
-    FreeRunning,
-    Hil {
-        period_us: u32,
-        last: Option<(u16, u32, ActuatorFrame)>,
+    FreeRunning {
+        /// Time of the last free-running step (its `dt` is measured).
+        last_step: Option<Instant>,
     },
+    Lockstep {
+        period: Duration,
+        /// The board's clock at `HilStart`: step 0's instant.
+        anchor: Instant,
+        last: Option<LastStep>,
+    },
+}
+
+/// The instant of lockstep step `step` (periods since the first sensor
+/// frame after `HilStart`, whose instant is `anchor`). A simulator that
+/// steps the core with these instants reproduces the board's inputs bit for
+/// bit.
+pub fn lockstep_instant(anchor: Instant, step: u64, period: Duration) -> Instant {
+    anchor + period.saturating_mul(step)
 }
 
 /// The application state.
@@ -63,20 +101,16 @@ pub struct App {
     outputs: [PairCommand; 2],
     last_faults: Faults,
     last_estimate: [f32; 2],
-    link_timeout_ms: u16,
-    last_frame_ms: Option<u32>,
+    link_timeout: Duration,
+    last_frame: Option<Instant>,
     telemetry_hz: u16,
-    next_telemetry_ms: u32,
-    next_step_ms: u32,
-}
-
-fn faults_byte(f: Faults) -> u8 {
-    faults_to_u8(f)
+    next_telemetry: Instant,
+    stale_seqs: u32,
 }
 
 impl App {
     /// A board running the paper's 3D joint configuration, disarmed.
-    pub fn new() -> Result<Self, crate::joint::ConfigError> {
+    pub fn new() -> Result<Self, ConfigError> {
         Ok(Self::with_joint(Joint3d::new(JointConfig::paper_3d())?))
     }
 
@@ -85,16 +119,16 @@ impl App {
         joint.disarm();
         Self {
             joint,
-            mode: Mode::FreeRunning,
-            decoder: FrameDecoder::new(),
+            mode: Mode::FreeRunning { last_step: None },
+            decoder: FrameDecoder::board(),
             outputs: [PairCommand::Off; 2],
             last_faults: Faults::NONE,
             last_estimate: [f32::NAN; 2],
-            link_timeout_ms: DEFAULT_LINK_TIMEOUT_MS,
-            last_frame_ms: None,
+            link_timeout: Duration::from_millis(u64::from(DEFAULT_LINK_TIMEOUT_MS)),
+            last_frame: None,
             telemetry_hz: 0,
-            next_telemetry_ms: 0,
-            next_step_ms: 0,
+            next_telemetry: Instant::ZERO,
+            stale_seqs: 0,
         }
     }
 
@@ -110,62 +144,68 @@ impl App {
 
     /// True in lockstep mode.
     pub fn in_hil(&self) -> bool {
-        matches!(self.mode, Mode::Hil { .. })
+        matches!(self.mode, Mode::Lockstep { .. })
     }
 
-    /// Feeds one received byte at board time `now_ms`; replies are passed to
+    /// Feeds one received byte at board time `now`; replies are passed to
     /// `send` as complete frames.
-    pub fn on_byte(&mut self, byte: u8, now_ms: u32, send: &mut impl FnMut(&[u8])) {
+    pub fn on_byte(&mut self, byte: u8, now: Instant, send: &mut impl FnMut(&[u8])) {
         match self.decoder.push(byte) {
             None => {}
             Some(Ok(msg)) => {
-                self.last_frame_ms = Some(now_ms);
-                if let Some(reply) = self.handle(msg, now_ms) {
+                self.last_frame = Some(now);
+                if let Some(reply) = self.handle(msg, now) {
                     emit(&reply, send);
                 }
             }
             Some(Err(FrameError::Malformed { request, code })) => {
                 // CRC-valid but not understood: tell the host.
-                emit(&Message::Error { request, code }, send);
+                emit(&Message::Nak(Nak { request, code }), send);
             }
             Some(Err(_)) => {} // counted; the host will retry
         }
     }
 
-    /// Periodic work at board time `now_ms`: the link watchdog, the
+    /// Periodic work at board time `now`: the link watchdog, the
     /// free-running control step and telemetry. Call it often (every
     /// millisecond or faster).
     pub fn poll(
         &mut self,
-        now_ms: u32,
+        now: Instant,
         sensors: &mut impl BoardSensors,
         send: &mut impl FnMut(&[u8]),
     ) {
         match self.mode {
-            Mode::Hil { .. } => {
-                if let Some(last) = self.last_frame_ms {
-                    if now_ms.wrapping_sub(last) > u32::from(self.link_timeout_ms) {
-                        if !self
-                            .joint
-                            .supervisor()
-                            .latched()
-                            .contains(Faults::LINK_LOSS)
-                        {
-                            log_warn!("link lost at {=u32} ms", now_ms);
-                        }
-                        self.joint.report_fault(Faults::LINK_LOSS);
-                        self.outputs = [PairCommand::Off; 2];
-                        self.last_faults |= Faults::LINK_LOSS;
+            Mode::Lockstep { .. } => {
+                let lost = self
+                    .last_frame
+                    .is_some_and(|last| now - last > self.link_timeout);
+                if lost {
+                    if !self
+                        .joint
+                        .supervisor()
+                        .latched()
+                        .contains(Faults::LINK_LOSS)
+                    {
+                        log_warn!("link lost at {=u64} ms", now.as_millis());
                     }
+                    self.joint.report_fault(Faults::LINK_LOSS);
+                    self.outputs = [PairCommand::Off; 2];
+                    self.last_faults |= Faults::LINK_LOSS;
                 }
             }
-            Mode::FreeRunning => {
-                if now_ms.wrapping_sub(self.next_step_ms) < u32::MAX / 2 {
-                    let period_ms = DEFAULT_PERIOD_US / 1000;
-                    self.next_step_ms = now_ms.wrapping_add(period_ms);
+            Mode::FreeRunning { last_step } => {
+                let due = last_step.is_none_or(|t| now - t >= FREE_RUNNING_PERIOD);
+                if due {
+                    // The measured time since the last step (a late poll
+                    // integrates over the time that really passed).
+                    let dt = last_step.map_or(FREE_RUNNING_PERIOD, |t| now - t);
+                    self.mode = Mode::FreeRunning {
+                        last_step: Some(now),
+                    };
                     let input = StepInput {
-                        now_s: now_ms as f32 * 1e-3,
-                        dt_s: DEFAULT_PERIOD_US as f32 * 1e-6,
+                        now,
+                        dt,
                         feedback: Feedback::WireCounts(sensors.read_counts()),
                     };
                     let out = self.joint.step(&input);
@@ -173,16 +213,14 @@ impl App {
                     self.last_faults = out.faults;
                     self.last_estimate = out.estimate_deg;
                 }
-                if self.telemetry_hz > 0
-                    && now_ms.wrapping_sub(self.next_telemetry_ms) < u32::MAX / 2
-                {
-                    let interval = (1000 / u32::from(self.telemetry_hz)).max(1);
-                    self.next_telemetry_ms = now_ms.wrapping_add(interval);
+                if self.telemetry_hz > 0 && now >= self.next_telemetry {
+                    let interval_us = (1_000_000 / u64::from(self.telemetry_hz)).max(1);
+                    self.next_telemetry = now + Duration::from_micros(interval_us);
                     let t = Telemetry {
-                        time_ms: now_ms,
+                        time_ms: now.wrapping_millis_u32(),
                         estimate_deg: self.last_estimate,
                         pair_mv: self.outputs.map(|c| pair_to_mv(c, self.joint.driver())),
-                        faults: faults_byte(self.last_faults),
+                        faults: faults_to_u8(self.last_faults),
                     };
                     emit(&Message::Telemetry(t), send);
                 }
@@ -190,201 +228,225 @@ impl App {
         }
     }
 
-    /// Handles one decoded message; returns the reply, if any.
-    pub fn handle(&mut self, msg: Message, now_ms: u32) -> Option<Message> {
+    /// Handles one decoded message at board time `now`; returns the reply,
+    /// if any.
+    pub fn handle(&mut self, msg: Message, now: Instant) -> Option<Message> {
         let request = msg.kind();
-        let err = |code| Some(Message::Error { request, code });
-        let ack = Some(Message::Ack { request });
+        let nak = |code| Some(Message::Nak(Nak { request, code }));
+        let ack = Some(Message::Ack(Ack { request }));
         match msg {
-            Message::Hello { version } => {
+            Message::Hello(Hello { version }) => {
                 if version != PROTOCOL_VERSION {
-                    return err(ErrorCode::Version);
+                    return nak(ErrorCode::Version);
                 }
-                Some(Message::HelloAck {
+                Some(Message::HelloAck(HelloAck {
                     version: PROTOCOL_VERSION,
                     schema: SCHEMA_HASH,
                     pairs: 2,
                     sensors: 4,
-                })
+                }))
             }
-            Message::HilStart { period_us } => {
-                if !(100..=1_000_000).contains(&period_us) {
-                    return err(ErrorCode::OutOfRange);
+            Message::HilStart(HilStart { period_us }) => {
+                if !LOCKSTEP_PERIOD_US.contains(&period_us) {
+                    return nak(ErrorCode::OutOfRange);
                 }
-                self.mode = Mode::Hil {
-                    period_us,
+                self.mode = Mode::Lockstep {
+                    period: Duration::from_micros(u64::from(period_us)),
+                    anchor: now,
                     last: None,
                 };
-                self.outputs = [PairCommand::Off; 2];
-                // Simulated time starts at seq × period: a new time base.
-                self.joint.restart_time_base();
-                self.last_faults = self.joint.supervisor().latched();
+                self.enter_new_time_base();
                 ack
             }
-            Message::HilSensor(frame) => self.hil_step(frame),
-            Message::SetTarget { plane, target_deg } => {
+            Message::HilStop(HilStop {}) => {
+                self.mode = Mode::FreeRunning { last_step: None };
+                self.enter_new_time_base();
+                ack
+            }
+            Message::HilSensor(frame) => self.lockstep_step(frame),
+            Message::SetTarget(SetTarget { plane, target_deg }) => {
                 if !target_deg.is_finite() {
-                    return err(ErrorCode::NotFinite);
+                    return nak(ErrorCode::NotFinite);
                 }
                 match self.joint.set_target(usize::from(plane), target_deg) {
                     Ok(()) => ack,
-                    Err(_) => err(ErrorCode::OutOfRange),
+                    Err(_) => nak(ErrorCode::OutOfRange),
                 }
             }
-            Message::SetGains {
-                plane,
-                kp_agonist,
-                kp_antagonist,
-                ki,
-                integral_limit_v,
-            } => {
-                if ![kp_agonist, kp_antagonist, ki, integral_limit_v]
+            Message::SetGains(g) => {
+                if ![g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v]
                     .iter()
                     .all(|v| v.is_finite())
                 {
-                    return err(ErrorCode::NotFinite);
+                    return nak(ErrorCode::NotFinite);
                 }
                 // Bad gains and a plane the joint does not have are both
                 // out of range; the joint owns the plane check.
-                let set = PairGains::new(kp_agonist, kp_antagonist, ki, integral_limit_v)
-                    .map_err(crate::joint::ConfigError::from)
-                    .and_then(|g| self.joint.set_gains(usize::from(plane), g));
+                let set = PairGains::new(g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v)
+                    .map_err(ConfigError::from)
+                    .and_then(|gains| self.joint.set_gains(usize::from(g.plane), gains));
                 match set {
                     Ok(()) => ack,
-                    Err(_) => err(ErrorCode::OutOfRange),
+                    Err(_) => nak(ErrorCode::OutOfRange),
                 }
             }
-            Message::SetCalibration { plane, law } => {
+            Message::SetCalibration(SetCalibration { plane, law }) => {
                 match self.joint.set_law(usize::from(plane), law) {
                     Ok(()) => ack,
-                    Err(crate::joint::ConfigError::Calibration(
-                        crate::estimate::CalibrationError::CoefficientNotFinite,
-                    ))
-                    | Err(crate::joint::ConfigError::Calibration(
-                        crate::estimate::CalibrationError::ThresholdNotFinite,
-                    )) => err(ErrorCode::NotFinite),
-                    Err(_) => err(ErrorCode::OutOfRange),
+                    Err(ConfigError::Calibration(
+                        crate::estimate::CalibrationError::CoefficientNotFinite
+                        | crate::estimate::CalibrationError::ThresholdNotFinite,
+                    )) => nak(ErrorCode::NotFinite),
+                    Err(_) => nak(ErrorCode::OutOfRange),
                 }
             }
-            Message::GetCalibration { plane } => match self.joint.law(usize::from(plane)) {
-                Some(law) => Some(Message::Calibration { plane, law }),
-                None => err(ErrorCode::OutOfRange),
-            },
-            Message::Arm => {
+            Message::GetCalibration(GetCalibration { plane }) => {
+                match self.joint.law(usize::from(plane)) {
+                    Some(law) => Some(Message::Calibration(Calibration { plane, law })),
+                    None => nak(ErrorCode::OutOfRange),
+                }
+            }
+            Message::Arm(Arm {}) => {
                 self.joint.arm();
                 ack
             }
-            Message::Disarm => {
+            Message::Disarm(Disarm {}) => {
                 self.joint.disarm();
                 self.outputs = [PairCommand::Off; 2];
                 ack
             }
-            Message::ClearFaults => match self.joint.clear_faults() {
+            Message::ClearFaults(ClearFaults {}) => match self.joint.clear_faults() {
                 Ok(()) => {
                     self.last_faults = Faults::NONE;
                     ack
                 }
-                Err(_) => err(ErrorCode::StillFaulted),
+                Err(_) => nak(ErrorCode::StillFaulted),
             },
-            Message::GetStatus => Some(Message::Status(self.status(now_ms))),
-            Message::SetTelemetry { rate_hz } => {
-                if rate_hz > 1000 {
-                    return err(ErrorCode::OutOfRange);
+            Message::GetStatus(GetStatus {}) => Some(Message::Status(self.status(now))),
+            Message::SetTelemetry(SetTelemetry { rate_hz }) => {
+                if rate_hz > MAX_TELEMETRY_HZ {
+                    return nak(ErrorCode::OutOfRange);
                 }
                 self.telemetry_hz = rate_hz;
-                self.next_telemetry_ms = now_ms;
+                self.next_telemetry = now;
                 ack
             }
-            Message::SetLinkTimeout { timeout_ms } => {
-                if timeout_ms == 0 || timeout_ms > 60_000 {
-                    return err(ErrorCode::OutOfRange);
+            Message::SetLinkTimeout(SetLinkTimeout { timeout_ms }) => {
+                if !LINK_TIMEOUT_MS.contains(&timeout_ms) {
+                    return nak(ErrorCode::OutOfRange);
                 }
-                self.link_timeout_ms = timeout_ms;
+                self.link_timeout = Duration::from_millis(u64::from(timeout_ms));
                 ack
             }
-            // Board-to-host messages are not requests.
-            Message::HelloAck { .. }
+            // The board's decoder only accepts requests; a reply type that
+            // reached `handle` some other way is still not a request.
+            Message::HelloAck(_)
             | Message::HilActuator(_)
-            | Message::Calibration { .. }
+            | Message::Calibration(_)
             | Message::Status(_)
             | Message::Telemetry(_)
-            | Message::Ack { .. }
-            | Message::Error { .. } => err(ErrorCode::UnknownType),
+            | Message::Ack(_)
+            | Message::Nak(_) => nak(ErrorCode::UnknownType),
         }
     }
 
-    fn hil_step(&mut self, frame: SensorFrame) -> Option<Message> {
-        let Mode::Hil { period_us, last } = self.mode else {
-            return Some(Message::Error {
+    /// Entering or leaving lockstep: outputs off, and the core starts a new
+    /// time base (sensor checks, estimator, integrators, present fault
+    /// causes). The arm state and latched faults are kept.
+    fn enter_new_time_base(&mut self) {
+        self.outputs = [PairCommand::Off; 2];
+        self.joint.restart_time_base();
+        self.last_faults = self.joint.supervisor().latched();
+        self.last_estimate = [f32::NAN; 2];
+    }
+
+    fn lockstep_step(&mut self, frame: HilSensor) -> Option<Message> {
+        let Mode::Lockstep {
+            period,
+            anchor,
+            last,
+        } = self.mode
+        else {
+            return Some(Message::Nak(Nak {
                 request: kind::HIL_SENSOR,
                 code: ErrorCode::WrongMode,
-            });
+            }));
         };
-        if let Some((seq, _, reply)) = last {
-            if seq == frame.seq {
-                return Some(Message::HilActuator(reply)); // idempotent retry
-            }
-        }
-        // Extend the wrapping u16 sequence to a step count.
+        // The seq difference as a signed window: ahead by up to 32767 is a
+        // forward gap, behind by up to 32768 is a late frame.
         let (step, gap) = match last {
-            None => (u32::from(frame.seq), 1),
-            Some((seq, step, _)) => {
-                let gap = u32::from(frame.seq.wrapping_sub(seq));
-                (step.wrapping_add(gap), gap)
+            None => (0, 1),
+            Some(l) => {
+                let diff = frame.seq.wrapping_sub(l.seq) as i16;
+                if diff == 0 {
+                    return Some(Message::HilActuator(l.reply)); // idempotent retry
+                }
+                if diff < 0 {
+                    // A late retransmission of a step already answered: it
+                    // must never step the core again. No reply (the host
+                    // has moved on and is waiting for a newer seq).
+                    self.stale_seqs = self.stale_seqs.saturating_add(1);
+                    return None;
+                }
+                let gap = u64::from(diff.unsigned_abs());
+                (l.step.saturating_add(gap), gap)
             }
         };
-        let (now_s, dt_s) = lockstep_times(step, gap, period_us);
+        let mut dt = period.saturating_mul(gap);
+        if dt > self.link_timeout {
+            // The host says more time passed than the link timeout allows
+            // without the board in control: that is a link loss.
+            self.joint.report_fault(Faults::LINK_LOSS);
+            dt = self.link_timeout;
+        }
         let input = StepInput {
-            now_s,
-            dt_s,
+            now: lockstep_instant(anchor, step, period),
+            dt,
             feedback: Feedback::WireCounts(frame.counts.map(|c| Some(i32::from(c)))),
         };
         let out = self.joint.step(&input);
         self.outputs = out.commands;
         self.last_faults = out.faults;
         self.last_estimate = out.estimate_deg;
-        let reply = ActuatorFrame {
+        let reply = HilActuator {
             seq: frame.seq,
             pair_mv: out.commands.map(|c| pair_to_mv(c, self.joint.driver())),
             estimate_cdeg: out.estimate_deg.map(deg_to_cdeg),
-            faults: faults_byte(out.faults),
+            faults: faults_to_u8(out.faults),
         };
-        self.mode = Mode::Hil {
-            period_us,
-            last: Some((frame.seq, step, reply)),
+        self.mode = Mode::Lockstep {
+            period,
+            anchor,
+            last: Some(LastStep {
+                seq: frame.seq,
+                step,
+                reply,
+            }),
         };
         Some(Message::HilActuator(reply))
     }
 
-    /// The status report.
-    pub fn status(&self, now_ms: u32) -> Status {
+    /// The status report at board time `now`.
+    pub fn status(&self, now: Instant) -> Status {
         let s = self.decoder.stats();
         let sat16 = |v: u32| u16::try_from(v).unwrap_or(u16::MAX);
         Status {
             armed: u8::from(self.joint.is_armed()),
             mode: u8::from(self.in_hil()),
-            faults: faults_byte(self.last_faults),
-            latched: faults_byte(self.joint.supervisor().latched()),
+            faults: faults_to_u8(self.last_faults),
+            latched: faults_to_u8(self.joint.supervisor().latched()),
             estimate_deg: self.last_estimate,
             target_deg: self.joint.targets_deg(),
             pair_mv: self.outputs.map(|c| pair_to_mv(c, self.joint.driver())),
-            time_ms: now_ms,
+            time_ms: now.wrapping_millis_u32(),
             frames_ok: s.frames_ok,
             crc_errors: sat16(s.crc_errors),
             cobs_errors: sat16(s.cobs_errors),
             overfull: sat16(s.overfull),
             malformed: sat16(s.malformed),
+            stale_seqs: sat16(self.stale_seqs),
         }
     }
-}
-
-/// Simulated time and step length of lockstep step number `step`, `gap`
-/// periods after the previous one, in the exact f32 arithmetic the board
-/// uses — so a host simulation that calls this reproduces the board's inputs
-/// bit for bit.
-pub fn lockstep_times(step: u32, gap: u32, period_us: u32) -> (f32, f32) {
-    let period_s = period_us as f32 * 1e-6;
-    (step as f32 * period_s, gap as f32 * period_s)
 }
 
 fn emit(msg: &Message, send: &mut impl FnMut(&[u8])) {

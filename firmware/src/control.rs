@@ -57,6 +57,23 @@ pub enum ControlError {
     TargetNotFinite,
 }
 
+impl core::fmt::Display for ControlError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            ControlError::SupplyNotPositive => "the supply voltage must be finite and > 0",
+            ControlError::OffsetOutOfRange => "v_offset must be finite and within [0, supply)",
+            ControlError::ProportionalGainNotPositive => {
+                "a proportional gain must be finite and > 0"
+            }
+            ControlError::IntegralGainNegative => "the integral gain must be finite and >= 0",
+            ControlError::IntegralLimitNegative => "the integral limit must be finite and >= 0",
+            ControlError::TargetNotFinite => "a desired angle must be finite",
+        })
+    }
+}
+
+impl core::error::Error for ControlError {}
+
 /// The driver's input range and conduction threshold.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -384,6 +401,22 @@ pub enum PairDriverError<EA, EB> {
     Agonist(EA),
     /// The antagonist channel's error.
     Antagonist(EB),
+}
+
+impl<EA: embedded_hal::pwm::Error, EB: embedded_hal::pwm::Error> core::fmt::Display
+    for PairDriverError<EA, EB>
+{
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            PairDriverError::Agonist(e) => write!(f, "agonist channel: {}", e.kind()),
+            PairDriverError::Antagonist(e) => write!(f, "antagonist channel: {}", e.kind()),
+        }
+    }
+}
+
+impl<EA: embedded_hal::pwm::Error, EB: embedded_hal::pwm::Error> core::error::Error
+    for PairDriverError<EA, EB>
+{
 }
 
 impl<A: SetDutyCycle, B: SetDutyCycle> PairDriver<A, B> {

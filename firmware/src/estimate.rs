@@ -71,6 +71,8 @@ impl core::fmt::Display for CalibrationError {
     }
 }
 
+impl core::error::Error for CalibrationError {}
+
 fn finite(values: &[f32]) -> Result<(), CalibrationError> {
     if values.iter().all(|v| v.is_finite()) {
         Ok(())
@@ -239,6 +241,22 @@ pub const PAPER_ALPHA_THRESHOLD_DEG: f32 = -7.46;
 pub const DEFAULT_HYSTERESIS_DEG: f32 = 0.5;
 
 impl PlaneLaw {
+    /// The sensors this law reads, as a bit mask (bit k = sensor k; indices
+    /// of 32 or more, which no validated law has, are left out).
+    pub fn sensor_mask(&self) -> u32 {
+        let bit = |i: u8| 1u32.checked_shl(u32::from(i)).unwrap_or(0);
+        match *self {
+            PlaneLaw::Single { sensor, .. } => bit(sensor),
+            PlaneLaw::Differential { plus, minus, .. } => bit(plus) | bit(minus),
+            PlaneLaw::Switching {
+                plus,
+                minus,
+                sensor,
+                ..
+            } => bit(plus) | bit(minus) | bit(sensor),
+        }
+    }
+
     /// Checks coefficients and sensor indices against an array of `sensors`.
     pub fn validate(&self, sensors: usize) -> Result<(), CalibrationError> {
         let idx_ok = |i: u8| usize::from(i) < sensors;

@@ -20,6 +20,18 @@ pub enum FitError {
     NonFiniteSample,
 }
 
+impl core::fmt::Display for FitError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            FitError::TooFewSamples => "too few samples for the number of coefficients",
+            FitError::Degenerate => "the samples do not determine the coefficients (all x equal?)",
+            FitError::NonFiniteSample => "a sample or a fitted coefficient is not finite",
+        })
+    }
+}
+
+impl core::error::Error for FitError {}
+
 /// Accumulates samples for `y = a x² + b x + c` (Eq. 2) or, with
 /// [`PolyFit::linear`], `y = g x + o` (Eq. 3).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,10 +77,10 @@ impl PolyFit {
         }
         let t = x - self.centre;
         let mut p = 1.0;
-        for k in 0..5 {
-            self.sx[k] += p;
-            if k < 3 {
-                self.sxy[k] += y * p;
+        for (k, sx) in self.sx.iter_mut().enumerate() {
+            *sx += p;
+            if let Some(sxy) = self.sxy.get_mut(k) {
+                *sxy += y * p;
             }
             p *= t;
         }
@@ -76,7 +88,13 @@ impl PolyFit {
 
     /// Number of samples accepted.
     pub fn count(&self) -> u64 {
-        self.sx[0] as u64
+        self.samples() as u64
+    }
+
+    /// Σ t⁰: the number of samples, as the sums hold it.
+    fn samples(&self) -> f64 {
+        let [n, ..] = self.sx;
+        n
     }
 
     /// Number of non-finite samples skipped.
@@ -89,24 +107,26 @@ impl PolyFit {
     /// in the caller's original x (the centring is undone).
     pub fn solve(&self) -> Result<[f64; 3], FitError> {
         let n = self.degree + 1;
-        if self.sx[0] < n as f64 {
+        if self.samples() < n as f64 {
             return Err(FitError::TooFewSamples);
         }
         // Normal matrix M[r][c] = Σ t^(r+c), rhs[r] = Σ y t^r, unknowns
         // q0 + q1 t + q2 t².
         let mut m = [[0.0f64; 4]; 3];
-        for (r, row) in m.iter_mut().enumerate().take(n) {
+        for ((r, row), rhs) in m.iter_mut().enumerate().zip(self.sxy).take(n) {
             for (c, v) in row.iter_mut().enumerate().take(n) {
-                *v = self.sx[r + c];
+                *v = self.sx.get(r + c).copied().unwrap_or(0.0);
             }
-            row[3] = self.sxy[r];
+            if let Some(last) = row.last_mut() {
+                *last = rhs;
+            }
         }
-        let q = solve_small(&mut m, n)?;
+        let [q0, q1, q2] = solve_small(&mut m, n)?;
         // Undo the centring: y = q0 + q1 (x − x0) + q2 (x − x0)².
         let x0 = self.centre;
-        let a = q[2];
-        let b = q[1] - 2.0 * q[2] * x0;
-        let c = q[0] - q[1] * x0 + q[2] * x0 * x0;
+        let a = q2;
+        let b = q1 - 2.0 * q2 * x0;
+        let c = q0 - q1 * x0 + q2 * x0 * x0;
         if a.is_finite() && b.is_finite() && c.is_finite() {
             Ok([a, b, c])
         } else {
@@ -116,9 +136,13 @@ impl PolyFit {
 }
 
 /// Gaussian elimination with partial pivoting on an n×(n+1) augmented
-/// system (n ≤ 3). Pivots below a relative tolerance mean the data do not
-/// determine the unknowns.
+/// system (n ≤ 3; the right-hand side is column 3). Pivots below a relative
+/// tolerance mean the data do not determine the unknowns.
 fn solve_small(m: &mut [[f64; 4]; 3], n: usize) -> Result<[f64; 3], FitError> {
+    let n = n.min(3);
+    let at = |m: &[[f64; 4]; 3], r: usize, c: usize| {
+        m.get(r).and_then(|row| row.get(c)).copied().unwrap_or(0.0)
+    };
     let scale = m
         .iter()
         .take(n)
@@ -131,30 +155,37 @@ fn solve_small(m: &mut [[f64; 4]; 3], n: usize) -> Result<[f64; 3], FitError> {
     for col in 0..n {
         let mut piv = col;
         for r in col + 1..n {
-            if m[r][col].abs() > m[piv][col].abs() {
+            if at(m, r, col).abs() > at(m, piv, col).abs() {
                 piv = r;
             }
         }
-        if m[piv][col].abs() <= tol {
+        if at(m, piv, col).abs() <= tol {
             return Err(FitError::Degenerate);
         }
         m.swap(col, piv);
-        let (upper, lower) = m.split_at_mut(col + 1);
-        let pivot = &upper[col];
+        let Some((upper, lower)) = m.split_at_mut_checked(col + 1) else {
+            return Err(FitError::Degenerate);
+        };
+        let Some(pivot) = upper.last() else {
+            return Err(FitError::Degenerate);
+        };
+        let p = pivot.get(col).copied().unwrap_or(f64::NAN);
         for row in lower.iter_mut().take(n - col - 1) {
-            let f = row[col] / pivot[col];
-            for (x, p) in row.iter_mut().zip(pivot.iter()).skip(col) {
-                *x -= f * p;
+            let f = row.get(col).copied().unwrap_or(0.0) / p;
+            for (x, pv) in row.iter_mut().zip(pivot.iter()).skip(col) {
+                *x -= f * pv;
             }
         }
     }
     let mut q = [0.0f64; 3];
     for r in (0..n).rev() {
-        let mut acc = m[r][3];
-        for c in r + 1..n {
-            acc -= m[r][c] * q[c];
+        let mut acc = at(m, r, 3);
+        for (c, qc) in q.iter().enumerate().take(n).skip(r + 1) {
+            acc -= at(m, r, c) * qc;
         }
-        q[r] = acc / m[r][r];
+        if let Some(qr) = q.get_mut(r) {
+            *qr = acc / at(m, r, r);
+        }
     }
     Ok(q)
 }

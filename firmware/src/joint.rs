@@ -17,13 +17,15 @@
 //! [`PairCommand`] whose voltage lies in [0, supply].
 
 use crate::control::{
-    ControlError, DriverConfig, PairCommand, PairController, PairGains, PairMode,
+    ControlError, DriverConfig, PairCommand, PairController, PairDriver, PairGains, PairMode,
 };
 use crate::estimate::{
     CalibrationError, LinearLaw, Method, PlaneEstimator, PlaneLaw, PulseCoder, QuadraticLaw,
 };
 use crate::sensor::{SensorGuard, SensorLimits};
 use crate::supervisor::{Faults, StillFaulted, Supervisor, SupervisorConfig};
+use crate::time::{Duration, Instant};
+use embedded_hal::pwm::SetDutyCycle;
 
 /// Why a joint configuration was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,6 +42,24 @@ pub enum ConfigError {
     /// A target beyond the allowed range (± `max_target_deg`).
     TargetOutOfRange,
 }
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::Control(e) => write!(f, "controller: {e}"),
+            ConfigError::Calibration(e) => write!(f, "calibration: {e}"),
+            ConfigError::SensorLimits => f.write_str(
+                "sensor limits must be finite, ordered (min < max), with a rate > 0 and a stale limit > 0",
+            ),
+            ConfigError::NoSuchPlane => f.write_str("the joint has no such plane"),
+            ConfigError::TargetOutOfRange => {
+                f.write_str("the target is beyond the allowed range (±max_target_deg)")
+            }
+        }
+    }
+}
+
+impl core::error::Error for ConfigError {}
 
 impl From<ControlError> for ConfigError {
     fn from(e: ControlError) -> Self {
@@ -158,10 +178,12 @@ pub enum Feedback<const S: usize, const P: usize> {
 /// Inputs of one step. Time is passed in: the core has no clock.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepInput<const S: usize, const P: usize> {
-    /// Current time (s) on the controller's time base.
-    pub now_s: f32,
-    /// Time since the previous step (s).
-    pub dt_s: f32,
+    /// Current time on the controller's monotonic time base. A step whose
+    /// time is earlier than the previous step's is an invalid input.
+    pub now: Instant,
+    /// Time since the previous step (for the integrators and the thermal
+    /// budget).
+    pub dt: Duration,
     /// Sensor readings.
     pub feedback: Feedback<S, P>,
 }
@@ -172,7 +194,8 @@ pub struct StepOutput<const P: usize> {
     /// What to apply to each pair (already supervised).
     pub commands: [PairCommand; P],
     /// Angle estimate per plane (deg): the held value when a channel had no
-    /// new reading; NaN only before the first reading.
+    /// new reading; NaN until every channel the plane's law uses has
+    /// delivered a valid reading (and the outputs are off until then).
     pub estimate_deg: [f32; P],
     /// Estimation method per plane (`None` for measured angles).
     pub methods: [Option<Method>; P],
@@ -214,6 +237,10 @@ pub struct JointController<const P: usize, const S: usize> {
     supervisor: Supervisor<P>,
     max_target_deg: f32,
     estimate_deg: [f32; P],
+    /// Wire sensors the laws read (bit k = sensor k).
+    required_wires: u32,
+    /// Time of the previous step on this time base.
+    last_now: Option<Instant>,
 }
 
 impl<const P: usize, const S: usize> JointController<P, S> {
@@ -230,6 +257,7 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             law.validate(S)?;
         }
         let estimators = config.laws.map(PlaneEstimator::from_validated);
+        let required_wires = config.laws.iter().fold(0, |m, l| m | l.sensor_mask());
         let mut pairs = config
             .gains
             .map(|g| PairController::new(g, PairMode::Antagonistic));
@@ -247,6 +275,8 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             supervisor: Supervisor::new(config.supervisor),
             max_target_deg: config.max_target_deg,
             estimate_deg: [f32::NAN; P],
+            required_wires,
+            last_now: None,
         })
     }
 
@@ -297,6 +327,10 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             .estimators
             .get_mut(plane)
             .ok_or(ConfigError::NoSuchPlane)? = est;
+        self.required_wires = self
+            .estimators
+            .iter()
+            .fold(0, |m, e| m | e.law().sensor_mask());
         Ok(())
     }
 
@@ -324,6 +358,7 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             p.reset();
         }
         self.estimate_deg = [f32::NAN; P];
+        self.last_now = None;
         self.supervisor.restart_time_base();
     }
 
@@ -356,8 +391,48 @@ impl<const P: usize, const S: usize> JointController<P, S> {
     }
 
     /// Records a frame from the host (for the link watchdog).
-    pub fn note_link_frame(&mut self, now_s: f32) {
-        self.supervisor.note_link_frame(now_s);
+    pub fn note_link_frame(&mut self, now: Instant) {
+        self.supervisor.note_link_frame(now);
+    }
+
+    /// Wire sensors the estimation laws read (bit k = sensor k): the
+    /// channels that must have delivered before any output is driven.
+    pub fn required_wires(&self) -> u32 {
+        self.required_wires
+    }
+
+    /// Runs one step and applies its commands to the pairs' drivers (the
+    /// board's or the simulator's PWM channels). A channel that fails is
+    /// the core's business, not the caller's: every pair is switched off at
+    /// once, [`Faults::DRIVER`] latches (outputs stay off until cleared),
+    /// and the returned output says so.
+    pub fn step_and_drive<A: SetDutyCycle, B: SetDutyCycle>(
+        &mut self,
+        input: &StepInput<S, P>,
+        drivers: &mut [PairDriver<A, B>; P],
+    ) -> StepOutput<P> {
+        let mut out = self.step(input);
+        let driver = self.driver;
+        let failed = drivers
+            .iter_mut()
+            .zip(out.commands.iter())
+            .fold(false, |failed, (d, cmd)| {
+                d.apply(*cmd, &driver).is_err() || failed
+            });
+        if failed {
+            for d in drivers.iter_mut() {
+                // Both channels are tried even if one fails; nothing more
+                // can be done about a channel that cannot be switched off.
+                let _ = d.all_off();
+            }
+            self.supervisor.report(Faults::DRIVER);
+            for p in self.pairs.iter_mut() {
+                p.reset();
+            }
+            out.commands = [PairCommand::Off; P];
+            out.faults |= Faults::DRIVER;
+        }
+        out
     }
 
     /// The supervisor (thermal state, latched faults).
@@ -368,64 +443,75 @@ impl<const P: usize, const S: usize> JointController<P, S> {
     /// Runs one control step.
     pub fn step(&mut self, input: &StepInput<S, P>) -> StepOutput<P> {
         let mut faults = Faults::NONE;
-        let time_ok = input.now_s.is_finite() && input.dt_s.is_finite() && input.dt_s >= 0.0;
-        if !time_ok {
+        // Time must not run backwards on one time base; a caller that
+        // restarts its clock calls `restart_time_base` first.
+        if self.last_now.is_some_and(|last| input.now < last) {
             faults |= Faults::INVALID_INPUT;
+        } else {
+            self.last_now = Some(input.now);
         }
         let mut methods = [None; P];
-        match input.feedback {
+        // True once every channel the estimate needs has delivered.
+        let ready = match input.feedback {
             Feedback::WireCounts(counts) => {
                 let mut mm = [None; S];
                 for ((m, c), coder) in mm.iter_mut().zip(counts.iter()).zip(self.coders.iter()) {
                     *m = c.map(|c| coder.insertion_mm(c));
                 }
-                let (held_mm, f) = self.wire_guard.check(input.now_s, &mm);
-                faults |= f;
+                let checked = self.wire_guard.check(input.now, &mm);
+                faults |= checked.faults;
+                let ready = checked.has_delivered(self.required_wires);
                 // Estimate from held values only while every channel is
                 // healthy, so a faulty channel cannot move the switching
                 // state; otherwise the last estimate is held.
-                if f.is_empty() {
+                if ready && checked.faults.is_empty() {
                     for ((est, out), method) in self
                         .estimators
                         .iter_mut()
                         .zip(self.estimate_deg.iter_mut())
                         .zip(methods.iter_mut())
                     {
-                        let e = est.estimate(&held_mm);
+                        let e = est.estimate(&checked.values);
                         *out = e.angle_deg;
                         *method = Some(e.method);
                     }
-                }
-                let lim = self.angle_guard.limits();
-                if f.is_empty()
-                    && self
+                    let lim = self.angle_guard.limits();
+                    if self
                         .estimate_deg
                         .iter()
                         .any(|a| !(lim.min..=lim.max).contains(a))
-                {
-                    faults |= Faults::SENSOR_RANGE;
+                    {
+                        faults |= Faults::SENSOR_RANGE;
+                    }
                 }
+                ready
             }
             Feedback::Angles(angles) => {
-                let (held, f) = self.angle_guard.check(input.now_s, &angles);
-                faults |= f;
-                self.estimate_deg = held;
+                let checked = self.angle_guard.check(input.now, &angles);
+                faults |= checked.faults;
+                let all = 1u32.checked_shl(P as u32).map_or(u32::MAX, |b| b - 1);
+                let ready = checked.has_delivered(all);
+                if ready {
+                    self.estimate_deg = checked.values;
+                }
+                ready
             }
-        }
+        };
 
         let mut commands = [PairCommand::Off; P];
-        if faults.is_empty() {
+        let dt_s = input.dt.as_secs_f32();
+        if ready && faults.is_empty() {
             for ((cmd, pair), (angle, target)) in commands
                 .iter_mut()
                 .zip(self.pairs.iter_mut())
                 .zip(self.estimate_deg.iter().zip(self.targets_deg.iter()))
             {
-                *cmd = pair.update(&self.driver, *angle, *target, input.dt_s);
+                *cmd = pair.update(&self.driver, *angle, *target, dt_s);
             }
         }
         let supervised =
             self.supervisor
-                .supervise(input.now_s, input.dt_s, commands, faults, &self.driver);
+                .supervise(input.now, input.dt, commands, faults, &self.driver);
         if supervised.faults.intersects(Faults::LATCHING) || !self.supervisor.is_armed() {
             // While outputs are forced off, integrators must not keep state
             // that would kick the coils when control resumes.

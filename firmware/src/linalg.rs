@@ -203,13 +203,16 @@ impl<T: Real> Add for Mat3<T> {
 impl<T: Real> Mul for Mat3<T> {
     type Output = Self;
     fn mul(self, o: Self) -> Self {
-        let mut out = Mat3::zero();
-        for (r, row) in out.0.iter_mut().enumerate() {
-            for (c, v) in row.iter_mut().enumerate() {
-                *v = self.0[r][0] * o.0[0][c] + self.0[r][1] * o.0[1][c] + self.0[r][2] * o.0[2][c];
+        let [o0, o1, o2] = o.0;
+        // Row r of the product: self[r][0]·o[0] + self[r][1]·o[1] +
+        // self[r][2]·o[2], summed in that order.
+        Mat3(self.0.map(|[x, y, z]| {
+            let mut row = [T::zero(); 3];
+            for (((v, a), b), c) in row.iter_mut().zip(o0).zip(o1).zip(o2) {
+                *v = x * a + y * b + z * c;
             }
-        }
-        out
+            row
+        }))
     }
 }
 

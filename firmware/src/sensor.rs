@@ -11,6 +11,7 @@
 //! faster loop — until it has been missing for longer than the stale limit.
 
 use crate::supervisor::Faults;
+use crate::time::{Duration, Instant};
 
 /// Why a pulse coder could not be read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -21,6 +22,17 @@ pub enum WireSensorError {
     /// The device reported a fault (open line, counter error).
     Fault,
 }
+
+impl core::fmt::Display for WireSensorError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            WireSensorError::NotReady => "no new reading is available",
+            WireSensorError::Fault => "the pulse coder reported a fault",
+        })
+    }
+}
+
+impl core::error::Error for WireSensorError {}
 
 /// A wire-insertion pulse coder.
 pub trait WireSensor {
@@ -45,8 +57,8 @@ pub struct SensorLimits {
     pub max: f32,
     /// Largest plausible rate of change per second (absolute).
     pub max_rate_per_s: f32,
-    /// A reading older than this (seconds) is stale.
-    pub stale_after_s: f32,
+    /// A channel whose last accepted reading is older than this is stale.
+    pub stale_after: Duration,
 }
 
 impl SensorLimits {
@@ -58,7 +70,7 @@ impl SensorLimits {
         min: -10.0,
         max: 10.0,
         max_rate_per_s: 200.0,
-        stale_after_s: 0.05,
+        stale_after: Duration::from_millis(50),
     };
 
     /// Camera angles: ±45° (the joint moves ±20°, paper §VI-A), 1000°/s,
@@ -67,32 +79,57 @@ impl SensorLimits {
         min: -45.0,
         max: 45.0,
         max_rate_per_s: 1000.0,
-        stale_after_s: 0.2,
+        stale_after: Duration::from_millis(200),
     };
 
-    /// True when every limit is finite and ordered.
+    /// True when every limit is finite and ordered and the stale limit is
+    /// not zero.
     pub fn is_valid(&self) -> bool {
         self.min.is_finite()
             && self.max.is_finite()
             && self.min < self.max
             && self.max_rate_per_s.is_finite()
             && self.max_rate_per_s > 0.0
-            && self.stale_after_s.is_finite()
-            && self.stale_after_s > 0.0
+            && !self.stale_after.is_zero()
     }
 }
 
-/// Holds the last good value of `S` channels and checks new readings.
+/// What [`SensorGuard::check`] found at one instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Checked<const S: usize> {
+    /// The held value of every channel: the last accepted reading, or 0 for
+    /// a channel that has not delivered one yet (see `delivered`).
+    pub values: [f32; S],
+    /// Any of [`Faults::SENSOR_RANGE`], [`Faults::SENSOR_RATE`],
+    /// [`Faults::SENSOR_STALE`].
+    pub faults: Faults,
+    /// Bit `k` is set when channel `k` has delivered at least one accepted
+    /// reading since the guard was created or reset. A value whose bit is
+    /// clear is a placeholder, not a measurement: nothing may be driven
+    /// from it.
+    pub delivered: u32,
+}
+
+impl<const S: usize> Checked<S> {
+    /// True when every channel in `mask` has delivered a reading.
+    pub fn has_delivered(&self, mask: u32) -> bool {
+        self.delivered & mask == mask
+    }
+}
+
+/// Holds the last good value of `S` channels (at most 32) and checks new
+/// readings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SensorGuard<const S: usize> {
     limits: SensorLimits,
     value: [f32; S],
-    last_ok_s: [Option<f32>; S],
+    last_ok: [Option<Instant>; S],
     /// Time of the first check: a channel that has never delivered is
     /// stale only once the stale limit has passed since then (a camera's
     /// first frame arrives one frame period after start).
-    started_s: Option<f32>,
+    started: Option<Instant>,
 }
 
 impl<const S: usize> SensorGuard<S> {
@@ -101,8 +138,8 @@ impl<const S: usize> SensorGuard<S> {
         Self {
             limits,
             value: [0.0; S],
-            last_ok_s: [None; S],
-            started_s: None,
+            last_ok: [None; S],
+            started: None,
         }
     }
 
@@ -113,105 +150,147 @@ impl<const S: usize> SensorGuard<S> {
 
     /// Forgets all readings.
     pub fn reset(&mut self) {
-        self.last_ok_s = [None; S];
-        self.started_s = None;
+        self.value = [0.0; S];
+        self.last_ok = [None; S];
+        self.started = None;
     }
 
-    /// Checks the readings taken at `now_s` (`None`: no new reading on that
-    /// channel) and returns the held values with any of
-    /// [`Faults::SENSOR_RANGE`], [`Faults::SENSOR_RATE`],
-    /// [`Faults::SENSOR_STALE`]. A reading that fails a check is not
-    /// accepted as the held value.
-    pub fn check(&mut self, now_s: f32, readings: &[Option<f32>; S]) -> ([f32; S], Faults) {
+    /// Checks the readings taken at `now` (`None`: no new reading on that
+    /// channel). A reading that fails a check is not accepted as the held
+    /// value. `now` must not be earlier than the previous call's (the joint
+    /// checks that); an earlier one judges no rate and counts ages as 0.
+    pub fn check(&mut self, now: Instant, readings: &[Option<f32>; S]) -> Checked<S> {
         let mut faults = Faults::NONE;
         let lim = self.limits;
-        let started = *self.started_s.get_or_insert(now_s);
-        for ((value, last), reading) in self
+        let started = *self.started.get_or_insert(now);
+        let mut delivered = 0u32;
+        for (k, ((value, last), reading)) in self
             .value
             .iter_mut()
-            .zip(self.last_ok_s.iter_mut())
+            .zip(self.last_ok.iter_mut())
             .zip(readings.iter())
+            .enumerate()
         {
             if let Some(r) = *reading {
                 if !r.is_finite() || r < lim.min || r > lim.max {
                     faults |= Faults::SENSOR_RANGE;
                 } else {
                     let plausible = match *last {
-                        Some(t) if now_s > t => {
-                            (r - *value).abs() <= lim.max_rate_per_s * (now_s - t)
+                        // A first reading, or one at the same instant: no
+                        // rate to judge.
+                        Some(t) if now > t => {
+                            let elapsed_s = (now - t).as_secs_f32();
+                            (r - *value).abs() <= lim.max_rate_per_s * elapsed_s
                         }
-                        // Same instant or first reading: no rate to judge.
                         _ => true,
                     };
                     if plausible {
                         *value = r;
-                        *last = Some(now_s);
+                        *last = Some(now);
                     } else {
                         faults |= Faults::SENSOR_RATE;
                     }
                 }
             }
-            match *last {
-                None if !is_fresh(now_s - started, lim.stale_after_s) => {
-                    faults |= Faults::SENSOR_STALE
+            let since = match *last {
+                Some(t) => {
+                    delivered |= 1u32.checked_shl(k as u32).unwrap_or(0);
+                    t
                 }
-                None => {}
-                Some(t) if !is_fresh(now_s - t, lim.stale_after_s) => {
-                    faults |= Faults::SENSOR_STALE
-                }
-                Some(_) => {}
+                None => started,
+            };
+            if now - since > lim.stale_after {
+                faults |= Faults::SENSOR_STALE;
             }
         }
-        (self.value, faults)
+        Checked {
+            values: self.value,
+            faults,
+            delivered,
+        }
     }
-}
-
-/// True when a reading of age `age_s` is within `limit_s`. A NaN age (a NaN
-/// clock) is not fresh: unknown age counts as stale.
-pub(crate) fn is_fresh(age_s: f32, limit_s: f32) -> bool {
-    age_s <= limit_s
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn range_rate_and_staleness_are_flagged() {
+    fn ms(t: u64) -> Instant {
+        Instant::from_millis(t)
+    }
+
+    /// The guard's behaviour from `t0` on: the same checks give the same
+    /// answers at any uptime.
+    fn range_rate_and_staleness_from(t0: Instant) {
+        let at = |t: u64| t0 + Duration::from_millis(t);
         let mut g = SensorGuard::<2>::new(SensorLimits::WIRE_DEFAULT);
-        let (_, f) = g.check(0.0, &[Some(1.0), None]);
+        let c = g.check(at(0), &[Some(1.0), None]);
         assert_eq!(
-            f,
+            c.faults,
             Faults::NONE,
             "a channel gets the stale limit to deliver its first reading"
         );
-        let (_, f) = g.check(0.051, &[Some(1.0), None]);
-        assert_eq!(f, Faults::SENSOR_STALE, "channel 1 never read within 50 ms");
+        assert_eq!(c.delivered, 0b01, "channel 1 has not delivered");
+        assert!(!c.has_delivered(0b11));
+        let c = g.check(at(51), &[Some(1.0), None]);
+        assert_eq!(
+            c.faults,
+            Faults::SENSOR_STALE,
+            "channel 1 never read within 50 ms"
+        );
         let mut g = SensorGuard::<2>::new(SensorLimits::WIRE_DEFAULT);
-        g.check(0.0, &[Some(1.0), Some(0.0)]);
-        let (v, f) = g.check(0.001, &[Some(1.1), Some(0.0)]);
-        assert_eq!(f, Faults::NONE);
-        assert_eq!(v, [1.1, 0.0]);
+        g.check(at(0), &[Some(1.0), Some(0.0)]);
+        let c = g.check(at(1), &[Some(1.1), Some(0.0)]);
+        assert_eq!(c.faults, Faults::NONE);
+        assert_eq!(c.values, [1.1, 0.0]);
+        assert!(c.has_delivered(0b11));
         // 5 mm in 1 ms = 5000 mm/s: implausible, value held.
-        let (v, f) = g.check(0.002, &[Some(6.1), Some(0.0)]);
-        assert_eq!(f, Faults::SENSOR_RATE);
-        assert_eq!(v[0], 1.1);
+        let c = g.check(at(2), &[Some(6.1), Some(0.0)]);
+        assert_eq!(c.faults, Faults::SENSOR_RATE);
+        assert_eq!(c.values[0], 1.1);
         // Out of range and NaN.
         assert_eq!(
-            g.check(0.003, &[Some(11.0), Some(0.0)]).1,
+            g.check(at(3), &[Some(11.0), Some(0.0)]).faults,
             Faults::SENSOR_RANGE
         );
         assert_eq!(
-            g.check(0.004, &[Some(f32::NAN), Some(0.0)]).1,
+            g.check(at(4), &[Some(f32::NAN), Some(0.0)]).faults,
             Faults::SENSOR_RANGE
         );
-        // Channel 0 has not been accepted since t = 0.001: stale after 50 ms.
-        assert_eq!(g.check(0.050, &[None, Some(0.0)]).1, Faults::NONE);
-        assert_eq!(g.check(0.052, &[None, Some(0.0)]).1, Faults::SENSOR_STALE);
-        // A NaN clock is stale, not silently fresh.
-        assert!(g
-            .check(f32::NAN, &[Some(1.0), Some(0.0)])
-            .1
-            .contains(Faults::SENSOR_STALE));
+        // Channel 0 has not been accepted since t = 1 ms: stale after 50 ms.
+        assert_eq!(g.check(at(51), &[None, Some(0.0)]).faults, Faults::NONE);
+        assert_eq!(
+            g.check(at(52), &[None, Some(0.0)]).faults,
+            Faults::SENSOR_STALE
+        );
+        // Rate limits keep 1 ms resolution: 0.19 mm per ms is plausible,
+        // 0.21 mm is not, after any uptime.
+        let mut g = SensorGuard::<1>::new(SensorLimits::WIRE_DEFAULT);
+        g.check(at(100), &[Some(0.0)]);
+        assert_eq!(g.check(at(101), &[Some(0.19)]).faults, Faults::NONE);
+        assert_eq!(g.check(at(102), &[Some(0.41)]).faults, Faults::SENSOR_RATE);
+    }
+
+    #[test]
+    fn range_rate_and_staleness_are_flagged_at_any_uptime() {
+        for t0 in [
+            Instant::ZERO,
+            // One second before a u32 millisecond counter wraps.
+            Instant::from_millis(u64::from(u32::MAX) - 1000),
+            Instant::from_secs(5 * 3600),
+            Instant::from_secs(30 * 86_400),
+            Instant::from_secs(365 * 86_400),
+        ] {
+            range_rate_and_staleness_from(t0);
+        }
+    }
+
+    #[test]
+    fn reset_forgets_what_was_delivered() {
+        let mut g = SensorGuard::<1>::new(SensorLimits::WIRE_DEFAULT);
+        assert_eq!(g.check(ms(0), &[Some(2.0)]).delivered, 1);
+        g.reset();
+        let c = g.check(ms(1), &[None]);
+        assert_eq!((c.delivered, c.values), (0, [0.0]));
     }
 }

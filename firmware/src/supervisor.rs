@@ -21,6 +21,7 @@
 //! [`PairCommand`]; the supervisor can only remove drive, never add it.
 
 use crate::control::{DriveVolts, DriverConfig, PairCommand};
+use crate::time::{Duration, Instant};
 
 /// A set of fault flags (a bit set; combine with `|`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash)]
@@ -222,8 +223,8 @@ impl CoilThermal {
 pub struct SupervisorConfig {
     /// Thermal model and budget.
     pub thermal: ThermalConfig,
-    /// Link-loss timeout (s); `None` when there is no link to watch.
-    pub link_timeout_s: Option<f32>,
+    /// Link-loss timeout; `None` when there is no link to watch.
+    pub link_timeout: Option<Duration>,
 }
 
 impl Default for SupervisorConfig {
@@ -231,13 +232,13 @@ impl Default for SupervisorConfig {
     fn default() -> Self {
         Self {
             thermal: ThermalConfig::default(),
-            link_timeout_s: None,
+            link_timeout: None,
         }
     }
 }
 
 /// The HIL default link timeout: 50 ms of the firmware's own time.
-pub const DEFAULT_LINK_TIMEOUT_S: f32 = 0.05;
+pub const DEFAULT_LINK_TIMEOUT: Duration = Duration::from_millis(50);
 
 /// What the supervisor let through, and why anything was removed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -259,7 +260,7 @@ pub struct Supervisor<const P: usize> {
     /// Faults seen on the most recent step (to decide whether clear() may
     /// succeed).
     present: Faults,
-    last_link_s: Option<f32>,
+    last_link: Option<Instant>,
     armed: bool,
 }
 
@@ -268,14 +269,40 @@ pub struct Supervisor<const P: usize> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct StillFaulted(pub Faults);
 
+impl core::fmt::Display for Faults {
+    /// The names of the set flags, comma-separated (`none` when empty).
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let mut first = true;
+        for (flag, name) in Faults::NAMED {
+            if self.contains(flag) {
+                if !first {
+                    f.write_str(",")?;
+                }
+                f.write_str(name)?;
+                first = false;
+            }
+        }
+        if first {
+            f.write_str("none")?;
+        }
+        Ok(())
+    }
+}
+
+impl core::fmt::Display for StillFaulted {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "cannot clear: the cause of {} is still present", self.0)
+    }
+}
+
+impl core::error::Error for StillFaulted {}
+
 impl<const P: usize> Supervisor<P> {
     /// A disarmed supervisor. An invalid thermal configuration is replaced
     /// by the default and reported as `INVALID_INPUT` (latched), so a bad
     /// parameter cannot silently disable the budget.
     pub fn new(config: SupervisorConfig) -> Self {
-        let valid_link = config
-            .link_timeout_s
-            .is_none_or(|t| t.is_finite() && t > 0.0);
+        let valid_link = config.link_timeout.is_none_or(|t| !t.is_zero());
         let valid = config.thermal.is_valid() && valid_link;
         let config = if valid {
             config
@@ -291,7 +318,7 @@ impl<const P: usize> Supervisor<P> {
                 Faults::INVALID_INPUT
             },
             present: Faults::NONE,
-            last_link_s: None,
+            last_link: None,
             armed: false,
         }
     }
@@ -329,11 +356,9 @@ impl<const P: usize> Supervisor<P> {
             .map(|c| c.rise_k)
     }
 
-    /// Records that a valid frame arrived from the host at `now_s`.
-    pub fn note_link_frame(&mut self, now_s: f32) {
-        if now_s.is_finite() {
-            self.last_link_s = Some(now_s);
-        }
+    /// Records that a valid frame arrived from the host at `now`.
+    pub fn note_link_frame(&mut self, now: Instant) {
+        self.last_link = Some(now);
     }
 
     /// Starts a new time base (e.g. entering lockstep): forgets which fault
@@ -342,7 +367,7 @@ impl<const P: usize> Supervisor<P> {
     /// the thermal state is physical and is kept.
     pub fn restart_time_base(&mut self) {
         self.present = Faults::NONE;
-        self.last_link_s = None;
+        self.last_link = None;
     }
 
     /// Latches `faults` (from the estimator, the image, a driver error...).
@@ -367,23 +392,20 @@ impl<const P: usize> Supervisor<P> {
     }
 
     /// Filters one step's commands. `faults` are the faults detected this
-    /// step by the caller (sensors, inputs); `dt_s` the time since the last
+    /// step by the caller (sensors, inputs); `dt` the time since the last
     /// step, used for the thermal model.
     pub fn supervise(
         &mut self,
-        now_s: f32,
-        dt_s: f32,
+        now: Instant,
+        dt: Duration,
         commands: [PairCommand; P],
         faults: Faults,
         driver: &DriverConfig,
     ) -> Supervised<P> {
         let mut present = faults;
-        if !(now_s.is_finite() && dt_s.is_finite() && dt_s >= 0.0) {
-            present |= Faults::INVALID_INPUT;
-        }
-        if let Some(timeout) = self.config.link_timeout_s {
-            let lost = match self.last_link_s {
-                Some(t) => !crate::sensor::is_fresh(now_s - t, timeout),
+        if let Some(timeout) = self.config.link_timeout {
+            let lost = match self.last_link {
+                Some(t) => now - t > timeout,
                 None => false, // not yet started: disarmed until a frame comes
             };
             if lost {
@@ -400,11 +422,7 @@ impl<const P: usize> Supervisor<P> {
         let allow = self.armed && self.latched.is_empty();
         let mut out = [PairCommand::Off; P];
         let mut over_budget = false;
-        let dt = if dt_s.is_finite() && dt_s > 0.0 {
-            dt_s
-        } else {
-            0.0
-        };
+        let dt = dt.as_secs_f32();
         let cfg = self.config.thermal;
         for ((slot, cmd), coils) in out
             .iter_mut()
@@ -446,6 +464,18 @@ impl<const P: usize> Supervisor<P> {
 mod tests {
     use super::*;
 
+    const MS: Duration = Duration::from_millis(1);
+
+    /// The start times every time-dependent check is repeated at: boot, one
+    /// second before a u32 millisecond counter wraps, 5 h, 30 days, 1 year.
+    const UPTIMES: [Instant; 5] = [
+        Instant::ZERO,
+        Instant::from_millis(u32::MAX as u64 - 1000),
+        Instant::from_secs(5 * 3600),
+        Instant::from_secs(30 * 86_400),
+        Instant::from_secs(365 * 86_400),
+    ];
+
     fn armed() -> Supervisor<1> {
         let mut s = Supervisor::new(SupervisorConfig::default());
         s.arm();
@@ -455,88 +485,94 @@ mod tests {
     #[test]
     fn full_drive_trips_the_budget_and_cools_down() {
         let d = DriverConfig::default();
-        let mut s = armed();
-        let full = [PairCommand::Agonist(d.clamp(5.0))];
         let cfg = ThermalConfig::default();
         // Full drive: 0.5 A (clamped), 1.25 W, steady rise 195 K > trip.
         assert!(cfg.steady_rise_k(d.clamp(5.0), &d) > cfg.trip_rise_k);
-        let mut t = 0.0;
-        let mut tripped_at = None;
-        while t < 20.0 {
-            let out = s.supervise(t, 0.001, full, Faults::NONE, &d);
-            if out.faults.contains(Faults::OVER_BUDGET) {
-                tripped_at = Some(t);
-                assert_eq!(out.commands, [PairCommand::Off]);
-                break;
+        let full = [PairCommand::Agonist(d.clamp(5.0))];
+        for t0 in UPTIMES {
+            let mut s = armed();
+            let mut k = 0u64;
+            let at = |k: u64| t0 + MS.saturating_mul(k);
+            let mut tripped_at = None;
+            while k < 20_000 {
+                let out = s.supervise(at(k), MS, full, Faults::NONE, &d);
+                if out.faults.contains(Faults::OVER_BUDGET) {
+                    tripped_at = Some(k);
+                    assert_eq!(out.commands, [PairCommand::Off]);
+                    break;
+                }
+                k += 1;
             }
-            t += 0.001;
-        }
-        // Closed form of the first-order rise: T(t) = T∞(1 − e^(−t/τ)) hits
-        // 95 K at t = −τ ln(1 − 95/195.3) ≈ 3.34 s.
-        let t_trip = tripped_at.expect("never tripped");
-        let expect = -cfg.time_constant_s
-            * (1.0 - cfg.trip_rise_k / cfg.steady_rise_k(d.clamp(5.0), &d)).ln();
-        assert!(
-            (t_trip - expect).abs() < 0.02,
-            "tripped at {t_trip}, expected {expect}"
-        );
-        // While cooling, still held off even though the command asks for 5 V;
-        // the other coil of the pair is unaffected.
-        let out = s.supervise(t + 0.1, 0.001, full, Faults::NONE, &d);
-        assert_eq!(out.commands, [PairCommand::Off]);
-        let other = s.supervise(
-            t + 0.2,
-            0.001,
-            [PairCommand::Antagonist(d.clamp(3.0))],
-            Faults::NONE,
-            &d,
-        );
-        assert_eq!(other.commands, [PairCommand::Antagonist(d.clamp(3.0))]);
-        // Cool-down from 95 K to 45 K takes τ ln(95/45) ≈ 3.7 s.
-        let mut resumed = None;
-        let mut t2 = t + 0.2;
-        while t2 < t + 20.0 {
-            let out = s.supervise(t2, 0.01, full, Faults::NONE, &d);
-            if out.commands == full {
-                resumed = Some(t2 - t);
-                break;
+            // Closed form of the first-order rise: T(t) = T∞(1 − e^(−t/τ))
+            // hits 95 K at t = −τ ln(1 − 95/195.3) ≈ 3.34 s.
+            let t_trip = tripped_at.expect("never tripped") as f32 * 1e-3;
+            let expect = -cfg.time_constant_s
+                * (1.0 - cfg.trip_rise_k / cfg.steady_rise_k(d.clamp(5.0), &d)).ln();
+            assert!(
+                (t_trip - expect).abs() < 0.02,
+                "from {t0}: tripped at {t_trip}, expected {expect}"
+            );
+            // While cooling, still held off even though the command asks for
+            // 5 V; the other coil of the pair is unaffected.
+            let out = s.supervise(at(k + 100), MS, full, Faults::NONE, &d);
+            assert_eq!(out.commands, [PairCommand::Off]);
+            let other = s.supervise(
+                at(k + 200),
+                MS,
+                [PairCommand::Antagonist(d.clamp(3.0))],
+                Faults::NONE,
+                &d,
+            );
+            assert_eq!(other.commands, [PairCommand::Antagonist(d.clamp(3.0))]);
+            // Cool-down from 95 K to 45 K takes τ ln(95/45) ≈ 3.7 s.
+            let mut resumed = None;
+            let mut k2 = k + 200;
+            while k2 < k + 20_000 {
+                let out = s.supervise(at(k2), MS.saturating_mul(10), full, Faults::NONE, &d);
+                if out.commands == full {
+                    resumed = Some((k2 - k) as f32 * 1e-3);
+                    break;
+                }
+                k2 += 10;
             }
-            t2 += 0.01;
+            let resumed = resumed.expect("never resumed");
+            assert!(
+                resumed > 3.5 && resumed < 4.2,
+                "from {t0}: resumed after {resumed} s"
+            );
         }
-        let resumed = resumed.expect("never resumed");
-        assert!(resumed > 3.5 && resumed < 4.2, "resumed after {resumed} s");
     }
 
     #[test]
     fn every_latching_fault_zeroes_all_outputs_until_cleared() {
         let d = DriverConfig::default();
-        for (fault, name) in Faults::NAMED {
-            if !Faults::LATCHING.contains(fault) {
-                continue;
+        for t0 in UPTIMES {
+            for (fault, name) in Faults::NAMED {
+                if !Faults::LATCHING.contains(fault) {
+                    continue;
+                }
+                let at = |k: u64| t0 + MS.saturating_mul(k);
+                let mut s: Supervisor<2> = Supervisor::new(SupervisorConfig::default());
+                s.arm();
+                let cmd = [
+                    PairCommand::Agonist(d.clamp(3.0)),
+                    PairCommand::Antagonist(d.clamp(2.0)),
+                ];
+                assert_eq!(s.supervise(at(0), MS, cmd, Faults::NONE, &d).commands, cmd);
+                let out = s.supervise(at(1), MS, cmd, fault, &d);
+                assert_eq!(
+                    out.commands,
+                    [PairCommand::Off; 2],
+                    "{name} did not zero outputs"
+                );
+                assert!(out.faults.contains(fault), "{name} not reported");
+                // The cause has gone, but the latch holds until cleared...
+                let out = s.supervise(at(2), MS, cmd, Faults::NONE, &d);
+                assert_eq!(out.commands, [PairCommand::Off; 2], "{name} did not latch");
+                // ...and clearing succeeds now that the last step was clean.
+                s.clear().unwrap();
+                assert_eq!(s.supervise(at(3), MS, cmd, Faults::NONE, &d).commands, cmd);
             }
-            let mut s: Supervisor<2> = Supervisor::new(SupervisorConfig::default());
-            s.arm();
-            let cmd = [
-                PairCommand::Agonist(d.clamp(3.0)),
-                PairCommand::Antagonist(d.clamp(2.0)),
-            ];
-            assert_eq!(s.supervise(0.0, 0.001, cmd, Faults::NONE, &d).commands, cmd);
-            let out = s.supervise(0.001, 0.001, cmd, fault, &d);
-            assert_eq!(
-                out.commands,
-                [PairCommand::Off; 2],
-                "{name} did not zero outputs"
-            );
-            assert!(out.faults.contains(fault), "{name} not reported");
-            // The cause has gone, but the latch holds until cleared...
-            let out = s.supervise(0.002, 0.001, cmd, Faults::NONE, &d);
-            assert_eq!(out.commands, [PairCommand::Off; 2], "{name} did not latch");
-            // ...and clearing succeeds now that the last step was clean.
-            s.clear().unwrap();
-            assert_eq!(
-                s.supervise(0.003, 0.001, cmd, Faults::NONE, &d).commands,
-                cmd
-            );
         }
     }
 
@@ -544,27 +580,33 @@ mod tests {
     fn clear_is_refused_while_the_cause_persists() {
         let d = DriverConfig::default();
         let mut s = armed();
-        s.supervise(0.0, 0.001, [PairCommand::Off], Faults::SENSOR_STALE, &d);
+        s.supervise(
+            Instant::ZERO,
+            MS,
+            [PairCommand::Off],
+            Faults::SENSOR_STALE,
+            &d,
+        );
         assert_eq!(s.clear(), Err(StillFaulted(Faults::SENSOR_STALE)));
     }
 
     #[test]
-    fn link_loss_after_the_timeout() {
+    fn link_loss_after_the_timeout_at_any_uptime() {
         let d = DriverConfig::default();
-        let mut s: Supervisor<1> = Supervisor::new(SupervisorConfig {
-            link_timeout_s: Some(0.05),
-            ..Default::default()
-        });
-        s.arm();
-        let cmd = [PairCommand::Agonist(d.clamp(3.0))];
-        s.note_link_frame(0.0);
-        assert_eq!(
-            s.supervise(0.049, 0.001, cmd, Faults::NONE, &d).commands,
-            cmd
-        );
-        let out = s.supervise(0.051, 0.001, cmd, Faults::NONE, &d);
-        assert_eq!(out.commands, [PairCommand::Off]);
-        assert!(out.faults.contains(Faults::LINK_LOSS));
+        for t0 in UPTIMES {
+            let at = |k: u64| t0 + MS.saturating_mul(k);
+            let mut s: Supervisor<1> = Supervisor::new(SupervisorConfig {
+                link_timeout: Some(Duration::from_millis(50)),
+                ..Default::default()
+            });
+            s.arm();
+            let cmd = [PairCommand::Agonist(d.clamp(3.0))];
+            s.note_link_frame(at(0));
+            assert_eq!(s.supervise(at(50), MS, cmd, Faults::NONE, &d).commands, cmd);
+            let out = s.supervise(at(51), MS, cmd, Faults::NONE, &d);
+            assert_eq!(out.commands, [PairCommand::Off], "from {t0}");
+            assert!(out.faults.contains(Faults::LINK_LOSS));
+        }
     }
 
     #[test]
@@ -573,7 +615,8 @@ mod tests {
         let cmd = [PairCommand::Agonist(d.clamp(3.0))];
         let mut s: Supervisor<1> = Supervisor::new(SupervisorConfig::default());
         assert_eq!(
-            s.supervise(0.0, 0.001, cmd, Faults::NONE, &d).commands,
+            s.supervise(Instant::ZERO, MS, cmd, Faults::NONE, &d)
+                .commands,
             [PairCommand::Off]
         );
         let bad = SupervisorConfig {
@@ -585,13 +628,17 @@ mod tests {
         };
         let mut s: Supervisor<1> = Supervisor::new(bad);
         s.arm();
-        let out = s.supervise(0.0, 0.001, cmd, Faults::NONE, &d);
+        let out = s.supervise(Instant::ZERO, MS, cmd, Faults::NONE, &d);
         assert_eq!(out.commands, [PairCommand::Off]);
         assert!(out.faults.contains(Faults::INVALID_INPUT));
-        // NaN time is an invalid input too.
-        let mut s = armed();
+        // A zero link timeout is not a usable watchdog either.
+        let mut s: Supervisor<1> = Supervisor::new(SupervisorConfig {
+            link_timeout: Some(Duration::ZERO),
+            ..Default::default()
+        });
+        s.arm();
         assert!(s
-            .supervise(f32::NAN, 0.001, cmd, Faults::NONE, &d)
+            .supervise(Instant::ZERO, MS, cmd, Faults::NONE, &d)
             .faults
             .contains(Faults::INVALID_INPUT));
     }

@@ -86,6 +86,8 @@ impl core::fmt::Display for ViscoError {
     }
 }
 
+impl core::error::Error for ViscoError {}
+
 /// A validated, strictly positive, finite time step in seconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TimeStep<T>(T);

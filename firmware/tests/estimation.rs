@@ -4,6 +4,7 @@
 use firmware::estimate::*;
 use firmware::fit::PolyFit;
 use firmware::joint::{Feedback, Joint2d, Joint3d, JointConfig, StepInput};
+use firmware::time::{Duration, Instant};
 
 /// Deterministic noise in [−1, 1] (a hash of the sample index), so the test
 /// needs no RNG dependency and reruns identically.
@@ -21,8 +22,8 @@ fn joint_3d_estimates_with_the_published_eq3_from_counts() {
     // 0.01 mm/count (default coder). d = [0.5, 2.5, 1.5, 0.5] mm.
     let counts = [Some(50), Some(250), Some(150), Some(50)];
     let out = joint.step(&StepInput {
-        now_s: 0.0,
-        dt_s: 0.001,
+        now: Instant::ZERO,
+        dt: Duration::from_millis(1),
         feedback: Feedback::WireCounts(counts),
     });
     // α = 2.727·(1.5 − 0.5) + 0.323, β = 2.670·(0.5 − 2.5) + 0.131
@@ -42,8 +43,8 @@ fn joint_3d_estimates_with_the_published_eq3_from_counts() {
 fn joint_2d_estimates_with_the_published_eq2_from_counts() {
     let mut joint = Joint2d::new(JointConfig::paper_2d_wire()).unwrap();
     let out = joint.step(&StepInput {
-        now_s: 0.0,
-        dt_s: 0.001,
+        now: Instant::ZERO,
+        dt: Duration::from_millis(1),
         feedback: Feedback::WireCounts([Some(-200)]),
     });
     // d = −2 mm: 0.349·4 + 11.05 + 0.753 = 13.199°

@@ -4,9 +4,15 @@
 use firmware::control::{PairCommand, PairGains};
 use firmware::joint::{Feedback, Joint3d, JointConfig, StepInput};
 use firmware::supervisor::{Faults, SupervisorConfig};
+use firmware::time::{Duration, Instant};
 use proptest::prelude::*;
 
-const DT: f32 = 0.001;
+const DT: Duration = Duration::from_millis(1);
+
+/// Board time `k_ms` milliseconds after the epoch.
+fn ms(k_ms: u64) -> Instant {
+    Instant::from_millis(k_ms)
+}
 
 fn armed_3d() -> Joint3d {
     let mut j = Joint3d::new(JointConfig::paper_3d()).unwrap();
@@ -26,46 +32,43 @@ fn counts_for(angle_deg: f32) -> [Option<i32>; 4] {
     ]
 }
 
-fn input(now_s: f32, counts: [Option<i32>; 4]) -> StepInput<4, 2> {
+/// A step at `k_ms` milliseconds with the given counts.
+fn input(k_ms: u64, counts: [Option<i32>; 4]) -> StepInput<4, 2> {
     StepInput {
-        now_s,
-        dt_s: DT,
+        now: ms(k_ms),
+        dt: DT,
         feedback: Feedback::WireCounts(counts),
     }
 }
 
-/// Runs a healthy joint, then `fault` at t = 0.1 s; checks every output is
+/// Runs a healthy joint, then `fault` from 100 ms on; checks every output is
 /// zero with the fault reported, and (for latching faults) that it stays
 /// zero after the cause has gone until cleared.
 fn check_fault(
     name: &str,
     expect: Faults,
-    mut make: impl FnMut(f32, usize) -> StepInput<4, 2>,
+    mut make: impl FnMut(u64) -> StepInput<4, 2>,
     joint: &mut Joint3d,
 ) {
     joint.set_target(0, 10.0).unwrap();
     joint.set_target(1, -10.0).unwrap();
-    let mut t = 0.0;
-    let mut k = 0;
     let mut faulted_at = None;
-    while t < 0.3 {
-        let out = joint.step(&make(t, k));
+    for k in 0..300 {
+        let out = joint.step(&make(k));
         if out.faults.contains(expect) {
-            faulted_at.get_or_insert(t);
+            faulted_at.get_or_insert(k);
             assert_eq!(
                 out.commands,
                 [PairCommand::Off; 2],
-                "{name}: outputs not zero at t = {t}"
+                "{name}: outputs not zero at {k} ms"
             );
-        } else if faulted_at.is_none() && t < 0.1 {
+        } else if faulted_at.is_none() && k < 100 {
             assert_ne!(
                 out.commands,
                 [PairCommand::Off; 2],
                 "{name}: healthy joint should drive"
             );
         }
-        t += DT;
-        k += 1;
     }
     assert!(faulted_at.is_some(), "{name}: fault never reported");
 }
@@ -76,10 +79,10 @@ fn sensor_out_of_range_latches_the_safe_state() {
     check_fault(
         "range",
         Faults::SENSOR_RANGE,
-        |t, _| {
+        |k| {
             input(
-                t,
-                if t > 0.1 && t < 0.15 {
+                k,
+                if k > 100 && k < 150 {
                     [Some(5000), Some(0), Some(0), Some(0)]
                 } else {
                     counts_for(0.0)
@@ -88,12 +91,12 @@ fn sensor_out_of_range_latches_the_safe_state() {
         },
         &mut j,
     );
-    // The cause went away at 0.15 s, but the latch holds until cleared.
-    let out = j.step(&input(0.31, counts_for(0.0)));
+    // The cause went away at 150 ms, but the latch holds until cleared.
+    let out = j.step(&input(310, counts_for(0.0)));
     assert_eq!(out.commands, [PairCommand::Off; 2]);
     assert!(out.faults.contains(Faults::SENSOR_RANGE));
     j.clear_faults().unwrap();
-    let out = j.step(&input(0.312, counts_for(0.0)));
+    let out = j.step(&input(312, counts_for(0.0)));
     assert_ne!(
         out.commands,
         [PairCommand::Off; 2],
@@ -107,10 +110,10 @@ fn implausible_rate_latches_the_safe_state() {
     check_fault(
         "rate",
         Faults::SENSOR_RATE,
-        |t, _| {
+        |k| {
             input(
-                t,
-                if t > 0.1 {
+                k,
+                if k > 100 {
                     counts_for(15.0)
                 } else {
                     counts_for(0.0)
@@ -127,27 +130,33 @@ fn stale_sensor_latches_the_safe_state() {
     check_fault(
         "stale",
         Faults::SENSOR_STALE,
-        |t, _| {
+        |k| {
             let mut c = counts_for(0.0);
-            if t > 0.1 {
+            if k > 100 {
                 c[2] = None;
             }
-            input(t, c)
+            input(k, c)
         },
         &mut j,
     );
 }
 
 #[test]
-fn invalid_time_latches_the_safe_state() {
+fn time_running_backwards_latches_the_safe_state() {
     let mut j = armed_3d();
     check_fault(
-        "invalid time",
+        "time backwards",
         Faults::INVALID_INPUT,
-        |t, _| StepInput {
-            now_s: t,
-            dt_s: if t > 0.1 { f32::NAN } else { DT },
-            feedback: Feedback::WireCounts(counts_for(0.0)),
+        // From 100 ms on the clock jumps back by a second.
+        |k| {
+            input(
+                if k > 100 {
+                    k + 1_000_000 - 1000
+                } else {
+                    k + 1_000_000
+                },
+                counts_for(0.0),
+            )
         },
         &mut j,
     );
@@ -157,28 +166,25 @@ fn invalid_time_latches_the_safe_state() {
 fn link_loss_latches_the_safe_state() {
     let mut cfg = JointConfig::paper_3d();
     cfg.supervisor = SupervisorConfig {
-        link_timeout_s: Some(0.05),
+        link_timeout: Some(Duration::from_millis(50)),
         ..Default::default()
     };
     let mut j = Joint3d::new(cfg).unwrap();
     j.arm();
-    // Frames arrive until 0.1 s, then stop: link loss from 0.15 s.
-    let mut t = 0.0;
+    // Frames arrive until 100 ms, then stop: link loss after 150 ms.
     let mut lost_at = None;
-    while t < 0.3 {
-        if t <= 0.1 {
-            j.note_link_frame(t);
+    for k in 0..300 {
+        if k <= 100 {
+            j.note_link_frame(ms(k));
         }
         j.set_target(0, 10.0).unwrap();
-        let out = j.step(&input(t, counts_for(0.0)));
+        let out = j.step(&input(k, counts_for(0.0)));
         if out.faults.contains(Faults::LINK_LOSS) {
-            lost_at.get_or_insert(t);
+            lost_at.get_or_insert(k);
             assert_eq!(out.commands, [PairCommand::Off; 2]);
         }
-        t += DT;
     }
-    let lost_at = lost_at.expect("link loss never reported");
-    assert!((lost_at - 0.15).abs() < 2.0 * DT, "link loss at {lost_at}");
+    assert_eq!(lost_at, Some(151), "link loss 50 ms after the last frame");
 }
 
 #[test]
@@ -187,11 +193,11 @@ fn external_faults_latch_too() {
         let mut j = armed_3d();
         j.set_target(0, 10.0).unwrap();
         assert_ne!(
-            j.step(&input(0.0, counts_for(0.0))).commands,
+            j.step(&input(0, counts_for(0.0))).commands,
             [PairCommand::Off; 2]
         );
         j.report_fault(f);
-        let out = j.step(&input(DT, counts_for(0.0)));
+        let out = j.step(&input(1, counts_for(0.0)));
         assert_eq!(out.commands, [PairCommand::Off; 2]);
         assert!(out.faults.contains(f));
     }
@@ -201,10 +207,9 @@ fn external_faults_latch_too() {
 fn thermal_budget_cuts_a_saturated_coil_and_reports_it() {
     let mut j = armed_3d();
     j.set_target(0, 20.0).unwrap(); // far away: coil 1 saturates at 5 V
-    let mut t = 0.0;
     let mut cut = false;
-    while t < 10.0 {
-        let out = j.step(&input(t, counts_for(0.0)));
+    for k in 0..10_000 {
+        let out = j.step(&input(k, counts_for(0.0)));
         if out.faults.contains(Faults::OVER_BUDGET) {
             assert_eq!(
                 out.paper_coil_volts()[0],
@@ -214,7 +219,6 @@ fn thermal_budget_cuts_a_saturated_coil_and_reports_it() {
             cut = true;
             break;
         }
-        t += DT;
     }
     assert!(cut, "5 V for 10 s never exhausted the budget");
 }
@@ -224,7 +228,7 @@ fn disarmed_joint_drives_nothing() {
     let mut j = Joint3d::new(JointConfig::paper_3d()).unwrap();
     j.set_target(0, 10.0).unwrap();
     assert_eq!(
-        j.step(&input(0.0, counts_for(0.0))).commands,
+        j.step(&input(0, counts_for(0.0))).commands,
         [PairCommand::Off; 2]
     );
 }
@@ -269,7 +273,7 @@ proptest! {
         kp in prop::array::uniform4(1e-3f32..100.0),
         ki in 0.0f32..50.0,
         targets in prop::array::uniform2(-25.0f32..25.0),
-        steps in prop::collection::vec((prop::array::uniform4(prop::option::weighted(0.9, -2000i32..2000)), 1e-5f32..0.05), 1..60),
+        steps in prop::collection::vec((prop::array::uniform4(prop::option::weighted(0.9, -2000i32..2000)), 10u64..50_000), 1..60),
     ) {
         let mut cfg = JointConfig::paper_3d();
         cfg.gains = [
@@ -280,30 +284,48 @@ proptest! {
         j.arm();
         j.set_target(0, targets[0]).unwrap();
         j.set_target(1, targets[1]).unwrap();
-        let mut t = 0.0f32;
-        for (counts, dt) in steps {
+        let mut t = Instant::ZERO;
+        // Sensors that have delivered an in-range reading (±10 mm = ±1000
+        // counts) so far.
+        let mut delivered = [false; 4];
+        for (counts, dt_us) in steps {
+            let dt = Duration::from_micros(dt_us);
             t += dt;
-            let out = j.step(&StepInput { now_s: t, dt_s: dt, feedback: Feedback::WireCounts(counts) });
+            for (d, c) in delivered.iter_mut().zip(counts) {
+                *d |= c.is_some_and(|c| c.abs() <= 1000);
+            }
+            let out = j.step(&StepInput { now: t, dt, feedback: Feedback::WireCounts(counts) });
             check_outputs(&out, 5.0)?;
-            prop_assert!(out.estimate_deg.iter().all(|e| e.is_finite()) || !out.faults.is_empty(),
+            if !delivered.iter().all(|d| *d) {
+                prop_assert_eq!(out.commands, [PairCommand::Off; 2],
+                    "driven before every sensor delivered: {:?}", delivered);
+            }
+            prop_assert!(out.estimate_deg.iter().all(|e| e.is_finite())
+                || !out.faults.is_empty()
+                || !delivered.iter().all(|d| *d),
                 "non-finite estimate without a fault: {:?}", out.estimate_deg);
         }
     }
 
-    /// Anything at all, NaN and infinities included, in camera feedback and
-    /// in time: still bounded, and a non-finite time is reported.
+    /// Anything at all in camera feedback (NaN and infinities included)
+    /// and any instants, earlier ones included: still bounded, and time
+    /// running backwards is reported.
     #[test]
     fn outputs_bounded_for_arbitrary_angle_inputs(
-        steps in prop::collection::vec((any_f32(), any_f32(), prop::array::uniform2(prop::option::of(any_f32()))), 1..40),
+        steps in prop::collection::vec((any::<u64>(), any::<u64>(), prop::array::uniform2(prop::option::of(any_f32()))), 1..40),
     ) {
         let mut j = armed_3d();
         j.set_target(0, 5.0).unwrap();
-        for (now, dt, angles) in steps {
-            let out = j.step(&StepInput { now_s: now, dt_s: dt, feedback: Feedback::Angles(angles) });
+        let mut last = None;
+        for (now_us, dt_us, angles) in steps {
+            let now = Instant::from_micros(now_us);
+            let out = j.step(&StepInput { now, dt: Duration::from_micros(dt_us), feedback: Feedback::Angles(angles) });
             check_outputs(&out, 5.0)?;
-            if !(now.is_finite() && dt.is_finite() && dt >= 0.0) {
+            if last.is_some_and(|l| now < l) {
                 prop_assert!(out.faults.contains(Faults::INVALID_INPUT));
                 prop_assert_eq!(out.commands, [PairCommand::Off; 2]);
+            } else {
+                last = Some(now);
             }
         }
     }

@@ -229,6 +229,45 @@ pub enum LawSpec {
 }
 
 impl LawSpec {
+    /// A core law as the file writes it (sensor indices to 1-based numbers).
+    pub fn from_law(law: &PlaneLaw) -> LawSpec {
+        let n = |i: u8| i.saturating_add(1);
+        match *law {
+            PlaneLaw::Single { sensor, law } => LawSpec::Single {
+                sensor: n(sensor),
+                a: f64::from(law.a),
+                b: f64::from(law.b),
+                c: f64::from(law.c),
+            },
+            PlaneLaw::Differential { plus, minus, law } => LawSpec::Differential {
+                plus: n(plus),
+                minus: n(minus),
+                gain: f64::from(law.gain),
+                offset: f64::from(law.offset),
+            },
+            PlaneLaw::Switching {
+                plus,
+                minus,
+                high,
+                sensor,
+                low,
+                threshold_deg,
+                hysteresis_deg,
+            } => LawSpec::Switching {
+                plus: n(plus),
+                minus: n(minus),
+                gain: f64::from(high.gain),
+                offset: f64::from(high.offset),
+                sensor: n(sensor),
+                a: f64::from(low.a),
+                b: f64::from(low.b),
+                c: f64::from(low.c),
+                threshold_deg: f64::from(threshold_deg),
+                hysteresis_deg: f64::from(hysteresis_deg),
+            },
+        }
+    }
+
     /// The core's law (sensor numbers to 0-based indices).
     pub fn to_law(&self) -> anyhow::Result<PlaneLaw> {
         let idx = |s: u8| -> anyhow::Result<u8> {
@@ -667,26 +706,40 @@ pub fn calibration_of(fits: &[PlaneFit]) -> anyhow::Result<CalibrationFile> {
     })
 }
 
+/// An estimation method of the calibration (Eq. 2, Eq. 3, Eq. 4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// One sensor, quadratic (Eq. 2).
+    Single,
+    /// Two sensors, linear in their difference (Eq. 3).
+    Differential,
+    /// Threshold switching between the two (Eq. 4).
+    Switching,
+}
+
+impl Method {
+    /// The name used in tables and files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Single => "single",
+            Method::Differential => "differential",
+            Method::Switching => "switching",
+        }
+    }
+}
+
 /// A calibration file that forces one method for every angle (for
 /// comparing methods in simulation).
-pub fn calibration_with(fits: &[PlaneFit], method: &str) -> anyhow::Result<CalibrationFile> {
+pub fn calibration_with(fits: &[PlaneFit], method: Method) -> anyhow::Result<CalibrationFile> {
     let pick = |f: &PlaneFit| -> anyhow::Result<LawSpec> {
-        Ok(match method {
-            "single" => f.single.0.clone(),
-            "differential" => {
-                f.differential
-                    .clone()
-                    .ok_or_else(|| anyhow::anyhow!("{}: no differential fit", f.angle))?
-                    .0
-            }
-            "switching" => {
-                f.switching
-                    .clone()
-                    .ok_or_else(|| anyhow::anyhow!("{}: no switching fit", f.angle))?
-                    .0
-            }
-            _ => f.chosen.clone(),
-        })
+        let fitted = match method {
+            Method::Single => Some(&f.single),
+            Method::Differential => f.differential.as_ref(),
+            Method::Switching => f.switching.as_ref(),
+        };
+        fitted
+            .map(|(law, _)| law.clone())
+            .ok_or_else(|| anyhow::anyhow!("{}: no {} fit", f.angle, method.name()))
     };
     let Some(first) = fits.first() else {
         bail!("no fits")
@@ -706,12 +759,12 @@ pub fn table(fits: &[PlaneFit]) -> String {
         "angle", "method", "max err (°)", "rms err (°)"
     );
     for f in fits {
-        let mut rows = vec![("single", &f.single)];
+        let mut rows = vec![(Method::Single.name(), &f.single)];
         if let Some(d) = &f.differential {
-            rows.push(("differential", d));
+            rows.push((Method::Differential.name(), d));
         }
         if let Some(w) = &f.switching {
-            rows.push(("switching", w));
+            rows.push((Method::Switching.name(), w));
         }
         for (name, (law, e)) in rows {
             let chosen = if *law == f.chosen { " ← chosen" } else { "" };
@@ -730,7 +783,8 @@ pub fn table(fits: &[PlaneFit]) -> String {
     s
 }
 
-fn describe(law: &LawSpec) -> String {
+/// A law as a formula (sensors 1-based, as the paper numbers them).
+pub fn describe(law: &LawSpec) -> String {
     match law {
         LawSpec::Single { sensor, a, b, c } => format!("{a:.4}·d{sensor}² + {b:.4}·d{sensor} + {c:.4}"),
         LawSpec::Differential { plus, minus, gain, offset } => format!("{gain:.4}·(d{plus} − d{minus}) + {offset:.4}"),

@@ -18,7 +18,7 @@ use serde::Serialize;
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
     /// No matching reply after every retry.
-    #[error("no reply to {request:#04x} after {attempts} attempts of {timeout_ms} ms")]
+    #[error("no reply to {} after {attempts} attempts of {timeout_ms} ms", name(*.request))]
     Timeout {
         /// Type byte of the request.
         request: u8,
@@ -28,7 +28,7 @@ pub enum LinkError {
         timeout_ms: u64,
     },
     /// The board answered with an error.
-    #[error("board refused {request:#04x}: {code:?}")]
+    #[error("board refused {}: {} ({code})", name(*.request), .code.name())]
     Refused {
         /// Type byte of the request.
         request: u8,
@@ -37,7 +37,7 @@ pub enum LinkError {
     },
     /// A reply was accepted that does not fit the request (a bug on one
     /// side).
-    #[error("reply {reply:#04x} does not answer request {request:#04x}")]
+    #[error("reply {} does not answer request {}", name(*.reply), name(*.request))]
     Unexpected {
         /// Type byte of the request.
         request: u8,
@@ -47,6 +47,14 @@ pub enum LinkError {
     /// The port failed.
     #[error("serial port: {0}")]
     Io(#[from] io::Error),
+}
+
+/// A message type by name and type byte, e.g. `SetTarget (0x10)`.
+fn name(kind: u8) -> String {
+    match firmware::protocol::message_name(kind) {
+        Some(n) => format!("{n} ({kind:#04x})"),
+        None => format!("type {kind:#04x}"),
+    }
 }
 
 /// Host-side link counters.
@@ -114,7 +122,7 @@ impl<P: Port> Link<P> {
     pub fn new(port: P) -> Self {
         Self {
             port,
-            decoder: FrameDecoder::new(),
+            decoder: FrameDecoder::host(),
             stats: HostLinkStats::default(),
             queued: VecDeque::new(),
             buf: [0; 256],
@@ -223,7 +231,7 @@ impl<P: Port> Link<P> {
                     return Ok(reply);
                 }
                 match reply {
-                    Message::Error { request: r, code } if r == request => {
+                    Message::Nak(firmware::protocol::Nak { request: r, code }) if r == request => {
                         return Err(LinkError::Refused { request, code });
                     }
                     Message::Telemetry(_) => self.queued.push_back(reply),
@@ -253,7 +261,7 @@ impl<P: Port> Link<P> {
             msg,
             timeout,
             attempts,
-            |r| matches!(r, Message::Ack { request } if *request == kind),
+            |r| matches!(r, Message::Ack(a) if a.request == kind),
         )
         .map(|_| ())
     }

@@ -94,7 +94,13 @@ fn board_loop(
     // board that cannot start simply never answers, like a dead board.
     let Ok(mut app) = App::new() else { return };
     let start = Instant::now();
-    let now_ms = || start.elapsed().as_millis() as u32;
+    // The board's clock: microseconds since the thread started.
+    let now = || {
+        firmware::time::Instant::from_micros(
+            u64::try_from(start.elapsed().as_micros()).unwrap_or(u64::MAX),
+        )
+    };
+    let now_ms = || now().wrapping_millis_u32();
     if port.set_timeout(Duration::from_millis(1)).is_err() {
         return;
     }
@@ -107,12 +113,10 @@ fn board_loop(
                 state.lock().unwrap().last_rx_ms = Some(now_ms());
             }
             for &b in &buf[..n] {
-                app.on_byte(b, now_ms(), &mut |f: &[u8]| out.push(f.to_vec()));
+                app.on_byte(b, now(), &mut |f: &[u8]| out.push(f.to_vec()));
             }
         }
-        app.poll(now_ms(), &mut NoSensors, &mut |f: &[u8]| {
-            out.push(f.to_vec())
-        });
+        app.poll(now(), &mut NoSensors, &mut |f: &[u8]| out.push(f.to_vec()));
         for frame in out.drain(..) {
             let f = *faults.lock().unwrap();
             if f.drop_replies > 0 {

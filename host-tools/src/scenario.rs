@@ -9,6 +9,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use hal_sim::{Loads, Schedule};
+use plant_models::joint::{LoadId, PlantError};
 use serde::{Deserialize, Serialize};
 
 /// Gains the control core can hold: it computes in f32, where a smaller
@@ -121,6 +123,26 @@ pub struct TargetStep {
     pub deg: Vec<f64>,
 }
 
+/// A projection plane of the 3D joint, by name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlaneName {
+    /// α: coils 1 and 3, sensors 1 and 3.
+    Alpha,
+    /// β: coils 2 and 4, sensors 2 and 4.
+    Beta,
+}
+
+impl PlaneName {
+    /// Plane index (0 = α, 1 = β).
+    pub fn index(self) -> usize {
+        match self {
+            PlaneName::Alpha => 0,
+            PlaneName::Beta => 1,
+        }
+    }
+}
+
 /// Something done to the joint from `from_s` to `to_s`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -142,9 +164,9 @@ pub enum Disturbance {
     Weight {
         /// Mass (g).
         mass_g: f64,
-        /// Plane for 3D ("alpha" or "beta"); ignored for 2D.
+        /// Plane for 3D ("alpha", the default, or "beta"); ignored for 2D.
         #[serde(default)]
-        plane: Option<String>,
+        plane: Option<PlaneName>,
         /// Thread direction; default [-1, 0].
         #[serde(default)]
         direction: Option<[f64; 2]>,
@@ -393,13 +415,7 @@ impl Scenario {
                     to_s,
                 } => {
                     finite_pos(&format!("disturbances[{i}].mass_g"), *mass_g)?;
-                    if let Some(p) = plane {
-                        if p != "alpha" && p != "beta" {
-                            bail!(
-                                "field `disturbances[{i}].plane`: \"alpha\" or \"beta\", got {p:?}"
-                            );
-                        }
-                    }
+                    let _ = plane; // an enum: serde refused anything else
                     if let Some(dir) = direction {
                         // The weight's force is mass·g/|direction|·direction:
                         // a subnormal length overflows it.
@@ -493,6 +509,86 @@ impl TargetTracker {
         &self.current
     }
 }
+
+/// A scenario's targets and disturbances, as the closed loop asks for
+/// them every period (the same for `sim` and `hil`).
+pub struct ScenarioSchedule<'a> {
+    scenario: &'a Scenario,
+    targets: TargetTracker,
+    /// The load hung by each disturbance, while it hangs.
+    loads: Vec<Option<LoadId>>,
+}
+
+impl<'a> ScenarioSchedule<'a> {
+    /// Nothing applied yet.
+    pub fn new(scenario: &'a Scenario) -> Self {
+        Self {
+            scenario,
+            targets: TargetTracker::default(),
+            loads: vec![None; scenario.disturbances.len()],
+        }
+    }
+}
+
+impl<Pl: Loads, const P: usize, const C: usize> Schedule<Pl, P, C> for ScenarioSchedule<'_> {
+    fn targets(&mut self, t_s: f64) -> Option<[f32; P]> {
+        self.targets
+            .changed(self.scenario, t_s)
+            .map(|deg| core::array::from_fn(|p| deg.get(p).copied().unwrap_or(0.0) as f32))
+    }
+
+    /// Coil-voltage overrides active at `t_s` (coil index = paper number −
+    /// 1), and weights hung and cut.
+    fn disturb(
+        &mut self,
+        t_s: f64,
+        plant: &mut Pl,
+        overrides: &mut [Option<f64>; C],
+    ) -> Result<(), PlantError> {
+        for (d, hung) in self.scenario.disturbances.iter().zip(self.loads.iter_mut()) {
+            match d {
+                Disturbance::CoilVoltage {
+                    coil,
+                    volts,
+                    from_s,
+                    to_s,
+                } => {
+                    if t_s >= *from_s && t_s < *to_s {
+                        if let Some(o) = overrides.get_mut(coil.saturating_sub(1)) {
+                            *o = Some(*volts);
+                        }
+                    }
+                }
+                Disturbance::Weight {
+                    mass_g,
+                    plane,
+                    direction,
+                    from_s,
+                    to_s,
+                } => {
+                    let active = t_s >= *from_s && t_s < *to_s;
+                    let plane = plane.map_or(0, PlaneName::index);
+                    match (active, *hung) {
+                        (true, None) => {
+                            let dir = direction.unwrap_or(DEFAULT_THREAD_DIRECTION);
+                            *hung = Some(plant.hang_weight(plane, mass_g * 1e-3, dir)?);
+                        }
+                        (false, Some(id)) => {
+                            plant.remove_load(plane, id);
+                            *hung = None;
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Where a weight's thread is led when the scenario does not say:
+/// horizontal, towards −θ (socket frame).
+pub const DEFAULT_THREAD_DIRECTION: [f64; 2] = [-1.0, 0.0];
 
 #[cfg(test)]
 mod tests {

@@ -5,13 +5,19 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use clap::Args;
-use firmware::protocol::Message;
+use firmware::protocol::{
+    Arm, Calibration, ClearFaults, Disarm, GetCalibration, HilStop, Message, SetCalibration,
+    SetGains, SetLinkTimeout, SetTarget, SetTelemetry,
+};
 use host_tools::hil::{self, HilOptions};
 use host_tools::link::{open_port, Link, Port};
 use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
 use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
-use host_tools::{calibrate::CalibrationFile, report};
+use host_tools::{
+    calibrate::{CalibrationFile, LawSpec},
+    report,
+};
 
 #[derive(Args)]
 pub struct HilArgs {
@@ -113,6 +119,7 @@ const HELP: &str = "commands:
   hello                         handshake (protocol version, schema)
   status                        armed, mode, faults, estimates, outputs, counters
   arm | disarm | clear          outputs on/off; clear latched faults
+  hil-stop                      leave lockstep mode (back to free-running)
   target PLANE DEG              desired angle (plane 0 = alpha, 1 = beta)
   gains PLANE KP_AG KP_ANT KI ILIM
   calibration get PLANE         print the plane's estimation law
@@ -206,19 +213,20 @@ fn run_console_command<P: Port>(
                 s.pair_mv[0], s.pair_mv[1], s.time_ms, s.frames_ok, s.crc_errors, s.cobs_errors, s.overfull, s.malformed
             );
         }
-        ["arm"] => ack(link, Message::Arm)?,
-        ["disarm"] => ack(link, Message::Disarm)?,
-        ["clear"] => ack(link, Message::ClearFaults)?,
+        ["arm"] => ack(link, Arm {})?,
+        ["disarm"] => ack(link, Disarm {})?,
+        ["clear"] => ack(link, ClearFaults {})?,
+        ["hil-stop"] => ack(link, HilStop {})?,
         ["target", ..] => ack(
             link,
-            Message::SetTarget {
+            SetTarget {
                 plane: arg(&words, 1, "PLANE")?,
                 target_deg: arg(&words, 2, "DEG")?,
             },
         )?,
         ["gains", ..] => ack(
             link,
-            Message::SetGains {
+            SetGains {
                 plane: arg(&words, 1, "PLANE")?,
                 kp_agonist: arg(&words, 2, "KP_AG")?,
                 kp_antagonist: arg(&words, 3, "KP_ANT")?,
@@ -228,11 +236,14 @@ fn run_console_command<P: Port>(
         )?,
         ["calibration", "get", ..] => {
             let plane: u8 = arg(&words, 2, "PLANE")?;
-            let r = link.request(&Message::GetCalibration { plane }, T, 5, |m| {
-                matches!(m, Message::Calibration { .. })
+            let r = link.request(&GetCalibration { plane }.into(), T, 5, |m| {
+                matches!(m, Message::Calibration(_))
             })?;
-            if let Message::Calibration { plane, law } = r {
-                println!("plane {plane}: {law:?}");
+            if let Message::Calibration(Calibration { plane, law }) = r {
+                println!(
+                    "plane {plane}: {}",
+                    host_tools::calibrate::describe(&LawSpec::from_law(&law))
+                );
             }
         }
         ["calibration", "set", file] => {
@@ -240,7 +251,7 @@ fn run_console_command<P: Port>(
             for (p, law) in cal.laws()?.into_iter().enumerate() {
                 ack(
                     link,
-                    Message::SetCalibration {
+                    SetCalibration {
                         plane: p as u8,
                         law,
                     },
@@ -249,13 +260,13 @@ fn run_console_command<P: Port>(
         }
         ["telemetry", ..] => ack(
             link,
-            Message::SetTelemetry {
+            SetTelemetry {
                 rate_hz: arg(&words, 1, "HZ")?,
             },
         )?,
         ["link-timeout", ..] => ack(
             link,
-            Message::SetLinkTimeout {
+            SetLinkTimeout {
                 timeout_ms: arg(&words, 1, "MS")?,
             },
         )?,
@@ -295,8 +306,8 @@ fn run_console_command<P: Port>(
     Ok(())
 }
 
-fn ack<P: Port>(link: &mut Link<P>, msg: Message) -> anyhow::Result<()> {
-    link.command(&msg, T, 5)?;
+fn ack<P: Port>(link: &mut Link<P>, msg: impl Into<Message>) -> anyhow::Result<()> {
+    link.command(&msg.into(), T, 5)?;
     println!("ok");
     Ok(())
 }

@@ -6,6 +6,65 @@ pub mod joint;
 pub mod pushing;
 pub mod viscoelastic;
 
+pub mod rng {
+    //! Seeded random streams, and the registry of their numbers.
+    //!
+    //! Every random effect of a simulation draws from a ChaCha8 stream keyed
+    //! by the run's seed and a stream number. Different seeds are different
+    //! keys (not shifted positions of one sequence, as `seed + k` would
+    //! be), so no stream of one seed overlaps any stream of another, and
+    //! each component's draws do not depend on how many draws the others
+    //! took. Numbers in use:
+    //!
+    //! | stream | drawn by |
+    //! |---|---|
+    //! | [`CAMERA`] | the joint's camera noise and occlusion |
+    //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
+    //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// The joint camera's stream.
+    pub const CAMERA: u64 = 0;
+    /// Wire sensor k's stream is `WIRE_BASE + k`.
+    pub const WIRE_BASE: u64 = 1;
+    /// `hal-sim`'s simulated coder k draws its dropouts from
+    /// `HAL_SIM_SENSOR_BASE + k`.
+    pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+
+    /// Stream `stream` of seed `seed`.
+    pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
+        let mut r = ChaCha8Rng::seed_from_u64(seed);
+        r.set_stream(stream);
+        r
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use rand::RngCore;
+
+        #[test]
+        fn neighbouring_seeds_and_streams_do_not_overlap() {
+            // The first 1024 words of streams 0..8 of seeds 1 and 2: no word
+            // sequence of one appears shifted in another (as with `seed + k`,
+            // where seed 1's stream 1 would be seed 2's stream 0).
+            let words = |seed: u64, s: u64| {
+                let mut r = super::stream(seed, s);
+                (0..1024).map(|_| r.next_u64()).collect::<Vec<_>>()
+            };
+            let all: Vec<Vec<u64>> = (1..=2)
+                .flat_map(|seed| (0..8).map(move |s| (seed, s)))
+                .map(|(seed, s)| words(seed, s))
+                .collect();
+            for (i, a) in all.iter().enumerate() {
+                for b in &all[i + 1..] {
+                    assert!(!b.contains(&a[0]) && !a.contains(&b[0]), "streams overlap");
+                }
+            }
+        }
+    }
+}
+
 /// A number for an error message: as `{}` prints it, or in exponent form
 /// when that would be a long run of digits (1e308 has 309).
 pub fn short_number(v: f64) -> String {

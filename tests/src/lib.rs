@@ -1,11 +1,10 @@
 //! Shared helpers for the cross-crate integration tests in `tests/tests/`.
-#![deny(unsafe_code)]
 
 pub use host_tools::pty_board::{BoardFaults, BoardState, PtyBoard};
 
 use std::time::Duration;
 
-use firmware::protocol::Message;
+use firmware::protocol::{Arm, ClearFaults, HilStart, SetLinkTimeout, SetTarget};
 use host_tools::link::{Link, Port};
 
 /// Puts a board into lockstep at 1 kHz, armed, with α's target set:
@@ -18,22 +17,23 @@ pub fn start_lockstep<P: Port>(
     timeout: Duration,
 ) {
     host_tools::hil::handshake(link).expect("handshake");
-    if let Some(ms) = link_timeout_ms {
-        link.command(&Message::SetLinkTimeout { timeout_ms: ms }, timeout, 5)
+    if let Some(timeout_ms) = link_timeout_ms {
+        link.command(&SetLinkTimeout { timeout_ms }.into(), timeout, 5)
             .expect("link timeout");
     }
-    link.command(&Message::HilStart { period_us: 1000 }, timeout, 5)
+    link.command(&HilStart { period_us: 1000 }.into(), timeout, 5)
         .expect("HilStart");
-    link.command(&Message::ClearFaults, timeout, 5)
+    link.command(&ClearFaults {}.into(), timeout, 5)
         .expect("ClearFaults");
     link.command(
-        &Message::SetTarget {
+        &SetTarget {
             plane: 0,
             target_deg: alpha_target_deg,
-        },
+        }
+        .into(),
         timeout,
         5,
     )
     .expect("SetTarget");
-    link.command(&Message::Arm, timeout, 5).expect("Arm");
+    link.command(&Arm {}.into(), timeout, 5).expect("Arm");
 }

@@ -53,7 +53,7 @@ fn scenario(seed: u64) -> Scenario {
         disturbances: vec![
             Disturbance::Weight {
                 mass_g: 20.0,
-                plane: Some("beta".into()),
+                plane: Some(host_tools::scenario::PlaneName::Beta),
                 direction: None,
                 from_s: 3.0,
                 to_s: 5.0,

@@ -4,21 +4,25 @@
 use firmware::control::PairCommand;
 use firmware::joint::{Joint3d as Controller, JointConfig};
 use firmware::supervisor::Faults;
-use hal_sim::{ClosedLoop, CoilFault, FeedbackSource, SensorFault};
+use firmware::time::Duration;
+use hal_sim::{
+    ClosedLoop, CoilFault, Controller as _, CoreController, FeedbackSource, Plant, SensorFault,
+};
 use plant_models::joint::{Joint3d, Joint3dParams};
 
-type Loop = ClosedLoop<Joint3d, 2, 4, 4>;
+type Loop = ClosedLoop<Joint3d, CoreController<2, 4>, 2, 4, 4>;
 
 fn closed_loop(target_deg: f32) -> Loop {
     let plant = Joint3d::new(Joint3dParams::default()).unwrap();
     let mut ctl = Controller::new(JointConfig::paper_3d()).unwrap();
     ctl.set_target(0, target_deg).unwrap();
     ctl.set_target(1, target_deg).unwrap();
-    ClosedLoop::new(plant, ctl, FeedbackSource::Wire, 1000, 7).unwrap()
+    let core = CoreController::new(ctl, FeedbackSource::Wire, 1000, plant.mm_per_count(), 7);
+    ClosedLoop::new(plant, core, 1000).unwrap()
 }
 
 /// Runs `ms` control periods; returns the samples.
-fn run(cl: &mut Loop, ms: usize) -> Vec<hal_sim::Sample<2, 4>> {
+fn run(cl: &mut Loop, ms: usize) -> Vec<hal_sim::Sample<2, 4, 4>> {
     (0..ms).map(|_| cl.tick().unwrap()).collect()
 }
 
@@ -30,7 +34,7 @@ fn a_dead_sensor_latches_the_safe_state_within_the_stale_limit() {
         before.last().unwrap().coil_volts.iter().any(|v| *v > 0.0),
         "driving before the fault"
     );
-    cl.sensors()[2].set_fault(Some(SensorFault::Dead));
+    cl.controller.sensors()[2].set_fault(Some(SensorFault::Dead));
     let after = run(&mut cl, 200);
     let first_off = after
         .iter()
@@ -53,7 +57,7 @@ fn a_dead_sensor_latches_the_safe_state_within_the_stale_limit() {
 #[test]
 fn dropped_samples_are_held_and_control_carries_on() {
     let mut cl = closed_loop(8.0);
-    for s in cl.sensors() {
+    for s in cl.controller.sensors() {
         s.set_fault(Some(SensorFault::Dropout { probability: 0.3 }));
     }
     let samples = run(&mut cl, 12_000);
@@ -77,7 +81,7 @@ fn a_jammed_sensor_misleads_the_estimate_by_its_jam() {
     // 1.36° low, so the controller drives α about that much past its target.
     let mut clean = closed_loop(5.0);
     let mut jammed = closed_loop(5.0);
-    jammed.sensors()[2].set_fault(Some(SensorFault::Jammed { extra_mm: 0.5 }));
+    jammed.controller.sensors()[2].set_fault(Some(SensorFault::Jammed { extra_mm: 0.5 }));
     let a = run(&mut clean, 10_000);
     let b = run(&mut jammed, 10_000);
     let (ta, tb) = (a.last().unwrap().true_deg[0], b.last().unwrap().true_deg[0]);
@@ -95,8 +99,8 @@ fn a_jammed_sensor_misleads_the_estimate_by_its_jam() {
 fn a_stuck_sensor_freezes_the_estimate() {
     let mut cl = closed_loop(0.0);
     run(&mut cl, 2000);
-    cl.sensors()[2].set_fault(Some(SensorFault::Stuck));
-    cl.sensors()[0].set_fault(Some(SensorFault::Stuck));
+    cl.controller.sensors()[2].set_fault(Some(SensorFault::Stuck));
+    cl.controller.sensors()[0].set_fault(Some(SensorFault::Stuck));
     cl.controller.set_target(0, 8.0).unwrap();
     let s = run(&mut cl, 6000);
     // The α estimate cannot follow; the agonist saturates while the true
@@ -116,7 +120,7 @@ fn a_stuck_sensor_freezes_the_estimate() {
 #[test]
 fn an_open_coil_cannot_pull_and_a_failing_channel_is_a_driver_fault() {
     let mut cl = closed_loop(8.0);
-    cl.pwm()[0][0].set_fault(Some(CoilFault::Open)); // coil 1 (α agonist) open
+    cl.controller.pwm()[0][0].set_fault(Some(CoilFault::Open)); // coil 1 (α agonist) open
     let s = run(&mut cl, 8000);
     let last = s.last().unwrap();
     assert!(
@@ -132,18 +136,28 @@ fn an_open_coil_cannot_pull_and_a_failing_channel_is_a_driver_fault() {
 
     let mut cl = closed_loop(8.0);
     run(&mut cl, 500);
-    cl.pwm()[1][0].set_fault(Some(CoilFault::ChannelError));
+    cl.controller.pwm()[1][0].set_fault(Some(CoilFault::ChannelError));
     let s = run(&mut cl, 5);
     let bad = s
         .iter()
         .position(|x| Faults::from_bits(x.faults).contains(Faults::DRIVER))
         .expect("driver fault reported");
-    assert!(bad <= 1, "reported after {bad} periods");
+    assert_eq!(bad, 0, "reported in the period the channel failed");
+    // Every other coil is switched off at once; the failed channel keeps
+    // whatever it last held (it takes no writes: only the hardware can
+    // stop it), which is why the fault latches and is reported.
+    for x in &s {
+        for (c, v) in x.coil_volts.iter().enumerate() {
+            assert!(c == 1 || *v == 0.0, "coil {} at {v} V after the failure", c + 1);
+        }
+    }
+    let now = cl.controller.next_instant();
     assert_eq!(
         cl.controller
+            .joint_mut()
             .step(&firmware::joint::StepInput {
-                now_s: 0.6,
-                dt_s: 0.001,
+                now,
+                dt: Duration::from_millis(1),
                 feedback: firmware::joint::Feedback::WireCounts([Some(0); 4]),
             })
             .commands,

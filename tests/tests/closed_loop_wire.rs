@@ -15,7 +15,7 @@ use closed_loop_support::{err_stats, estimate_err_stats, peak_to_peak, run, scra
 use firmware::control::PairGains;
 use firmware::estimate::{PlaneEstimator, PlaneLaw};
 use firmware::joint::{JointConfig, JointController};
-use hal_sim::{ClosedLoop, FeedbackSource, Plant};
+use hal_sim::{ClosedLoop, Controller, CoreController, FeedbackSource, Plant};
 use host_tools::calibrate::{self, CalibrationFile};
 use host_tools::scenario::{EstimatorMethod, EstimatorSpec, Scenario};
 use host_tools::sim;
@@ -154,8 +154,14 @@ fn evaluation_run(seed: u64, sign: f64) -> Vec<EvalStep> {
     let mut cfg = JointConfig::paper_3d();
     cfg.gains = [PairGains::default(); 2];
     let ctl = JointController::new(cfg).expect("controller");
-    let mut cl: ClosedLoop<Joint3d, 2, 4, 4> =
-        ClosedLoop::new(plant, ctl, FeedbackSource::Camera, 1000, seed).expect("closed loop");
+    let core = CoreController::new(
+        ctl,
+        FeedbackSource::Camera,
+        1000,
+        plant.mm_per_count(),
+        seed,
+    );
+    let mut cl = ClosedLoop::new(plant, core, 1000).expect("closed loop");
     let steps = (SWEEP_S * 1000.0) as u64;
     let mut out = Vec::with_capacity(steps as usize);
     for k in 0..steps {
@@ -163,8 +169,7 @@ fn evaluation_run(seed: u64, sign: f64) -> Vec<EvalStep> {
         let d = triangle(t_s, sign) as f32;
         cl.controller.set_target(0, d).expect("target");
         cl.controller.set_target(1, d).expect("target");
-        cl.control();
-        cl.advance().expect("plant step");
+        cl.tick().expect("period");
         let wires = cl.plant.wires();
         out.push(EvalStep {
             t_s,
@@ -237,8 +242,8 @@ fn calibrate_from_simulated_sweep(seed: u64, dir: &std::path::Path) -> Calibrate
             .expect("load")
             .laws()
             .expect("laws"),
-        single: laws("single"),
-        differential: laws("differential"),
+        single: laws(calibrate::Method::Single),
+        differential: laws(calibrate::Method::Differential),
     }
 }
 

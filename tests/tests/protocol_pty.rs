@@ -23,14 +23,10 @@ fn status<P: host_tools::link::Port>(link: &mut Link<P>) -> Status {
     host_tools::hil::status(link).expect("status")
 }
 
-fn sensor(
-    link: &mut Link<impl host_tools::link::Port>,
-    seq: u16,
-    counts: [i16; 4],
-) -> ActuatorFrame {
+fn sensor(link: &mut Link<impl host_tools::link::Port>, seq: u16, counts: [i16; 4]) -> HilActuator {
     match link
         .request(
-            &Message::HilSensor(SensorFrame { seq, counts }),
+            &HilSensor { seq, counts }.into(),
             T,
             10,
             |m| matches!(m, Message::HilActuator(a) if a.seq == seq),
@@ -55,9 +51,9 @@ fn every_message_over_a_real_pty() {
     let mut link = Link::new(port);
     host_tools::hil::handshake(&mut link).expect("handshake");
     assert_eq!(
-        link.request(&Message::Hello { version: 9 }, T, 3, |m| matches!(
+        link.request(&Hello { version: 9 }.into(), T, 3, |m| matches!(
             m,
-            Message::HelloAck { .. }
+            Message::HelloAck(_)
         ))
         .err()
         .map(|e| e.to_string()),
@@ -87,18 +83,18 @@ fn every_message_over_a_real_pty() {
         threshold_deg: -7.46,
         hysteresis_deg: 0.5,
     };
-    link.command(&Message::SetCalibration { plane: 0, law }, T, 3)
+    link.command(&SetCalibration { plane: 0, law }.into(), T, 3)
         .unwrap();
     match link
-        .request(&Message::GetCalibration { plane: 0 }, T, 3, |m| {
-            matches!(m, Message::Calibration { .. })
+        .request(&GetCalibration { plane: 0 }.into(), T, 3, |m| {
+            matches!(m, Message::Calibration(_))
         })
         .unwrap()
     {
-        Message::Calibration {
+        Message::Calibration(Calibration {
             plane: 0,
             law: back,
-        } => assert_eq!(back, law),
+        }) => assert_eq!(back, law),
         other => panic!("{other:?}"),
     }
     let bad_law = PlaneLaw::Single {
@@ -106,14 +102,17 @@ fn every_message_over_a_real_pty() {
         law: QuadraticLaw::PAPER_2D,
     };
     assert_eq!(
-        refused(link.command(
-            &Message::SetCalibration {
-                plane: 0,
-                law: bad_law
-            },
-            T,
-            3
-        )),
+        refused(
+            link.command(
+                &SetCalibration {
+                    plane: 0,
+                    law: bad_law
+                }
+                .into(),
+                T,
+                3
+            )
+        ),
         ErrorCode::OutOfRange
     );
     let nan_law = PlaneLaw::Single {
@@ -125,133 +124,154 @@ fn every_message_over_a_real_pty() {
         },
     };
     assert_eq!(
-        refused(link.command(
-            &Message::SetCalibration {
-                plane: 1,
-                law: nan_law
-            },
-            T,
-            3
-        )),
+        refused(
+            link.command(
+                &SetCalibration {
+                    plane: 1,
+                    law: nan_law
+                }
+                .into(),
+                T,
+                3
+            )
+        ),
         ErrorCode::NotFinite
     );
     assert_eq!(
         refused(
-            link.request(&Message::GetCalibration { plane: 4 }, T, 3, |m| matches!(
+            link.request(&GetCalibration { plane: 4 }.into(), T, 3, |m| matches!(
                 m,
-                Message::Calibration { .. }
+                Message::Calibration(_)
             ))
             .map(|_| ())
         ),
         ErrorCode::OutOfRange
     );
     link.command(
-        &Message::SetGains {
+        &SetGains {
             plane: 1,
             kp_agonist: 1.5,
             kp_antagonist: 1.0,
             ki: 0.2,
             integral_limit_v: 1.0,
-        },
+        }
+        .into(),
         T,
         3,
     )
     .unwrap();
     assert_eq!(
-        refused(link.command(
-            &Message::SetGains {
-                plane: 1,
-                kp_agonist: -1.0,
-                kp_antagonist: 1.0,
-                ki: 0.0,
-                integral_limit_v: 0.0
-            },
-            T,
-            3
-        )),
+        refused(
+            link.command(
+                &SetGains {
+                    plane: 1,
+                    kp_agonist: -1.0,
+                    kp_antagonist: 1.0,
+                    ki: 0.0,
+                    integral_limit_v: 0.0
+                }
+                .into(),
+                T,
+                3
+            )
+        ),
         ErrorCode::OutOfRange
     );
     assert_eq!(
-        refused(link.command(
-            &Message::SetGains {
-                plane: 0,
-                kp_agonist: f32::INFINITY,
-                kp_antagonist: 1.0,
-                ki: 0.0,
-                integral_limit_v: 0.0
-            },
-            T,
-            3
-        )),
+        refused(
+            link.command(
+                &SetGains {
+                    plane: 0,
+                    kp_agonist: f32::INFINITY,
+                    kp_antagonist: 1.0,
+                    ki: 0.0,
+                    integral_limit_v: 0.0
+                }
+                .into(),
+                T,
+                3
+            )
+        ),
         ErrorCode::NotFinite
     );
     link.command(
-        &Message::SetTarget {
+        &SetTarget {
             plane: 0,
             target_deg: 5.0,
-        },
+        }
+        .into(),
         T,
         3,
     )
     .unwrap();
     assert_eq!(
-        refused(link.command(
-            &Message::SetTarget {
-                plane: 0,
-                target_deg: f32::NAN
-            },
-            T,
-            3
-        )),
+        refused(
+            link.command(
+                &SetTarget {
+                    plane: 0,
+                    target_deg: f32::NAN
+                }
+                .into(),
+                T,
+                3
+            )
+        ),
         ErrorCode::NotFinite
     );
     assert_eq!(
-        refused(link.command(
-            &Message::SetTarget {
-                plane: 0,
-                target_deg: 90.0
-            },
-            T,
-            3
-        )),
+        refused(
+            link.command(
+                &SetTarget {
+                    plane: 0,
+                    target_deg: 90.0
+                }
+                .into(),
+                T,
+                3
+            )
+        ),
         ErrorCode::OutOfRange
     );
     assert_eq!(
-        refused(link.command(
-            &Message::SetTarget {
-                plane: 3,
-                target_deg: 1.0
-            },
-            T,
-            3
-        )),
+        refused(
+            link.command(
+                &SetTarget {
+                    plane: 3,
+                    target_deg: 1.0
+                }
+                .into(),
+                T,
+                3
+            )
+        ),
         ErrorCode::OutOfRange
     );
     assert_eq!(
-        refused(link.command(&Message::SetLinkTimeout { timeout_ms: 0 }, T, 3)),
+        refused(link.command(&SetLinkTimeout { timeout_ms: 0 }.into(), T, 3)),
         ErrorCode::OutOfRange
     );
     assert_eq!(
-        refused(link.command(&Message::SetTelemetry { rate_hz: 5000 }, T, 3)),
+        refused(link.command(&SetTelemetry { rate_hz: 5000 }.into(), T, 3)),
         ErrorCode::OutOfRange
     );
     assert_eq!(
-        refused(link.command(&Message::HilStart { period_us: 10 }, T, 3)),
+        refused(link.command(&HilStart { period_us: 10 }.into(), T, 3)),
         ErrorCode::OutOfRange
     );
     // A board-to-host message sent to the board is not a request.
     assert_eq!(
-        refused(link.command(&Message::Ack { request: 1 }, T, 3)),
+        refused(link.command(&Ack { request: 1 }.into(), T, 3)),
         ErrorCode::UnknownType
     );
     // Lockstep frames before HilStart.
     assert_eq!(
         refused(
             link.request(
-                &Message::HilSensor(SensorFrame {
+                &HilSensor {
                     seq: 0,
                     counts: [0; 4]
-                }),
+                }
+                .into(),
                 T,
                 3,
                 |_| false
@@ -262,7 +282,7 @@ fn every_message_over_a_real_pty() {
     );
 
     // Free-running telemetry: a 100 Hz stream, then off.
-    link.command(&Message::SetTelemetry { rate_hz: 100 }, T, 3)
+    link.command(&SetTelemetry { rate_hz: 100 }.into(), T, 3)
         .unwrap();
     let end = Instant::now() + Duration::from_millis(300);
     let mut n = 0;
@@ -275,7 +295,7 @@ fn every_message_over_a_real_pty() {
         (15..=40).contains(&n),
         "{n} telemetry frames in 0.3 s at 100 Hz"
     );
-    link.command(&Message::SetTelemetry { rate_hz: 0 }, T, 3)
+    link.command(&SetTelemetry { rate_hz: 0 }.into(), T, 3)
         .unwrap();
     // The board without sensors latches a stale-sensor fault in free-running
     // mode and reports it.
@@ -287,32 +307,34 @@ fn every_message_over_a_real_pty() {
     );
 
     // Lockstep: HilStart, clear, arm, frames.
-    link.command(&Message::HilStart { period_us: 1000 }, T, 3)
+    link.command(&HilStart { period_us: 1000 }.into(), T, 3)
         .unwrap();
-    link.command(&Message::ClearFaults, T, 3).unwrap();
+    link.command(&ClearFaults {}.into(), T, 3).unwrap();
     link.command(
-        &Message::SetTarget {
+        &SetTarget {
             plane: 1,
             target_deg: 0.0,
-        },
+        }
+        .into(),
         T,
         3,
     )
     .unwrap();
     link.command(
-        &Message::SetCalibration {
+        &SetCalibration {
             plane: 0,
             law: PlaneLaw::Differential {
                 plus: 2,
                 minus: 0,
                 law: LinearLaw::PAPER_ALPHA,
             },
-        },
+        }
+        .into(),
         T,
         3,
     )
     .unwrap();
-    link.command(&Message::Arm, T, 3).unwrap();
+    link.command(&Arm {}.into(), T, 3).unwrap();
     let mut last = None;
     for seq in 0..50u16 {
         let a = sensor(&mut link, seq, counts_for(0.0));
@@ -334,7 +356,7 @@ fn every_message_over_a_real_pty() {
     let s = status(&mut link);
     assert_eq!((s.mode, s.armed), (1, 1));
     assert_eq!(s.pair_mv, a.pair_mv);
-    link.command(&Message::Disarm, T, 3).unwrap();
+    link.command(&Disarm {}.into(), T, 3).unwrap();
     assert_eq!(status(&mut link).pair_mv, [0, 0], "disarm zeroes outputs");
     assert_eq!(link.stats().retries, 0);
 }
@@ -353,10 +375,11 @@ fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
     let mut frame = [0u8; MAX_FRAME];
     for i in 0..200u16 {
         let n = encode_frame(
-            &Message::SetTarget {
+            &SetTarget {
                 plane: 0,
                 target_deg: f32::from(i % 20),
-            },
+            }
+            .into(),
             &mut frame,
         );
         match i % 5 {
@@ -376,7 +399,7 @@ fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
         }
         stream.push(0);
     }
-    let mut model = FrameDecoder::new();
+    let mut model = FrameDecoder::board();
     let mut expected_acks = 0;
     let mut expected_errors = 0;
     for b in &stream {
@@ -395,8 +418,8 @@ fn garbage_on_the_line_is_counted_dropped_and_never_wedges_the_board() {
     let (mut acks, mut errors) = (0, 0);
     while let Some(m) = link.recv_until(end).unwrap() {
         match m {
-            Message::Ack { .. } => acks += 1,
-            Message::Error { .. } => errors += 1,
+            Message::Ack(_) => acks += 1,
+            Message::Nak(_) => errors += 1,
             _ => {}
         }
         if acks == expected_acks && errors == expected_errors {
@@ -441,13 +464,14 @@ fn lost_and_delayed_frames_are_retried_and_steps_run_once() {
     // would then rightly latch); give the link 500 ms for this test.
     start_lockstep(&mut link, Some(500), 5.0, T);
     let timeout = Duration::from_millis(60);
-    let step = |link: &mut Link<_>, seq: u16| -> ActuatorFrame {
+    let step = |link: &mut Link<_>, seq: u16| -> HilActuator {
         match link
             .request(
-                &Message::HilSensor(SensorFrame {
+                &HilSensor {
                     seq,
                     counts: counts_for(0.0),
-                }),
+                }
+                .into(),
                 timeout,
                 10,
                 |m| matches!(m, Message::HilActuator(a) if a.seq == seq),
@@ -530,7 +554,7 @@ fn a_dead_link_zeroes_the_outputs_within_the_link_loss_time() {
     let r = sensor(&mut link, 20, counts_for(0.0));
     assert_eq!(r.pair_mv, [0, 0]);
     assert!(Faults::from_bits(u16::from(r.faults)).contains(Faults::LINK_LOSS));
-    link.command(&Message::ClearFaults, T, 3).unwrap();
+    link.command(&ClearFaults {}.into(), T, 3).unwrap();
     let r = sensor(&mut link, 21, counts_for(0.0));
     assert!(r.pair_mv[0] > 0, "cleared: driving again ({r:?})");
 }

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use firmware::protocol::{Message, SensorFrame};
+use firmware::protocol::{HilSensor, Message};
 use firmware::supervisor::Faults;
 use host_tools::hil::{self, HilOptions};
 use host_tools::link::{open_port, Link};
@@ -161,10 +161,11 @@ fn dead_link_zeroes_the_image_outputs() {
     for seq in 0..10u16 {
         let r = link
             .request(
-                &Message::HilSensor(SensorFrame {
+                &HilSensor {
                     seq,
                     counts: [0, 0, -6, -2],
-                }),
+                }
+                .into(),
                 t,
                 5,
                 |m| matches!(m, Message::HilActuator(_)),

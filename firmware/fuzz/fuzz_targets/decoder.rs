@@ -4,11 +4,12 @@
 //! and the board's outputs must stay within the pair rule and the supply.
 #![no_main]
 use firmware::app::{App, NoSensors};
-use firmware::protocol::{encode_frame, FrameDecoder, MAX_FRAME};
+use firmware::protocol::{encode_frame, Accept, FrameDecoder, MAX_FRAME};
+use firmware::time::Instant;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let mut dec = FrameDecoder::new();
+    let mut dec = FrameDecoder::new(Accept::Any);
     let mut frames = 0u32;
     for &b in data {
         if let Some(r) = dec.push(b) {
@@ -17,7 +18,7 @@ fuzz_target!(|data: &[u8]| {
                 let mut out = [0u8; MAX_FRAME];
                 let n = encode_frame(&m, &mut out);
                 assert!(n > 0);
-                let back = FrameDecoder::decode(&out[..n - 1]).expect("re-encoded frame decodes");
+                let back = FrameDecoder::decode(&out[..n - 1], Accept::Any).expect("re-encoded frame decodes");
                 assert_eq!(format!("{back:?}"), format!("{m:?}"));
             }
         }
@@ -31,8 +32,9 @@ fuzz_target!(|data: &[u8]| {
     // The same bytes into the board application, time advancing 1 ms per byte.
     let Ok(mut app) = App::new() else { return };
     for (i, &b) in data.iter().enumerate() {
-        app.on_byte(b, i as u32, &mut |_f: &[u8]| {});
-        app.poll(i as u32, &mut NoSensors, &mut |_f: &[u8]| {});
+        let now = Instant::from_millis(i as u64);
+        app.on_byte(b, now, &mut |_f: &[u8]| {});
+        app.poll(now, &mut NoSensors, &mut |_f: &[u8]| {});
         for c in app.outputs() {
             let [a, b] = c.coil_volts();
             assert!(a == 0.0 || b == 0.0);

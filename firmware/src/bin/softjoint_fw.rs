@@ -17,6 +17,12 @@
 //! opens the pty, so the host sends `Hello` and the board answers.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
 
 #[cfg(all(target_os = "none", not(feature = "board-mps2-an386")))]
 compile_error!(
@@ -36,6 +42,7 @@ mod mps2 {
     use firmware::app::{App, NoSensors};
     use firmware::control::{DriverConfig, PairCommand};
     use firmware::protocol::pair_to_mv;
+    use firmware::time::{Instant, MillisCounter};
 
     /// System clock of the AN386 image (ARM AN386 application note: 25 MHz).
     const SYSCLK_HZ: u32 = 25_000_000;
@@ -92,7 +99,8 @@ mod mps2 {
         }
     }
 
-    /// Milliseconds since boot, advanced by SysTick.
+    /// Milliseconds since boot, advanced by SysTick. It wraps after 49.7
+    /// days; [`MillisCounter`] extends it to a 64-bit monotonic instant.
     static MILLIS: AtomicU32 = AtomicU32::new(0);
 
     #[exception]
@@ -100,8 +108,13 @@ mod mps2 {
         MILLIS.fetch_add(1, Ordering::Relaxed);
     }
 
-    fn now_ms() -> u32 {
-        MILLIS.load(Ordering::Relaxed)
+    /// The board's monotonic clock (read from the main loop only).
+    struct Clock(MillisCounter);
+
+    impl Clock {
+        fn now(&mut self) -> Instant {
+            self.0.extend(MILLIS.load(Ordering::Relaxed))
+        }
     }
 
     /// The SMA driver outputs as the board would set them (signed mV per
@@ -139,11 +152,12 @@ mod mps2 {
         #[cfg(feature = "defmt")]
         defmt::info!("softjoint-fw up");
         let mut send = |frame: &[u8]| uart.write_bytes(frame);
+        let mut clock = Clock(MillisCounter::new());
         loop {
             while let Some(b) = uart.try_read_byte() {
-                app.on_byte(b, now_ms(), &mut send);
+                app.on_byte(b, clock.now(), &mut send);
             }
-            app.poll(now_ms(), &mut NoSensors, &mut send);
+            app.poll(clock.now(), &mut NoSensors, &mut send);
             apply_outputs(app.outputs(), app.joint().driver());
         }
     }

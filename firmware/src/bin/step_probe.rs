@@ -16,6 +16,12 @@
 //! On the host it only explains itself, so `cargo build --workspace` works.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
 
 #[cfg(target_os = "none")]
 mod image {
@@ -27,9 +33,10 @@ mod image {
     #[cfg(feature = "defmt")]
     use defmt_semihosting as _;
     use firmware::joint::{Feedback, Joint3d, JointConfig, StepInput};
+    use firmware::time::{Duration, Instant};
 
     const STEPS: i32 = 1000;
-    const DT_S: f32 = 0.001;
+    const PERIOD: Duration = Duration::from_millis(1);
     /// SysTick reload: the full 24-bit range.
     const RELOAD: u32 = 0x00FF_FFFF;
     /// Nanoseconds per SysTick tick at the AN386's 25 MHz system clock;
@@ -105,8 +112,8 @@ mod image {
             let d = black_box(phase.abs() - 100);
             let counts = [Some(-d), Some(d / 2), Some(d), Some(-d / 2)];
             let input = StepInput {
-                now_s: k as f32 * DT_S,
-                dt_s: DT_S,
+                now: Instant::ZERO + PERIOD.saturating_mul(k as u64),
+                dt: PERIOD,
                 feedback: Feedback::WireCounts(counts),
             };
             let out = black_box(joint.step(&input));

@@ -17,6 +17,18 @@ pub enum CobsError {
     OutputFull,
 }
 
+impl core::fmt::Display for CobsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            CobsError::ZeroInFrame => "a 0x00 inside the encoded data",
+            CobsError::Truncated => "a code byte points past the end of the frame",
+            CobsError::OutputFull => "the output buffer is too small",
+        })
+    }
+}
+
+impl core::error::Error for CobsError {}
+
 /// Maximum encoded length of `n` bytes.
 pub const fn max_encoded_len(n: usize) -> usize {
     n + n / 254 + 1

@@ -31,6 +31,11 @@ use super::driver::DriverParams;
 use super::sma::{SmaCoil, SmaParams};
 use super::{check_finite, check_positive, PlantError};
 
+/// Standard gravity (m/s², CGPM 1901, exact). The paper does not state its
+/// local g; every part of the project that needs g takes it from the plant
+/// (this constant is the plant's default).
+pub const STANDARD_GRAVITY_M_S2: f64 = 9.80665;
+
 /// Rigid link parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -57,7 +62,7 @@ impl Default for LinkParams {
             com_height_m: 0.0135,
             inertia_kg_m2: 8.3e-7,
             end_length_m: 0.027,
-            gravity_m_s2: 9.81,
+            gravity_m_s2: STANDARD_GRAVITY_M_S2,
         }
     }
 }

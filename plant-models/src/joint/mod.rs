@@ -63,7 +63,6 @@ pub mod sma;
 pub mod wire_sensor;
 
 use firmware::viscoelastic::TimeStep;
-use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
@@ -272,12 +271,6 @@ fn check_inputs<const N: usize>(v: &[f64]) -> Result<[f64; N], PlantError> {
     Ok(out)
 }
 
-fn rng_stream(seed: u64, stream: u64) -> ChaCha8Rng {
-    let mut r = ChaCha8Rng::seed_from_u64(seed);
-    r.set_stream(stream);
-    r
-}
-
 // ---------------------------------------------------------------- 2D joint
 
 /// Parameters of the 2D joint (one plane, one wire sensor, a camera).
@@ -361,8 +354,8 @@ impl Joint2d {
             plane,
             wire,
             camera,
-            rng_wire: rng_stream(seed, 1),
-            rng_camera: rng_stream(seed, 0),
+            rng_wire: crate::rng::stream(seed, crate::rng::WIRE_BASE),
+            rng_camera: crate::rng::stream(seed, crate::rng::CAMERA),
             time_s: 0.0,
             split: SplitCache::default(),
             params,
@@ -602,8 +595,10 @@ impl Joint3d {
             camera: Camera::new(params.camera.clone(), true)?,
             planes,
             wires,
-            rng_wires: core::array::from_fn(|k| rng_stream(seed, 1 + k as u64)),
-            rng_camera: rng_stream(seed, 0),
+            rng_wires: core::array::from_fn(|k| {
+                crate::rng::stream(seed, crate::rng::WIRE_BASE + k as u64)
+            }),
+            rng_camera: crate::rng::stream(seed, crate::rng::CAMERA),
             time_s: 0.0,
             split: SplitCache::default(),
             params,

@@ -1,0 +1,442 @@
+//! The board application (`firmware::app::App`) as the image runs it: bytes
+//! in, frames out, a board clock from a wrapping `u32` millisecond counter.
+//!
+//! - free-running and lockstep keep their stale-sensor and link checks
+//!   across the counter's wrap and at any uptime;
+//! - no output before every channel the law uses has delivered a reading;
+//! - a lockstep seq behind the last one answered never steps the core, and
+//!   a forward gap longer than the link timeout is a link loss.
+use firmware::app::{App, BoardSensors, NoSensors};
+use firmware::control::PairCommand;
+use firmware::protocol::*;
+use firmware::supervisor::Faults;
+use firmware::time::{Instant, MillisCounter};
+
+/// Boot, 1 s before the u32 ms wrap, 5 h, 30 days, 1 year.
+const UPTIMES: [Instant; 5] = [
+    Instant::ZERO,
+    Instant::from_millis(u32::MAX as u64 - 1000),
+    Instant::from_secs(5 * 3600),
+    Instant::from_secs(30 * 86_400),
+    Instant::from_secs(365 * 86_400),
+];
+
+/// A board that has been up for `t0`: its u32 millisecond counter reads
+/// `t0 mod 2³²` and is extended by `MillisCounter`, as in the image.
+struct Board {
+    app: App,
+    raw_ms: u32,
+    counter: MillisCounter,
+    first: Instant,
+    t0: Instant,
+    host: FrameDecoder,
+}
+
+impl Board {
+    fn up_for(t0: Instant) -> Self {
+        let raw_ms = t0.wrapping_millis_u32();
+        let mut counter = MillisCounter::new();
+        let first = counter.extend(raw_ms);
+        Self {
+            app: App::new().unwrap(),
+            raw_ms,
+            counter,
+            first,
+            t0,
+            host: FrameDecoder::host(),
+        }
+    }
+
+    fn now(&mut self) -> Instant {
+        self.t0 + (self.counter.extend(self.raw_ms) - self.first)
+    }
+
+    /// Milliseconds since this board's test started.
+    fn elapsed_ms(&mut self) -> u64 {
+        (self.now() - self.t0).as_millis()
+    }
+
+    /// One millisecond passes; the main loop polls.
+    fn tick(&mut self, sensors: &mut impl BoardSensors) -> Vec<Message> {
+        self.raw_ms = self.raw_ms.wrapping_add(1);
+        let now = self.now();
+        let mut out = Vec::new();
+        self.app
+            .poll(now, sensors, &mut |f| out.extend_from_slice(f));
+        self.decode(&out)
+    }
+
+    fn decode(&mut self, bytes: &[u8]) -> Vec<Message> {
+        bytes
+            .iter()
+            .filter_map(|b| self.host.push(*b))
+            .map(|r| r.expect("the board sends valid frames"))
+            .collect()
+    }
+
+    /// Sends one message as bytes; returns the replies.
+    fn send(&mut self, msg: impl Into<Message>) -> Vec<Message> {
+        let mut frame = [0u8; MAX_FRAME];
+        let n = encode_frame(&msg.into(), &mut frame);
+        let now = self.now();
+        let mut out = Vec::new();
+        for b in &frame[..n] {
+            self.app.on_byte(*b, now, &mut |f| out.extend_from_slice(f));
+        }
+        self.decode(&out)
+    }
+
+    fn ack(&mut self, msg: impl Into<Message>) {
+        let msg = msg.into();
+        let kind = msg.kind();
+        assert_eq!(
+            self.send(msg),
+            [Message::Ack(Ack { request: kind })],
+            "{kind:#04x} refused"
+        );
+    }
+
+    fn status(&mut self) -> Status {
+        match self.send(GetStatus {}).as_slice() {
+            [Message::Status(s)] => *s,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn sensor(&mut self, seq: u16, counts: [i16; 4]) -> Option<HilActuator> {
+        match self.send(HilSensor { seq, counts }).as_slice() {
+            [] => None,
+            [Message::HilActuator(a)] => Some(*a),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn lockstep(&mut self, alpha_target_deg: f32) {
+        self.ack(HilStart { period_us: 1000 });
+        let _ = self.send(ClearFaults {});
+        self.ack(SetTarget {
+            plane: 0,
+            target_deg: alpha_target_deg,
+        });
+        self.ack(Arm {});
+    }
+}
+
+/// Counts for α = β = `deg` under the default Eq. 3 law (0.01 mm/count).
+fn counts_for(deg: f32) -> [i16; 4] {
+    let da = ((deg - 0.323) / 2.727 / 2.0 / 0.01) as i16;
+    let db = ((deg - 0.131) / 2.670 / 2.0 / 0.01) as i16;
+    [-da, -db, da, db]
+}
+
+/// Sensors that deliver `counts_for(0°)` on the channels set in `mask`
+/// from read number `from` on, and count how often they are read.
+struct Scripted {
+    reads: u64,
+    from: u64,
+    mask: [bool; 4],
+    silent_after: Option<u64>,
+}
+
+impl Scripted {
+    fn all_from(from: u64) -> Self {
+        Self {
+            reads: 0,
+            from,
+            mask: [true; 4],
+            silent_after: None,
+        }
+    }
+}
+
+impl BoardSensors for Scripted {
+    fn read_counts(&mut self) -> [Option<i32>; 4] {
+        let k = self.reads;
+        self.reads += 1;
+        let c = counts_for(0.0);
+        core::array::from_fn(|i| {
+            let on = k >= self.from && self.mask[i] && self.silent_after.is_none_or(|s| k < s);
+            on.then_some(i32::from(c[i]))
+        })
+    }
+}
+
+fn driving(outputs: [PairCommand; 2]) -> bool {
+    outputs != [PairCommand::Off; 2]
+}
+
+#[test]
+fn free_running_checks_hold_across_the_counter_wrap_and_at_any_uptime() {
+    let run = |t0: Instant| {
+        let mut b = Board::up_for(t0);
+        b.ack(SetTarget {
+            plane: 0,
+            target_deg: 5.0,
+        });
+        b.ack(Arm {});
+        b.ack(SetTelemetry { rate_hz: 100 });
+        // Sensors deliver from the first step; sensor 3 goes silent after
+        // 1.5 s (the run crosses the wrap for the second start time).
+        let mut s = Scripted::all_from(0);
+        s.silent_after = Some(1500);
+        let mut record = Vec::new();
+        let mut stale_at = None;
+        for _ in 0..2000 {
+            let frames = b.tick(&mut s);
+            let k = b.elapsed_ms();
+            for m in frames {
+                if let Message::Telemetry(t) = m {
+                    assert_eq!(t.time_ms, b.now().wrapping_millis_u32());
+                    record.push((k, t.estimate_deg.map(f32::to_bits), t.pair_mv, t.faults));
+                }
+            }
+            if stale_at.is_none()
+                && b.app
+                    .joint()
+                    .supervisor()
+                    .latched()
+                    .contains(Faults::SENSOR_STALE)
+            {
+                stale_at = Some(k);
+                assert!(!driving(b.app.outputs()));
+            }
+        }
+        // One control step per millisecond of board time.
+        assert_eq!(s.reads, 2000, "from {t0}");
+        (record, stale_at)
+    };
+    let (reference, stale_at) = run(Instant::ZERO);
+    assert_eq!(
+        stale_at,
+        Some(1551),
+        "50 ms after the last reading at 1500 ms"
+    );
+    assert_eq!(reference.len(), 200, "100 Hz telemetry for 2 s");
+    assert!(reference.iter().any(|r| r.2 != [0, 0]), "the board drove");
+    for t0 in &UPTIMES[1..] {
+        assert_eq!(run(*t0), (reference.clone(), stale_at), "from {t0}");
+    }
+}
+
+#[test]
+fn no_output_before_every_sensor_the_law_uses_has_delivered() {
+    // QEMU's board has no sensors: armed right after boot it must never
+    // drive (it used to drive its pairs for ~50 ms on placeholder zeros
+    // until sensor-stale latched).
+    let mut b = Board::up_for(Instant::ZERO);
+    b.ack(SetTarget {
+        plane: 0,
+        target_deg: 10.0,
+    });
+    b.ack(Arm {});
+    for k in 0..200 {
+        b.tick(&mut NoSensors);
+        assert!(!driving(b.app.outputs()), "driven at {k} ms with no sensor");
+    }
+    let s = b.status();
+    assert_eq!(s.pair_mv, [0, 0]);
+    assert!(Faults::from_bits(u16::from(s.latched)).contains(Faults::SENSOR_STALE));
+    assert!(
+        s.estimate_deg.iter().all(|e| e.is_nan()),
+        "no estimate: {s:?}"
+    );
+
+    // Three of four sensors deliver: still nothing (the α and β laws read
+    // all four), until stale.
+    let mut b = Board::up_for(Instant::ZERO);
+    b.ack(SetTarget {
+        plane: 0,
+        target_deg: 10.0,
+    });
+    b.ack(Arm {});
+    let mut s = Scripted::all_from(0);
+    s.mask = [true, true, false, true];
+    for k in 0..100 {
+        b.tick(&mut s);
+        assert!(
+            !driving(b.app.outputs()),
+            "driven at {k} ms with sensor 3 missing"
+        );
+    }
+
+    // All four from the 30th step on: off before, driven from then on.
+    let mut b = Board::up_for(Instant::ZERO);
+    b.ack(SetTarget {
+        plane: 0,
+        target_deg: 10.0,
+    });
+    b.ack(Arm {});
+    let mut s = Scripted::all_from(30);
+    let mut first_drive = None;
+    for _ in 0..45 {
+        b.tick(&mut s);
+        if driving(b.app.outputs()) {
+            first_drive.get_or_insert(s.reads);
+        }
+    }
+    assert_eq!(
+        first_drive,
+        Some(31),
+        "driven from the first step with all four readings"
+    );
+
+    // Lockstep: armed after HilStart, nothing until the first sensor frame.
+    let mut b = Board::up_for(Instant::ZERO);
+    b.lockstep(10.0);
+    for _ in 0..20 {
+        b.tick(&mut NoSensors);
+        assert!(!driving(b.app.outputs()));
+    }
+    let a = b.sensor(0, counts_for(0.0)).unwrap();
+    assert!(a.pair_mv[0] > 0, "the first frame's readings drive: {a:?}");
+}
+
+#[test]
+fn a_seq_behind_the_last_one_never_steps_the_core() {
+    // A slow triangle (plausible rates).
+    let counts = |k: u16| counts_for((f32::from(k % 50) - 25.0).abs() * 0.1);
+    // Two boards see the same lockstep run; one also gets a late
+    // retransmission of seq 12 after seq 20.
+    let mut clean = Board::up_for(Instant::ZERO);
+    let mut late = Board::up_for(Instant::ZERO);
+    for b in [&mut clean, &mut late] {
+        b.lockstep(3.0);
+    }
+    for seq in 0..=20u16 {
+        let a = clean.sensor(seq, counts(seq));
+        assert_eq!(late.sensor(seq, counts(seq)), a);
+        clean.tick(&mut NoSensors);
+        late.tick(&mut NoSensors);
+    }
+    // A retry of the last seq is answered from the cache, unchanged.
+    let cached = late.sensor(20, counts(20)).unwrap();
+    assert_eq!(Some(cached), clean.sensor(20, counts(20)));
+    // The late frame: no reply, counted, and (below) no step.
+    assert_eq!(late.sensor(12, counts(12)), None);
+    assert_eq!(late.status().stale_seqs, 1);
+    assert_eq!(clean.status().stale_seqs, 0);
+    for seq in 21..=60u16 {
+        let a = clean.sensor(seq, counts(seq)).unwrap();
+        let b = late.sensor(seq, counts(seq)).unwrap();
+        assert_eq!(a, b, "seq {seq}");
+        assert_eq!(
+            Faults::from_bits(u16::from(a.faults)),
+            Faults::NONE,
+            "seq {seq}: {a:?}"
+        );
+        clean.tick(&mut NoSensors);
+        late.tick(&mut NoSensors);
+    }
+}
+
+#[test]
+fn a_forward_gap_longer_than_the_link_timeout_is_a_link_loss() {
+    let mut b = Board::up_for(Instant::ZERO);
+    b.lockstep(3.0);
+    for seq in 0..10u16 {
+        let a = b.sensor(seq, counts_for(1.0)).unwrap();
+        assert_eq!(a.faults, 0);
+    }
+    // 49 periods skipped: within the 50 ms timeout, a normal step.
+    assert_eq!(b.sensor(59, counts_for(1.0)).unwrap().faults, 0);
+    // 60 skipped (60 ms > 50 ms): link loss, outputs off, and the step's dt
+    // is capped, so the thermal budget did not see a minute of heating.
+    let a = b.sensor(120, counts_for(1.0)).unwrap();
+    let f = Faults::from_bits(u16::from(a.faults));
+    assert!(f.contains(Faults::LINK_LOSS), "{f:?}");
+    assert!(!f.contains(Faults::OVER_BUDGET), "{f:?}");
+    assert_eq!(a.pair_mv, [0, 0]);
+}
+
+#[test]
+fn lockstep_may_start_at_any_seq_and_wrap() {
+    let run = |first: u16| {
+        let mut b = Board::up_for(Instant::ZERO);
+        b.lockstep(4.0);
+        (0..300u16)
+            .map(|k| {
+                let mut a = b
+                    .sensor(first.wrapping_add(k), counts_for(f32::from(k % 60) * 0.05))
+                    .unwrap();
+                a.seq = k;
+                a
+            })
+            .collect::<Vec<_>>()
+    };
+    let from_zero = run(0);
+    assert_eq!(run(65_500), from_zero, "a run through the u16 wrap");
+    assert!(from_zero.iter().any(|a| a.pair_mv[0] > 0));
+}
+
+#[test]
+fn lockstep_dead_link_is_caught_at_any_uptime() {
+    let run = |t0: Instant| {
+        let mut b = Board::up_for(t0);
+        b.lockstep(5.0);
+        let mut replies = Vec::new();
+        for seq in 0..100u16 {
+            replies.push(b.sensor(seq, counts_for(1.0)).unwrap());
+            b.tick(&mut NoSensors);
+        }
+        assert!(driving(b.app.outputs()));
+        let last_frame = b.elapsed_ms() - 1;
+        let mut lost_at = None;
+        for _ in 0..200 {
+            b.tick(&mut NoSensors);
+            if lost_at.is_none()
+                && b.app
+                    .joint()
+                    .supervisor()
+                    .latched()
+                    .contains(Faults::LINK_LOSS)
+            {
+                lost_at = Some(b.elapsed_ms() - last_frame);
+                assert!(!driving(b.app.outputs()));
+            }
+        }
+        let s = b.status();
+        assert_eq!(s.pair_mv, [0, 0]);
+        (replies, lost_at)
+    };
+    let reference = run(Instant::ZERO);
+    assert_eq!(
+        reference.1,
+        Some(51),
+        "link loss 51 ms after the last frame (timeout 50 ms)"
+    );
+    for t0 in &UPTIMES[1..] {
+        assert_eq!(run(*t0), reference, "from {t0}");
+    }
+}
+
+#[test]
+fn hil_stop_returns_to_free_running() {
+    let mut b = Board::up_for(Instant::from_secs(3600));
+    b.lockstep(5.0);
+    let a = b.sensor(0, counts_for(0.0)).unwrap();
+    assert!(a.pair_mv[0] > 0);
+    b.ack(HilStop {});
+    let s = b.status();
+    assert_eq!((s.mode, s.pair_mv), (0, [0, 0]));
+    // Lockstep frames are refused now; free-running steps read the board's
+    // own sensors (and telemetry streams).
+    assert_eq!(
+        b.send(HilSensor {
+            seq: 1,
+            counts: [0; 4]
+        }),
+        [Message::Nak(Nak {
+            request: kind::HIL_SENSOR,
+            code: ErrorCode::WrongMode
+        })]
+    );
+    b.ack(SetTelemetry { rate_hz: 1000 });
+    let mut s = Scripted::all_from(0);
+    let mut telemetry = 0;
+    for _ in 0..20 {
+        telemetry += b.tick(&mut s).len();
+    }
+    assert_eq!(s.reads, 20);
+    assert_eq!(telemetry, 20);
+    assert!(driving(b.app.outputs()), "still armed after HilStop");
+}
