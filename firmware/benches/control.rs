@@ -9,7 +9,7 @@ use firmware::joint::{Feedback, Joint3d, JointConfig, StepInput};
 use firmware::linalg::{Mat3, Vec3};
 use firmware::real::Real;
 use firmware::time::{Duration, Instant};
-use firmware::viscoelastic::{RayleighParams, TimeStep, ViscoDgfm};
+use firmware::viscoelastic::{DgfmBuffers, RayleighColumns, RayleighParams, TimeStep};
 
 fn control_step(c: &mut Criterion) {
     let mut group = c.benchmark_group("control_step_3d");
@@ -53,32 +53,32 @@ fn control_step(c: &mut Criterion) {
 
 const V: usize = 193;
 
-fn dgfm<T: Real>() -> Box<[[Mat3<T>; V]; V]> {
-    let rows: Vec<[Mat3<T>; V]> = (0..V)
-        .map(|i| {
-            core::array::from_fn(|j| {
-                let d = (i as f64 - j as f64).abs();
-                let s = 1e-3 / (1.0 + d);
-                Mat3::diagonal(T::lit(s), T::lit(1.2 * s), T::lit(0.8 * s))
-            })
+/// A synthetic 193-vertex DGFM, column-major.
+fn dgfm<T: Real>() -> Vec<Mat3<T>> {
+    (0..V * V)
+        .map(|k| {
+            let (i, j) = (k % V, k / V);
+            let d = (i as f64 - j as f64).abs();
+            let s = 1e-3 / (1.0 + d);
+            Mat3::diagonal(T::lit(s), T::lit(1.2 * s), T::lit(0.8 * s))
         })
-        .collect();
-    rows.into_boxed_slice()
-        .try_into()
-        .unwrap_or_else(|_| unreachable!())
+        .collect()
 }
 
 fn bench_dgfm<T: Real, const A: usize>(c: &mut Criterion, name: &str, active: usize) {
     let xi = dgfm::<T>();
     let params = [RayleighParams::new(T::lit(2.0), T::lit(0.05)).unwrap(); V];
-    let mut model: ViscoDgfm<T, V, A> = ViscoDgfm::new(&xi, params).unwrap();
+    let mut buffers = Box::new(DgfmBuffers::<T, V, A>::default());
+    let mut model = buffers
+        .dgfm(RayleighColumns::new(&xi, &params).unwrap())
+        .unwrap();
     for k in 0..active {
         model
             .set_traction((k * 61) % V, Vec3::new(T::one(), T::zero(), T::lit(0.5)))
             .unwrap();
     }
     let h = TimeStep::new(T::lit(1e-3)).unwrap();
-    let mut u = Box::new([Vec3::zero(); V]);
+    let mut u = vec![Vec3::zero(); V];
     c.bench_function(name, |b| b.iter(|| model.step(black_box(h), &mut u)));
 }
 

@@ -21,11 +21,17 @@
 //!   stiffness-ratio parametrisation (Eq. 9–10) with Rayleigh damping
 //!   (Eq. 11), i.e. the cheap update of Eq. 12, valid for any step;
 //! - [`ViscoDgfm`]: the multi-vertex traction → displacement update over a
-//!   discrete Green's function matrix Ξ with compile-time sizes and a list of
-//!   active columns (seed §5), so the cost is O(N × active).
+//!   discrete Green's function matrix Ξ with a list of active columns (seed
+//!   §5), so the cost is O(n × active); its columns are Rayleigh
+//!   ([`RayleighColumns`]) or general damping tensors ([`TensorColumns`]), and
+//!   its storage is the caller's (static arrays on a board, [`DgfmBuffers`],
+//!   or buffers sized at run time on the host).
 //!
 //! What is not here: estimating the parameters from measurements and
-//! computing a DGFM from a mesh (host side, `plant-models`).
+//! computing a DGFM from a mesh (host side, `plant-models`). The plant's
+//! viscoelastic solids do not use this module: they integrate the same
+//! model with their own (exact) f64 code, and this module is tested against
+//! them (`tests/tests/visco_core_vs_plant.rs`).
 //!
 //! Naming follows the seed: `k2` is the instantaneous (series) spring, `k1`
 //! the delayed spring, `b` the dashpot. In the SPEC's closed forms
@@ -41,6 +47,7 @@
 
 use crate::linalg::{Mat3, Vec3};
 use crate::real::Real;
+use core::marker::PhantomData;
 
 /// Why a set of viscoelastic parameters or a step was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,8 +72,12 @@ pub enum ViscoError {
     NonFiniteInput,
     /// A vertex index was outside the DGFM.
     VertexOutOfRange,
-    /// More columns would be active than the compile-time capacity allows.
+    /// More columns would be active than the storage allows.
     ActiveListFull,
+    /// A tensor pair precomputed for one step was asked for another.
+    StepMismatch,
+    /// Storage or an output does not match the vertex count.
+    StorageMismatch,
 }
 
 impl core::fmt::Display for ViscoError {
@@ -81,7 +92,13 @@ impl core::fmt::Display for ViscoError {
             ViscoError::SingularTensor => "a tensor to invert is singular or not finite",
             ViscoError::NonFiniteInput => "a force, traction or displacement is not finite",
             ViscoError::VertexOutOfRange => "a vertex index is outside the DGFM",
-            ViscoError::ActiveListFull => "more columns would be active than the capacity allows",
+            ViscoError::ActiveListFull => "more columns would be active than the storage allows",
+            ViscoError::StepMismatch => {
+                "tensor damping is precomputed for one fixed step; rebuild it for another"
+            }
+            ViscoError::StorageMismatch => {
+                "storage or output length does not match the number of vertices"
+            }
         })
     }
 }
@@ -369,28 +386,273 @@ pub fn rayleigh_force_step<T: Real>(
     stiffness.mul_vec(displacement - *x).scale(one + r)
 }
 
-/// One active column `j` of the DGFM: its applied traction and the states
-/// `x_ij` for every row `i`.
-#[derive(Clone, Debug)]
-struct ActiveColumn<T, const N: usize> {
-    vertex: u16,
-    traction: Vec3<T>,
-    x: [Vec3<T>; N],
+/// How the (i, j) terms of one DGFM column are advanced: the Rayleigh form
+/// ([`RayleighColumns`], Eq. 12, any step) or precomputed general damping
+/// tensors ([`TensorColumns`], Eq. 5–6, one fixed step).
+pub trait ColumnUpdate<T> {
+    /// Number of traction vertices n.
+    fn vertices(&self) -> usize;
+    /// Whether steps of `h` can be taken (a precomputed update has one).
+    fn check_step(&self, h: TimeStep<T>) -> Result<(), ViscoError> {
+        let _ = h;
+        Ok(())
+    }
+    /// Advances column `j` by `h` under traction `p`: updates the states
+    /// `x[i] = x_ij` and adds `u_ij` to `out[i]`, for every row i (both
+    /// slices have n entries).
+    fn step_column(
+        &self,
+        j: usize,
+        traction: Vec3<T>,
+        h: TimeStep<T>,
+        x: &mut [Vec3<T>],
+        out: &mut [Vec3<T>],
+    ) -> Result<(), ViscoError>;
 }
 
-/// Multi-vertex viscoelastic evaluation over a DGFM Ξ (N × N blocks of 3×3),
-/// traction in, displacement out (seed 002 Eq. 4 with the Rayleigh update of
-/// Eq. 12 and per-column parameters, §4.2), keeping at most `A` active
-/// columns (§5): a column is active while traction is applied to it or while
-/// its displacement effect `max_i |x_ij|` is above the rest threshold
-/// (default 1e-3, the seed's figure). Cost per step: O(N · active).
+/// The Rayleigh form of every column (seed 002 Eq. 12 with the traction
+/// `p_j`): Ξ column-major (`xi[j·n + i] = Ξ_ij`), per-column parameters
+/// (§4.2 spreading). `X` and `P` are slices a board borrows (Ξ in flash) or
+/// vectors a host owns.
+#[derive(Clone, Copy, Debug)]
+pub struct RayleighColumns<T, X, P> {
+    n: usize,
+    xi: X,
+    params: P,
+    real: PhantomData<fn() -> T>,
+}
+
+impl<T: Real, X: AsRef<[Mat3<T>]>, P: AsRef<[RayleighParams<T>]>> RayleighColumns<T, X, P> {
+    /// Checks that `xi` holds n² finite blocks and `params` n columns.
+    pub fn new(xi: X, params: P) -> Result<Self, ViscoError> {
+        let n = params.as_ref().len();
+        if n.checked_mul(n) != Some(xi.as_ref().len()) || n > usize::from(u16::MAX) {
+            return Err(ViscoError::VertexOutOfRange);
+        }
+        if !xi.as_ref().iter().all(|m| m.is_finite()) {
+            return Err(ViscoError::NonFiniteInput);
+        }
+        Ok(Self {
+            n,
+            xi,
+            params,
+            real: PhantomData,
+        })
+    }
+
+    /// Column j of Ξ.
+    fn column(&self, j: usize) -> &[Mat3<T>] {
+        let start = j.saturating_mul(self.n);
+        self.xi.as_ref().get(start..start + self.n).unwrap_or(&[])
+    }
+
+    /// The quasi-static elastic answer `u_i = Σ_j Ξ_ij p_j` (seed 002
+    /// Eq. 1) for tractions on the listed columns.
+    pub fn static_displacement(&self, tractions: &[(usize, Vec3<T>)], out: &mut [Vec3<T>]) {
+        for u in out.iter_mut() {
+            *u = Vec3::zero();
+        }
+        for (j, p) in tractions {
+            for (u, block) in out.iter_mut().zip(self.column(*j)) {
+                *u = *u + block.mul_vec(*p);
+            }
+        }
+    }
+}
+
+impl<T: Real, X: AsRef<[Mat3<T>]>, P: AsRef<[RayleighParams<T>]>> ColumnUpdate<T>
+    for RayleighColumns<T, X, P>
+{
+    fn vertices(&self) -> usize {
+        self.n
+    }
+
+    fn step_column(
+        &self,
+        j: usize,
+        traction: Vec3<T>,
+        h: TimeStep<T>,
+        x: &mut [Vec3<T>],
+        out: &mut [Vec3<T>],
+    ) -> Result<(), ViscoError> {
+        let params = self
+            .params
+            .as_ref()
+            .get(j)
+            .ok_or(ViscoError::VertexOutOfRange)?;
+        let coeff = params.coefficients(h.0);
+        for ((u, x), block) in out.iter_mut().zip(x.iter_mut()).zip(self.column(j)) {
+            *u = *u + rayleigh_term(block.mul_vec(traction), x, coeff);
+        }
+        Ok(())
+    }
+}
+
+/// One DGFM column with a general damping tensor `B_j` (seed 002 §4.1,
+/// Eq. 5–6, 9–10), precomputed for one fixed step, spread down the column
+/// as its relaxation-rate tensor `R_j = B_j⁻¹ K_jj`: every pair (i, j)
+/// follows `ẋ_ij = R_j (Ξ_ij p_j − c x_ij)`, `u_ij = Ξ_ij p_j/(1+r) + x_ij`,
+/// `c = (1+r)/r`, advanced with the seed's implicit first-order scheme:
+/// `x' = (I + h c R)⁻¹ (x + h R y)`.
 ///
-/// Ξ is borrowed, so it can live in flash on a board or in a heap buffer on
-/// the host; the state is `A · N · 3` values inside this struct.
-pub struct ViscoDgfm<'a, T, const N: usize, const A: usize> {
-    xi: &'a [[Mat3<T>; N]; N],
-    columns: [RayleighParams<T>; N],
-    active: heapless::Vec<ActiveColumn<T, N>, A>,
+/// On the diagonal this is exactly the seed's tensor update (Eq. 6 with
+/// `f_j = α_j p_j`, `K = α_j Ξ_jj⁻¹`), and with `B_j = b K_jj` it is the
+/// Rayleigh form (Eq. 12). The seed's literal spreading (`B_·,j = B_j`
+/// against every `K_ij`) is not used: `K_ij` of distant vertices is
+/// indefinite, which makes those pairs grow without bound in continuous
+/// time (the plant counts 10,738 of 24,025 on its shipped object), and the
+/// implicit scheme turns that into NaN where `λ h ≈ −1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TensorColumn<T> {
+    /// `(I + h c R)⁻¹`.
+    decay: Mat3<T>,
+    /// `(I + h c R)⁻¹ h R`.
+    gain: Mat3<T>,
+    /// `1/(1+r)`.
+    instant: T,
+    h: TimeStep<T>,
+}
+
+impl<T: Real> TensorColumn<T> {
+    /// The column of vertex j: self stiffness `K_jj` (N/m), damping tensor
+    /// `B_j` (N·s/m; zero for none), stiffness ratio `r`, step `h`.
+    pub fn new(k_jj: Mat3<T>, b_j: Mat3<T>, ratio: T, h: TimeStep<T>) -> Result<Self, ViscoError> {
+        let r = positive(ratio, ViscoError::RatioNotPositive)?;
+        if !(k_jj.is_finite() && b_j.is_finite()) {
+            return Err(ViscoError::NonFiniteInput);
+        }
+        let one = T::one();
+        let c = (one + r) / r;
+        let instant = one / (one + r);
+        if b_j.0.iter().flatten().all(|v| *v == T::zero()) {
+            // No damping: x = y/c at once.
+            return Ok(Self {
+                decay: Mat3::zero(),
+                gain: Mat3::identity().scale(one / c),
+                instant,
+                h,
+            });
+        }
+        let rate = b_j.inverse().ok_or(ViscoError::SingularTensor)? * k_jj;
+        let hr = rate.scale(h.0);
+        let decay = (Mat3::identity() + hr.scale(c))
+            .inverse()
+            .ok_or(ViscoError::SingularTensor)?;
+        Ok(Self {
+            decay,
+            gain: decay * hr,
+            instant,
+            h,
+        })
+    }
+}
+
+/// Every column in the tensor form ([`TensorColumn`]): Ξ column-major
+/// (`xi[j·n + i] = Ξ_ij`), one precomputed column each; borrowed or owned
+/// as for [`RayleighColumns`].
+#[derive(Clone, Copy, Debug)]
+pub struct TensorColumns<T, X, C> {
+    n: usize,
+    xi: X,
+    columns: C,
+    real: PhantomData<fn() -> T>,
+}
+
+impl<T: Real, X: AsRef<[Mat3<T>]>, C: AsRef<[TensorColumn<T>]>> TensorColumns<T, X, C> {
+    /// Checks that `xi` holds n² finite blocks for the n `columns`, all
+    /// precomputed for the same step.
+    pub fn new(xi: X, columns: C) -> Result<Self, ViscoError> {
+        let cols = columns.as_ref();
+        let n = cols.len();
+        if n.checked_mul(n) != Some(xi.as_ref().len()) || n > usize::from(u16::MAX) {
+            return Err(ViscoError::VertexOutOfRange);
+        }
+        if !xi.as_ref().iter().all(|m| m.is_finite()) {
+            return Err(ViscoError::NonFiniteInput);
+        }
+        if let Some(first) = cols.first() {
+            if cols.iter().any(|c| c.h != first.h) {
+                return Err(ViscoError::StepMismatch);
+            }
+        }
+        Ok(Self {
+            n,
+            xi,
+            columns,
+            real: PhantomData,
+        })
+    }
+}
+
+impl<T: Real, X: AsRef<[Mat3<T>]>, C: AsRef<[TensorColumn<T>]>> ColumnUpdate<T>
+    for TensorColumns<T, X, C>
+{
+    fn vertices(&self) -> usize {
+        self.n
+    }
+
+    fn check_step(&self, h: TimeStep<T>) -> Result<(), ViscoError> {
+        match self.columns.as_ref().first() {
+            Some(c) if c.h != h => Err(ViscoError::StepMismatch),
+            _ => Ok(()),
+        }
+    }
+
+    fn step_column(
+        &self,
+        j: usize,
+        traction: Vec3<T>,
+        h: TimeStep<T>,
+        x: &mut [Vec3<T>],
+        out: &mut [Vec3<T>],
+    ) -> Result<(), ViscoError> {
+        let column = self
+            .columns
+            .as_ref()
+            .get(j)
+            .ok_or(ViscoError::VertexOutOfRange)?;
+        if column.h != h {
+            return Err(ViscoError::StepMismatch);
+        }
+        let start = j.saturating_mul(self.n);
+        let blocks = self
+            .xi
+            .as_ref()
+            .get(start..start + self.n)
+            .ok_or(ViscoError::VertexOutOfRange)?;
+        for ((u, x), block) in out.iter_mut().zip(x.iter_mut()).zip(blocks) {
+            let y = block.mul_vec(traction);
+            *x = column.decay.mul_vec(*x) + column.gain.mul_vec(y);
+            *u = *u + y.scale(column.instant) + *x;
+        }
+        Ok(())
+    }
+}
+
+/// One slot of the active-column list: the column's vertex and traction.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct ColumnSlot<T> {
+    vertex: u16,
+    traction: Vec3<T>,
+}
+
+/// Multi-vertex viscoelastic evaluation over a DGFM, traction in,
+/// displacement out (seed 002 Eq. 4 with per-column parameters, §4.2),
+/// keeping a list of active columns (§5): a column is active while traction
+/// is applied to it or while its displacement effect `max_i |x_ij|` is
+/// above the rest threshold (default 1e-3, the seed's figure). Cost per
+/// step: O(n · active).
+///
+/// The caller provides the storage — `slots` (one per column that may be
+/// active at once) and `states` (`slots.len() · n` vectors) — as static
+/// arrays on a board ([`DgfmBuffers`]) or heap buffers on the host, so the
+/// same code serves a compile-time 193-vertex object in flash and a mesh
+/// loaded at run time.
+pub struct ViscoDgfm<T, U, S, X> {
+    update: U,
+    slots: S,
+    states: X,
+    active: usize,
     rest_threshold: T,
 }
 
@@ -398,25 +660,32 @@ pub struct ViscoDgfm<'a, T, const N: usize, const A: usize> {
 /// from the active list (seed 002 §5: "above 1e-3").
 pub const DEFAULT_REST_THRESHOLD: f64 = 1.0e-3;
 
-impl<'a, T: Real, const N: usize, const A: usize> ViscoDgfm<'a, T, N, A> {
-    /// A model over `xi` (`xi[i][j]` = Ξ_ij) with per-column parameters
-    /// (the seed's column spreading, §4.2). Rejects non-finite Ξ entries.
-    pub fn new(
-        xi: &'a [[Mat3<T>; N]; N],
-        columns: [RayleighParams<T>; N],
-    ) -> Result<Self, ViscoError> {
-        if N > u16::MAX as usize {
-            return Err(ViscoError::VertexOutOfRange);
-        }
-        if !xi.iter().flat_map(|row| row.iter()).all(|m| m.is_finite()) {
-            return Err(ViscoError::NonFiniteInput);
+impl<T, U, S, X> ViscoDgfm<T, U, S, X>
+where
+    T: Real,
+    U: ColumnUpdate<T>,
+    S: AsRef<[ColumnSlot<T>]> + AsMut<[ColumnSlot<T>]>,
+    X: AsRef<[Vec3<T>]> + AsMut<[Vec3<T>]>,
+{
+    /// An evaluation with `update`'s columns over the caller's storage
+    /// (borrowed slices, or owned vectors). Rejects `states` that do not
+    /// hold `slots.len() · n` vectors.
+    pub fn new(update: U, slots: S, states: X) -> Result<Self, ViscoError> {
+        if slots.as_ref().len().checked_mul(update.vertices()) != Some(states.as_ref().len()) {
+            return Err(ViscoError::StorageMismatch);
         }
         Ok(Self {
-            xi,
-            columns,
-            active: heapless::Vec::new(),
+            update,
+            slots,
+            states,
+            active: 0,
             rest_threshold: T::lit(DEFAULT_REST_THRESHOLD),
         })
+    }
+
+    /// The column update.
+    pub fn update(&self) -> &U {
+        &self.update
     }
 
     /// Changes the rest threshold (must be finite and ≥ 0).
@@ -425,82 +694,155 @@ impl<'a, T: Real, const N: usize, const A: usize> ViscoDgfm<'a, T, N, A> {
         Ok(())
     }
 
-    /// Applies traction `p` to vertex `j` from the next step on (zero to
-    /// release it; the column stays active until it has relaxed).
+    fn states_of(&mut self, k: usize) -> &mut [Vec3<T>] {
+        let n = self.update.vertices();
+        let start = k.saturating_mul(n);
+        self.states
+            .as_mut()
+            .get_mut(start..start + n)
+            .unwrap_or(&mut [])
+    }
+
+    /// Applies traction `p` to column `vertex` from the next step on (zero
+    /// to release it; the column stays active until it has relaxed).
     pub fn set_traction(&mut self, vertex: usize, traction: Vec3<T>) -> Result<(), ViscoError> {
-        if vertex >= N {
+        if vertex >= self.update.vertices() {
             return Err(ViscoError::VertexOutOfRange);
         }
         if !traction.is_finite() {
             return Err(ViscoError::NonFiniteInput);
         }
-        if let Some(col) = self.active.iter_mut().find(|c| c.vertex as usize == vertex) {
-            col.traction = traction;
+        let active = self
+            .slots
+            .as_mut()
+            .get_mut(..self.active)
+            .unwrap_or(&mut []);
+        if let Some(slot) = active.iter_mut().find(|s| usize::from(s.vertex) == vertex) {
+            slot.traction = traction;
             return Ok(());
         }
         if traction.is_zero() {
             return Ok(()); // an inactive column at rest stays inactive
         }
-        self.active
-            .push(ActiveColumn {
-                vertex: vertex as u16,
-                traction,
-                x: [Vec3::zero(); N],
-            })
-            .map_err(|_| ViscoError::ActiveListFull)
+        let k = self.active;
+        let slot = self
+            .slots
+            .as_mut()
+            .get_mut(k)
+            .ok_or(ViscoError::ActiveListFull)?;
+        *slot = ColumnSlot {
+            // `vertex < n ≤ u16::MAX`, checked by the column update.
+            vertex: u16::try_from(vertex).map_err(|_| ViscoError::VertexOutOfRange)?,
+            traction,
+        };
+        for x in self.states_of(k) {
+            *x = Vec3::zero();
+        }
+        self.active += 1;
+        Ok(())
     }
 
     /// Releases every traction (columns relax and then leave the list).
     pub fn release_all(&mut self) {
-        for col in self.active.iter_mut() {
-            col.traction = Vec3::zero();
+        for slot in self.slots.as_mut().iter_mut().take(self.active) {
+            slot.traction = Vec3::zero();
         }
     }
 
     /// Number of active columns.
     pub fn active_count(&self) -> usize {
-        self.active.len()
+        self.active
     }
 
     /// Advances one step of `h` and writes every vertex displacement
-    /// `u_i = Σ_j u_ij` into `out`.
-    pub fn step(&mut self, h: TimeStep<T>, out: &mut [Vec3<T>; N]) {
+    /// `u_i = Σ_j u_ij` into `out` (n entries).
+    pub fn step(&mut self, h: TimeStep<T>, out: &mut [Vec3<T>]) -> Result<(), ViscoError> {
+        let n = self.update.vertices();
+        if out.len() != n {
+            return Err(ViscoError::StorageMismatch);
+        }
+        self.update.check_step(h)?;
         for u in out.iter_mut() {
             *u = Vec3::zero();
         }
         let threshold = self.rest_threshold;
-        let xi = self.xi;
-        let columns = &self.columns;
-        for col in self.active.iter_mut() {
-            let j = col.vertex as usize;
-            let Some(params) = columns.get(j) else {
-                continue;
+        let slots = self.slots.as_ref().get(..self.active).unwrap_or(&[]);
+        for (slot, x) in slots
+            .iter()
+            .zip(self.states.as_mut().chunks_exact_mut(n.max(1)))
+        {
+            self.update
+                .step_column(usize::from(slot.vertex), slot.traction, h, x, out)?;
+        }
+        // Drop columns that carry no traction and whose effect has decayed,
+        // keeping the others in order.
+        let mut kept = 0;
+        for k in 0..self.active {
+            let at_rest = {
+                let loaded = self
+                    .slots
+                    .as_ref()
+                    .get(k)
+                    .is_some_and(|s| !s.traction.is_zero());
+                let start = k.saturating_mul(n);
+                let moving = self
+                    .states
+                    .as_ref()
+                    .get(start..start + n)
+                    .is_some_and(|xs| xs.iter().any(|x| x.max_abs() > threshold));
+                !loaded && !moving
             };
-            let coeff = params.coefficients(h.0);
-            let p = col.traction;
-            for ((u, x), row) in out.iter_mut().zip(col.x.iter_mut()).zip(xi.iter()) {
-                let Some(block) = row.get(j) else { continue };
-                *u = *u + rayleigh_term(block.mul_vec(p), x, coeff);
+            if at_rest {
+                continue;
             }
-        }
-        // Drop columns that carry no traction and whose effect has decayed.
-        self.active
-            .retain(|col| !col.traction.is_zero() || col.x.iter().any(|x| x.max_abs() > threshold));
-    }
-
-    /// The quasi-static elastic answer for the current tractions,
-    /// `u_i = Σ_j Ξ_ij p_j` (seed 002 Eq. 1), over the active columns.
-    pub fn static_displacement(&self, out: &mut [Vec3<T>; N]) {
-        for u in out.iter_mut() {
-            *u = Vec3::zero();
-        }
-        for col in self.active.iter() {
-            let j = col.vertex as usize;
-            for (u, row) in out.iter_mut().zip(self.xi.iter()) {
-                if let Some(block) = row.get(j) {
-                    *u = *u + block.mul_vec(col.traction);
+            if kept != k {
+                self.slots.as_mut().swap(kept, k);
+                let (low, high) = self.states.as_mut().split_at_mut(k.saturating_mul(n));
+                if let (Some(dst), Some(src)) = (
+                    low.get_mut(kept.saturating_mul(n)..kept.saturating_mul(n) + n),
+                    high.get_mut(..n),
+                ) {
+                    dst.swap_with_slice(src);
                 }
             }
+            kept += 1;
         }
+        self.active = kept;
+        Ok(())
+    }
+}
+
+/// Fixed-size storage for a [`ViscoDgfm`] of `N` vertices with at most `A`
+/// active columns (a board's static buffers).
+pub struct DgfmBuffers<T, const N: usize, const A: usize> {
+    slots: [ColumnSlot<T>; A],
+    states: [[Vec3<T>; N]; A],
+}
+
+impl<T: Real, const N: usize, const A: usize> Default for DgfmBuffers<T, N, A> {
+    fn default() -> Self {
+        Self {
+            slots: [ColumnSlot::default(); A],
+            states: [[Vec3::zero(); N]; A],
+        }
+    }
+}
+
+impl<T: Real, const N: usize, const A: usize> DgfmBuffers<T, N, A> {
+    /// An evaluation with `update`'s columns (which must have `N` vertices)
+    /// in these buffers.
+    #[allow(clippy::type_complexity)]
+    pub fn dgfm<U: ColumnUpdate<T>>(
+        &mut self,
+        update: U,
+    ) -> Result<ViscoDgfm<T, U, &mut [ColumnSlot<T>], &mut [Vec3<T>]>, ViscoError> {
+        if update.vertices() != N {
+            return Err(ViscoError::StorageMismatch);
+        }
+        ViscoDgfm::new(
+            update,
+            self.slots.as_mut_slice(),
+            self.states.as_flattened_mut(),
+        )
     }
 }

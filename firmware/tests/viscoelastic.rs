@@ -199,13 +199,15 @@ fn rayleigh_shortcut_equals_the_general_tensor_form() {
 
 const N: usize = 12;
 
-fn test_dgfm() -> Box<[[Mat3<f64>; N]; N]> {
-    let mut xi = Box::new([[Mat3::zero(); N]; N]);
-    for (i, row) in xi.iter_mut().enumerate() {
-        for (j, block) in row.iter_mut().enumerate() {
+/// A test DGFM, column-major (`xi[j·N + i] = Ξ_ij`), with its blocks also
+/// addressable as `block(i, j)`.
+fn test_dgfm() -> Vec<Mat3<f64>> {
+    let mut xi = vec![Mat3::zero(); N * N];
+    for j in 0..N {
+        for i in 0..N {
             // Self-compliance dominates; coupling decays with index distance.
             let d = (i as f64 - j as f64).abs();
-            *block = spd_block((i * N + j) as f64 * 0.37).scale(1.0 / (1.0 + d * d));
+            xi[j * N + i] = spd_block((i * N + j) as f64 * 0.37).scale(1.0 / (1.0 + d * d));
         }
     }
     xi
@@ -220,7 +222,11 @@ fn column_params() -> [RayleighParams<f64>; N] {
 #[test]
 fn static_limit_equals_the_dgfm_product() {
     let xi = test_dgfm();
-    let mut model: ViscoDgfm<f64, N, 3> = ViscoDgfm::new(&xi, column_params()).unwrap();
+    let params = column_params();
+    let mut buffers = DgfmBuffers::<f64, N, 3>::default();
+    let mut model = buffers
+        .dgfm(RayleighColumns::new(&xi, &params).unwrap())
+        .unwrap();
     let loads = [
         (2, Vec3::new(1.0, 0.0, -0.5)),
         (7, Vec3::new(0.0, 2.0, 0.0)),
@@ -232,19 +238,19 @@ fn static_limit_equals_the_dgfm_product() {
     let h = TimeStep::new(1e-3).unwrap();
     let mut u = [Vec3::zero(); N];
     for _ in 0..20_000 {
-        model.step(h, &mut u);
+        model.step(h, &mut u).unwrap();
     }
     // Independent evaluation of Σ_j Ξ_ij p_j.
     for (i, ui) in u.iter().enumerate() {
         let mut expect = Vec3::zero();
         for (j, p) in loads {
-            expect = expect + xi[i][j].mul_vec(p);
+            expect = expect + xi[j * N + i].mul_vec(p);
         }
         let rel = (*ui - expect).max_abs() / expect.max_abs();
         assert!(rel < 1e-9, "vertex {i}: relative error {rel}");
     }
     let mut stat = [Vec3::zero(); N];
-    model.static_displacement(&mut stat);
+    model.update().static_displacement(&loads, &mut stat);
     assert!((stat[4] - u[4]).max_abs() / stat[4].max_abs() < 1e-9);
 }
 
@@ -252,7 +258,10 @@ fn static_limit_equals_the_dgfm_product() {
 fn dgfm_transient_equals_the_sum_of_pairwise_updates() {
     let xi = test_dgfm();
     let params = column_params();
-    let mut model: ViscoDgfm<f64, N, 2> = ViscoDgfm::new(&xi, params).unwrap();
+    let mut buffers = DgfmBuffers::<f64, N, 2>::default();
+    let mut model = buffers
+        .dgfm(RayleighColumns::new(&xi, &params).unwrap())
+        .unwrap();
     // Threshold 0: columns stay active until exactly at rest, so the result
     // must equal the pairwise sum exactly (the 1e-3 rest threshold has its
     // own test below).
@@ -269,12 +278,12 @@ fn dgfm_transient_equals_the_sum_of_pairwise_updates() {
         for (c, pj) in cols.iter().zip(p) {
             model.set_traction(*c, pj).unwrap();
         }
-        model.step(h, &mut u);
+        model.step(h, &mut u).unwrap();
         for (i, ui) in u.iter().enumerate() {
             let mut expect = Vec3::zero();
             for (k, (c, pj)) in cols.iter().zip(p).enumerate() {
                 expect = expect
-                    + rayleigh_displacement_step(&xi[i][*c], pj, params[*c], h, &mut x[k][i]);
+                    + rayleigh_displacement_step(&xi[*c * N + i], pj, params[*c], h, &mut x[k][i]);
             }
             assert!(
                 (*ui - expect).max_abs() <= 1e-12 * expect.max_abs().max(1.0),
@@ -285,9 +294,90 @@ fn dgfm_transient_equals_the_sum_of_pairwise_updates() {
 }
 
 #[test]
+fn tensor_columns_are_the_seeds_form_on_the_diagonal_and_rayleigh_for_b_k() {
+    let xi = test_dgfm();
+    let params = column_params();
+    let areas: Vec<f64> = (0..N).map(|j| 1e-4 * (1.0 + j as f64)).collect();
+    let h = TimeStep::new(1e-3).unwrap();
+    let stiffness = |j: usize| xi[j * N + j].inverse().unwrap().scale(areas[j]);
+    // B_j = b_j K_jj: the Rayleigh form on every pair.
+    let rayleigh_b: Vec<TensorColumn<f64>> = (0..N)
+        .map(|j| {
+            TensorColumn::new(
+                stiffness(j),
+                stiffness(j).scale(params[j].b_s()),
+                params[j].ratio(),
+                h,
+            )
+            .unwrap()
+        })
+        .collect();
+    let mut rb = DgfmBuffers::<f64, N, 2>::default();
+    let mut tb = DgfmBuffers::<f64, N, 2>::default();
+    let mut ray = rb
+        .dgfm(RayleighColumns::new(&xi, &params).unwrap())
+        .unwrap();
+    let mut ten = tb
+        .dgfm(TensorColumns::new(&xi, &rayleigh_b).unwrap())
+        .unwrap();
+    let (mut ur, mut ut) = ([Vec3::zero(); N], [Vec3::zero(); N]);
+    for n in 0..300 {
+        if n == 0 {
+            ray.set_traction(4, Vec3::new(0.5, -1.0, 2.0)).unwrap();
+            ten.set_traction(4, Vec3::new(0.5, -1.0, 2.0)).unwrap();
+        }
+        if n == 150 {
+            ray.release_all();
+            ten.release_all();
+        }
+        ray.step(h, &mut ur).unwrap();
+        ten.step(h, &mut ut).unwrap();
+        for i in 0..N {
+            assert!(
+                (ur[i] - ut[i]).max_abs() <= 1e-9 * ur[i].max_abs().max(1e-12),
+                "step {n} vertex {i}: {:?} vs {:?}",
+                ur[i],
+                ut[i]
+            );
+        }
+    }
+    // A general tensor: on the diagonal pair the column is the seed's own
+    // tensor update (Eq. 6, f = α p, K = α Ξ⁻¹).
+    let j = 4;
+    let b = spd_block(3.1).scale(0.02);
+    let general = [TensorColumn::new(stiffness(j), b, params[j].ratio(), h).unwrap(); N];
+    let pair =
+        ThreeElementTensor::from_dgfm_entry(xi[j * N + j], areas[j], params[j].ratio(), b, h)
+            .unwrap();
+    let mut gb = DgfmBuffers::<f64, N, 1>::default();
+    let mut gen = gb.dgfm(TensorColumns::new(&xi, &general).unwrap()).unwrap();
+    let (mut ug, mut x) = ([Vec3::zero(); N], Vec3::zero());
+    let p = Vec3::new(0.2, 0.7, -1.1);
+    gen.set_traction(j, p).unwrap();
+    for n in 0..200 {
+        gen.step(h, &mut ug).unwrap();
+        let want = pair.step_displacement(&mut x, p.scale(areas[j]));
+        assert!(
+            (ug[j] - want).max_abs() <= 1e-9 * want.max_abs(),
+            "step {n}: {:?} vs {want:?}",
+            ug[j]
+        );
+    }
+    // A column precomputed for one step refuses another.
+    assert_eq!(
+        ten.step(TimeStep::new(2e-3).unwrap(), &mut ut),
+        Err(ViscoError::StepMismatch)
+    );
+}
+
+#[test]
 fn released_columns_relax_and_leave_the_active_list() {
     let xi = test_dgfm();
-    let mut model: ViscoDgfm<f64, N, 2> = ViscoDgfm::new(&xi, column_params()).unwrap();
+    let params = column_params();
+    let mut buffers = DgfmBuffers::<f64, N, 2>::default();
+    let mut model = buffers
+        .dgfm(RayleighColumns::new(&xi, &params).unwrap())
+        .unwrap();
     // Traction large enough that displacements are well above 1e-3.
     model.set_traction(5, Vec3::new(0.0, 0.0, 50.0)).unwrap();
     model.set_traction(6, Vec3::new(50.0, 0.0, 0.0)).unwrap();
@@ -306,11 +396,11 @@ fn released_columns_relax_and_leave_the_active_list() {
     let h = TimeStep::new(1e-3).unwrap();
     let mut u = [Vec3::zero(); N];
     for _ in 0..500 {
-        model.step(h, &mut u);
+        model.step(h, &mut u).unwrap();
     }
     assert!(u[5].max_abs() > 1e-3, "loaded displacement {:?}", u[5]);
     model.release_all();
-    model.step(h, &mut u);
+    model.step(h, &mut u).unwrap();
     assert_eq!(
         model.active_count(),
         2,
@@ -318,15 +408,26 @@ fn released_columns_relax_and_leave_the_active_list() {
     );
     let mut steps = 0;
     while model.active_count() > 0 && steps < 100_000 {
-        model.step(h, &mut u);
+        model.step(h, &mut u).unwrap();
         steps += 1;
     }
     assert_eq!(model.active_count(), 0, "never came to rest");
     // At rest means every remaining displacement effect was below 1e-3.
-    model.step(h, &mut u);
+    model.step(h, &mut u).unwrap();
     assert!(u.iter().all(|v| v.is_zero()));
     // A slot is free again.
     model.set_traction(7, Vec3::new(1.0, 0.0, 0.0)).unwrap();
+    // Wrong sizes are errors, not panics.
+    assert_eq!(model.step(h, &mut u[1..]), Err(ViscoError::StorageMismatch));
+    let mut slots = [ColumnSlot::default(); 2];
+    let mut states = vec![Vec3::zero(); 2 * N - 1];
+    assert!(ViscoDgfm::new(
+        RayleighColumns::new(&xi, &params).unwrap(),
+        &mut slots,
+        &mut states
+    )
+    .is_err());
+    assert!(RayleighColumns::new(&xi[1..], &params).is_err());
 }
 
 #[test]

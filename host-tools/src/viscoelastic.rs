@@ -4,7 +4,7 @@
 //! argument handling, file I/O and reports.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use firmware::viscoelastic::TimeStep;
+use host_tools::visco_core::CoreObject;
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
 use plant_models::viscoelastic::error::VeError;
 use plant_models::viscoelastic::estimate::{estimate_all, spread_columns};
@@ -14,6 +14,7 @@ use plant_models::viscoelastic::fit::{
 };
 use plant_models::viscoelastic::io::{data_line_numbers, header, read_columns, read_probe_script};
 use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, Trial, VertexTruth};
+use plant_models::viscoelastic::object::HapticSample;
 use plant_models::viscoelastic::object::{run_script, Contact, ProbeEvent, HAPTIC_PERIOD_S};
 use plant_models::viscoelastic::svg::{false_colour_mesh, fit_plot};
 use plant_models::viscoelastic::{HapticLoop, SurfaceMesh, ViscoObject};
@@ -233,8 +234,11 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
     if let Some(p) = plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
-            "{name}: k1 = {:.4e} N/m, k2 = {:.4e} N/m, b = {:.4e} N s/m ({weighting:?} weighting)",
-            r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m
+            "{name}: k1 = {:.4e} N/m, k2 = {:.4e} N/m, b = {:.4e} N s/m ({} weighting)",
+            r.k1_n_per_m,
+            r.k2_n_per_m,
+            r.b_n_s_per_m,
+            if uniform { "uniform" } else { "seed" }
         );
         write_text(p, &fit_plot(t, f, &fitted, &caption))?;
     }
@@ -255,10 +259,10 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
         println!("k2 = {:.6e} N/m", r.k2_n_per_m);
         println!("b  = {:.6e} N s/m", r.b_n_s_per_m);
         println!(
-            "rms residual = {:.4e} N over {} samples ({:?} weighting, {} evaluations)",
+            "rms residual = {:.4e} N over {} samples ({} weighting, {} evaluations)",
             r.rms_residual_n,
             t.len(),
-            weighting,
+            if uniform { "uniform" } else { "seed" },
             r.evaluations
         );
     }
@@ -404,12 +408,11 @@ fn object(
             ]
         }
     };
-    let h = TimeStep::new(HAPTIC_PERIOD_S).map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let mesh_for_image = dgfm.mesh().clone();
     let fixed_flags = dgfm.fixed().to_vec();
-    let obj = ViscoObject::new(dgfm, params.clone(), h)?;
-    let mut haptic = HapticLoop::new(obj)?;
-    let samples = run_script(&mut haptic, &events, duration_s).map_err(|e| {
+    // The haptic device runs the firmware's real-time update (seed §5);
+    // the plant's exact reference runs the same script beside it.
+    let name_script_error = |e: VeError| {
         // An event of the user's script is named by its file and line.
         match (&e, script, &script_text) {
             (VeError::ProbeEvent { index, error, .. }, Some(p), Some(text)) => {
@@ -420,7 +423,14 @@ fn object(
             }
             _ => anyhow::Error::new(e),
         }
-    })?;
+    };
+    let reference = ViscoObject::new(dgfm.clone(), params.clone(), HAPTIC_PERIOD_S)?;
+    let mut exact = HapticLoop::new(reference)?;
+    let exact_samples = run_script(&mut exact, &events, duration_s).map_err(name_script_error)?;
+    let core = CoreObject::new(dgfm, &params, HAPTIC_PERIOD_S)?;
+    let mut haptic = HapticLoop::new(core)?;
+    let samples = run_script(&mut haptic, &events, duration_s).map_err(name_script_error)?;
+    let difference = CoreDifference::of(&samples, &exact_samples, &haptic.frames, &exact.frames);
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
     let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");
@@ -435,13 +445,18 @@ fn object(
         }
     }
     write_text(&out_dir.join("frames.csv"), &frames)?;
-    let mut hs = String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m\n");
-    for s in &samples {
-        let (f, u) = (s.force_n, s.contact_displacement_m);
+    let mut hs =
+        String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m,exact_ux_m,exact_uy_m,exact_uz_m\n");
+    for (s, e) in samples.iter().zip(&exact_samples) {
+        let (f, u, x) = (
+            s.force_n,
+            s.contact_displacement_m,
+            e.contact_displacement_m,
+        );
         let _ = writeln!(
             hs,
-            "{},{},{},{},{:e},{:e},{:e}",
-            s.time_s, f[0], f[1], f[2], u[0], u[1], u[2]
+            "{},{},{},{},{:e},{:e},{:e},{:e},{:e},{:e}",
+            s.time_s, f[0], f[1], f[2], u[0], u[1], u[2], x[0], x[1], x[2]
         );
     }
     write_text(&out_dir.join("haptic.csv"), &hs)?;
@@ -469,5 +484,54 @@ fn object(
         haptic.frames.len(),
         out_dir.display()
     );
+    println!(
+        "firmware update vs exact reference: contact max |Δu| {:.3e} m ({:.3} % of max |u|), all vertices over the display frames {:.3e} m ({:.3} %)",
+        difference.contact_m,
+        100.0 * difference.contact_rel,
+        difference.frames_m,
+        100.0 * difference.frames_rel
+    );
     Ok(())
+}
+
+/// How far the firmware's real-time update is from the plant's exact
+/// reference over a run.
+struct CoreDifference {
+    contact_m: f64,
+    contact_rel: f64,
+    frames_m: f64,
+    frames_rel: f64,
+}
+
+impl CoreDifference {
+    fn of(
+        core: &[HapticSample],
+        exact: &[HapticSample],
+        core_frames: &[plant_models::viscoelastic::object::DisplayFrame],
+        exact_frames: &[plant_models::viscoelastic::object::DisplayFrame],
+    ) -> Self {
+        let dist = |a: [f64; 3], b: [f64; 3]| {
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        };
+        let norm = |a: [f64; 3]| dist(a, [0.0; 3]);
+        let (mut contact_m, mut contact_max) = (0.0f64, 0.0f64);
+        for (c, e) in core.iter().zip(exact) {
+            contact_m = contact_m.max(dist(c.contact_displacement_m, e.contact_displacement_m));
+            contact_max = contact_max.max(norm(e.contact_displacement_m));
+        }
+        let (mut frames_m, mut frames_max) = (0.0f64, 0.0f64);
+        for (c, e) in core_frames.iter().zip(exact_frames) {
+            for (a, b) in c.displacement_m.iter().zip(&e.displacement_m) {
+                frames_m = frames_m.max(dist(*a, *b));
+                frames_max = frames_max.max(norm(*b));
+            }
+        }
+        let rel = |d: f64, m: f64| if m > 0.0 { d / m } else { 0.0 };
+        CoreDifference {
+            contact_m,
+            contact_rel: rel(contact_m, contact_max),
+            frames_m,
+            frames_rel: rel(frames_m, frames_max),
+        }
+    }
 }

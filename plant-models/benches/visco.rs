@@ -4,18 +4,16 @@
 //! damping; the DGFM computation; and fitting 1,258 trials (the seed's
 //! Table 2 count) in parallel and serially. Inputs are seeded.
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
-use firmware::linalg::{Mat3, Vec3};
-use firmware::viscoelastic::TimeStep;
 use plant_models::viscoelastic::dgfm::Dgfm;
 use plant_models::viscoelastic::fit::{
     fit_trials, fit_trials_serial, NelderMeadOptions, Weighting,
 };
 use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, VertexTruth};
-use plant_models::viscoelastic::{ColumnParams, ViscoObject};
+use plant_models::viscoelastic::{ColumnParams, Mat3, TractionModel, Vec3, ViscoObject};
 use std::hint::black_box;
 
 fn loaded_object(d: &Dgfm, params: ColumnParams, columns: &[usize]) -> ViscoObject {
-    let mut obj = ViscoObject::new(d.clone(), params, TimeStep::new(1e-3).unwrap()).unwrap();
+    let mut obj = ViscoObject::new(d.clone(), params, 1e-3).unwrap();
     for &j in columns {
         obj.set_traction(j, Vec3::new(100.0, -50.0, -2.0e3))
             .unwrap();
@@ -26,7 +24,7 @@ fn loaded_object(d: &Dgfm, params: ColumnParams, columns: &[usize]) -> ViscoObje
 fn object_update(c: &mut Criterion) {
     let d = Dgfm::default_object().unwrap();
     let n = d.len();
-    let h = TimeStep::new(1e-3).unwrap();
+    let h = 1e-3;
     let tri: Vec<usize> = d.mesh().triangles[60]
         .iter()
         .map(|&v| d.index_of(v).unwrap())
@@ -36,7 +34,7 @@ fn object_update(c: &mut Criterion) {
     let tensor = ColumnParams::Tensor {
         ratios: vec![0.29; n],
         damping_n_s_per_m: (0..n)
-            .map(|j| d.stiffness(j, j).unwrap().scale(0.33) + Mat3::diagonal(5.0, 5.0, 5.0))
+            .map(|j| d.stiffness(j, j).unwrap() * 0.33 + Mat3::from_diagonal_element(5.0))
             .collect(),
     };
     let mut g = c.benchmark_group("visco_object_update");
@@ -47,7 +45,7 @@ fn object_update(c: &mut Criterion) {
         ("tensor_all_active", &tensor, &all),
     ] {
         let mut obj = loaded_object(&d, params.clone(), cols);
-        let mut u = vec![Vec3::zero(); n];
+        let mut u = vec![Vec3::zeros(); n];
         g.bench_function(name, |b| {
             b.iter(|| {
                 obj.step(h, &mut u).unwrap();

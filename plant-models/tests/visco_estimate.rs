@@ -3,13 +3,11 @@
 //! uniform on the contact-area artefact (Fig. 8), damping tensor by DSVD,
 //! Rayleigh coefficient (Eq. 13), stiffness ratio, column spreading;
 //! parallel = serial, bit-identical reruns.
-use firmware::linalg::{Mat3, Vec3};
-use firmware::viscoelastic::TimeStep;
 use plant_models::viscoelastic::dgfm::Dgfm;
 use plant_models::viscoelastic::estimate::*;
 use plant_models::viscoelastic::fit::*;
 use plant_models::viscoelastic::measure::*;
-use plant_models::viscoelastic::{ColumnParams, ViscoObject};
+use plant_models::viscoelastic::{ColumnParams, Mat3, TractionModel, Vec3, ViscoObject};
 use std::sync::OnceLock;
 
 fn object_dgfm() -> &'static Dgfm {
@@ -110,7 +108,7 @@ fn damping_tensor_rayleigh_and_stiffness_ratio_recover_the_generating_values() {
     let fits = fit_trials(&trials, Weighting::Seed, NelderMeadOptions::default());
     let est = estimate_all(d, &trials, &fits).unwrap();
     assert_eq!(est.len(), 4, "2 vertices × 2 speeds");
-    let frob = |m: Mat3<f64>| m.0.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
+    let frob = |m: Mat3| m.norm();
     for e in &est {
         let tr = truths.iter().find(|t| t.vertex == e.vertex).unwrap();
         let b_true = tr.damping_tensor_n_s_per_m();
@@ -156,10 +154,10 @@ fn damping_tensor_rayleigh_and_stiffness_ratio_recover_the_generating_values() {
     let mags = params.damping_magnitude_n_s_per_m(d);
     assert!(mags[10] > 0.0 && mags[11] == 0.0);
     // The spread parameters drive the object.
-    let mut obj = ViscoObject::new(d.clone(), params, TimeStep::new(1e-3).unwrap()).unwrap();
+    let mut obj = ViscoObject::new(d.clone(), params, 1e-3).unwrap();
     obj.set_traction(10, Vec3::new(0.0, 0.0, -1e3)).unwrap();
-    let mut u = vec![Vec3::zero(); d.len()];
-    obj.step(TimeStep::new(1e-3).unwrap(), &mut u).unwrap();
+    let mut u = vec![Vec3::zeros(); d.len()];
+    obj.step(1e-3, &mut u).unwrap();
     assert!(u[10].norm() > 0.0);
     let tensor = spread_columns(d.len(), &fast, 1.0, true).unwrap();
     assert!(matches!(tensor, ColumnParams::Tensor { .. }));
@@ -169,15 +167,15 @@ fn damping_tensor_rayleigh_and_stiffness_ratio_recover_the_generating_values() {
 fn dsvd_damping_tensor_solves_exact_data_and_abandons_singular_vertices() {
     // A general (non-Rayleigh, non-symmetric) tensor and directions within
     // 30° of a normal, as the probe uses.
-    let b_true = Mat3([[40.0, 5.0, -3.0], [2.0, 25.0, 4.0], [-1.0, 6.0, 60.0]]);
+    let b_true = Mat3::new(40.0, 5.0, -3.0, 2.0, 25.0, 4.0, -1.0, 6.0, 60.0);
     let protocol = ProbeProtocol::default();
     let dirs = protocol.directions([0.3, -0.2, 0.9]);
     let mut fdirs = Vec::new();
     let mut b_n = Vec::new();
     for d in &dirs {
-        let q = b_true.mul_vec(Vec3(*d));
+        let q = b_true * Vec3::from(*d);
         b_n.push(q.norm());
-        fdirs.push(q.scale(1.0 / q.norm()).0);
+        fdirs.push(q.normalize().into());
     }
     let b = damping_tensor(&dirs, &fdirs, &b_n, DSVD_DAMPING_REL)
         .unwrap()
@@ -185,10 +183,10 @@ fn dsvd_damping_tensor_solves_exact_data_and_abandons_singular_vertices() {
     for r in 0..3 {
         for c in 0..3 {
             assert!(
-                (b.0[r][c] - b_true.0[r][c]).abs() < 1e-3 * 60.0,
+                (b[(r, c)] - b_true[(r, c)]).abs() < 1e-3 * 60.0,
                 "entry ({r},{c}): {} vs {}",
-                b.0[r][c],
-                b_true.0[r][c]
+                b[(r, c)],
+                b_true[(r, c)]
             );
         }
     }
@@ -206,14 +204,12 @@ fn dsvd_damping_tensor_solves_exact_data_and_abandons_singular_vertices() {
     let bt = damping_tensor(&flat, &fdirs, &b_n, DSVD_DAMPING_REL)
         .unwrap()
         .unwrap();
-    assert!(bt.is_finite());
+    assert!(bt.iter().all(|v| v.is_finite()));
     // Rayleigh Eq. 13 (least-squares form) recovers b from B = b K exactly.
-    let k = Mat3([
-        [1300.0, -20.0, 50.0],
-        [-20.0, 1000.0, -110.0],
-        [50.0, -110.0, 1800.0],
-    ]);
-    assert!((rayleigh_coefficient(&k, &k.scale(0.27)) - 0.27).abs() < 1e-12);
+    let k = Mat3::new(
+        1300.0, -20.0, 50.0, -20.0, 1000.0, -110.0, 50.0, -110.0, 1800.0,
+    );
+    assert!((rayleigh_coefficient(&k, &(k * 0.27)) - 0.27).abs() < 1e-12);
 }
 
 #[test]

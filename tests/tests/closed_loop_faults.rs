@@ -148,7 +148,11 @@ fn an_open_coil_cannot_pull_and_a_failing_channel_is_a_driver_fault() {
     // stop it), which is why the fault latches and is reported.
     for x in &s {
         for (c, v) in x.coil_volts.iter().enumerate() {
-            assert!(c == 1 || *v == 0.0, "coil {} at {v} V after the failure", c + 1);
+            assert!(
+                c == 1 || *v == 0.0,
+                "coil {} at {v} V after the failure",
+                c + 1
+            );
         }
     }
     let now = cl.controller.next_instant();

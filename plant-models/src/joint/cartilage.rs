@@ -1,11 +1,12 @@
 //! The cartilage: an off-the-shelf sponge (paper: 10 mm thick, Young's
 //! modulus about 20 kPa) glued between the socket and the link base,
 //! modelled as `N` columns spread evenly across the base width. Each column
-//! carries two 3-element viscoelastic models (seed 002 Eq. 3, through
-//! [`firmware::viscoelastic::ThreeElement`]): one normal (compression /
-//! tension, glued) and one tangential (shear). A column's displacement is
-//! the motion of its glued point on the link base from where it was at rest,
-//! in the socket frame.
+//! carries two 3-element viscoelastic models (seed 002 Eq. 3, the plant's
+//! exact [`Element`]): one normal (compression / tension, glued) and one
+//! tangential (shear). A column's displacement is the motion of its glued
+//! point on the link base from where it was at rest, in the socket frame;
+//! over a substep it is taken as moving linearly, and the dashpot's state is
+//! advanced exactly for that motion.
 //!
 //! Because every column pushes back on its own point, a coil pulling one
 //! side down compresses that side more: the link tilts about a point inside
@@ -22,8 +23,9 @@
 //! no bending of the sponge as a plate), large-strain stiffening of the foam
 //! and contact/lift-off (the sponge is glued, as in the paper).
 
-use firmware::viscoelastic::{ThreeElement, TimeStep};
 use serde::{Deserialize, Serialize};
+
+use crate::viscoelastic::three_element::{Element, ExactStep, StepLength};
 
 use super::{check_positive, PlantError};
 
@@ -98,58 +100,24 @@ impl CartilageParams {
     }
 }
 
-/// The shear and normal 3-element models' updates for a fixed step `h`,
-/// precomputed (index 0 shear, 1 normal). [`ThreeElement::step_force`] is
-/// `x' = (k2 u + (b/h) x)/(k1 + k2 + b/h)`, `f = k2 (u − x')`, and `b/h`
-/// and the denominator only change with `h`. Computed with the same
-/// operations in the same order, so the result is bit-identical to
-/// `step_force`, with one division per model and step instead of two; the
-/// pair layout lets both models of a column share one SIMD division.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct FixedStep {
-    k2: [f64; 2],
-    b_over_h: [f64; 2],
-    denominator: [f64; 2],
-}
-
-impl FixedStep {
-    fn new(models: [&ThreeElement<f64>; 2], h: TimeStep<f64>) -> Self {
-        let b_over_h = models.map(|e| e.b() / h.seconds());
-        Self {
-            k2: models.map(ThreeElement::k2),
-            b_over_h,
-            denominator: [0, 1].map(|i| models[i].k1() + models[i].k2() + b_over_h[i]),
-        }
-    }
-
-    /// The force of each model for displacements `u`, advancing the states
-    /// `x` (as `ThreeElement::step_force` for the step this was built for).
-    #[inline(always)]
-    fn step_force(&self, x: &mut [f64; 2], u: [f64; 2]) -> [f64; 2] {
-        let mut f = [0.0; 2];
-        for i in 0..2 {
-            x[i] = (self.k2[i] * u[i] + self.b_over_h[i] * x[i]) / self.denominator[i];
-            f[i] = self.k2[i] * (u[i] - x[i]);
-        }
-        f
-    }
-}
-
 /// The sponge's state: its columns. Every column has the same normal and
 /// shear models (equal widths), so they are stored once; the columns keep
-/// only their position and their two dashpot states.
+/// only their position, their two dashpot states and where they were at
+/// the end of the last substep.
 #[derive(Clone, Debug)]
 pub struct Cartilage {
     params: CartilageParams,
-    shear: ThreeElement<f64>,
-    normal: ThreeElement<f64>,
+    /// [shear, normal].
+    models: [Element; 2],
     /// Lateral position of each column on the link base (m), link frame.
     s_m: Vec<f64>,
     /// Dashpot displacement of each column, [shear, normal] (m).
     x: Vec<[f64; 2]>,
-    /// Step `fixed` is for (s; 0 = none yet).
-    cached_h_s: f64,
-    fixed: FixedStep,
+    /// Column displacement at the end of the last substep, [shear, normal]
+    /// (m): the start of the next substep's linear motion.
+    u: Vec<[f64; 2]>,
+    /// The exact steps ([shear, normal]) for the last step length.
+    steps: Option<(StepLength, [ExactStep; 2])>,
 }
 
 /// Force (N) and clockwise torque about the link-base origin (N·m) on the
@@ -173,19 +141,18 @@ impl Cartilage {
         let kn = params.youngs_modulus_pa * area / params.thickness_m;
         let kt = kn * params.shear_fraction;
         let mk = |k: f64| {
-            ThreeElement::from_ratio(k, params.stiffness_ratio, params.rayleigh_damping_s)
-                .map_err(|e| PlantError::param("cartilage", &format!("{e:?}")))
+            Element::from_ratio(k, params.stiffness_ratio, params.rayleigh_damping_s)
+                .map_err(|e| PlantError::param("cartilage", &e.to_string()))
         };
         let s_m = (0..n)
             .map(|i| -0.5 * params.width_m + (i as f64 + 0.5) * params.width_m / n as f64)
             .collect();
         Ok(Self {
-            normal: mk(kn)?,
-            shear: mk(kt)?,
+            models: [mk(kt)?, mk(kn)?],
             s_m,
             x: vec![[0.0; 2]; n],
-            cached_h_s: 0.0,
-            fixed: FixedStep::default(),
+            u: vec![[0.0; 2]; n],
+            steps: None,
             params,
         })
     }
@@ -195,25 +162,31 @@ impl Cartilage {
         &self.params
     }
 
-    /// Advances every column by `h` with the link base at (`x`, `y`) m and
-    /// angle `theta` (clockwise positive) and returns the sponge's wrench on
-    /// the link. The columns' dashpots are integrated implicitly (seed 002
-    /// Eq. 7–8), so this part is unconditionally stable.
+    /// Advances every column by `h` with the link base moving to (`x`,
+    /// `y`) m and angle `theta` (clockwise positive), and returns the
+    /// sponge's wrench on the link. The columns' dashpots are integrated
+    /// exactly for motion linear over the substep, so this part is
+    /// unconditionally stable.
     #[inline]
-    pub fn step(&mut self, h: TimeStep<f64>, x: f64, y: f64, sin_t: f64, cos_t: f64) -> Wrench {
-        if h.seconds() != self.cached_h_s {
-            self.cached_h_s = h.seconds();
-            self.fixed = FixedStep::new([&self.shear, &self.normal], h);
-        }
-        let fixed = self.fixed;
+    pub fn step(&mut self, h: StepLength, x: f64, y: f64, sin_t: f64, cos_t: f64) -> Wrench {
+        let steps = match self.steps {
+            Some((cached, steps)) if cached == h => steps,
+            _ => {
+                let steps = self.models.map(|m| m.relaxation_step(h));
+                self.steps = Some((h, steps));
+                steps
+            }
+        };
+        let [shear, normal] = steps;
         let mut w = Wrench::default();
-        for (&s_m, state) in self.s_m.iter().zip(&mut self.x) {
+        for ((&s_m, state), start) in self.s_m.iter().zip(&mut self.x).zip(&mut self.u) {
             // Glued point (s, 0) in the link frame → world offset r from p.
             let rx = s_m * cos_t;
             let ry = -s_m * sin_t;
-            let ux = x + rx - s_m;
-            let uy = y + ry;
-            let [ft, fnn] = fixed.step_force(state, [ux, uy]).map(|f| -f);
+            let end = [x + rx - s_m, y + ry];
+            let ft = -shear.force(&mut state[0], start[0], end[0]);
+            let fnn = -normal.force(&mut state[1], start[1], end[1]);
+            *start = end;
             w.fx_n += ft;
             w.fy_n += fnn;
             w.torque_cw_nm += ry * ft - rx * fnn;
@@ -221,9 +194,10 @@ impl Cartilage {
         w
     }
 
-    /// Resets the viscous states (unloaded sponge).
+    /// Resets the viscous states (unloaded sponge at its glued rest).
     pub fn reset(&mut self) {
         self.x.fill([0.0; 2]);
+        self.u.fill([0.0; 2]);
     }
 }
 
@@ -235,7 +209,7 @@ mod tests {
     fn static_stiffness_matches_continuum() {
         let p = CartilageParams::default();
         let mut c = Cartilage::new(p.clone()).unwrap();
-        let h = TimeStep::new(1e-3).unwrap();
+        let h = StepLength::new(1e-3).unwrap();
         // Hold a sink of 0.1 mm for long enough to relax: F = E A u / t.
         let mut w = Wrench::default();
         for _ in 0..20_000 {
@@ -265,20 +239,21 @@ mod tests {
     }
 
     #[test]
-    fn precomputed_update_is_bit_identical_to_step_force() {
-        use firmware::viscoelastic::ThreeElementState;
+    fn cached_steps_follow_step_changes() {
+        // The columns against an independent loop over the same elements
+        // with the exact step built afresh every time.
         let p = CartilageParams::default();
         let mut c = Cartilage::new(p.clone()).unwrap();
         let n = p.columns;
         let area = p.width_m / n as f64 * p.depth_m;
         let kn = p.youngs_modulus_pa * area / p.thickness_m;
-        let mk = |k: f64| ThreeElement::from_ratio(k, p.stiffness_ratio, p.rayleigh_damping_s);
+        let mk = |k: f64| Element::from_ratio(k, p.stiffness_ratio, p.rayleigh_damping_s);
         let (normal, shear) = (mk(kn).unwrap(), mk(kn * p.shear_fraction).unwrap());
-        let mut xn = vec![ThreeElementState::default(); n];
-        let mut xt = vec![ThreeElementState::default(); n];
+        let (mut xn, mut xt) = (vec![0.0; n], vec![0.0; n]);
+        let (mut un, mut ut) = (vec![0.0; n], vec![0.0; n]);
         for k in 0..500 {
             // The step changes now and then (the cache must follow it).
-            let h = TimeStep::new(if k % 100 < 50 { 1e-3 } else { 0.25e-3 }).unwrap();
+            let h = StepLength::new(if k % 100 < 50 { 1e-3 } else { 0.25e-3 }).unwrap();
             let t = k as f64 * 1e-3;
             let (x, y, th) = (1e-4 * t.sin(), -2e-4 * t, 0.2 * (3.0 * t).sin());
             let (sn, cs) = th.sin_cos();
@@ -287,8 +262,10 @@ mod tests {
             for i in 0..n {
                 let s_m = c.s_m[i];
                 let (rx, ry) = (s_m * cs, -s_m * sn);
-                let ft = -shear.step_force(&mut xt[i], x + rx - s_m, h);
-                let fnn = -normal.step_force(&mut xn[i], y + ry, h);
+                let (end_t, end_n) = (x + rx - s_m, y + ry);
+                let ft = -shear.relaxation_step(h).force(&mut xt[i], ut[i], end_t);
+                let fnn = -normal.relaxation_step(h).force(&mut xn[i], un[i], end_n);
+                (ut[i], un[i]) = (end_t, end_n);
                 want.fx_n += ft;
                 want.fy_n += fnn;
                 want.torque_cw_nm += ry * ft - rx * fnn;
@@ -301,7 +278,7 @@ mod tests {
     fn instantaneous_response_is_stiffer_by_one_plus_r() {
         let p = CartilageParams::default();
         let mut c = Cartilage::new(p.clone()).unwrap();
-        let h = TimeStep::new(1e-6).unwrap();
+        let h = StepLength::new(1e-6).unwrap();
         let w = c.step(h, 0.0, -1e-4, 0.0, 1.0);
         let relaxed = p.youngs_modulus_pa * p.width_m * p.depth_m / p.thickness_m * 1e-4;
         let ratio = w.fy_n / relaxed;

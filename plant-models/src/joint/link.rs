@@ -23,7 +23,7 @@
 //! only), friction between link and socket walls, contact with the socket
 //! rim (range of motion is limited by the coils alone).
 
-use firmware::viscoelastic::TimeStep;
+use crate::viscoelastic::three_element::StepLength;
 use serde::{Deserialize, Serialize};
 
 use super::cartilage::{Cartilage, CartilageParams};
@@ -401,7 +401,7 @@ impl PlanarJoint {
     /// One substep of `h`: coil heating from the two driver inputs (V), then
     /// forces at the present pose, then semi-implicit Euler.
     #[inline]
-    pub fn substep(&mut self, h: TimeStep<f64>, inputs_v: [f64; 2]) {
+    pub fn substep(&mut self, h: StepLength, inputs_v: [f64; 2]) {
         let dt = h.seconds();
         for (coil, v) in self.coils.iter_mut().zip(inputs_v) {
             let i = self.params.driver.current_a(v, coil.resistance_ohm());

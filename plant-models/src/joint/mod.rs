@@ -24,8 +24,9 @@
 //!
 //! **Integration.** Fixed substeps (default 1 ms; `step(dt)` splits `dt`
 //! into `ceil(dt/substep)` equal parts). Coil temperature: exact exponential
-//! over the substep (unconditionally stable). Sponge columns: the seed's
-//! implicit update of the dashpot state (unconditionally stable). Link:
+//! over the substep (unconditionally stable). Sponge columns: the exact
+//! solution of the 3-element model for motion linear over the substep
+//! (unconditionally stable). Link:
 //! semi-implicit (symplectic) Euler — velocities from the forces at the
 //! present pose, then positions — stable for `h·ω_max < 2` and free of
 //! artificial damping, so the rigid bearing's ringing is not an artefact.
@@ -62,7 +63,7 @@ pub mod link;
 pub mod sma;
 pub mod wire_sensor;
 
-use firmware::viscoelastic::TimeStep;
+use crate::viscoelastic::three_element::StepLength;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
@@ -218,12 +219,12 @@ impl SimParams {
         check_positive("sim.max_kinetic_energy_j", self.max_kinetic_energy_j)
     }
 
-    fn split(&self, dt_s: f64) -> Result<(usize, TimeStep<f64>), PlantError> {
+    fn split(&self, dt_s: f64) -> Result<(usize, StepLength), PlantError> {
         if !(dt_s.is_finite() && dt_s > 0.0) {
             return Err(PlantError::BadStep { dt_s });
         }
         let n = ((dt_s / self.substep_s) - 1e-9).ceil().max(1.0) as usize;
-        let h = TimeStep::new(dt_s / n as f64).map_err(|_| PlantError::BadStep { dt_s })?;
+        let h = StepLength::new(dt_s / n as f64).map_err(|_| PlantError::BadStep { dt_s })?;
         Ok((n, h))
     }
 }
@@ -234,12 +235,12 @@ impl SimParams {
 #[derive(Clone, Copy, Debug, Default)]
 struct SplitCache {
     dt_s: f64,
-    split: Option<(usize, TimeStep<f64>)>,
+    split: Option<(usize, StepLength)>,
 }
 
 impl SplitCache {
     #[inline]
-    fn get(&mut self, sim: &SimParams, dt_s: f64) -> Result<(usize, TimeStep<f64>), PlantError> {
+    fn get(&mut self, sim: &SimParams, dt_s: f64) -> Result<(usize, StepLength), PlantError> {
         match self.split {
             Some(hit) if self.dt_s == dt_s => Ok(hit),
             _ => {

@@ -1,7 +1,6 @@
 //! The one error type of the viscoelastic module. Every variant names what
 //! was wrong (the parameter, or the file and line of the input) so that a
 //! user can fix it; nothing on these paths panics on bad input.
-use firmware::viscoelastic::ViscoError;
 use thiserror::Error;
 
 /// Why a viscoelastic-object operation refused its input.
@@ -45,9 +44,6 @@ pub enum VeError {
         /// Number of mesh vertices.
         n: usize,
     },
-    /// The portable core refused a parameter or a step.
-    #[error("{1}: {0}")]
-    Core(ViscoError, &'static str),
     /// A fit was given fewer samples than it has parameters, so the data
     /// cannot determine them.
     #[error("the {needed} parameters ({parameters}) need at least {needed} samples to be determined, got {got}")]
@@ -70,6 +66,17 @@ pub enum VeError {
         /// Its time (s).
         time_s: f64,
         /// Why it could not be applied.
+        error: Box<VeError>,
+    },
+    /// The parameters of one DGFM column cannot be used. `error` is shown in
+    /// this message and not also returned as the source.
+    #[error("column {column} (mesh vertex {vertex}): {error}")]
+    Column {
+        /// DGFM column.
+        column: usize,
+        /// Its mesh vertex.
+        vertex: usize,
+        /// Why.
         error: Box<VeError>,
     },
     /// Two series that must line up do not.

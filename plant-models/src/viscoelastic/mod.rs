@@ -1,9 +1,16 @@
 //! Measurement-based viscoelastic solids (seed 002, SPEC §3): a DGFM
 //! object computed from a tetrahedral FEM, its 3-element viscoelastic
-//! evaluation (reusing the portable core's update), a haptic/display
-//! driver, a probe-measurement simulator and the parameter estimation of
-//! §4 (per-trial Nelder–Mead fits, damping tensor, Rayleigh coefficient,
-//! stiffness ratio, column spreading).
+//! evaluation, a haptic/display driver, a probe-measurement simulator and
+//! the parameter estimation of §4 (per-trial Nelder–Mead fits, damping
+//! tensor, Rayleigh coefficient, stiffness ratio, column spreading).
+//!
+//! - [`model`]: the object — surface mesh, FEM, DGFM, the 3-element model
+//!   integrated exactly ([`three_element`]) and the object's evaluation and
+//!   haptic loop ([`object`]). This is the plant: it shares no code with the
+//!   firmware's real-time update, which is tested against it.
+//! - [`identify`]: measuring it (the probe simulator that generates ground
+//!   truth, [`measure`]) and identifying its parameters from measurements
+//!   ([`fit`], [`estimate`]).
 //!
 //! What is modelled: linear small-strain elasticity of a closed, star-
 //! shaped object resting on a support (Λu); the seed's 3-element model per
@@ -17,18 +24,22 @@
 //!
 //! Units: metres, newtons, pascals, seconds; names carry them.
 
-pub mod dgfm;
 pub mod error;
-pub mod estimate;
-pub mod fem;
-pub mod fit;
+pub mod identify;
 pub mod io;
-pub mod measure;
-pub mod mesh;
-pub mod object;
+pub mod model;
 pub mod svg;
+
+pub use identify::{estimate, fit, measure};
+pub use model::{dgfm, fem, mesh, object, three_element};
 
 pub use dgfm::Dgfm;
 pub use error::{Result, VeError};
 pub use mesh::SurfaceMesh;
-pub use object::{ColumnParams, Contact, HapticLoop, ViscoObject};
+pub use object::{ColumnParams, Contact, HapticLoop, TractionModel, ViscoObject};
+pub use three_element::{Element, RayleighColumn, TensorPair};
+
+/// A 3-vector (force, traction, displacement at one vertex).
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// A 3×3 tensor (a DGFM block, a stiffness or damping tensor).
+pub type Mat3 = nalgebra::Matrix3<f64>;

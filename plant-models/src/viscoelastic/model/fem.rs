@@ -20,8 +20,8 @@
 //!
 //! Left out: large deformation (the seed, too, is linear small-strain),
 //! inertia (quasi-static, as the DGFM), contact between parts of the object.
-use super::error::{check_positive, Result, VeError};
 use super::mesh::{cross, dot, sub, SurfaceMesh};
+use crate::viscoelastic::error::{check_positive, Result, VeError};
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
 use std::collections::VecDeque;

@@ -3,9 +3,12 @@
 //!
 //! Each trial pushes a vertex at constant velocity along a direction û to a
 //! depth, then holds. The object's response at the probed vertex is the
-//! 3-element *tensor* model of its self-pair (seed Eq. 7–8, via the core's
-//! [`ThreeElementTensor`]) with `K1 = (1+r)/r K`, `K2 = (1+r) K`,
-//! `B = b K` (Eq. 9–11; `K = K_ii = α_i Ξ_ii⁻¹` from the DGFM). The
+//! 3-element *tensor* model of its self-pair (seed Eq. 7–8) with
+//! `K1 = (1+r)/r K`, `K2 = (1+r) K`, `B = b K` (Eq. 9–11;
+//! `K = K_ii = α_i Ξ_ii⁻¹` from the DGFM), integrated exactly by the plant's
+//! own 3-element code ([`Element`]): with `B = b K` the tensor equation
+//! `B ẋ = K2 (u − x) − K1 x` is `b ẋ = (1+r) u − (1+r + (1+r)/r) x` on every
+//! axis, and the force is `K (1+r)(u − x)`. The
 //! force sensor reports the magnitude of the force, scaled by the growing
 //! contact area at the start of loading (the reason for the seed's
 //! weighting, §4.1 and Fig. 8), plus Gaussian noise; the force direction f̂
@@ -18,10 +21,10 @@
 //! Left out: friction and slip of the probe, probe compliance, the
 //! neighbouring vertices' contribution to the measured force, the stereo
 //! displacement measurements used for the static DGFM.
-use super::dgfm::Dgfm;
-use super::error::{check_non_negative, check_positive, Result, VeError};
-use firmware::linalg::{Mat3, Vec3};
-use firmware::viscoelastic::{ThreeElementTensor, TimeStep};
+use crate::viscoelastic::dgfm::Dgfm;
+use crate::viscoelastic::error::{check_non_negative, check_positive, Result, VeError};
+use crate::viscoelastic::three_element::{Element, StepLength};
+use crate::viscoelastic::{Mat3, Vec3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -33,7 +36,7 @@ pub struct VertexTruth {
     /// DGFM index of the vertex.
     pub vertex: usize,
     /// Stiffness tensor K_ii (N/m).
-    pub stiffness_n_per_m: Mat3<f64>,
+    pub stiffness_n_per_m: Mat3,
     /// Stiffness ratio r = k2/k1.
     pub ratio: f64,
     /// Rayleigh coefficient b (s): B = b K.
@@ -64,14 +67,14 @@ impl VertexTruth {
     }
 
     /// Damping tensor B = b K (N·s/m, Eq. 11).
-    pub fn damping_tensor_n_s_per_m(&self) -> Mat3<f64> {
-        self.stiffness_n_per_m.scale(self.rayleigh_b_s)
+    pub fn damping_tensor_n_s_per_m(&self) -> Mat3 {
+        self.stiffness_n_per_m * self.rayleigh_b_s
     }
 
     /// The 1D 3-element scalars (k1 N/m, k2 N/m, b N·s/m) of a trial along
     /// unit direction `dir`: `(k1, k2, b)·|K û|`.
     pub fn trial_scalars(&self, dir: [f64; 3]) -> (f64, f64, f64) {
-        let g = self.stiffness_n_per_m.mul_vec(Vec3(dir)).norm();
+        let g = (self.stiffness_n_per_m * Vec3::from(dir)).norm();
         let (k1, k2) = self.multipliers();
         (k1 * g, k2 * g, self.rayleigh_b_s * g)
     }
@@ -144,23 +147,21 @@ impl ProbeProtocol {
     /// Unit probe directions at a vertex with outward normal `n`: −n and
     /// `tilted_directions` directions tilted by `tilt_rad` around it.
     pub fn directions(&self, outward_normal: [f64; 3]) -> Vec<[f64; 3]> {
-        let n = Vec3(outward_normal).scale(-1.0 / Vec3(outward_normal).norm());
+        let n = -Vec3::from(outward_normal).normalize();
         // Any unit vector orthogonal to n, then the third axis.
-        let helper = if n.0[0].abs() < 0.9 {
+        let helper = if n[0].abs() < 0.9 {
             Vec3::new(1.0, 0.0, 0.0)
         } else {
             Vec3::new(0.0, 1.0, 0.0)
         };
-        let cross = |a: Vec3<f64>, b: Vec3<f64>| Vec3(super::mesh::cross(a.0, b.0));
-        let e1 = cross(n, helper);
-        let e1 = e1.scale(1.0 / e1.norm());
-        let e2 = cross(n, e1);
-        let mut dirs = vec![n.0];
+        let e1 = n.cross(&helper).normalize();
+        let e2 = n.cross(&e1);
+        let mut dirs = vec![n.into()];
         for k in 0..self.tilted_directions {
             let phi = 2.0 * std::f64::consts::PI * k as f64 / self.tilted_directions as f64;
-            let d = n.scale(self.tilt_rad.cos())
-                + (e1.scale(phi.cos()) + e2.scale(phi.sin())).scale(self.tilt_rad.sin());
-            dirs.push(d.0);
+            let d =
+                n * self.tilt_rad.cos() + (e1 * phi.cos() + e2 * phi.sin()) * self.tilt_rad.sin();
+            dirs.push(d.into());
         }
         dirs
     }
@@ -195,35 +196,34 @@ pub fn simulate_trial(
 ) -> Result<Trial> {
     protocol.validate()?;
     check_positive("speed_m_per_s", speed_m_per_s)?;
-    let h =
-        TimeStep::new(protocol.sample_period_s).map_err(|e| VeError::Core(e, "sample period"))?;
     let (k1, k2) = truth.multipliers();
     let k = truth.stiffness_n_per_m;
-    let model = ThreeElementTensor::new(
-        k.scale(k1),
-        k.scale(k2),
-        truth.damping_tensor_n_s_per_m(),
-        h,
-    )
-    .map_err(|e| VeError::Core(e, "probe trial tensors"))?;
+    // The self-pair on every axis (module docs): multipliers of K.
+    let step = Element::new(k1, k2, truth.rayleigh_b_s)?
+        .relaxation_step(StepLength::new(protocol.sample_period_s)?);
     let ramp_s = protocol.depth_m / speed_m_per_s;
     let samples = ((ramp_s + protocol.hold_s) / protocol.sample_period_s).round() as usize + 1;
-    let u_hat = Vec3(dir).scale(1.0 / Vec3(dir).norm());
-    let mut x = Vec3::zero();
+    let u_hat = Vec3::from(dir).normalize();
+    let mut x = Vec3::zeros();
+    let mut u_prev = Vec3::zeros();
     let mut time_s = Vec::with_capacity(samples);
     let mut displacement_m = Vec::with_capacity(samples);
     let mut force = Vec::with_capacity(samples);
-    let mut hold_sum = Vec3::zero();
+    let mut hold_sum = Vec3::zeros();
     for s in 0..samples {
         let t = s as f64 * protocol.sample_period_s;
         let u = (speed_m_per_s * t).min(protocol.depth_m);
+        let u_vec = u_hat * u;
+        // The probe moves linearly between samples: exact for the ramp and
+        // the hold.
         let f = if s == 0 {
-            Vec3::zero()
+            Vec3::zeros()
         } else {
-            model.step_force(&mut x, u_hat.scale(u))
+            k * step.force(&mut x, u_prev, u_vec)
         };
+        u_prev = u_vec;
         if t > ramp_s {
-            hold_sum = hold_sum + f;
+            hold_sum += f;
         }
         let contact = if protocol.contact_growth_fraction > 0.0 {
             (u / (protocol.contact_growth_fraction * protocol.depth_m)).min(1.0)
@@ -246,18 +246,18 @@ pub fn simulate_trial(
         }
     }
     let hold_dir = if hold_sum.norm() > 0.0 {
-        hold_sum.scale(1.0 / hold_sum.norm())
+        hold_sum.normalize()
     } else {
         u_hat
     };
     Ok(Trial {
         vertex: truth.vertex,
-        direction: u_hat.0,
+        direction: u_hat.into(),
         speed_m_per_s,
         time_s,
         displacement_m,
         force_n: force,
-        force_direction: hold_dir.0,
+        force_direction: hold_dir.into(),
     })
 }
 

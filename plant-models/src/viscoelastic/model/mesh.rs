@@ -8,7 +8,7 @@
 //!
 //! Left out: texture/normal data in OBJ files (ignored), non-manifold or
 //! open meshes (rejected), meshes with holes.
-use super::error::{Result, VeError};
+use crate::viscoelastic::error::{Result, VeError};
 use std::collections::HashMap;
 use std::fmt::Write as _;
 

@@ -12,13 +12,12 @@
 //!
 //! Left out: combining speeds (the seed fits them separately; so do we:
 //! estimate per (vertex, speed) and choose which to spread).
-use super::error::{Result, VeError};
-use super::fit::TrialFit;
-use super::measure::Trial;
-use super::object::ColumnParams;
-use firmware::linalg::{Mat3, Vec3};
-use firmware::viscoelastic::RayleighParams;
-use nalgebra::Matrix3;
+use crate::viscoelastic::error::{Result, VeError};
+use crate::viscoelastic::fit::TrialFit;
+use crate::viscoelastic::measure::Trial;
+use crate::viscoelastic::object::ColumnParams;
+use crate::viscoelastic::three_element::RayleighColumn;
+use crate::viscoelastic::{Mat3, Vec3};
 
 /// Damping of the DSVD filter, relative to the largest singular value of
 /// P Pᵀ (estimate: small enough to leave a well-conditioned system within
@@ -31,14 +30,6 @@ pub const SINGULAR_RATIO: f64 = 1.0e-10;
 /// arbitrary ratio). Estimate: far below any stiffness of the object.
 pub const K1_ZERO_N_PER_M: f64 = 1.0e-9;
 
-fn from_na(m: &Matrix3<f64>) -> Mat3<f64> {
-    Mat3([
-        [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-        [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-        [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-    ])
-}
-
 /// Damping tensor B minimising `Σ |B û_n − b_n f̂_n|²` (seed §4.1) with the
 /// DSVD filter `σ/(σ² + λ²)`, `λ = damping_rel · σ_max`. `None` when P Pᵀ
 /// is singular (fewer than three independent directions).
@@ -47,7 +38,7 @@ pub fn damping_tensor(
     force_directions: &[[f64; 3]],
     b_n_s_per_m: &[f64],
     damping_rel: f64,
-) -> Result<Option<Mat3<f64>>> {
+) -> Result<Option<Mat3>> {
     let n = directions.len();
     if force_directions.len() != n || b_n_s_per_m.len() != n {
         return Err(VeError::LengthMismatch {
@@ -56,11 +47,11 @@ pub fn damping_tensor(
             expected: n,
         });
     }
-    let mut ppt = Matrix3::<f64>::zeros();
-    let mut qpt = Matrix3::<f64>::zeros();
+    let mut ppt = Mat3::zeros();
+    let mut qpt = Mat3::zeros();
     for k in 0..n {
-        let u = nalgebra::Vector3::from(directions[k]);
-        let q = nalgebra::Vector3::from(force_directions[k]) * b_n_s_per_m[k];
+        let u = Vec3::from(directions[k]);
+        let q = Vec3::from(force_directions[k]) * b_n_s_per_m[k];
         ppt += u * u.transpose();
         qpt += q * u.transpose();
     }
@@ -74,22 +65,17 @@ pub fn damping_tensor(
         return Ok(None);
     }
     let lambda = damping_rel * smax;
-    let filt = Matrix3::from_diagonal(&s.map(|x| x / (x * x + lambda * lambda)));
+    let filt = Mat3::from_diagonal(&s.map(|x| x / (x * x + lambda * lambda)));
     let pinv = vt.transpose() * filt * u.transpose();
     // Rows: B_i = (Q Pᵀ)_i (P Pᵀ)⁻¹, i.e. B = Q Pᵀ (P Pᵀ)⁻¹ (P Pᵀ symmetric).
-    Ok(Some(from_na(&(qpt * pinv))))
+    Ok(Some(qpt * pinv))
 }
 
 /// Least-squares scalar `b` minimising `Σ (b K_ij − B_ij)²` (Eq. 13, see
 /// the module note on its denominator).
-pub fn rayleigh_coefficient(stiffness: &Mat3<f64>, damping: &Mat3<f64>) -> f64 {
-    let (mut kb, mut kk) = (0.0, 0.0);
-    for r in 0..3 {
-        for c in 0..3 {
-            kb += stiffness.0[r][c] * damping.0[r][c];
-            kk += stiffness.0[r][c] * stiffness.0[r][c];
-        }
-    }
+pub fn rayleigh_coefficient(stiffness: &Mat3, damping: &Mat3) -> f64 {
+    let kb = stiffness.component_mul(damping).sum();
+    let kk = stiffness.norm_squared();
     if kk > 0.0 {
         kb / kk
     } else {
@@ -100,17 +86,17 @@ pub fn rayleigh_coefficient(stiffness: &Mat3<f64>, damping: &Mat3<f64>) -> f64 {
 /// Least-squares multiplier `k_l` minimising `Σ |k_l K û_n − k_l,n f̂_n|²`
 /// (seed §4.1, solved like Eq. 13).
 pub fn stiffness_multiplier(
-    stiffness: &Mat3<f64>,
+    stiffness: &Mat3,
     directions: &[[f64; 3]],
     force_directions: &[[f64; 3]],
     k_n: &[f64],
 ) -> f64 {
     let (mut pq, mut pp) = (0.0, 0.0);
     for ((u, f), k) in directions.iter().zip(force_directions).zip(k_n) {
-        let p = stiffness.mul_vec(Vec3(*u));
-        let q = Vec3(*f).scale(*k);
-        pq += p.0[0] * q.0[0] + p.0[1] * q.0[1] + p.0[2] * q.0[2];
-        pp += p.0[0] * p.0[0] + p.0[1] * p.0[1] + p.0[2] * p.0[2];
+        let p = stiffness * Vec3::from(*u);
+        let q = Vec3::from(*f) * *k;
+        pq += p.dot(&q);
+        pp += p.dot(&p);
     }
     if pp > 0.0 {
         pq / pp
@@ -127,7 +113,7 @@ pub struct VertexEstimate {
     /// Probe speed of the trials used (m/s).
     pub speed_m_per_s: f64,
     /// Damping tensor B (N·s/m), `None` if abandoned (singular P Pᵀ).
-    pub damping_tensor_n_s_per_m: Option<Mat3<f64>>,
+    pub damping_tensor_n_s_per_m: Option<Mat3>,
     /// Rayleigh coefficient b (s), Eq. 13 (0 when abandoned or k1 = 0).
     pub rayleigh_b_s: f64,
     /// Multiplier k1 of K.
@@ -141,7 +127,7 @@ pub struct VertexEstimate {
 /// Estimates one vertex from its trials at one speed and their fits, given
 /// its stiffness tensor K_ii (N/m).
 pub fn estimate_vertex(
-    stiffness: &Mat3<f64>,
+    stiffness: &Mat3,
     trials: &[&Trial],
     fits: &[TrialFit],
 ) -> Result<VertexEstimate> {
@@ -175,7 +161,7 @@ pub fn estimate_vertex(
             k2 / k1,
         )
     } else {
-        tensor = tensor.map(|_| Mat3::zero());
+        tensor = tensor.map(|_| Mat3::zeros());
         (0.0, 1.0)
     };
     if b.is_nan() || b < 0.0 {
@@ -194,7 +180,7 @@ pub fn estimate_vertex(
 
 /// Groups trials by (vertex, speed) and estimates each group.
 pub fn estimate_all(
-    dgfm: &super::dgfm::Dgfm,
+    dgfm: &crate::viscoelastic::dgfm::Dgfm,
     trials: &[Trial],
     fits: &[Result<TrialFit>],
 ) -> Result<Vec<VertexEstimate>> {
@@ -240,7 +226,7 @@ pub fn spread_columns(
 ) -> Result<ColumnParams> {
     let mut ratios = vec![default_ratio; n];
     let mut b = vec![0.0; n];
-    let mut bt = vec![Mat3::zero(); n];
+    let mut bt = vec![Mat3::zeros(); n];
     for e in estimates {
         if e.vertex >= n {
             return Err(VeError::VertexNotInTractionSet {
@@ -260,13 +246,12 @@ pub fn spread_columns(
             damping_n_s_per_m: bt,
         })
     } else {
-        let p: std::result::Result<Vec<_>, _> = ratios
-            .iter()
-            .zip(&b)
-            .map(|(&r, &b)| RayleighParams::new(r, b))
-            .collect();
-        Ok(ColumnParams::Rayleigh(p.map_err(|e| {
-            VeError::Core(e, "spread column parameters")
-        })?))
+        Ok(ColumnParams::Rayleigh(
+            ratios
+                .iter()
+                .zip(&b)
+                .map(|(&r, &b)| RayleighColumn::new(r, b))
+                .collect::<Result<_>>()?,
+        ))
     }
 }

@@ -1,30 +1,35 @@
-//! Viscoelastic evaluation of a DGFM object (seed 002 Eq. 4–12, §4.2, §5)
-//! and its 1 kHz haptic driver with a 30 Hz display output.
+//! Viscoelastic evaluation of a DGFM object (seed 002 Eq. 4–12, §4.2, §5):
+//! the plant's reference, and its 1 kHz haptic driver with a 30 Hz display
+//! output.
 //!
-//! The update itself is the portable core's: Rayleigh columns call
-//! [`firmware::viscoelastic::rayleigh_displacement_step`] per (i, j) pair
-//! (Eq. 12 with tractions, see the core's note on Eq. 12); tensor columns
-//! use [`firmware::viscoelastic::ThreeElementTensor::from_dgfm_entry`]
-//! (Eq. 5–6, 9–10) fed the nodal force `f_j = α_j p_j`. This module is the
-//! *runtime-sized* driver around them (option (b) of the design): the core's
-//! `ViscoDgfm` needs the vertex count at compile time, a mesh loaded at run
-//! time does not have one. It keeps the same active-column rule as the core
-//! (seed §5): a column is active while traction is applied or while
-//! `max_i |x_ij|∞` exceeds the rest threshold.
+//! Every (i, j) pair is the 3-element model integrated exactly
+//! ([`three_element`](super::three_element)): Rayleigh columns as the
+//! scalar creep element on the static response `y = Ξ_ij p_j` (Eq. 12's
+//! substitution, solved exactly), tensor columns with the column's
+//! relaxation-rate tensor ([`TensorColumn`]: the seed's Eq. 5–6 on the
+//! diagonal; see there why not the literal `B_·,k = B_k` spreading). A
+//! traction set for a step
+//! is held over that step (piecewise constant in time), so the answer does
+//! not depend on the step length. The firmware's DGFM update (implicit
+//! first order, seed §3) is tested against this one; the two share no code.
 //!
-//! Parameters are per column (the seed's column spreading, §4.2): column j
-//! uses the ratio r_j and damping (b_j or B_j) of vertex j for every row i.
+//! The active-column rule is the seed's (§5): a column is active while
+//! traction is applied or while `max_i |x_ij|∞` exceeds the rest
+//! threshold. Parameters are per column (the seed's column spreading,
+//! §4.2): column j uses the ratio r_j and damping (b_j or B_j) of vertex j
+//! for every row i.
+//!
+//! [`HapticLoop`] drives any [`TractionModel`] — this reference, or (in
+//! `host-tools`) the firmware's real-time update — at the seed's rates.
 //!
 //! Left out: the seed's non-square display/haptic DGFMs and Loop
 //! subdivision (display = haptic mesh here), collision detection (the
 //! contact vertex or triangle is given), the quasi-static model on the
 //! haptic device (the device gets the same viscoelastic answer).
 use super::dgfm::Dgfm;
-use super::error::{Result, VeError};
-use firmware::linalg::{Mat3, Vec3};
-use firmware::viscoelastic::{
-    rayleigh_displacement_step, RayleighParams, ThreeElementTensor, TimeStep,
-};
+use super::three_element::{ExactStep, RayleighColumn, StepLength, TensorColumn};
+use crate::viscoelastic::error::{check_non_negative, check_positive, Result, VeError};
+use crate::viscoelastic::{Mat3, Vec3};
 
 /// Rest threshold on `max_i |x_ij|∞` below which an unloaded column leaves
 /// the active list (m). The seed uses 1e-3 in its own mesh units (§5); for
@@ -40,23 +45,24 @@ pub const DISPLAY_PERIOD_S: f64 = 1.0 / 30.0;
 #[derive(Clone, Debug, PartialEq)]
 pub enum ColumnParams {
     /// Stiffness ratio + Rayleigh damping per column (Eq. 9–12).
-    Rayleigh(Vec<RayleighParams<f64>>),
+    Rayleigh(Vec<RayleighColumn>),
     /// Stiffness ratio + general damping tensor per column (Eq. 5–6, 9–10):
     /// `ratios[j]` and `damping_n_s_per_m[j]` (N·s/m).
     Tensor {
         /// Stiffness ratio r_j per column.
         ratios: Vec<f64>,
         /// Damping tensor B_j per column (N·s/m).
-        damping_n_s_per_m: Vec<Mat3<f64>>,
+        damping_n_s_per_m: Vec<Mat3>,
     },
 }
 
 impl ColumnParams {
     /// The same Rayleigh parameters for every column.
     pub fn uniform_rayleigh(n: usize, ratio: f64, b_s: f64) -> Result<Self> {
-        let p = RayleighParams::new(ratio, b_s)
-            .map_err(|e| VeError::Core(e, "uniform Rayleigh parameters"))?;
-        Ok(ColumnParams::Rayleigh(vec![p; n]))
+        Ok(ColumnParams::Rayleigh(vec![
+            RayleighColumn::new(ratio, b_s)?;
+            n
+        ]))
     }
 
     /// Number of columns.
@@ -75,36 +81,59 @@ impl ColumnParams {
     /// Damping magnitude per column for display (the seed's Fig. 9): the
     /// Rayleigh coefficient b_j (s) times ‖K_jj‖_F, or ‖B_j‖_F (N·s/m).
     pub fn damping_magnitude_n_s_per_m(&self, dgfm: &Dgfm) -> Vec<f64> {
-        let frob = |m: &Mat3<f64>| m.0.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
         match self {
             ColumnParams::Rayleigh(p) => p
                 .iter()
                 .enumerate()
-                .map(|(j, q)| q.b_s() * dgfm.stiffness(j, j).map(|k| frob(&k)).unwrap_or(0.0))
+                .map(|(j, q)| q.b_s() * dgfm.stiffness(j, j).map(|k| k.norm()).unwrap_or(0.0))
                 .collect(),
             ColumnParams::Tensor {
                 damping_n_s_per_m, ..
-            } => damping_n_s_per_m.iter().map(frob).collect(),
+            } => damping_n_s_per_m.iter().map(|b| b.norm()).collect(),
         }
     }
 }
 
+/// What the haptic loop needs of an object model: tractions in,
+/// displacements out, over a DGFM.
+pub trait TractionModel {
+    /// The DGFM the model evaluates.
+    fn dgfm(&self) -> &Dgfm;
+    /// Applies traction `p` (Pa) to DGFM column `j` from the next step on
+    /// (zero releases it; it stays active until relaxed).
+    fn set_traction(&mut self, j: usize, traction_pa: Vec3) -> Result<()>;
+    /// Current traction on column j (Pa; zero if inactive).
+    fn traction_pa(&self, j: usize) -> Vec3;
+    /// Number of active columns.
+    fn active_count(&self) -> usize;
+    /// Advances one step of `h_s` and writes `u_i = Σ_j u_ij` (m) for every
+    /// traction vertex into `out` (length n).
+    fn step(&mut self, h_s: f64, out: &mut [Vec3]) -> Result<()>;
+}
+
 enum Update {
-    Rayleigh(Vec<RayleighParams<f64>>),
-    /// Column-major precomputed pairs for one fixed step.
+    Rayleigh {
+        params: Vec<RayleighColumn>,
+        /// The exact step of every column for `h` (recomputed when the
+        /// step changes).
+        steps: Vec<ExactStep>,
+        h: StepLength,
+    },
+    /// Per-column precomputed updates for one fixed step.
     Tensor {
-        pairs: Vec<ThreeElementTensor<f64>>,
-        h: TimeStep<f64>,
+        columns: Vec<TensorColumn>,
+        h: StepLength,
     },
 }
 
 struct ActiveColumn {
     column: usize,
-    traction_pa: Vec3<f64>,
-    x_m: Vec<Vec3<f64>>,
+    traction_pa: Vec3,
+    x_m: Vec<Vec3>,
 }
 
-/// A viscoelastic object: traction in, displacement out, over its DGFM.
+/// A viscoelastic object: traction in, displacement out, over its DGFM —
+/// the plant's exact reference.
 pub struct ViscoObject {
     dgfm: Dgfm,
     update: Update,
@@ -114,10 +143,11 @@ pub struct ViscoObject {
 
 impl ViscoObject {
     /// An object over `dgfm` with per-column `params`. Tensor parameters are
-    /// precomputed for the fixed step `h` (the seed notes, §5, that the
+    /// precomputed for the fixed step `h_s` (the seed notes, §5, that the
     /// general form is only real-time for a constant step); Rayleigh ones
     /// work with any step.
-    pub fn new(dgfm: Dgfm, params: ColumnParams, h: TimeStep<f64>) -> Result<Self> {
+    pub fn new(dgfm: Dgfm, params: ColumnParams, h_s: f64) -> Result<Self> {
+        let h = StepLength::new(h_s)?;
         let n = dgfm.len();
         if params.len() != n {
             return Err(VeError::LengthMismatch {
@@ -127,7 +157,11 @@ impl ViscoObject {
             });
         }
         let update = match params {
-            ColumnParams::Rayleigh(p) => Update::Rayleigh(p),
+            ColumnParams::Rayleigh(params) => Update::Rayleigh {
+                steps: params.iter().map(|p| p.step(h)).collect(),
+                params,
+                h,
+            },
             ColumnParams::Tensor {
                 ratios,
                 damping_n_s_per_m,
@@ -139,24 +173,24 @@ impl ViscoObject {
                         expected: n,
                     });
                 }
-                let mut pairs = Vec::with_capacity(n * n);
+                let mut columns = Vec::with_capacity(n);
                 for j in 0..n {
-                    for i in 0..n {
-                        pairs.push(
-                            ThreeElementTensor::from_dgfm_entry(
-                                dgfm.xi(i, j),
-                                dgfm.areas_m2()[j],
-                                ratios[j],
-                                damping_n_s_per_m[j],
-                                h,
-                            )
-                            .map_err(|e| {
-                                VeError::Core(e, "tensor pair (check Ξ_ij invertible, ratio > 0)")
-                            })?,
-                        );
-                    }
+                    let k = dgfm.stiffness(j, j).ok_or(VeError::InvalidParameter {
+                        name: "Ξ_jj",
+                        value: j as f64,
+                        reason: "singular: the tensor form needs K_jj = α_j Ξ_jj⁻¹",
+                    })?;
+                    columns.push(
+                        TensorColumn::new(k, damping_n_s_per_m[j], ratios[j], h).map_err(|e| {
+                            VeError::Column {
+                                column: j,
+                                vertex: dgfm.traction_vertices()[j],
+                                error: Box::new(e),
+                            }
+                        })?,
+                    );
                 }
-                Update::Tensor { pairs, h }
+                Update::Tensor { columns, h }
             }
         };
         Ok(ViscoObject {
@@ -167,66 +201,63 @@ impl ViscoObject {
         })
     }
 
-    /// The DGFM.
-    pub fn dgfm(&self) -> &Dgfm {
-        &self.dgfm
-    }
-
     /// Changes the rest threshold (m, finite, ≥ 0).
     pub fn set_rest_threshold_m(&mut self, threshold_m: f64) -> Result<()> {
-        self.rest_threshold_m = super::error::check_non_negative("rest_threshold_m", threshold_m)?;
-        Ok(())
-    }
-
-    /// Applies traction `p` (Pa) to DGFM column `j` from the next step on
-    /// (zero releases it; it stays active until relaxed).
-    pub fn set_traction(&mut self, j: usize, traction_pa: Vec3<f64>) -> Result<()> {
-        let n = self.dgfm.len();
-        if j >= n {
-            return Err(VeError::VertexNotInTractionSet { vertex: j, n });
-        }
-        if !traction_pa.is_finite() {
-            return Err(VeError::Core(
-                firmware::viscoelastic::ViscoError::NonFiniteInput,
-                "traction",
-            ));
-        }
-        if let Some(col) = self.active.iter_mut().find(|c| c.column == j) {
-            col.traction_pa = traction_pa;
-        } else if !traction_pa.is_zero() {
-            self.active.push(ActiveColumn {
-                column: j,
-                traction_pa,
-                x_m: vec![Vec3::zero(); n],
-            });
-        }
+        self.rest_threshold_m = check_non_negative("rest_threshold_m", threshold_m)?;
         Ok(())
     }
 
     /// Releases every traction.
     pub fn release_all(&mut self) {
         for c in &mut self.active {
-            c.traction_pa = Vec3::zero();
+            c.traction_pa = Vec3::zeros();
         }
     }
+}
 
-    /// Number of active columns.
-    pub fn active_count(&self) -> usize {
-        self.active.len()
+impl TractionModel for ViscoObject {
+    fn dgfm(&self) -> &Dgfm {
+        &self.dgfm
     }
 
-    /// Current traction on column j (Pa; zero if inactive).
-    pub fn traction_pa(&self, j: usize) -> Vec3<f64> {
+    fn set_traction(&mut self, j: usize, traction_pa: Vec3) -> Result<()> {
+        let n = self.dgfm.len();
+        if j >= n {
+            return Err(VeError::VertexNotInTractionSet { vertex: j, n });
+        }
+        if !traction_pa.iter().all(|v| v.is_finite()) {
+            return Err(VeError::InvalidParameter {
+                name: "traction",
+                value: f64::NAN,
+                reason: "must be finite",
+            });
+        }
+        if let Some(col) = self.active.iter_mut().find(|c| c.column == j) {
+            col.traction_pa = traction_pa;
+        } else if traction_pa != Vec3::zeros() {
+            self.active.push(ActiveColumn {
+                column: j,
+                traction_pa,
+                x_m: vec![Vec3::zeros(); n],
+            });
+        }
+        Ok(())
+    }
+
+    fn traction_pa(&self, j: usize) -> Vec3 {
         self.active
             .iter()
             .find(|c| c.column == j)
             .map(|c| c.traction_pa)
-            .unwrap_or_else(Vec3::zero)
+            .unwrap_or_else(Vec3::zeros)
     }
 
-    /// Advances one step of `h` and writes `u_i = Σ_j u_ij` (m) for every
-    /// traction vertex into `out` (length n). No allocation.
-    pub fn step(&mut self, h: TimeStep<f64>, out: &mut [Vec3<f64>]) -> Result<()> {
+    fn active_count(&self) -> usize {
+        self.active.len()
+    }
+
+    fn step(&mut self, h_s: f64, out: &mut [Vec3]) -> Result<()> {
+        let h = StepLength::new(h_s)?;
         let n = self.dgfm.len();
         if out.len() != n {
             return Err(VeError::LengthMismatch {
@@ -235,42 +266,57 @@ impl ViscoObject {
                 expected: n,
             });
         }
-        out.iter_mut().for_each(|u| *u = Vec3::zero());
-        match &self.update {
-            Update::Rayleigh(params) => {
+        out.iter_mut().for_each(|u| *u = Vec3::zeros());
+        match &mut self.update {
+            Update::Rayleigh {
+                params,
+                steps,
+                h: cached,
+            } => {
+                if h != *cached {
+                    *steps = params.iter().map(|p| p.step(h)).collect();
+                    *cached = h;
+                }
                 for col in &mut self.active {
                     let j = col.column;
-                    let (p, q) = (col.traction_pa, params[j]);
+                    let (p, step) = (col.traction_pa, steps[j]);
                     for ((u, x), blk) in out
                         .iter_mut()
                         .zip(col.x_m.iter_mut())
                         .zip(self.dgfm.xi_column(j))
                     {
-                        *u = *u + rayleigh_displacement_step(blk, p, q, h, x);
+                        // The static response, held over the step.
+                        let y = blk * p;
+                        *u += step.displacement(x, y, y);
                     }
                 }
             }
-            Update::Tensor { pairs, h: h_fixed } => {
-                if h != *h_fixed {
+            Update::Tensor { columns, h: fixed } => {
+                if h != *fixed {
                     return Err(VeError::InvalidParameter {
                         name: "h",
-                        value: h.seconds(),
+                        value: h_s,
                         reason: "tensor damping is precomputed for one fixed step (seed §5); rebuild the object for another",
                     });
                 }
                 for col in &mut self.active {
                     let j = col.column;
-                    let f = col.traction_pa.scale(self.dgfm.areas_m2()[j]);
-                    let column_pairs = &pairs[j * n..(j + 1) * n];
-                    for ((u, x), pair) in out.iter_mut().zip(col.x_m.iter_mut()).zip(column_pairs) {
-                        *u = *u + pair.step_displacement(x, f);
+                    let (p, column) = (col.traction_pa, &columns[j]);
+                    for ((u, x), blk) in out
+                        .iter_mut()
+                        .zip(col.x_m.iter_mut())
+                        .zip(self.dgfm.xi_column(j))
+                    {
+                        let y = blk * p;
+                        *u += column.displacement(x, y, y);
                     }
                 }
             }
         }
         let threshold = self.rest_threshold_m;
-        self.active
-            .retain(|c| !c.traction_pa.is_zero() || c.x_m.iter().any(|x| x.max_abs() > threshold));
+        self.active.retain(|c| {
+            c.traction_pa != Vec3::zeros() || c.x_m.iter().any(|x| x.amax() > threshold)
+        });
         Ok(())
     }
 }
@@ -312,42 +358,44 @@ pub struct DisplayFrame {
 }
 
 /// The 1 kHz haptic loop: force at a contact in, contact displacement out,
-/// and a display frame every 1/30 s.
-pub struct HapticLoop {
-    object: ViscoObject,
-    h: TimeStep<f64>,
+/// and a display frame every 1/30 s, over any [`TractionModel`].
+pub struct HapticLoop<M = ViscoObject> {
+    object: M,
     step_count: u64,
     frames_emitted: u64,
     loaded: Vec<(usize, f64)>,
-    u: Vec<Vec3<f64>>,
+    u: Vec<Vec3>,
     /// Display frames emitted so far.
     pub frames: Vec<DisplayFrame>,
 }
 
-impl HapticLoop {
+impl<M: TractionModel> HapticLoop<M> {
     /// A loop at the seed's haptic rate (1 ms steps).
-    pub fn new(object: ViscoObject) -> Result<Self> {
-        let h = TimeStep::new(HAPTIC_PERIOD_S).map_err(|e| VeError::Core(e, "haptic period"))?;
+    pub fn new(object: M) -> Result<Self> {
         let n = object.dgfm().len();
         Ok(HapticLoop {
             object,
-            h,
             step_count: 0,
             frames_emitted: 0,
             loaded: Vec::with_capacity(3),
-            u: vec![Vec3::zero(); n],
+            u: vec![Vec3::zeros(); n],
             frames: Vec::new(),
         })
     }
 
     /// The object.
-    pub fn object(&self) -> &ViscoObject {
+    pub fn object(&self) -> &M {
         &self.object
+    }
+
+    /// Displacements of every traction vertex after the last step (m).
+    pub fn displacements_m(&self) -> &[Vec3] {
+        &self.u
     }
 
     /// Time at the end of the last step (s).
     pub fn time_s(&self) -> f64 {
-        self.step_count as f64 * self.h.seconds()
+        self.step_count as f64 * HAPTIC_PERIOD_S
     }
 
     /// Mesh vertices under the contact and their weights (up to 3; the
@@ -418,7 +466,7 @@ impl HapticLoop {
             let v = self.loaded[k].0;
             if !weights.iter().any(|&(w, _)| w == v) {
                 if let Ok(j) = self.object.dgfm().index_of(v) {
-                    self.object.set_traction(j, Vec3::zero())?;
+                    self.object.set_traction(j, Vec3::zeros())?;
                 }
             }
         }
@@ -428,8 +476,8 @@ impl HapticLoop {
             // A contact on Λu pushes on the support: no traction on the object.
             if let Ok(j) = self.object.dgfm().index_of(v) {
                 let alpha = self.object.dgfm().areas_m2()[j];
-                let traction = Vec3::new(force[0], force[1], force[2]).scale(w / alpha);
-                if !traction.is_finite() {
+                let traction = Vec3::from(force) * (w / alpha);
+                if !traction.iter().all(|v| v.is_finite()) {
                     return Err(VeError::InvalidParameter {
                         name: "force_n",
                         value: force.iter().fold(0.0, |m, f| f.abs().max(m)),
@@ -439,12 +487,12 @@ impl HapticLoop {
                 self.object.set_traction(j, traction)?;
             }
         }
-        self.object.step(self.h, &mut self.u)?;
+        self.object.step(HAPTIC_PERIOD_S, &mut self.u)?;
         self.step_count += 1;
         let mut out = [0.0; 3];
         for &(v, w) in &self.loaded {
             if let Ok(j) = self.object.dgfm().index_of(v) {
-                for (o, c) in out.iter_mut().zip(self.u[j].0) {
+                for (o, c) in out.iter_mut().zip(self.u[j].iter()) {
                     *o += w * c;
                 }
             }
@@ -466,8 +514,8 @@ impl HapticLoop {
         let mut displacement_m = vec![[0.0; 3]; nv];
         let mut force_n = vec![[0.0; 3]; nv];
         for (j, &v) in d.traction_vertices().iter().enumerate() {
-            displacement_m[v] = self.u[j].0;
-            force_n[v] = self.object.traction_pa(j).scale(d.areas_m2()[j]).0;
+            displacement_m[v] = self.u[j].into();
+            force_n[v] = (self.object.traction_pa(j) * d.areas_m2()[j]).into();
         }
         DisplayFrame {
             time_s,
@@ -491,12 +539,12 @@ pub struct ProbeEvent {
 
 /// Runs `events` (sorted by time) on the loop for `duration_s`, returning
 /// every haptic sample.
-pub fn run_script(
-    haptic: &mut HapticLoop,
+pub fn run_script<M: TractionModel>(
+    haptic: &mut HapticLoop<M>,
     events: &[ProbeEvent],
     duration_s: f64,
 ) -> Result<Vec<HapticSample>> {
-    super::error::check_positive("duration_s", duration_s)?;
+    check_positive("duration_s", duration_s)?;
     if events
         .windows(2)
         .any(|w| w[1].time_s.partial_cmp(&w[0].time_s) != Some(std::cmp::Ordering::Greater))

@@ -11,10 +11,10 @@
 //! Left out: the traction → traction and displacement → traction blocks of
 //! the seed's Table 1 (reaction forces on Λu are not needed for display),
 //! and non-zero prescribed displacements on Λu.
-use super::error::{Result, VeError};
 use super::fem::{FemSystem, LinearElastic, TetMesh, DEFAULT_SHELL_SCALES};
 use super::mesh::SurfaceMesh;
-use firmware::linalg::{Mat3, Vec3};
+use crate::viscoelastic::error::{Result, VeError};
+use crate::viscoelastic::{Mat3, Vec3};
 
 /// Fraction of the object's height, from the bottom, whose vertices rest
 /// on the table and form Λu in the default object (estimate: a toy sitting
@@ -30,7 +30,7 @@ pub struct Dgfm {
     index_of: Vec<Option<usize>>,
     areas_m2: Vec<f64>,
     /// Column-major blocks: `xi_col[j * n + i] = Ξ_ij` (m/Pa).
-    xi_col: Vec<Mat3<f64>>,
+    xi_col: Vec<Mat3>,
 }
 
 /// Flags the vertices within `fraction` of the height above the lowest one
@@ -90,7 +90,8 @@ impl Dgfm {
         let mut xi_col = Vec::with_capacity(areas_m2.len() * areas_m2.len());
         for (col, &alpha) in g.iter().zip(&areas_m2) {
             for blk in col {
-                xi_col.push(Mat3(*blk).scale(alpha));
+                // FEM blocks are row-major [[f64; 3]; 3].
+                xi_col.push(Mat3::from_fn(|r, c| blk[r][c]) * alpha);
             }
         }
         Ok(Dgfm {
@@ -139,20 +140,20 @@ impl Dgfm {
         &self.areas_m2
     }
     /// Ξ_ij (m/Pa) for DGFM indices i, j.
-    pub fn xi(&self, i: usize, j: usize) -> Mat3<f64> {
+    pub fn xi(&self, i: usize, j: usize) -> Mat3 {
         self.xi_col[j * self.len() + i]
     }
     /// Column j of Ξ: the blocks Ξ_ij for every row i.
-    pub fn xi_column(&self, j: usize) -> &[Mat3<f64>] {
+    pub fn xi_column(&self, j: usize) -> &[Mat3] {
         let n = self.len();
         &self.xi_col[j * n..(j + 1) * n]
     }
     /// Stiffness tensor K_ij = α_j Ξ_ij⁻¹ (N/m, Eq. 2), `None` if Ξ_ij is singular.
-    pub fn stiffness(&self, i: usize, j: usize) -> Option<Mat3<f64>> {
-        self.xi(i, j).inverse().map(|m| m.scale(self.areas_m2[j]))
+    pub fn stiffness(&self, i: usize, j: usize) -> Option<Mat3> {
+        self.xi(i, j).try_inverse().map(|m| m * self.areas_m2[j])
     }
     /// The elastic answer of Eq. 1, `u_i = Σ_j Ξ_ij p_j`, by a dense product.
-    pub fn static_displacement(&self, tractions_pa: &[Vec3<f64>]) -> Result<Vec<Vec3<f64>>> {
+    pub fn static_displacement(&self, tractions_pa: &[Vec3]) -> Result<Vec<Vec3>> {
         if tractions_pa.len() != self.len() {
             return Err(VeError::LengthMismatch {
                 what: "tractions_pa",
@@ -160,13 +161,13 @@ impl Dgfm {
                 expected: self.len(),
             });
         }
-        let mut u = vec![Vec3::zero(); self.len()];
+        let mut u = vec![Vec3::zeros(); self.len()];
         for (j, p) in tractions_pa.iter().enumerate() {
-            if p.is_zero() {
+            if *p == Vec3::zeros() {
                 continue;
             }
             for (ui, blk) in u.iter_mut().zip(self.xi_column(j)) {
-                *ui = *ui + blk.mul_vec(*p);
+                *ui += blk * p;
             }
         }
         Ok(u)

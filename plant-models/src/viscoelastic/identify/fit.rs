@@ -3,10 +3,9 @@
 //! cost, with the seed's weighting (the tail ×100 and the three points
 //! around the peak ×1000, Fig. 8) or uniform weighting.
 //!
-//! The model evaluations are the portable core's
-//! [`ThreeElement::step_force`] / [`ThreeElement::step_displacement`]
-//! (Eq. 7–8 / 5–6 in 1D), driven over the measured sample times (steps may
-//! be uneven). Before the first sample the model is at rest with zero
+//! The model is the plant's 3-element [`Element`], integrated exactly
+//! between samples with the input taken linear between them (steps may be
+//! uneven). Before the first sample the model is at rest with zero
 //! displacement, so the first sample is an instantaneous step response.
 //!
 //! Nelder–Mead is hand-written (standard coefficients 1, 2, ½, ½; tested on
@@ -16,8 +15,8 @@
 //!
 //! Left out: fitting several speeds together (the seed fits them
 //! separately), confidence intervals.
-use super::error::{Result, VeError};
-use firmware::viscoelastic::{ThreeElement, ThreeElementState, TimeStep};
+use crate::viscoelastic::error::{Result, VeError};
+use crate::viscoelastic::three_element::{Element, ExactStep, StepLength};
 use rayon::prelude::*;
 
 /// Options of the Nelder–Mead minimiser.
@@ -246,35 +245,76 @@ fn check_series(time_s: &[f64], other: &[f64], what: &'static str) -> Result<()>
     Ok(())
 }
 
-fn model(k1: f64, k2: f64, b: f64) -> Result<ThreeElement<f64>> {
-    // The core checks these too, but its error names neither the value nor
-    // (for NaN) that the value is not a number.
-    let k1 = super::error::check_positive("k1", k1)?;
-    let k2 = super::error::check_positive("k2", k2)?;
-    let b = super::error::check_non_negative("b", b)?;
-    ThreeElement::new(k1, k2, b).map_err(|e| VeError::Core(e, "3-element parameters k1, k2, b"))
+/// Which way a series drives the element.
+#[derive(Clone, Copy)]
+enum Drive {
+    /// Displacement in, force out.
+    Displacement,
+    /// Force in, displacement out.
+    Force,
 }
 
-/// Runs the 1D model over a series: `first` gives the output at the first
-/// sample (the instantaneous response), `step` each later one.
-fn run_series(
+/// Runs the 1D model over a series: the first sample is the instantaneous
+/// response, each later one the exact step from the previous sample. The
+/// step is recomputed only when the sample spacing changes.
+fn run_series(m: &Element, drive: Drive, time_s: &[f64], input: &[f64]) -> Result<Vec<f64>> {
+    let mut out = Vec::with_capacity(time_s.len());
+    series(m, drive, time_s, input, |_, y| {
+        out.push(y);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// The model's output at every sample, passed to `each(k, output)`.
+fn series(
+    m: &Element,
+    drive: Drive,
     time_s: &[f64],
     input: &[f64],
-    first: f64,
-    mut step: impl FnMut(&mut ThreeElementState<f64>, f64, TimeStep<f64>) -> f64,
-) -> Result<Vec<f64>> {
-    let mut s = ThreeElementState::default();
-    let mut out = Vec::with_capacity(time_s.len());
-    out.push(first);
-    for k in 1..time_s.len() {
-        let h = TimeStep::new(time_s[k] - time_s[k - 1]).map_err(|_| VeError::InvalidParameter {
-            name: "time_s",
-            value: time_s[k],
-            reason: "the step from the previous sample is not finite (the times are too far apart for f64)",
-        })?;
-        out.push(step(&mut s, input[k], h));
+    mut each: impl FnMut(usize, f64) -> Result<()>,
+) -> Result<()> {
+    let (Some(&t0), Some(&first)) = (time_s.first(), input.first()) else {
+        return Ok(());
+    };
+    each(
+        0,
+        match drive {
+            Drive::Displacement => m.k2() * first,
+            Drive::Force => first / m.k2(),
+        },
+    )?;
+    let mut x = 0.0;
+    let mut cached: Option<(f64, ExactStep)> = None;
+    let (mut t_prev, mut v_prev) = (t0, first);
+    for (k, (&t, &v)) in time_s.iter().zip(input).enumerate().skip(1) {
+        let h = t - t_prev;
+        let step = match cached {
+            Some((hc, s)) if hc == h => s,
+            _ => {
+                let len = StepLength::new(h).map_err(|_| VeError::InvalidParameter {
+                    name: "time_s",
+                    value: t,
+                    reason: "the step from the previous sample is not finite and > 0",
+                })?;
+                let s = match drive {
+                    Drive::Displacement => m.relaxation_step(len),
+                    Drive::Force => m.creep_step(len),
+                };
+                cached = Some((h, s));
+                s
+            }
+        };
+        each(
+            k,
+            match drive {
+                Drive::Displacement => step.force(&mut x, v_prev, v),
+                Drive::Force => step.displacement(&mut x, v_prev, v),
+            },
+        )?;
+        (t_prev, v_prev) = (t, v);
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Force (N) of the 1D model for a displacement series (m) at times (s).
@@ -286,13 +326,8 @@ pub fn simulate_force(
     displacement_m: &[f64],
 ) -> Result<Vec<f64>> {
     check_series(time_s, displacement_m, "displacement")?;
-    let m = model(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
-    run_series(
-        time_s,
-        displacement_m,
-        m.k2() * displacement_m[0],
-        |s, u, h| m.step_force(s, u, h),
-    )
+    let m = Element::new(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
+    run_series(&m, Drive::Displacement, time_s, displacement_m)
 }
 
 /// Displacement (m) of the 1D model for a force series (N) at times (s).
@@ -304,10 +339,8 @@ pub fn simulate_displacement(
     force_n: &[f64],
 ) -> Result<Vec<f64>> {
     check_series(time_s, force_n, "force")?;
-    let m = model(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
-    run_series(time_s, force_n, force_n[0] / m.k2(), |s, f, h| {
-        m.step_displacement(s, f, h)
-    })
+    let m = Element::new(k1_n_per_m, k2_n_per_m, b_n_s_per_m)?;
+    run_series(&m, Drive::Force, time_s, force_n)
 }
 
 /// Fitted 1D parameters of one trial.
@@ -329,18 +362,17 @@ pub struct TrialFit {
 
 /// Weighted squared force error of parameters `(k1, k2, b)`; allocation-free.
 fn cost(k1: f64, k2: f64, b: f64, time_s: &[f64], u: &[f64], f: &[f64], w: &[f64]) -> f64 {
-    let Ok(m) = ThreeElement::new(k1, k2, b) else {
+    let Ok(m) = Element::new(k1, k2, b) else {
         return f64::INFINITY;
     };
-    let mut s = ThreeElementState::default();
-    let r0 = m.k2() * u[0] - f[0];
-    let mut total = w[0] * r0 * r0;
-    for k in 1..time_s.len() {
-        let Ok(h) = TimeStep::new(time_s[k] - time_s[k - 1]) else {
-            return f64::INFINITY;
-        };
-        let r = m.step_force(&mut s, u[k], h) - f[k];
+    let mut total = 0.0;
+    let run = series(&m, Drive::Displacement, time_s, u, |k, model_f| {
+        let r = model_f - f[k];
         total += w[k] * r * r;
+        Ok(())
+    });
+    if run.is_err() {
+        return f64::INFINITY;
     }
     total
 }
