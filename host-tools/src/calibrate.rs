@@ -63,90 +63,62 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
 pub fn read_sweep(path: &Path) -> anyhow::Result<Vec<SweepRow>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    parse_sweep(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    parse_sweep_named(&text, &path.display().to_string())
 }
 
-/// Parses sweep CSV text (header required: 3D or 2D columns, any order).
+/// Parses sweep CSV text (header required: 3D or 2D columns, any order);
+/// errors are labelled `sweep`.
 pub fn parse_sweep(text: &str) -> anyhow::Result<Vec<SweepRow>> {
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-    let Some((_, header)) = lines.next() else {
-        bail!("empty file: expected a header")
+    parse_sweep_named(text, "sweep")
+}
+
+fn parse_sweep_named(text: &str, file: &str) -> anyhow::Result<Vec<SweepRow>> {
+    let table = plant_models::csv_input::read_numeric(text, file)?;
+    let find = |names: &[&str]| -> Option<Vec<usize>> {
+        names
+            .iter()
+            .map(|n| table.columns.iter().position(|c| c == n))
+            .collect()
     };
-    let cols: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
-    let find = |name: &str| cols.iter().position(|c| *c == name);
-    let (d_cols, a_cols): (Vec<usize>, Vec<usize>) = if let (
-        Some(d1),
-        Some(d2),
-        Some(d3),
-        Some(d4),
-        Some(a),
-        Some(b),
-    ) = (
-        find("d1_mm"),
-        find("d2_mm"),
-        find("d3_mm"),
-        find("d4_mm"),
-        find("alpha_deg"),
-        find("beta_deg"),
+    let (d_cols, a_cols) = match (
+        find(&["d1_mm", "d2_mm", "d3_mm", "d4_mm"]),
+        find(&["alpha_deg", "beta_deg"]),
+        find(&["d_mm"]),
+        find(&["theta_deg"]),
     ) {
-        (vec![d1, d2, d3, d4], vec![a, b])
-    } else if let (Some(d), Some(t)) = (find("d_mm"), find("theta_deg")) {
-        (vec![d], vec![t])
-    } else {
-        bail!("line 1: header must have columns `{HEADER_3D}` (3D) or `{HEADER_2D}` (2D), got `{header}`");
+        (Some(d), Some(a), _, _) => (d, a),
+        (_, _, Some(d), Some(a)) => (d, a),
+        _ => bail!(
+            "{file}:{}: the header must have the columns `{HEADER_3D}` (3D) or `{HEADER_2D}` (2D) in any order; it has: {}",
+            table.header_line,
+            plant_models::csv_input::excerpt(&table.columns.join(", "))
+        ),
     };
-    let mut rows = Vec::new();
-    for (i, line) in lines {
-        let lineno = i + 1;
-        let cells: Vec<&str> = line.split(',').map(|c| c.trim()).collect();
-        if cells.len() != cols.len() {
-            bail!(
-                "line {lineno}: expected {} fields, got {}",
-                cols.len(),
-                cells.len()
-            );
-        }
-        let num = |c: usize| -> anyhow::Result<f64> {
-            let v: f64 = cells[c].parse().map_err(|_| {
-                anyhow::anyhow!(
-                    "line {lineno}: column `{}`: not a number: `{}`",
-                    cols[c],
-                    cells[c]
-                )
-            })?;
-            if !v.is_finite() {
-                bail!("line {lineno}: column `{}`: not finite", cols[c]);
-            }
-            // The firmware estimates in f32: a value it cannot hold would
-            // only surface later as an unusable fit.
-            if !(v as f32).is_finite() {
+    let mut rows = Vec::with_capacity(table.rows.len());
+    for row in &table.rows {
+        // The firmware estimates in f32: a value it cannot hold would only
+        // surface later as an unusable fit.
+        for (v, name) in row.values.iter().zip(&table.columns) {
+            if !(*v as f32).is_finite() {
                 bail!(
-                    "line {lineno}: column `{}`: {v:e} is outside the f32 range the firmware computes in (|value| <= {:e})",
-                    cols[c],
-                    f32::MAX
+                    "{}",
+                    table.error(
+                        row.line,
+                        Some(name),
+                        format!(
+                            "{v:e} is outside the f32 range the firmware computes in (|value| <= {:e})",
+                            f32::MAX
+                        )
+                    )
                 );
             }
-            Ok(v)
-        };
-        let d_mm = d_cols
-            .iter()
-            .map(|&c| num(c))
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        let angle_deg = a_cols
-            .iter()
-            .map(|&c| num(c))
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        rows.push(SweepRow { d_mm, angle_deg });
+        }
+        rows.push(SweepRow {
+            d_mm: d_cols.iter().map(|&c| row.values[c]).collect(),
+            angle_deg: a_cols.iter().map(|&c| row.values[c]).collect(),
+        });
     }
-    if rows.len() < 10 {
-        bail!(
-            "need at least 10 data rows to calibrate, got {}",
-            rows.len()
-        );
-    }
+    table.require_rows(10, "to calibrate")?;
     Ok(rows)
 }
 
@@ -803,21 +775,24 @@ mod tests {
         let e = parse_sweep("d_mm,theta_deg\n1,2\n3,x\n")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("line 3") && e.contains("theta_deg"), "{e}");
+        assert_eq!(e, "sweep:3: column `theta_deg`: `x` is not a number");
         let e = parse_sweep("d_mm,theta_deg\n1,2\n3\n")
             .unwrap_err()
             .to_string();
-        assert!(
-            e.contains("line 3") && e.contains("expected 2 fields"),
-            "{e}"
-        );
+        assert_eq!(e, "sweep:3: 1 fields, but the header has 2");
         let e = parse_sweep("foo,bar\n").unwrap_err().to_string();
-        assert!(e.contains("line 1") && e.contains("header"), "{e}");
+        assert!(e.starts_with("sweep:1: the header must have"), "{e}");
         let e = parse_sweep("d_mm,theta_deg\n1,NaN\n")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("line 2"), "{e}");
+        assert!(e.starts_with("sweep:2: column `theta_deg`"), "{e}");
         assert!(parse_sweep("").is_err());
+        // An Excel export (byte-order mark, CRLF) reads like a plain file.
+        let mut excel = String::from("\u{feff}d_mm,theta_deg\r\n");
+        for i in 0..12 {
+            excel.push_str(&format!("{},{}\r\n", f64::from(i) * 0.1, f64::from(i)));
+        }
+        assert_eq!(parse_sweep(&excel).unwrap().len(), 12);
     }
 
     #[test]

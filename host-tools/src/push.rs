@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use host_tools::svg;
+use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use plant_models::pushing::classify::{classify, MaterialModel};
 use plant_models::pushing::evaluate::{
     score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore,
@@ -245,8 +245,12 @@ fn load_video(v: &VideoArgs) -> Result<Video> {
         Some(path) => {
             let text =
                 fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            parse_video_csv(&text, &scenario, v.material.label())
-                .with_context(|| format!("in {}", path.display()))
+            Ok(parse_video_csv(
+                &text,
+                &path.display().to_string(),
+                &scenario,
+                v.material.label(),
+            )?)
         }
         None => {
             let cfg = ReferenceConfig {
@@ -342,56 +346,36 @@ fn snapshots_svg(
     let top = 40.0;
     let width = panel_w * shots.len() as f64 + 10.0 * (shots.len() as f64 + 1.0);
     let height = panel_h + top + 40.0;
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0}" height="{height:.0}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(
-        s,
-        r#"<text x="10" y="20" font-size="14">{}</text>"#,
-        title.replace('&', "&amp;").replace('<', "&lt;")
-    );
+    let mut svg = Svg::new(width, height);
+    svg.text(10.0, 20.0, 14.0, Anchor::Start, title);
     for (k, (f, pos)) in shots.iter().enumerate() {
         let ox = 10.0 + k as f64 * (panel_w + 10.0);
         let tx = |p: V2| (ox + (p.x - lo.x) * scale, top + (hi.y - p.y) * scale);
-        let _ = writeln!(
-            s,
-            r##"<rect x="{ox:.1}" y="{top:.1}" width="{panel_w:.1}" height="{panel_h:.1}" fill="none" stroke="#ccc"/>"##
+        svg.rect(
+            ox,
+            top,
+            panel_w,
+            panel_h,
+            "none",
+            Some(Stroke::solid("#ccc", 1.0)),
         );
-        // table
-        let (tx0, ty0) = tx(V2::new(lo.x, 0.0));
-        let _ = writeln!(
-            s,
-            r##"<line x1="{tx0:.1}" y1="{ty0:.1}" x2="{:.1}" y2="{ty0:.1}" stroke="#964" stroke-width="2"/>"##,
-            ox + panel_w
-        );
-        let mut pts = String::new();
-        for p in &prep.video.contours_px[*f] {
-            let (x, y) = tx(*p);
-            let _ = write!(pts, "{x:.1},{y:.1} ");
-        }
-        let _ = writeln!(
-            s,
-            r##"<polygon points="{pts}" fill="#ddd" stroke="#777" stroke-width="1"/>"##
-        );
-        let mut path = String::new();
-        for e in &prep.mesh.edges {
-            let (x1, y1) = tx(pos[e[0]]);
-            let (x2, y2) = tx(pos[e[1]]);
-            let _ = write!(path, "M{x1:.1},{y1:.1}L{x2:.1},{y2:.1}");
-        }
-        let _ = writeln!(
-            s,
-            r##"<path d="{path}" stroke="#1f5fbf" stroke-width="0.7" fill="none"/>"##
+        // The table.
+        let table = tx(V2::new(lo.x, 0.0));
+        svg.line(table, (ox + panel_w, table.1), Stroke::solid("#964", 2.0));
+        let contour: Vec<(f64, f64)> = prep.video.contours_px[*f].iter().map(|p| tx(*p)).collect();
+        svg.polygon(&contour, "#ddd", Stroke::solid("#777", 1.0));
+        svg.segments(
+            prep.mesh
+                .edges
+                .iter()
+                .map(|e| (tx(pos[e[0]]), tx(pos[e[1]]))),
+            Stroke::solid("#1f5fbf", 0.7),
         );
         let finger = sc.finger_at(sc.frame_time_s(*f));
-        let (cx, cy) = tx(finger.centre_px);
-        let _ = writeln!(
-            s,
-            r##"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="none" stroke="#d22" stroke-width="1.5"/>"##,
-            finger.radius_px * scale
+        svg.circle(
+            tx(finger.centre_px),
+            finger.radius_px * scale,
+            Stroke::solid("#d22", 1.5),
         );
         let fscore = score.f_per_frame.get(*f).copied().unwrap_or(f64::NAN);
         let phase = if sc.is_push_frame(*f) {
@@ -399,20 +383,23 @@ fn snapshots_svg(
         } else {
             "retrieval"
         };
-        let _ = writeln!(
-            s,
-            r#"<text x="{:.1}" y="{:.1}">frame {f} ({phase}), F = {fscore:.3}</text>"#,
+        svg.text(
             ox,
-            top + panel_h + 18.0
+            top + panel_h + 18.0,
+            12.0,
+            Anchor::Start,
+            &format!("frame {f} ({phase}), F = {fscore:.3}"),
         );
     }
-    let _ = writeln!(
-        s,
-        r##"<text x="10" y="{:.1}" fill="#555">grey: ground-truth contour · blue: mass-spring mesh · red: finger · brown: table</text>"##,
-        height - 6.0
+    svg.text_styled(
+        10.0,
+        height - 6.0,
+        12.0,
+        Anchor::Start,
+        r##"fill="#555""##,
+        "grey: ground-truth contour · blue: mass-spring mesh · red: finger · brown: table",
     );
-    s.push_str("</svg>\n");
-    s
+    svg.finish()
 }
 
 fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> String {
@@ -480,33 +467,33 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
         &snapshots_svg(&prep, &shots, &score, &title),
     )?;
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
-    let chart = svg::render(
-        &t,
-        &[
-            svg::Chart {
-                title: "F-score per frame (x: frame)".into(),
-                y_label: "F".into(),
-                series: vec![
-                    svg::Series::new("F".into(), "#1f5fbf", false, score.f_per_frame.clone()),
-                    svg::Series::new(
-                        "μ(F)".into(),
-                        "#d22",
-                        true,
-                        plant_models::pushing::raster::running_mean(&score.f_per_frame),
-                    ),
-                ],
-            },
-            svg::Chart {
-                title: "Finger force".into(),
-                y_label: "N".into(),
-                series: vec![
-                    svg::Series::new("sensed".into(), "#555", false, prep.video.forces_n.clone()),
-                    svg::Series::new("driving the model".into(), "#e80", true, forces.clone()),
-                ],
-            },
-        ],
-    );
-    write(&a.out.join("f_per_frame.svg"), &chart)?;
+    let chart = plot::line_charts(&[
+        Chart {
+            title: "F-score per frame".into(),
+            x_label: "frame".into(),
+            y_label: "F-score".into(),
+            series: vec![
+                Series::over("F", "#1f5fbf", false, &t, &score.f_per_frame),
+                Series::over(
+                    "μ(F)",
+                    "#d22",
+                    true,
+                    &t,
+                    &plant_models::pushing::raster::running_mean(&score.f_per_frame),
+                ),
+            ],
+        },
+        Chart {
+            title: "Finger force".into(),
+            x_label: "frame".into(),
+            y_label: "force (N)".into(),
+            series: vec![
+                Series::over("sensed", "#555", false, &t, &prep.video.forces_n),
+                Series::over("driving the model", "#e80", true, &t, &forces),
+            ],
+        },
+    ]);
+    write(&a.out.join("f_per_frame.svg"), &chart.finish())?;
     if a.json {
         println!(
             "{}",
@@ -518,7 +505,7 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
                 "params": params,
                 "mean_f": score.mean_f,
                 "unstable_from_frame": score.unstable_from_frame,
-                "instability": score.instability.map(|i| format!("{i:?}")),
+                "instability": score.instability.map(|i| i.to_string()),
                 "f_per_frame": score.f_per_frame,
                 "out": a.out,
             }))?
@@ -526,10 +513,11 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     } else {
         println!("{title}");
         if let Some(f) = score.unstable_from_frame {
-            println!(
-                "unstable from frame {f} ({:?}): scored 0 from there",
-                score.instability
-            );
+            let why = score
+                .instability
+                .map(|i| i.to_string())
+                .unwrap_or_else(|| "unknown cause".into());
+            println!("unstable from frame {f} ({why}): scored 0 from there");
         }
         println!(
             "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
@@ -593,32 +581,22 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     }
     write(&a.out.join("generations.csv"), &csv)?;
     let t: Vec<f64> = result.history.iter().map(|g| g.generation as f64).collect();
-    let chart = svg::render(
-        &t,
-        &[svg::Chart {
-            title: format!(
-                "μ(F) per generation (x: generation), {} at {}",
-                prep.video.material,
-                prep.video.scenario.site.name()
-            ),
-            y_label: "μ(F)".into(),
-            series: vec![
-                svg::Series::new(
-                    "best".into(),
-                    "#1f5fbf",
-                    false,
-                    result.history.iter().map(|g| g.best).collect(),
-                ),
-                svg::Series::new(
-                    "population mean".into(),
-                    "#e80",
-                    true,
-                    result.history.iter().map(|g| g.mean).collect(),
-                ),
-            ],
-        }],
-    );
-    write(&a.out.join("mu_per_generation.svg"), &chart)?;
+    let best: Vec<f64> = result.history.iter().map(|g| g.best).collect();
+    let mean: Vec<f64> = result.history.iter().map(|g| g.mean).collect();
+    let chart = plot::line_charts(&[Chart {
+        title: format!(
+            "μ(F) per generation, {} at {}",
+            prep.video.material,
+            prep.video.scenario.site.name()
+        ),
+        x_label: "generation".into(),
+        y_label: "μ(F)".into(),
+        series: vec![
+            Series::over("best", "#1f5fbf", false, &t, &best),
+            Series::over("population mean", "#e80", true, &t, &mean),
+        ],
+    }]);
+    write(&a.out.join("mu_per_generation.svg"), &chart.finish())?;
     let score = score_run(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
     let shots = snapshot_positions(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
     let title = format!(
@@ -651,7 +629,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             result.history.len(),
             result.evaluations
         );
-        println!("{:?}", result.best_params);
+        println!("{}", result.best_params);
         println!(
             "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
             a.out.display()
@@ -719,29 +697,28 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     write(&a.out.join("classification.csv"), &csv)?;
     const COLOURS: [&str; 6] = ["#1f5fbf", "#d22", "#2a2", "#e80", "#808", "#555"];
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
-    let chart = svg::render(
-        &t,
-        &[svg::Chart {
-            title: format!(
-                "F per frame of each model (x: frame) — global vote: {}",
-                c.winner_label()
-            ),
-            y_label: "F".into(),
-            series: models
-                .iter()
-                .enumerate()
-                .map(|(k, m)| {
-                    svg::Series::new(
-                        m.label.clone(),
-                        COLOURS[k % COLOURS.len()],
-                        k % 2 == 1,
-                        c.f_per_frame[k].clone(),
-                    )
-                })
-                .collect(),
-        }],
-    );
-    write(&a.out.join("classification.svg"), &chart)?;
+    let chart = plot::line_charts(&[Chart {
+        title: format!(
+            "F-score per frame of each model — global vote: {}",
+            c.winner_label()
+        ),
+        x_label: "frame".into(),
+        y_label: "F-score".into(),
+        series: models
+            .iter()
+            .enumerate()
+            .map(|(k, m)| {
+                Series::over(
+                    m.label.clone(),
+                    COLOURS[k % COLOURS.len()],
+                    k % 2 == 1,
+                    &t,
+                    &c.f_per_frame[k],
+                )
+            })
+            .collect(),
+    }]);
+    write(&a.out.join("classification.svg"), &chart.finish())?;
     if a.json {
         println!(
             "{}",

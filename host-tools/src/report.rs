@@ -38,7 +38,7 @@ impl OutputArgs {
         Ok(())
     }
 }
-use crate::svg::{Chart, Series};
+use crate::plot::{line_charts, Chart, Series};
 
 /// The human-readable summary.
 pub fn table(s: &Summary) -> String {
@@ -137,51 +137,59 @@ pub fn write_plot(
     let rows: Vec<_> = trace.rows.iter().step_by(stride).collect();
     let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
     let colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
+    let column =
+        |f: &dyn Fn(&crate::sim::Row) -> f64| rows.iter().map(|r| f(r)).collect::<Vec<_>>();
     let mut angle_series = Vec::new();
     for (p, a) in angles.iter().enumerate() {
         let c = colours[p % colours.len()];
-        angle_series.push(Series::new(
+        angle_series.push(Series::over(
             format!("{a} true"),
             c,
             false,
-            rows.iter().map(|r| r.true_deg[p]).collect(),
+            &t,
+            &column(&|r| r.true_deg[p]),
         ));
-        angle_series.push(Series::new(
+        angle_series.push(Series::over(
             format!("{a} estimate"),
             c,
             true,
-            rows.iter().map(|r| r.estimate_deg[p]).collect(),
+            &t,
+            &column(&|r| r.estimate_deg[p]),
         ));
-        angle_series.push(Series::new(
+        angle_series.push(Series::over(
             format!("{a} desired"),
             "#555555",
             true,
-            rows.iter().map(|r| r.desired_deg[p]).collect(),
+            &t,
+            &column(&|r| r.desired_deg[p]),
         ));
     }
     let coils = 2 * trace.planes;
     let volt_series = (0..coils)
         .map(|c| {
-            Series::new(
+            Series::over(
                 format!("v{}", c + 1),
                 colours[c % colours.len()],
                 false,
-                rows.iter().map(|r| r.coil_volts[c]).collect(),
+                &t,
+                &column(&|r| r.coil_volts[c]),
             )
         })
         .collect();
     let charts = [
         Chart {
             title: format!("{title} — angles"),
+            x_label: "time (s)".into(),
             y_label: "angle (deg)".into(),
             series: angle_series,
         },
         Chart {
             title: "driver input voltages".into(),
+            x_label: "time (s)".into(),
             y_label: "voltage (V)".into(),
             series: volt_series,
         },
     ];
-    std::fs::write(path, crate::svg::render(&t, &charts))
+    std::fs::write(path, line_charts(&charts).finish())
         .with_context(|| format!("cannot write {}", path.display()))
 }

@@ -421,7 +421,7 @@ impl Scenario {
                         // a subnormal length overflows it.
                         if !(dir.iter().all(|v| v.is_finite()) && dir[0].hypot(dir[1]).is_normal())
                         {
-                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector (length at least {:e}), got {dir:?}", f64::MIN_POSITIVE);
+                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector (length at least {:e}), got [{}, {}]", f64::MIN_POSITIVE, dir[0], dir[1]);
                         }
                     }
                     (*from_s, *to_s)

@@ -4,6 +4,7 @@
 //! argument handling, file I/O and reports.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
+use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
 use plant_models::viscoelastic::error::VeError;
@@ -12,11 +13,11 @@ use plant_models::viscoelastic::fem::{LinearElastic, DEFAULT_SHELL_SCALES};
 use plant_models::viscoelastic::fit::{
     fit_trial, fit_trials, simulate_displacement, simulate_force, NelderMeadOptions, Weighting,
 };
-use plant_models::viscoelastic::io::{data_line_numbers, header, read_columns, read_probe_script};
+use plant_models::viscoelastic::io::{columns_of, read_columns, read_probe_script, read_table};
 use plant_models::viscoelastic::measure::{simulate_campaign, ProbeProtocol, Trial, VertexTruth};
 use plant_models::viscoelastic::object::HapticSample;
 use plant_models::viscoelastic::object::{run_script, Contact, ProbeEvent, HAPTIC_PERIOD_S};
-use plant_models::viscoelastic::svg::{false_colour_mesh, fit_plot};
+use plant_models::viscoelastic::Vec3;
 use plant_models::viscoelastic::{HapticLoop, SurfaceMesh, ViscoObject};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -168,20 +169,23 @@ fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Re
     check_flag("--b", b, true, "N s/m")?;
     let text = read_text(input)?;
     let name = input.display().to_string();
-    let head = header(&text);
-    let has = |c: &str| head.iter().any(|h| h == c);
-    let (t, u, f) = if has("displacement") {
-        let c = read_columns(&text, &name, &["time_s", "displacement"], Some("time_s"))?;
+    let table = read_table(&text, &name)?;
+    let (t, u, f) = if table.has("displacement") {
+        let c = columns_of(&table, &["time_s", "displacement"], Some("time_s"))?;
         let (t, u) = (c.values[0].clone(), c.values[1].clone());
         let f = simulate_force(k1, k2, b, &t, &u)?;
         (t, u, f)
-    } else if has("force") {
-        let c = read_columns(&text, &name, &["time_s", "force"], Some("time_s"))?;
+    } else if table.has("force") {
+        let c = columns_of(&table, &["time_s", "force"], Some("time_s"))?;
         let (t, f) = (c.values[0].clone(), c.values[1].clone());
         let u = simulate_displacement(k1, k2, b, &t, &f)?;
         (t, u, f)
     } else {
-        bail!("{name}:1: missing column: need `displacement` or `force` beside `time_s` (header has: {})", head.join(", "));
+        bail!(
+            "{name}:{}: missing column: need `displacement` or `force` beside `time_s` (the header has: {})",
+            table.header_line,
+            plant_models::csv_input::excerpt(&table.columns.join(", "))
+        );
     };
     // Parameters or samples near the f64 range overflow the model; a NaN or
     // infinite result is refused rather than written.
@@ -385,8 +389,11 @@ fn object(
         per_vertex[v] = magnitude[j];
     }
     let script_text = script.map(read_text).transpose()?;
-    let events = match (script, &script_text) {
-        (Some(p), Some(text)) => read_probe_script(text, &p.display().to_string(), nv)?,
+    let (events, event_lines) = match (script, &script_text) {
+        (Some(p), Some(text)) => {
+            let s = read_probe_script(text, &p.display().to_string(), nv)?;
+            (s.events, s.lines)
+        }
         _ => {
             let top = (0..nv)
                 .filter(|&v| !dgfm.fixed()[v])
@@ -394,7 +401,7 @@ fn object(
                     dgfm.mesh().vertices_m[a][2].total_cmp(&dgfm.mesh().vertices_m[b][2])
                 })
                 .context("no traction vertex")?;
-            vec![
+            let default = vec![
                 ProbeEvent {
                     time_s: 0.0,
                     contact: Some(Contact::Vertex(top)),
@@ -405,7 +412,8 @@ fn object(
                     contact: None,
                     force_n: [0.0; 3],
                 },
-            ]
+            ];
+            (default, Vec::new())
         }
     };
     let mesh_for_image = dgfm.mesh().clone();
@@ -414,13 +422,11 @@ fn object(
     // the plant's exact reference runs the same script beside it.
     let name_script_error = |e: VeError| {
         // An event of the user's script is named by its file and line.
-        match (&e, script, &script_text) {
-            (VeError::ProbeEvent { index, error, .. }, Some(p), Some(text)) => {
-                match data_line_numbers(text).get(*index) {
-                    Some(line) => anyhow::anyhow!("{}:{line}: {error}", p.display()),
-                    None => anyhow::Error::new(e),
-                }
-            }
+        match (&e, script) {
+            (VeError::ProbeEvent { index, error, .. }, Some(p)) => match event_lines.get(*index) {
+                Some(line) => anyhow::anyhow!("{}:{line}: {error}", p.display()),
+                None => anyhow::Error::new(e),
+            },
             _ => anyhow::Error::new(e),
         }
     };
@@ -534,4 +540,102 @@ impl CoreDifference {
             frames_rel: rel(frames_m, frames_max),
         }
     }
+}
+
+/// Measured and fitted force against time.
+fn fit_plot(time_s: &[f64], measured_n: &[f64], fitted_n: &[f64], caption: &str) -> String {
+    plot::line_charts(&[Chart {
+        title: caption.to_string(),
+        x_label: "time (s)".into(),
+        y_label: "force (N)".into(),
+        series: vec![
+            Series::over("measured", "#888", false, time_s, measured_n),
+            Series::over("fitted", "#d00", false, time_s, fitted_n),
+        ],
+    }])
+    .finish()
+}
+
+/// False-colour image of `value` (one per mesh vertex) over the mesh (the
+/// seed's Fig. 9: red high, blue low), orthographic view from `view_dir`
+/// (towards the object), painter's algorithm, back faces culled. Colour
+/// scale from 0 to the largest finite value.
+fn false_colour_mesh(
+    mesh: &SurfaceMesh,
+    value: &[f64],
+    view_dir: [f64; 3],
+    caption: &str,
+) -> String {
+    let (w, h): (f64, f64) = (640.0, 520.0);
+    let d = Vec3::from(view_dir).normalize();
+    // Screen axes: right = d × z (or x if looking along z), up = right × d.
+    let mut right = d.cross(&Vec3::z());
+    if right.norm_squared() < 1e-12 {
+        right = Vec3::x();
+    }
+    let right = right.normalize();
+    let up = right.cross(&d);
+    let proj: Vec<(f64, f64, f64)> = mesh
+        .vertices_m
+        .iter()
+        .map(|p| {
+            let p = Vec3::from(*p);
+            (p.dot(&right), p.dot(&up), p.dot(&d))
+        })
+        .collect();
+    let (xmin, xmax, ymin, ymax) = proj.iter().fold(
+        (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ),
+        |(a, b, c, e), &(x, y, _)| (a.min(x), b.max(x), c.min(y), e.max(y)),
+    );
+    let scale = ((w - 80.0) / (xmax - xmin).max(1e-12)).min((h - 120.0) / (ymax - ymin).max(1e-12));
+    let sx = |x: f64| 40.0 + (x - xmin) * scale;
+    let sy = |y: f64| h - 80.0 - (y - ymin) * scale;
+    let vmax = value
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let mut tris: Vec<(f64, usize)> = mesh
+        .triangles
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| {
+            let [a, b, c] = t.map(|i| Vec3::from(mesh.vertices_m[i]));
+            (b - a).cross(&(c - a)).dot(&d) < 0.0 // facing the viewer
+        })
+        .map(|(k, t)| (t.iter().map(|&i| proj[i].2).sum::<f64>(), k))
+        .collect();
+    tris.sort_by(|a, b| b.0.total_cmp(&a.0)); // far first
+    let mut svg = Svg::new(w, h);
+    let rgb = |(r, g, b): (u8, u8, u8)| format!("rgb({r},{g},{b})");
+    for (_, k) in tris {
+        let t = mesh.triangles[k];
+        let v = t
+            .iter()
+            .map(|&i| value.get(i).copied().unwrap_or(0.0))
+            .sum::<f64>()
+            / 3.0;
+        let fill = rgb(plot::false_colour(if vmax > 0.0 { v / vmax } else { 0.0 }));
+        let pts: Vec<(f64, f64)> = t.iter().map(|&i| (sx(proj[i].0), sy(proj[i].1))).collect();
+        svg.polygon(&pts, &fill, Stroke::solid("#333", 0.3));
+    }
+    for k in 0..10 {
+        let fill = rgb(plot::false_colour(k as f64 / 9.0));
+        svg.rect(40.0 + 30.0 * k as f64, h - 50.0, 30.0, 14.0, &fill, None);
+    }
+    svg.text(40.0, h - 22.0, 12.0, Anchor::Start, "0");
+    svg.text(
+        340.0,
+        h - 22.0,
+        12.0,
+        Anchor::Start,
+        &format!("{vmax:.4e} N·s/m"),
+    );
+    svg.text(40.0, 24.0, 14.0, Anchor::Start, caption);
+    svg.finish()
 }

@@ -529,7 +529,7 @@ fn calibrate_names_the_line_of_an_angle_the_firmware_cannot_hold() {
     // Row 1 is −1e300: line 2.
     refused(
         &["calibrate", "wire", &p],
-        &[&p, "line 2", "theta_deg", "f32"],
+        &[&format!("{p}:2"), "theta_deg", "f32"],
     );
 }
 

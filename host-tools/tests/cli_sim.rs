@@ -180,7 +180,7 @@ fn calibrate_wire_names_the_line_of_a_bad_row() {
     assert!(!o.status.success(), "exit 0 for a bad row");
     let err = stderr(&o);
     assert!(
-        err.contains("line 14"),
+        err.contains(&format!("{}:14:", s(&path))),
         "error does not name line 14:\n{err}"
     );
     assert!(
@@ -197,7 +197,7 @@ fn calibrate_wire_names_the_line_of_a_bad_row() {
     std::fs::write(&path2, "d_mm,theta_deg\n0.1,1.0\n0.2\n").unwrap();
     let o = softjoint(&["calibrate", "wire", s(&path2), "-o", s(&out)]);
     assert!(
-        !o.status.success() && stderr(&o).contains("line 3"),
+        !o.status.success() && stderr(&o).contains("short.csv:3: 1 fields"),
         "{}",
         stderr(&o)
     );

@@ -135,7 +135,11 @@ fn simulate_then_fit_recovers_the_parameters_and_writes_a_plot() {
         assert!((got / want - 1.0).abs() < 1e-3, "{name}: {got} vs {want}");
     }
     let svg = std::fs::read_to_string(&plot).unwrap();
-    assert!(svg.starts_with("<svg") && svg.matches("<path").count() >= 3);
+    // Two curves with their legend, and axes that say what they are.
+    assert!(svg.starts_with("<svg") && svg.matches("<path").count() == 2);
+    for text in [">measured<", ">fitted<", ">time (s)<", ">force (N)<"] {
+        assert!(svg.contains(text), "plot lacks {text}");
+    }
 }
 
 fn expect_error(args: &[&str], needles: &[&str]) {

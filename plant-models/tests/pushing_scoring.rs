@@ -592,7 +592,7 @@ fn video_csv_round_trips_and_reports_malformed_lines() {
     use plant_models::pushing::video_csv::{parse_video_csv, write_video_csv};
     let (sponge, _) = videos();
     let text = write_video_csv(sponge);
-    let back = parse_video_csv(&text, &sponge.scenario, "sponge").unwrap();
+    let back = parse_video_csv(&text, "v.csv", &sponge.scenario, "sponge").unwrap();
     assert_eq!(back.contours_px.len(), 100);
     for (a, b) in back
         .contours_px
@@ -608,16 +608,27 @@ fn video_csv_round_trips_and_reports_malformed_lines() {
     }
     assert_eq!(back.forces_n, sponge.forces_n);
     let sc = &sponge.scenario;
-    let err = |t: &str| parse_video_csv(t, sc, "x").unwrap_err().to_string();
+    let err = |t: &str| {
+        parse_video_csv(t, "v.csv", sc, "x")
+            .unwrap_err()
+            .to_string()
+    };
     assert!(err("").contains("empty file"));
-    assert!(err("frame,force,x,y\n").contains("line 1"));
-    assert!(err("frame,force_n,x_px,y_px\n0,1,2\n").contains("line 2: expected 4 columns"));
-    assert!(err("frame,force_n,x_px,y_px\n0,1,abc,2\n").contains("x_px `abc` is not a number"));
-    assert!(err("frame,force_n,x_px,y_px\n0,1,NaN,2\n").contains("x_px is not finite"));
+    assert!(err("frame,force,x,y\n").starts_with("v.csv:1: expected the header"));
+    assert_eq!(
+        err("frame,force_n,x_px,y_px\n0,1,2\n"),
+        "v.csv:2: 3 fields, but the header has 4"
+    );
+    assert_eq!(
+        err("frame,force_n,x_px,y_px\n0,1,abc,2\n"),
+        "v.csv:2: column `x_px`: `abc` is not a number"
+    );
+    assert!(err("frame,force_n,x_px,y_px\n0,1,NaN,2\n")
+        .starts_with("v.csv:2: column `x_px`: `NaN` is not finite"));
     assert!(err("frame,force_n,x_px,y_px\n-1,1,2,2\n").contains("frame `-1`"));
     assert!(err("frame,force_n,x_px,y_px\n1,1,2,2\n").contains("out of order"));
     assert!(err("# c\nframe,force_n,x_px,y_px\n0,1,2,2\n0,1.5,2,3\n")
-        .contains("line 4: frame 0 has two force readings"));
+        .starts_with("v.csv:4: frame 0 has two force readings"));
     // Well-formed but too short for the scenario's 100 frames.
     assert!(err("frame,force_n,x_px,y_px\n0,1,0,0\n0,1,5,0\n0,1,5,5\n")
         .contains("contours_px has 1 entries, expected 100"));

@@ -17,7 +17,7 @@ pub enum PushError {
     #[error("invalid mesh: {0}")]
     InvalidMesh(String),
     /// Input data (a CSV file, a series of frames) is malformed.
-    #[error("malformed input at {location}: {reason}")]
+    #[error("{location}: {reason}")]
     MalformedInput { location: String, reason: String },
     /// Two series that must line up (frames, forces, ground truth) do not.
     #[error("length mismatch: {what} has {got} entries, expected {expected}")]

@@ -1,6 +1,12 @@
 //! Deformable blocks under robotic pushing: the multi-modal model of
 //! Arriola-Rios & Wyatt (seed 001, SPEC §4).
 //!
+//! [`model`] holds the block being calibrated (mesh, forces, plasticity,
+//! integrators, collisions, the push scenario); [`identify`] everything
+//! that measures and identifies it (the ground-truth generator, scoring,
+//! force regression, calibration, classification, the Table II protocol,
+//! video files).
+//!
 //! What is modelled:
 //! * a 2D triangular mass-spring mesh of the block's visible face with
 //!   length (damped), area and angle preservation and per-spring plasticity
@@ -24,22 +30,14 @@
 //! seconds, forces in N for the sensor and in model units inside the mass-
 //! spring model (unit masses; the calibration absorbs the conversion).
 
-pub mod classify;
-pub mod collision;
 pub mod error;
-pub mod evaluate;
-pub mod evolution;
-pub mod force_regression;
-pub mod forces;
-pub mod mesh;
-pub mod plasticity;
-pub mod raster;
-pub mod reference;
-pub mod scenario;
-pub mod sim;
-pub mod table_ii;
-pub mod vec2;
-pub mod video_csv;
+pub mod identify;
+pub mod model;
+
+pub use identify::{
+    classify, evaluate, evolution, force_regression, raster, reference, table_ii, video_csv,
+};
+pub use model::{collision, forces, mesh, plasticity, scenario, sim, vec2};
 
 pub use error::{PushError, Result};
 

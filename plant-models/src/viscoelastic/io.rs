@@ -1,9 +1,23 @@
-//! Plain-text input for the viscoelastic tools: numeric CSV with a header,
-//! checked line by line (missing columns, wrong field counts, non-numbers,
-//! NaN/∞, time that does not strictly increase), and the probe-script CSV.
-//! Every error names the file, the 1-based line and the reason.
-use super::error::{Result, VeError};
-use super::object::{Contact, ProbeEvent};
+//! Plain-text input for the viscoelastic tools, read with the one CSV
+//! reader ([`crate::csv_input`]): named numeric columns (with time that
+//! must strictly increase) and the probe script. Every error names the
+//! file, the 1-based line and the reason.
+use crate::csv_input::{read_numeric, CsvError, Table};
+use crate::viscoelastic::error::{Result, VeError};
+use crate::viscoelastic::object::{Contact, ProbeEvent};
+
+impl From<CsvError> for VeError {
+    fn from(e: CsvError) -> Self {
+        VeError::Parse {
+            file: e.file,
+            line: e.line,
+            reason: match e.column {
+                Some(c) => format!("column `{c}`: {}", e.reason),
+                None => e.reason,
+            },
+        }
+    }
+}
 
 /// Named numeric columns read from a CSV file.
 #[derive(Clone, Debug, PartialEq)]
@@ -12,6 +26,8 @@ pub struct Columns {
     pub names: Vec<String>,
     /// Values per asked column.
     pub values: Vec<Vec<f64>>,
+    /// The 1-based line of each row.
+    pub lines: Vec<usize>,
 }
 
 impl Columns {
@@ -20,128 +36,83 @@ impl Columns {
         self.names
             .iter()
             .position(|n| n == name)
-            .map(|i| self.values[i].as_slice())
+            .and_then(|i| self.values.get(i))
+            .map(Vec::as_slice)
     }
 }
 
-/// The header names of a CSV text (first non-empty, non-comment line).
-pub fn header(text: &str) -> Vec<String> {
-    text.lines()
-        .map(str::trim)
-        .find(|l| !l.is_empty() && !l.starts_with('#'))
-        .map(|l| l.split(',').map(|s| s.trim().to_string()).collect())
-        .unwrap_or_default()
+/// Reads CSV `text` (`file` names it in errors) as a numeric table.
+pub fn read_table(text: &str, file: &str) -> Result<Table> {
+    Ok(read_numeric(text, file)?)
 }
 
 /// Reads the columns `wanted` from CSV `text` (`file` names it in errors).
-/// Blank lines and lines starting with `#` are skipped. If `time_column`
-/// is given it must strictly increase.
+/// If `time_column` is given it must strictly increase.
 pub fn read_columns(
     text: &str,
     file: &str,
     wanted: &[&str],
     time_column: Option<&str>,
 ) -> Result<Columns> {
-    let err = |line: usize, reason: String| VeError::Parse {
-        file: file.to_string(),
-        line,
-        reason,
-    };
-    let mut lines = text.lines().enumerate().filter(|(_, l)| {
-        let t = l.trim();
-        !t.is_empty() && !t.starts_with('#')
-    });
-    let Some((hline, head)) = lines.next() else {
-        return Err(err(1, "empty file: expected a header line".into()));
-    };
-    let names: Vec<&str> = head.split(',').map(str::trim).collect();
-    let mut idx = Vec::new();
-    for w in wanted {
-        match names.iter().position(|n| n == w) {
-            Some(i) => idx.push(i),
-            None => {
-                return Err(err(
-                    hline + 1,
-                    format!("missing column `{w}` (header has: {})", names.join(", ")),
-                ));
+    columns_of(&read_table(text, file)?, wanted, time_column)
+}
+
+/// The columns `wanted` of `table`, at least 2 rows; `time_column`, if
+/// given, must strictly increase in finite steps.
+pub fn columns_of(table: &Table, wanted: &[&str], time_column: Option<&str>) -> Result<Columns> {
+    let idx = wanted
+        .iter()
+        .map(|w| table.column(w))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    table.require_rows(2, "(a series)")?;
+    if let Some(tc) = time_column {
+        let t = table.column(tc)?;
+        for w in table.rows.windows(2) {
+            let (prev, v) = (w[0].values[t], w[1].values[t]);
+            if v <= prev {
+                return Err(table
+                    .error(
+                        w[1].line,
+                        Some(tc),
+                        format!("time must strictly increase: {v} after {prev}"),
+                    )
+                    .into());
+            }
+            if !(v - prev).is_finite() {
+                return Err(table
+                    .error(
+                        w[1].line,
+                        Some(tc),
+                        format!(
+                            "{}: the step from {} is not finite (the times are too far apart for f64)",
+                            crate::short_number(v),
+                            crate::short_number(prev)
+                        ),
+                    )
+                    .into());
             }
         }
-    }
-    let mut values = vec![Vec::new(); wanted.len()];
-    let time_pos = time_column.and_then(|t| wanted.iter().position(|w| *w == t));
-    for (k, line) in lines {
-        let line_no = k + 1;
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
-            return Err(err(
-                line_no,
-                format!(
-                    "{} fields, but the header has {}",
-                    fields.len(),
-                    names.len()
-                ),
-            ));
-        }
-        for (c, &i) in idx.iter().enumerate() {
-            let s = fields[i];
-            let v: f64 = s
-                .parse()
-                .map_err(|_| err(line_no, format!("`{}` = `{s}` is not a number", wanted[c])))?;
-            if !v.is_finite() {
-                return Err(err(
-                    line_no,
-                    format!("`{}` = `{s}` is not finite (NaN or infinite)", wanted[c]),
-                ));
-            }
-            if Some(c) == time_pos {
-                if let Some(&prev) = values[c].last() {
-                    if v <= prev {
-                        return Err(err(
-                            line_no,
-                            format!("time must strictly increase: {v} after {prev}"),
-                        ));
-                    }
-                    if !(v - prev).is_finite() {
-                        return Err(err(
-                            line_no,
-                            format!(
-                                "`{}` = {}: the step from {} is not finite (the times are too far apart for f64)",
-                                wanted[c],
-                                crate::short_number(v),
-                                crate::short_number(prev)
-                            ),
-                        ));
-                    }
-                }
-            }
-            values[c].push(v);
-        }
-    }
-    if values.first().is_none_or(|v| v.len() < 2) {
-        return Err(err(hline + 1, "need at least 2 data rows".into()));
     }
     Ok(Columns {
         names: wanted.iter().map(|s| s.to_string()).collect(),
-        values,
+        values: idx.iter().map(|&i| table.values(i)).collect(),
+        lines: table.rows.iter().map(|r| r.line).collect(),
     })
 }
 
-/// The 1-based line numbers of the data rows of CSV `text` (the lines
-/// after the header that are neither blank nor comments), in order: entry
-/// `k` is the line of the `k`-th value [`read_columns`] returns.
-pub fn data_line_numbers(text: &str) -> Vec<usize> {
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim().starts_with('#'))
-        .map(|(k, _)| k + 1)
-        .skip(1)
-        .collect()
+/// A probe script: the events and the line of each.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProbeScript {
+    /// The events, in time order.
+    pub events: Vec<ProbeEvent>,
+    /// The 1-based line of each event.
+    pub lines: Vec<usize>,
 }
 
 /// Reads a probe script: columns `time_s,vertex,fx_n,fy_n,fz_n`; from each
 /// row's time on the probe pushes mesh vertex `vertex` with that force, or
 /// releases the object when `vertex` is −1.
-pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result<Vec<ProbeEvent>> {
+pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result<ProbeScript> {
     let cols = read_columns(
         text,
         file,
@@ -156,7 +127,6 @@ pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result
         get("fy_n"),
         get("fz_n"),
     );
-    let data_lines = data_line_numbers(text);
     let mut events = Vec::with_capacity(t.len());
     for k in 0..t.len() {
         let vertex = v[k];
@@ -167,9 +137,9 @@ pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result
         } else {
             return Err(VeError::Parse {
                 file: file.to_string(),
-                line: data_lines.get(k).copied().unwrap_or(0),
+                line: cols.lines[k],
                 reason: format!(
-                    "vertex {vertex} is not −1 or a mesh vertex index below {mesh_vertices}"
+                    "column `vertex`: {vertex} is not −1 or a mesh vertex index below {mesh_vertices}"
                 ),
             });
         };
@@ -179,5 +149,8 @@ pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result
             force_n: [fx[k], fy[k], fz[k]],
         });
     }
-    Ok(events)
+    Ok(ProbeScript {
+        events,
+        lines: cols.lines,
+    })
 }

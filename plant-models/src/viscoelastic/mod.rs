@@ -28,7 +28,6 @@ pub mod error;
 pub mod identify;
 pub mod io;
 pub mod model;
-pub mod svg;
 
 pub use identify::{estimate, fit, measure};
 pub use model::{dgfm, fem, mesh, object, three_element};

@@ -5,9 +5,9 @@
 //! is one camera pixel as in the seed; larger cells trade resolution for
 //! speed. The mesh is rasterised triangle by triangle (the union), a tracked
 //! contour as a polygon (even–odd rule).
-use super::error::{check_positive, PushError, Result};
-use super::mesh::Mesh;
-use super::V2;
+use crate::pushing::error::{check_positive, PushError, Result};
+use crate::pushing::mesh::Mesh;
+use crate::pushing::V2;
 use serde::{Deserialize, Serialize};
 
 /// A grid of square cells covering a region of the image.

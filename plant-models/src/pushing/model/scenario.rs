@@ -6,9 +6,9 @@
 //! size, depth and approach gap are not given in the seed and are estimates.
 //! The camera looks at the block from the side: the table is the line
 //! y = 0, the finger comes down from above (the seed's "push down").
-use super::collision::{Finger, Table};
-use super::error::{check_positive, check_range, Result};
-use super::V2;
+use crate::pushing::collision::{Finger, Table};
+use crate::pushing::error::{check_positive, check_range, Result};
+use crate::pushing::V2;
 use serde::{Deserialize, Serialize};
 
 /// Block length, m (§VIII-A: 8.5 cm).
@@ -126,7 +126,7 @@ impl PushScenario {
         check_range("approach_gap_px", self.approach_gap_px, 0.0, f64::MAX)?;
         check_positive("frame_interval_s", self.frame_interval_s)?;
         if self.frames_push == 0 {
-            return Err(super::PushError::InvalidParameter {
+            return Err(crate::pushing::PushError::InvalidParameter {
                 name: "frames_push",
                 value: 0.0,
                 reason: "needs at least one frame",

@@ -19,9 +19,9 @@
 //!
 //! Left out: gravity and friction (the seed has none in the model), the
 //! Eq. 24–25 variant that normalises the gradient direction.
-use super::error::{check_range, PushError, Result};
-use super::mesh::{corner, corner_angle, cross, Mesh};
-use super::V2;
+use crate::pushing::error::{check_range, PushError, Result};
+use crate::pushing::mesh::{corner, corner_angle, cross, Mesh};
+use crate::pushing::V2;
 use serde::{Deserialize, Serialize};
 
 /// The learnable constants of the mass-spring model (§VII-A, Table III).
@@ -49,6 +49,24 @@ pub struct MaterialParams {
     /// max α: largest permanent compression of a spring (Algorithm 2).
     /// Table III: [1e-5, 0.9].
     pub max_alpha: f64,
+}
+
+impl std::fmt::Display for MaterialParams {
+    /// The parameters as Table III names them.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "k_L = {:.6}, k_d = {:.6}, k_A = {:.6}, k_φ = {:.6}, max(F) = {:.6}, yield = {:.6}, creep = {:.6}, max α = {:.6}",
+            self.k_length,
+            self.k_damping,
+            self.k_area,
+            self.k_angle,
+            self.max_force,
+            self.yield_strain,
+            self.creep,
+            self.max_alpha
+        )
+    }
 }
 
 impl MaterialParams {

@@ -20,11 +20,13 @@
 //! modelling clay, scaled to px with the seed's camera scales. Left out:
 //! viscoelasticity of the plasticine, more than one relaxation time,
 //! contact friction with the finger, self-contact, out-of-plane effects.
-use super::error::{check_positive, check_range, PushError, Result};
-use super::mesh::Mesh;
-use super::scenario::{PushScenario, PushSite, PLASTICINE_SCALE_PX_PER_M, SPONGE_SCALE_PX_PER_M};
-use super::vec2::M2;
-use super::V2;
+use crate::pushing::error::{check_positive, check_range, PushError, Result};
+use crate::pushing::mesh::Mesh;
+use crate::pushing::scenario::{
+    PushScenario, PushSite, PLASTICINE_SCALE_PX_PER_M, SPONGE_SCALE_PX_PER_M,
+};
+use crate::pushing::vec2::M2;
+use crate::pushing::V2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -272,7 +274,7 @@ impl ReferenceBlock {
         );
         // Mesh::grid's own limit, checked here so that the error names the
         // element size the caller chose rather than the grid's `nx`/`ny`.
-        if nx.max(ny) > super::mesh::MAX_SQUARES_PER_SIDE as f64 {
+        if nx.max(ny) > crate::pushing::mesh::MAX_SQUARES_PER_SIDE as f64 {
             return Err(PushError::InvalidParameter {
                 name: "element_size_px",
                 value: element_size_px,
@@ -604,7 +606,7 @@ pub fn seed_videos(config: &ReferenceConfig) -> Result<Vec<Video>> {
 /// Contours as nested `[x, y]` arrays in JSON (nalgebra's serde feature is
 /// not enabled in this crate).
 mod contours_serde {
-    use super::V2;
+    use crate::pushing::V2;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
     pub fn serialize<S: Serializer>(c: &[Vec<V2>], s: S) -> Result<S::Ok, S::Error> {
         let v: Vec<Vec<[f64; 2]>> = c

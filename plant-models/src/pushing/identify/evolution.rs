@@ -18,8 +18,8 @@
 //! numbers are drawn sequentially from one seeded ChaCha generator and the
 //! scores are collected in candidate order, so results do not depend on the
 //! number of threads.
-use super::error::{check_range, PushError, Result};
-use super::forces::MaterialParams;
+use crate::pushing::error::{check_range, PushError, Result};
+use crate::pushing::forces::MaterialParams;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};

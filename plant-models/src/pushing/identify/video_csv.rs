@@ -1,5 +1,5 @@
 //! A recorded push as CSV, so that tracked contours and force readings from
-//! elsewhere (or from [`super::reference`]) can be scored and calibrated on.
+//! elsewhere (or from [`crate::pushing::reference`]) can be scored and calibrated on.
 //!
 //! One row per contour point: `frame,force_n,x_px,y_px`. Frames are numbered
 //! 0, 1, 2, … without gaps, rows of a frame are consecutive and list its
@@ -7,10 +7,10 @@
 //! reading (N, along the push direction). Lines starting with `#` and blank
 //! lines are skipped. The scenario (block, finger path, frame interval) is
 //! not in the file: the caller supplies it and the frame count must match.
-use super::error::{PushError, Result};
-use super::reference::Video;
-use super::scenario::PushScenario;
-use super::V2;
+use crate::pushing::error::{PushError, Result};
+use crate::pushing::reference::Video;
+use crate::pushing::scenario::PushScenario;
+use crate::pushing::V2;
 use std::fmt::Write as _;
 
 /// The header line written and expected.
@@ -34,65 +34,66 @@ pub fn write_video_csv(video: &Video) -> String {
     s
 }
 
-fn bad(line: usize, reason: impl Into<String>) -> PushError {
+fn bad(file: &str, line: usize, reason: impl Into<String>) -> PushError {
     PushError::MalformedInput {
-        location: format!("line {line}"),
+        location: format!("{file}:{line}"),
         reason: reason.into(),
     }
 }
 
-/// Parses a video CSV for `scenario`, labelled `material`.
-pub fn parse_video_csv(text: &str, scenario: &PushScenario, material: &str) -> Result<Video> {
+impl From<crate::csv_input::CsvError> for PushError {
+    fn from(e: crate::csv_input::CsvError) -> Self {
+        PushError::MalformedInput {
+            location: format!("{}:{}", e.file, e.line),
+            reason: match e.column {
+                Some(c) => format!("column `{c}`: {}", e.reason),
+                None => e.reason,
+            },
+        }
+    }
+}
+
+/// Parses a video CSV (named `file` in errors) for `scenario`, labelled
+/// `material`.
+pub fn parse_video_csv(
+    text: &str,
+    file: &str,
+    scenario: &PushScenario,
+    material: &str,
+) -> Result<Video> {
     scenario.validate()?;
+    let table = crate::csv_input::read_numeric(text, file)?;
+    if table.columns != ["frame", "force_n", "x_px", "y_px"] {
+        return Err(bad(
+            file,
+            table.header_line,
+            format!(
+                "expected the header `{HEADER}`, found `{}`",
+                crate::csv_input::excerpt(&table.columns.join(","))
+            ),
+        ));
+    }
     let mut contours: Vec<Vec<V2>> = Vec::new();
     let mut forces: Vec<f64> = Vec::new();
-    let mut saw_header = false;
-    for (i, raw) in text.lines().enumerate() {
-        let line_no = i + 1;
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        if !saw_header {
-            let cols: Vec<&str> = line.split(',').map(str::trim).collect();
-            if cols != ["frame", "force_n", "x_px", "y_px"] {
-                return Err(bad(
-                    line_no,
-                    format!("expected the header `{HEADER}`, found `{line}`"),
-                ));
-            }
-            saw_header = true;
-            continue;
-        }
-        let cols: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cols.len() != 4 {
+    for row in &table.rows {
+        let [f, force, x, y] = row.values[..] else {
+            return Err(bad(file, row.line, "expected 4 columns"));
+        };
+        if !(f >= 0.0 && f.fract() == 0.0 && f < usize::MAX as f64) {
             return Err(bad(
-                line_no,
-                format!("expected 4 columns, found {}", cols.len()),
+                file,
+                row.line,
+                format!("frame `{f}` is not a non-negative integer"),
             ));
         }
-        let frame: usize = cols[0].parse().map_err(|_| {
-            bad(
-                line_no,
-                format!("frame `{}` is not a non-negative integer", cols[0]),
-            )
-        })?;
-        let num = |k: usize, name: &str| -> Result<f64> {
-            let v: f64 = cols[k]
-                .parse()
-                .map_err(|_| bad(line_no, format!("{name} `{}` is not a number", cols[k])))?;
-            if !v.is_finite() {
-                return Err(bad(line_no, format!("{name} is not finite")));
-            }
-            Ok(v)
-        };
-        let (force, x, y) = (num(1, "force_n")?, num(2, "x_px")?, num(3, "y_px")?);
+        let frame = f as usize;
         if frame == contours.len() {
             contours.push(Vec::new());
             forces.push(force);
         } else if frame + 1 != contours.len() {
             return Err(bad(
-                line_no,
+                file,
+                row.line,
                 format!(
                     "frame {frame} out of order (expected {} or {})",
                     contours.len().saturating_sub(1),
@@ -101,7 +102,8 @@ pub fn parse_video_csv(text: &str, scenario: &PushScenario, material: &str) -> R
             ));
         } else if forces[frame] != force {
             return Err(bad(
-                line_no,
+                file,
+                row.line,
                 format!(
                     "frame {frame} has two force readings ({} and {force})",
                     forces[frame]
@@ -109,12 +111,6 @@ pub fn parse_video_csv(text: &str, scenario: &PushScenario, material: &str) -> R
             ));
         }
         contours[frame].push(V2::new(x, y));
-    }
-    if !saw_header {
-        return Err(bad(
-            1,
-            format!("empty file: expected the header `{HEADER}`"),
-        ));
     }
     let video = Video {
         material: material.to_string(),

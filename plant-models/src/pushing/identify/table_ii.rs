@@ -14,8 +14,8 @@
 //! for itself with the same data, search settings and seeds. A term that is
 //! off is held at 0 whatever the search proposes; without collisions the
 //! finger acts only through the sensed force (§VI-F mode 2).
-use super::forces::MaterialParams;
-use super::sim::{DrivingMode, Integrator, SimConfig};
+use crate::pushing::forces::MaterialParams;
+use crate::pushing::sim::{DrivingMode, Integrator, SimConfig};
 
 /// Which preservation terms a session's model has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -6,8 +6,8 @@
 //!
 //! Left out: friction with the table, and the finger's own shape beyond a
 //! circle (the seed treats it as a circular obstacle, §VIII-A).
-use super::mesh::{cross, signed_area, Mesh};
-use super::V2;
+use crate::pushing::mesh::{cross, signed_area, Mesh};
+use crate::pushing::V2;
 
 /// Distance ε to which a vertex or edge is pushed clear of the finger, px
 /// (estimate; the seed names ε without a value, §VI-D).

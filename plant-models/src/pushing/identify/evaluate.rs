@@ -9,14 +9,16 @@
 //! evaluated at each step and sensed forces are linearly interpolated
 //! between frames (§VI-C). From the frame where the run turns unstable,
 //! F = 0 (§VII-B).
-use super::error::{check_range, PushError, Result};
-use super::forces::MaterialParams;
-use super::mesh::Mesh;
-use super::raster::{f_score, rasterise_mesh, rasterise_polygon, running_mean, Bitmap, RasterGrid};
-use super::reference::Video;
-use super::scenario::PushScenario;
-use super::sim::{Instability, SimConfig, Simulator};
-use super::V2;
+use crate::pushing::error::{check_range, PushError, Result};
+use crate::pushing::forces::MaterialParams;
+use crate::pushing::mesh::Mesh;
+use crate::pushing::raster::{
+    f_score, rasterise_mesh, rasterise_polygon, running_mean, Bitmap, RasterGrid,
+};
+use crate::pushing::reference::Video;
+use crate::pushing::scenario::PushScenario;
+use crate::pushing::sim::{Instability, SimConfig, Simulator};
+use crate::pushing::V2;
 use serde::{Deserialize, Serialize};
 
 /// Mesh resolution and image resolution of an evaluation.

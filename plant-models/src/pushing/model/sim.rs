@@ -10,12 +10,14 @@
 //! check. Masses are all 1 (§VII-A).
 //!
 //! Left out: sub-stepping, adaptive steps, any implicit solver.
-use super::collision::{repair_triangles, Finger, Table};
-use super::error::{check_positive, Result};
-use super::forces::{accumulate_internal_forces, clamp_forces, length_force, MaterialParams};
-use super::mesh::Mesh;
-use super::plasticity::update_alpha;
-use super::V2;
+use crate::pushing::collision::{repair_triangles, Finger, Table};
+use crate::pushing::error::{check_positive, Result};
+use crate::pushing::forces::{
+    accumulate_internal_forces, clamp_forces, length_force, MaterialParams,
+};
+use crate::pushing::mesh::Mesh;
+use crate::pushing::plasticity::update_alpha;
+use crate::pushing::V2;
 use serde::{Deserialize, Serialize};
 
 /// Vertex mass (§VII-A: unitary masses).
@@ -121,7 +123,7 @@ impl Default for SimConfig {
         Self {
             integrator: Integrator::Customised,
             mode: DrivingMode::CollisionAndForces,
-            step_s: super::scenario::STEP_S,
+            step_s: crate::pushing::scenario::STEP_S,
             geometric_repair: true,
         }
     }
@@ -136,6 +138,29 @@ pub enum Instability {
     Escaped { vertex: usize, distance_px: f64 },
     /// The mesh's total signed area left [0.1, 10]× its rest area.
     AreaCollapse { area_ratio: f64 },
+}
+
+impl std::fmt::Display for Instability {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Instability::NonFinite { vertex } => {
+                write!(f, "vertex {vertex} has a non-finite coordinate")
+            }
+            Instability::Escaped {
+                vertex,
+                distance_px,
+            } => write!(
+                f,
+                "vertex {vertex} flew {} px from the block",
+                crate::short_number(*distance_px)
+            ),
+            Instability::AreaCollapse { area_ratio } => write!(
+                f,
+                "the mesh's area is {}× its rest area (allowed 0.1–10×)",
+                crate::short_number(*area_ratio)
+            ),
+        }
+    }
 }
 
 /// The state of one mass-spring simulation.

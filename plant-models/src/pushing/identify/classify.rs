@@ -3,10 +3,10 @@
 //! F-score wins, and the global vote adds each model's F-score margin over
 //! the frame's mean of all models, so frames where the models differ most
 //! weigh most (for two models: the sum of F differences, §VIII-E 2).
-use super::error::{PushError, Result};
-use super::evaluate::{score_run, PreparedVideo};
-use super::forces::MaterialParams;
-use super::sim::SimConfig;
+use crate::pushing::error::{PushError, Result};
+use crate::pushing::evaluate::{score_run, PreparedVideo};
+use crate::pushing::forces::MaterialParams;
+use crate::pushing::sim::SimConfig;
 use serde::{Deserialize, Serialize};
 
 /// A calibrated model of one material.

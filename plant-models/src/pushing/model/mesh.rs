@@ -7,8 +7,8 @@
 //! Springs are the triangle edges. Lengths are in image pixels (px), the
 //! unit the seed's simulations and its flat-triangle threshold (2.0 units,
 //! §VII-A) are expressed in. Masses are not stored: all are 1 (§VII-A).
-use super::error::{PushError, Result};
-use super::V2;
+use crate::pushing::error::{PushError, Result};
+use crate::pushing::V2;
 
 /// 2D cross product (z component), px².
 #[inline]
@@ -91,7 +91,8 @@ impl Mesh {
             }
             if a == b || b == c || a == c {
                 return Err(PushError::InvalidMesh(format!(
-                    "triangle {t} repeats a vertex: {tri:?}"
+                    "triangle {t} repeats a vertex: [{}, {}, {}]",
+                    tri[0], tri[1], tri[2]
                 )));
             }
             let area = signed_area(
@@ -206,8 +207,8 @@ impl Mesh {
                 reason: "more than 2000 squares per side",
             });
         }
-        super::error::check_positive("width_px", width_px)?;
-        super::error::check_positive("height_px", height_px)?;
+        crate::pushing::error::check_positive("width_px", width_px)?;
+        crate::pushing::error::check_positive("height_px", height_px)?;
         if !origin_px.x.is_finite() || !origin_px.y.is_finite() {
             return Err(PushError::InvalidParameter {
                 name: "origin_px",

@@ -9,7 +9,7 @@
 //! Line 2 of Algorithm 2 ("if α > max α then l0 ← l") can never fire once α
 //! is capped at max α on line 11, so here the rest length is always
 //! (1 − α)·D0.
-use super::forces::MaterialParams;
+use crate::pushing::forces::MaterialParams;
 
 /// Updates α of one spring from its current length `l_px`; returns the new α.
 #[inline]

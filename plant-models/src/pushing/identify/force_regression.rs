@@ -11,8 +11,8 @@
 //! The normalised error is the RMS residual of the window divided by the
 //! range of all forces of the phase; threshold and minimum window are
 //! estimates (the seed says "a threshold value" and "e.g. five" points).
-use super::error::{check_range, PushError, Result};
-use super::scenario::PushScenario;
+use crate::pushing::error::{check_range, PushError, Result};
+use crate::pushing::scenario::PushScenario;
 use serde::{Deserialize, Serialize};
 
 /// Points a segment starts with (§V: "e.g. five").

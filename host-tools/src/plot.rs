@@ -1,0 +1,525 @@
+//! The one plotting module: every picture `softjoint` writes is SVG built
+//! here.
+//!
+//! Hand-written rather than `plotters`: plotters lays text out with a font
+//! backend (system fonts through fontconfig, or a font file compiled in),
+//! while an SVG can leave text to the viewer, so this writer needs neither
+//! fonts nor system libraries, and the pictures stay a few kB of readable
+//! XML.
+//!
+//! - [`Svg`]: a document in pixel coordinates with the few primitives the
+//!   pictures use. Non-finite coordinates never reach the file: a polyline
+//!   lifts its pen at them, a polygon with one is left out (and counted in
+//!   [`Svg::skipped`]), text is escaped.
+//! - [`line_charts`]: stacked charts of series against an x axis, each with
+//!   its own axis labels and legend (time series, μ(F) per generation, fit
+//!   curves).
+//! - [`false_colour`]: the colour ramp of the seed 002 damping images.
+use std::fmt::Write as _;
+
+/// An SVG document under construction, in pixels, origin top left.
+pub struct Svg {
+    body: String,
+    width: f64,
+    height: f64,
+    skipped: usize,
+}
+
+/// How a line is drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stroke<'a> {
+    /// Colour (CSS).
+    pub colour: &'a str,
+    /// Width (px).
+    pub width: f64,
+    /// Dashed.
+    pub dashed: bool,
+}
+
+impl<'a> Stroke<'a> {
+    /// A solid line.
+    pub fn solid(colour: &'a str, width: f64) -> Self {
+        Self {
+            colour,
+            width,
+            dashed: false,
+        }
+    }
+    /// A dashed line.
+    pub fn dashed(colour: &'a str, width: f64) -> Self {
+        Self {
+            colour,
+            width,
+            dashed: true,
+        }
+    }
+    fn attributes(&self) -> String {
+        let dash = if self.dashed {
+            r#" stroke-dasharray="6,4""#
+        } else {
+            ""
+        };
+        format!(
+            r#"stroke="{}" stroke-width="{}"{dash}"#,
+            escape(self.colour),
+            self.width
+        )
+    }
+}
+
+/// Horizontal anchoring of a text.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Anchor {
+    /// Text starts at x.
+    Start,
+    /// Text is centred on x.
+    Middle,
+    /// Text ends at x.
+    End,
+}
+
+/// Escapes text for SVG.
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+fn finite(p: &(f64, f64)) -> bool {
+    p.0.is_finite() && p.1.is_finite()
+}
+
+impl Svg {
+    /// An empty white page of `width` × `height` px.
+    pub fn new(width: f64, height: f64) -> Self {
+        let mut body = String::new();
+        let _ = writeln!(body, r#"<rect width="100%" height="100%" fill="white"/>"#);
+        Self {
+            body,
+            width,
+            height,
+            skipped: 0,
+        }
+    }
+
+    /// Shapes left out because a coordinate was not finite.
+    pub fn skipped(&self) -> usize {
+        self.skipped
+    }
+
+    /// A text at (x, y) of `size` px.
+    pub fn text(&mut self, x: f64, y: f64, size: f64, anchor: Anchor, text: &str) {
+        self.text_styled(x, y, size, anchor, "", text);
+    }
+
+    /// A text with extra SVG attributes (`fill="…"`, `font-weight="…"`).
+    pub fn text_styled(
+        &mut self,
+        x: f64,
+        y: f64,
+        size: f64,
+        anchor: Anchor,
+        style: &str,
+        text: &str,
+    ) {
+        if !(x.is_finite() && y.is_finite()) {
+            self.skipped += 1;
+            return;
+        }
+        let anchor = match anchor {
+            Anchor::Start => "start",
+            Anchor::Middle => "middle",
+            Anchor::End => "end",
+        };
+        let _ = writeln!(
+            self.body,
+            r#"<text x="{x:.1}" y="{y:.1}" font-size="{size}" text-anchor="{anchor}" {style}>{}</text>"#,
+            escape(text)
+        );
+    }
+
+    /// A text rotated 90° anticlockwise about (x, y) (a y-axis label).
+    pub fn vertical_text(&mut self, x: f64, y: f64, size: f64, text: &str) {
+        let _ = writeln!(
+            self.body,
+            r#"<text transform="translate({x:.1},{y:.1}) rotate(-90)" font-size="{size}" text-anchor="middle">{}</text>"#,
+            escape(text)
+        );
+    }
+
+    /// A straight line.
+    pub fn line(&mut self, from: (f64, f64), to: (f64, f64), stroke: Stroke<'_>) {
+        if !(finite(&from) && finite(&to)) {
+            self.skipped += 1;
+            return;
+        }
+        let _ = writeln!(
+            self.body,
+            r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" {}/>"#,
+            from.0,
+            from.1,
+            to.0,
+            to.1,
+            stroke.attributes()
+        );
+    }
+
+    /// An open polyline; the pen lifts at every non-finite point.
+    pub fn polyline(&mut self, points: impl IntoIterator<Item = (f64, f64)>, stroke: Stroke<'_>) {
+        let mut d = String::new();
+        let mut pen_up = true;
+        for p in points {
+            if !finite(&p) {
+                pen_up = true;
+                continue;
+            }
+            let _ = write!(
+                d,
+                "{}{:.1},{:.1} ",
+                if pen_up { "M" } else { "L" },
+                p.0,
+                p.1
+            );
+            pen_up = false;
+        }
+        if !d.is_empty() {
+            let _ = writeln!(
+                self.body,
+                r#"<path d="{}" fill="none" {}/>"#,
+                d.trim_end(),
+                stroke.attributes()
+            );
+        }
+    }
+
+    /// Line segments drawn as one path (a mesh's edges).
+    pub fn segments(
+        &mut self,
+        segments: impl IntoIterator<Item = ((f64, f64), (f64, f64))>,
+        stroke: Stroke<'_>,
+    ) {
+        let mut d = String::new();
+        for (a, b) in segments {
+            if finite(&a) && finite(&b) {
+                let _ = write!(d, "M{:.1},{:.1}L{:.1},{:.1}", a.0, a.1, b.0, b.1);
+            } else {
+                self.skipped += 1;
+            }
+        }
+        if !d.is_empty() {
+            let _ = writeln!(
+                self.body,
+                r#"<path d="{d}" fill="none" {}/>"#,
+                stroke.attributes()
+            );
+        }
+    }
+
+    /// A closed, filled polygon; left out if any point is not finite.
+    pub fn polygon(&mut self, points: &[(f64, f64)], fill: &str, stroke: Stroke<'_>) {
+        if points.is_empty() || !points.iter().all(finite) {
+            self.skipped += 1;
+            return;
+        }
+        let pts: Vec<String> = points
+            .iter()
+            .map(|(x, y)| format!("{x:.1},{y:.1}"))
+            .collect();
+        let _ = writeln!(
+            self.body,
+            r#"<polygon points="{}" fill="{}" {}/>"#,
+            pts.join(" "),
+            escape(fill),
+            stroke.attributes()
+        );
+    }
+
+    /// A circle outline.
+    pub fn circle(&mut self, centre: (f64, f64), radius: f64, stroke: Stroke<'_>) {
+        if !(finite(&centre) && radius.is_finite()) {
+            self.skipped += 1;
+            return;
+        }
+        let _ = writeln!(
+            self.body,
+            r#"<circle cx="{:.1}" cy="{:.1}" r="{radius:.1}" fill="none" {}/>"#,
+            centre.0,
+            centre.1,
+            stroke.attributes()
+        );
+    }
+
+    /// A rectangle.
+    pub fn rect(&mut self, x: f64, y: f64, w: f64, h: f64, fill: &str, stroke: Option<Stroke<'_>>) {
+        if ![x, y, w, h].iter().all(|v| v.is_finite()) {
+            self.skipped += 1;
+            return;
+        }
+        let stroke = stroke.map(|s| s.attributes()).unwrap_or_default();
+        let _ = writeln!(
+            self.body,
+            r#"<rect x="{x:.1}" y="{y:.1}" width="{w:.1}" height="{h:.1}" fill="{}" {stroke}/>"#,
+            escape(fill)
+        );
+    }
+
+    /// The document.
+    pub fn finish(self) -> String {
+        format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w:.0}\" height=\"{h:.0}\" viewBox=\"0 0 {w:.0} {h:.0}\" font-family=\"sans-serif\">\n{}</svg>\n",
+            self.body,
+            w = self.width,
+            h = self.height
+        )
+    }
+}
+
+/// One line of a chart.
+pub struct Series {
+    /// Legend text.
+    pub label: String,
+    /// Colour (CSS).
+    pub colour: &'static str,
+    /// Dashed line.
+    pub dashed: bool,
+    /// (x, y) points; non-finite ones break the line.
+    pub points: Vec<(f64, f64)>,
+}
+
+impl Series {
+    /// A series of `y` values against shared `x` values.
+    pub fn over(
+        label: impl Into<String>,
+        colour: &'static str,
+        dashed: bool,
+        x: &[f64],
+        y: &[f64],
+    ) -> Self {
+        Self {
+            label: label.into(),
+            colour,
+            dashed,
+            points: x.iter().copied().zip(y.iter().copied()).collect(),
+        }
+    }
+}
+
+/// One chart: a title, axis labels that say what is plotted, and series.
+pub struct Chart {
+    /// Title.
+    pub title: String,
+    /// What the x axis is, with its unit (`time (s)`, `generation`).
+    pub x_label: String,
+    /// What the y axis is, with its unit.
+    pub y_label: String,
+    /// Lines.
+    pub series: Vec<Series>,
+}
+
+const CHART_W: f64 = 960.0;
+const CHART_H: f64 = 300.0;
+const ML: f64 = 70.0;
+const MR: f64 = 190.0;
+const MT: f64 = 30.0;
+const MB: f64 = 42.0;
+
+/// Round tick values covering `lo..=hi`, about `n` of them.
+pub fn nice_ticks(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    if !(lo.is_finite() && hi.is_finite()) || n == 0 {
+        return Vec::new();
+    }
+    let span = (hi - lo).max(1e-12);
+    let raw = span / n as f64;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * mag)
+        .find(|s| span / s <= n as f64)
+        .unwrap_or(10.0 * mag);
+    let mut out = Vec::new();
+    let mut k = (lo / step).ceil();
+    while k * step <= hi + step * 1e-9 && out.len() < 4 * n + 2 {
+        out.push(k * step);
+        k += 1.0;
+    }
+    out
+}
+
+fn format_tick(v: f64) -> String {
+    let a = v.abs();
+    if a < 1e-12 {
+        "0".into()
+    } else if !(1e-3..1e6).contains(&a) {
+        format!("{v:.1e}")
+    } else if v.fract().abs() < 1e-9 {
+        format!("{v:.0}")
+    } else {
+        format!("{v:.3}")
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_string()
+    }
+}
+
+/// The finite range of `values`, padded by 5 %; (0, 1) when there is none.
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(v), h.max(v))
+        });
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.05)
+        .max(1e-9 * lo.abs().max(hi.abs()))
+        .max(1e-12);
+    (lo - pad, hi + pad)
+}
+
+/// Charts stacked vertically, one per row, each over its own x range.
+pub fn line_charts(charts: &[Chart]) -> Svg {
+    let mut svg = Svg::new(CHART_W, CHART_H * charts.len().max(1) as f64);
+    for (ci, chart) in charts.iter().enumerate() {
+        let oy = ci as f64 * CHART_H;
+        let points = || chart.series.iter().flat_map(|s| s.points.iter());
+        let (x0, x1) = range(points().map(|p| p.0));
+        let (y0, y1) = range(points().map(|p| p.1));
+        let (pw, ph) = (CHART_W - ML - MR, CHART_H - MT - MB);
+        let px = |x: f64| ML + (x - x0) / (x1 - x0) * pw;
+        let py = |y: f64| oy + MT + (y1 - y) / (y1 - y0) * ph;
+        svg.text_styled(
+            ML,
+            oy + 18.0,
+            14.0,
+            Anchor::Start,
+            r#"font-weight="bold""#,
+            &chart.title,
+        );
+        let grid = Stroke::solid("#e0e0e0", 1.0);
+        for y in nice_ticks(y0, y1, 6) {
+            svg.line((ML, py(y)), (ML + pw, py(y)), grid);
+            svg.text(ML - 6.0, py(y) + 4.0, 12.0, Anchor::End, &format_tick(y));
+        }
+        for x in nice_ticks(x0, x1, 10) {
+            svg.line((px(x), oy + MT), (px(x), oy + MT + ph), grid);
+            svg.text(
+                px(x),
+                oy + MT + ph + 16.0,
+                12.0,
+                Anchor::Middle,
+                &format_tick(x),
+            );
+        }
+        svg.rect(
+            ML,
+            oy + MT,
+            pw,
+            ph,
+            "none",
+            Some(Stroke::solid("#333", 1.0)),
+        );
+        svg.text(
+            ML + pw / 2.0,
+            oy + CHART_H - 6.0,
+            12.0,
+            Anchor::Middle,
+            &chart.x_label,
+        );
+        svg.vertical_text(16.0, oy + MT + ph / 2.0, 12.0, &chart.y_label);
+        for (li, s) in chart.series.iter().enumerate() {
+            let stroke = Stroke {
+                colour: s.colour,
+                width: 1.4,
+                dashed: s.dashed,
+            };
+            svg.polyline(s.points.iter().map(|&(x, y)| (px(x), py(y))), stroke);
+            let ly = oy + MT + 14.0 + 18.0 * li as f64;
+            svg.line(
+                (ML + pw + 10.0, ly),
+                (ML + pw + 34.0, ly),
+                Stroke {
+                    width: 2.0,
+                    ..stroke
+                },
+            );
+            svg.text(ML + pw + 40.0, ly + 4.0, 12.0, Anchor::Start, &s.label);
+        }
+    }
+    svg
+}
+
+/// Blue (0) → cyan → green → yellow → red (1), the seed 002 Fig. 9 ramp;
+/// non-finite values are blue.
+pub fn false_colour(t: f64) -> (u8, u8, u8) {
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let ramp = |x: f64| (255.0 * x.clamp(0.0, 1.0)).round() as u8;
+    (
+        ramp(2.0 * t - 1.0),
+        ramp(1.0 - (2.0 * t - 1.0).abs()),
+        ramp(1.0 - 2.0 * t),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn non_finite_coordinates_never_reach_the_file() {
+        let mut svg = Svg::new(100.0, 100.0);
+        svg.polyline(
+            [
+                (0.0, 0.0),
+                (f64::NAN, 1.0),
+                (2.0, 2.0),
+                (3.0, f64::INFINITY),
+            ],
+            Stroke::solid("red", 1.0),
+        );
+        svg.polygon(
+            &[(0.0, 0.0), (1.0, f64::NAN), (2.0, 0.0)],
+            "blue",
+            Stroke::solid("black", 1.0),
+        );
+        svg.line((0.0, 0.0), (f64::NAN, 0.0), Stroke::solid("black", 1.0));
+        svg.text(f64::INFINITY, 0.0, 12.0, Anchor::Start, "x");
+        let skipped = svg.skipped();
+        let out = svg.finish();
+        assert!(!out.contains("NaN") && !out.contains("inf"), "{out}");
+        assert_eq!(skipped, 3);
+        assert!(out.contains(r#"d="M0.0,0.0 M2.0,2.0""#), "{out}");
+    }
+
+    #[test]
+    fn charts_label_their_axes_and_escape_text() {
+        let x = [0.0, 1.0, 2.0];
+        let out = line_charts(&[Chart {
+            title: "a < b & c".into(),
+            x_label: "generation".into(),
+            y_label: "μ(F)".into(),
+            series: vec![Series::over("best", "#d22", false, &x, &[0.5, 0.9, 0.95])],
+        }])
+        .finish();
+        assert!(out.contains(">generation<") && out.contains(">μ(F)<"));
+        assert!(out.contains("a &lt; b &amp; c"));
+        assert!(!out.contains("time (s)"));
+    }
+
+    #[test]
+    fn ticks_are_round_and_cover_the_range() {
+        let t = nice_ticks(0.0, 1.0, 5);
+        assert_eq!(t.len(), 6);
+        for (v, want) in t.iter().zip([0.0, 0.2, 0.4, 0.6, 0.8, 1.0]) {
+            assert!((v - want).abs() < 1e-12, "{t:?}");
+        }
+        assert!(nice_ticks(f64::NAN, 1.0, 5).is_empty());
+        let t = nice_ticks(-3.3, 7.9, 10);
+        assert!(t.first().unwrap() >= &-3.3 && t.last().unwrap() <= &7.9 && t.len() >= 5);
+    }
+}

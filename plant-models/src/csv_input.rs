@@ -1,0 +1,294 @@
+//! The one CSV reader for numeric data files (sweeps, force and displacement
+//! series, probe scripts, push videos), built on the `csv` crate.
+//!
+//! Accepted: a header line, then data rows; a UTF-8 byte-order mark (as
+//! Excel writes it), CRLF or LF line ends, blank lines, lines starting with
+//! `#` (comments), spaces around fields, quoted fields. Every value must be
+//! a finite number. Every error names the file, the 1-based line and, for a
+//! value, its column; long offending text is quoted only in part.
+use std::fmt;
+
+/// Why a CSV file could not be read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CsvError {
+    /// The file (or a label for text that came from elsewhere).
+    pub file: String,
+    /// 1-based line.
+    pub line: usize,
+    /// The column, for an error in a value.
+    pub column: Option<String>,
+    /// What is wrong.
+    pub reason: String,
+}
+
+impl fmt::Display for CsvError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.column {
+            Some(c) => write!(
+                f,
+                "{}:{}: column `{c}`: {}",
+                self.file, self.line, self.reason
+            ),
+            None => write!(f, "{}:{}: {}", self.file, self.line, self.reason),
+        }
+    }
+}
+
+impl std::error::Error for CsvError {}
+
+/// At most this many characters of a user's text go into a message.
+const QUOTE_CHARS: usize = 40;
+
+/// `text` for an error message: whole if short, else its start and "…".
+pub fn excerpt(text: &str) -> String {
+    if text.chars().count() <= QUOTE_CHARS {
+        text.to_string()
+    } else {
+        let head: String = text.chars().take(QUOTE_CHARS).collect();
+        format!("{head}…")
+    }
+}
+
+/// One data row: its values in header order, and where it was.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// 1-based line of the row in the file.
+    pub line: usize,
+    /// One finite value per header column.
+    pub values: Vec<f64>,
+}
+
+/// A numeric table: the header's column names and the data rows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    /// The file (or label) the table came from, for messages.
+    pub file: String,
+    /// 1-based line of the header.
+    pub header_line: usize,
+    /// Column names, trimmed.
+    pub columns: Vec<String>,
+    /// Data rows.
+    pub rows: Vec<Row>,
+}
+
+impl Table {
+    /// An error at `line` (and in `column`, if given) of this table's file.
+    pub fn error(&self, line: usize, column: Option<&str>, reason: impl Into<String>) -> CsvError {
+        CsvError {
+            file: self.file.clone(),
+            line,
+            column: column.map(str::to_string),
+            reason: reason.into(),
+        }
+    }
+
+    /// The index of column `name`, or an error at the header that lists
+    /// the columns there are.
+    pub fn column(&self, name: &str) -> Result<usize, CsvError> {
+        self.columns.iter().position(|c| c == name).ok_or_else(|| {
+            self.error(
+                self.header_line,
+                None,
+                format!(
+                    "missing column `{name}` (the header has: {})",
+                    excerpt(&self.columns.join(", "))
+                ),
+            )
+        })
+    }
+
+    /// True when the table has a column `name`.
+    pub fn has(&self, name: &str) -> bool {
+        self.columns.iter().any(|c| c == name)
+    }
+
+    /// The values of column `index` down the rows.
+    pub fn values(&self, index: usize) -> Vec<f64> {
+        self.rows
+            .iter()
+            .map(|r| r.values.get(index).copied().unwrap_or(f64::NAN))
+            .collect()
+    }
+
+    /// Refuses a table with fewer than `n` data rows.
+    pub fn require_rows(&self, n: usize, why: &str) -> Result<(), CsvError> {
+        if self.rows.len() < n {
+            return Err(self.error(
+                self.header_line,
+                None,
+                format!("need at least {n} data rows {why}, got {}", self.rows.len()),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Reads CSV `text` (named `file` in errors) as a header and rows of
+/// finite numbers.
+pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
+    let err = |line: usize, column: Option<&str>, reason: String| CsvError {
+        file: file.to_string(),
+        line,
+        column: column.map(str::to_string),
+        reason,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let mut records = reader.records();
+    let line_at = |byte: usize| record_line(text, byte);
+    let line_of = |r: &csv::StringRecord| r.position().map_or(0, |p| line_at(p.byte() as usize));
+    let header = loop {
+        match records.next() {
+            None => return Err(err(1, None, "empty file: expected a header line".into())),
+            Some(Err(e)) => return Err(err(csv_line(&e, &line_at), None, csv_reason(&e))),
+            Some(Ok(r)) if r.iter().all(str::is_empty) => continue,
+            Some(Ok(r)) => break r,
+        }
+    };
+    let header_line = line_of(&header);
+    let columns: Vec<String> = header.iter().map(str::to_string).collect();
+    if let Some(empty) = columns.iter().position(String::is_empty) {
+        return Err(err(
+            header_line,
+            None,
+            format!("header column {} has no name", empty + 1),
+        ));
+    }
+    let mut rows = Vec::new();
+    for record in records {
+        let record = record.map_err(|e| err(csv_line(&e, &line_at), None, csv_reason(&e)))?;
+        if record.iter().all(str::is_empty) {
+            continue;
+        }
+        let line = line_of(&record);
+        if record.len() != columns.len() {
+            return Err(err(
+                line,
+                None,
+                format!(
+                    "{} fields, but the header has {}",
+                    record.len(),
+                    columns.len()
+                ),
+            ));
+        }
+        let mut values = Vec::with_capacity(columns.len());
+        for (field, name) in record.iter().zip(&columns) {
+            let v: f64 = field.parse().map_err(|_| {
+                err(
+                    line,
+                    Some(name),
+                    format!("`{}` is not a number", excerpt(field)),
+                )
+            })?;
+            if !v.is_finite() {
+                return Err(err(
+                    line,
+                    Some(name),
+                    format!("`{}` is not finite (NaN or infinite)", excerpt(field)),
+                ));
+            }
+            values.push(v);
+        }
+        rows.push(Row { line, values });
+    }
+    Ok(Table {
+        file: file.to_string(),
+        header_line,
+        columns,
+        rows,
+    })
+}
+
+/// The 1-based line on which the record whose reading began at `byte`
+/// starts. The csv crate reports where it began reading — before the
+/// line end of the previous record, blank lines, comment lines and the
+/// byte-order mark — and counts lines without the comments, so the record's
+/// first byte is found here and its line counted from the text.
+fn record_line(text: &str, mut byte: usize) -> usize {
+    let bytes = text.as_bytes();
+    loop {
+        match bytes.get(byte..) {
+            Some([b'\r' | b'\n', ..]) => byte += 1,
+            Some([0xEF, 0xBB, 0xBF, ..]) if byte == 0 => byte += 3,
+            Some([b'#', ..]) => {
+                byte = text
+                    .get(byte..)
+                    .and_then(|rest| rest.find('\n'))
+                    .map_or(bytes.len(), |nl| byte + nl + 1);
+            }
+            _ => break,
+        }
+    }
+    let before = text.get(..byte).unwrap_or(text);
+    before.matches('\n').count() + 1
+}
+
+fn csv_line(e: &csv::Error, line_at: &impl Fn(usize) -> usize) -> usize {
+    e.position().map_or(0, |p| line_at(p.byte() as usize))
+}
+
+fn csv_reason(e: &csv::Error) -> String {
+    match e.kind() {
+        csv::ErrorKind::Utf8 { .. } => "not valid UTF-8 text".into(),
+        _ => e.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excel_files_with_a_bom_and_crlf_read_like_plain_ones() {
+        let plain = "a,b\n1,2\n3,4\n";
+        let excel = "\u{feff}a,b\r\n1,2\r\n3,4\r\n";
+        let (p, e) = (
+            read_numeric(plain, "p").unwrap(),
+            read_numeric(excel, "e").unwrap(),
+        );
+        assert_eq!(p.columns, e.columns);
+        assert_eq!(p.columns, ["a", "b"]);
+        assert_eq!(p.rows, e.rows);
+        assert_eq!(e.rows[1].line, 3);
+    }
+
+    #[test]
+    fn comments_blanks_spaces_and_quotes_are_accepted_and_lines_counted() {
+        let text = "# a sweep\n\n time_s ,\"x\"\n0, 1.5\n# pause\n\n1 ,2\n";
+        let t = read_numeric(text, "f.csv").unwrap();
+        assert_eq!(t.header_line, 3);
+        assert_eq!(t.columns, ["time_s", "x"]);
+        assert_eq!(t.rows.iter().map(|r| r.line).collect::<Vec<_>>(), [4, 7]);
+        assert_eq!(t.values(1), [1.5, 2.0]);
+    }
+
+    #[test]
+    fn errors_name_file_line_and_column() {
+        let e = read_numeric("a,b\n1,2\n3,x\n", "f.csv").unwrap_err();
+        assert_eq!(e.to_string(), "f.csv:3: column `b`: `x` is not a number");
+        let e = read_numeric("a,b\n1,2\n3\n", "f.csv").unwrap_err();
+        assert_eq!(e.to_string(), "f.csv:3: 1 fields, but the header has 2");
+        let e = read_numeric("a,b\n1,NaN\n", "f.csv").unwrap_err();
+        assert!(e
+            .to_string()
+            .starts_with("f.csv:2: column `b`: `NaN` is not finite"));
+        let e = read_numeric("", "f.csv").unwrap_err();
+        assert_eq!(e.line, 1);
+        let t = read_numeric("a,b\n1,2\n", "f.csv").unwrap();
+        assert_eq!(
+            t.column("c").unwrap_err().to_string(),
+            "f.csv:1: missing column `c` (the header has: a, b)"
+        );
+        // A huge field is quoted only in part.
+        let long = "9".repeat(5000) + "x";
+        let e = read_numeric(&format!("a\n{long}\n"), "f.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 200, "{} characters", e.len());
+    }
+}

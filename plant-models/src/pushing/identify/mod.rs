@@ -1,0 +1,12 @@
+//! Measuring and identifying the block (seed 001 §V–VIII): the ground truth
+//! that stands in for the seed's videos (a different, finer model), the
+//! pixel F-score, the force regression, the evolutionary calibration,
+//! material classification, the Table II protocol and video files.
+pub mod classify;
+pub mod evaluate;
+pub mod evolution;
+pub mod force_regression;
+pub mod raster;
+pub mod reference;
+pub mod table_ii;
+pub mod video_csv;
