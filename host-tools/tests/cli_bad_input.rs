@@ -1,50 +1,10 @@
 //! Inputs that used to crash `softjoint`, hang it, or let it report garbage
 //! as success: each must now fail with a non-zero exit and an error that
 //! names the bad field, flag or line, and never with a panic.
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn softjoint(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_softjoint"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cli_bad_input_{test}_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// Runs `args`, checks a clean refusal whose stderr holds every needle, and
-/// returns that stderr.
-fn refused(args: &[&str], needles: &[&str]) -> String {
-    let o = softjoint(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success(),
-        "{args:?}: exit 0\nstdout:\n{}\nstderr:\n{err}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    assert_eq!(
-        o.status.code(),
-        Some(1),
-        "{args:?}: not an error exit:\n{err}"
-    );
-    assert!(!err.contains("panicked"), "{args:?}: panic:\n{err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: stderr lacks `{n}`:\n{err}");
-    }
-    err.into_owned()
-}
-
-/// Writes `text` to `dir/name` and returns the path as a string.
-fn file(dir: &std::path::Path, name: &str, text: &str) -> String {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p.to_str().expect("utf-8 temp path").to_string()
-}
+use common::{file, refused, scratch, softjoint};
+use std::process::Command;
 
 /// A duration shorter than half a control period rounded to zero steps:
 /// the run "succeeded" with 0.000° errors and −inf coil temperatures.

@@ -1,5 +1,7 @@
 //! `softjoint console` against the firmware's board application on a pty:
 //! scripted commands, error replies, and a telemetry stream to CSV.
+mod common;
+
 use std::process::Command;
 
 use host_tools::pty_board::PtyBoard;
@@ -23,8 +25,7 @@ fn scripted_session_with_telemetry_to_csv() {
     let (board, host_end) = PtyBoard::start().expect("pty pair");
     let path = board.host_path.clone();
     drop(host_end); // the subprocess opens the pty itself
-    let dir = std::env::temp_dir().join(format!("softjoint-console-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch("console");
     let script = dir.join("session.txt");
     std::fs::write(&script, "# a session\nhello\ntarget 0 5   # alpha\ngains 1 1.5 1.5 0 0\ntelemetry 50\nstream 0.4\ntelemetry 0\nstatus\n").unwrap();
     let csv = dir.join("telemetry.csv");

@@ -3,45 +3,11 @@
 //! field or line with a non-zero exit, `--csv` / `--plot` outputs, and the
 //! calibration workflow end to end (simulated sweep → calibrate → a scenario
 //! that loads the calibration file).
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use common::{ok, s, scratch, softjoint, stderr, stdout};
 use serde_json::Value;
-
-fn softjoint(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_softjoint"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "exit {:?}\nstdout:\n{}\nstderr:\n{}",
-        o.status,
-        stdout(o),
-        stderr(o)
-    );
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cli_sim_{test}_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
+use std::path::Path;
 
 fn numbers(v: &Value, key: &str) -> Vec<f64> {
     v[key]

@@ -2,21 +2,9 @@
 //! against the SPEC §3 creep closed form, simulate → fit round trip, CSV
 //! errors with file and line and a non-zero exit, the object pipeline's
 //! outputs.
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn softjoint(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_softjoint"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("visco_cli_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+use common::{scratch, softjoint};
 
 fn parse_csv(text: &str) -> Vec<Vec<f64>> {
     text.lines()
@@ -32,7 +20,8 @@ const B: f64 = 0.5;
 
 #[test]
 fn simulate_force_to_displacement_matches_the_creep_closed_form() {
-    let input = tmp("creep.csv");
+    let scratch_dir = scratch("visco");
+    let input = scratch_dir.join("creep.csv");
     let h = 1e-3;
     let f0 = 2.0;
     let mut s = String::from("time_s,force\n");
@@ -70,15 +59,16 @@ fn simulate_force_to_displacement_matches_the_creep_closed_form() {
 
 #[test]
 fn simulate_then_fit_recovers_the_parameters_and_writes_a_plot() {
+    let scratch_dir = scratch("visco");
     // Constant-velocity loading then hold, like a probe trial.
-    let input = tmp("ramp.csv");
+    let input = scratch_dir.join("ramp.csv");
     let mut s = String::from("time_s,displacement\n");
     for k in 0..=800 {
         let t = k as f64 * 1e-3;
         s.push_str(&format!("{t},{}\n", (0.01 * t).min(0.003)));
     }
     std::fs::write(&input, s).unwrap();
-    let trial = tmp("trial.csv");
+    let trial = scratch_dir.join("trial.csv");
     let out = softjoint(&[
         "viscoelastic",
         "simulate",
@@ -97,7 +87,7 @@ fn simulate_then_fit_recovers_the_parameters_and_writes_a_plot() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let plot = tmp("fit.svg");
+    let plot = scratch_dir.join("fit.svg");
     let out = softjoint(&[
         "viscoelastic",
         "fit",
@@ -157,6 +147,7 @@ fn expect_error(args: &[&str], needles: &[&str]) {
 
 #[test]
 fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
+    let scratch_dir = scratch("visco");
     let cases = [
         (
             "missing.csv",
@@ -190,7 +181,7 @@ fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
         ),
     ];
     for (name, text, reason, line) in cases {
-        let p = tmp(name);
+        let p = scratch_dir.join(name);
         std::fs::write(&p, text).unwrap();
         let loc = format!("{name}{line}");
         expect_error(
@@ -198,7 +189,7 @@ fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
             &[reason, &loc],
         );
     }
-    let p = tmp("neither.csv");
+    let p = scratch_dir.join("neither.csv");
     std::fs::write(&p, "time_s,pressure\n0,1\n1,2\n").unwrap();
     expect_error(
         &[
@@ -214,7 +205,7 @@ fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
         ],
         &["missing column"],
     );
-    let p = tmp("ok.csv");
+    let p = scratch_dir.join("ok.csv");
     std::fs::write(&p, "time_s,force\n0,1\n1,2\n").unwrap();
     expect_error(
         &[
@@ -237,8 +228,9 @@ fn malformed_csv_gives_file_line_and_reason_with_a_non_zero_exit() {
 
 #[test]
 fn object_writes_frames_trace_parameters_and_a_damping_image() {
-    let dir = tmp("object_out");
-    let trials = tmp("trials");
+    let scratch_dir = scratch("visco");
+    let dir = scratch_dir.join("object_out");
+    let trials = scratch_dir.join("trials");
     let out = softjoint(&[
         "viscoelastic",
         "object",
@@ -313,7 +305,7 @@ fn object_writes_frames_trace_parameters_and_a_damping_image() {
         "weighted {weighted} vs uniform {uniform}"
     );
     // A broken mesh file is an error naming the line.
-    let bad = tmp("bad.obj");
+    let bad = scratch_dir.join("bad.obj");
     std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap();
     expect_error(
         &[
@@ -326,7 +318,7 @@ fn object_writes_frames_trace_parameters_and_a_damping_image() {
         ],
         &["bad.obj:3:"],
     );
-    let script = tmp("script.csv");
+    let script = scratch_dir.join("script.csv");
     std::fs::write(
         &script,
         "time_s,vertex,fx_n,fy_n,fz_n\n0,5,0,0,-1\n0.2,9999,0,0,0\n",

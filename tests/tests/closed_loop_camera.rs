@@ -10,9 +10,9 @@
 //!
 //! All runs are seeded; every number below was measured with the seed given.
 
-mod closed_loop_support;
+mod common;
 
-use closed_loop_support::{camera_p, coil_disturbance, err_stats, peak_to_peak, reversals, run};
+use common::{camera_p, coil_disturbance, err_stats, peak_to_peak, reversals, run};
 use firmware::supervisor::ThermalConfig;
 use plant_models::joint::Joint2dParams;
 

@@ -3,9 +3,9 @@
 //! random streams (camera noise, wire stick-slip), so a different seed gives
 //! a different trace.
 
-mod closed_loop_support;
+mod common;
 
-use closed_loop_support::run;
+use common::run;
 use host_tools::scenario::{Disturbance, EstimatorMethod, Scenario, TargetStep};
 use host_tools::sim::{Row, Trace};
 

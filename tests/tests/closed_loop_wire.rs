@@ -9,9 +9,9 @@
 //! (β) rises and pulled out when it falls; a pushed wire jams (reads less
 //! insertion than the geometry gives), a pulled one sheds its lag.
 
-mod closed_loop_support;
+mod common;
 
-use closed_loop_support::{err_stats, estimate_err_stats, peak_to_peak, run, scratch_dir, wire_2d};
+use common::{err_stats, estimate_err_stats, peak_to_peak, run, scratch_dir, wire_2d};
 use firmware::control::PairGains;
 use firmware::estimate::{PlaneEstimator, PlaneLaw};
 use firmware::joint::{JointConfig, JointController};

@@ -1,5 +1,6 @@
-//! Helpers shared by the `closed_loop_*` tests: scenario builders and
-//! measurements on a run's trace. Each test binary uses a subset.
+//! Scaffolding shared by the integration tests: scenario builders,
+//! measurements on a run's trace, and scratch directories that delete
+//! themselves. Each test binary uses a subset.
 #![allow(dead_code)]
 
 use host_tools::scenario::{
@@ -177,9 +178,23 @@ pub fn reversals(
     n
 }
 
-/// A unique scratch directory for one test.
-pub fn scratch_dir(test: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("closed_loop_{test}_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+/// A scratch directory, deleted with everything in it when dropped; it
+/// dereferences to its path.
+pub struct Scratch(tempfile::TempDir);
+
+impl std::ops::Deref for Scratch {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        self.0.path()
+    }
+}
+
+/// A fresh scratch directory for one test (`test` names it).
+pub fn scratch_dir(test: &str) -> Scratch {
+    Scratch(
+        tempfile::Builder::new()
+            .prefix(&format!("closed_loop_{test}_"))
+            .tempdir()
+            .expect("scratch dir"),
+    )
 }
