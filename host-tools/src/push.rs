@@ -752,10 +752,12 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
 mod tests {
     use super::*;
 
-    fn tmp(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("softjoint-push-{}-{name}", std::process::id()));
-        let _ = fs::remove_dir_all(&d);
-        d
+    /// A scratch directory deleted when the test ends.
+    fn tmp(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("softjoint-push-{name}-"))
+            .tempdir()
+            .unwrap()
     }
 
     fn small_video(material: MaterialArg) -> VideoArgs {
@@ -796,8 +798,8 @@ mod tests {
 
     #[test]
     fn bad_model_specs_and_parameter_files_are_refused_clearly() {
-        let dir = tmp("bad");
-        fs::create_dir_all(&dir).unwrap();
+        let scratch = tmp("bad");
+        let dir = scratch.path();
         assert!(parse_model("sponge")
             .unwrap_err()
             .to_string()
@@ -827,7 +829,8 @@ mod tests {
 
     #[test]
     fn simulate_calibrate_and_classify_write_their_files() {
-        let dir = tmp("run");
+        let scratch = tmp("run");
+        let dir = scratch.path();
         let sim_out = dir.join("sim");
         simulate_cmd(SimulateArgs {
             video: small_video(MaterialArg::Sponge),
