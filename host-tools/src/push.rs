@@ -824,7 +824,6 @@ mod tests {
         bad["k_area"] = serde_json::json!(-1.0);
         fs::write(&p, bad.to_string()).unwrap();
         assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("k_area"));
-        let _ = fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -909,6 +908,5 @@ mod tests {
             json: true
         })
         .is_err());
-        let _ = fs::remove_dir_all(&dir);
     }
 }
