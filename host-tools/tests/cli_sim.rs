@@ -36,7 +36,7 @@ fn sim_json_of_the_default_scenario_has_the_summary_fields() {
         "one steady-state error per controlled angle (α, β): {sse:?}"
     );
     assert_eq!(est.len(), 2, "{est:?}");
-    // The default converges (measured 0.15°, 0.26°; estimation 0.47°, 0.49°).
+    // The default converges (measured 0.42°, 0.44°; estimation 0.35°, 0.36°).
     assert!(
         sse.iter().all(|e| e.is_finite() && *e < 1.0),
         "steady-state error {sse:?}"

@@ -89,7 +89,8 @@ fn on_the_contact_area_artefact_the_weighted_fit_beats_the_uniform_one() {
         );
         // At the high speed the weighted fit still meets 5 %; at the low
         // speed the peak overshoot is small and the artefact still biases it
-        // (k1 ~ +20 %, b ~ +40 %): reported, not asserted.
+        // (measured, seed 12: k1 +17…+25 %, b +30…+43 %; fast trials within
+        // 2.4 %): reported, not asserted.
         if t.speed_m_per_s > 0.01 {
             assert!(worst(ew) < 0.05, "fast trial, weighted: {ew:?}");
         }

@@ -24,10 +24,10 @@ const FIG7_TARGET_DEG: f64 = 20.0;
 /// reaches a steady value, albeit there is some fluctuation", with a
 /// steady-state error that depends on Kp.
 ///
-/// Measured (seed 3, 40 s): Kp = 2.0 stays within −0.21…+0.14° of θd over
+/// Measured (seed 3, 40 s): Kp = 2.0 stays within −0.21…+0.27° of θd over
 /// 10–40 s (the SMA's hysteresis: a small overshoot is held while the
 /// unpowered coil cools through the hysteresis band, then the coil is
-/// reheated), mean −0.035° over 20–40 s. Kp = 0.05 settles smoothly at
+/// reheated), mean −0.063° over 20–40 s. Kp = 0.05 settles smoothly at
 /// 16.31° (error −3.69° over 30–40 s, 0.05° peak to peak): the lower gain
 /// leaves the larger P offset, as the paper's mass–spring argument (Fig. 8)
 /// predicts.
@@ -109,8 +109,8 @@ fn camera_p_steady_state_error_below_0_15_deg_at_kp_2() {
 /// to 6 s (≈ 150 g of pull, as large as coil 1's own moment); "the angle
 /// converges to a stable location after v2 breaks contact".
 ///
-/// Measured (seed 3): pushed down to −5.0° (error −10.0°) during the
-/// disturbance; over 14–20 s the error stays within −0.16…+0.12°, mean
+/// Measured (seed 3): pushed down to −5.1° (error −10.1°) during the
+/// disturbance; over 14–20 s the error stays within −0.16…+0.13°, mean
 /// −0.02°. Tolerance: ±0.75° and a mean within 0.3° (set when the P law
 /// still limit-cycled at −0.4…+0.5°; kept, not tightened to the new run).
 #[test]
@@ -148,8 +148,8 @@ fn coil_2_disturbance_pushes_the_angle_away_and_it_returns() {
 /// oscillation in the angle".
 ///
 /// Measured (seed 3, first 10 s of a θd = 20° step at Kp = 2.0): overshoot
-/// 2.73° (rigid) vs 1.44° (cartilage); direction reversals larger than 0.2°:
-/// 47 (rigid: it rings at ≈ 3 Hz whenever the coil is switched) vs 3
+/// 2.68° (rigid) vs 1.42° (cartilage); direction reversals larger than 0.2°:
+/// 67 (rigid: it rings at ≈ 3 Hz whenever the coil is switched) vs 3
 /// (cartilage: only the slow hysteresis cycle). The reversal count is the
 /// oscillation; the overshoot margin (1.5×) only checks that the rigid
 /// joint's first swing is also the larger one. (Before the latent-heat fix
@@ -190,8 +190,8 @@ fn rigid_bearing_oscillates_more_than_the_cartilage_joint() {
 /// scenario default). (At Kp = 2.0 the P offset is already below 0.1°,
 /// nothing to remove; at Kp = 0.05 it is 3.7°.)
 ///
-/// Measured (`softjoint sim`, 40–60 s mean, seeds 1–5): P −0.342…−0.353°,
-/// P + I −0.009…−0.004°, no fault (the test runs seed 3).
+/// Measured (`softjoint sim`, 40–60 s mean, seeds 1–5): P −0.351…−0.339°,
+/// P + I −0.008…−0.004°, no fault (the test runs seed 3).
 #[test]
 fn integral_action_removes_the_p_offset_without_supervisor_faults() {
     let (kp, ki) = (0.5, 0.05);

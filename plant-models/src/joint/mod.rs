@@ -37,11 +37,12 @@
 //! slow modes that matter (≈ 150 rad/s) have h·ω ≈ 0.15. Why 1 ms and not
 //! less: one substep per 1 kHz control period is what makes ≥ 5000× real
 //! time possible. `tests/joint_integration.rs` compares with 62.5 µs: the
-//! static figures (compliance, open-loop angle) agree to < 0.001°, the rigid
-//! bearing's ringing to < 1 % and 1 ms, and the fastest transient (10 ms
-//! into the return after cutting the weight, where the sponge's ≈ 9 ms
-//! relaxation meets the first-order implicit update) to 0.6° of an 11.9°
-//! deflection (0.1° at 0.25 ms); 2 ms still runs stably. Lower
+//! static figures (compliance, open-loop angle) agree to rounding
+//! (< 1e-12°), the rigid bearing's ringing to 0.15 % in amplitude and 1 ms
+//! in peak time, and the fastest transient (10 ms into the return after
+//! cutting the weight, while the sponge relaxes with its ≈ 9 ms time
+//! constant) to 0.58° of an 11.87° deflection (0.10° at 0.25 ms); 2 ms
+//! still runs stably. Lower
 //! `sim.substep_s` for fast transients or stiffer parameters.
 //! After every substep the state is checked: a non-finite value, kinetic
 //! energy above `max_kinetic_energy_j` or a pose outside the mechanism's
