@@ -785,12 +785,13 @@ where
                     .get(k)
                     .is_some_and(|s| !s.traction.is_zero());
                 let start = k.saturating_mul(n);
-                let moving = self
-                    .states
-                    .as_ref()
-                    .get(start..start + n)
-                    .is_some_and(|xs| xs.iter().any(|x| x.max_abs() > threshold));
-                !loaded && !moving
+                // Only an unloaded column's states are read.
+                !loaded
+                    && !self
+                        .states
+                        .as_ref()
+                        .get(start..start + n)
+                        .is_some_and(|xs| xs.iter().any(|x| x.max_abs() > threshold))
             };
             if at_rest {
                 continue;

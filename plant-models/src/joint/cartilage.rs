@@ -25,7 +25,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::viscoelastic::three_element::{Element, ExactStep, StepLength};
+use crate::viscoelastic::three_element::{Element, ExactPair, StepLength};
 
 use super::{check_positive, PlantError};
 
@@ -117,7 +117,7 @@ pub struct Cartilage {
     /// (m): the start of the next substep's linear motion.
     u: Vec<[f64; 2]>,
     /// The exact steps ([shear, normal]) for the last step length.
-    steps: Option<(StepLength, [ExactStep; 2])>,
+    steps: Option<(StepLength, ExactPair)>,
 }
 
 /// Force (N) and clockwise torque about the link-base origin (N·m) on the
@@ -172,20 +172,18 @@ impl Cartilage {
         let steps = match self.steps {
             Some((cached, steps)) if cached == h => steps,
             _ => {
-                let steps = self.models.map(|m| m.relaxation_step(h));
+                let steps = ExactPair::from(self.models.map(|m| m.relaxation_step(h)));
                 self.steps = Some((h, steps));
                 steps
             }
         };
-        let [shear, normal] = steps;
         let mut w = Wrench::default();
         for ((&s_m, state), start) in self.s_m.iter().zip(&mut self.x).zip(&mut self.u) {
             // Glued point (s, 0) in the link frame → world offset r from p.
             let rx = s_m * cos_t;
             let ry = -s_m * sin_t;
             let end = [x + rx - s_m, y + ry];
-            let ft = -shear.force(&mut state[0], start[0], end[0]);
-            let fnn = -normal.force(&mut state[1], start[1], end[1]);
+            let [ft, fnn] = steps.force(state, *start, end).map(|f| -f);
             *start = end;
             w.fx_n += ft;
             w.fy_n += fnn;
