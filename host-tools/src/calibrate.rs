@@ -56,7 +56,7 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
         s.push_str(&cells.join(","));
         s.push('\n');
     }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_csv(path, &s)
 }
 
 /// Reads a sweep CSV; a bad row is an error naming the file and line.
@@ -433,11 +433,9 @@ impl CalibrationFile {
 
     /// Writes it as TOML.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let text = toml::to_string_pretty(self)?;
         let header = "# Wire-sensor calibration written by `softjoint calibrate wire`.\n\
                       # Sensor numbers are 1-based (the paper's d1..d4); angles in degrees, insertions in mm.\n";
-        std::fs::write(path, format!("{header}{text}"))
-            .with_context(|| format!("cannot write {}", path.display()))
+        crate::output::write_toml(path, header, self)
     }
 
     /// The laws for the core.

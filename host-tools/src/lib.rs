@@ -5,6 +5,7 @@ pub mod board;
 pub mod calibrate;
 pub mod hil;
 pub mod link;
+pub mod output;
 pub mod plot;
 pub mod pty_board;
 pub mod qemu;

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use host_tools::{calibrate, report, scenario::Scenario, sim};
+use host_tools::{calibrate, output, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
@@ -119,29 +119,29 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 calibrate::fit(&rows).map_err(|e| anyhow::anyhow!("{}: {e}", sweep.display()))?;
             calibrate::calibration_of(&fits)?.save(&output)?;
             if json {
-                let out: Vec<serde_json::Value> = fits
+                let out = fits
                     .iter()
                     .map(|f| {
-                        serde_json::json!({
-                            "angle": f.angle,
-                            "chosen": f.chosen,
-                            "threshold_deg": f.chosen.threshold_deg(),
-                            "max_error_deg": f.chosen_errors.max_error_deg,
-                            "rms_error_deg": f.chosen_errors.rms_error_deg,
-                            "methods": {
-                                "single": f.single.1,
-                                "differential": f.differential.as_ref().map(|d| d.1),
-                                "switching": f.switching.as_ref().map(|d| d.1),
-                            },
-                        })
+                        output::JsonObject::new()
+                            .field("angle", &f.angle)?
+                            .field("chosen", &f.chosen)?
+                            .field("threshold_deg", &f.chosen.threshold_deg())?
+                            .field("max_error_deg", &f.chosen_errors.max_error_deg)?
+                            .field("rms_error_deg", &f.chosen_errors.rms_error_deg)?
+                            .field(
+                                "methods",
+                                &output::JsonObject::new()
+                                    .field("single", &f.single.1)?
+                                    .field("differential", &f.differential.as_ref().map(|d| d.1))?
+                                    .field("switching", &f.switching.as_ref().map(|d| d.1))?,
+                            )
                     })
-                    .collect();
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(
-                        &serde_json::json!({ "rows": rows.len(), "angles": out, "calibration": output })
-                    )?
-                );
+                    .collect::<anyhow::Result<Vec<_>>>()?;
+                output::JsonObject::new()
+                    .field("rows", &rows.len())?
+                    .field("angles", &out)?
+                    .field("calibration", &output)?
+                    .print()?;
             } else {
                 print!("{}", calibrate::table(&fits));
                 println!(
@@ -174,7 +174,7 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
     args.output
         .write_files(&scenario.name, &out.summary, &out.trace)?;
     if args.output.json {
-        println!("{}", serde_json::to_string_pretty(&out.summary)?);
+        output::print_json(&out.summary)?;
     } else {
         print!("{}", report::table(&out.summary));
     }

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use plant_models::pushing::classify::{classify, MaterialModel};
 use plant_models::pushing::evaluate::{
@@ -173,6 +174,10 @@ struct SimulateArgs {
     /// Print a machine-readable summary.
     #[arg(long)]
     json: bool,
+    /// Write the results even when the model becomes unstable (frames from
+    /// the instability on score 0); without it an unstable run is an error.
+    #[arg(long)]
+    allow_unstable: bool,
 }
 
 #[derive(Args)]
@@ -293,7 +298,11 @@ fn out_dir(dir: &Path) -> Result<()> {
 }
 
 fn write(path: &Path, text: &str) -> Result<()> {
-    fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    if path.extension().is_some_and(|e| e == "svg") {
+        output::write_svg(path, text)
+    } else {
+        output::write_csv(path, text)
+    }
 }
 
 /// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
@@ -429,8 +438,8 @@ fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> St
 }
 
 fn simulate_cmd(a: SimulateArgs) -> Result<()> {
-    let prep = prepare(&a.video, &a.model)?;
-    let sim = sim_config(&a.model);
+    // The parameters first: a bad file is refused before the ground truth
+    // (seconds of finite elements) is generated.
     let params = match &a.params {
         Some(p) => load_params(p)?,
         None => match a.video.material {
@@ -438,6 +447,8 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
         },
     };
+    let prep = prepare(&a.video, &a.model)?;
+    let sim = sim_config(&a.model);
     let forces = if a.predicted_forces {
         ForcePredictor::fit(
             &prep.video.scenario,
@@ -449,6 +460,27 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
         prep.video.forces_n.clone()
     };
     let score = score_run(&prep, &forces, &params, &sim)?;
+    // An unstable model is a failed run unless the user asked for its
+    // results anyway (frames from the instability on score 0).
+    let instability = score.unstable_from_frame.map(|f| {
+        let why = score
+            .instability
+            .map(|i| i.to_string())
+            .unwrap_or_else(|| "unknown cause".into());
+        format!(
+            "the mass-spring model ({} integrator) became unstable at frame {f} of {} ({why})",
+            sim.integrator.name(),
+            prep.frame_count()
+        )
+    });
+    if let Some(what) = &instability {
+        if !a.allow_unstable {
+            bail!(
+                "{what}; nothing was written: try smaller stiffnesses or another --integrator, or give --allow-unstable to write the results with every frame from there on scored 0"
+            );
+        }
+        eprintln!("warning: {what}; frames from there on score 0 (--allow-unstable)");
+    }
     out_dir(&a.out)?;
     write(
         &a.out.join("frames.csv"),
@@ -495,29 +527,22 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     ]);
     write(&a.out.join("f_per_frame.svg"), &chart.finish())?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "material": prep.video.material,
-                "site": prep.video.scenario.site.name(),
-                "integrator": sim.integrator.name(),
-                "mode": sim.mode.name(),
-                "params": params,
-                "mean_f": score.mean_f,
-                "unstable_from_frame": score.unstable_from_frame,
-                "instability": score.instability.map(|i| i.to_string()),
-                "f_per_frame": score.f_per_frame,
-                "out": a.out,
-            }))?
-        );
+        JsonObject::new()
+            .field("material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("integrator", sim.integrator.name())?
+            .field("mode", sim.mode.name())?
+            .field("params", &params)?
+            .field("mean_f", &score.mean_f)?
+            .field("unstable_from_frame", &score.unstable_from_frame)?
+            .field("instability", &instability)?
+            .field("f_per_frame", &score.f_per_frame)?
+            .field("out", &a.out)?
+            .print()?;
     } else {
         println!("{title}");
-        if let Some(f) = score.unstable_from_frame {
-            let why = score
-                .instability
-                .map(|i| i.to_string())
-                .unwrap_or_else(|| "unknown cause".into());
-            println!("unstable from frame {f} ({why}): scored 0 from there");
+        if let Some(what) = &instability {
+            println!("{what}: scored 0 from there");
         }
         println!(
             "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
@@ -567,10 +592,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     )?;
     bar.finish_and_clear();
     out_dir(&a.out)?;
-    write(
-        &a.out.join("params.json"),
-        &serde_json::to_string_pretty(&result)?,
-    )?;
+    output::write_json(&a.out.join("params.json"), &result)?;
     let mut csv = String::from("generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n");
     for g in &result.history {
         let _ = writeln!(
@@ -608,20 +630,20 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         &snapshots_svg(&prep, &shots, &score, &title),
     )?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "material": prep.video.material,
-                "site": prep.video.scenario.site.name(),
-                "integrator": sim.integrator.name(),
-                "mode": sim.mode.name(),
-                "best_params": result.best_params,
-                "best_mean_f": result.best_score,
-                "evaluations": result.evaluations,
-                "best_per_generation": result.history.iter().map(|g| g.best).collect::<Vec<_>>(),
-                "out": a.out,
-            }))?
-        );
+        JsonObject::new()
+            .field("material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("integrator", sim.integrator.name())?
+            .field("mode", sim.mode.name())?
+            .field("best_params", &result.best_params)?
+            .field("best_mean_f", &result.best_score)?
+            .field("evaluations", &result.evaluations)?
+            .field(
+                "best_per_generation",
+                &result.history.iter().map(|g| g.best).collect::<Vec<_>>(),
+            )?
+            .field("out", &a.out)?
+            .print()?;
     } else {
         println!(
             "best μ(F) {:.4} after {} generations ({} simulations)",
@@ -700,7 +722,7 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     let chart = plot::line_charts(&[Chart {
         title: format!(
             "F-score per frame of each model — global vote: {}",
-            c.winner_label()
+            c.verdict()
         ),
         x_label: "frame".into(),
         y_label: "F-score".into(),
@@ -720,20 +742,22 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     }]);
     write(&a.out.join("classification.svg"), &chart.finish())?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "video_material": prep.video.material,
-                "site": prep.video.scenario.site.name(),
-                "winner": c.winner_label(),
-                "labels": c.labels,
-                "frames_won": c.frames_won,
-                "vote": c.vote,
-                "out": a.out,
-            }))?
-        );
+        JsonObject::new()
+            .field("video_material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("winner", &c.winner_label())?
+            .field("tie", &c.winner.is_none())?
+            .field(
+                "leaders",
+                &c.leaders.iter().map(|&k| &c.labels[k]).collect::<Vec<_>>(),
+            )?
+            .field("labels", &c.labels)?
+            .field("frames_won", &c.frames_won)?
+            .field("vote", &c.vote)?
+            .field("out", &a.out)?
+            .print()?;
     } else {
-        println!("global vote: {}", c.winner_label());
+        println!("global vote: {}", c.verdict());
         for (k, l) in c.labels.iter().enumerate() {
             println!(
                 "  {l:>12}: {} frames won, weighted vote {:+.4}",

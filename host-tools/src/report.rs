@@ -3,8 +3,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::Context;
-
 use crate::sim::{Summary, Trace};
 
 /// The output flags shared by `sim` and `hil`.
@@ -121,7 +119,7 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
         }
         let _ = writeln!(s, ",{}", r.faults);
     }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_csv(path, &s)
 }
 
 /// Writes an SVG of angles (true, estimated, desired) and coil voltages
@@ -190,6 +188,5 @@ pub fn write_plot(
             series: volt_series,
         },
     ];
-    std::fs::write(path, line_charts(&charts).finish())
-        .with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_svg(path, &line_charts(&charts).finish())
 }

@@ -83,7 +83,7 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         &out.trace,
     )?;
     if args.output.json {
-        println!("{}", serde_json::to_string_pretty(&out.report)?);
+        host_tools::output::print_json(&out.report)?;
     } else {
         print!("{}", report::table(&out.report.summary));
         let l = &out.report.link;

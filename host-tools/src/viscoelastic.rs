@@ -4,6 +4,7 @@
 //! argument handling, file I/O and reports.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
+use host_tools::output;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
@@ -149,10 +150,6 @@ fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
 }
 
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
-}
-
 /// Checks a model parameter flag: finite and > 0 (or ≥ 0 if `zero_ok`).
 fn check_flag(flag: &str, value: f64, zero_ok: bool, unit: &str) -> Result<()> {
     let ok = value.is_finite() && (value > 0.0 || zero_ok && value == 0.0);
@@ -204,11 +201,8 @@ fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Re
         let _ = writeln!(s, "{},{},{}", t[k], u[k], f[k]);
     }
     match output {
-        Some(p) => write_text(p, &s),
-        None => {
-            print!("{s}");
-            Ok(())
-        }
+        Some(p) => output::write_csv(p, &s),
+        None => output::print_csv(&s),
     }
 }
 
@@ -244,7 +238,7 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
             r.b_n_s_per_m,
             if uniform { "uniform" } else { "seed" }
         );
-        write_text(p, &fit_plot(t, f, &fitted, &caption))?;
+        output::write_svg(p, &fit_plot(t, f, &fitted, &caption))?;
     }
     if json {
         println!(
@@ -325,7 +319,7 @@ fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<
                 t.time_s[i], t.displacement_m[i], t.force_n[i]
             );
         }
-        write_text(&dir.join(&name), &s)?;
+        output::write_csv(&dir.join(&name), &s)?;
         let truth = truths
             .iter()
             .find(|v| v.vertex == t.vertex)
@@ -338,7 +332,7 @@ fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<
             t.vertex, t.speed_m_per_s, d[0], d[1], d[2]
         );
     }
-    write_text(&dir.join("trials.csv"), &index)
+    output::write_csv(&dir.join("trials.csv"), &index)
 }
 
 fn object(
@@ -450,7 +444,7 @@ fn object(
             );
         }
     }
-    write_text(&out_dir.join("frames.csv"), &frames)?;
+    output::write_csv(&out_dir.join("frames.csv"), &frames)?;
     let mut hs =
         String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m,exact_ux_m,exact_uy_m,exact_uz_m\n");
     for (s, e) in samples.iter().zip(&exact_samples) {
@@ -465,18 +459,18 @@ fn object(
             s.time_s, f[0], f[1], f[2], u[0], u[1], u[2], x[0], x[1], x[2]
         );
     }
-    write_text(&out_dir.join("haptic.csv"), &hs)?;
+    output::write_csv(&out_dir.join("haptic.csv"), &hs)?;
     let mut ps = String::from("vertex,fixed,damping_magnitude_n_s_per_m\n");
     for v in 0..nv {
         let _ = writeln!(ps, "{v},{},{:e}", u8::from(fixed_flags[v]), per_vertex[v]);
     }
-    write_text(&out_dir.join("params.csv"), &ps)?;
+    output::write_csv(&out_dir.join("params.csv"), &ps)?;
     let caption = format!(
         "damping magnitude ({} trials, {} vertices estimated)",
         trials.len(),
         estimates.len()
     );
-    write_text(
+    output::write_svg(
         &out_dir.join("damping.svg"),
         &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption),
     )?;
