@@ -180,3 +180,50 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::builder::ValueParser;
+    use clap::CommandFactory;
+
+    /// Every option and positional argument that takes a number, in every
+    /// subcommand.
+    fn numeric_args(cmd: &clap::Command, path: &str, out: &mut Vec<(String, bool)>) {
+        let numeric = [
+            ValueParser::from(clap::value_parser!(f64)).type_id(),
+            ValueParser::from(clap::value_parser!(u64)).type_id(),
+            ValueParser::from(clap::value_parser!(u32)).type_id(),
+            ValueParser::from(clap::value_parser!(u16)).type_id(),
+            ValueParser::from(clap::value_parser!(usize)).type_id(),
+        ];
+        for a in cmd.get_arguments() {
+            if numeric.contains(&a.get_value_parser().type_id()) {
+                out.push((
+                    format!("{path} --{}", a.get_id()),
+                    a.is_allow_negative_numbers_set() || a.is_allow_hyphen_values_set(),
+                ));
+            }
+        }
+        for sub in cmd.get_subcommands() {
+            numeric_args(sub, &format!("{path} {}", sub.get_name()), out);
+        }
+    }
+
+    /// `--k1 -1` was `unexpected argument '-1'`: clap took the value for a
+    /// flag. Every numeric option takes a negative number as its value,
+    /// so the range check that follows can name the flag and the range.
+    #[test]
+    fn every_numeric_option_accepts_a_negative_value() {
+        let mut args = Vec::new();
+        numeric_args(&Cli::command(), "softjoint", &mut args);
+        assert!(args.len() >= 15, "{args:?}");
+        let refused: Vec<&String> = args.iter().filter(|(_, ok)| !ok).map(|(n, _)| n).collect();
+        assert!(refused.is_empty(), "read as flags: {refused:?}");
+        let e = Cli::try_parse_from(["softjoint", "push", "simulate", "--nx", "-3"])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("--nx") && e.contains("-3"), "{e}");
+    }
+}

@@ -125,10 +125,10 @@ struct VideoArgs {
     #[arg(long, value_name = "CSV")]
     video: Option<PathBuf>,
     /// Element size of the finite-element ground truth, px.
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 8.0)]
     ref_element_px: f64,
     /// Seed of the ground truth's contour and force noise.
-    #[arg(long, default_value_t = 1)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     noise_seed: u64,
 }
 
@@ -140,13 +140,13 @@ struct ModelArgs {
     #[arg(long, value_enum, default_value = "both")]
     mode: ModeArg,
     /// Squares along the block's long side.
-    #[arg(long, default_value_t = 20)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 20)]
     nx: usize,
     /// Squares along the block's short side.
-    #[arg(long, default_value_t = 10)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
     ny: usize,
     /// Raster cell size for the F-score, px (1 = camera pixels).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     cell_px: f64,
     /// Turn off the repair of reversed and flat triangles (§VI-E).
     #[arg(long)]
@@ -187,10 +187,10 @@ struct CalibrateArgs {
     #[command(flatten)]
     model: ModelArgs,
     /// Generations M (Table III: 30).
-    #[arg(long, default_value_t = 30)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 30)]
     generations: usize,
     /// Seed of the evolutionary search.
-    #[arg(long, default_value_t = 7)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 7)]
     seed: u64,
     /// Output directory.
     #[arg(long, default_value = "push-out")]
@@ -862,6 +862,7 @@ mod tests {
             predicted_forces: true,
             out: sim_out.clone(),
             json: true,
+            allow_unstable: false,
         })
         .unwrap();
         let frames = fs::read_to_string(sim_out.join("frames.csv")).unwrap();

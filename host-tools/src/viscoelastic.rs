@@ -39,13 +39,13 @@ enum ViscoCommand {
         /// Input CSV with a header.
         input: PathBuf,
         /// Delayed spring k1 (N/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         k1: f64,
         /// Series (instantaneous) spring k2 (N/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         k2: f64,
         /// Dashpot b (N·s/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         b: f64,
         /// Output CSV (default: standard output).
         #[arg(short, long)]
@@ -81,13 +81,13 @@ enum ViscoCommand {
         #[arg(long)]
         script: Option<PathBuf>,
         /// Simulated duration (s).
-        #[arg(long, default_value_t = 1.5)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 1.5)]
         duration_s: f64,
         /// Probe every N-th traction vertex in the simulated campaign.
-        #[arg(long, default_value_t = 10)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
         probe_every: usize,
         /// Seed of the measurement noise.
-        #[arg(long, default_value_t = 1)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
         seed: u64,
         /// Use general damping tensors instead of Rayleigh damping.
         #[arg(long)]
