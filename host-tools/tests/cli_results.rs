@@ -102,3 +102,45 @@ fn push_simulate_refuses_an_unstable_model_unless_allowed() {
         }
     }
 }
+
+/// A 2D sweep whose angle never changes was "calibrated" to a = b = 0
+/// (the estimate ignores the sensor) with 0.000° error, and written.
+#[test]
+fn calibrate_refuses_a_sweep_whose_angle_is_constant() {
+    let dir = scratch("cal_const");
+    let mut text = String::from("d_mm,theta_deg\n");
+    for i in 0..30 {
+        text.push_str(&format!("{},5.0\n", f64::from(i) * 0.1 - 1.5));
+    }
+    let p = file(&dir, "flat.csv", &text);
+    let out = dir.join("cal.toml");
+    refused(
+        &["calibrate", "wire", &p, "-o", s(&out)],
+        &[&p, "theta_deg", "only spans 5° to 5°", "1°"],
+    );
+    assert!(!out.exists(), "a calibration was written");
+}
+
+/// A hand-written single-sensor law with a = b = 0 (the estimate is c
+/// whatever the wire reads) was accepted by `sim`, while a differential
+/// gain of 0 was refused.
+#[test]
+fn sim_refuses_a_single_sensor_law_that_ignores_its_sensor() {
+    let dir = scratch("cal_flat");
+    for (a, b, needle) in [
+        ("0.0", "0.0", "a or b non-zero"),
+        ("1e-50", "0.0", "both 0 in f32"),
+    ] {
+        let cal = file(
+            &dir,
+            "cal.toml",
+            &format!("[alpha]\nmethod = \"single\"\nsensor = 1\na = {a}\nb = {b}\nc = 5.0\n"),
+        );
+        let sc = file(
+            &dir,
+            "s.toml",
+            "joint = \"2d\"\nduration_s = 1.0\ntargets = [{ t_s = 0.0, deg = [0.0] }]\n[estimator]\nmethod = \"single\"\ncalibration = \"cal.toml\"\n",
+        );
+        refused(&["sim", &sc, "--json"], &[&cal, "[alpha]", needle]);
+    }
+}
