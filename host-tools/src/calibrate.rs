@@ -410,8 +410,7 @@ impl CalibrationFile {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read calibration {}", path.display()))?;
-        let c: CalibrationFile = toml::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        let c: CalibrationFile = crate::input::from_toml(&text, &path.display().to_string())?;
         c.check()
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         Ok(c)

@@ -4,6 +4,7 @@
 pub mod board;
 pub mod calibrate;
 pub mod hil;
+pub mod input;
 pub mod link;
 pub mod output;
 pub mod plot;

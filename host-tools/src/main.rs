@@ -46,11 +46,13 @@ struct SimArgs {
     #[command(flatten)]
     output: report::OutputArgs,
     /// Instead of a control run, write a calibration sweep of the simulated
-    /// joint (slow ±20° sweep, camera reference) to this CSV.
-    #[arg(long, value_name = "PATH")]
+    /// joint (slow ±20° sweep, camera reference) to this CSV. There is no
+    /// control run, so --csv, --plot and --json cannot go with it.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["csv", "plot", "json"])]
     calibration_sweep: Option<PathBuf>,
-    /// Print the built-in default scenario as TOML and exit.
-    #[arg(long)]
+    /// Print the built-in default scenario as TOML and exit (nothing else
+    /// runs, so it takes no other argument).
+    #[arg(long, conflicts_with_all = ["scenario", "csv", "plot", "json", "calibration_sweep"])]
     print_default: bool,
 }
 
@@ -170,7 +172,11 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         println!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }
-    let out = sim::run_with(&scenario, args.output.wants_trace())?;
+    let out =
+        sim::run_with(&scenario, args.output.wants_trace()).map_err(|e| match &args.scenario {
+            Some(p) => e.context(format!("scenario {}", p.display())),
+            None => e,
+        })?;
     args.output
         .write_files(&scenario.name, &out.summary, &out.trace)?;
     if args.output.json {

@@ -13,9 +13,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::input::from_json;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use plant_models::pushing::classify::{classify, MaterialModel};
+use plant_models::pushing::error::PushError;
 use plant_models::pushing::evaluate::{
     score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore,
 };
@@ -121,8 +123,9 @@ struct VideoArgs {
     #[arg(long, value_enum, default_value = "middle-long")]
     site: SiteArg,
     /// Read the tracked contours and forces from this CSV
-    /// (`frame,force_n,x_px,y_px`) instead of generating them.
-    #[arg(long, value_name = "CSV")]
+    /// (`frame,force_n,x_px,y_px`) instead of generating them (the
+    /// generator's --ref-element-px and --noise-seed then have no use).
+    #[arg(long, value_name = "CSV", conflicts_with_all = ["ref_element_px", "noise_seed"])]
     video: Option<PathBuf>,
     /// Element size of the finite-element ground truth, px.
     #[arg(allow_negative_numbers = true, long, default_value_t = 8.0)]
@@ -243,6 +246,44 @@ fn sim_config(m: &ModelArgs) -> SimConfig {
     }
 }
 
+/// The flag behind each library parameter name the pushing code reports.
+const FLAGS: [(&str, &str); 4] = [
+    ("element_size_px", "--ref-element-px"),
+    ("nx", "--nx"),
+    ("ny", "--ny"),
+    ("cell_px", "--cell-px"),
+];
+
+/// A pushing error in the words of the command line: a parameter the user
+/// set by a flag is called by that flag (`element_size_px` was shown for
+/// `--ref-element-px`).
+fn as_flag(e: PushError) -> anyhow::Error {
+    let flag = |name: &str| FLAGS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f);
+    let short = plant_models::short_number;
+    match e {
+        PushError::InvalidParameter {
+            name,
+            value,
+            reason,
+        } if flag(name).is_some() => {
+            anyhow::anyhow!("{} {}: {reason}", flag(name).unwrap_or(name), short(value))
+        }
+        PushError::OutOfRange {
+            name,
+            value,
+            min,
+            max,
+        } if flag(name).is_some() => anyhow::anyhow!(
+            "{} {}: must be within {}..={}",
+            flag(name).unwrap_or(name),
+            short(value),
+            short(min),
+            short(max)
+        ),
+        other => other.into(),
+    }
+}
+
 fn load_video(v: &VideoArgs) -> Result<Video> {
     let mat = v.material.reference();
     let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
@@ -263,33 +304,41 @@ fn load_video(v: &VideoArgs) -> Result<Video> {
                 seed: v.noise_seed,
                 ..ReferenceConfig::default()
             };
-            Ok(record_push(v.material.label(), mat, &scenario, &cfg)?)
+            record_push(v.material.label(), mat, &scenario, &cfg).map_err(as_flag)
         }
     }
 }
 
 fn prepare(v: &VideoArgs, m: &ModelArgs) -> Result<PreparedVideo> {
     let video = load_video(v)?;
-    Ok(PreparedVideo::new(
+    PreparedVideo::new(
         video,
         &EvalSetup {
             nx: m.nx,
             ny: m.ny,
             cell_px: m.cell_px,
         },
-    )?)
+    )
+    .map_err(as_flag)
 }
 
 /// Reads parameters from a bare parameter object or from `calibrate`'s
 /// `params.json` (which holds them under `best_params`).
 fn load_params(path: &Path) -> Result<MaterialParams> {
     let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let value: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
-    let inner = value.get("best_params").cloned().unwrap_or(value);
-    let p: MaterialParams = serde_json::from_value(inner).with_context(|| format!("{}: expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha)", path.display()))?;
-    p.validate()
-        .with_context(|| format!("in {}", path.display()))?;
+    let file = path.display().to_string();
+    let expected = "expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha), or `calibrate`'s params.json";
+    // Duplicate keys and syntax first (the form is chosen from a parsed
+    // value, which would keep only the last of two equal keys).
+    let value: serde_json::Value = from_json(&text, &file)?;
+    let p = if value.get("best_params").is_some() {
+        from_json::<CalibrationResult>(&text, &file)
+            .with_context(|| format!("{file}: {expected}"))?
+            .best_params
+    } else {
+        from_json::<MaterialParams>(&text, &file).with_context(|| format!("{file}: {expected}"))?
+    };
+    p.validate().with_context(|| format!("in {file}"))?;
     Ok(p)
 }
 
@@ -838,7 +887,11 @@ mod tests {
         );
         let p = dir.join("notjson.json");
         fs::write(&p, "k_length = 3").unwrap();
-        assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("is not JSON"));
+        let e = format!("{:#}", load_params(&p).unwrap_err());
+        assert!(
+            e.contains("notjson.json:1:1") && e.contains("expected value"),
+            "{e}"
+        );
         let p = dir.join("missing.json");
         fs::write(&p, r#"{"k_length": 1.0}"#).unwrap();
         assert!(format!("{:#}", load_params(&p).unwrap_err())

@@ -31,7 +31,12 @@ pub struct HilArgs {
     #[arg(long, conflicts_with_all = ["image", "no_icount"])]
     port: Option<String>,
     /// Baud rate for --port.
-    #[arg(allow_negative_numbers = true, long, default_value_t = 115_200)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        default_value_t = 115_200,
+        requires = "port"
+    )]
     baud: u32,
     /// Firmware image for QEMU [default: the workspace's
     /// target/thumbv7em-none-eabihf/release/softjoint-fw, found from the

@@ -155,7 +155,10 @@ fn check_flag(flag: &str, value: f64, zero_ok: bool, unit: &str) -> Result<()> {
     let ok = value.is_finite() && (value > 0.0 || zero_ok && value == 0.0);
     if !ok {
         let range = if zero_ok { ">= 0" } else { "> 0" };
-        bail!("{flag} must be finite and {range} ({unit}), got {value}");
+        bail!(
+            "{flag} must be finite and {range} ({unit}), got {}",
+            plant_models::short_number(value)
+        );
     }
     Ok(())
 }

@@ -59,7 +59,7 @@ pub enum VeError {
     /// script's events from 0, so a reader can name the file's line).
     /// `error` is shown in this message and not also returned as the
     /// source, so that chain-printing reporters show it once.
-    #[error("probe event {index} (time_s = {time_s}): {error}")]
+    #[error("probe event {index} (time_s = {}): {error}", crate::short_number(*.time_s))]
     ProbeEvent {
         /// Index of the event in the script.
         index: usize,
