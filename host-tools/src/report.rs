@@ -110,8 +110,10 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
         for p in 0..angles.len() {
             let _ = write!(
                 s,
-                ",{:.4},{:.4},{:.4}",
-                r.true_deg[p], r.estimate_deg[p], r.desired_deg[p]
+                ",{:.4},{},{:.4}",
+                r.true_deg[p],
+                crate::output::estimate_field(r.estimate_deg[p], 4),
+                r.desired_deg[p]
             );
         }
         for v in r.coil_volts.iter().take(coils) {

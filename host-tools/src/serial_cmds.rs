@@ -17,7 +17,7 @@ use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
 use host_tools::{
     calibrate::{CalibrationFile, LawSpec},
-    report,
+    output, report,
 };
 use plant_models::csv_input::excerpt;
 use plant_models::short_number;
@@ -206,15 +206,16 @@ fn open_csv(path: &Path) -> anyhow::Result<std::fs::File> {
         .open(path)
         .with_context(|| format!("cannot open {}", path.display()))?;
     if new {
-        writeln!(
-            f,
-            "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults"
-        )?;
+        writeln!(f, "{TELEMETRY_HEADER}")?;
     }
     Ok(f)
 }
 
 const T: Duration = Duration::from_millis(300);
+
+/// Columns of the console's telemetry CSV (an estimate is empty while the
+/// board has none).
+const TELEMETRY_HEADER: &str = "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults";
 
 fn arg<T: std::str::FromStr>(words: &[&str], i: usize, what: &str) -> anyhow::Result<T> {
     let w = words
@@ -368,14 +369,15 @@ fn run_console_command<P: Port>(
                 if let Message::Telemetry(t) = m {
                     n += 1;
                     let line = format!(
-                        "{},{:.3},{:.3},{},{},{}",
+                        "{},{},{},{},{},{}",
                         t.time_ms,
-                        t.estimate_deg[0],
-                        t.estimate_deg[1],
+                        output::estimate_field(f64::from(t.estimate_deg[0]), 3),
+                        output::estimate_field(f64::from(t.estimate_deg[1]), 3),
                         t.pair_mv[0],
                         t.pair_mv[1],
                         t.faults
                     );
+                    output::check_csv("the telemetry", &format!("{TELEMETRY_HEADER}\n{line}"))?;
                     match csv.as_deref_mut() {
                         Some(f) => writeln!(f, "{line}")?,
                         None => println!("{line}"),

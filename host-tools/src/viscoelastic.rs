@@ -229,9 +229,12 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
     if !(r.rms_residual_n.is_finite() && r.weighted_cost_n2.is_finite()) {
         bail!(
             "fitting {name}: the model's force overflowed (rms residual {} N): displacements and forces this large cannot be fitted",
-            r.rms_residual_n
+            plant_models::short_number(r.rms_residual_n)
         );
     }
+    // Numbers the data do not determine are not a result.
+    r.check_determined()
+        .with_context(|| format!("fitting {name}"))?;
     if let Some(p) = plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
@@ -243,22 +246,32 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
         );
         output::write_svg(p, &fit_plot(t, f, &fitted, &caption))?;
     }
+    // How far each parameter could move before the fit changes by its
+    // own misfit: a factor (1.05 is ±5 %).
+    let factor = r.ln_uncertainty.map(f64::exp);
+    let spread = |k: usize| {
+        if factor[k] < 2.0 {
+            format!("±{:.1} %", 100.0 * (factor[k] - 1.0))
+        } else {
+            format!("within a factor of {:.1}", factor[k])
+        }
+    };
     if json {
-        println!(
-            "{{\"k1_n_per_m\": {:e}, \"k2_n_per_m\": {:e}, \"b_n_s_per_m\": {:e}, \"rms_residual_n\": {:e}, \"weighted_cost_n2\": {:e}, \"evaluations\": {}, \"weighting\": \"{}\", \"samples\": {}}}",
-            r.k1_n_per_m,
-            r.k2_n_per_m,
-            r.b_n_s_per_m,
-            r.rms_residual_n,
-            r.weighted_cost_n2,
-            r.evaluations,
-            if uniform { "uniform" } else { "seed" },
-            t.len()
-        );
+        output::JsonObject::new()
+            .field("k1_n_per_m", &r.k1_n_per_m)?
+            .field("k2_n_per_m", &r.k2_n_per_m)?
+            .field("b_n_s_per_m", &r.b_n_s_per_m)?
+            .field("rms_residual_n", &r.rms_residual_n)?
+            .field("weighted_cost_n2", &r.weighted_cost_n2)?
+            .field("uncertainty_factor", &factor)?
+            .field("evaluations", &r.evaluations)?
+            .field("weighting", if uniform { "uniform" } else { "seed" })?
+            .field("samples", &t.len())?
+            .print()?;
     } else {
-        println!("k1 = {:.6e} N/m", r.k1_n_per_m);
-        println!("k2 = {:.6e} N/m", r.k2_n_per_m);
-        println!("b  = {:.6e} N s/m", r.b_n_s_per_m);
+        println!("k1 = {:.6e} N/m ({})", r.k1_n_per_m, spread(0));
+        println!("k2 = {:.6e} N/m ({})", r.k2_n_per_m, spread(1));
+        println!("b  = {:.6e} N s/m ({})", r.b_n_s_per_m, spread(2));
         println!(
             "rms residual = {:.4e} N over {} samples ({} weighting, {} evaluations)",
             r.rms_residual_n,

@@ -221,7 +221,7 @@ fn push_names_the_reference_element_size_when_it_is_too_small() {
             "--out",
             out.to_str().unwrap(),
         ],
-        &["--ref-element-px 1e-3", "2000"],
+        &["--ref-element-px 0.001", "2000"],
     );
     assert!(!err.contains("`nx`"), "names `nx`:\n{err}");
     assert!(!err.contains("element_size_px"), "internal name:\n{err}");

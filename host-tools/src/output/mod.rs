@@ -81,6 +81,18 @@ pub fn check_csv(target: &str, text: &str) -> Result<(), NonFinite> {
     Ok(())
 }
 
+/// An angle estimate for a CSV field with `decimals` decimals, or an empty
+/// field when there is none: the control core reports "no estimate yet"
+/// (before every sensor a law reads has delivered) as NaN, which is a
+/// missing value, not a failed computation.
+pub fn estimate_field(estimate_deg: f64, decimals: usize) -> String {
+    if estimate_deg.is_nan() {
+        String::new()
+    } else {
+        format!("{estimate_deg:.decimals$}")
+    }
+}
+
 /// Checks any other text (SVG, tables): every word that reads as a
 /// number must be finite.
 pub fn check_text(target: &str, text: &str) -> Result<(), NonFinite> {
