@@ -522,7 +522,8 @@ fn fit_plane<const S: usize>(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
             (l.min(v), h.max(v))
         });
-    if !(hi_deg - lo_deg >= MIN_SWEEP_SPAN_DEG) {
+    // (NaN spans cannot occur: the reader refuses non-finite values.)
+    if hi_deg - lo_deg < MIN_SWEEP_SPAN_DEG {
         bail!(
             "{name}: the sweep's `{name}_deg` only spans {}° to {}° over its {} rows; a calibration needs the joint moved through at least {MIN_SWEEP_SPAN_DEG}° (the paper sweeps ±20°), or the law fits noise",
             short(lo_deg),

@@ -155,6 +155,13 @@ impl Qemu {
     }
 }
 
+impl Drop for Qemu {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -170,12 +177,5 @@ mod tests {
         // working directory.
         assert!(c[1].is_absolute() && c[1].ends_with(DEFAULT_IMAGE), "{c:?}");
         assert_eq!(c.last().unwrap(), Path::new(DEFAULT_IMAGE));
-    }
-}
-
-impl Drop for Qemu {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }

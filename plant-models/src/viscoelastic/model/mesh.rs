@@ -367,12 +367,21 @@ impl SurfaceMesh {
                     let mut p = [0.0; 3];
                     for (slot, s) in p.iter_mut().zip(c.iter()) {
                         *slot = s.parse::<f64>().map_err(|_| {
-                            err(line_no, format!("vertex coordinate `{s}` is not a number"))
+                            err(
+                                line_no,
+                                format!(
+                                    "vertex coordinate `{}` is not a number",
+                                    crate::csv_input::excerpt(s)
+                                ),
+                            )
                         })?;
                         if !slot.is_finite() {
                             return Err(err(
                                 line_no,
-                                format!("vertex coordinate `{s}` is not finite"),
+                                format!(
+                                    "vertex coordinate `{}` is not finite",
+                                    crate::csv_input::excerpt(s)
+                                ),
                             ));
                         }
                     }
@@ -384,7 +393,13 @@ impl SurfaceMesh {
                     for s in it {
                         let first = s.split('/').next().unwrap_or("");
                         let i: i64 = first.parse().map_err(|_| {
-                            err(line_no, format!("face index `{s}` is not an integer"))
+                            err(
+                                line_no,
+                                format!(
+                                    "face index `{}` is not an integer",
+                                    crate::csv_input::excerpt(s)
+                                ),
+                            )
                         })?;
                         let resolved = if i > 0 {
                             i - 1
