@@ -225,3 +225,77 @@ impl<P: Port> Controller<2, 4> for BoardController<'_, P> {
         })
     }
 }
+
+/// What a board accepts for a request's fields, in the words of the
+/// command that sends it (for a refusal; the board only says `OutOfRange`
+/// or `NotFinite`). From the firmware's own limits.
+pub fn accepted_range(request: u8) -> Option<String> {
+    use firmware::app::{LINK_TIMEOUT_MS, LOCKSTEP_PERIOD_US, MAX_TELEMETRY_HZ};
+    use firmware::joint::DEFAULT_MAX_TARGET_DEG;
+    Some(match request {
+        kind::SET_LINK_TIMEOUT => format!(
+            "the link timeout (hil --link-timeout-ms, console `link-timeout MS`) must be {}..={} ms",
+            LINK_TIMEOUT_MS.start(),
+            LINK_TIMEOUT_MS.end()
+        ),
+        kind::SET_TARGET => format!(
+            "a target (console `target PLANE DEG`, scenario targets) must be a finite angle within ±{DEFAULT_MAX_TARGET_DEG}° on plane 0 (α) or 1 (β)"
+        ),
+        kind::SET_TELEMETRY => {
+            format!("the telemetry rate (console `telemetry HZ`) must be 0..={MAX_TELEMETRY_HZ} Hz")
+        }
+        kind::HIL_START => format!(
+            "the lockstep period (scenario control_period_us) must be {}..={} µs",
+            LOCKSTEP_PERIOD_US.start(),
+            LOCKSTEP_PERIOD_US.end()
+        ),
+        kind::SET_GAINS => "gains (console `gains PLANE KP_AG KP_ANT KI ILIM`, scenario [controller]) must be finite, Kp > 0, Ki ≥ 0, the integral limit ≥ 0, on plane 0 (α) or 1 (β)".into(),
+        kind::SET_CALIBRATION | kind::GET_CALIBRATION => "a calibration (console `calibration set FILE`, scenario estimator.calibration) must be a valid law for the board's 4 sensors, on plane 0 (α) or 1 (β)".into(),
+        kind::CLEAR_FAULTS => "faults clear only once their cause is gone (see `status`)".into(),
+        _ => return None,
+    })
+}
+
+/// A link error as a user should read it: which board (`port`), which
+/// request, and for a refusal what the board accepts; for no reply, what
+/// to check.
+pub fn explain(e: &LinkError, port: &str, baud: u32) -> String {
+    let name = |k: u8| firmware::protocol::message_name(k).unwrap_or("a request");
+    match e {
+        LinkError::Refused { request, code } => {
+            let range = accepted_range(*request)
+                .map(|r| format!(": {r}"))
+                .unwrap_or_default();
+            format!(
+                "the board on {port} refused {} ({code}){range}",
+                name(*request)
+            )
+        }
+        LinkError::Timeout {
+            request,
+            attempts,
+            timeout_ms,
+        } => format!(
+            "no reply from {port} to {} after {attempts} attempts of {timeout_ms} ms: is a board running softjoint-fw connected there, at {baud} baud (--port, --baud)?",
+            name(*request)
+        ),
+        _ => format!("{port}: {e}"),
+    }
+}
+
+/// `e` with a [`LinkError`] inside it told as [`explain`] tells it (the
+/// contexts around it kept); other errors unchanged.
+pub fn name_the_board(e: anyhow::Error, port: &str, baud: u32) -> anyhow::Error {
+    let Some(link) = e.chain().find_map(|c| c.downcast_ref::<LinkError>()) else {
+        return e;
+    };
+    let mut text = String::new();
+    for c in e.chain() {
+        if c.downcast_ref::<LinkError>().is_some() {
+            break;
+        }
+        text.push_str(&format!("{c}: "));
+    }
+    text.push_str(&explain(link, port, baud));
+    anyhow::anyhow!(text)
+}

@@ -4,7 +4,9 @@
 pub mod board;
 pub mod calibrate;
 pub mod hil;
+pub mod input;
 pub mod link;
+pub mod output;
 pub mod plot;
 pub mod pty_board;
 pub mod qemu;

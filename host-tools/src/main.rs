@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use host_tools::{calibrate, report, scenario::Scenario, sim};
+use host_tools::{calibrate, output, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
@@ -46,11 +46,13 @@ struct SimArgs {
     #[command(flatten)]
     output: report::OutputArgs,
     /// Instead of a control run, write a calibration sweep of the simulated
-    /// joint (slow ±20° sweep, camera reference) to this CSV.
-    #[arg(long, value_name = "PATH")]
+    /// joint (slow ±20° sweep, camera reference) to this CSV. There is no
+    /// control run, so --csv, --plot and --json cannot go with it.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["csv", "plot", "json"])]
     calibration_sweep: Option<PathBuf>,
-    /// Print the built-in default scenario as TOML and exit.
-    #[arg(long)]
+    /// Print the built-in default scenario as TOML and exit (nothing else
+    /// runs, so it takes no other argument).
+    #[arg(long, conflicts_with_all = ["scenario", "csv", "plot", "json", "calibration_sweep"])]
     print_default: bool,
 }
 
@@ -119,29 +121,29 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 calibrate::fit(&rows).map_err(|e| anyhow::anyhow!("{}: {e}", sweep.display()))?;
             calibrate::calibration_of(&fits)?.save(&output)?;
             if json {
-                let out: Vec<serde_json::Value> = fits
+                let out = fits
                     .iter()
                     .map(|f| {
-                        serde_json::json!({
-                            "angle": f.angle,
-                            "chosen": f.chosen,
-                            "threshold_deg": f.chosen.threshold_deg(),
-                            "max_error_deg": f.chosen_errors.max_error_deg,
-                            "rms_error_deg": f.chosen_errors.rms_error_deg,
-                            "methods": {
-                                "single": f.single.1,
-                                "differential": f.differential.as_ref().map(|d| d.1),
-                                "switching": f.switching.as_ref().map(|d| d.1),
-                            },
-                        })
+                        output::JsonObject::new()
+                            .field("angle", &f.angle)?
+                            .field("chosen", &f.chosen)?
+                            .field("threshold_deg", &f.chosen.threshold_deg())?
+                            .field("max_error_deg", &f.chosen_errors.max_error_deg)?
+                            .field("rms_error_deg", &f.chosen_errors.rms_error_deg)?
+                            .field(
+                                "methods",
+                                &output::JsonObject::new()
+                                    .field("single", &f.single.1)?
+                                    .field("differential", &f.differential.as_ref().map(|d| d.1))?
+                                    .field("switching", &f.switching.as_ref().map(|d| d.1))?,
+                            )
                     })
-                    .collect();
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(
-                        &serde_json::json!({ "rows": rows.len(), "angles": out, "calibration": output })
-                    )?
-                );
+                    .collect::<anyhow::Result<Vec<_>>>()?;
+                output::JsonObject::new()
+                    .field("rows", &rows.len())?
+                    .field("angles", &out)?
+                    .field("calibration", &output)?
+                    .print()?;
             } else {
                 print!("{}", calibrate::table(&fits));
                 println!(
@@ -170,13 +172,64 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         println!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }
-    let out = sim::run_with(&scenario, args.output.wants_trace())?;
+    let out =
+        sim::run_with(&scenario, args.output.wants_trace()).map_err(|e| match &args.scenario {
+            Some(p) => e.context(format!("scenario {}", p.display())),
+            None => e,
+        })?;
     args.output
         .write_files(&scenario.name, &out.summary, &out.trace)?;
     if args.output.json {
-        println!("{}", serde_json::to_string_pretty(&out.summary)?);
+        output::print_json(&out.summary)?;
     } else {
         print!("{}", report::table(&out.summary));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::builder::ValueParser;
+    use clap::CommandFactory;
+
+    /// Every option and positional argument that takes a number, in every
+    /// subcommand.
+    fn numeric_args(cmd: &clap::Command, path: &str, out: &mut Vec<(String, bool)>) {
+        let numeric = [
+            ValueParser::from(clap::value_parser!(f64)).type_id(),
+            ValueParser::from(clap::value_parser!(u64)).type_id(),
+            ValueParser::from(clap::value_parser!(u32)).type_id(),
+            ValueParser::from(clap::value_parser!(u16)).type_id(),
+            ValueParser::from(clap::value_parser!(usize)).type_id(),
+        ];
+        for a in cmd.get_arguments() {
+            if numeric.contains(&a.get_value_parser().type_id()) {
+                out.push((
+                    format!("{path} --{}", a.get_id()),
+                    a.is_allow_negative_numbers_set() || a.is_allow_hyphen_values_set(),
+                ));
+            }
+        }
+        for sub in cmd.get_subcommands() {
+            numeric_args(sub, &format!("{path} {}", sub.get_name()), out);
+        }
+    }
+
+    /// `--k1 -1` was `unexpected argument '-1'`: clap took the value for a
+    /// flag. Every numeric option takes a negative number as its value,
+    /// so the range check that follows can name the flag and the range.
+    #[test]
+    fn every_numeric_option_accepts_a_negative_value() {
+        let mut args = Vec::new();
+        numeric_args(&Cli::command(), "softjoint", &mut args);
+        assert!(args.len() >= 15, "{args:?}");
+        let refused: Vec<&String> = args.iter().filter(|(_, ok)| !ok).map(|(n, _)| n).collect();
+        assert!(refused.is_empty(), "read as flags: {refused:?}");
+        let e = Cli::try_parse_from(["softjoint", "push", "simulate", "--nx", "-3"])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("--nx") && e.contains("-3"), "{e}");
+    }
 }

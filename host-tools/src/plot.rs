@@ -8,9 +8,10 @@
 //! XML.
 //!
 //! - [`Svg`]: a document in pixel coordinates with the few primitives the
-//!   pictures use. Non-finite coordinates never reach the file: a polyline
-//!   lifts its pen at them, a polygon with one is left out (and counted in
-//!   [`Svg::skipped`]), text is escaped.
+//!   pictures use. Non-finite coordinates (and finite ones beyond a
+//!   million pixels, an exploding simulation's) never reach the file: a
+//!   polyline lifts its pen at them, a polygon with one is left out (and
+//!   counted in [`Svg::skipped`]), text is escaped.
 //! - [`line_charts`]: stacked charts of series against an x axis, each with
 //!   its own axis labels and legend (time series, μ(F) per generation, fit
 //!   curves).
@@ -86,8 +87,18 @@ fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// Largest |coordinate| drawn (px): beyond it a point is left out like a
+/// non-finite one. An exploding simulation gives finite coordinates of
+/// 1e200 px, which viewers cannot render and no page can show; a million
+/// pixels is far outside any picture here (estimate).
+const MAX_COORDINATE_PX: f64 = 1e6;
+
+fn drawable(v: f64) -> bool {
+    v.is_finite() && v.abs() <= MAX_COORDINATE_PX
+}
+
 fn finite(p: &(f64, f64)) -> bool {
-    p.0.is_finite() && p.1.is_finite()
+    drawable(p.0) && drawable(p.1)
 }
 
 impl Svg {
@@ -123,7 +134,7 @@ impl Svg {
         style: &str,
         text: &str,
     ) {
-        if !(x.is_finite() && y.is_finite()) {
+        if !finite(&(x, y)) {
             self.skipped += 1;
             return;
         }
@@ -237,7 +248,7 @@ impl Svg {
 
     /// A circle outline.
     pub fn circle(&mut self, centre: (f64, f64), radius: f64, stroke: Stroke<'_>) {
-        if !(finite(&centre) && radius.is_finite()) {
+        if !(finite(&centre) && drawable(radius)) {
             self.skipped += 1;
             return;
         }
@@ -252,7 +263,7 @@ impl Svg {
 
     /// A rectangle.
     pub fn rect(&mut self, x: f64, y: f64, w: f64, h: f64, fill: &str, stroke: Option<Stroke<'_>>) {
-        if ![x, y, w, h].iter().all(|v| v.is_finite()) {
+        if ![x, y, w, h].into_iter().all(drawable) {
             self.skipped += 1;
             return;
         }
@@ -479,6 +490,7 @@ mod tests {
                 (f64::NAN, 1.0),
                 (2.0, 2.0),
                 (3.0, f64::INFINITY),
+                (4.0, 1e200),
             ],
             Stroke::solid("red", 1.0),
         );

@@ -13,8 +13,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::input::from_json;
+use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use plant_models::pushing::classify::{classify, MaterialModel};
+use plant_models::pushing::error::PushError;
 use plant_models::pushing::evaluate::{
     score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore,
 };
@@ -120,14 +123,15 @@ struct VideoArgs {
     #[arg(long, value_enum, default_value = "middle-long")]
     site: SiteArg,
     /// Read the tracked contours and forces from this CSV
-    /// (`frame,force_n,x_px,y_px`) instead of generating them.
-    #[arg(long, value_name = "CSV")]
+    /// (`frame,force_n,x_px,y_px`) instead of generating them (the
+    /// generator's --ref-element-px and --noise-seed then have no use).
+    #[arg(long, value_name = "CSV", conflicts_with_all = ["ref_element_px", "noise_seed"])]
     video: Option<PathBuf>,
     /// Element size of the finite-element ground truth, px.
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 8.0)]
     ref_element_px: f64,
     /// Seed of the ground truth's contour and force noise.
-    #[arg(long, default_value_t = 1)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
     noise_seed: u64,
 }
 
@@ -139,13 +143,13 @@ struct ModelArgs {
     #[arg(long, value_enum, default_value = "both")]
     mode: ModeArg,
     /// Squares along the block's long side.
-    #[arg(long, default_value_t = 20)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 20)]
     nx: usize,
     /// Squares along the block's short side.
-    #[arg(long, default_value_t = 10)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
     ny: usize,
     /// Raster cell size for the F-score, px (1 = camera pixels).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     cell_px: f64,
     /// Turn off the repair of reversed and flat triangles (§VI-E).
     #[arg(long)]
@@ -173,6 +177,10 @@ struct SimulateArgs {
     /// Print a machine-readable summary.
     #[arg(long)]
     json: bool,
+    /// Write the results even when the model becomes unstable (frames from
+    /// the instability on score 0); without it an unstable run is an error.
+    #[arg(long)]
+    allow_unstable: bool,
 }
 
 #[derive(Args)]
@@ -182,10 +190,10 @@ struct CalibrateArgs {
     #[command(flatten)]
     model: ModelArgs,
     /// Generations M (Table III: 30).
-    #[arg(long, default_value_t = 30)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 30)]
     generations: usize,
     /// Seed of the evolutionary search.
-    #[arg(long, default_value_t = 7)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 7)]
     seed: u64,
     /// Output directory.
     #[arg(long, default_value = "push-out")]
@@ -238,6 +246,44 @@ fn sim_config(m: &ModelArgs) -> SimConfig {
     }
 }
 
+/// The flag behind each library parameter name the pushing code reports.
+const FLAGS: [(&str, &str); 4] = [
+    ("element_size_px", "--ref-element-px"),
+    ("nx", "--nx"),
+    ("ny", "--ny"),
+    ("cell_px", "--cell-px"),
+];
+
+/// A pushing error in the words of the command line: a parameter the user
+/// set by a flag is called by that flag (`element_size_px` was shown for
+/// `--ref-element-px`).
+fn as_flag(e: PushError) -> anyhow::Error {
+    let flag = |name: &str| FLAGS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f);
+    let short = plant_models::short_number;
+    match e {
+        PushError::InvalidParameter {
+            name,
+            value,
+            reason,
+        } if flag(name).is_some() => {
+            anyhow::anyhow!("{} {}: {reason}", flag(name).unwrap_or(name), short(value))
+        }
+        PushError::OutOfRange {
+            name,
+            value,
+            min,
+            max,
+        } if flag(name).is_some() => anyhow::anyhow!(
+            "{} {}: must be within {}..={}",
+            flag(name).unwrap_or(name),
+            short(value),
+            short(min),
+            short(max)
+        ),
+        other => other.into(),
+    }
+}
+
 fn load_video(v: &VideoArgs) -> Result<Video> {
     let mat = v.material.reference();
     let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
@@ -258,33 +304,41 @@ fn load_video(v: &VideoArgs) -> Result<Video> {
                 seed: v.noise_seed,
                 ..ReferenceConfig::default()
             };
-            Ok(record_push(v.material.label(), mat, &scenario, &cfg)?)
+            record_push(v.material.label(), mat, &scenario, &cfg).map_err(as_flag)
         }
     }
 }
 
 fn prepare(v: &VideoArgs, m: &ModelArgs) -> Result<PreparedVideo> {
     let video = load_video(v)?;
-    Ok(PreparedVideo::new(
+    PreparedVideo::new(
         video,
         &EvalSetup {
             nx: m.nx,
             ny: m.ny,
             cell_px: m.cell_px,
         },
-    )?)
+    )
+    .map_err(as_flag)
 }
 
 /// Reads parameters from a bare parameter object or from `calibrate`'s
 /// `params.json` (which holds them under `best_params`).
 fn load_params(path: &Path) -> Result<MaterialParams> {
     let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let value: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
-    let inner = value.get("best_params").cloned().unwrap_or(value);
-    let p: MaterialParams = serde_json::from_value(inner).with_context(|| format!("{}: expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha)", path.display()))?;
-    p.validate()
-        .with_context(|| format!("in {}", path.display()))?;
+    let file = path.display().to_string();
+    let expected = "expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha), or `calibrate`'s params.json";
+    // Duplicate keys and syntax first (the form is chosen from a parsed
+    // value, which would keep only the last of two equal keys).
+    let value: serde_json::Value = from_json(&text, &file)?;
+    let p = if value.get("best_params").is_some() {
+        from_json::<CalibrationResult>(&text, &file)
+            .with_context(|| format!("{file}: {expected}"))?
+            .best_params
+    } else {
+        from_json::<MaterialParams>(&text, &file).with_context(|| format!("{file}: {expected}"))?
+    };
+    p.validate().with_context(|| format!("in {file}"))?;
     Ok(p)
 }
 
@@ -293,7 +347,11 @@ fn out_dir(dir: &Path) -> Result<()> {
 }
 
 fn write(path: &Path, text: &str) -> Result<()> {
-    fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    if path.extension().is_some_and(|e| e == "svg") {
+        output::write_svg(path, text)
+    } else {
+        output::write_csv(path, text)
+    }
 }
 
 /// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
@@ -429,8 +487,8 @@ fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> St
 }
 
 fn simulate_cmd(a: SimulateArgs) -> Result<()> {
-    let prep = prepare(&a.video, &a.model)?;
-    let sim = sim_config(&a.model);
+    // The parameters first: a bad file is refused before the ground truth
+    // (seconds of finite elements) is generated.
     let params = match &a.params {
         Some(p) => load_params(p)?,
         None => match a.video.material {
@@ -438,6 +496,8 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
         },
     };
+    let prep = prepare(&a.video, &a.model)?;
+    let sim = sim_config(&a.model);
     let forces = if a.predicted_forces {
         ForcePredictor::fit(
             &prep.video.scenario,
@@ -449,6 +509,27 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
         prep.video.forces_n.clone()
     };
     let score = score_run(&prep, &forces, &params, &sim)?;
+    // An unstable model is a failed run unless the user asked for its
+    // results anyway (frames from the instability on score 0).
+    let instability = score.unstable_from_frame.map(|f| {
+        let why = score
+            .instability
+            .map(|i| i.to_string())
+            .unwrap_or_else(|| "unknown cause".into());
+        format!(
+            "the mass-spring model ({} integrator) became unstable at frame {f} of {} ({why})",
+            sim.integrator.name(),
+            prep.frame_count()
+        )
+    });
+    if let Some(what) = &instability {
+        if !a.allow_unstable {
+            bail!(
+                "{what}; nothing was written: try smaller stiffnesses or another --integrator, or give --allow-unstable to write the results with every frame from there on scored 0"
+            );
+        }
+        eprintln!("warning: {what}; frames from there on score 0 (--allow-unstable)");
+    }
     out_dir(&a.out)?;
     write(
         &a.out.join("frames.csv"),
@@ -495,29 +576,22 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     ]);
     write(&a.out.join("f_per_frame.svg"), &chart.finish())?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "material": prep.video.material,
-                "site": prep.video.scenario.site.name(),
-                "integrator": sim.integrator.name(),
-                "mode": sim.mode.name(),
-                "params": params,
-                "mean_f": score.mean_f,
-                "unstable_from_frame": score.unstable_from_frame,
-                "instability": score.instability.map(|i| i.to_string()),
-                "f_per_frame": score.f_per_frame,
-                "out": a.out,
-            }))?
-        );
+        JsonObject::new()
+            .field("material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("integrator", sim.integrator.name())?
+            .field("mode", sim.mode.name())?
+            .field("params", &params)?
+            .field("mean_f", &score.mean_f)?
+            .field("unstable_from_frame", &score.unstable_from_frame)?
+            .field("instability", &instability)?
+            .field("f_per_frame", &score.f_per_frame)?
+            .field("out", &a.out)?
+            .print()?;
     } else {
         println!("{title}");
-        if let Some(f) = score.unstable_from_frame {
-            let why = score
-                .instability
-                .map(|i| i.to_string())
-                .unwrap_or_else(|| "unknown cause".into());
-            println!("unstable from frame {f} ({why}): scored 0 from there");
+        if let Some(what) = &instability {
+            println!("{what}: scored 0 from there");
         }
         println!(
             "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
@@ -567,10 +641,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     )?;
     bar.finish_and_clear();
     out_dir(&a.out)?;
-    write(
-        &a.out.join("params.json"),
-        &serde_json::to_string_pretty(&result)?,
-    )?;
+    output::write_json(&a.out.join("params.json"), &result)?;
     let mut csv = String::from("generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n");
     for g in &result.history {
         let _ = writeln!(
@@ -608,20 +679,20 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         &snapshots_svg(&prep, &shots, &score, &title),
     )?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "material": prep.video.material,
-                "site": prep.video.scenario.site.name(),
-                "integrator": sim.integrator.name(),
-                "mode": sim.mode.name(),
-                "best_params": result.best_params,
-                "best_mean_f": result.best_score,
-                "evaluations": result.evaluations,
-                "best_per_generation": result.history.iter().map(|g| g.best).collect::<Vec<_>>(),
-                "out": a.out,
-            }))?
-        );
+        JsonObject::new()
+            .field("material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("integrator", sim.integrator.name())?
+            .field("mode", sim.mode.name())?
+            .field("best_params", &result.best_params)?
+            .field("best_mean_f", &result.best_score)?
+            .field("evaluations", &result.evaluations)?
+            .field(
+                "best_per_generation",
+                &result.history.iter().map(|g| g.best).collect::<Vec<_>>(),
+            )?
+            .field("out", &a.out)?
+            .print()?;
     } else {
         println!(
             "best μ(F) {:.4} after {} generations ({} simulations)",
@@ -700,7 +771,7 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     let chart = plot::line_charts(&[Chart {
         title: format!(
             "F-score per frame of each model — global vote: {}",
-            c.winner_label()
+            c.verdict()
         ),
         x_label: "frame".into(),
         y_label: "F-score".into(),
@@ -720,20 +791,22 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     }]);
     write(&a.out.join("classification.svg"), &chart.finish())?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "video_material": prep.video.material,
-                "site": prep.video.scenario.site.name(),
-                "winner": c.winner_label(),
-                "labels": c.labels,
-                "frames_won": c.frames_won,
-                "vote": c.vote,
-                "out": a.out,
-            }))?
-        );
+        JsonObject::new()
+            .field("video_material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("winner", &c.winner_label())?
+            .field("tie", &c.winner.is_none())?
+            .field(
+                "leaders",
+                &c.leaders.iter().map(|&k| &c.labels[k]).collect::<Vec<_>>(),
+            )?
+            .field("labels", &c.labels)?
+            .field("frames_won", &c.frames_won)?
+            .field("vote", &c.vote)?
+            .field("out", &a.out)?
+            .print()?;
     } else {
-        println!("global vote: {}", c.winner_label());
+        println!("global vote: {}", c.verdict());
         for (k, l) in c.labels.iter().enumerate() {
             println!(
                 "  {l:>12}: {} frames won, weighted vote {:+.4}",
@@ -814,7 +887,11 @@ mod tests {
         );
         let p = dir.join("notjson.json");
         fs::write(&p, "k_length = 3").unwrap();
-        assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("is not JSON"));
+        let e = format!("{:#}", load_params(&p).unwrap_err());
+        assert!(
+            e.contains("notjson.json:1:1") && e.contains("expected value"),
+            "{e}"
+        );
         let p = dir.join("missing.json");
         fs::write(&p, r#"{"k_length": 1.0}"#).unwrap();
         assert!(format!("{:#}", load_params(&p).unwrap_err())
@@ -838,6 +915,7 @@ mod tests {
             predicted_forces: true,
             out: sim_out.clone(),
             json: true,
+            allow_unstable: false,
         })
         .unwrap();
         let frames = fs::read_to_string(sim_out.join("frames.csv")).unwrap();

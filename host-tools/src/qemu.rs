@@ -15,6 +15,44 @@ pub const DEFAULT_IMAGE: &str = "target/thumbv7em-none-eabihf/release/softjoint-
 pub const BUILD_IMAGE: &str =
     "cargo build -p firmware --release --target thumbv7em-none-eabihf --bin softjoint-fw";
 
+/// Where to look for the image when `--image` is not given, best first:
+/// beside the running program (`softjoint` in `target/<profile>/`, the
+/// image in `target/thumbv7em-none-eabihf/release/`), the workspace this
+/// program was built from, and the working directory. A relative default
+/// alone made `hil` fail outside the repository.
+pub fn image_candidates() -> Vec<PathBuf> {
+    image_candidates_for(std::env::current_exe().ok().as_deref())
+}
+
+/// [`image_candidates`] for a program at `exe`.
+pub fn image_candidates_for(exe: Option<&Path>) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    // target/<profile>/softjoint → target/
+    if let Some(target) = exe.and_then(Path::parent).and_then(Path::parent) {
+        out.push(target.join("thumbv7em-none-eabihf/release/softjoint-fw"));
+    }
+    if let Some(workspace) = Path::new(env!("CARGO_MANIFEST_DIR")).parent() {
+        out.push(workspace.join(DEFAULT_IMAGE));
+    }
+    out.push(PathBuf::from(DEFAULT_IMAGE));
+    out.dedup();
+    out
+}
+
+/// The first of [`image_candidates`] that exists, or an error listing
+/// where it looked and how to build the image or give one with `--image`.
+pub fn default_image() -> anyhow::Result<PathBuf> {
+    let candidates = image_candidates();
+    if let Some(found) = candidates.iter().find(|p| p.is_file()) {
+        return Ok(found.clone());
+    }
+    let looked: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
+    bail!(
+        "no firmware image found (looked in {}); give one with --image PATH, or build it in the softjoint workspace with `{BUILD_IMAGE}`",
+        looked.join(", ")
+    )
+}
+
 /// A running QEMU; killed when dropped.
 pub struct Qemu {
     child: Child,
@@ -30,7 +68,7 @@ impl Qemu {
     pub fn launch(image: &Path, icount: bool) -> anyhow::Result<Self> {
         if !image.exists() {
             bail!(
-                "firmware image {} not found; build it with `{BUILD_IMAGE}`",
+                "firmware image {} not found; check the --image path, or build the image in the softjoint workspace with `{BUILD_IMAGE}`",
                 image.display()
             );
         }
@@ -121,5 +159,23 @@ impl Drop for Qemu {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_image_is_looked_for_beside_the_program_first() {
+        let c = image_candidates_for(Some(Path::new("/opt/sj/target/release/softjoint")));
+        assert_eq!(
+            c[0],
+            Path::new("/opt/sj/target/thumbv7em-none-eabihf/release/softjoint-fw")
+        );
+        // Then the workspace it was built from (absolute), then the
+        // working directory.
+        assert!(c[1].is_absolute() && c[1].ends_with(DEFAULT_IMAGE), "{c:?}");
+        assert_eq!(c.last().unwrap(), Path::new(DEFAULT_IMAGE));
     }
 }

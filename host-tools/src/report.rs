@@ -3,8 +3,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::Context;
-
 use crate::sim::{Summary, Trace};
 
 /// The output flags shared by `sim` and `hil`.
@@ -112,8 +110,10 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
         for p in 0..angles.len() {
             let _ = write!(
                 s,
-                ",{:.4},{:.4},{:.4}",
-                r.true_deg[p], r.estimate_deg[p], r.desired_deg[p]
+                ",{:.4},{},{:.4}",
+                r.true_deg[p],
+                crate::output::estimate_field(r.estimate_deg[p], 4),
+                r.desired_deg[p]
             );
         }
         for v in r.coil_volts.iter().take(coils) {
@@ -121,7 +121,7 @@ pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Resul
         }
         let _ = writeln!(s, ",{}", r.faults);
     }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_csv(path, &s)
 }
 
 /// Writes an SVG of angles (true, estimated, desired) and coil voltages
@@ -190,6 +190,5 @@ pub fn write_plot(
             series: volt_series,
         },
     ];
-    std::fs::write(path, line_charts(&charts).finish())
-        .with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_svg(path, &line_charts(&charts).finish())
 }

@@ -9,15 +9,18 @@ use firmware::protocol::{
     Arm, Calibration, ClearFaults, Disarm, GetCalibration, HilStop, Message, SetCalibration,
     SetGains, SetLinkTimeout, SetTarget, SetTelemetry,
 };
+use host_tools::board::name_the_board;
 use host_tools::hil::{self, HilOptions};
 use host_tools::link::{open_port, Link, Port};
-use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
+use host_tools::qemu::Qemu;
 use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
 use host_tools::{
     calibrate::{CalibrationFile, LawSpec},
-    report,
+    output, report,
 };
+use plant_models::csv_input::excerpt;
+use plant_models::short_number;
 
 #[derive(Args)]
 pub struct HilArgs {
@@ -25,14 +28,21 @@ pub struct HilArgs {
     scenario: Option<PathBuf>,
     /// A real board's serial device; without it the firmware image runs
     /// under QEMU on a pty.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["image", "no_icount"])]
     port: Option<String>,
     /// Baud rate for --port.
-    #[arg(long, default_value_t = 115_200)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        default_value_t = 115_200,
+        requires = "port"
+    )]
     baud: u32,
-    /// Firmware image for QEMU.
-    #[arg(long, default_value = DEFAULT_IMAGE)]
-    image: PathBuf,
+    /// Firmware image for QEMU [default: the workspace's
+    /// target/thumbv7em-none-eabihf/release/softjoint-fw, found from the
+    /// softjoint program's own location].
+    #[arg(long)]
+    image: Option<PathBuf>,
     /// Run QEMU without `-icount shift=0`. By default the guest's clock
     /// advances with executed instructions (1 ns each), so host scheduling
     /// cannot make the board's link watchdog see time jump; without it
@@ -40,18 +50,33 @@ pub struct HilArgs {
     #[arg(long)]
     no_icount: bool,
     /// Reply timeout per attempt (ms).
-    #[arg(long, default_value_t = 100)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..=60_000))]
     timeout_ms: u64,
     /// Fault injection: lose the first copy of every Nth sensor frame.
-    #[arg(long)]
+    #[arg(allow_negative_numbers = true, long)]
     lose_every: Option<u32>,
     /// Link-loss timeout to set on the board (ms of its clock). The board's
     /// own default is 50 ms; an emulated board's clock follows the host's,
     /// so a loaded host needs more slack than a real board does.
-    #[arg(long, default_value_t = 250)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 250, value_parser = link_timeout_ms)]
     link_timeout_ms: u16,
     #[command(flatten)]
     output: report::OutputArgs,
+}
+
+/// The board's link-timeout range, checked before a board is involved.
+fn link_timeout_ms(text: &str) -> Result<u16, String> {
+    let range = firmware::app::LINK_TIMEOUT_MS;
+    text.parse::<u16>()
+        .ok()
+        .filter(|v| range.contains(v))
+        .ok_or_else(|| {
+            format!(
+                "must be a whole number of milliseconds in {}..={} (the board's range)",
+                range.start(),
+                range.end()
+            )
+        })
 }
 
 pub fn hil(args: HilArgs) -> anyhow::Result<()> {
@@ -60,30 +85,36 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         None => Scenario::default(),
     };
     let opts = HilOptions {
-        timeout: Duration::from_millis(args.timeout_ms.max(1)),
+        timeout: Duration::from_millis(args.timeout_ms),
         lose_every: args.lose_every,
         link_timeout_ms: Some(args.link_timeout_ms),
         ..HilOptions::default()
     };
     let _qemu;
-    let port = match &args.port {
-        Some(p) => open_port(p, args.baud)?,
+    let (port, label) = match &args.port {
+        Some(p) => (open_port(p, args.baud)?, p.clone()),
         None => {
-            let q = Qemu::launch(&args.image, !args.no_icount)?;
-            let port = open_port(&q.pty.to_string_lossy(), args.baud)?;
+            let image = match &args.image {
+                Some(i) => i.clone(),
+                None => host_tools::qemu::default_image()?,
+            };
+            let q = Qemu::launch(&image, !args.no_icount)?;
+            let pty = q.pty.to_string_lossy().into_owned();
+            let port = open_port(&pty, args.baud)?;
             _qemu = q;
-            port
+            (port, format!("QEMU's pty {pty} ({})", image.display()))
         }
     };
     let mut link = Link::new(port);
-    let out = hil::run(&scenario, &mut link, opts)?;
+    let out =
+        hil::run(&scenario, &mut link, opts).map_err(|e| name_the_board(e, &label, args.baud))?;
     args.output.write_files(
         &format!("{} (HIL)", scenario.name),
         &out.report.summary,
         &out.trace,
     )?;
     if args.output.json {
-        println!("{}", serde_json::to_string_pretty(&out.report)?);
+        host_tools::output::print_json(&out.report)?;
     } else {
         print!("{}", report::table(&out.report.summary));
         let l = &out.report.link;
@@ -102,7 +133,7 @@ pub struct ConsoleArgs {
     #[arg(long)]
     port: String,
     /// Baud rate.
-    #[arg(long, default_value_t = 115_200)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 115_200)]
     baud: u32,
     /// Read commands from this file (one per line, `#` comments).
     #[arg(long)]
@@ -111,7 +142,9 @@ pub struct ConsoleArgs {
     #[arg(long)]
     csv: Option<PathBuf>,
     /// Commands, e.g. `status`, `arm`, `target 0 5`, `stream 2`
-    /// (see `softjoint console --port P help`).
+    /// (see `softjoint console --port P help`). Everything after the
+    /// first command word is the command's, negative numbers included.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
     commands: Vec<String>,
 }
 
@@ -157,8 +190,9 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
     };
     for (origin, line) in &lines {
         for cmd in line.split(';').map(str::trim).filter(|c| !c.is_empty()) {
-            run_console_command(&mut link, cmd, csv.as_mut())
-                .with_context(|| format!("{origin}: `{cmd}`"))?;
+            run_console_command(&mut link, cmd, csv.as_mut(), &args.port)
+                .map_err(|e| name_the_board(e, &args.port, args.baud))
+                .with_context(|| format!("{origin}: `{}`", excerpt(cmd)))?;
         }
     }
     Ok(())
@@ -172,29 +206,67 @@ fn open_csv(path: &Path) -> anyhow::Result<std::fs::File> {
         .open(path)
         .with_context(|| format!("cannot open {}", path.display()))?;
     if new {
-        writeln!(
-            f,
-            "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults"
-        )?;
+        writeln!(f, "{TELEMETRY_HEADER}")?;
     }
     Ok(f)
 }
 
 const T: Duration = Duration::from_millis(300);
 
+/// Columns of the console's telemetry CSV (an estimate is empty while the
+/// board has none).
+const TELEMETRY_HEADER: &str = "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults";
+
 fn arg<T: std::str::FromStr>(words: &[&str], i: usize, what: &str) -> anyhow::Result<T> {
     let w = words
         .get(i)
         .ok_or_else(|| anyhow::anyhow!("missing {what}"))?;
     w.parse()
-        .map_err(|_| anyhow::anyhow!("{what}: cannot parse `{w}`"))
+        .map_err(|_| anyhow::anyhow!("{what}: cannot parse `{}`", excerpt(w)))
 }
+
+/// A number argument that must lie in `lo..=hi` (the board's range, or
+/// the console's), named in the error.
+fn arg_in(
+    words: &[&str],
+    i: usize,
+    what: &str,
+    lo: f64,
+    hi: f64,
+    unit: &str,
+) -> anyhow::Result<f64> {
+    let v: f64 = arg(words, i, what)?;
+    if !(v.is_finite() && (lo..=hi).contains(&v)) {
+        bail!(
+            "{what} must be a finite number in {}..={} {unit}, got {}",
+            short_number(lo),
+            short_number(hi),
+            short_number(v)
+        );
+    }
+    Ok(v)
+}
+
+/// A plane number: 0 (α) or 1 (β).
+fn plane_arg(words: &[&str], i: usize) -> anyhow::Result<u8> {
+    let p: u8 = arg(words, i, "PLANE")?;
+    if p > 1 {
+        bail!("PLANE must be 0 (α) or 1 (β), got {p}");
+    }
+    Ok(p)
+}
+
+/// Longest `wait` or `stream` (s): a console session is interactive.
+const MAX_CONSOLE_SECONDS: f64 = 3600.0;
 
 fn run_console_command<P: Port>(
     link: &mut Link<P>,
     cmd: &str,
     csv: Option<&mut std::fs::File>,
+    port: &str,
 ) -> anyhow::Result<()> {
+    use firmware::app::{LINK_TIMEOUT_MS, MAX_TELEMETRY_HZ};
+    use firmware::joint::DEFAULT_MAX_TARGET_DEG;
     let words: Vec<&str> = cmd.split_whitespace().collect();
     match words.as_slice() {
         ["hello"] => {
@@ -217,17 +289,21 @@ fn run_console_command<P: Port>(
         ["disarm"] => ack(link, Disarm {})?,
         ["clear"] => ack(link, ClearFaults {})?,
         ["hil-stop"] => ack(link, HilStop {})?,
-        ["target", ..] => ack(
-            link,
-            SetTarget {
-                plane: arg(&words, 1, "PLANE")?,
-                target_deg: arg(&words, 2, "DEG")?,
-            },
-        )?,
+        ["target", ..] => {
+            let max = f64::from(DEFAULT_MAX_TARGET_DEG);
+            ack(
+                link,
+                SetTarget {
+                    plane: plane_arg(&words, 1)?,
+                    target_deg: arg_in(&words, 2, "DEG", -max, max, "deg (the board's range)")?
+                        as f32,
+                },
+            )?
+        }
         ["gains", ..] => ack(
             link,
             SetGains {
-                plane: arg(&words, 1, "PLANE")?,
+                plane: plane_arg(&words, 1)?,
                 kp_agonist: arg(&words, 2, "KP_AG")?,
                 kp_antagonist: arg(&words, 3, "KP_ANT")?,
                 ki: arg(&words, 4, "KI")?,
@@ -235,7 +311,7 @@ fn run_console_command<P: Port>(
             },
         )?,
         ["calibration", "get", ..] => {
-            let plane: u8 = arg(&words, 2, "PLANE")?;
+            let plane = plane_arg(&words, 2)?;
             let r = link.request(&GetCalibration { plane }.into(), T, 5, |m| {
                 matches!(m, Message::Calibration(_))
             })?;
@@ -261,20 +337,31 @@ fn run_console_command<P: Port>(
         ["telemetry", ..] => ack(
             link,
             SetTelemetry {
-                rate_hz: arg(&words, 1, "HZ")?,
+                rate_hz: arg_in(
+                    &words,
+                    1,
+                    "HZ",
+                    0.0,
+                    f64::from(MAX_TELEMETRY_HZ),
+                    "Hz (the board's range; 0 = off)",
+                )? as u16,
             },
         )?,
         ["link-timeout", ..] => ack(
             link,
             SetLinkTimeout {
-                timeout_ms: arg(&words, 1, "MS")?,
+                timeout_ms: arg_in(
+                    &words,
+                    1,
+                    "MS",
+                    f64::from(*LINK_TIMEOUT_MS.start()),
+                    f64::from(*LINK_TIMEOUT_MS.end()),
+                    "ms (the board's range)",
+                )? as u16,
             },
         )?,
         ["stream", ..] => {
-            let secs: f64 = arg(&words, 1, "SECONDS")?;
-            if !(secs.is_finite() && secs >= 0.0) {
-                bail!("SECONDS must be ≥ 0");
-            }
+            let secs = arg_in(&words, 1, "SECONDS", 0.0, MAX_CONSOLE_SECONDS, "s")?;
             let end = Instant::now() + Duration::from_secs_f64(secs);
             let mut csv = csv;
             let mut n = 0u64;
@@ -282,14 +369,15 @@ fn run_console_command<P: Port>(
                 if let Message::Telemetry(t) = m {
                     n += 1;
                     let line = format!(
-                        "{},{:.3},{:.3},{},{},{}",
+                        "{},{},{},{},{},{}",
                         t.time_ms,
-                        t.estimate_deg[0],
-                        t.estimate_deg[1],
+                        output::estimate_field(f64::from(t.estimate_deg[0]), 3),
+                        output::estimate_field(f64::from(t.estimate_deg[1]), 3),
                         t.pair_mv[0],
                         t.pair_mv[1],
                         t.faults
                     );
+                    output::check_csv("the telemetry", &format!("{TELEMETRY_HEADER}\n{line}"))?;
                     match csv.as_deref_mut() {
                         Some(f) => writeln!(f, "{line}")?,
                         None => println!("{line}"),
@@ -297,10 +385,30 @@ fn run_console_command<P: Port>(
                 }
             }
             eprintln!("{n} telemetry frames in {secs} s");
+            if n == 0 && secs > 0.0 {
+                let st = link.stats();
+                let noise = st.crc_errors + st.cobs_errors + st.overfull + st.malformed;
+                let heard = if noise > 0 || st.frames_received > 0 {
+                    format!(
+                        "it sent {} frame(s) of other kinds and {noise} that did not decode (CRC {}, COBS {}, oversized {}, malformed {})",
+                        st.frames_received, st.crc_errors, st.cobs_errors, st.overfull, st.malformed
+                    )
+                } else {
+                    "nothing at all arrived".into()
+                };
+                bail!(
+                    "no telemetry from {port} in {secs} s: {heard}; turn it on first (`telemetry 10; stream {secs}`), and check that a board running softjoint-fw is on {port} at the right --baud"
+                );
+            }
         }
-        ["wait", ..] => std::thread::sleep(Duration::from_secs_f64(
-            arg::<f64>(&words, 1, "SECONDS")?.clamp(0.0, 3600.0),
-        )),
+        ["wait", ..] => std::thread::sleep(Duration::from_secs_f64(arg_in(
+            &words,
+            1,
+            "SECONDS",
+            0.0,
+            MAX_CONSOLE_SECONDS,
+            "s",
+        )?)),
         _ => bail!("unknown command; try `help`\n{HELP}"),
     }
     Ok(())

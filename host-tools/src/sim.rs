@@ -152,9 +152,15 @@ pub fn laws_for(s: &Scenario) -> anyhow::Result<(Option<Vec<PlaneLaw>>, String)>
     };
     let laws = fits_cal.laws()?;
     if laws.len() != s.planes() {
+        let tables = if laws.len() == 1 {
+            "[alpha] only: a 2D calibration"
+        } else {
+            "[alpha] and [beta]: a 3D calibration"
+        };
         bail!(
-            "calibration has {} angle(s), the scenario's joint has {}",
+            "{source} has {} angle(s) ({tables}), but the scenario's `joint = \"{}\"` has {}",
             laws.len(),
+            if s.planes() == 1 { "2d" } else { "3d" },
             s.planes()
         );
     }

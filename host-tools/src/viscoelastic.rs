@@ -4,6 +4,7 @@
 //! argument handling, file I/O and reports.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
+use host_tools::output;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
@@ -38,13 +39,13 @@ enum ViscoCommand {
         /// Input CSV with a header.
         input: PathBuf,
         /// Delayed spring k1 (N/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         k1: f64,
         /// Series (instantaneous) spring k2 (N/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         k2: f64,
         /// Dashpot b (N·s/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         b: f64,
         /// Output CSV (default: standard output).
         #[arg(short, long)]
@@ -80,13 +81,13 @@ enum ViscoCommand {
         #[arg(long)]
         script: Option<PathBuf>,
         /// Simulated duration (s).
-        #[arg(long, default_value_t = 1.5)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 1.5)]
         duration_s: f64,
         /// Probe every N-th traction vertex in the simulated campaign.
-        #[arg(long, default_value_t = 10)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
         probe_every: usize,
         /// Seed of the measurement noise.
-        #[arg(long, default_value_t = 1)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
         seed: u64,
         /// Use general damping tensors instead of Rayleigh damping.
         #[arg(long)]
@@ -149,16 +150,15 @@ fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
 }
 
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
-}
-
 /// Checks a model parameter flag: finite and > 0 (or ≥ 0 if `zero_ok`).
 fn check_flag(flag: &str, value: f64, zero_ok: bool, unit: &str) -> Result<()> {
     let ok = value.is_finite() && (value > 0.0 || zero_ok && value == 0.0);
     if !ok {
         let range = if zero_ok { ">= 0" } else { "> 0" };
-        bail!("{flag} must be finite and {range} ({unit}), got {value}");
+        bail!(
+            "{flag} must be finite and {range} ({unit}), got {}",
+            plant_models::short_number(value)
+        );
     }
     Ok(())
 }
@@ -204,11 +204,8 @@ fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Re
         let _ = writeln!(s, "{},{},{}", t[k], u[k], f[k]);
     }
     match output {
-        Some(p) => write_text(p, &s),
-        None => {
-            print!("{s}");
-            Ok(())
-        }
+        Some(p) => output::write_csv(p, &s),
+        None => output::print_csv(&s),
     }
 }
 
@@ -232,9 +229,12 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
     if !(r.rms_residual_n.is_finite() && r.weighted_cost_n2.is_finite()) {
         bail!(
             "fitting {name}: the model's force overflowed (rms residual {} N): displacements and forces this large cannot be fitted",
-            r.rms_residual_n
+            plant_models::short_number(r.rms_residual_n)
         );
     }
+    // Numbers the data do not determine are not a result.
+    r.check_determined()
+        .with_context(|| format!("fitting {name}"))?;
     if let Some(p) = plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
@@ -244,24 +244,34 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
             r.b_n_s_per_m,
             if uniform { "uniform" } else { "seed" }
         );
-        write_text(p, &fit_plot(t, f, &fitted, &caption))?;
+        output::write_svg(p, &fit_plot(t, f, &fitted, &caption))?;
     }
+    // How far each parameter could move before the fit changes by its
+    // own misfit: a factor (1.05 is ±5 %).
+    let factor = r.ln_uncertainty.map(f64::exp);
+    let spread = |k: usize| {
+        if factor[k] < 2.0 {
+            format!("±{:.1} %", 100.0 * (factor[k] - 1.0))
+        } else {
+            format!("within a factor of {:.1}", factor[k])
+        }
+    };
     if json {
-        println!(
-            "{{\"k1_n_per_m\": {:e}, \"k2_n_per_m\": {:e}, \"b_n_s_per_m\": {:e}, \"rms_residual_n\": {:e}, \"weighted_cost_n2\": {:e}, \"evaluations\": {}, \"weighting\": \"{}\", \"samples\": {}}}",
-            r.k1_n_per_m,
-            r.k2_n_per_m,
-            r.b_n_s_per_m,
-            r.rms_residual_n,
-            r.weighted_cost_n2,
-            r.evaluations,
-            if uniform { "uniform" } else { "seed" },
-            t.len()
-        );
+        output::JsonObject::new()
+            .field("k1_n_per_m", &r.k1_n_per_m)?
+            .field("k2_n_per_m", &r.k2_n_per_m)?
+            .field("b_n_s_per_m", &r.b_n_s_per_m)?
+            .field("rms_residual_n", &r.rms_residual_n)?
+            .field("weighted_cost_n2", &r.weighted_cost_n2)?
+            .field("uncertainty_factor", &factor)?
+            .field("evaluations", &r.evaluations)?
+            .field("weighting", if uniform { "uniform" } else { "seed" })?
+            .field("samples", &t.len())?
+            .print()?;
     } else {
-        println!("k1 = {:.6e} N/m", r.k1_n_per_m);
-        println!("k2 = {:.6e} N/m", r.k2_n_per_m);
-        println!("b  = {:.6e} N s/m", r.b_n_s_per_m);
+        println!("k1 = {:.6e} N/m ({})", r.k1_n_per_m, spread(0));
+        println!("k2 = {:.6e} N/m ({})", r.k2_n_per_m, spread(1));
+        println!("b  = {:.6e} N s/m ({})", r.b_n_s_per_m, spread(2));
         println!(
             "rms residual = {:.4e} N over {} samples ({} weighting, {} evaluations)",
             r.rms_residual_n,
@@ -325,7 +335,7 @@ fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<
                 t.time_s[i], t.displacement_m[i], t.force_n[i]
             );
         }
-        write_text(&dir.join(&name), &s)?;
+        output::write_csv(&dir.join(&name), &s)?;
         let truth = truths
             .iter()
             .find(|v| v.vertex == t.vertex)
@@ -338,7 +348,7 @@ fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<
             t.vertex, t.speed_m_per_s, d[0], d[1], d[2]
         );
     }
-    write_text(&dir.join("trials.csv"), &index)
+    output::write_csv(&dir.join("trials.csv"), &index)
 }
 
 fn object(
@@ -450,7 +460,7 @@ fn object(
             );
         }
     }
-    write_text(&out_dir.join("frames.csv"), &frames)?;
+    output::write_csv(&out_dir.join("frames.csv"), &frames)?;
     let mut hs =
         String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m,exact_ux_m,exact_uy_m,exact_uz_m\n");
     for (s, e) in samples.iter().zip(&exact_samples) {
@@ -465,18 +475,18 @@ fn object(
             s.time_s, f[0], f[1], f[2], u[0], u[1], u[2], x[0], x[1], x[2]
         );
     }
-    write_text(&out_dir.join("haptic.csv"), &hs)?;
+    output::write_csv(&out_dir.join("haptic.csv"), &hs)?;
     let mut ps = String::from("vertex,fixed,damping_magnitude_n_s_per_m\n");
     for v in 0..nv {
         let _ = writeln!(ps, "{v},{},{:e}", u8::from(fixed_flags[v]), per_vertex[v]);
     }
-    write_text(&out_dir.join("params.csv"), &ps)?;
+    output::write_csv(&out_dir.join("params.csv"), &ps)?;
     let caption = format!(
         "damping magnitude ({} trials, {} vertices estimated)",
         trials.len(),
         estimates.len()
     );
-    write_text(
+    output::write_svg(
         &out_dir.join("damping.svg"),
         &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption),
     )?;

@@ -62,11 +62,23 @@ fn refused_and_unknown_commands_fail_with_a_reason() {
     let (board, host_end) = PtyBoard::start().expect("pty pair");
     let path = board.host_path.clone();
     drop(host_end);
+    // Refused on the host, naming the board's range.
     let out = console(&path, &["target", "0", "90"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("OutOfRange") && err.contains("command line"),
+        err.contains("DEG must be a finite number in -25..=25") && err.contains("command line"),
+        "{err}"
+    );
+    // Refused by the board (a negative gain): the port, the request by
+    // name and what the board accepts, no opcode.
+    let out = console(&path, &["gains", "0", "-1", "1", "0", "0"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("the board on {path} refused SetGains"))
+            && err.contains("Kp > 0")
+            && !err.contains("0x11"),
         "{err}"
     );
     let out = console(&path, &["frobnicate"]);

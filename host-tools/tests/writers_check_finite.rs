@@ -1,0 +1,75 @@
+//! Every file `softjoint` writes and every JSON it prints goes through
+//! `host_tools::output`, which refuses non-finite numbers. This test reads
+//! the program's source and fails when a write bypasses it, so a new
+//! writer cannot forget the check.
+use std::path::Path;
+
+/// Calls that write a file or serialise a result outside `output`.
+const BYPASSES: [&str; 7] = [
+    "fs::write(",
+    "File::create(",
+    "serde_json::to_string",
+    "serde_json::json!",
+    "toml::to_string",
+    "to_writer",
+    "OpenOptions",
+];
+
+/// Uses that are not results, each with the reason.
+const ALLOWED: [(&str, &str, &str); 2] = [
+    (
+        "main.rs",
+        "toml::to_string",
+        "--print-default prints the built-in scenario, an input, not a result",
+    ),
+    (
+        "serial_cmds.rs",
+        "OpenOptions",
+        "the console appends telemetry rows to a CSV as they arrive; each row is checked with output::check_csv first",
+    ),
+];
+
+fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            sources(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+#[test]
+fn every_writer_goes_through_the_finite_check() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    sources(&src, &mut files);
+    assert!(files.len() > 10, "found {} sources", files.len());
+    let mut offences = Vec::new();
+    for f in &files {
+        if f.starts_with(src.join("output")) {
+            continue;
+        }
+        let text = std::fs::read_to_string(f).unwrap();
+        // Unit tests may write their own inputs.
+        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        let name = f.file_name().unwrap().to_str().unwrap();
+        for (i, line) in code.lines().enumerate() {
+            if line.trim_start().starts_with("//") {
+                continue;
+            }
+            for b in BYPASSES {
+                let allowed = ALLOWED.iter().any(|(n, a, _)| *n == name && *a == b);
+                if line.contains(b) && !allowed {
+                    offences.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
+                }
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "writes that bypass host_tools::output (and its non-finite check):\n{}",
+        offences.join("\n")
+    );
+}
