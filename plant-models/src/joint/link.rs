@@ -403,7 +403,8 @@ impl PlanarJoint {
     #[inline]
     pub fn substep(&mut self, h: StepLength, inputs_v: [f64; 2]) {
         let dt = h.seconds();
-        for (coil, v) in self.coils.iter_mut().zip(inputs_v) {
+        for ((coil, v), tension) in self.coils.iter_mut().zip(inputs_v).zip(self.coil_tension_n) {
+            coil.set_tension_for_phase(tension);
             let i = self.params.driver.current_a(v, coil.resistance_ohm());
             coil.step(dt, i, false);
         }
