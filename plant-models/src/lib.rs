@@ -22,6 +22,10 @@ pub mod rng {
     //! | [`CAMERA`] | the joint's camera noise and occlusion |
     //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
+    //! | [`IDENTIFY_NOISE`] | identification logs: the electrical measurement noise |
+    //! | [`IDENTIFY_REPLAY`] | identification replays (never drawn: no stick events) |
+    //! | [`IDENTIFY_SAMPLE`] | `softjoint tune`: plants sampled from the uncertainty |
+    //! | [`IDENTIFY_SEARCH`] | `softjoint tune`: the candidate gains |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -32,6 +36,14 @@ pub mod rng {
     /// `hal-sim`'s simulated coder k draws its dropouts from
     /// `HAL_SIM_SENSOR_BASE + k`.
     pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+    /// Electrical measurement noise of identification logs.
+    pub const IDENTIFY_NOISE: u64 = 0x200;
+    /// Identification replays (a stream they never draw from).
+    pub const IDENTIFY_REPLAY: u64 = 0x201;
+    /// Plants sampled from an identification's uncertainty.
+    pub const IDENTIFY_SAMPLE: u64 = 0x202;
+    /// Candidate gains of a tuning search.
+    pub const IDENTIFY_SEARCH: u64 = 0x203;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {

@@ -60,6 +60,7 @@
 pub mod camera;
 pub mod cartilage;
 pub mod driver;
+pub mod identify;
 pub mod link;
 pub mod sma;
 pub mod wire_sensor;

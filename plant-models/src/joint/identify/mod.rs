@@ -1,0 +1,653 @@
+//! Identification of the joint's plant from a user's own excitation log
+//! (issue 20): the parameters a lab cannot read off a datasheet, staged so
+//! each stage is well posed, with uncertainties, the parameters the log
+//! does not determine named, and a held-out validation.
+//!
+//! Stages, per plane (the 3D joint's planes are independent in the model,
+//! so α and β are identified apart):
+//! 1. **Electrical and thermal** (only where the log has coil currents
+//!    and resistances): the driver's transconductance g and turn-on
+//!    voltage by linear least squares of the current on the input over the
+//!    unsaturated intervals; then the convection coefficient h (the thermal
+//!    time constant) and the four transformation temperatures by fitting
+//!    the coil's own thermal and phase model, heated by the *measured*
+//!    current, to the measured resistance (the resistance is the phase:
+//!    R = ξR_M + (1 − ξ)R_A). Mechanics plays no part, so this is cheap and
+//!    cannot be confused by the sponge.
+//! 2. **Mechanics and stress**: the whole plane replayed from the logged
+//!    driver inputs ([`replay`]), fitted to the camera angles (and the
+//!    resistances where logged): the four temperatures again together with
+//!    the Clausius–Clapeyron slope (the coil stress comes from the
+//!    mechanics, so the slope can only be seen here), h (stage 1 saw the
+//!    temperatures without the stress shift, which biases h by ≈ 20 % when
+//!    the slope is 0.08 K/MPa), the sponge's modulus and damping and the
+//!    link inertia; g stays at stage 1's value, or
+//!    joins this stage when the log has no electrical columns.
+//! 3. **Wire jamming**: the buckling gain and the two lag ceilings, fitted
+//!    to the wire readings with the stage-2 plant moving the link.
+//!
+//! Each stage is Levenberg–Marquardt ([`lm`]) with the Gauss–Newton
+//! covariance. A parameter whose 1σ exceeds its threshold
+//! ([`params::Param::scale`]) is **not identifiable from this log**: it is
+//! reported as such, put back to its prior value and the stage is fitted
+//! again without it. The fit uses the first `fit_fraction` of the log; the
+//! rest is held out, and the identified plane predicts it from the logged
+//! inputs alone (the replay runs the whole log from t = 0): predicted vs
+//! recorded camera angle, rms and max error in degrees.
+//!
+//! Never fitted (fixed at the prior, i.e. the plant file given or the
+//! defaults): coil spring rates and rest lengths, resistivities, geometry,
+//! link mass, ambient temperature, latent heat, the sponge's stiffness ratio
+//! and shear fraction, the wires' geometry and the *random* stick events
+//! (their rate and sizes; the deterministic lag model absorbs their mean).
+//! Left out: the 3D joint's coupling between planes (the model has none);
+//! the weighting between the angle and resistance residuals is a priori
+//! (0.1° and 0.02 Ω), not estimated.
+
+pub mod lm;
+pub mod log;
+pub mod params;
+pub mod plan;
+pub mod replay;
+pub mod hidden;
+pub mod twin;
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::csv_input::CsvError;
+use crate::joint::{Joint2dParams, Joint3dParams, PlaneParams, PlantError, WireSensorParams};
+pub use lm::{LmOptions, LmResult};
+pub use log::{ElectricalNoise, ExcitationLog, LogRecorder, Observation};
+pub use params::{Param, Scale};
+pub use plan::ExcitationPlan;
+pub use replay::{replay, PlaneMap, PlaneModel, Prediction};
+
+/// Why identification failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum IdentifyError {
+    /// The log file.
+    #[error("{0}")]
+    Csv(#[from] CsvError),
+    /// The log's content.
+    #[error("log: {0}")]
+    Log(String),
+    /// A parameter set the plant refuses (prior or fitted).
+    #[error("plant: {0}")]
+    Plant(#[from] PlantError),
+    /// A replay went unstable.
+    #[error("replay unstable: {0} is not finite")]
+    Unstable(String),
+    /// Fewer residuals than parameters.
+    #[error("{residuals} data points cannot determine {parameters} parameters: record a longer log")]
+    TooFewData {
+        /// Residuals.
+        residuals: usize,
+        /// Parameters.
+        parameters: usize,
+    },
+}
+
+/// Settings of an identification.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IdentifyOptions {
+    /// Share of the log (from its start) the fit uses; the rest validates.
+    pub fit_fraction: f64,
+    /// Substep of the replays (s).
+    pub substep_s: f64,
+    /// Minimiser settings.
+    pub lm: LmOptions,
+    /// A priori noise of a camera angle (deg), the angle residuals' scale.
+    pub angle_sigma_deg: f64,
+    /// A priori noise of a resistance reading (Ω).
+    pub resistance_sigma_ohm: f64,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        Self {
+            fit_fraction: 0.75,
+            substep_s: 1e-3,
+            lm: LmOptions::default(),
+            angle_sigma_deg: 0.1,
+            resistance_sigma_ohm: 0.02,
+        }
+    }
+}
+
+/// One identified parameter.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Estimate {
+    /// Which.
+    pub param: Param,
+    /// Its field in the plane's parameters.
+    pub field: String,
+    /// Unit.
+    pub unit: String,
+    /// The value written to the plant file (the prior where not
+    /// identifiable).
+    pub value: f64,
+    /// The prior (plant file given, or default).
+    pub prior: f64,
+    /// 1σ (same unit; +∞ where the log does not determine it).
+    pub std: f64,
+    /// Whether the log determines it (1σ within the parameter's threshold).
+    pub identifiable: bool,
+    /// The stage that fitted it.
+    pub stage: String,
+}
+
+/// One stage's fit.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StageReport {
+    /// Name.
+    pub name: String,
+    /// Minimiser iterations (both passes).
+    pub iterations: usize,
+    /// Replays.
+    pub evaluations: usize,
+    /// Residuals.
+    pub residuals: usize,
+    /// rms of the scaled residuals at the optimum.
+    pub rms_scaled: f64,
+}
+
+/// A held-out camera frame: recorded and predicted angle.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Frame {
+    /// Capture time (s).
+    pub t_s: f64,
+    /// Camera angle (deg).
+    pub recorded_deg: f64,
+    /// The identified plane's prediction (deg).
+    pub predicted_deg: f64,
+}
+
+/// Prediction error of the identified plane.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Validation {
+    /// rms angle error over the fitted part (deg).
+    pub fit_rms_deg: f64,
+    /// rms angle error over the held-out part (deg).
+    pub heldout_rms_deg: f64,
+    /// Largest held-out angle error (deg).
+    pub heldout_max_deg: f64,
+    /// Where the held-out part starts (s).
+    pub heldout_from_s: f64,
+    /// rms over the held-out part of the prior model (before
+    /// identification), for comparison (deg); none when the prior's replay
+    /// went unstable.
+    pub prior_heldout_rms_deg: Option<f64>,
+    /// Every frame of the log with its prediction.
+    pub frames: Vec<Frame>,
+}
+
+/// What identification found for one plane.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlaneReport {
+    /// "theta", "alpha" or "beta".
+    pub plane: String,
+    /// The parameters, in stage order.
+    pub estimates: Vec<Estimate>,
+    /// The stages run.
+    pub stages: Vec<StageReport>,
+    /// Held-out validation.
+    pub validation: Validation,
+}
+
+impl PlaneReport {
+    /// The estimate of `p`, if fitted.
+    pub fn estimate(&self, p: Param) -> Option<&Estimate> {
+        self.estimates.iter().find(|e| e.param == p)
+    }
+}
+
+/// Parameters never fitted (see the module docs), for reports.
+pub const NEVER_FITTED: &[&str] = &[
+    "coil spring rates and rest lengths",
+    "resistivities (R_M, R_A), wire diameter and length",
+    "coil and wire geometry",
+    "link mass and centre of mass",
+    "ambient temperature and latent heat",
+    "sponge stiffness ratio and shear fraction",
+    "wire stick-event rate and sizes (random; the fitted lag ceilings absorb their mean)",
+];
+
+/// Identifies the 2D joint from `log`, starting from `prior`.
+pub fn identify_2d(
+    log: &ExcitationLog,
+    prior: &Joint2dParams,
+    opts: &IdentifyOptions,
+) -> Result<(Joint2dParams, Vec<PlaneReport>), IdentifyError> {
+    if log.planes != 1 {
+        return Err(IdentifyError::Log(
+            "a 3D log (α and β columns) given for the 2D joint".into(),
+        ));
+    }
+    let model = PlaneModel {
+        plane: prior.plane.clone(),
+        wires: vec![prior.wire.clone()],
+        settle_s: prior.sim.settle_s,
+        substep_s: opts.substep_s,
+    };
+    let (m, report) = identify_plane(log, PlaneMap::of(1, 0), model, "theta", opts)?;
+    let mut out = prior.clone();
+    out.plane = m.plane;
+    out.wire = m.wires[0].clone();
+    out.validate()?;
+    Ok((out, vec![report]))
+}
+
+/// Identifies the 3D joint from `log` (α and β apart, in parallel).
+pub fn identify_3d(
+    log: &ExcitationLog,
+    prior: &Joint3dParams,
+    opts: &IdentifyOptions,
+) -> Result<(Joint3dParams, Vec<PlaneReport>), IdentifyError> {
+    if log.planes != 2 {
+        return Err(IdentifyError::Log(
+            "a 2D log (θ columns) given for the 3D joint".into(),
+        ));
+    }
+    let planes: Vec<(PlaneParams, &str)> =
+        vec![(prior.alpha.clone(), "alpha"), (prior.beta.clone(), "beta")];
+    let results: Vec<Result<(PlaneModel, PlaneReport), IdentifyError>> = planes
+        .into_par_iter()
+        .enumerate()
+        .map(|(p, (plane, name))| {
+            let map = PlaneMap::of(2, p);
+            let wires: Vec<WireSensorParams> =
+                map.sensors.iter().map(|&s| prior.wires[s].clone()).collect();
+            let model = PlaneModel {
+                plane,
+                wires,
+                settle_s: prior.sim.settle_s,
+                substep_s: opts.substep_s,
+            };
+            identify_plane(log, map, model, name, opts)
+        })
+        .collect();
+    let mut out = prior.clone();
+    let mut reports = Vec::new();
+    for (p, r) in results.into_iter().enumerate() {
+        let (m, rep) = r?;
+        let map = PlaneMap::of(2, p);
+        for (slot, w) in map.sensors.iter().zip(m.wires) {
+            out.wires[*slot] = w;
+        }
+        if p == 0 {
+            out.alpha = m.plane;
+        } else {
+            out.beta = m.plane;
+        }
+        reports.push(rep);
+    }
+    out.validate()?;
+    Ok((out, reports))
+}
+
+/// Camera frames of rows `0..rows`, once each: (capture time, angle).
+fn frames(log: &ExcitationLog, plane: usize, rows: usize) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    let mut last = f64::NEG_INFINITY;
+    for k in 0..rows.min(log.len()) {
+        let c = log.cam_capture_s[k];
+        if c >= 0.0 && c > last {
+            out.push((c, log.cam_deg[k][plane]));
+            last = c;
+        }
+    }
+    out
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+/// A stage: fits `free` (coordinates from `model`) with `residuals`,
+/// drops the undetermined ones back to `prior` and fits again.
+fn stage<F>(
+    name: &str,
+    model: &mut PlaneModel,
+    prior: &PlaneModel,
+    free: &[Param],
+    opts: &IdentifyOptions,
+    residuals: F,
+    estimates: &mut Vec<Estimate>,
+    stages: &mut Vec<StageReport>,
+) -> Result<(), IdentifyError>
+where
+    F: Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
+    let mut active: Vec<Param> = free.to_vec();
+    let mut undetermined: Vec<(Param, f64)> = Vec::new();
+    let mut iterations = 0;
+    let mut evaluations = 0;
+    let mut last: Option<LmResult> = None;
+    for _pass in 0..3 {
+        if active.is_empty() {
+            break;
+        }
+        let base = model.clone();
+        let act = active.clone();
+        let apply = |x: &[f64]| {
+            let mut m = base.clone();
+            for (p, v) in act.iter().zip(x) {
+                p.set(&mut m, p.from_coord(*v));
+            }
+            m
+        };
+        let x0: Vec<f64> = active.iter().map(|p| p.to_coord(p.get(model))).collect();
+        let f = |x: &[f64]| residuals(&apply(x));
+        let r = lm::levenberg_marquardt(f, &x0, opts.lm)?;
+        iterations += r.iterations;
+        evaluations += r.evaluations;
+        *model = apply(&r.x);
+        let bad: Vec<usize> = (0..active.len())
+            .filter(|&j| !active[j].determined(r.std[j]))
+            .collect();
+        if bad.is_empty() {
+            last = Some(r);
+            break;
+        }
+        for &j in bad.iter().rev() {
+            let p = active.remove(j);
+            let v = p.get(model);
+            undetermined.push((p, p.value_std(v, r.std[j])));
+            p.set(model, p.get(prior));
+        }
+        last = Some(r);
+    }
+    let r = last.ok_or_else(|| IdentifyError::Log(format!("stage {name}: nothing to fit")))?;
+    stages.push(StageReport {
+        name: name.into(),
+        iterations,
+        evaluations,
+        residuals: r.m,
+        rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
+    });
+    for (j, p) in active.iter().enumerate() {
+        let v = p.get(model);
+        estimates.push(Estimate {
+            param: *p,
+            field: p.field().into(),
+            unit: p.unit().into(),
+            value: v,
+            prior: p.get(prior),
+            std: p.value_std(v, r.std.get(j).copied().unwrap_or(f64::INFINITY)),
+            identifiable: true,
+            stage: name.into(),
+        });
+    }
+    for (p, sd) in undetermined {
+        estimates.push(Estimate {
+            param: p,
+            field: p.field().into(),
+            unit: p.unit().into(),
+            value: p.get(model),
+            prior: p.get(prior),
+            std: sd,
+            identifiable: false,
+            stage: name.into(),
+        });
+    }
+    Ok(())
+}
+
+/// Linear least squares i = g·(v − v_on) over one plane's unsaturated
+/// intervals; the estimates with their 1σ.
+fn driver_regression(
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+    max_current_a: f64,
+) -> Option<[(f64, f64); 2]> {
+    let cur = log.current_a.as_ref()?;
+    let mut pts = Vec::new();
+    for k in 0..rows {
+        for &c in &map.coils {
+            let (v, i) = (log.volts[k][c], cur[k][c]);
+            // Conducting and clear of the channel limit (and of the supply
+            // saturation, which sits above 0.6 A for the defaults).
+            if i > 0.02 && i < 0.85 * max_current_a {
+                pts.push((v, i));
+            }
+        }
+    }
+    if pts.len() < 10 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (mv, mi) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mv).powi(2)).sum();
+    if sxx <= 1e-12 {
+        return None;
+    }
+    let g = pts.iter().map(|p| (p.0 - mv) * (p.1 - mi)).sum::<f64>() / sxx;
+    let b = mi - g * mv;
+    let s2 = pts.iter().map(|p| (p.1 - b - g * p.0).powi(2)).sum::<f64>() / (n - 2.0);
+    let sd_g = (s2 / sxx).sqrt();
+    let sd_b = (s2 * (1.0 / n + mv * mv / sxx)).sqrt();
+    let v_on = -b / g;
+    // v_on = −b/g: first-order propagation (b and g correlated through mv;
+    // the dominant term is sd_b/g for inputs far from 0).
+    let sd_von = ((sd_b / g).powi(2) + (b * sd_g / (g * g)).powi(2)).sqrt();
+    Some([(g, sd_g), (v_on, sd_von)])
+}
+
+/// The staged identification of one plane (see the module docs).
+pub fn identify_plane(
+    log: &ExcitationLog,
+    map: PlaneMap,
+    prior: PlaneModel,
+    name: &str,
+    opts: &IdentifyOptions,
+) -> Result<(PlaneModel, PlaneReport), IdentifyError> {
+    if !(0.2..=1.0).contains(&opts.fit_fraction) {
+        return Err(IdentifyError::Log(format!(
+            "fit fraction must be 0.2..=1, got {}",
+            crate::short_number(opts.fit_fraction)
+        )));
+    }
+    let fit_rows = ((log.len() as f64) * opts.fit_fraction).round() as usize;
+    let mut model = prior.clone();
+    let mut estimates = Vec::new();
+    let mut stages = Vec::new();
+    let electrical = log.has_electrical();
+
+    // Stage 1: electrical and thermal, from current and resistance.
+    if electrical {
+        if let Some([(g, sd_g), (v_on, sd_v)]) =
+            driver_regression(log, map, fit_rows, prior.plane.driver.max_current_a)
+        {
+            Param::Transconductance.set(&mut model, g);
+            Param::TurnOn.set(&mut model, v_on);
+            for (p, v, sd) in [(Param::Transconductance, g, sd_g), (Param::TurnOn, v_on, sd_v)] {
+                let coord_sd = match p.scale() {
+                    Scale::Log { .. } => sd / v,
+                    Scale::Linear { .. } => sd,
+                };
+                estimates.push(Estimate {
+                    param: p,
+                    field: p.field().into(),
+                    unit: p.unit().into(),
+                    value: v,
+                    prior: p.get(&prior),
+                    std: sd,
+                    identifiable: p.determined(coord_sd),
+                    stage: "electrical".into(),
+                });
+            }
+            stages.push(StageReport {
+                name: "electrical".into(),
+                iterations: 1,
+                evaluations: 0,
+                residuals: 0,
+                rms_scaled: 0.0,
+            });
+        }
+        let cur = log.current_a.as_ref().map(|c| c[..fit_rows].to_vec());
+        let res = log.resistance_ohm.as_ref().map(|c| c[..fit_rows].to_vec());
+        if let (Some(cur), Some(res)) = (cur, res) {
+            let sigma = opts.resistance_sigma_ohm;
+            let thermal = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+                let mut out = Vec::with_capacity(2 * cur.len());
+                for &c in &map.coils {
+                    let i: Vec<f64> = cur.iter().map(|r| r[c]).collect();
+                    let pred =
+                        replay::replay_thermal(&m.plane.coil, &i, log.period_s, m.substep_s)?;
+                    out.extend(pred.iter().zip(&res).map(|(p, r)| (p - r[c]) / sigma));
+                }
+                Ok(out)
+            };
+            stage(
+                "thermal",
+                &mut model,
+                &prior,
+                &[
+                    Param::Convection,
+                    Param::AusteniteStart,
+                    Param::AusteniteFinish,
+                    Param::MartensiteStart,
+                    Param::MartensiteFinish,
+                ],
+                opts,
+                thermal,
+                &mut estimates,
+                &mut stages,
+            )?;
+        }
+    }
+
+    // Stage 2: mechanics (and the stress slope) from the camera angles.
+    let fit_frames = frames(log, map.plane, fit_rows);
+    let sig_a = opts.angle_sigma_deg;
+    let sig_r = opts.resistance_sigma_ohm;
+    let mech = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+        let pred = replay(m, log, map, fit_rows)?;
+        let mut out: Vec<f64> = fit_frames
+            .iter()
+            .filter_map(|(t, a)| pred.angle_at(*t).map(|p| (p - a) / sig_a))
+            .collect();
+        if let Some(res) = &log.resistance_ohm {
+            for (k, r) in pred.resistance_ohm.iter().enumerate() {
+                for (j, &c) in map.coils.iter().enumerate() {
+                    out.push((r[j] - res[k][c]) / sig_r);
+                }
+            }
+        }
+        Ok(out)
+    };
+    let mut free = vec![
+        Param::Convection,
+        Param::AusteniteStart,
+        Param::AusteniteFinish,
+        Param::MartensiteStart,
+        Param::MartensiteFinish,
+        Param::StressShift,
+        Param::SpongeModulus,
+        Param::SpongeDamping,
+        Param::LinkInertia,
+    ];
+    if !electrical {
+        free.insert(0, Param::Transconductance);
+    }
+    // Stage 1's h and temperatures were fitted without the stress (which
+    // needs the mechanics); they start stage 2, whose estimates replace
+    // them.
+    estimates.retain(|e| !free.contains(&e.param));
+    // The slope starts inside its range so the first Jacobian sees both
+    // signs of change.
+    if Param::StressShift.get(&model) <= 0.0 {
+        Param::StressShift.set(&mut model, 0.02);
+    }
+    stage(
+        "mechanics",
+        &mut model,
+        &prior,
+        &free,
+        opts,
+        mech,
+        &mut estimates,
+        &mut stages,
+    )?;
+
+    // Stage 3: wire jamming from the wire readings.
+    let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+        let pred = replay(m, log, map, fit_rows)?;
+        let mut out = Vec::new();
+        for (j, &s) in map.sensors.iter().enumerate() {
+            out.extend(
+                pred.wire_mm[j]
+                    .iter()
+                    .enumerate()
+                    .map(|(k, p)| (p - log.wire_mm[k][s]) / 0.01),
+            );
+        }
+        Ok(out)
+    };
+    stage(
+        "wire jamming",
+        &mut model,
+        &prior,
+        &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
+        opts,
+        wire,
+        &mut estimates,
+        &mut stages,
+    )?;
+
+    // Validation: the whole log replayed from t = 0.
+    let all = frames(log, map.plane, log.len());
+    let heldout_from_s = fit_rows as f64 * log.period_s;
+    let pred = replay(&model, log, map, log.len())?;
+    let prior_pred = replay(&prior, log, map, log.len()).ok();
+    let mut out_frames = Vec::with_capacity(all.len());
+    for (t, a) in &all {
+        if let Some(p) = pred.angle_at(*t) {
+            out_frames.push(Frame {
+                t_s: *t,
+                recorded_deg: *a,
+                predicted_deg: p,
+            });
+        }
+    }
+    let held = || out_frames.iter().filter(|f| f.t_s >= heldout_from_s);
+    let validation = Validation {
+        fit_rms_deg: rms(out_frames
+            .iter()
+            .filter(|f| f.t_s < heldout_from_s)
+            .map(|f| f.predicted_deg - f.recorded_deg)),
+        heldout_rms_deg: rms(held().map(|f| f.predicted_deg - f.recorded_deg)),
+        heldout_max_deg: held()
+            .map(|f| (f.predicted_deg - f.recorded_deg).abs())
+            .fold(0.0, f64::max),
+        heldout_from_s,
+        prior_heldout_rms_deg: prior_pred
+            .map(|p| {
+                rms(all
+                    .iter()
+                    .filter(|(t, _)| *t >= heldout_from_s)
+                    .filter_map(|(t, a)| p.angle_at(*t).map(|x| x - a)))
+            }),
+        frames: out_frames,
+    };
+    Ok((
+        model,
+        PlaneReport {
+            plane: name.into(),
+            estimates,
+            stages,
+            validation,
+        },
+    ))
+}
