@@ -651,3 +651,4 @@ pub fn identify_plane(
         },
     ))
 }
+

@@ -210,6 +210,39 @@ impl ExcitationPlan {
             .map(|h| h.deg)
     }
 
+    /// A 60 s plan with the standard plan's ingredients in short form (one
+    /// level per coil, one pulse, one co-contraction), for tests that must
+    /// run in a debug build: it determines fewer parameters, less tightly.
+    pub fn compact(planes: usize) -> Self {
+        let mut drive = Vec::new();
+        for p in 0..planes {
+            let (ag, ant) = (p + 1, p + 1 + planes);
+            let o = 2.0 * p as f64;
+            let step = |c: usize, a: f64, z: f64, v: f64| Drive {
+                coil: c,
+                from_s: o + a,
+                to_s: o + z,
+                volts: Some(v),
+                from_v: None,
+                to_v: None,
+            };
+            drive.extend([
+                step(ag, 0.0, 9.0, 1.95),
+                step(ant, 16.0, 25.0, 1.95),
+                step(ag, 32.0, 33.5, 3.0),
+                step(ant, 40.0, 54.0, 1.9),
+                step(ag, 46.0, 53.0, 1.97),
+            ]);
+        }
+        Self {
+            name: "compact excitation, 60 s".into(),
+            duration_s: 60.0,
+            log_interval_ms: 10,
+            drive,
+            hold: Vec::new(),
+        }
+    }
+
     /// The standard plan: for every pair, single-coil steps at levels that
     /// span the transformation bands, short strong pulses, slow ramps,
     /// co-contraction (the antagonist warm while the agonist steps, which
