@@ -76,12 +76,9 @@ pub struct HilOutput {
     pub trace: Trace,
 }
 
-/// Runs a 3D wire-feedback scenario in lockstep with the board on `link`.
-pub fn run<P: Port>(
-    s: &Scenario,
-    link: &mut Link<P>,
-    opts: HilOptions,
-) -> anyhow::Result<HilOutput> {
+/// The board's lockstep setup for scenario `s` (3D, wire feedback): its
+/// gains and estimation laws, and the estimator's description.
+pub fn lockstep_setup(s: &Scenario, opts: &HilOptions) -> anyhow::Result<(LockstepSetup, String)> {
     s.validate()?;
     if s.joint != JointKind::ThreeD || s.feedback != FeedbackKind::Wire {
         bail!("hardware-in-the-loop runs the 3D joint with wire-sensor feedback (the board's sensor frame carries wire counts)");
@@ -106,6 +103,16 @@ pub fn run<P: Port>(
         attempts: opts.attempts,
         lose_every: opts.lose_every,
     };
+    Ok((setup, estimator))
+}
+
+/// Runs a 3D wire-feedback scenario in lockstep with the board on `link`.
+pub fn run<P: Port>(
+    s: &Scenario,
+    link: &mut Link<P>,
+    opts: HilOptions,
+) -> anyhow::Result<HilOutput> {
+    let (setup, estimator) = lockstep_setup(s, &opts)?;
     let plant = sim::plant_3d(s)?;
     let board = BoardController::start(link, setup)?;
     let mut cl = ClosedLoop::new(plant, board, s.control_period_us)?;

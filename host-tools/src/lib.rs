@@ -3,14 +3,17 @@
 
 pub mod board;
 pub mod calibrate;
+pub mod excite;
 pub mod hil;
 pub mod input;
 pub mod link;
 pub mod output;
+pub mod plant_file;
 pub mod plot;
 pub mod pty_board;
 pub mod qemu;
 pub mod report;
 pub mod scenario;
 pub mod sim;
+pub mod tune;
 pub mod visco_core;

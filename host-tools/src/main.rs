@@ -8,6 +8,7 @@ use host_tools::{calibrate, output, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
+mod identify_cmd;
 mod push;
 mod viscoelastic;
 
@@ -37,6 +38,13 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// The joint's plant fitted to your own excitation log, and the plans
+    /// to record one.
+    #[command(subcommand)]
+    Identify(identify_cmd::IdentifyCommand),
+    /// Search controller gains on an identified plant, robust over its
+    /// uncertainty; writes a gains file the console and scenarios load.
+    Tune(identify_cmd::TuneArgs),
 }
 
 #[derive(Args)]
@@ -48,12 +56,63 @@ struct SimArgs {
     /// Instead of a control run, write a calibration sweep of the simulated
     /// joint (slow ±20° sweep, camera reference) to this CSV. There is no
     /// control run, so --csv, --plot and --json cannot go with it.
-    #[arg(long, value_name = "PATH", conflicts_with_all = ["csv", "plot", "json"])]
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["csv", "plot", "json", "excite"])]
     calibration_sweep: Option<PathBuf>,
     /// Print the built-in default scenario as TOML and exit (nothing else
     /// runs, so it takes no other argument).
-    #[arg(long, conflicts_with_all = ["scenario", "csv", "plot", "json", "calibration_sweep"])]
+    #[arg(long, conflicts_with_all = ["scenario", "csv", "plot", "json", "calibration_sweep", "excite"])]
     print_default: bool,
+    #[command(flatten)]
+    excite: ExciteArgs,
+}
+
+/// An excitation session instead of the scenario's targets (`sim`, `hil`).
+#[derive(Args)]
+pub struct ExciteArgs {
+    /// Run this excitation plan (TOML; `softjoint identify plan` prints
+    /// one) on the scenario's joint and write its log to --log. There is
+    /// no control run, so --csv, --plot and --json cannot go with it.
+    #[arg(long, value_name = "PLAN", requires = "log", conflicts_with_all = ["csv", "plot", "json"])]
+    pub excite: Option<PathBuf>,
+    /// Where --excite writes its log (CSV), for `softjoint identify joint`.
+    #[arg(long, value_name = "PATH", requires = "excite")]
+    pub log: Option<PathBuf>,
+    /// Log no coil currents and resistances (a lab without a current
+    /// sense): identification then fits the thermal parameters from the
+    /// angle alone.
+    #[arg(long, requires = "excite")]
+    pub no_electrical: bool,
+}
+
+impl ExciteArgs {
+    /// Loads the plan for a scenario's joint.
+    pub fn plan(&self, scenario: &Scenario) -> anyhow::Result<Option<plant_models::joint::identify::ExcitationPlan>> {
+        self.excite
+            .as_ref()
+            .map(|p| host_tools::excite::load_plan(p, scenario.planes()))
+            .transpose()
+    }
+
+    /// Writes the log and prints what the session saw.
+    pub fn finish(
+        &self,
+        log: &plant_models::joint::identify::ExcitationLog,
+        summary: &host_tools::excite::SessionSummary,
+    ) -> anyhow::Result<()> {
+        let path = self.log.as_ref().ok_or_else(|| anyhow::anyhow!("--excite needs --log"))?;
+        host_tools::excite::write_log(path, log)?;
+        println!(
+            "{}: {} rows ({} s) written to {}; peak coil {:.1} °C, budget peak rise {:.0} K, faults seen: [{}]",
+            summary.plan,
+            summary.rows,
+            summary.duration_s,
+            path.display(),
+            summary.peak_coil_temperature_c,
+            summary.budget_peak_rise_k,
+            summary.faults_seen.join(",")
+        );
+        Ok(())
+    }
 }
 
 #[derive(Subcommand)]
@@ -111,6 +170,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Identify(cmd) => identify_cmd::run(cmd),
+        Command::Tune(args) => identify_cmd::tune_command(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,
@@ -165,6 +226,11 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
     if args.print_default {
         print!("{}", toml::to_string_pretty(&Scenario::default())?);
         return Ok(());
+    }
+    if let Some(plan) = args.excite.plan(&scenario)? {
+        let (log, summary) =
+            host_tools::excite::run_sim(&plan, &scenario, !args.excite.no_electrical)?;
+        return args.excite.finish(&log, &summary);
     }
     if let Some(path) = &args.calibration_sweep {
         let rows = sim::calibration_sweep(&scenario)?;

@@ -64,6 +64,11 @@ pub struct ControllerSpec {
     pub ki_v_per_deg_s: f64,
     /// Limit of the integral contribution (V).
     pub integral_limit_v: f64,
+    /// A gains file written by `softjoint tune` (relative to the scenario
+    /// file): its gains replace `kp_v_per_deg`, `ki_v_per_deg_s` and
+    /// `integral_limit_v`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gains_file: Option<PathBuf>,
 }
 
 impl Default for ControllerSpec {
@@ -73,6 +78,7 @@ impl Default for ControllerSpec {
             kp_v_per_deg: vec![2.0],
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 1.0,
+            gains_file: None,
         }
     }
 }
@@ -184,6 +190,15 @@ pub enum Disturbance {
 pub struct PlantSpec {
     /// Replace the cartilage by a rigid bearing (the paper's Fig. 10–11).
     pub rigid_bearing: bool,
+    /// A plant file (`softjoint identify joint` writes one; relative to the
+    /// scenario file) whose parameters replace the defaults. The
+    /// scenario's `seed` still seeds the run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// The parameters in force instead of the defaults: the file's, once
+    /// loaded, or set by a program (`softjoint tune`'s sampled plants).
+    #[serde(skip)]
+    pub params: Option<crate::plant_file::PlantParams>,
 }
 
 /// A complete scenario.
@@ -266,11 +281,30 @@ impl Scenario {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read scenario {}", path.display()))?;
         let mut s: Scenario = crate::input::from_toml(&text, &path.display().to_string())?;
-        if let Some(c) = &s.estimator.calibration {
+        let base = path.parent().unwrap_or(Path::new("."));
+        for c in [
+            &mut s.estimator.calibration,
+            &mut s.plant.file,
+            &mut s.controller.gains_file,
+        ]
+        .into_iter()
+        .flatten()
+        {
             if c.is_relative() {
-                let base = path.parent().unwrap_or(Path::new("."));
-                s.estimator.calibration = Some(base.join(c));
+                *c = base.join(&*c);
             }
+        }
+        if let Some(f) = &s.plant.file {
+            let file = crate::plant_file::PlantFile::load(f)?;
+            s.plant.params = Some(file.params().map_err(|e| {
+                anyhow::anyhow!("{}: plant file {}: {e}", path.display(), f.display())
+            })?);
+        }
+        if let Some(g) = &s.controller.gains_file {
+            let gains = crate::tune::GainsFile::load(g)?;
+            s.controller.kp_v_per_deg = gains.controller.kp_v_per_deg.clone();
+            s.controller.ki_v_per_deg_s = gains.controller.ki_v_per_deg_s;
+            s.controller.integral_limit_v = gains.controller.integral_limit_v;
         }
         s.validate()
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
@@ -354,6 +388,15 @@ impl Scenario {
             )
         {
             bail!("field `estimator.method`: the 2D joint has one wire sensor; use \"paper\" or \"single\"");
+        }
+        match (&self.plant.params, self.joint) {
+            (Some(crate::plant_file::PlantParams::TwoD(_)), JointKind::ThreeD) => bail!(
+                "field `plant.file`: a 2D plant ([joint2d]) for `joint = \"3d\"`"
+            ),
+            (Some(crate::plant_file::PlantParams::ThreeD(_)), JointKind::TwoD) => bail!(
+                "field `plant.file`: a 3D plant ([joint3d]) for `joint = \"2d\"`"
+            ),
+            _ => {}
         }
         if self.targets.is_empty() {
             bail!("field `targets`: at least one target is needed");

@@ -62,6 +62,8 @@ pub struct HilArgs {
     link_timeout_ms: u16,
     #[command(flatten)]
     output: report::OutputArgs,
+    #[command(flatten)]
+    excite: crate::ExciteArgs,
 }
 
 /// The board's link-timeout range, checked before a board is involved.
@@ -106,6 +108,17 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         }
     };
     let mut link = Link::new(port);
+    if let Some(plan) = args.excite.plan(&scenario)? {
+        let (log, summary) = host_tools::excite::run_hil(
+            &plan,
+            &scenario,
+            &mut link,
+            opts,
+            !args.excite.no_electrical,
+        )
+        .map_err(|e| name_the_board(e, &label, args.baud))?;
+        return args.excite.finish(&log, &summary);
+    }
     let out =
         hil::run(&scenario, &mut link, opts).map_err(|e| name_the_board(e, &label, args.baud))?;
     args.output.write_files(
@@ -155,6 +168,7 @@ const HELP: &str = "commands:
   hil-stop                      leave lockstep mode (back to free-running)
   target PLANE DEG              desired angle (plane 0 = alpha, 1 = beta)
   gains PLANE KP_AG KP_ANT KI ILIM
+  gains load FILE               every plane's gains from a gains file (softjoint tune)
   calibration get PLANE         print the plane's estimation law
   calibration set FILE          load a calibration file (softjoint calibrate wire)
   telemetry HZ                  stream telemetry at HZ (0 = off)
@@ -299,6 +313,21 @@ fn run_console_command<P: Port>(
                         as f32,
                 },
             )?
+        }
+        ["gains", "load", file] => {
+            let g = host_tools::tune::GainsFile::load(Path::new(file))?;
+            for (plane, [kp_agonist, kp_antagonist]) in g.pair_gains().into_iter().enumerate() {
+                ack(
+                    link,
+                    SetGains {
+                        plane: plane as u8,
+                        kp_agonist,
+                        kp_antagonist,
+                        ki: g.controller.ki_v_per_deg_s as f32,
+                        integral_limit_v: g.controller.integral_limit_v as f32,
+                    },
+                )?;
+            }
         }
         ["gains", ..] => ack(
             link,

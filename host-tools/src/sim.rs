@@ -13,6 +13,7 @@ use plant_models::joint::{Joint2d, Joint2dParams, Joint3d, Joint3dParams};
 use serde::Serialize;
 
 use crate::calibrate::{self, CalibrationFile, SweepRow};
+use crate::plant_file::PlantParams;
 use crate::scenario::{
     ControlMode, EstimatorMethod, FeedbackKind, JointKind, Scenario, ScenarioSchedule,
 };
@@ -195,50 +196,68 @@ pub fn run_with(s: &Scenario, keep_trace: bool) -> anyhow::Result<RunOutput> {
     let (laws, estimator) = laws_for(s)?;
     match s.joint {
         JointKind::ThreeD => {
-            let plant = plant_3d(s)?;
-            let mut cfg = JointConfig::paper_3d();
-            for p in 0..2 {
-                cfg.gains[p] = gains(s, p)?;
-            }
-            if let Some(l) = &laws {
-                cfg.laws = [l[0], l[1]];
-            }
-            if s.controller.mode == ControlMode::Single {
-                cfg.modes = [firmware::control::PairMode::SingleAgonist; 2];
-            }
-            let ctl = JointController::new(cfg).context("controller")?;
-            let core = CoreController::new(
-                ctl,
-                feedback(s),
-                s.control_period_us,
-                plant.mm_per_count(),
-                s.seed,
-            );
-            let mut cl = ClosedLoop::new(plant, core, s.control_period_us)?;
+            let mut cl = core_loop_3d(s, laws.as_deref())?;
             run_scenario(s, &mut cl, keep_trace, estimator, &["alpha", "beta"])
         }
         JointKind::TwoD => {
-            let plant = plant_2d(s)?;
-            let mut cfg = JointConfig::paper_2d_wire();
-            cfg.gains[0] = gains(s, 0)?;
-            if let Some(l) = &laws {
-                cfg.laws = [l[0]];
-            }
-            if s.controller.mode == ControlMode::Single {
-                cfg.modes = [firmware::control::PairMode::SingleAgonist];
-            }
-            let ctl = JointController::new(cfg).context("controller")?;
-            let core = CoreController::new(
-                ctl,
-                feedback(s),
-                s.control_period_us,
-                plant.mm_per_count(),
-                s.seed,
-            );
-            let mut cl = ClosedLoop::new(plant, core, s.control_period_us)?;
+            let mut cl = core_loop_2d(s, laws.as_deref())?;
             run_scenario(s, &mut cl, keep_trace, estimator, &["theta"])
         }
     }
+}
+
+/// The 3D joint of scenario `s` under the firmware core in process, with
+/// the scenario's gains, mode and estimation `laws` (the paper's if none).
+pub fn core_loop_3d(
+    s: &Scenario,
+    laws: Option<&[PlaneLaw]>,
+) -> anyhow::Result<ClosedLoop<Joint3d, CoreController<2, 4>, 2, 4, 4>> {
+    let plant = plant_3d(s)?;
+    let mut cfg = JointConfig::paper_3d();
+    for p in 0..2 {
+        cfg.gains[p] = gains(s, p)?;
+    }
+    if let Some(l) = laws {
+        cfg.laws = [l[0], l[1]];
+    }
+    if s.controller.mode == ControlMode::Single {
+        cfg.modes = [firmware::control::PairMode::SingleAgonist; 2];
+    }
+    let ctl = JointController::new(cfg).context("controller")?;
+    let core = CoreController::new(
+        ctl,
+        feedback(s),
+        s.control_period_us,
+        plant.mm_per_count(),
+        s.seed,
+    );
+    Ok(ClosedLoop::new(plant, core, s.control_period_us)?)
+}
+
+/// The 2D joint of scenario `s` under the firmware core in process (see
+/// [`core_loop_3d`]).
+pub fn core_loop_2d(
+    s: &Scenario,
+    laws: Option<&[PlaneLaw]>,
+) -> anyhow::Result<ClosedLoop<Joint2d, CoreController<1, 1>, 1, 1, 2>> {
+    let plant = plant_2d(s)?;
+    let mut cfg = JointConfig::paper_2d_wire();
+    cfg.gains[0] = gains(s, 0)?;
+    if let Some(l) = laws {
+        cfg.laws = [l[0]];
+    }
+    if s.controller.mode == ControlMode::Single {
+        cfg.modes = [firmware::control::PairMode::SingleAgonist];
+    }
+    let ctl = JointController::new(cfg).context("controller")?;
+    let core = CoreController::new(
+        ctl,
+        feedback(s),
+        s.control_period_us,
+        plant.mm_per_count(),
+        s.seed,
+    );
+    Ok(ClosedLoop::new(plant, core, s.control_period_us)?)
 }
 
 /// Runs scenario `s` through a closed loop — the firmware core in process,
@@ -292,7 +311,7 @@ where
 
 /// The 3D plant of a scenario.
 pub fn plant_3d(s: &Scenario) -> anyhow::Result<Joint3d> {
-    let mut params = Joint3dParams::default();
+    let mut params = params_3d(s);
     params.sim.seed = s.seed;
     if s.plant.rigid_bearing {
         params.alpha = params.alpha.rigid_bearing();
@@ -303,12 +322,28 @@ pub fn plant_3d(s: &Scenario) -> anyhow::Result<Joint3d> {
 
 /// The 2D plant of a scenario.
 pub fn plant_2d(s: &Scenario) -> anyhow::Result<Joint2d> {
-    let mut params = Joint2dParams::default();
+    let mut params = params_2d(s);
     params.sim.seed = s.seed;
     if s.plant.rigid_bearing {
         params = params.rigid_bearing();
     }
     Joint2d::new(params).context("building the 2D plant")
+}
+
+/// The scenario's 3D parameters: its plant file's, or the defaults.
+pub fn params_3d(s: &Scenario) -> Joint3dParams {
+    match &s.plant.params {
+        Some(PlantParams::ThreeD(p)) => p.clone(),
+        _ => Joint3dParams::default(),
+    }
+}
+
+/// The scenario's 2D parameters: its plant file's, or the defaults.
+pub fn params_2d(s: &Scenario) -> Joint2dParams {
+    match &s.plant.params {
+        Some(PlantParams::TwoD(p)) => p.clone(),
+        _ => Joint2dParams::default(),
+    }
 }
 
 /// Pair gains of a scenario (public for `hil`).
@@ -586,7 +621,7 @@ pub fn calibration_sweep(s: &Scenario) -> anyhow::Result<Vec<SweepRow>> {
     let seed = s.seed ^ 0xCA1B;
     match s.joint {
         JointKind::ThreeD => {
-            let mut params = Joint3dParams::default();
+            let mut params = params_3d(s);
             params.sim.seed = seed;
             let plant = Joint3d::new(params)?;
             let ctl = JointController::new(JointConfig::paper_3d()).context("controller")?;
@@ -600,7 +635,7 @@ pub fn calibration_sweep(s: &Scenario) -> anyhow::Result<Vec<SweepRow>> {
             sweep_rows(ClosedLoop::new(plant, core, period_us)?, steps)
         }
         JointKind::TwoD => {
-            let mut params = Joint2dParams::default();
+            let mut params = params_2d(s);
             params.sim.seed = seed;
             let plant = Joint2d::new(params)?;
             let ctl = JointController::new(JointConfig::paper_2d_wire()).context("controller")?;

@@ -59,6 +59,29 @@ pub enum Scale {
 }
 
 impl Param {
+    /// Every parameter, in stage order.
+    pub const ALL: [Param; 14] = [
+        Param::Transconductance,
+        Param::TurnOn,
+        Param::Convection,
+        Param::AusteniteStart,
+        Param::AusteniteFinish,
+        Param::MartensiteStart,
+        Param::MartensiteFinish,
+        Param::StressShift,
+        Param::SpongeModulus,
+        Param::SpongeDamping,
+        Param::LinkInertia,
+        Param::JamGain,
+        Param::JamMaxLag,
+        Param::JamLagPerMm,
+    ];
+
+    /// The parameter whose [`Self::field`] is `field`.
+    pub fn from_field(field: &str) -> Option<Param> {
+        Self::ALL.into_iter().find(|p| p.field() == field)
+    }
+
     /// Dotted path in a plane's parameters (wire ones under `jam.` of each
     /// of the plane's wires).
     pub fn field(self) -> &'static str {

@@ -1,0 +1,357 @@
+//! `softjoint identify joint|plan` and `softjoint tune`: the plant fitted
+//! to a user's recording, and gains tuned on it.
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use clap::{Args, Subcommand, ValueEnum};
+use host_tools::excite;
+use host_tools::output;
+use host_tools::plant_file::{PlantFile, PlantParams, Uncertainty};
+use host_tools::plot::{line_charts, Chart, Series};
+use host_tools::scenario::JointKind;
+use host_tools::tune::{self, GainsFile, Tuning};
+use plant_models::joint::identify::{
+    self, ExcitationPlan, IdentifyOptions, LmOptions, PlaneReport, NEVER_FITTED,
+};
+use plant_models::joint::{Joint2dParams, Joint3dParams};
+
+#[derive(Subcommand)]
+pub enum IdentifyCommand {
+    /// Fit the joint's plant to an excitation log (`sim --excite`, `hil
+    /// --excite`): thermal, driver, transformation temperatures and their
+    /// stress slope, sponge, link inertia, wire jamming; with uncertainties,
+    /// the parameters the log does not determine, and a held-out check.
+    Joint(JointArgs),
+    /// Print an excitation plan (TOML) to start from: the standard plan
+    /// (steps, pulses, ramps, co-contraction, optional holds), within the
+    /// firmware's thermal budget.
+    Plan(PlanArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum JointArg {
+    #[value(name = "2d")]
+    TwoD,
+    #[value(name = "3d")]
+    ThreeD,
+}
+
+#[derive(Args)]
+pub struct PlanArgs {
+    /// Which joint.
+    #[arg(long, value_enum, default_value = "3d")]
+    joint: JointArg,
+    /// Length (s).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 600.0)]
+    duration_s: f64,
+    /// Add holds at ±8° under the controller.
+    #[arg(long)]
+    holds: bool,
+}
+
+#[derive(Args)]
+pub struct JointArgs {
+    /// The log (CSV).
+    log: PathBuf,
+    /// A plant file to start from (and to keep the parameters not fitted
+    /// from) instead of the defaults.
+    #[arg(long)]
+    prior: Option<PathBuf>,
+    /// Write the identified plant file here.
+    #[arg(short, long, default_value = "plant.toml")]
+    output: PathBuf,
+    /// Share of the log (from its start) to fit; the rest is held out.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.75)]
+    fit_fraction: f64,
+    /// Minimiser iterations per stage at most.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    max_iterations: u32,
+    /// Write recorded vs predicted angles (SVG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Print a machine-readable report instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
+    match cmd {
+        IdentifyCommand::Plan(a) => {
+            let planes = match a.joint {
+                JointArg::TwoD => 1,
+                JointArg::ThreeD => 2,
+            };
+            if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= 7200.0) {
+                bail!("--duration-s must be in (0, 7200] s, got {}", plant_models::short_number(a.duration_s));
+            }
+            let plan = ExcitationPlan::standard(planes, a.duration_s, a.holds);
+            excite::check_budget(&plan)?;
+            print!("{}", toml::to_string_pretty(&plan)?);
+            Ok(())
+        }
+        IdentifyCommand::Joint(a) => joint(a),
+    }
+}
+
+fn joint(a: JointArgs) -> anyhow::Result<()> {
+    if !(a.fit_fraction.is_finite() && (0.2..=1.0).contains(&a.fit_fraction)) {
+        bail!("--fit-fraction must be in 0.2..=1, got {}", plant_models::short_number(a.fit_fraction));
+    }
+    let log = excite::read_log(&a.log)?;
+    let prior = match &a.prior {
+        Some(p) => Some(PlantFile::load(p)?.params()?),
+        None => None,
+    };
+    let opts = IdentifyOptions {
+        fit_fraction: a.fit_fraction,
+        lm: LmOptions {
+            max_iterations: a.max_iterations as usize,
+            ..LmOptions::default()
+        },
+        ..IdentifyOptions::default()
+    };
+    let what = |e: identify::IdentifyError| anyhow::anyhow!("{}: {e}", a.log.display());
+    let (params, reports) = match (log.planes, prior) {
+        (1, None) => {
+            let (p, r) = identify::identify_2d(&log, &Joint2dParams::default(), &opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (1, Some(PlantParams::TwoD(prior))) => {
+            let (p, r) = identify::identify_2d(&log, &prior, &opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (2, None) => {
+            let (p, r) = identify::identify_3d(&log, &Joint3dParams::default(), &opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        (2, Some(PlantParams::ThreeD(prior))) => {
+            let (p, r) = identify::identify_3d(&log, &prior, &opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        _ => bail!(
+            "{}: a {} log, but --prior is a plant file for the other joint",
+            a.log.display(),
+            if log.planes == 1 { "2D" } else { "3D" }
+        ),
+    };
+    let uncertainty: Vec<Uncertainty> = reports
+        .iter()
+        .flat_map(|r| {
+            r.estimates.iter().filter(|e| e.identifiable && e.std.is_finite()).map(|e| Uncertainty {
+                plane: r.plane.clone(),
+                field: e.field.clone(),
+                value: e.value,
+                std: e.std,
+            })
+        })
+        .collect();
+    let header = format!(
+        "# Written by `softjoint identify joint {}`: the identified joint.\n# `[[uncertainty]]` lists each identified parameter's 1σ (softjoint tune samples them).\n",
+        a.log.display()
+    );
+    PlantFile::new(params, uncertainty).save(&a.output, &header)?;
+    if let Some(p) = &a.plot {
+        write_plot(p, &reports)?;
+    }
+    if a.json {
+        output::JsonObject::new()
+            .field("log", &a.log)?
+            .field("rows", &log.len())?
+            .field("planes", &reports_without_frames(&reports))?
+            .field("never_fitted", &NEVER_FITTED)?
+            .field("plant_file", &a.output)?
+            .print()?;
+    } else {
+        print!("{}", table(&reports));
+        println!("plant file written to {}", a.output.display());
+    }
+    Ok(())
+}
+
+fn reports_without_frames(r: &[PlaneReport]) -> Vec<PlaneReport> {
+    r.iter()
+        .map(|p| {
+            let mut p = p.clone();
+            p.validation.frames.clear();
+            p
+        })
+        .collect()
+}
+
+fn table(reports: &[PlaneReport]) -> String {
+    let mut s = String::new();
+    for r in reports {
+        let _ = writeln!(s, "plane {}", r.plane);
+        let _ = writeln!(
+            s,
+            "  {:32} {:>14} {:>12} {:>14}  {:11} {}",
+            "parameter", "value", "± 1σ", "prior", "stage", "unit"
+        );
+        for e in &r.estimates {
+            let sd = if e.std.is_finite() { format!("{:.3e}", e.std) } else { "∞".into() };
+            let _ = writeln!(
+                s,
+                "  {:32} {:>14.6} {:>12} {:>14.6}  {:11} {}{}",
+                e.field,
+                e.value,
+                sd,
+                e.prior,
+                e.stage,
+                e.unit,
+                if e.identifiable { "" } else { "  NOT IDENTIFIABLE from this log: kept at the prior" }
+            );
+        }
+        let v = &r.validation;
+        let prior = v
+            .prior_heldout_rms_deg
+            .map(|p| format!("{p:.3}°"))
+            .unwrap_or_else(|| "unstable".into());
+        let _ = writeln!(
+            s,
+            "  angle error: fit rms {:.3}°; held-out (from {:.1} s) rms {:.3}°, max {:.3}° (prior plant: rms {prior})",
+            v.fit_rms_deg, v.heldout_from_s, v.heldout_rms_deg, v.heldout_max_deg
+        );
+        for st in &r.stages {
+            let _ = writeln!(
+                s,
+                "  stage {:12} {:>3} iterations, {:>4} replays, {:>7} residuals, rms {:.3}",
+                st.name, st.iterations, st.evaluations, st.residuals, st.rms_scaled
+            );
+        }
+    }
+    let _ = writeln!(s, "never fitted (kept from the prior): {}", NEVER_FITTED.join("; "));
+    s
+}
+
+fn write_plot(path: &std::path::Path, reports: &[PlaneReport]) -> anyhow::Result<()> {
+    let mut charts = Vec::new();
+    for r in reports {
+        let f = &r.validation.frames;
+        let stride = (f.len() / 3000).max(1);
+        let pts: Vec<_> = f.iter().step_by(stride).collect();
+        let t: Vec<f64> = pts.iter().map(|x| x.t_s).collect();
+        let rec: Vec<f64> = pts.iter().map(|x| x.recorded_deg).collect();
+        let pred: Vec<f64> = pts.iter().map(|x| x.predicted_deg).collect();
+        let err: Vec<f64> = pts.iter().map(|x| x.predicted_deg - x.recorded_deg).collect();
+        charts.push(Chart {
+            title: format!(
+                "{}: recorded vs predicted (held out from {:.0} s: rms {:.3}°)",
+                r.plane, r.validation.heldout_from_s, r.validation.heldout_rms_deg
+            ),
+            x_label: "time (s)".into(),
+            y_label: "angle (deg)".into(),
+            series: vec![
+                Series::over("camera".to_string(), "#1f77b4", false, &t, &rec),
+                Series::over("identified plant".to_string(), "#d62728", true, &t, &pred),
+            ],
+        });
+        charts.push(Chart {
+            title: format!("{}: prediction error", r.plane),
+            x_label: "time (s)".into(),
+            y_label: "error (deg)".into(),
+            series: vec![Series::over("predicted − recorded".to_string(), "#2ca02c", false, &t, &err)],
+        });
+    }
+    output::write_svg(path, &line_charts(&charts).finish())
+}
+
+#[derive(Args)]
+pub struct TuneArgs {
+    /// The plant file (`softjoint identify joint` writes one).
+    plant: PathBuf,
+    /// Candidate gain sets (the first is the paper's).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    candidates: u64,
+    /// Plants per candidate: the identified one and draws from its
+    /// uncertainty.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    plants: u64,
+    /// Seed of the candidates and the plant draws.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u64).range(1..=1024))]
+    threads: Option<u64>,
+    /// Write the gains file here.
+    #[arg(short, long, default_value = "gains.toml")]
+    output: PathBuf,
+    /// Print a machine-readable result.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
+    let file = PlantFile::load(&a.plant)?;
+    let joint = match file.params()? {
+        PlantParams::TwoD(_) => JointKind::TwoD,
+        PlantParams::ThreeD(_) => JointKind::ThreeD,
+    };
+    let go = || {
+        tune::tune(
+            &file,
+            a.candidates as usize,
+            a.plants as usize,
+            a.seed,
+            !a.json,
+        )
+    };
+    let started = std::time::Instant::now();
+    let r = match a.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build()
+            .context("worker threads")?
+            .install(go),
+        None => go(),
+    }
+    .map_err(|e| e.context(format!("tuning on {}", a.plant.display())))?;
+    let wall = started.elapsed().as_secs_f64();
+    let g = GainsFile {
+        joint,
+        controller: r.best.clone(),
+        tuning: Some(Tuning {
+            plant_file: a.plant.display().to_string(),
+            candidates: a.candidates as usize,
+            plants: a.plants as usize,
+            seed: a.seed,
+            score: r.score.clone(),
+            paper: r.paper.clone(),
+        }),
+    };
+    output::write_toml(
+        &a.output,
+        "# Written by `softjoint tune`: gains for the console (`gains load FILE`)\n# and scenarios (`controller.gains_file`).\n",
+        &g,
+    )?;
+    if a.json {
+        output::JsonObject::new()
+            .field("gains", &g)?
+            .field("failed_candidates", &r.failed)?
+            .field("wall_seconds", &wall)?
+            .print()?;
+    } else {
+        let c = &r.best;
+        println!(
+            "best of {} candidates × {} plants ({:.1} s): K_P {:?} V/°, K_I {:.3} V/(°·s), limit {:.2} V",
+            a.candidates,
+            a.plants,
+            wall,
+            c.kp_v_per_deg.iter().map(|k| (k * 1000.0).round() / 1000.0).collect::<Vec<_>>(),
+            c.ki_v_per_deg_s,
+            c.integral_limit_v
+        );
+        for (name, s) in [("tuned", &r.score), ("paper", &r.paper)] {
+            let n = &s.nominal;
+            println!(
+                "{name:>6}: robust cost {:.3} (mean {:.3} + sd {:.3}); identified plant: settling {:.2} s, overshoot {:.2}°, ss error {:.3}°, peak coil {:.1} °C, budget margin {:.1} K, fault {}",
+                s.robust, s.mean, s.std, n.settling_s, n.overshoot_deg, n.steady_state_error_deg, n.peak_coil_c, n.budget_margin_k, n.fault
+            );
+        }
+        if r.failed > 0 {
+            println!("{} candidate(s) made a plant unstable and were dropped", r.failed);
+        }
+        println!("gains written to {}", a.output.display());
+    }
+    Ok(())
+}
