@@ -73,8 +73,7 @@ pub fn load_plan(path: &Path, planes: usize) -> anyhow::Result<ExcitationPlan> {
     let plan: ExcitationPlan = crate::input::from_toml(&text, &path.display().to_string())?;
     plan.validate(planes)
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    check_budget(&plan)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    check_budget(&plan).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(plan)
 }
 
@@ -184,7 +183,14 @@ where
     let period_s = cl.period_s();
     let per_row = ((f64::from(plan.log_interval_ms) * 1e-3 / period_s).round() as usize).max(1);
     let rng = plant_models::rng::stream(seed, plant_models::rng::IDENTIFY_NOISE);
-    let mut rec = LogRecorder::new(P, period_s, per_row, electrical, ElectricalNoise::default(), rng);
+    let mut rec = LogRecorder::new(
+        P,
+        period_s,
+        per_row,
+        electrical,
+        ElectricalNoise::default(),
+        rng,
+    );
     let mut schedule = PlanSchedule::<P> {
         plan,
         period_s,
@@ -229,8 +235,18 @@ pub fn run_sim(
     s.validate()?;
     let (laws, _) = sim::laws_for(s)?;
     match s.joint {
-        JointKind::ThreeD => run_loop(plan, &mut sim::core_loop_3d(s, laws.as_deref())?, electrical, s.seed),
-        JointKind::TwoD => run_loop(plan, &mut sim::core_loop_2d(s, laws.as_deref())?, electrical, s.seed),
+        JointKind::ThreeD => run_loop(
+            plan,
+            &mut sim::core_loop_3d(s, laws.as_deref())?,
+            electrical,
+            s.seed,
+        ),
+        JointKind::TwoD => run_loop(
+            plan,
+            &mut sim::core_loop_2d(s, laws.as_deref())?,
+            electrical,
+            s.seed,
+        ),
     }
 }
 

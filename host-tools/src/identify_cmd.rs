@@ -83,7 +83,10 @@ pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
                 JointArg::ThreeD => 2,
             };
             if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= 7200.0) {
-                bail!("--duration-s must be in (0, 7200] s, got {}", plant_models::short_number(a.duration_s));
+                bail!(
+                    "--duration-s must be in (0, 7200] s, got {}",
+                    plant_models::short_number(a.duration_s)
+                );
             }
             let plan = ExcitationPlan::standard(planes, a.duration_s, a.holds);
             excite::check_budget(&plan)?;
@@ -96,7 +99,10 @@ pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
 
 fn joint(a: JointArgs) -> anyhow::Result<()> {
     if !(a.fit_fraction.is_finite() && (0.2..=1.0).contains(&a.fit_fraction)) {
-        bail!("--fit-fraction must be in 0.2..=1, got {}", plant_models::short_number(a.fit_fraction));
+        bail!(
+            "--fit-fraction must be in 0.2..=1, got {}",
+            plant_models::short_number(a.fit_fraction)
+        );
     }
     let log = excite::read_log(&a.log)?;
     let prior = match &a.prior {
@@ -114,7 +120,8 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
     let what = |e: identify::IdentifyError| anyhow::anyhow!("{}: {e}", a.log.display());
     let (params, reports) = match (log.planes, prior) {
         (1, None) => {
-            let (p, r) = identify::identify_2d(&log, &Joint2dParams::default(), &opts).map_err(what)?;
+            let (p, r) =
+                identify::identify_2d(&log, &Joint2dParams::default(), &opts).map_err(what)?;
             (PlantParams::TwoD(p), r)
         }
         (1, Some(PlantParams::TwoD(prior))) => {
@@ -122,7 +129,8 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
             (PlantParams::TwoD(p), r)
         }
         (2, None) => {
-            let (p, r) = identify::identify_3d(&log, &Joint3dParams::default(), &opts).map_err(what)?;
+            let (p, r) =
+                identify::identify_3d(&log, &Joint3dParams::default(), &opts).map_err(what)?;
             (PlantParams::ThreeD(p), r)
         }
         (2, Some(PlantParams::ThreeD(prior))) => {
@@ -138,12 +146,15 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
     let uncertainty: Vec<Uncertainty> = reports
         .iter()
         .flat_map(|r| {
-            r.estimates.iter().filter(|e| e.identifiable && e.std.is_finite()).map(|e| Uncertainty {
-                plane: r.plane.clone(),
-                field: e.field.clone(),
-                value: e.value,
-                std: e.std,
-            })
+            r.estimates
+                .iter()
+                .filter(|e| e.identifiable && e.std.is_finite())
+                .map(|e| Uncertainty {
+                    plane: r.plane.clone(),
+                    field: e.field.clone(),
+                    value: e.value,
+                    std: e.std,
+                })
         })
         .collect();
     let header = format!(
@@ -189,7 +200,11 @@ fn table(reports: &[PlaneReport]) -> String {
             "parameter", "value", "± 1σ", "prior", "stage", "unit"
         );
         for e in &r.estimates {
-            let sd = if e.std.is_finite() { format!("{:.3e}", e.std) } else { "∞".into() };
+            let sd = if e.std.is_finite() {
+                format!("{:.3e}", e.std)
+            } else {
+                "∞".into()
+            };
             let _ = writeln!(
                 s,
                 "  {:32} {:>14.6} {:>12} {:>14.6}  {:11} {}{}",
@@ -199,7 +214,11 @@ fn table(reports: &[PlaneReport]) -> String {
                 e.prior,
                 e.stage,
                 e.unit,
-                if e.identifiable { "" } else { "  NOT IDENTIFIABLE from this log: kept at the prior" }
+                if e.identifiable {
+                    ""
+                } else {
+                    "  NOT IDENTIFIABLE from this log: kept at the prior"
+                }
             );
         }
         let v = &r.validation;
@@ -220,7 +239,11 @@ fn table(reports: &[PlaneReport]) -> String {
             );
         }
     }
-    let _ = writeln!(s, "never fitted (kept from the prior): {}", NEVER_FITTED.join("; "));
+    let _ = writeln!(
+        s,
+        "never fitted (kept from the prior): {}",
+        NEVER_FITTED.join("; ")
+    );
     s
 }
 
@@ -233,7 +256,10 @@ fn write_plot(path: &std::path::Path, reports: &[PlaneReport]) -> anyhow::Result
         let t: Vec<f64> = pts.iter().map(|x| x.t_s).collect();
         let rec: Vec<f64> = pts.iter().map(|x| x.recorded_deg).collect();
         let pred: Vec<f64> = pts.iter().map(|x| x.predicted_deg).collect();
-        let err: Vec<f64> = pts.iter().map(|x| x.predicted_deg - x.recorded_deg).collect();
+        let err: Vec<f64> = pts
+            .iter()
+            .map(|x| x.predicted_deg - x.recorded_deg)
+            .collect();
         charts.push(Chart {
             title: format!(
                 "{}: recorded vs predicted (held out from {:.0} s: rms {:.3}°)",
@@ -250,7 +276,13 @@ fn write_plot(path: &std::path::Path, reports: &[PlaneReport]) -> anyhow::Result
             title: format!("{}: prediction error", r.plane),
             x_label: "time (s)".into(),
             y_label: "error (deg)".into(),
-            series: vec![Series::over("predicted − recorded".to_string(), "#2ca02c", false, &t, &err)],
+            series: vec![Series::over(
+                "predicted − recorded".to_string(),
+                "#2ca02c",
+                false,
+                &t,
+                &err,
+            )],
         });
     }
     output::write_svg(path, &line_charts(&charts).finish())
@@ -349,7 +381,10 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
             );
         }
         if r.failed > 0 {
-            println!("{} candidate(s) made a plant unstable and were dropped", r.failed);
+            println!(
+                "{} candidate(s) made a plant unstable and were dropped",
+                r.failed
+            );
         }
         println!("gains written to {}", a.output.display());
     }

@@ -86,7 +86,10 @@ pub struct ExciteArgs {
 
 impl ExciteArgs {
     /// Loads the plan for a scenario's joint.
-    pub fn plan(&self, scenario: &Scenario) -> anyhow::Result<Option<plant_models::joint::identify::ExcitationPlan>> {
+    pub fn plan(
+        &self,
+        scenario: &Scenario,
+    ) -> anyhow::Result<Option<plant_models::joint::identify::ExcitationPlan>> {
         self.excite
             .as_ref()
             .map(|p| host_tools::excite::load_plan(p, scenario.planes()))
@@ -99,7 +102,10 @@ impl ExciteArgs {
         log: &plant_models::joint::identify::ExcitationLog,
         summary: &host_tools::excite::SessionSummary,
     ) -> anyhow::Result<()> {
-        let path = self.log.as_ref().ok_or_else(|| anyhow::anyhow!("--excite needs --log"))?;
+        let path = self
+            .log
+            .as_ref()
+            .ok_or_else(|| anyhow::anyhow!("--excite needs --log"))?;
         host_tools::excite::write_log(path, log)?;
         println!(
             "{}: {} rows ({} s) written to {}; peak coil {:.1} °C, budget peak rise {:.0} K, faults seen: [{}]",

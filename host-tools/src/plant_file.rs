@@ -129,8 +129,18 @@ mod tests {
         assert_eq!(back, f);
         let two = PlantFile::new(PlantParams::TwoD(Joint2dParams::default()), vec![]);
         let text2 = toml::to_string_pretty(&two).unwrap();
-        let both: PlantFile =
-            crate::input::from_toml(&format!("{text2}\n{}", toml::to_string_pretty(&PlantFile::new(PlantParams::ThreeD(Joint3dParams::default()), vec![])).unwrap()), "x").unwrap();
+        let both: PlantFile = crate::input::from_toml(
+            &format!(
+                "{text2}\n{}",
+                toml::to_string_pretty(&PlantFile::new(
+                    PlantParams::ThreeD(Joint3dParams::default()),
+                    vec![]
+                ))
+                .unwrap()
+            ),
+            "x",
+        )
+        .unwrap();
         assert!(both.params().is_err());
         assert!(PlantFile::default().params().is_err());
         let e = crate::input::from_toml::<PlantFile>("[joint2d]\nsim.speed = 1\n", "p.toml")

@@ -390,12 +390,12 @@ impl Scenario {
             bail!("field `estimator.method`: the 2D joint has one wire sensor; use \"paper\" or \"single\"");
         }
         match (&self.plant.params, self.joint) {
-            (Some(crate::plant_file::PlantParams::TwoD(_)), JointKind::ThreeD) => bail!(
-                "field `plant.file`: a 2D plant ([joint2d]) for `joint = \"3d\"`"
-            ),
-            (Some(crate::plant_file::PlantParams::ThreeD(_)), JointKind::TwoD) => bail!(
-                "field `plant.file`: a 3D plant ([joint3d]) for `joint = \"2d\"`"
-            ),
+            (Some(crate::plant_file::PlantParams::TwoD(_)), JointKind::ThreeD) => {
+                bail!("field `plant.file`: a 2D plant ([joint2d]) for `joint = \"3d\"`")
+            }
+            (Some(crate::plant_file::PlantParams::ThreeD(_)), JointKind::TwoD) => {
+                bail!("field `plant.file`: a 3D plant ([joint3d]) for `joint = \"2d\"`")
+            }
             _ => {}
         }
         if self.targets.is_empty() {

@@ -37,7 +37,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::plant_file::{PlantFile, PlantParams, Uncertainty};
-use crate::scenario::{EstimatorMethod, FeedbackKind, JointKind, Scenario, ScenarioSchedule, TargetStep};
+use crate::scenario::{
+    EstimatorMethod, FeedbackKind, JointKind, Scenario, ScenarioSchedule, TargetStep,
+};
 use crate::sim;
 
 /// Controller gains (what a gains file holds).
@@ -243,29 +245,41 @@ impl Meter {
         }
     }
 
-    fn push<const P: usize, const S: usize, const C: usize>(&mut self, x: &Sample<P, S, C>, end_s: f64) {
-        self.fault |= x.faults != 0;
+    fn push_sample<const P: usize, const S: usize, const C: usize>(
+        &mut self,
+        x: &Sample<P, S, C>,
+        end_s: f64,
+    ) {
         for t in x.coil_temperatures_c {
             self.peak_c = self.peak_c.max(t);
         }
-        let Some(seg) = self.targets.iter().rposition(|(t, _)| x.t_s >= *t) else {
+        self.push(x.t_s, &x.true_deg, x.faults, end_s);
+    }
+
+    fn push(&mut self, t_s: f64, true_deg: &[f64], faults: u16, end_s: f64) {
+        self.fault |= faults != 0;
+        let Some(seg) = self.targets.iter().rposition(|(t, _)| t_s >= *t) else {
             return;
         };
         let (from, target) = self.targets[seg];
         let to = self.targets.get(seg + 1).map(|t| t.0).unwrap_or(end_s);
-        let prev = if seg == 0 { None } else { Some(self.targets[seg - 1].1) };
+        let prev = if seg == 0 {
+            None
+        } else {
+            Some(self.targets[seg - 1].1)
+        };
         for p in 0..self.planes {
-            let th = x.true_deg[p];
-            if seg == 0 && x.t_s == 0.0 {
+            let th = true_deg[p];
+            if seg == 0 && t_s == 0.0 {
                 self.start_deg[p] = th;
             }
             let e = th - target;
             if e.abs() > SETTLING_BAND_DEG {
-                self.last_out[seg][p] = x.t_s;
+                self.last_out[seg][p] = t_s;
             }
             let dir = (target - prev.unwrap_or(self.start_deg[p])).signum();
             self.over[seg][p] = self.over[seg][p].max(dir * e);
-            if x.t_s >= to - 0.2 * (to - from) {
+            if t_s >= to - 0.2 * (to - from) {
                 self.tail[seg][p].0 += th;
                 self.tail[seg][p].1 += 1;
             }
@@ -279,7 +293,11 @@ impl Meter {
             let to = self.targets.get(seg + 1).map(|t| t.0).unwrap_or(end_s);
             for p in 0..self.planes {
                 let lo = self.last_out[seg][p];
-                settle.push(if lo.is_nan() { 0.0 } else { (lo - from + 1e-3).min(to - from) });
+                settle.push(if lo.is_nan() {
+                    0.0
+                } else {
+                    (lo - from + 1e-3).min(to - from)
+                });
                 if seg > 0 {
                     over = over.max(self.over[seg][p]);
                 }
@@ -317,11 +335,17 @@ where
 {
     let mut meter = Meter::new(s, P);
     let mut schedule = ScenarioSchedule::new(s);
-    let trip = cl.controller.joint().supervisor().config().thermal.trip_rise_k;
+    let trip = cl
+        .controller
+        .joint()
+        .supervisor()
+        .config()
+        .thermal
+        .trip_rise_k;
     let mut margin = f64::from(trip);
     for _ in 0..s.steps() {
         cl.run(1, &mut schedule, |x| -> anyhow::Result<()> {
-            meter.push(x, s.duration_s);
+            meter.push_sample(x, s.duration_s);
             Ok(())
         })?;
         let sup = cl.controller.joint().supervisor();
@@ -334,6 +358,18 @@ where
         }
     }
     Ok(meter.finish(s.duration_s, margin))
+}
+
+/// The cost of a recorded run of the test scenario `s` (a `sim` or `hil`
+/// trace with its peak coil temperature); the thermal-budget margin is
+/// given (a board's own budget is not in its trace).
+pub fn cost_of_trace(s: &Scenario, trace: &sim::Trace, peak_coil_c: f64, margin_k: f64) -> RunCost {
+    let mut meter = Meter::new(s, trace.planes);
+    meter.peak_c = peak_coil_c;
+    for r in &trace.rows {
+        meter.push(r.t_s, &r.true_deg[..trace.planes], r.faults, s.duration_s);
+    }
+    meter.finish(s.duration_s, margin_k)
 }
 
 /// Runs the test scenario `s` (its plant in `s.plant.params`) and
@@ -396,8 +432,20 @@ pub fn sample_plants(file: &PlantFile, n: usize, seed: u64) -> anyhow::Result<Ve
             }
             PlantParams::ThreeD(p) => {
                 let mut q: Joint3dParams = p.clone();
-                let (a, wa) = perturb_plane(&p.alpha, &[p.wires[0].clone(), p.wires[2].clone()], "alpha", u, &mut rng);
-                let (b, wb) = perturb_plane(&p.beta, &[p.wires[1].clone(), p.wires[3].clone()], "beta", u, &mut rng);
+                let (a, wa) = perturb_plane(
+                    &p.alpha,
+                    &[p.wires[0].clone(), p.wires[2].clone()],
+                    "alpha",
+                    u,
+                    &mut rng,
+                );
+                let (b, wb) = perturb_plane(
+                    &p.beta,
+                    &[p.wires[1].clone(), p.wires[3].clone()],
+                    "beta",
+                    u,
+                    &mut rng,
+                );
                 q.alpha = a;
                 q.beta = b;
                 q.wires = [wa[0].clone(), wb[0].clone(), wa[1].clone(), wb[1].clone()];
@@ -417,7 +465,9 @@ pub fn candidates(coils: usize, n: usize, seed: u64) -> Vec<Gains> {
         (lo.ln() + rng.gen::<f64>() * (hi.ln() - lo.ln())).exp()
     };
     while out.len() < n {
-        let kp = (0..coils).map(|_| log_uniform(&mut rng, 0.3, 6.0)).collect();
+        let kp = (0..coils)
+            .map(|_| log_uniform(&mut rng, 0.3, 6.0))
+            .collect();
         let integral = rng.gen::<bool>();
         let ki = log_uniform(&mut rng, 0.02, 1.0);
         let ilim = 0.1 + 1.4 * rng.gen::<f64>();
@@ -431,7 +481,12 @@ pub fn candidates(coils: usize, n: usize, seed: u64) -> Vec<Gains> {
 }
 
 /// Scores `gains` on every plant.
-pub fn score(joint: JointKind, gains: &Gains, plants: &[PlantParams], seed: u64) -> anyhow::Result<Score> {
+pub fn score(
+    joint: JointKind,
+    gains: &Gains,
+    plants: &[PlantParams],
+    seed: u64,
+) -> anyhow::Result<Score> {
     let runs = plants
         .iter()
         .map(|p| evaluate(&test_scenario(joint, gains, p.clone(), seed)))
@@ -478,8 +533,10 @@ pub fn tune(
     let bar = ProgressBar::new(cands.len() as u64);
     if progress {
         bar.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} candidates, {elapsed} elapsed, ~{eta} left")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} candidates, {elapsed} elapsed, ~{eta} left",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
     } else {
         bar.set_draw_target(ProgressDrawTarget::hidden());

@@ -12,13 +12,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let secs: f64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(240.0);
     let three = args.get(2).is_some_and(|s| s == "3d");
     let elec = !args.iter().any(|a| a == "noelec");
-    let noise = ElectricalNoise { current_a: 0.002, resistance_ohm: 0.02 };
+    let noise = ElectricalNoise {
+        current_a: 0.002,
+        resistance_ohm: 0.02,
+    };
     let opts = identify::IdentifyOptions::default();
     let t0 = Instant::now();
     let (reports, n) = if three {
         let plan = ExcitationPlan::standard(2, secs, false);
         let log = twin::record_3d(&hidden::joint_3d(7), &plan, elec, noise)?;
-        eprintln!("recorded {} rows in {:.1} s", log.len(), t0.elapsed().as_secs_f64());
+        eprintln!(
+            "recorded {} rows in {:.1} s",
+            log.len(),
+            t0.elapsed().as_secs_f64()
+        );
         let t1 = Instant::now();
         let (_, r) = identify::identify_3d(&log, &Joint3dParams::default(), &opts)?;
         eprintln!("identified in {:.1} s", t1.elapsed().as_secs_f64());
@@ -26,7 +33,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         let plan = ExcitationPlan::standard(1, secs, false);
         let log = twin::record_2d(&hidden::joint_2d(7), &plan, elec, noise)?;
-        eprintln!("recorded {} rows in {:.1} s", log.len(), t0.elapsed().as_secs_f64());
+        eprintln!(
+            "recorded {} rows in {:.1} s",
+            log.len(),
+            t0.elapsed().as_secs_f64()
+        );
         let t1 = Instant::now();
         let (_, r) = identify::identify_2d(&log, &Joint2dParams::default(), &opts)?;
         eprintln!("identified in {:.1} s", t1.elapsed().as_secs_f64());
@@ -35,7 +46,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let truth3 = hidden::joint_3d(7);
     for (p, r) in reports.iter().enumerate() {
         let mut truth = identify::PlaneModel {
-            plane: if p == 0 { truth3.alpha.clone() } else { truth3.beta.clone() },
+            plane: if p == 0 {
+                truth3.alpha.clone()
+            } else {
+                truth3.beta.clone()
+            },
             wires: vec![truth3.wires[p].clone()],
             settle_s: 1.0,
             substep_s: 1e-3,
@@ -56,12 +71,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 tv,
                 e.prior,
                 100.0 * (e.value - tv) / tv,
-                if e.identifiable { "" } else { "NOT IDENTIFIABLE" },
+                if e.identifiable {
+                    ""
+                } else {
+                    "NOT IDENTIFIABLE"
+                },
                 e.stage
             );
         }
         for s in &r.stages {
-            println!("  stage {}: {} it, {} evals, {} residuals, rms {:.3}", s.name, s.iterations, s.evaluations, s.residuals, s.rms_scaled);
+            println!(
+                "  stage {}: {} it, {} evals, {} residuals, rms {:.3}",
+                s.name, s.iterations, s.evaluations, s.residuals, s.rms_scaled
+            );
         }
         let v = &r.validation;
         println!(

@@ -30,7 +30,13 @@ fn truth(plane: &PlaneParams, wire: &WireSensorParams) -> PlaneModel {
 
 /// Checks `p` against the truth: relative tolerance for scales, absolute
 /// for temperatures and the slope. Returns a line for the failure report.
-fn check(r: &PlaneReport, t: &PlaneModel, p: Param, rel: Option<f64>, abs: Option<f64>) -> Option<String> {
+fn check(
+    r: &PlaneReport,
+    t: &PlaneModel,
+    p: Param,
+    rel: Option<f64>,
+    abs: Option<f64>,
+) -> Option<String> {
     let e = r.estimate(p).expect("estimated");
     let tv = p.get(t);
     let ok = e.identifiable
@@ -80,7 +86,11 @@ fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
     // identified plant by little more than the camera noise.
     let v = &r.validation;
     assert!(v.prior_heldout_rms_deg.unwrap() > 2.0, "{v:?}");
-    assert!(v.heldout_rms_deg < 0.3, "held-out rms {}", v.heldout_rms_deg);
+    assert!(
+        v.heldout_rms_deg < 0.3,
+        "held-out rms {}",
+        v.heldout_rms_deg
+    );
 }
 
 /// The 10-minute standard plan on the hidden 2D joint, electrical columns
@@ -121,8 +131,18 @@ fn expect_standard(r: &PlaneReport, t: &PlaneModel) {
     assert!(fails.is_empty(), "{}: {fails:#?}", r.plane);
     assert!(!r.estimate(Param::LinkInertia).unwrap().identifiable);
     let v = &r.validation;
-    assert!(v.heldout_rms_deg < 0.15, "{}: held-out rms {}", r.plane, v.heldout_rms_deg);
-    assert!(v.heldout_max_deg < 0.6, "{}: held-out max {}", r.plane, v.heldout_max_deg);
+    assert!(
+        v.heldout_rms_deg < 0.15,
+        "{}: held-out rms {}",
+        r.plane,
+        v.heldout_rms_deg
+    );
+    assert!(
+        v.heldout_max_deg < 0.6,
+        "{}: held-out max {}",
+        r.plane,
+        v.heldout_max_deg
+    );
 }
 
 /// The same on the 3D joint, whose planes are hidden differently.
@@ -154,5 +174,9 @@ fn ten_minute_twin_2d_without_electrical_columns() {
     let r = &reports[0];
     assert!(r.estimate(Param::TurnOn).is_none());
     let v = &r.validation;
-    assert!(v.heldout_rms_deg < 0.2, "held-out rms {}", v.heldout_rms_deg);
+    assert!(
+        v.heldout_rms_deg < 0.2,
+        "held-out rms {}",
+        v.heldout_rms_deg
+    );
 }

@@ -66,11 +66,7 @@ fn sq(r: &[f64]) -> f64 {
 }
 
 /// Minimises `‖f(x)‖²` from `x0`.
-pub fn levenberg_marquardt<F>(
-    f: F,
-    x0: &[f64],
-    opts: LmOptions,
-) -> Result<LmResult, IdentifyError>
+pub fn levenberg_marquardt<F>(f: F, x0: &[f64], opts: LmOptions) -> Result<LmResult, IdentifyError>
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
@@ -79,7 +75,10 @@ where
     let mut r = f(&x)?;
     let m = r.len();
     if m <= n {
-        return Err(IdentifyError::TooFewData { residuals: m, parameters: n });
+        return Err(IdentifyError::TooFewData {
+            residuals: m,
+            parameters: n,
+        });
     }
     let mut cost = sq(&r);
     let mut evaluations = 1;
@@ -248,8 +247,21 @@ mod tests {
                 .map(|(t, y)| x[0] * (-x[1] * t).exp() - y)
                 .collect())
         };
-        let r = levenberg_marquardt(f, &[1.0, 0.2], LmOptions { ftol: 1e-12, step: 1e-7, ..Default::default() }).unwrap();
-        assert!((r.x[0] - 2.0).abs() < 1e-5 && (r.x[1] - 0.7).abs() < 1e-5, "{:?}", r.x);
+        let r = levenberg_marquardt(
+            f,
+            &[1.0, 0.2],
+            LmOptions {
+                ftol: 1e-12,
+                step: 1e-7,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            (r.x[0] - 2.0).abs() < 1e-5 && (r.x[1] - 0.7).abs() < 1e-5,
+            "{:?}",
+            r.x
+        );
         // Straight line y = c0 + c1 t with residuals ±e alternating: the
         // covariance is σ²(XᵀX)⁻¹ exactly.
         let e = 0.1;
@@ -259,9 +271,21 @@ mod tests {
             .map(|(k, t)| 1.0 + 0.5 * t + if k % 2 == 0 { e } else { -e })
             .collect();
         let fl = |x: &[f64]| -> Result<Vec<f64>, IdentifyError> {
-            Ok(t.iter().zip(&yl).map(|(t, y)| x[0] + x[1] * t - y).collect())
+            Ok(t.iter()
+                .zip(&yl)
+                .map(|(t, y)| x[0] + x[1] * t - y)
+                .collect())
         };
-        let r = levenberg_marquardt(fl, &[0.0, 0.0], LmOptions { ftol: 1e-14, step: 1e-6, ..Default::default() }).unwrap();
+        let r = levenberg_marquardt(
+            fl,
+            &[0.0, 0.0],
+            LmOptions {
+                ftol: 1e-14,
+                step: 1e-6,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let m = t.len() as f64;
         let (st, stt) = (t.iter().sum::<f64>(), t.iter().map(|v| v * v).sum::<f64>());
         let det = m * stt - st * st;
@@ -270,9 +294,16 @@ mod tests {
         assert!((r.std[1] - sd1).abs() < 1e-3 * sd1, "{} vs {sd1}", r.std[1]);
         // A parameter the residuals do not depend on is undetermined.
         let fu = |x: &[f64]| -> Result<Vec<f64>, IdentifyError> {
-            Ok(t.iter().zip(&yl).map(|(t, y)| x[0] + x[1] * t - y + 0.0 * x[2]).collect())
+            Ok(t.iter()
+                .zip(&yl)
+                .map(|(t, y)| x[0] + x[1] * t - y + 0.0 * x[2])
+                .collect())
         };
         let r = levenberg_marquardt(fu, &[0.0, 0.0, 1.0], LmOptions::default()).unwrap();
-        assert!(r.std[2].is_infinite() && r.std[0].is_finite(), "{:?}", r.std);
+        assert!(
+            r.std[2].is_infinite() && r.std[0].is_finite(),
+            "{:?}",
+            r.std
+        );
     }
 }

@@ -126,13 +126,25 @@ impl ExcitationLog {
     /// there. Rows must be evenly spaced from 0; errors name the file, line
     /// and column.
     pub fn from_table(t: &Table) -> Result<Self, IdentifyError> {
-        let planes = if t.has("cam_theta_deg") { 1 } else { 2 };
+        let planes = if t.has("cam_theta_deg") {
+            1
+        } else if t.has("cam_alpha_deg") {
+            2
+        } else {
+            return Err(t
+                .error(
+                    t.header_line,
+                    None,
+                    format!(
+                        "missing column `cam_theta_deg` (a 2D log) or `cam_alpha_deg` (3D); the header has: {}",
+                        crate::csv_input::excerpt(&t.columns.join(", "))
+                    ),
+                )
+                .into());
+        };
         let electrical = t.has("i1_a") || t.has("r1_ohm");
         let want = columns(planes, electrical);
-        let idx: Vec<usize> = want
-            .iter()
-            .map(|c| t.column(c))
-            .collect::<Result<_, _>>()?;
+        let idx: Vec<usize> = want.iter().map(|c| t.column(c)).collect::<Result<_, _>>()?;
         t.require_rows(10, "(a log of at least 10 intervals)")?;
         let (c, s) = (2 * planes, if planes == 1 { 1 } else { 4 });
         let mut log = ExcitationLog {
@@ -210,7 +222,10 @@ impl ExcitationLog {
                         .error(
                             row.line,
                             Some(&format!("v{}_v", j + 1)),
-                            format!("driver input must be 0..=30 V, got {}", crate::short_number(*v)),
+                            format!(
+                                "driver input must be 0..=30 V, got {}",
+                                crate::short_number(*v)
+                            ),
                         )
                         .into());
                 }

@@ -44,12 +44,12 @@
 //! the weighting between the angle and resistance residuals is a priori
 //! (0.1° and 0.02 Ω), not estimated.
 
+pub mod hidden;
 pub mod lm;
 pub mod log;
 pub mod params;
 pub mod plan;
 pub mod replay;
-pub mod hidden;
 pub mod twin;
 
 use rayon::prelude::*;
@@ -68,25 +68,33 @@ pub use replay::{replay, PlaneMap, PlaneModel, Prediction};
 #[non_exhaustive]
 pub enum IdentifyError {
     /// The log file.
-    #[error("{0}")]
+    #[error(transparent)]
     Csv(#[from] CsvError),
     /// The log's content.
     #[error("log: {0}")]
     Log(String),
     /// A parameter set the plant refuses (prior or fitted).
     #[error("plant: {0}")]
-    Plant(#[from] PlantError),
+    Plant(PlantError),
     /// A replay went unstable.
     #[error("replay unstable: {0} is not finite")]
     Unstable(String),
     /// Fewer residuals than parameters.
-    #[error("{residuals} data points cannot determine {parameters} parameters: record a longer log")]
+    #[error(
+        "{residuals} data points cannot determine {parameters} parameters: record a longer log"
+    )]
     TooFewData {
         /// Residuals.
         residuals: usize,
         /// Parameters.
         parameters: usize,
     },
+}
+
+impl From<PlantError> for IdentifyError {
+    fn from(e: PlantError) -> Self {
+        IdentifyError::Plant(e)
+    }
 }
 
 /// Settings of an identification.
@@ -257,8 +265,11 @@ pub fn identify_3d(
         .enumerate()
         .map(|(p, (plane, name))| {
             let map = PlaneMap::of(2, p);
-            let wires: Vec<WireSensorParams> =
-                map.sensors.iter().map(|&s| prior.wires[s].clone()).collect();
+            let wires: Vec<WireSensorParams> = map
+                .sensors
+                .iter()
+                .map(|&s| prior.wires[s].clone())
+                .collect();
             let model = PlaneModel {
                 plane,
                 wires,
@@ -471,7 +482,10 @@ pub fn identify_plane(
         {
             Param::Transconductance.set(&mut model, g);
             Param::TurnOn.set(&mut model, v_on);
-            for (p, v, sd) in [(Param::Transconductance, g, sd_g), (Param::TurnOn, v_on, sd_v)] {
+            for (p, v, sd) in [
+                (Param::Transconductance, g, sd_g),
+                (Param::TurnOn, v_on, sd_v),
+            ] {
                 let coord_sd = match p.scale() {
                     Scale::Log { .. } => sd / v,
                     Scale::Linear { .. } => sd,
@@ -632,13 +646,12 @@ pub fn identify_plane(
             .map(|f| (f.predicted_deg - f.recorded_deg).abs())
             .fold(0.0, f64::max),
         heldout_from_s,
-        prior_heldout_rms_deg: prior_pred
-            .map(|p| {
-                rms(all
-                    .iter()
-                    .filter(|(t, _)| *t >= heldout_from_s)
-                    .filter_map(|(t, a)| p.angle_at(*t).map(|x| x - a)))
-            }),
+        prior_heldout_rms_deg: prior_pred.map(|p| {
+            rms(all
+                .iter()
+                .filter(|(t, _)| *t >= heldout_from_s)
+                .filter_map(|(t, a)| p.angle_at(*t).map(|x| x - a)))
+        }),
         frames: out_frames,
     };
     Ok((
@@ -651,4 +664,3 @@ pub fn identify_plane(
         },
     ))
 }
-

@@ -143,7 +143,9 @@ impl ExcitationPlan {
                 (Some(v), None, None) if ok(v) => {}
                 (None, Some(a), Some(b)) if ok(a) && ok(b) => {}
                 (Some(_), None, None) | (None, Some(_), Some(_)) => {
-                    return Err(format!("{what}: inputs must be 0..=5 V (the driver's input range)"))
+                    return Err(format!(
+                        "{what}: inputs must be 0..=5 V (the driver's input range)"
+                    ))
                 }
                 _ => {
                     return Err(format!(
@@ -168,7 +170,10 @@ impl ExcitationPlan {
             }
             span(&what, h.from_s, h.to_s)?;
             if !(h.deg.is_finite() && h.deg.abs() <= 25.0) {
-                return Err(format!("{what}.deg: must be within ±25°, got {}", short(h.deg)));
+                return Err(format!(
+                    "{what}.deg: must be within ±25°, got {}",
+                    short(h.deg)
+                ));
             }
             for (j, d) in self.drive.iter().enumerate() {
                 let plane_of = (d.coil - 1) % planes;
@@ -227,11 +232,12 @@ impl ExcitationPlan {
                 to_v: None,
             };
             drive.extend([
-                step(ag, 0.0, 9.0, 1.95),
-                step(ant, 16.0, 25.0, 1.95),
-                step(ag, 32.0, 33.5, 3.0),
-                step(ant, 40.0, 54.0, 1.9),
-                step(ag, 46.0, 53.0, 1.97),
+                step(ag, 0.0, 2.0, 3.0),
+                step(ant, 10.0, 11.5, 3.0),
+                step(ag, 20.0, 21.0, 3.0),
+                step(ant, 30.0, 46.0, 1.9),
+                step(ag, 36.0, 37.5, 3.0),
+                step(ag, 47.0, 60.0, 1.9),
             ]);
         }
         Self {
@@ -243,12 +249,16 @@ impl ExcitationPlan {
         }
     }
 
-    /// The standard plan: for every pair, single-coil steps at levels that
-    /// span the transformation bands, short strong pulses, slow ramps,
-    /// co-contraction (the antagonist warm while the agonist steps, which
-    /// raises the agonist's stress and shows the Clausius–Clapeyron
-    /// shift), cooling gaps, and, for `with_holds`, holds at ±8° under the
-    /// controller. The block of 240 s is repeated to fill `duration_s`.
+    /// The standard plan: for every pair, sustained low levels (1.85 and
+    /// 1.9 V: warm coils, a partial transformation where the driver is
+    /// strong), saturated pulses of 1–2.5 s (0.5 A whatever the driver's
+    /// gain: partial to full transformations), a slow ramp, co-contraction
+    /// (the antagonist warm while the agonist is pulsed, which raises the
+    /// agonist's stress and shows the Clausius–Clapeyron shift), cooling
+    /// gaps, and, for `with_holds`, holds at ±8° under the controller.
+    /// The firmware's budget model (1.5 A/V, conservative) allows no
+    /// sustained input above ≈ 1.9 V and 0.5 A pulses of ≈ 3 s from cold,
+    /// hence the shape. The block of 240 s is repeated to fill `duration_s`.
     /// Every level stays inside the firmware's default thermal budget
     /// (checked by host-tools before a plan runs).
     pub fn standard(planes: usize, duration_s: f64, with_holds: bool) -> Self {
@@ -279,17 +289,18 @@ impl ExcitationPlan {
                     to_v: Some(vb),
                 };
                 drive.extend([
-                    step(ag, 0.0, 12.0, 1.88),
-                    step(ag, 12.0, 24.0, 1.95),
-                    step(ant, 40.0, 52.0, 1.88),
-                    step(ant, 52.0, 64.0, 1.95),
-                    step(ag, 80.0, 82.0, 3.0),
-                    step(ant, 100.0, 102.0, 3.0),
-                    ramp(ag, 118.0, 133.0, 1.7, 1.97),
-                    ramp(ant, 150.0, 165.0, 1.7, 1.97),
-                    // Co-contraction: antagonist warm, agonist steps.
+                    step(ag, 0.0, 15.0, 1.85),
+                    step(ag, 15.0, 30.0, 1.9),
+                    step(ant, 45.0, 60.0, 1.85),
+                    step(ant, 60.0, 75.0, 1.9),
+                    step(ag, 90.0, 91.0, 3.0),
+                    step(ant, 105.0, 106.5, 3.0),
+                    step(ag, 120.0, 122.5, 3.0),
+                    step(ant, 140.0, 142.0, 3.0),
+                    ramp(ag, 160.0, 175.0, 1.7, 1.9),
+                    // Co-contraction: antagonist warm, agonist pulsed.
                     step(ant, 180.0, 205.0, 1.9),
-                    step(ag, 190.0, 200.0, 1.97),
+                    step(ag, 190.0, 191.5, 3.0),
                 ]);
                 if with_holds {
                     hold.push(Hold {

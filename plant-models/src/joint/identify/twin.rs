@@ -49,7 +49,12 @@ pub fn record_2d(
                 .camera_latest()
                 .and_then(|f| f.angles_deg.map(|a| (f.capture_time_s, a))),
             wire_mm: [j.wire_insertion_mm(), 0.0, 0.0, 0.0],
-            resistance_ohm: [coils[0].resistance_ohm(), coils[1].resistance_ohm(), 0.0, 0.0],
+            resistance_ohm: [
+                coils[0].resistance_ohm(),
+                coils[1].resistance_ohm(),
+                0.0,
+                0.0,
+            ],
         };
         let v = inputs(plan, 1, k);
         j.step(CONTROL_PERIOD_S, &v[..2])?;

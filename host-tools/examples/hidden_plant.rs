@@ -1,0 +1,27 @@
+//! Writes the twin tests' hidden joint (`plant_models::joint::identify::
+//! hidden`: the defaults moved 20–50 %, a Clausius–Clapeyron slope, more
+//! camera noise, jamming) as a plant file, so the whole pipeline can be run
+//! from the command line against a joint whose truth is known:
+//! `cargo run --release -p host-tools --example hidden_plant -- 3d hidden.toml [SEED]`
+use plant_models::joint::identify::hidden;
+
+use host_tools::plant_file::{PlantFile, PlantParams};
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let (Some(kind), Some(path)) = (args.get(1), args.get(2)) else {
+        anyhow::bail!("usage: hidden_plant 2d|3d OUT.toml [SEED]");
+    };
+    let seed: u64 = args.get(3).map(|s| s.parse()).transpose()?.unwrap_or(7);
+    let params = match kind.as_str() {
+        "2d" => PlantParams::TwoD(hidden::joint_2d(seed)),
+        "3d" => PlantParams::ThreeD(hidden::joint_3d(seed)),
+        other => anyhow::bail!("joint must be 2d or 3d, got {other}"),
+    };
+    PlantFile::new(params, vec![]).save(
+        std::path::Path::new(path),
+        "# The twin tests' hidden joint (plant_models::joint::identify::hidden).\n",
+    )?;
+    println!("hidden {kind} joint written to {path}");
+    Ok(())
+}
