@@ -45,4 +45,4 @@ step "tests: unit, property, closed-loop and integration (host)"
 cargo test --workspace --locked
 
 step "the firmware image under QEMU in lockstep with the simulated joint (needs the image built above)"
-cargo test -p integration-tests --test qemu_hil --locked -- --ignored
+cargo test -p integration-tests --test qemu_hil --test qemu_tuned_gains --locked -- --ignored
