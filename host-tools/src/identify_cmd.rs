@@ -234,8 +234,17 @@ fn table(reports: &[PlaneReport]) -> String {
         for st in &r.stages {
             let _ = writeln!(
                 s,
-                "  stage {:12} {:>3} iterations, {:>4} replays, {:>7} residuals, rms {:.3}",
-                st.name, st.iterations, st.evaluations, st.residuals, st.rms_scaled
+                "  stage {:12} {:>3} iterations, {:>4} replays, {:>7} residuals, rms {:.3}{}",
+                st.name,
+                st.iterations,
+                st.evaluations,
+                st.residuals,
+                st.rms_scaled,
+                if st.stopped_by_budget {
+                    "  STOPPED BY --max-iterations: not converged, the estimates may be off by more than their 1σ; raise it"
+                } else {
+                    ""
+                }
             );
         }
     }

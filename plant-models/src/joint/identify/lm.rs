@@ -53,6 +53,10 @@ pub struct LmResult {
     pub m: usize,
     /// Iterations taken.
     pub iterations: usize,
+    /// Whether the minimiser stopped because it ran out of iterations
+    /// (`max_iterations`) rather than because the cost stopped falling:
+    /// `x` may then not be the optimum.
+    pub stopped_by_budget: bool,
     /// Residual evaluations.
     pub evaluations: usize,
     /// Standard deviation of each coordinate (∞ where undetermined).
@@ -115,7 +119,7 @@ where
                     lambda = (lambda / 10.0).max(1e-9);
                     accepted = true;
                     if decrease < opts.ftol {
-                        return finish(&f, x, r, cost, m, iterations, evaluations, opts);
+                        return finish(&f, x, r, cost, m, iterations, evaluations, false, opts);
                     }
                     break;
                 }
@@ -124,12 +128,13 @@ where
             }
         }
         if !accepted {
-            break;
+            // No step lowers the cost: a (local) optimum.
+            return finish(&f, x, r, cost, m, iterations, evaluations, false, opts);
         }
         jac = jacobian(&f, &x, &r, opts.step)?;
         evaluations += n;
     }
-    finish(&f, x, r, cost, m, iterations, evaluations, opts)
+    finish(&f, x, r, cost, m, iterations, evaluations, true, opts)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -141,6 +146,7 @@ fn finish<F>(
     m: usize,
     iterations: usize,
     evaluations: usize,
+    stopped_by_budget: bool,
     opts: LmOptions,
 ) -> Result<LmResult, IdentifyError>
 where
@@ -154,6 +160,7 @@ where
         cost,
         m,
         iterations,
+        stopped_by_budget,
         evaluations: evaluations + n,
         std,
         correlation,
@@ -305,5 +312,25 @@ mod tests {
             "{:?}",
             r.std
         );
+    }
+
+    #[test]
+    fn a_fit_cut_short_by_its_budget_says_so() {
+        let t: Vec<f64> = (0..50).map(|k| k as f64 * 0.1).collect();
+        let f = |x: &[f64]| -> Result<Vec<f64>, IdentifyError> {
+            Ok(t.iter()
+                .map(|t| x[0] * (-x[1] * t).exp() - 2.0 * (-0.7 * t).exp())
+                .collect())
+        };
+        let opts = |max_iterations| LmOptions {
+            max_iterations,
+            ftol: 1e-12,
+            step: 1e-7,
+        };
+        let short = levenberg_marquardt(f, &[1.0, 0.2], opts(2)).unwrap();
+        assert!(short.stopped_by_budget && short.iterations == 2);
+        assert!((short.x[1] - 0.7).abs() > 1e-3, "{:?}", short.x);
+        let full = levenberg_marquardt(f, &[1.0, 0.2], opts(200)).unwrap();
+        assert!(!full.stopped_by_budget, "{} iterations", full.iterations);
     }
 }

@@ -159,6 +159,9 @@ pub struct StageReport {
     pub residuals: usize,
     /// rms of the scaled residuals at the optimum.
     pub rms_scaled: f64,
+    /// The minimiser's last pass ran out of iterations: the estimates may
+    /// not be the optimum (raise `LmOptions::max_iterations`).
+    pub stopped_by_budget: bool,
 }
 
 /// A held-out camera frame: recorded and predicted angle.
@@ -382,6 +385,7 @@ where
         evaluations,
         residuals: r.m,
         rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
+        stopped_by_budget: r.stopped_by_budget,
     });
     for (j, p) in active.iter().enumerate() {
         let v = p.get(model);
@@ -507,6 +511,7 @@ pub fn identify_plane(
                 evaluations: 0,
                 residuals: 0,
                 rms_scaled: 0.0,
+                stopped_by_budget: false,
             });
         }
         let cur = log.current_a.as_ref().map(|c| c[..fit_rows].to_vec());
