@@ -168,8 +168,8 @@ impl SkylineCholesky {
         // column i of L below the diagonal.
         let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
         for k in 0..n {
-            for i in self.first[k]..k {
-                below[i].push(k);
+            for rows in &mut below[self.first[k]..k] {
+                rows.push(k);
             }
         }
         for i in (0..n).rev() {
