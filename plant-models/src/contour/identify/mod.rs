@@ -3,6 +3,7 @@
 //! curves), deforming contours over time, distances between contours, and
 //! the paper's test cases (Eq. 38, Theorem 1, the closed surface, a
 //! deforming-contour movie with held-out frames).
+pub mod data;
 pub mod distance;
 pub mod gcv;
 pub mod movie;

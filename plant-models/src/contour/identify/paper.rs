@@ -67,6 +67,25 @@ pub fn grid_sites(n1: usize, n2: usize, s_periodic: bool) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// Eq. 38 data as contour frames: frame i at s = 10 i/(N − 1), with N
+/// points at θ(t_j), t_j = 10 j/N, radius `f(s, t_j) + σ ε`; returns per
+/// frame its s and the (θ, radius) pairs.
+pub fn rbc_frames(n: usize, sigma: f64, rng: &mut impl Rng) -> Vec<(f64, Vec<(f64, f64)>)> {
+    (0..n)
+        .map(|i| {
+            let s = DOMAIN * i as f64 / (n.max(2) - 1) as f64;
+            let pts = (0..n)
+                .map(|j| {
+                    let t = DOMAIN * j as f64 / n as f64;
+                    let e: f64 = StandardNormal.sample(rng);
+                    (theta(t), rbc_surface(s, t) + sigma * e)
+                })
+                .collect();
+            (s, pts)
+        })
+        .collect()
+}
+
 /// The paper's axes: s open (periodic for the closed surface), t periodic.
 pub fn axes(closed: bool) -> Result<(Axis, Axis)> {
     Ok((
