@@ -209,6 +209,7 @@ struct FitSummary {
 struct LambdaSummary {
     lambda: f64,
     by_gcv: bool,
+    at_scan_edge: bool,
     gcv: f64,
     trace_hat: f64,
 }
@@ -218,6 +219,7 @@ impl From<&LambdaReport> for LambdaSummary {
         Self {
             lambda: r.lambda,
             by_gcv: r.by_gcv,
+            at_scan_edge: r.at_scan_edge,
             gcv: r.gcv,
             trace_hat: r.trace_hat,
         }
@@ -479,6 +481,12 @@ fn fit_report(s: &FitSummary) -> String {
             l.trace_hat,
             s.surface_rms_residual.unwrap_or(f64::NAN)
         );
+        if l.at_scan_edge {
+            let _ = writeln!(
+                out,
+                "note: GCV's minimum is at the end of its scan — fewer data than spline coefficients (try fewer knots) or no detectable signal; λ is not well determined"
+            );
+        }
     }
     let shown: Vec<&FrameResult> = if s.per_frame.len() > 12 {
         let step = s.per_frame.len().div_ceil(12);

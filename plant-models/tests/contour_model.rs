@@ -434,3 +434,43 @@ fn bad_input_is_refused_by_name() {
     assert_eq!(f.solver(), Solver::Kkt);
     assert!((c.value(1.0) - 2.0).abs() < 1e-9);
 }
+
+#[test]
+fn area_and_smoothness_are_the_kronecker_forms_of_eq_40_and_41() {
+    use nalgebra::{DMatrix, DVector};
+    use plant_models::contour::gramian::{gramian, kron};
+    // A surface with arbitrary coefficients, periodic in t.
+    let sa = Axis::over(0.0, 6.0, 6, false).unwrap();
+    let ta = Axis::over(0.0, 10.0, 10, true).unwrap();
+    let (m1, m2) = (sa.coefficients(), ta.coefficients());
+    let mut coef: Vec<f64> = (0..m1 * m2).map(|k| 1.0 + 0.3 * jitter(k)).collect();
+    for i in 0..m1 {
+        for l in 0..3 {
+            coef[i + m1 * (10 + l)] = coef[i + m1 * l];
+        }
+    }
+    let x = SplineSurface::new(sa, ta, coef.clone()).unwrap();
+    let tau = DVector::from_vec(coef);
+    let q00 = gramian(&ta, 0, 0).to_dense();
+    let q22 = gramian(&ta, 2, 2).to_dense();
+    for s in [0.0, 1.3, 2.5, 5.99] {
+        let b1 = DVector::from_vec(sa.basis_vector(s, 0));
+        let bc: DMatrix<f64> = &b1 * b1.transpose();
+        let area = PI / 10.0 * (tau.transpose() * kron(&q00, &bc) * &tau)[0];
+        let c = (tau.transpose() * kron(&q22, &bc) * &tau)[0];
+        assert!((x.area(s) - area).abs() < 1e-12 * area.abs(), "S({s})");
+        assert!(
+            (x.smoothness(s) - c).abs() < 1e-10 * c.abs().max(1.0),
+            "C({s})"
+        );
+        // And S(s) = ½∫r² dθ by quadrature over the polar contour (Eq. 39).
+        let n = 4000;
+        let quad: f64 = (0..n)
+            .map(|k| {
+                let t = 10.0 * (k as f64 + 0.5) / n as f64;
+                0.5 * x.value(s, t).powi(2) * TAU / n as f64
+            })
+            .sum();
+        assert!((quad - area).abs() < 1e-6 * area, "S({s}) by quadrature");
+    }
+}

@@ -34,6 +34,11 @@ pub struct LambdaReport {
     pub trace_hat: f64,
     /// Whether λ was chosen by GCV.
     pub by_gcv: bool,
+    /// GCV's minimum sits at an end of the scanned range (λ₀·10⁻⁹ or
+    /// λ₀·10³): typically too few data for the knots (N ≤ free
+    /// coefficients) so that GCV heads for interpolation, or data with no
+    /// detectable signal.
+    pub at_scan_edge: bool,
     /// The scanned (λ, V) pairs (empty for a fixed λ).
     pub scanned: Vec<(f64, f64)>,
 }
@@ -81,6 +86,7 @@ pub fn factor_with(
                     gcv,
                     trace_hat: tr,
                     by_gcv: false,
+                    at_scan_edge: false,
                     scanned: Vec::new(),
                 },
             ))
@@ -151,6 +157,7 @@ fn choose_by_gcv(
         .min_by(|x, y| x.0.total_cmp(&y.0))
         .unwrap_or(best);
     let lam = l0 * 10f64.powf(k);
+    let at_scan_edge = k <= GRID_LO + GRID_STEP || k >= GRID_HI - GRID_STEP;
     let f = problem.fitter(lam, solver)?;
     let (gcv, tr) = gcv_score(&f, channels)?;
     scanned.sort_by(|x, y| x.0.total_cmp(&y.0));
@@ -161,6 +168,7 @@ fn choose_by_gcv(
             gcv,
             trace_hat: tr,
             by_gcv: true,
+            at_scan_edge,
             scanned,
         },
     ))
