@@ -237,6 +237,9 @@ struct FittedFrame {
     result: FrameResult,
 }
 
+/// Most whole frames the surface model is written at.
+const MAX_MODEL_FRAMES: usize = 5000;
+
 fn default_knots(data: &ContourData, cap: usize) -> usize {
     let min_points = data.frames.iter().map(|f| f.1.len()).min().unwrap_or(4);
     min_points.clamp(4, cap)
@@ -373,10 +376,16 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
             )?;
             // The model at every whole frame from the first to the last
             // (the frames between the data frames are the model's own).
+            // (Over a span of more than MAX_MODEL_FRAMES frames: the data
+            // frames only, to keep the files small.)
             let (f0, f1) = (fit.first_frame, fit.last_frame);
-            let whole: Vec<f64> = (f0.ceil() as i64..=f1.floor() as i64)
-                .map(|f| f as f64)
-                .collect();
+            let whole: Vec<f64> = if f1 - f0 <= MAX_MODEL_FRAMES as f64 {
+                (f0.ceil() as i64..=f1.floor() as i64)
+                    .map(|f| f as f64)
+                    .collect()
+            } else {
+                sigs.iter().map(|s| s.0).collect()
+            };
             for &frame in &whole {
                 let data_frame = sigs.iter().find(|s| s.0 == frame);
                 let angle: Vec<f64> = (0..n)

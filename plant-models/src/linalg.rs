@@ -172,26 +172,36 @@ impl SkylineCholesky {
                 rows.push(k);
             }
         }
+        let mut l: Vec<f64> = Vec::new();
         for i in (0..n).rev() {
-            let lii = self.get(i, i);
-            // Column j ≥ i of row i of Z is Z_ji; compute for every j ≥ i with
-            // (j, i) in the profile, and the diagonal.
-            let mut targets: Vec<usize> = below[i].clone();
-            targets.push(i);
-            // Off-diagonal entries first: the diagonal one needs them.
-            for &j in &targets {
-                let mut s = 0.0;
-                for &k in &below[i] {
-                    s += self.get(k, i) * z.get(k.max(j), k.min(j));
-                }
-                let v = if j == i {
-                    1.0 / (lii * lii) - s / lii
-                } else {
-                    -s / lii
-                };
-                let (r, c) = (j.max(i), j.min(i));
-                z.data[z.offset[r] + c - z.first[r]] = v;
+            let lii = self.data[self.offset[i] + i - self.first[i]];
+            let ks = &below[i];
+            // Column i of L below the diagonal.
+            l.clear();
+            l.extend(
+                ks.iter()
+                    .map(|&k| self.data[self.offset[k] + i - self.first[k]]),
+            );
+            // Off-diagonal Z_ji (j > i) first: the diagonal needs them.
+            let mut diag_sum = 0.0;
+            for (a, &j) in ks.iter().enumerate() {
+                let (fj, oj) = (z.first[j], z.offset[j]);
+                // k < j: Z_jk in row j; k ≥ j: Z_kj in row k (ks ascends).
+                let mut s: f64 = ks[..a]
+                    .iter()
+                    .zip(&l[..a])
+                    .map(|(&k, lk)| lk * z.data[oj + k - fj])
+                    .sum();
+                s += ks[a..]
+                    .iter()
+                    .zip(&l[a..])
+                    .map(|(&k, lk)| lk * z.data[z.offset[k] + j - z.first[k]])
+                    .sum::<f64>();
+                let zji = -s / lii;
+                z.data[oj + i - fj] = zji;
+                diag_sum += l[a] * zji;
             }
+            z.data[z.offset[i] + i - z.first[i]] = 1.0 / (lii * lii) - diag_sum / lii;
         }
         z
     }

@@ -102,21 +102,15 @@ pub fn read_contour_csv(text: &str, file: &str) -> Result<ContourData> {
             table.column("y").map_err(csv_error)?,
         ]
     };
-    // Group rows by frame, keeping file order within a frame.
-    let mut keys: Vec<f64> = table
-        .rows
-        .iter()
-        .map(|r| frame_col.map_or(0.0, |c| r.values[c]))
-        .collect();
-    keys.sort_by(f64::total_cmp);
-    keys.dedup();
-    let mut frames = Vec::with_capacity(keys.len());
-    for key in keys {
-        let rows: Vec<_> = table
-            .rows
-            .iter()
-            .filter(|r| frame_col.map_or(0.0, |c| r.values[c]) == key)
-            .collect();
+    // Group rows by frame, keeping file order within a frame (a stable
+    // sort by frame number).
+    let key_of = |r: &crate::csv_input::Row| frame_col.map_or(0.0, |c| r.values[c]);
+    let mut sorted: Vec<&crate::csv_input::Row> = table.rows.iter().collect();
+    sorted.sort_by(|a, b| key_of(a).total_cmp(&key_of(b)));
+    let mut frames = Vec::new();
+    for group in sorted.chunk_by(|a, b| key_of(a) == key_of(b)) {
+        let rows = group.to_vec();
+        let key = key_of(rows[0]);
         let name = format!("{file}: frame {}", crate::short_number(key));
         if rows.len() < MIN_CONTOUR_POINTS {
             return Err(ContourError::TooFewPoints {

@@ -4,7 +4,7 @@
 //! For a linear smoother `x̂ = H(λ) d` with weights w,
 //! `V(λ) = (Σ w (x̂ − d)² / Σ w) / (1 − tr H / N)²`, averaged over the data
 //! channels (x and y of a parametric curve share one λ). V is scanned on a
-//! grid of λ = λ₀·10^k, k = −9 … 3 in quarter decades, around the problem's
+//! grid of λ = λ₀·10^k, k = −9 … 3 in half decades, around the problem's
 //! natural unit λ₀ ([`FitProblem::lambda_scale`]), and the best grid point
 //! is refined by golden-section search on log λ to 0.01 decade. GCV can
 //! have several local minima; the grid keeps the search from the nearest
@@ -62,7 +62,7 @@ pub fn gcv_score(fitter: &Fitter, channels: &[&[f64]]) -> Result<(f64, f64)> {
 /// Grid of log10(λ/λ₀).
 const GRID_LO: f64 = -9.0;
 const GRID_HI: f64 = 3.0;
-const GRID_STEP: f64 = 0.25;
+const GRID_STEP: f64 = 0.5;
 /// Golden-section tolerance in decades.
 const REFINE_TOL: f64 = 0.01;
 
