@@ -153,6 +153,7 @@ def main():
     if a.figure:
         import matplotlib
         matplotlib.use("Agg")
+        matplotlib.rcParams["svg.fonttype"] = "none"  # text as text: a small file
         import matplotlib.pyplot as plt
         fig, axes = plt.subplots(1, len(a.slices), figsize=(4.2 * len(a.slices), 3.6),
                                  sharey=True)
