@@ -284,6 +284,9 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
     let n = a.samples;
     let mut frames = Vec::new();
     let mut surface = None;
+    // The fitted splines themselves (axes and coefficients), per frame or
+    // the surface, for spline.json.
+    let mut splines: Vec<serde_json::Value> = Vec::new();
     let mut time_knots = None;
     match model {
         ModelArg::Signature => {
@@ -291,6 +294,7 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
                 let loc = format!("{file}: frame {frame}");
                 let sig = signature_of(&loc, f)?;
                 let fit = fit_signature(&loc, &sig, &opts)?;
+                splines.push(serde_json::json!({ "frame": frame, "signature": &fit }));
                 let angle: Vec<f64> = (0..n)
                     .map(|k| std::f64::consts::TAU * k as f64 / n as f64)
                     .collect();
@@ -322,6 +326,7 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
                 let loc = format!("{file}: frame {frame}");
                 let pts = f.points();
                 let fit = fit_closed_curve(&loc, &pts, &opts)?;
+                splines.push(serde_json::json!({ "frame": frame, "closed_curve": &fit }));
                 let area = fit.curve.signed_area();
                 let centre = plant_models::contour::identify::tracked::polygon_centroid(
                     &fit.curve.sample(n.max(64)),
@@ -414,11 +419,25 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
                     },
                 });
             }
+            splines.push(serde_json::json!({ "surface": &fit }));
             surface = Some(fit);
         }
     }
     fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let mut files = vec!["fit.csv", "frames.csv", "fit.json", "fit.svg"];
+    let mut files = vec![
+        "fit.csv",
+        "frames.csv",
+        "fit.json",
+        "spline.json",
+        "fit.svg",
+    ];
+    write(
+        &a.out.join("spline.json"),
+        &serde_json::to_string(&serde_json::json!({
+            "model": model,
+            "splines": splines,
+        }))?,
+    )?;
     write(&a.out.join("fit.csv"), &fit_csv(&frames))?;
     write(&a.out.join("frames.csv"), &frames_csv(&frames))?;
     write(
