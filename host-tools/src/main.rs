@@ -8,6 +8,7 @@ use host_tools::{calibrate, output, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
+mod contour;
 mod push;
 mod viscoelastic;
 
@@ -37,6 +38,10 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// Periodic and closed smoothing spline contours (seed 000, Fujioka &
+    /// Kano): fit tracked contours and deforming contours over time, or
+    /// write the paper's test cases.
+    Contour(contour::ContourArgs),
 }
 
 #[derive(Args)]
@@ -111,6 +116,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Contour(args) => contour::run(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

@@ -16,7 +16,11 @@ use clap::{Args, Subcommand, ValueEnum};
 use host_tools::input::from_json;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
-use plant_models::pushing::classify::{classify, MaterialModel};
+use plant_models::pushing::classify::{classify, MaterialModel, Tally};
+use plant_models::pushing::contour_score::{
+    classify_by_contour, score_contour_run, skill, still_block_contour_score, still_config,
+    track_video, ContourScore, ContourTarget, ReachZone, TrackingOptions,
+};
 use plant_models::pushing::error::PushError;
 use plant_models::pushing::evaluate::{
     score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore,
@@ -112,6 +116,27 @@ enum ModeArg {
     Both,
 }
 
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ScoreArg {
+    /// Pixel F-score over the whole block, μ(F) (the seed's, Eq. 16–19).
+    F,
+    /// Mean distance (px) between the model's outline and the tracked
+    /// contour (a periodic smoothing spline) within the finger's reach.
+    Contour,
+}
+
+impl ScoreArg {
+    fn name(self) -> &'static str {
+        match self {
+            ScoreArg::F => "f",
+            ScoreArg::Contour => "contour",
+        }
+    }
+}
+
+/// Spacing of the resampled contours the contour distance compares, px.
+const CONTOUR_SPACING_PX: f64 = 2.0;
+
 /// Which push to use.
 #[derive(Args, Clone)]
 struct VideoArgs {
@@ -195,6 +220,10 @@ struct CalibrateArgs {
     /// Seed of the evolutionary search.
     #[arg(allow_negative_numbers = true, long, default_value_t = 7)]
     seed: u64,
+    /// What the search maximises: μ(F), or minus the contour distance in
+    /// the finger's reach.
+    #[arg(long, value_enum, default_value = "f")]
+    score: ScoreArg,
     /// Output directory.
     #[arg(long, default_value = "push-out")]
     out: PathBuf,
@@ -212,6 +241,10 @@ struct ClassifyArgs {
     /// A calibrated model as LABEL=PARAMS.json; give at least two.
     #[arg(long = "model", value_name = "LABEL=JSON", required = true)]
     models: Vec<String>,
+    /// Per-frame score that decides: F-score, or contour distance in the
+    /// finger's reach.
+    #[arg(long, value_enum, default_value = "f")]
+    score: ScoreArg,
     /// Output directory.
     #[arg(long, default_value = "push-out")]
     out: PathBuf,
@@ -388,6 +421,7 @@ fn snapshots_svg(
     prep: &PreparedVideo,
     shots: &[(usize, Vec<V2>)],
     score: &RunScore,
+    tracked: &Tracking,
     title: &str,
 ) -> String {
     let sc = &prep.video.scenario;
@@ -422,6 +456,20 @@ fn snapshots_svg(
         svg.line(table, (ox + panel_w, table.1), Stroke::solid("#964", 2.0));
         let contour: Vec<(f64, f64)> = prep.video.contours_px[*f].iter().map(|p| tx(*p)).collect();
         svg.polygon(&contour, "#ddd", Stroke::solid("#777", 1.0));
+        let mut spline: Vec<(f64, f64)> = tracked.contours_px[*f].iter().map(|p| tx(*p)).collect();
+        if let Some(&first) = spline.first() {
+            spline.push(first);
+        }
+        svg.polyline(spline, Stroke::solid("#2a2", 1.2));
+        // The zone's outline, kept inside the panel.
+        let mut zone: Vec<(f64, f64)> = zone_outline(&tracked.zone)
+            .into_iter()
+            .map(|p| tx(V2::new(p.x.clamp(lo.x, hi.x), p.y.clamp(lo.y, hi.y))))
+            .collect();
+        if let Some(&first) = zone.first() {
+            zone.push(first);
+        }
+        svg.polyline(zone, Stroke::dashed("#e80", 1.0));
         svg.segments(
             prep.mesh
                 .edges
@@ -446,7 +494,10 @@ fn snapshots_svg(
             top + panel_h + 18.0,
             12.0,
             Anchor::Start,
-            &format!("frame {f} ({phase}), F = {fscore:.3}"),
+            &format!(
+                "frame {f} ({phase}), F = {fscore:.3}, d = {:.1} px",
+                score_d(tracked, *f)
+            ),
         );
     }
     svg.text_styled(
@@ -455,22 +506,87 @@ fn snapshots_svg(
         12.0,
         Anchor::Start,
         r##"fill="#555""##,
-        "grey: ground-truth contour · blue: mass-spring mesh · red: finger · brown: table",
+        "grey: tracked contour points · green: their periodic smoothing spline · dashed orange: the finger's reach · blue: mass-spring mesh · red: finger · brown: table",
     );
     svg.finish()
 }
 
-fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> String {
+/// The tracked contour as splines, its reach zone, and (when a model was
+/// run) the model's and the undeformed block's contour distances.
+struct Tracking {
+    contours_px: Vec<Vec<V2>>,
+    zone: ReachZone,
+    target: ContourTarget,
+    model: Option<ContourScore>,
+    still: ContourScore,
+}
+
+impl Tracking {
+    fn of(prep: &PreparedVideo) -> Result<Self> {
+        let tracked = track_video(&prep.video, &TrackingOptions::default())?;
+        let zone = ReachZone::default_of(&prep.video.scenario)?;
+        let target = ContourTarget::new(&tracked, zone, CONTOUR_SPACING_PX)?;
+        let still = still_block_contour_score(prep, &target);
+        Ok(Self {
+            contours_px: tracked.contours_px,
+            zone,
+            target,
+            model: None,
+            still,
+        })
+    }
+}
+
+/// The model's mean contour distance at frame `f` (NaN before a run).
+fn score_d(t: &Tracking, f: usize) -> f64 {
+    t.model
+        .as_ref()
+        .and_then(|m| m.mean_px_per_frame.get(f).copied())
+        .unwrap_or(f64::NAN)
+}
+
+/// The outline of the reach zone: the finger path's capsule.
+fn zone_outline(z: &ReachZone) -> Vec<V2> {
+    let d = z.path_end_px - z.path_start_px;
+    let u = if d.norm() > 0.0 {
+        d.normalize()
+    } else {
+        V2::new(0.0, -1.0)
+    };
+    let n = V2::new(-u.y, u.x);
+    let mut out = Vec::with_capacity(74);
+    for k in 0..=36 {
+        let a = std::f64::consts::PI * (k as f64 / 36.0 - 0.5);
+        out.push(z.path_end_px + (u * a.cos() + n * a.sin()) * z.radius_px);
+    }
+    for k in 0..=36 {
+        let a = std::f64::consts::PI * (k as f64 / 36.0 + 0.5);
+        out.push(z.path_start_px + (u * a.cos() + n * a.sin()) * z.radius_px);
+    }
+    out
+}
+
+fn frames_csv(
+    prep: &PreparedVideo,
+    forces_used: &[f64],
+    score: &RunScore,
+    tracking: &Tracking,
+) -> String {
     let sc = &prep.video.scenario;
     let mean = plant_models::pushing::raster::running_mean(&score.f_per_frame);
     let mut s = String::from(
-        "frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f\n",
+        "frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f,contour_mean_px,contour_max_px,still_contour_mean_px,still_contour_max_px\n",
     );
     for f in 0..prep.frame_count() {
         let t = sc.frame_time_s(f);
+        let (cm, cx) = tracking
+            .model
+            .as_ref()
+            .map(|m| (m.mean_px_per_frame[f], m.max_px_per_frame[f]))
+            .unwrap_or((f64::NAN, f64::NAN));
         let _ = writeln!(
             s,
-            "{f},{t:.3},{},{:.3},{:.4},{:.4},{:.5},{:.5}",
+            "{f},{t:.3},{},{:.3},{:.4},{:.4},{:.5},{:.5},{cm:.3},{cx:.3},{:.3},{:.3}",
             if sc.is_push_frame(f) {
                 "push"
             } else {
@@ -480,7 +596,9 @@ fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> St
             prep.video.forces_n[f],
             forces_used[f],
             score.f_per_frame[f],
-            mean[f]
+            mean[f],
+            tracking.still.mean_px_per_frame[f],
+            tracking.still.max_px_per_frame[f],
         );
     }
     s
@@ -530,10 +648,21 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
         }
         eprintln!("warning: {what}; frames from there on score 0 (--allow-unstable)");
     }
+    let still_f = score_run(
+        &prep,
+        &vec![0.0; prep.frame_count()],
+        &params,
+        &still_config(&sim),
+    )?
+    .mean_f;
+    let mut tracking = Tracking::of(&prep)?;
+    let contour = score_contour_run(&prep, &tracking.target, &forces, &params, &sim)?;
+    let contour_skill = skill(contour.mean_px, tracking.still.mean_px);
+    tracking.model = Some(contour.clone());
     out_dir(&a.out)?;
     write(
         &a.out.join("frames.csv"),
-        &frames_csv(&prep, &forces, &score),
+        &frames_csv(&prep, &forces, &score, &tracking),
     )?;
     write(&a.out.join("video.csv"), &write_video_csv(&prep.video))?;
     let shots = snapshot_positions(&prep, &forces, &params, &sim)?;
@@ -545,7 +674,7 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     );
     write(
         &a.out.join("snapshots.svg"),
-        &snapshots_svg(&prep, &shots, &score, &title),
+        &snapshots_svg(&prep, &shots, &score, &tracking, &title),
     )?;
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
     let chart = plot::line_charts(&[
@@ -561,6 +690,36 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
                     true,
                     &t,
                     &plant_models::pushing::raster::running_mean(&score.f_per_frame),
+                ),
+            ],
+        },
+        Chart {
+            title: "Contour distance within the finger's reach (tracked spline vs model outline)"
+                .into(),
+            x_label: "frame".into(),
+            y_label: "distance (px)".into(),
+            series: vec![
+                Series::over(
+                    "model, mean",
+                    "#1f5fbf",
+                    false,
+                    &t,
+                    &contour.mean_px_per_frame,
+                ),
+                Series::over("model, max", "#1f5fbf", true, &t, &contour.max_px_per_frame),
+                Series::over(
+                    "undeformed block, mean",
+                    "#555",
+                    false,
+                    &t,
+                    &tracking.still.mean_px_per_frame,
+                ),
+                Series::over(
+                    "undeformed block, max",
+                    "#555",
+                    true,
+                    &t,
+                    &tracking.still.max_px_per_frame,
                 ),
             ],
         },
@@ -583,13 +742,29 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             .field("mode", sim.mode.name())?
             .field("params", &params)?
             .field("mean_f", &score.mean_f)?
+            .field("still_mean_f", &still_f)?
+            .field("contour_mean_px", &contour.mean_px)?
+            .field("contour_max_px", &contour.max_px)?
+            .field("contour_worst_px", &contour.worst_px)?
+            .field("still_contour_mean_px", &tracking.still.mean_px)?
+            .field("still_contour_max_px", &tracking.still.max_px)?
+            .field("contour_skill", &contour_skill)?
+            .field("contour_mean_px_per_frame", &contour.mean_px_per_frame)?
             .field("unstable_from_frame", &score.unstable_from_frame)?
             .field("instability", &instability)?
             .field("f_per_frame", &score.f_per_frame)?
             .field("out", &a.out)?
             .print()?;
     } else {
-        println!("{title}");
+        println!("{title} (undeformed block: {still_f:.4})");
+        println!(
+            "contour distance in the finger's reach: {:.2} px mean, {:.2} px max (undeformed block {:.2} / {:.2} px): skill {:.2}",
+            contour.mean_px,
+            contour.max_px,
+            tracking.still.mean_px,
+            tracking.still.max_px,
+            contour_skill
+        );
         if let Some(what) = &instability {
             println!("{what}: scored 0 from there");
         }
@@ -615,6 +790,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     }
     let prep = prepare(&a.video, &a.model)?;
     let sim = sim_config(&a.model);
+    let mut tracking = Tracking::of(&prep)?;
     let mut st = EvolutionSettings::table_iii(a.seed);
     st.generations = a.generations;
     let bar = indicatif::ProgressBar::new(a.generations as u64);
@@ -629,39 +805,67 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     let result: CalibrationResult = calibrate(
         &st,
         &TABLE_III_RANGES,
-        |p| {
-            score_run(&prep, &prep.video.forces_n, p, &sim)
+        |p| match a.score {
+            ScoreArg::F => score_run(&prep, &prep.video.forces_n, p, &sim)
                 .map(|s| s.mean_f)
-                .unwrap_or(f64::NAN)
+                .unwrap_or(f64::NAN),
+            ScoreArg::Contour => {
+                score_contour_run(&prep, &tracking.target, &prep.video.forces_n, p, &sim)
+                    .map(|s| -s.mean_px)
+                    .unwrap_or(f64::NAN)
+            }
         },
         |g| {
-            bar.set_message(format!("best μ(F) {:.4}", g.best));
+            bar.set_message(match a.score {
+                ScoreArg::F => format!("best μ(F) {:.4}", g.best),
+                ScoreArg::Contour => format!("best contour distance {:.2} px", -g.best),
+            });
             bar.inc(1);
         },
     )?;
     bar.finish_and_clear();
     out_dir(&a.out)?;
     output::write_json(&a.out.join("params.json"), &result)?;
-    let mut csv = String::from("generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n");
+    // Generation scores in the score's own terms: μ(F), or the contour
+    // distance in px (the search maximised its negative).
+    let sign = if a.score == ScoreArg::Contour {
+        -1.0
+    } else {
+        1.0
+    };
+    let mut csv = String::from(match a.score {
+        ScoreArg::F => "generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n",
+        ScoreArg::Contour => {
+            "generation,best_contour_px,population_mean_contour_px,worst_contour_px,sigma\n"
+        }
+    });
     for g in &result.history {
         let _ = writeln!(
             csv,
             "{},{:.6},{:.6},{:.6},{:.2}",
-            g.generation, g.best, g.mean, g.worst, g.sigma
+            g.generation,
+            sign * g.best,
+            sign * g.mean,
+            sign * g.worst,
+            g.sigma
         );
     }
     write(&a.out.join("generations.csv"), &csv)?;
     let t: Vec<f64> = result.history.iter().map(|g| g.generation as f64).collect();
-    let best: Vec<f64> = result.history.iter().map(|g| g.best).collect();
-    let mean: Vec<f64> = result.history.iter().map(|g| g.mean).collect();
+    let best: Vec<f64> = result.history.iter().map(|g| sign * g.best).collect();
+    let mean: Vec<f64> = result.history.iter().map(|g| sign * g.mean).collect();
+    let what = match a.score {
+        ScoreArg::F => "μ(F)",
+        ScoreArg::Contour => "contour distance (px)",
+    };
     let chart = plot::line_charts(&[Chart {
         title: format!(
-            "μ(F) per generation, {} at {}",
+            "{what} per generation, {} at {}",
             prep.video.material,
             prep.video.scenario.site.name()
         ),
         x_label: "generation".into(),
-        y_label: "μ(F)".into(),
+        y_label: what.into(),
         series: vec![
             Series::over("best", "#1f5fbf", false, &t, &best),
             Series::over("population mean", "#e80", true, &t, &mean),
@@ -669,14 +873,33 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     }]);
     write(&a.out.join("mu_per_generation.svg"), &chart.finish())?;
     let score = score_run(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
+    let contour = score_contour_run(
+        &prep,
+        &tracking.target,
+        &prep.video.forces_n,
+        &result.best_params,
+        &sim,
+    )?;
+    let still_f = score_run(
+        &prep,
+        &vec![0.0; prep.frame_count()],
+        &result.best_params,
+        &still_config(&sim),
+    )?
+    .mean_f;
+    let contour_skill = skill(contour.mean_px, tracking.still.mean_px);
+    tracking.model = Some(contour.clone());
     let shots = snapshot_positions(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
     let title = format!(
-        "calibrated {} model on its training push: μ(F) = {:.4}",
-        prep.video.material, score.mean_f
+        "{} model calibrated by {} on its training push: μ(F) = {:.4}, contour distance {:.2} px",
+        prep.video.material,
+        a.score.name(),
+        score.mean_f,
+        contour.mean_px
     );
     write(
         &a.out.join("snapshots.svg"),
-        &snapshots_svg(&prep, &shots, &score, &title),
+        &snapshots_svg(&prep, &shots, &score, &tracking, &title),
     )?;
     if a.json {
         JsonObject::new()
@@ -684,19 +907,27 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             .field("site", prep.video.scenario.site.name())?
             .field("integrator", sim.integrator.name())?
             .field("mode", sim.mode.name())?
+            .field("score", a.score.name())?
             .field("best_params", &result.best_params)?
-            .field("best_mean_f", &result.best_score)?
+            .field("best_mean_f", &score.mean_f)?
+            .field("still_mean_f", &still_f)?
+            .field("best_contour_mean_px", &contour.mean_px)?
+            .field("best_contour_max_px", &contour.max_px)?
+            .field("still_contour_mean_px", &tracking.still.mean_px)?
+            .field("contour_skill", &contour_skill)?
             .field("evaluations", &result.evaluations)?
-            .field(
-                "best_per_generation",
-                &result.history.iter().map(|g| g.best).collect::<Vec<_>>(),
-            )?
+            .field("best_per_generation", &best)?
             .field("out", &a.out)?
             .print()?;
     } else {
         println!(
-            "best μ(F) {:.4} after {} generations ({} simulations)",
-            result.best_score,
+            "calibrated by {}: μ(F) {:.4} (undeformed block {:.4}), contour distance {:.2} px (undeformed block {:.2} px, skill {:.2}) after {} generations ({} simulations)",
+            a.score.name(),
+            score.mean_f,
+            still_f,
+            contour.mean_px,
+            tracking.still.mean_px,
+            contour_skill,
             result.history.len(),
             result.evaluations
         );
@@ -745,23 +976,52 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     }
     let prep = prepare(&a.video, &a.model)?;
     let sim = sim_config(&a.model);
-    let c = classify(&prep, &prep.video.forces_n, &models, &sim)?;
+    // Per-frame values (F, or contour distance in px) and the tally.
+    let (per_frame, tally, labels) = match a.score {
+        ScoreArg::F => {
+            let c = classify(&prep, &prep.video.forces_n, &models, &sim)?;
+            let tally = Tally {
+                frame_winner: c.frame_winner,
+                frames_won: c.frames_won,
+                vote: c.vote,
+                winner: c.winner,
+                leaders: c.leaders,
+            };
+            (c.f_per_frame, tally, c.labels)
+        }
+        ScoreArg::Contour => {
+            let tracking = Tracking::of(&prep)?;
+            let c =
+                classify_by_contour(&prep, &tracking.target, &prep.video.forces_n, &models, &sim)?;
+            (c.mean_px_per_frame, c.tally, c.labels)
+        }
+    };
+    let winner = tally.winner.map(|k| labels[k].as_str());
+    let verdict = tally.verdict(&labels);
+    let (prefix, y_label, digits) = match a.score {
+        ScoreArg::F => ("f", "F-score", 5),
+        ScoreArg::Contour => (
+            "d_px",
+            "mean contour distance in the finger's reach (px)",
+            3,
+        ),
+    };
     out_dir(&a.out)?;
     let mut csv = String::from("frame");
     for m in &models {
-        let _ = write!(csv, ",f_{}", m.label);
+        let _ = write!(csv, ",{prefix}_{}", m.label);
     }
     csv.push_str(",winner\n");
     for f in 0..prep.frame_count() {
         let _ = write!(csv, "{f}");
-        for k in 0..models.len() {
-            let _ = write!(csv, ",{:.5}", c.f_per_frame[k][f]);
+        for values in &per_frame {
+            let _ = write!(csv, ",{:.digits$}", values[f]);
         }
         let _ = writeln!(
             csv,
             ",{}",
-            c.frame_winner[f]
-                .map(|k| c.labels[k].as_str())
+            tally.frame_winner[f]
+                .map(|k| labels[k].as_str())
                 .unwrap_or("tie")
         );
     }
@@ -769,12 +1029,9 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     const COLOURS: [&str; 6] = ["#1f5fbf", "#d22", "#2a2", "#e80", "#808", "#555"];
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
     let chart = plot::line_charts(&[Chart {
-        title: format!(
-            "F-score per frame of each model — global vote: {}",
-            c.verdict()
-        ),
+        title: format!("{y_label} per frame of each model — global vote: {verdict}"),
         x_label: "frame".into(),
-        y_label: "F-score".into(),
+        y_label: y_label.into(),
         series: models
             .iter()
             .enumerate()
@@ -784,7 +1041,7 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
                     COLOURS[k % COLOURS.len()],
                     k % 2 == 1,
                     &t,
-                    &c.f_per_frame[k],
+                    &per_frame[k],
                 )
             })
             .collect(),
@@ -794,23 +1051,34 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
         JsonObject::new()
             .field("video_material", &prep.video.material)?
             .field("site", prep.video.scenario.site.name())?
-            .field("winner", &c.winner_label())?
-            .field("tie", &c.winner.is_none())?
+            .field("score", a.score.name())?
+            .field("winner", &winner)?
+            .field("tie", &winner.is_none())?
             .field(
                 "leaders",
-                &c.leaders.iter().map(|&k| &c.labels[k]).collect::<Vec<_>>(),
+                &tally
+                    .leaders
+                    .iter()
+                    .map(|&k| &labels[k])
+                    .collect::<Vec<_>>(),
             )?
-            .field("labels", &c.labels)?
-            .field("frames_won", &c.frames_won)?
-            .field("vote", &c.vote)?
+            .field("labels", &labels)?
+            .field("frames_won", &tally.frames_won)?
+            .field("vote", &tally.vote)?
             .field("out", &a.out)?
             .print()?;
     } else {
-        println!("global vote: {}", c.verdict());
-        for (k, l) in c.labels.iter().enumerate() {
+        println!("global vote by {}: {verdict}", a.score.name());
+        for (k, l) in labels.iter().enumerate() {
             println!(
-                "  {l:>12}: {} frames won, weighted vote {:+.4}",
-                c.frames_won[k], c.vote[k]
+                "  {l:>12}: {} frames won, weighted vote {:+.4}{}",
+                tally.frames_won[k],
+                tally.vote[k],
+                if a.score == ScoreArg::Contour {
+                    " px"
+                } else {
+                    ""
+                }
             );
         }
         println!(
@@ -920,6 +1188,10 @@ mod tests {
         .unwrap();
         let frames = fs::read_to_string(sim_out.join("frames.csv")).unwrap();
         assert_eq!(frames.lines().count(), 101);
+        assert!(frames.lines().next().unwrap().ends_with(
+            "contour_mean_px,contour_max_px,still_contour_mean_px,still_contour_max_px"
+        ));
+        assert!(!frames.contains("NaN"));
         assert!(fs::read_to_string(sim_out.join("snapshots.svg"))
             .unwrap()
             .starts_with("<svg"));
@@ -935,6 +1207,11 @@ mod tests {
                 model: small_model(),
                 generations: 2,
                 seed: 3,
+                score: if name == "s" {
+                    ScoreArg::F
+                } else {
+                    ScoreArg::Contour
+                },
                 out: dir.join(name),
                 json: true,
             })
@@ -956,7 +1233,8 @@ mod tests {
         classify_cmd(ClassifyArgs {
             video: small_video(MaterialArg::Plasticine),
             model: small_model(),
-            models,
+            models: models.clone(),
+            score: ScoreArg::F,
             out: dir.join("c"),
             json: true,
         })
@@ -968,11 +1246,25 @@ mod tests {
                 .count(),
             101
         );
+        // By contour distance: the CSV holds distances per model.
+        classify_cmd(ClassifyArgs {
+            video: small_video(MaterialArg::Plasticine),
+            model: small_model(),
+            models,
+            score: ScoreArg::Contour,
+            out: dir.join("cc"),
+            json: true,
+        })
+        .unwrap();
+        let cc = fs::read_to_string(dir.join("cc/classification.csv")).unwrap();
+        assert!(cc.starts_with("frame,d_px_sponge,d_px_plasticine,winner"));
+        assert_eq!(cc.lines().count(), 101);
         let one = vec![format!("sponge={}", dir.join("s/params.json").display())];
         assert!(classify_cmd(ClassifyArgs {
             video: small_video(MaterialArg::Plasticine),
             model: small_model(),
             models: one,
+            score: ScoreArg::F,
             out: dir.join("c"),
             json: true
         })
@@ -982,6 +1274,7 @@ mod tests {
             model: small_model(),
             generations: 0,
             seed: 3,
+            score: ScoreArg::F,
             out: dir.join("z"),
             json: true
         })
