@@ -190,6 +190,24 @@ fn arg<T: std::str::FromStr>(words: &[&str], i: usize, what: &str) -> anyhow::Re
         .map_err(|_| anyhow::anyhow!("{what}: cannot parse `{w}`"))
 }
 
+/// Longest `wait` or `stream`: a day.
+const MAX_CONSOLE_SECONDS: f64 = 86_400.0;
+
+/// A duration in seconds from the user (`wait`, `stream`), checked before
+/// it becomes a `Duration`: not a number, negative, infinite or longer than
+/// a day is refused by name instead of panicking in the conversion or in
+/// the clock arithmetic.
+fn seconds(words: &[&str], i: usize) -> anyhow::Result<Duration> {
+    let secs: f64 = arg(words, i, "SECONDS")?;
+    if !(secs.is_finite() && (0.0..=MAX_CONSOLE_SECONDS).contains(&secs)) {
+        bail!(
+            "SECONDS must be from 0 to {MAX_CONSOLE_SECONDS} (a day), got `{}`",
+            words.get(i).copied().unwrap_or_default()
+        );
+    }
+    Duration::try_from_secs_f64(secs).map_err(|e| anyhow::anyhow!("SECONDS: {e}"))
+}
+
 fn run_console_command<P: Port>(
     link: &mut Link<P>,
     cmd: &str,
@@ -271,11 +289,9 @@ fn run_console_command<P: Port>(
             },
         )?,
         ["stream", ..] => {
-            let secs: f64 = arg(&words, 1, "SECONDS")?;
-            if !(secs.is_finite() && secs >= 0.0) {
-                bail!("SECONDS must be ≥ 0");
-            }
-            let end = Instant::now() + Duration::from_secs_f64(secs);
+            let span = seconds(&words, 1)?;
+            let secs = span.as_secs_f64();
+            let end = Instant::now() + span;
             let mut csv = csv;
             let mut n = 0u64;
             while let Some(m) = link.recv_until(end)? {
@@ -298,9 +314,7 @@ fn run_console_command<P: Port>(
             }
             eprintln!("{n} telemetry frames in {secs} s");
         }
-        ["wait", ..] => std::thread::sleep(Duration::from_secs_f64(
-            arg::<f64>(&words, 1, "SECONDS")?.clamp(0.0, 3600.0),
-        )),
+        ["wait", ..] => std::thread::sleep(seconds(&words, 1)?),
         _ => bail!("unknown command; try `help`\n{HELP}"),
     }
     Ok(())
