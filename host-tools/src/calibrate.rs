@@ -56,7 +56,7 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
         s.push_str(&cells.join(","));
         s.push('\n');
     }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_atomic(path, s)
 }
 
 /// Reads a sweep CSV; a bad row is an error naming the file and line.
@@ -431,13 +431,19 @@ impl CalibrationFile {
         Ok(())
     }
 
-    /// Writes it as TOML.
+    /// Writes it as TOML, atomically: a write that fails leaves the file
+    /// that was there.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        self.save_to(crate::output::AtomicFile::create(path)?)
+    }
+
+    /// Writes it into `file` (created before a computation, to check the
+    /// path first) and commits it.
+    pub fn save_to(&self, file: crate::output::AtomicFile) -> anyhow::Result<()> {
         let text = toml::to_string_pretty(self)?;
         let header = "# Wire-sensor calibration written by `softjoint calibrate wire`.\n\
                       # Sensor numbers are 1-based (the paper's d1..d4); angles in degrees, insertions in mm.\n";
-        std::fs::write(path, format!("{header}{text}"))
-            .with_context(|| format!("cannot write {}", path.display()))
+        file.commit(format!("{header}{text}").as_bytes())
     }
 
     /// The laws for the core.

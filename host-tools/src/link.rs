@@ -53,7 +53,9 @@ pub enum LinkError {
     },
     /// The other end of the line went away: the pty's QEMU exited, the
     /// pty board stopped, a USB adapter was unplugged.
-    #[error("the serial line closed: the other end hung up (a QEMU that exited, an unplugged board)")]
+    #[error(
+        "the serial line closed: the other end hung up (a QEMU that exited, an unplugged board)"
+    )]
     PortClosed,
     /// The port failed otherwise. The I/O error is part of the message
     /// and deliberately not also `source()`, so a reporter that prints

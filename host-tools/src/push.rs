@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::outln;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use plant_models::pushing::classify::{classify, MaterialModel};
 use plant_models::pushing::evaluate::{
@@ -288,12 +289,20 @@ fn load_params(path: &Path) -> Result<MaterialParams> {
     Ok(p)
 }
 
+/// Creates the output directory.
 fn out_dir(dir: &Path) -> Result<()> {
-    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+    host_tools::output::create_dir(dir)
 }
 
+/// Checks the output directory can be written, before the simulation
+/// rather than after it.
+fn check_out_dir(dir: &Path) -> Result<()> {
+    host_tools::output::check_dir(dir)
+}
+
+/// Writes a result file atomically (a failed write leaves the old file).
 fn write(path: &Path, text: &str) -> Result<()> {
-    fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    host_tools::output::write_atomic(path, text)
 }
 
 /// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
@@ -429,6 +438,7 @@ fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> St
 }
 
 fn simulate_cmd(a: SimulateArgs) -> Result<()> {
+    check_out_dir(&a.out)?;
     let prep = prepare(&a.video, &a.model)?;
     let sim = sim_config(&a.model);
     let params = match &a.params {
@@ -495,7 +505,7 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     ]);
     write(&a.out.join("f_per_frame.svg"), &chart.finish())?;
     if a.json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({
                 "material": prep.video.material,
@@ -511,15 +521,15 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             }))?
         );
     } else {
-        println!("{title}");
+        outln!("{title}");
         if let Some(f) = score.unstable_from_frame {
             let why = score
                 .instability
                 .map(|i| i.to_string())
                 .unwrap_or_else(|| "unknown cause".into());
-            println!("unstable from frame {f} ({why}): scored 0 from there");
+            outln!("unstable from frame {f} ({why}): scored 0 from there");
         }
-        println!(
+        outln!(
             "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
             a.out.display()
         );
@@ -539,6 +549,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             a.generations
         );
     }
+    check_out_dir(&a.out)?;
     let prep = prepare(&a.video, &a.model)?;
     let sim = sim_config(&a.model);
     let mut st = EvolutionSettings::table_iii(a.seed);
@@ -608,7 +619,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         &snapshots_svg(&prep, &shots, &score, &title),
     )?;
     if a.json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({
                 "material": prep.video.material,
@@ -623,14 +634,14 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             }))?
         );
     } else {
-        println!(
+        outln!(
             "best μ(F) {:.4} after {} generations ({} simulations)",
             result.best_score,
             result.history.len(),
             result.evaluations
         );
-        println!("{}", result.best_params);
-        println!(
+        outln!("{}", result.best_params);
+        outln!(
             "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
             a.out.display()
         );
@@ -672,6 +683,7 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
             );
         }
     }
+    check_out_dir(&a.out)?;
     let prep = prepare(&a.video, &a.model)?;
     let sim = sim_config(&a.model);
     let c = classify(&prep, &prep.video.forces_n, &models, &sim)?;
@@ -720,7 +732,7 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
     }]);
     write(&a.out.join("classification.svg"), &chart.finish())?;
     if a.json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({
                 "video_material": prep.video.material,
@@ -733,14 +745,15 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
             }))?
         );
     } else {
-        println!("global vote: {}", c.winner_label());
+        outln!("global vote: {}", c.winner_label());
         for (k, l) in c.labels.iter().enumerate() {
-            println!(
+            outln!(
                 "  {l:>12}: {} frames won, weighted vote {:+.4}",
-                c.frames_won[k], c.vote[k]
+                c.frames_won[k],
+                c.vote[k]
             );
         }
-        println!(
+        outln!(
             "wrote classification.csv, classification.svg to {}",
             a.out.display()
         );

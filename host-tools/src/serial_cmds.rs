@@ -14,10 +14,12 @@ use host_tools::link::{open_port, Link, Port};
 use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
 use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
+use host_tools::stop::Stop;
 use host_tools::{
     calibrate::{CalibrationFile, LawSpec},
     report,
 };
+use host_tools::{out, outln};
 
 #[derive(Args)]
 pub struct HilArgs {
@@ -50,6 +52,11 @@ pub struct HilArgs {
     /// so a loaded host needs more slack than a real board does.
     #[arg(long, default_value_t = 250)]
     link_timeout_ms: u16,
+    /// A board that restarts during the run is set up again and the run
+    /// goes on (its controller state starts afresh); without this flag the
+    /// run ends there, naming the restart.
+    #[arg(long)]
+    resume_after_restart: bool,
     #[command(flatten)]
     output: report::OutputArgs,
 }
@@ -63,37 +70,69 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         timeout: Duration::from_millis(args.timeout_ms.max(1)),
         lose_every: args.lose_every,
         link_timeout_ms: Some(args.link_timeout_ms),
+        resume_after_restart: args.resume_after_restart,
         ..HilOptions::default()
     };
-    let _qemu;
+    let stop = Stop::on_signals()?;
+    // Output paths are checked (the CSV created) before QEMU starts.
+    let mut files = args
+        .output
+        .open_trace(&host_tools::sim::angle_names(&scenario))?;
+    let mut qemu = None;
     let port = match &args.port {
         Some(p) => open_port(p, args.baud)?,
         None => {
-            let q = Qemu::launch(&args.image, !args.no_icount)?;
-            let port = open_port(&q.pty.to_string_lossy(), args.baud)?;
-            _qemu = q;
-            port
+            let q = qemu.insert(Qemu::launch(&args.image, !args.no_icount)?);
+            open_port(&q.pty.to_string_lossy(), args.baud)?
         }
     };
     let mut link = Link::new(port);
-    let out = hil::run(&scenario, &mut link, opts)?;
-    args.output.write_files(
+    let progress = args.output.progress("lockstep steps");
+    let ctx = host_tools::sim::RunContext {
+        stop: &stop,
+        progress: &progress,
+    };
+    let run = hil::run_into(&scenario, &mut link, opts, &mut files, &ctx);
+    progress.finish_and_clear();
+    // A QEMU that ended is the reason the link failed: say how it ended
+    // (its exit status or signal and its last words) rather than only
+    // what the serial line did.
+    let ended =
+        |qemu: &mut Option<Qemu>| qemu.as_mut().and_then(|q| q.ended(Duration::from_secs(2)));
+    let mut report = match run {
+        Ok(r) => r,
+        Err(e) => match ended(&mut qemu) {
+            Some(how) => bail!("the emulated board ended before the run began: {how} ({e:#})"),
+            None => return Err(e),
+        },
+    };
+    if let Some(cut) = &mut report.summary.cut_short {
+        if cut.cause == host_tools::sim::CutCause::Controller {
+            if let Some(how) = ended(&mut qemu) {
+                cut.reason = format!("the emulated board ended: {how}");
+            }
+        }
+    }
+    args.output.finish_trace(
+        files,
         &format!("{} (HIL)", scenario.name),
-        &out.report.summary,
-        &out.trace,
+        &mut report.summary,
     )?;
     if args.output.json {
-        println!("{}", serde_json::to_string_pretty(&out.report)?);
+        outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print!("{}", report::table(&out.report.summary));
-        let l = &out.report.link;
-        println!(
+        out!("{}", report::table(&report.summary));
+        let l = &report.link;
+        outln!(
             "link: {} frames sent, {} received, {} retries, {} CRC errors, {} unexpected; board saw {} frames, {} CRC errors",
-            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, out.report.board_frames_ok, out.report.board_crc_errors
+            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, report.board_frames_ok, report.board_crc_errors
         );
-        println!("lockstep: {:.0} steps/s", out.report.lockstep_steps_per_s);
+        outln!("lockstep: {:.0} steps/s", report.lockstep_steps_per_s);
     }
-    Ok(())
+    match report.summary.cut_short {
+        Some(cut) => Err(host_tools::sim::RunCutShort(cut).into()),
+        None => Ok(()),
+    }
 }
 
 #[derive(Args)]
@@ -145,7 +184,7 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
         lines.push(("command line".into(), args.commands.join(" ")));
     }
     if lines.iter().any(|(_, l)| l == "help") || lines.is_empty() {
-        println!("{HELP}");
+        outln!("{HELP}");
         return Ok(());
     }
     let port = open_port(&args.port, args.baud)?;
@@ -217,11 +256,11 @@ fn run_console_command<P: Port>(
     match words.as_slice() {
         ["hello"] => {
             hil::handshake(link)?;
-            println!("hello: protocol and schema match");
+            outln!("hello: protocol and schema match");
         }
         ["status"] => {
             let s = hil::status(link)?;
-            println!(
+            outln!(
                 "armed {} mode {} faults [{}] latched [{}] estimate α {:.2}° β {:.2}° target α {:.2}° β {:.2}° outputs {} mV / {} mV t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
                 s.armed,
                 if s.mode == 1 { "lockstep" } else { "free-running" },
@@ -258,7 +297,7 @@ fn run_console_command<P: Port>(
                 matches!(m, Message::Calibration(_))
             })?;
             if let Message::Calibration(Calibration { plane, law }) = r {
-                println!(
+                outln!(
                     "plane {plane}: {}",
                     host_tools::calibrate::describe(&LawSpec::from_law(&law))
                 );
@@ -308,7 +347,7 @@ fn run_console_command<P: Port>(
                     );
                     match csv.as_deref_mut() {
                         Some(f) => writeln!(f, "{line}")?,
-                        None => println!("{line}"),
+                        None => outln!("{line}"),
                     }
                 }
             }
@@ -322,6 +361,6 @@ fn run_console_command<P: Port>(
 
 fn ack<P: Port>(link: &mut Link<P>, msg: impl Into<Message>) -> anyhow::Result<()> {
     link.command(&msg.into(), T, 5)?;
-    println!("ok");
+    outln!("ok");
     Ok(())
 }

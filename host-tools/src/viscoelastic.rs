@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
+use host_tools::{out, outln};
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
 use plant_models::viscoelastic::error::VeError;
 use plant_models::viscoelastic::estimate::{estimate_all, spread_columns};
@@ -149,8 +150,9 @@ fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
 }
 
+/// Writes a result file atomically (a failed write leaves the old file).
 fn write_text(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+    host_tools::output::write_atomic(path, text)
 }
 
 /// Checks a model parameter flag: finite and > 0 (or ≥ 0 if `zero_ok`).
@@ -206,7 +208,7 @@ fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Re
     match output {
         Some(p) => write_text(p, &s),
         None => {
-            print!("{s}");
+            out!("{s}");
             Ok(())
         }
     }
@@ -247,7 +249,7 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
         write_text(p, &fit_plot(t, f, &fitted, &caption))?;
     }
     if json {
-        println!(
+        outln!(
             "{{\"k1_n_per_m\": {:e}, \"k2_n_per_m\": {:e}, \"b_n_s_per_m\": {:e}, \"rms_residual_n\": {:e}, \"weighted_cost_n2\": {:e}, \"evaluations\": {}, \"weighting\": \"{}\", \"samples\": {}}}",
             r.k1_n_per_m,
             r.k2_n_per_m,
@@ -259,10 +261,10 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
             t.len()
         );
     } else {
-        println!("k1 = {:.6e} N/m", r.k1_n_per_m);
-        println!("k2 = {:.6e} N/m", r.k2_n_per_m);
-        println!("b  = {:.6e} N s/m", r.b_n_s_per_m);
-        println!(
+        outln!("k1 = {:.6e} N/m", r.k1_n_per_m);
+        outln!("k2 = {:.6e} N/m", r.k2_n_per_m);
+        outln!("b  = {:.6e} N s/m", r.b_n_s_per_m);
+        outln!(
             "rms residual = {:.4e} N over {} samples ({} weighting, {} evaluations)",
             r.rms_residual_n,
             t.len(),
@@ -362,6 +364,11 @@ fn object(
     }
     if every == 0 {
         bail!("--probe-every must be at least 1 (probe every N-th traction vertex)");
+    }
+    // The outputs are checked before the long part, not after it.
+    host_tools::output::check_dir(out_dir)?;
+    if let Some(dir) = trials_dir {
+        host_tools::output::check_dir(dir)?;
     }
     let mesh = match mesh_path {
         Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,
@@ -480,7 +487,7 @@ fn object(
         &out_dir.join("damping.svg"),
         &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption),
     )?;
-    println!(
+    outln!(
         "{} vertices ({} traction), {} trials fitted, {} vertices estimated; {} haptic steps, {} display frames written to {}",
         nv,
         fixed_flags.iter().filter(|f| !**f).count(),
@@ -490,7 +497,7 @@ fn object(
         haptic.frames.len(),
         out_dir.display()
     );
-    println!(
+    outln!(
         "firmware update vs exact reference: contact max |Δu| {:.3e} m ({:.3} % of max |u|), all vertices over the display frames {:.3e} m ({:.3} %)",
         difference.contact_m,
         100.0 * difference.contact_rel,

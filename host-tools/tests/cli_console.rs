@@ -95,7 +95,9 @@ fn console_within(port: &str, args: &[&str], limit: std::time::Duration) -> std:
     match rx.recv_timeout(limit) {
         Ok(out) => out.expect("console output"),
         Err(_) => {
-            let _ = Command::new("kill").args(["-KILL", &pid.to_string()]).status();
+            let _ = Command::new("kill")
+                .args(["-KILL", &pid.to_string()])
+                .status();
             panic!("console {args:?} did not finish within {limit:?} (spinning on telemetry?)");
         }
     }
@@ -130,7 +132,13 @@ fn durations_are_checked_not_converted_with_a_panic() {
     let (board, host_end) = PtyBoard::start().expect("pty pair");
     let path = board.host_path.clone();
     drop(host_end);
-    for cmd in ["wait NaN", "stream 1e20", "wait -1", "stream inf", "wait 1e400"] {
+    for cmd in [
+        "wait NaN",
+        "stream 1e20",
+        "wait -1",
+        "stream inf",
+        "wait 1e400",
+    ] {
         let out = console_within(&path, &[cmd], std::time::Duration::from_secs(10));
         let err = common::stderr(&out);
         assert_eq!(out.status.code(), Some(1), "{cmd}: {err}");

@@ -1,0 +1,22 @@
+//! Progress bars for runs that take more than a few seconds: drawn on
+//! stderr when it is a terminal, hidden when it is not (a pipe, a file, CI)
+//! and with `--json` (whose reader is a program).
+use std::io::IsTerminal as _;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// A bar of `what` (e.g. "steps") whose length the caller sets; hidden
+/// when `json` or when stderr is not a terminal.
+pub fn bar(what: &str, json: bool) -> ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
+    let template = format!(
+        "{{elapsed_precise}} [{{bar:30}}] {{human_pos}}/{{human_len}} {what} (eta {{eta}})"
+    );
+    if let Ok(style) = ProgressStyle::with_template(&template) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
