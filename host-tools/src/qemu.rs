@@ -110,6 +110,7 @@ impl Qemu {
                 image.display()
             );
         }
+        check_elf(image)?;
         let mut cmd = Command::new("qemu-system-arm");
         cmd.args([
             "-cpu",
@@ -194,13 +195,15 @@ impl Qemu {
                 }
             }
         };
-        Ok(Self {
+        let mut q = Self {
             child,
             pty,
             lines: rx,
-            tail: seen,
+            tail: Vec::new(),
             qmp: qmp.map(Path::to_path_buf),
-        })
+        };
+        q.keep_tail(&seen);
+        Ok(q)
     }
 
     /// Lines QEMU printed since the last call (semihosting output, errors).
@@ -210,8 +213,14 @@ impl Qemu {
         new
     }
 
+    /// Keeps QEMU's own last messages (`qemu-system-arm: …`, `qemu: fatal:
+    /// …`), not the register dumps that follow them.
     fn keep_tail(&mut self, new: &[String]) {
-        self.tail.extend(new.iter().cloned());
+        self.tail.extend(
+            new.iter()
+                .filter(|l| l.starts_with("qemu") && !l.contains("redirected to"))
+                .cloned(),
+        );
         let extra = self.tail.len().saturating_sub(TAIL_LINES);
         self.tail.drain(..extra);
     }
@@ -295,6 +304,31 @@ impl Qemu {
         }
         Ok(())
     }
+}
+
+/// Refuses an image QEMU would not run as firmware: a directory, an
+/// unreadable file, or a file that is not ELF (QEMU loads any other file as
+/// a raw binary at address 0 and runs the bytes, which then never answer).
+fn check_elf(image: &Path) -> anyhow::Result<()> {
+    use std::io::Read as _;
+    if image.is_dir() {
+        bail!(
+            "firmware image {} is a directory, not an ELF file; build the image with `{BUILD_IMAGE}`",
+            image.display()
+        );
+    }
+    let mut magic = [0u8; 4];
+    std::fs::File::open(image)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .with_context(|| format!("cannot read firmware image {}", image.display()))?;
+    if magic != *b"\x7fELF" {
+        bail!(
+            "firmware image {} is not an ELF file (it starts with `{}`); build the image with `{BUILD_IMAGE}`",
+            image.display(),
+            magic.escape_ascii()
+        );
+    }
+    Ok(())
 }
 
 /// `; it said: a | b` for QEMU's lines, or nothing.
