@@ -20,3 +20,8 @@ pub fn bar(what: &str, json: bool) -> ProgressBar {
     }
     bar
 }
+
+/// A bar that is never drawn (library callers, tests).
+pub fn hidden() -> ProgressBar {
+    ProgressBar::hidden()
+}

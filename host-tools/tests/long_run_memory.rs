@@ -60,7 +60,7 @@ fn a_two_hour_run_with_a_csv_trace_peaks_under_50_mb() {
         &s,
         &mut files,
         &Stop::never(),
-        &indicatif::ProgressBar::hidden(),
+        &host_tools::progress::hidden(),
     )
     .unwrap();
     summary.trace = files
