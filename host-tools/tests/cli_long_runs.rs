@@ -218,3 +218,61 @@ fn a_calibration_write_that_fails_leaves_the_previous_file_intact() {
     ]));
     assert!(std::fs::read_to_string(&keep).unwrap().contains("[alpha]"));
 }
+
+/// Runs `softjoint ARGS` with its stderr on a terminal (a pty) and returns
+/// what it drew there.
+#[cfg(unix)]
+fn stderr_on_a_terminal(args: &[&str]) -> String {
+    use serialport::SerialPort as _;
+    use std::io::Read as _;
+    let (mut master, slave) = serialport::TTYPort::pair().expect("pty pair");
+    let slave_path = slave.name().expect("pty name");
+    let term = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&slave_path)
+        .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::from(term))
+        .spawn()
+        .unwrap();
+    master.set_timeout(Duration::from_millis(50)).unwrap();
+    let mut seen = Vec::new();
+    let mut buf = [0u8; 4096];
+    let until = Instant::now() + Duration::from_secs(60);
+    loop {
+        match master.read(&mut buf) {
+            Ok(n) => seen.extend_from_slice(&buf[..n]),
+            Err(_) => {
+                if child.try_wait().unwrap().is_some() || Instant::now() > until {
+                    break;
+                }
+            }
+        }
+    }
+    let _ = child.kill();
+    drop(slave);
+    String::from_utf8_lossy(&seen).into_owned()
+}
+
+/// A run of a few seconds shows its progress on a terminal, and nothing
+/// when stderr is a file or a pipe, or with `--json`.
+#[test]
+#[cfg(unix)]
+fn progress_is_shown_on_a_terminal_only() {
+    let dir = scratch("progress");
+    let scen = file(
+        &dir,
+        "ten_minutes.toml",
+        "joint = \"2d\"\nduration_s = 600\ncontrol_period_us = 10000\n[estimator]\nmethod = \"paper\"\n[[targets]]\nt_s = 0\ndeg = [5.0]\n",
+    );
+    let drawn = stderr_on_a_terminal(&["sim", &scen]);
+    assert!(drawn.contains("/60,000 steps"), "{drawn:?}");
+    let drawn = stderr_on_a_terminal(&["sim", &scen, "--json"]);
+    assert!(!drawn.contains("steps"), "{drawn:?}");
+    let out = softjoint(&["sim", &scen]);
+    common::ok(&out);
+    assert_eq!(stderr(&out), "", "progress drawn into a pipe");
+}
