@@ -9,6 +9,7 @@
 //! a short text report or, with `--json`, a machine-readable summary.
 use std::fmt::Write as _;
 use std::fs;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -17,7 +18,7 @@ use host_tools::outln;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use plant_models::pushing::classify::{classify, MaterialModel};
 use plant_models::pushing::evaluate::{
-    score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore,
+    score_run, score_run_observed, simulate_frames, EvalSetup, PreparedVideo, RunScore,
 };
 use plant_models::pushing::evolution::{
     calibrate, CalibrationResult, EvolutionSettings, TABLE_III_RANGES,
@@ -168,6 +169,10 @@ struct SimulateArgs {
     /// instead of the sensed forces.
     #[arg(long)]
     predicted_forces: bool,
+    /// Write the results of a model that is unstable from its first frames
+    /// (by default such a run is refused: exit 1, nothing written).
+    #[arg(long)]
+    keep_going: bool,
     /// Output directory.
     #[arg(long, default_value = "push-out")]
     out: PathBuf,
@@ -308,6 +313,34 @@ fn write(path: &Path, text: &str) -> Result<()> {
 /// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
 const SNAPSHOT_FRAMES: [usize; 5] = [0, 25, 50, 75, 99];
 
+/// Whether frame `f` of `n` is shown in the snapshots.
+fn is_snapshot_frame(f: usize, n: usize) -> bool {
+    SNAPSHOT_FRAMES.iter().any(|&s| s.min(n - 1) == f)
+}
+
+/// Scores a run and keeps its snapshot positions in the same pass, with a
+/// progress bar over its frames (hidden unless a person watches).
+fn score_with_snapshots(
+    prep: &PreparedVideo,
+    forces: &[f64],
+    p: &MaterialParams,
+    sim: &SimConfig,
+    json: bool,
+) -> Result<(RunScore, Vec<(usize, Vec<V2>)>)> {
+    let n = prep.frame_count();
+    let bar = host_tools::progress::bar("frames", json);
+    bar.set_length(n as u64);
+    let mut shots = Vec::new();
+    let score = score_run_observed(prep, forces, p, sim, |f, pos| {
+        if is_snapshot_frame(f, n) {
+            shots.push((f, pos.to_vec()));
+        }
+        bar.set_position(f as u64 + 1);
+    })?;
+    bar.finish_and_clear();
+    Ok((score, shots))
+}
+
 /// Mesh positions of the model at the snapshot frames.
 fn snapshot_positions(
     prep: &PreparedVideo,
@@ -316,7 +349,6 @@ fn snapshot_positions(
     sim: &SimConfig,
 ) -> Result<Vec<(usize, Vec<V2>)>> {
     let n = prep.frame_count();
-    let frames: Vec<usize> = SNAPSHOT_FRAMES.iter().map(|&f| f.min(n - 1)).collect();
     let mut out = Vec::new();
     simulate_frames(
         &prep.mesh,
@@ -325,7 +357,7 @@ fn snapshot_positions(
         p,
         sim,
         |f, pos, _| {
-            if frames.contains(&f) {
+            if is_snapshot_frame(f, n) {
                 out.push((f, pos.to_vec()));
             }
         },
@@ -333,10 +365,50 @@ fn snapshot_positions(
     Ok(out)
 }
 
+/// Most grid lines drawn per direction in a snapshot panel: a 2000 × 2000
+/// mesh drawn edge by edge made a 1.44 GB SVG no viewer opens.
+const MAX_DRAWN_GRID_LINES: usize = 50;
+
+/// The mesh of a snapshot as line segments: every edge of a mesh of at
+/// most [`MAX_DRAWN_GRID_LINES`] squares per side, else every k-th grid
+/// line of the `nx × ny` grid (through every k-th vertex along it), which
+/// still shows how the block deforms. Returns the segments and k.
+fn mesh_segments(
+    mesh: &plant_models::pushing::mesh::Mesh,
+    nx: usize,
+    ny: usize,
+    pos: &[V2],
+) -> (Vec<(V2, V2)>, usize) {
+    let k = nx.max(ny).div_ceil(MAX_DRAWN_GRID_LINES).max(1);
+    if k == 1 || pos.len() != (nx + 1) * (ny + 1) {
+        let all = mesh.edges.iter().map(|e| (pos[e[0]], pos[e[1]])).collect();
+        return (all, 1);
+    }
+    let at = |i: usize, j: usize| pos[j * (nx + 1) + i];
+    // Every k-th index, and the last one (the block's far sides).
+    let picks = |n: usize| -> Vec<usize> {
+        let mut v: Vec<usize> = (0..=n).step_by(k).collect();
+        if v.last() != Some(&n) {
+            v.push(n);
+        }
+        v
+    };
+    let (is, js) = (picks(nx), picks(ny));
+    let mut out = Vec::new();
+    for &j in &js {
+        out.extend(is.windows(2).map(|w| (at(w[0], j), at(w[1], j))));
+    }
+    for &i in &is {
+        out.extend(js.windows(2).map(|w| (at(i, w[0]), at(i, w[1]))));
+    }
+    (out, k)
+}
+
 /// Mesh snapshots over frames: ground-truth outline (grey fill), the model
 /// mesh (blue), the finger (red).
 fn snapshots_svg(
     prep: &PreparedVideo,
+    (nx, ny): (usize, usize),
     shots: &[(usize, Vec<V2>)],
     score: &RunScore,
     title: &str,
@@ -373,13 +445,20 @@ fn snapshots_svg(
         svg.line(table, (ox + panel_w, table.1), Stroke::solid("#964", 2.0));
         let contour: Vec<(f64, f64)> = prep.video.contours_px[*f].iter().map(|p| tx(*p)).collect();
         svg.polygon(&contour, "#ddd", Stroke::solid("#777", 1.0));
+        let (segments, every) = mesh_segments(&prep.mesh, nx, ny, pos);
         svg.segments(
-            prep.mesh
-                .edges
-                .iter()
-                .map(|e| (tx(pos[e[0]]), tx(pos[e[1]]))),
+            segments.into_iter().map(|(a, b)| (tx(a), tx(b))),
             Stroke::solid("#1f5fbf", 0.7),
         );
+        if every > 1 && k == 0 {
+            svg.text(
+                10.0,
+                34.0,
+                11.0,
+                Anchor::Start,
+                &format!("{nx} × {ny} mesh: one grid line in {every} drawn"),
+            );
+        }
         let finger = sc.finger_at(sc.frame_time_s(*f));
         svg.circle(
             tx(finger.centre_px),
@@ -458,14 +537,33 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     } else {
         prep.video.forces_n.clone()
     };
-    let score = score_run(&prep, &forces, &params, &sim)?;
+    let (score, shots) = score_with_snapshots(&prep, &forces, &params, &sim, a.json)?;
+    if let Some(f) = score.unstable_from_frame {
+        let n = prep.frame_count();
+        let why = score
+            .instability
+            .map(|i| i.to_string())
+            .unwrap_or_else(|| "unknown cause".into());
+        // Unstable within the first quarter of the frames (in the seed's
+        // push the finger meets the block at frame ≈ 10): nothing the
+        // model did means anything, and its pictures would only show the
+        // blow-up.
+        if f < n.div_ceil(4) && !a.keep_going {
+            bail!(
+                "the model is unstable from frame {f} of {n}, in the first quarter of the push ({why}); its results mean nothing, so none were written (--keep-going writes them anyway)"
+            );
+        }
+        let _ = writeln!(
+            std::io::stderr(),
+            "warning: the model is unstable from frame {f} of {n} ({why}): frames from there are scored 0"
+        );
+    }
     out_dir(&a.out)?;
     write(
         &a.out.join("frames.csv"),
         &frames_csv(&prep, &forces, &score),
     )?;
     write(&a.out.join("video.csv"), &write_video_csv(&prep.video))?;
-    let shots = snapshot_positions(&prep, &forces, &params, &sim)?;
     let title = format!(
         "{} pushed at {}: μ(F) = {:.4}",
         prep.video.material,
@@ -474,7 +572,7 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     );
     write(
         &a.out.join("snapshots.svg"),
-        &snapshots_svg(&prep, &shots, &score, &title),
+        &snapshots_svg(&prep, (a.model.nx, a.model.ny), &shots, &score, &title),
     )?;
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
     let chart = plot::line_charts(&[
@@ -521,14 +619,8 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             }))?
         );
     } else {
+        // An instability was reported on stderr above.
         outln!("{title}");
-        if let Some(f) = score.unstable_from_frame {
-            let why = score
-                .instability
-                .map(|i| i.to_string())
-                .unwrap_or_else(|| "unknown cause".into());
-            outln!("unstable from frame {f} ({why}): scored 0 from there");
-        }
         outln!(
             "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
             a.out.display()
@@ -616,7 +708,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     );
     write(
         &a.out.join("snapshots.svg"),
-        &snapshots_svg(&prep, &shots, &score, &title),
+        &snapshots_svg(&prep, (a.model.nx, a.model.ny), &shots, &score, &title),
     )?;
     if a.json {
         outln!(
@@ -795,6 +887,31 @@ mod tests {
     }
 
     #[test]
+    fn snapshots_of_large_meshes_draw_a_bounded_number_of_lines() {
+        use plant_models::pushing::mesh::Mesh;
+        let small = Mesh::grid(V2::new(0.0, 0.0), 100.0, 50.0, 20, 10).unwrap();
+        let (all, k) = mesh_segments(&small, 20, 10, &small.rest_positions_px);
+        assert_eq!((all.len(), k), (small.edges.len(), 1));
+        // 2000 × 2000 squares (the CLI's largest): 12 million edges drawn
+        // one by one were a 1.44 GB SVG. Rest positions of the grid stand in
+        // for a deformed mesh (only the positions are read).
+        let (nx, ny) = (2000, 2000);
+        let pos: Vec<V2> = (0..=ny)
+            .flat_map(|j| (0..=nx).map(move |i| V2::new(i as f64, j as f64)))
+            .collect();
+        let (drawn, k) = mesh_segments(&small, nx, ny, &pos);
+        assert_eq!(k, 40);
+        // 51 lines each way, 50 segments each.
+        assert_eq!(drawn.len(), 2 * 51 * 50);
+        // The outline is complete: the four corners are on drawn lines.
+        for corner in [(0.0, 0.0), (2000.0, 0.0), (0.0, 2000.0), (2000.0, 2000.0)] {
+            assert!(drawn
+                .iter()
+                .any(|(a, b)| (a.x, a.y) == corner || (b.x, b.y) == corner));
+        }
+    }
+
+    #[test]
     fn every_integrator_name_on_the_command_line_reaches_the_simulator() {
         use clap::Parser;
         #[derive(Parser)]
@@ -849,6 +966,7 @@ mod tests {
             model: small_model(),
             params: None,
             predicted_forces: true,
+            keep_going: false,
             out: sim_out.clone(),
             json: true,
         })

@@ -276,3 +276,42 @@ fn progress_is_shown_on_a_terminal_only() {
     common::ok(&out);
     assert_eq!(stderr(&out), "", "progress drawn into a pipe");
 }
+
+/// A model unstable from its first frames (stiff springs at the seed's
+/// step) is refused with exit 1 and nothing written, unless asked to keep
+/// going.
+#[test]
+fn a_push_unstable_from_the_start_exits_non_zero_unless_asked_to_keep_going() {
+    let dir = scratch("unstable-push");
+    let params = file(
+        &dir,
+        "stiff.json",
+        r#"{"k_length": 1e7, "k_damping": 0.5, "k_area": 1.0, "k_angle": 1.0, "max_force": 1e4, "yield_strain": 0.5, "creep": 0.0, "max_alpha": 0.0}"#,
+    );
+    let out_dir = dir.join("out");
+    // A coarse ground truth and raster keep the debug build quick.
+    let args = [
+        "push",
+        "simulate",
+        "--params",
+        &params,
+        "--ref-element-px",
+        "30",
+        "--cell-px",
+        "8",
+        "--out",
+        s(&out_dir),
+    ];
+    let o = softjoint(&args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("unstable from frame") && err.contains("--keep-going"),
+        "{err}"
+    );
+    assert!(!out_dir.exists(), "files written for a refused run");
+    let o = softjoint(&[&args[..], &["--keep-going"]].concat());
+    common::ok(&o);
+    assert!(stderr(&o).contains("warning: the model is unstable from frame"));
+    assert!(out_dir.join("snapshots.svg").exists());
+}
