@@ -25,3 +25,18 @@ pub fn bar(what: &str, json: bool) -> ProgressBar {
 pub fn hidden() -> ProgressBar {
     ProgressBar::hidden()
 }
+
+/// A spinner with `message` for a phase whose length is not known, ticking
+/// on its own; hidden like [`bar`].
+pub fn spinner(message: &str, json: bool) -> ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let s = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+        s.set_style(style);
+    }
+    s.set_message(message.to_string());
+    s.enable_steady_tick(std::time::Duration::from_millis(200));
+    s
+}

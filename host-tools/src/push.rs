@@ -244,7 +244,7 @@ fn sim_config(m: &ModelArgs) -> SimConfig {
     }
 }
 
-fn load_video(v: &VideoArgs) -> Result<Video> {
+fn load_video(v: &VideoArgs, json: bool) -> Result<Video> {
     let mat = v.material.reference();
     let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
     match &v.video {
@@ -259,18 +259,37 @@ fn load_video(v: &VideoArgs) -> Result<Video> {
             )?)
         }
         None => {
+            if !(v.ref_element_px >= MIN_REF_ELEMENT_PX) {
+                bail!(
+                    "--ref-element-px must be at least {MIN_REF_ELEMENT_PX} px, got {}: the finite-element ground truth's time grows about as the cube of 1/size (below 2 px it runs for minutes; the default is 8 px)",
+                    plant_models::short_number(v.ref_element_px)
+                );
+            }
             let cfg = ReferenceConfig {
                 element_size_px: v.ref_element_px,
                 seed: v.noise_seed,
                 ..ReferenceConfig::default()
             };
-            Ok(record_push(v.material.label(), mat, &scenario, &cfg)?)
+            let spinner = host_tools::progress::spinner(
+                &format!(
+                    "recording the ground-truth push ({} px elements)",
+                    v.ref_element_px
+                ),
+                json,
+            );
+            let video = record_push(v.material.label(), mat, &scenario, &cfg);
+            spinner.finish_and_clear();
+            Ok(video?)
         }
     }
 }
 
-fn prepare(v: &VideoArgs, m: &ModelArgs) -> Result<PreparedVideo> {
-    let video = load_video(v)?;
+/// Smallest `--ref-element-px`: below ≈ 2 px the ground truth ran for
+/// minutes (issue 12); 8 px is the default.
+const MIN_REF_ELEMENT_PX: f64 = 2.0;
+
+fn prepare(v: &VideoArgs, m: &ModelArgs, json: bool) -> Result<PreparedVideo> {
+    let video = load_video(v, json)?;
     Ok(PreparedVideo::new(
         video,
         &EvalSetup {
@@ -285,8 +304,8 @@ fn prepare(v: &VideoArgs, m: &ModelArgs) -> Result<PreparedVideo> {
 /// `params.json` (which holds them under `best_params`).
 fn load_params(path: &Path) -> Result<MaterialParams> {
     let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let value: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
+    let value: serde_json::Value = serde_json::from_str(plant_models::strip_bom(&text))
+        .with_context(|| format!("{} is not JSON", path.display()))?;
     let inner = value.get("best_params").cloned().unwrap_or(value);
     let p: MaterialParams = serde_json::from_value(inner).with_context(|| format!("{}: expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha)", path.display()))?;
     p.validate()
@@ -518,7 +537,7 @@ fn frames_csv(prep: &PreparedVideo, forces_used: &[f64], score: &RunScore) -> St
 
 fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     check_out_dir(&a.out)?;
-    let prep = prepare(&a.video, &a.model)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
     let sim = sim_config(&a.model);
     let params = match &a.params {
         Some(p) => load_params(p)?,
@@ -642,7 +661,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         );
     }
     check_out_dir(&a.out)?;
-    let prep = prepare(&a.video, &a.model)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
     let sim = sim_config(&a.model);
     let mut st = EvolutionSettings::table_iii(a.seed);
     st.generations = a.generations;
@@ -776,7 +795,7 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
         }
     }
     check_out_dir(&a.out)?;
-    let prep = prepare(&a.video, &a.model)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
     let sim = sim_config(&a.model);
     let c = classify(&prep, &prep.video.forces_n, &models, &sim)?;
     out_dir(&a.out)?;
@@ -979,7 +998,7 @@ mod tests {
         // The written video reads back through --video.
         let mut v = small_video(MaterialArg::Sponge);
         v.video = Some(sim_out.join("video.csv"));
-        let again = load_video(&v).unwrap();
+        let again = load_video(&v, true).unwrap();
         assert_eq!(again.contours_px.len(), 100);
 
         for (mat, name) in [(MaterialArg::Sponge, "s"), (MaterialArg::Plasticine, "p")] {

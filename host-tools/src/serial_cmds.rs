@@ -175,7 +175,7 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.script {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read script {}", path.display()))?;
-        for (i, l) in text.lines().enumerate() {
+        for (i, l) in plant_models::strip_bom(&text).lines().enumerate() {
             let l = l.split('#').next().unwrap_or("").trim();
             if !l.is_empty() {
                 lines.push((format!("{}:{}", path.display(), i + 1), l.to_string()));

@@ -146,8 +146,11 @@ pub fn run(args: ViscoArgs) -> Result<()> {
     }
 }
 
+/// Reads a text input (CSV, OBJ), without a leading byte-order mark.
 fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(plant_models::strip_bom(&text).to_string())
 }
 
 /// Writes a result file atomically (a failed write leaves the old file).
@@ -304,6 +307,11 @@ fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
 /// ~200-vertex mesh at this length: 0.2 GB of frames, 0.5 GB of CSV text.
 const MAX_OBJECT_DURATION_S: f64 = 600.0;
 
+/// Most surface vertices `object` takes: its time grows about as n³
+/// (1,982 vertices took 30 s, a 19,462-vertex sphere ran past 60 s with no
+/// end in sight); 3,000 vertices is about two minutes.
+const MAX_OBJECT_VERTICES: usize = 3000;
+
 /// Scalar options of `object`.
 struct ObjectRun {
     duration_s: f64,
@@ -374,9 +382,23 @@ fn object(
         Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,
         None => SurfaceMesh::default_object(),
     };
+    let n = mesh.vertices_m.len();
+    if n > MAX_OBJECT_VERTICES {
+        // Measured: 872 vertices 4 s, 1,982 vertices 30 s (release build):
+        // about n³, so the estimate scales the latter.
+        let minutes = 0.5 * (n as f64 / 1982.0).powi(3);
+        bail!(
+            "{}: {n} vertices is more than {MAX_OBJECT_VERTICES}: the DGFM and its fits take time growing as the cube of the vertex count (about {} minutes for this mesh; 1,982 vertices took 30 s); simplify the mesh (the seed's object has 193 vertices)",
+            mesh_path.map_or("the mesh".into(), |p| p.display().to_string()),
+            plant_models::short_number(minutes.round())
+        );
+    }
+    let phase =
+        host_tools::progress::spinner(&format!("building the DGFM of {n} vertices (FEM)"), false);
     let fixed = support_below(&mesh, DEFAULT_SUPPORT_HEIGHT_FRACTION);
     let dgfm = Dgfm::from_mesh(mesh, LinearElastic::default(), fixed, &DEFAULT_SHELL_SCALES)?;
     // Measure (simulated), fit, estimate and spread, as in seed §4.
+    phase.set_message("simulating and fitting the probe campaign");
     let truths = synthetic_truth(&dgfm, every)?;
     let protocol = ProbeProtocol {
         speeds_m_per_s: vec![20.0e-3],
@@ -437,6 +459,7 @@ fn object(
             _ => anyhow::Error::new(e),
         }
     };
+    phase.set_message("running the probe script at 1 kHz");
     let reference = ViscoObject::new(dgfm.clone(), params.clone(), HAPTIC_PERIOD_S)?;
     let mut exact = HapticLoop::new(reference)?;
     let exact_samples = run_script(&mut exact, &events, duration_s).map_err(name_script_error)?;
@@ -444,6 +467,7 @@ fn object(
     let mut haptic = HapticLoop::new(core)?;
     let samples = run_script(&mut haptic, &events, duration_s).map_err(name_script_error)?;
     let difference = CoreDifference::of(&samples, &exact_samples, &haptic.frames, &exact.frames);
+    phase.finish_and_clear();
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
     let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");

@@ -70,6 +70,13 @@ pub mod rng {
     }
 }
 
+/// `text` without a leading UTF-8 byte-order mark, which Windows editors
+/// and Excel write at the start of text files (the CSV reader drops it
+/// itself; JSON parsers and line-based formats do not).
+pub fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
 /// A number for an error message: as `{}` prints it, or in exponent form
 /// when that would be a long run of digits (1e308 has 309).
 pub fn short_number(v: f64) -> String {

@@ -97,6 +97,9 @@ pub struct Ledger {
     reference: [FrameDecoder; 2],
     /// Corrupting items whose fresh decode gave no error (must stay 0).
     pub undetectable: u64,
+    /// The last faults injected (direction, kind, the frame, what was
+    /// delivered instead), for the report of a failed campaign.
+    pub recent: VecDeque<(Direction, Fault, Vec<u8>, Vec<u8>)>,
 }
 
 impl Ledger {
@@ -107,6 +110,7 @@ impl Ledger {
             redrawn: 0,
             reference: [FrameDecoder::board(), FrameDecoder::host()],
             undetectable: 0,
+            recent: VecDeque::new(),
         }
     }
 
@@ -295,6 +299,12 @@ impl<P: Port> FaultyPort<P> {
         };
         let k = Fault::ALL.iter().position(|f| *f == fault).unwrap_or(0);
         self.ledger.injected[i][k] += 1;
+        if self.ledger.recent.len() == 12 {
+            self.ledger.recent.pop_front();
+        }
+        self.ledger
+            .recent
+            .push_back((dir, fault, frame.clone(), Vec::new()));
         let body = &frame[..frame.len() - 1]; // without its delimiter
         match fault {
             Fault::Drop => Ok(()),
@@ -311,6 +321,9 @@ impl<P: Port> FaultyPort<P> {
             }
             Fault::BitFlip | Fault::Truncate | Fault::Garbage | Fault::Noise => {
                 let item = self.corrupt(dir, fault, body);
+                if let Some(r) = self.ledger.recent.back_mut() {
+                    r.3 = item.clone();
+                }
                 if !rejected_by_framing(dir, &item) {
                     self.ledger.undetectable += 1;
                 }

@@ -163,6 +163,34 @@ enum Board {
 }
 
 impl Board {
+    /// What the board says after a failure: a status read without faults,
+    /// whether QEMU still runs and what it printed.
+    fn diagnose<P: Port>(&mut self, link: &mut Link<FaultyPort<P>>) -> String {
+        link.port_mut().set_enabled(false);
+        let _ = link.port_mut().flush_delayed();
+        std::thread::sleep(Duration::from_millis(500));
+        while let Ok(Some(_)) = link.recv_until(Instant::now() + Duration::from_millis(100)) {}
+        let status = host_tools::hil::status(link);
+        let recent: Vec<String> = link
+            .port_mut()
+            .ledger
+            .recent
+            .iter()
+            .map(|(d, f, frame, item)| format!("{d:?} {} {frame:02x?} -> {item:02x?}", f.name()))
+            .collect();
+        let board = match self {
+            Board::Pty(b) => format!("pty board state {:?}", b.state.lock().unwrap()),
+            Board::Qemu(q, _dir) => {
+                format!("qemu running {}, printed {:?}", q.is_running(), q.output())
+            }
+        };
+        format!(
+            "status without faults: {status:?}\nlink {:?}\n{board}\nlast faults:\n{}",
+            link.stats(),
+            recent.join("\n")
+        )
+    }
+
     fn reset(&mut self) {
         match self {
             Board::Pty(b) => {
@@ -377,11 +405,14 @@ fn campaign(
             let host_before = link.stats();
             link.port_mut().reset_ledger();
             link.port_mut().set_enabled(true);
-            cl.run(to - from, &mut schedule, |x| {
+            let run = cl.run(to - from, &mut schedule, |x| {
                 got.push(fingerprint(x));
                 Ok::<(), hal_sim::LoopError<host_tools::board::BoardError>>(())
-            })
-            .unwrap_or_else(|e| panic!("lockstep failed after {} steps: {e}", got.len()));
+            });
+            if let Err(e) = run {
+                let why = board.diagnose(cl.controller.link());
+                panic!("lockstep failed after {} steps: {e}\n{why}", got.len());
+            }
             let link = cl.controller.link();
             let after = quiesce(link);
             let (b, h) = check_segment(link, &before, &after, &host_before);
@@ -514,18 +545,30 @@ fn fault_campaign_qemu_10k_steps() {
     qemu_campaign(10_000, 2, 0.01);
 }
 
+/// Steps and fault rate of a long form: the defaults, or
+/// `CAMPAIGN_STEPS` / `CAMPAIGN_RATE` from the environment.
+fn long_form(steps: u64, rate: f64) -> (u64, f64) {
+    let env = |k: &str| std::env::var(k).ok();
+    (
+        env("CAMPAIGN_STEPS").map_or(steps, |v| v.parse().expect("CAMPAIGN_STEPS")),
+        env("CAMPAIGN_RATE").map_or(rate, |v| v.parse().expect("CAMPAIGN_RATE")),
+    )
+}
+
 /// The long form: `cargo test -p integration-tests --test fault_campaign
 /// -- --ignored --nocapture --test-threads 1 long_form` (README figures;
 /// the image must be built, see scripts/test-all.sh).
 #[test]
 #[ignore = "long form (1,000,000 steps per board): run by hand, figures in the README"]
 fn long_form_pty_board_1m_steps() {
-    pty_campaign(1_000_000, 3, 0.002);
+    let (steps, rate) = long_form(1_000_000, 0.002);
+    pty_campaign(steps, 3, rate);
 }
 
 /// See [`long_form_pty_board_1m_steps`].
 #[test]
 #[ignore = "long form (1,000,000 steps per board): run by hand, figures in the README"]
 fn long_form_qemu_1m_steps() {
-    qemu_campaign(1_000_000, 4, 0.002);
+    let (steps, rate) = long_form(1_000_000, 0.002);
+    qemu_campaign(steps, 4, rate);
 }

@@ -16,6 +16,11 @@ use std::fmt::Write as _;
 /// The header line written and expected.
 pub const HEADER: &str = "frame,force_n,x_px,y_px";
 
+/// Largest contour coordinate accepted (px): a camera image is a few
+/// thousand pixels across; a point at 1e300 px would only overflow the
+/// rasteriser's arithmetic later, far from its line.
+pub const MAX_COORDINATE_PX: f64 = 1e6;
+
 /// Writes `video` in the format above.
 pub fn write_video_csv(video: &Video) -> String {
     let mut s = String::new();
@@ -109,6 +114,18 @@ pub fn parse_video_csv(
                     forces[frame]
                 ),
             ));
+        }
+        for (name, v) in [("x_px", x), ("y_px", y)] {
+            if v.abs() > MAX_COORDINATE_PX {
+                return Err(bad(
+                    file,
+                    row.line,
+                    format!(
+                        "column `{name}`: {} px is outside ±{MAX_COORDINATE_PX:e} px (a camera image is a few thousand pixels across)",
+                        crate::short_number(v)
+                    ),
+                ));
+            }
         }
         contours[frame].push(V2::new(x, y));
     }
