@@ -259,7 +259,7 @@ fn load_video(v: &VideoArgs, json: bool) -> Result<Video> {
             )?)
         }
         None => {
-            if !(v.ref_element_px >= MIN_REF_ELEMENT_PX) {
+            if v.ref_element_px.is_nan() || v.ref_element_px < MIN_REF_ELEMENT_PX {
                 bail!(
                     "--ref-element-px must be at least {MIN_REF_ELEMENT_PX} px, got {}: the finite-element ground truth's time grows about as the cube of 1/size (below 2 px it runs for minutes; the default is 8 px)",
                     plant_models::short_number(v.ref_element_px)
@@ -332,6 +332,9 @@ fn write(path: &Path, text: &str) -> Result<()> {
 /// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
 const SNAPSHOT_FRAMES: [usize; 5] = [0, 25, 50, 75, 99];
 
+/// Mesh positions at the snapshot frames, with their frame index.
+type Snapshots = Vec<(usize, Vec<V2>)>;
+
 /// Whether frame `f` of `n` is shown in the snapshots.
 fn is_snapshot_frame(f: usize, n: usize) -> bool {
     SNAPSHOT_FRAMES.iter().any(|&s| s.min(n - 1) == f)
@@ -345,7 +348,7 @@ fn score_with_snapshots(
     p: &MaterialParams,
     sim: &SimConfig,
     json: bool,
-) -> Result<(RunScore, Vec<(usize, Vec<V2>)>)> {
+) -> Result<(RunScore, Snapshots)> {
     let n = prep.frame_count();
     let bar = host_tools::progress::bar("frames", json);
     bar.set_length(n as u64);

@@ -132,8 +132,7 @@ pub fn table(s: &Summary) -> String {
 pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
     let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
     let colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
-    let column =
-        |f: &dyn Fn(&crate::sim::Row) -> f64| rows.iter().map(|r| f(r)).collect::<Vec<_>>();
+    let column = |f: &dyn Fn(&crate::sim::Row) -> f64| rows.iter().map(f).collect::<Vec<_>>();
     let mut angle_series = Vec::new();
     for (p, a) in angles.iter().enumerate() {
         let c = colours[p % colours.len()];
