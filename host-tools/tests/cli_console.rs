@@ -95,9 +95,7 @@ fn console_within(port: &str, args: &[&str], limit: std::time::Duration) -> std:
     match rx.recv_timeout(limit) {
         Ok(out) => out.expect("console output"),
         Err(_) => {
-            let _ = Command::new("kill")
-                .args(["-KILL", &pid.to_string()])
-                .status();
+            common::kill("-KILL", pid);
             panic!("console {args:?} did not finish within {limit:?} (spinning on telemetry?)");
         }
     }

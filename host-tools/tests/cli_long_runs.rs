@@ -56,11 +56,7 @@ fn interrupted(signal: &str, test: &str) -> (Option<i32>, serde_json::Value, com
         assert!(Instant::now() < until, "no rows reached the CSV");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let ok = Command::new("kill")
-        .args([signal, &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(ok.success());
+    common::kill(signal, child.id());
     let out = child.wait_with_output().unwrap();
     let err = stderr(&out);
     assert!(!err.contains("panicked"), "{err}");

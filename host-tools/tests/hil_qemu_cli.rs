@@ -121,11 +121,7 @@ fn assert_rows_are_the_steps_run(csv: &Path, steps: u64) {
 fn qemu_killed_mid_run_leaves_the_steps_run_and_names_its_signal() {
     let dir = scratch("hil-qemu-killed");
     let (child, qemu, csv) = start_hil(&dir);
-    assert!(Command::new("kill")
-        .args(["-KILL", &qemu.to_string()])
-        .status()
-        .unwrap()
-        .success());
+    common::kill("-KILL", qemu);
     let out = child.wait_with_output().unwrap();
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
@@ -146,11 +142,7 @@ fn sigterm_to_hil_leaves_no_qemu_behind() {
     let dir = scratch("hil-sigterm");
     let (child, qemu, csv) = start_hil(&dir);
     assert!(running(qemu));
-    assert!(Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap()
-        .success());
+    common::kill("-TERM", child.id());
     let out = child.wait_with_output().unwrap();
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(143), "{err}");
@@ -168,11 +160,7 @@ fn sigkill_and_sigint_to_hil_leave_no_qemu_behind() {
     for signal in ["-KILL", "-INT"] {
         let dir = scratch("hil-sigkill");
         let (mut child, qemu, _csv) = start_hil(&dir);
-        assert!(Command::new("kill")
-            .args([signal, &child.id().to_string()])
-            .status()
-            .unwrap()
-            .success());
+        common::kill(signal, child.id());
         let status = child.wait().unwrap();
         if signal == "-INT" {
             assert_eq!(status.code(), Some(130));

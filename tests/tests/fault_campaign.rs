@@ -519,14 +519,8 @@ fn qemu_campaign(steps: u64, seed: u64, rate: f64) {
     let qmp = dir.path().join("qmp.sock");
     let q = host_tools::qemu::Qemu::launch_with_control(&image, true, &qmp).expect("qemu");
     let port = host_tools::link::open_port(&q.pty.to_string_lossy(), 115_200).expect("pty");
-    let r = campaign(
-        Board::Qemu(q, dir),
-        port,
-        steps,
-        seed,
-        Duration::from_millis(60),
-        rate,
-    );
+    let wait = Duration::from_millis(60);
+    let r = campaign(Board::Qemu(q, dir), port, steps, seed, wait, rate);
     r.print("QEMU image");
     assert_campaign(&r, steps);
 }
