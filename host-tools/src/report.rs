@@ -77,14 +77,23 @@ pub fn table(s: &Summary) -> String {
                 g.desired_deg[p], g.steady_state_error_deg[p], g.overshoot_deg[p]
             );
         }
+        if !g.complete {
+            line.push_str("  (run cut short in this segment: error at its last row)");
+        }
         let _ = writeln!(out, "{line}");
     }
     let _ = writeln!(out);
+    let any_complete = s.segments.iter().any(|g| g.complete);
     for (p, a) in s.angles.iter().enumerate() {
+        let sse = if any_complete {
+            format!("{:.3}°", s.steady_state_error_deg[p])
+        } else {
+            "— (no target segment completed)".to_string()
+        };
         let _ = writeln!(
             out,
-            "{a:<6} worst steady-state error {:.3}°, max estimation error {:.3}°",
-            s.steady_state_error_deg[p], s.max_estimation_error_deg[p]
+            "{a:<6} worst steady-state error {sse}, max estimation error {:.3}°",
+            s.max_estimation_error_deg[p]
         );
     }
     let temps: Vec<String> = s
@@ -120,8 +129,8 @@ pub fn table(s: &Summary) -> String {
     if let Some(cut) = &s.cut_short {
         let _ = writeln!(
             out,
-            "CUT SHORT after {} of {} steps: {cut}",
-            s.steps, s.planned_steps
+            "CUT SHORT after {} of {} steps (t = {:.3} s): {}",
+            s.steps, s.planned_steps, cut.at_t_s, cut.reason
         );
     }
     out

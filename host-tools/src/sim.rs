@@ -63,6 +63,11 @@ pub struct Segment {
     pub steady_state_error_deg: Vec<f64>,
     /// Largest excursion beyond the target in the direction of travel (deg).
     pub overshoot_deg: Vec<f64>,
+    /// Whether the run reached the segment's end. For a segment it did
+    /// not (a run cut short), `steady_state_error_deg` is the error at its
+    /// last row when no row of its last 20 % ran, and the summary's
+    /// worst-case figures leave it out.
+    pub complete: bool,
 }
 
 /// The summary of a run (also the `--json` output).
@@ -550,6 +555,7 @@ struct SegmentStats {
     desired_deg: Vec<f64>,
     rows: u64,
     first_true_deg: [f64; 2],
+    last_true_deg: [f64; 2],
     tail_sum_deg: [f64; 2],
     tail_rows: usize,
     /// Running max (from 0) of `true − desired`: the overshoot if the
@@ -574,6 +580,10 @@ pub struct SummaryBuilder {
     /// validated in time order, so segments are ordered and disjoint and
     /// each row belongs to this one or to none.
     cursor: usize,
+    /// Time of the last row (s); −∞ before the first.
+    last_t_s: f64,
+    /// Control period (s).
+    period_s: f64,
 }
 
 impl SummaryBuilder {
@@ -594,6 +604,7 @@ impl SummaryBuilder {
                     desired_deg: t.deg.clone(),
                     rows: 0,
                     first_true_deg: [0.0; 2],
+                    last_true_deg: [0.0; 2],
                     tail_sum_deg: [sum_start(); 2],
                     tail_rows: 0,
                     above_deg: [0.0; 2],
@@ -607,6 +618,8 @@ impl SummaryBuilder {
             max_estimation_error_deg: [0.0; 2],
             segments,
             cursor: 0,
+            last_t_s: f64::NEG_INFINITY,
+            period_s: s.period_s(),
         }
     }
 
@@ -614,6 +627,7 @@ impl SummaryBuilder {
     #[inline]
     pub fn push(&mut self, r: &Row) {
         self.rows += 1;
+        self.last_t_s = r.t_s;
         for (p, m) in self
             .max_estimation_error_deg
             .iter_mut()
@@ -640,6 +654,7 @@ impl SummaryBuilder {
                 g.first_true_deg = r.true_deg;
             }
             g.rows += 1;
+            g.last_true_deg = r.true_deg;
             let tail = r.t_s >= g.tail_from_s;
             if tail {
                 g.tail_rows += 1;
@@ -664,10 +679,16 @@ impl SummaryBuilder {
         let mut prev_target: Option<&[f64]> = None;
         for g in self.segments.iter().filter(|g| g.rows > 0) {
             let planes = g.desired_deg.len();
+            // Rows of a segment: those with from ≤ t < to, one per period.
+            let complete = self.last_t_s + self.period_s >= g.to_s - 1e-9;
             let sse = (0..planes)
                 .map(|p| {
-                    let mean = g.tail_sum_deg[p] / g.tail_rows.max(1) as f64;
-                    (mean - g.desired_deg[p]).abs()
+                    let at = if g.tail_rows == 0 && !complete {
+                        g.last_true_deg[p]
+                    } else {
+                        g.tail_sum_deg[p] / g.tail_rows.max(1) as f64
+                    };
+                    (at - g.desired_deg[p]).abs()
                 })
                 .collect();
             let overshoot = (0..planes)
@@ -690,6 +711,7 @@ impl SummaryBuilder {
                 desired_deg: g.desired_deg.clone(),
                 steady_state_error_deg: sse,
                 overshoot_deg: overshoot,
+                complete,
             });
             prev_target = Some(&g.desired_deg);
         }
@@ -712,6 +734,7 @@ impl SummaryBuilder {
             .map(|p| {
                 segments
                     .iter()
+                    .filter(|g| g.complete)
                     .map(|g| g.steady_state_error_deg[p])
                     .fold(0.0, f64::max)
             })
@@ -923,6 +946,7 @@ mod tests {
                 desired_deg: t.deg.clone(),
                 steady_state_error_deg: sse,
                 overshoot_deg: overshoot,
+                complete: true,
             });
             prev_target = Some(t.deg.clone());
         }
