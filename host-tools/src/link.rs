@@ -101,6 +101,10 @@ fn name(kind: u8) -> String {
 /// clock.
 pub const MAX_REPLY_WAIT: Duration = Duration::from_secs(3600);
 
+/// How long a write may wait for room in the port's buffer (the far end
+/// not reading) before it fails.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
+
 /// The instant `timeout` from now, `timeout` held to [`MAX_REPLY_WAIT`].
 pub fn deadline_after(timeout: Duration) -> Instant {
     Instant::now() + timeout.min(MAX_REPLY_WAIT)
@@ -216,6 +220,9 @@ impl<P: Port> Link<P> {
         let n = encode_frame(msg, &mut frame);
         // No flush: on a tty it is tcdrain, which would block until the far
         // end (QEMU feeds its UART one byte at a time) has read everything.
+        // The port has one timeout for reads and writes, and the last read
+        // may have left it at a millisecond: a write gets its own.
+        self.port.set_read_timeout(WRITE_TIMEOUT)?;
         self.port.write_all(&frame[..n])?;
         self.stats.frames_sent += 1;
         Ok(())

@@ -236,7 +236,13 @@ impl<P: Port> FaultyPort<P> {
     fn emit(&mut self, dir: Direction, bytes: &[u8]) -> io::Result<()> {
         self.ledger.deliver(dir, bytes);
         match dir {
-            Direction::ToBoard => self.inner.write_all(bytes),
+            Direction::ToBoard => {
+                // Reads leave the port's one timeout short; a write gets
+                // the link's.
+                self.inner
+                    .set_read_timeout(host_tools::link::WRITE_TIMEOUT)?;
+                self.inner.write_all(bytes)
+            }
             Direction::ToHost => {
                 self.to_host.extend(bytes);
                 Ok(())
