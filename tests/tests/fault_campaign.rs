@@ -384,7 +384,9 @@ fn campaign(
         // Retries and delays must never look like a dead link.
         link_timeout_ms: Some(10_000),
         timeout,
-        attempts: 50,
+        // 200 attempts: a loaded CI machine can stall QEMU for seconds; a
+        // board that is really gone still fails the step, after 200 waits.
+        attempts: 200,
         lose_every: None,
         resume_after_restart: true,
     };
