@@ -307,26 +307,65 @@ impl Qemu {
 }
 
 /// Refuses an image QEMU would not run as firmware: a directory, an
-/// unreadable file, or a file that is not ELF (QEMU loads any other file as
-/// a raw binary at address 0 and runs the bytes, which then never answer).
+/// unreadable file, a file that is not a 32-bit little-endian ARM ELF
+/// (QEMU loads any other file as a raw binary at address 0 and runs the
+/// bytes, which then never answer), or one cut short (a segment that ends
+/// past the end of the file: a copy or build that did not finish).
 fn check_elf(image: &Path) -> anyhow::Result<()> {
-    use std::io::Read as _;
     if image.is_dir() {
         bail!(
             "firmware image {} is a directory, not an ELF file; build the image with `{BUILD_IMAGE}`",
             image.display()
         );
     }
-    let mut magic = [0u8; 4];
-    std::fs::File::open(image)
-        .and_then(|mut f| f.read_exact(&mut magic))
+    let bytes = std::fs::read(image)
         .with_context(|| format!("cannot read firmware image {}", image.display()))?;
-    if magic != *b"\x7fELF" {
+    let head = bytes.get(..4).unwrap_or(&bytes);
+    if head != b"\x7fELF" {
         bail!(
             "firmware image {} is not an ELF file (it starts with `{}`); build the image with `{BUILD_IMAGE}`",
             image.display(),
-            magic.escape_ascii()
+            head.escape_ascii()
         );
+    }
+    let u16_at = |o: usize| {
+        bytes
+            .get(o..o + 2)
+            .map(|b| u16::from_le_bytes([b[0], b[1]]))
+    };
+    let u32_at = |o: usize| {
+        bytes
+            .get(o..o + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
+    };
+    // ELF32 header: class 1 (32-bit), data 1 (little endian), e_machine 40
+    // (ARM) at 0x12; program headers at e_phoff (0x1C), e_phentsize (0x2A)
+    // bytes each, e_phnum (0x2C) of them.
+    if bytes.get(4..6) != Some(&[1, 1]) || u16_at(0x12) != Some(40) {
+        bail!(
+            "firmware image {} is an ELF file for another machine (not 32-bit little-endian ARM); build the image with `{BUILD_IMAGE}`",
+            image.display()
+        );
+    }
+    let cut = |what: &str| {
+        anyhow::anyhow!(
+            "firmware image {} is cut short ({what} past its {} bytes); build the image again with `{BUILD_IMAGE}`",
+            image.display(),
+            bytes.len()
+        )
+    };
+    let (Some(phoff), Some(phentsize), Some(phnum)) = (u32_at(0x1C), u16_at(0x2A), u16_at(0x2C))
+    else {
+        return Err(cut("its header runs"));
+    };
+    for k in 0..usize::from(phnum) {
+        let ph = phoff + k * usize::from(phentsize);
+        let (Some(offset), Some(filesz)) = (u32_at(ph + 4), u32_at(ph + 16)) else {
+            return Err(cut("its program headers run"));
+        };
+        if offset + filesz > bytes.len() {
+            return Err(cut(&format!("segment {k} runs")));
+        }
     }
     Ok(())
 }

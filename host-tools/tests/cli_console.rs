@@ -144,3 +144,18 @@ fn durations_are_checked_not_converted_with_a_panic() {
         assert!(err.contains("SECONDS must be from 0 to"), "{cmd}: {err}");
     }
 }
+
+/// A script saved by a Windows editor (byte-order mark, CRLF) runs like a
+/// plain one.
+#[test]
+fn a_console_script_from_windows_runs() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (board, host_end) = PtyBoard::start().expect("pty pair");
+    drop(host_end);
+    let dir = common::scratch("excel-console");
+    let script = dir.join("session.txt");
+    std::fs::write(&script, "\u{feff}# from notepad\r\nhello\r\nstatus\r\n").unwrap();
+    let out = console(&board.host_path, &["--script", script.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    assert!(common::stdout(&out).contains("protocol and schema match"));
+}

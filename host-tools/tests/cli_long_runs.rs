@@ -121,9 +121,14 @@ fn an_unstable_plant_leaves_its_trace_up_to_the_failing_step() {
 fn output_to_a_full_device_is_an_error_not_a_panic() {
     let dir = scratch("full");
     let sweep = dir.join("sweep.csv");
+    let short = file(
+        &dir,
+        "short.toml",
+        "duration_s = 1.0\n[estimator]\nmethod = \"paper\"\n",
+    );
     for args in [
-        vec!["sim", "--json"],
-        vec!["sim"],
+        vec!["sim", &short, "--json"],
+        vec!["sim", &short],
         vec!["sim", "--print-default"],
         vec!["sim", "--calibration-sweep", s(&sweep)],
     ] {

@@ -174,6 +174,29 @@ fn sigkill_and_sigint_to_hil_leave_no_qemu_behind() {
     }
 }
 
+/// The real image with its reset and HardFault vectors zeroed: QEMU loads
+/// it, the core faults at its first instruction, the fault escalates to a
+/// lockup and QEMU aborts at once.
+fn image_that_locks_up(dir: &Path) -> PathBuf {
+    let mut elf = std::fs::read(image()).unwrap();
+    let u32_at = |b: &[u8], o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap()) as usize;
+    let u16_at =
+        |b: &[u8], o: usize| usize::from(u16::from_le_bytes(b[o..o + 2].try_into().unwrap()));
+    let (phoff, phentsize, phnum) = (u32_at(&elf, 0x1C), u16_at(&elf, 0x2A), u16_at(&elf, 0x2C));
+    // The loadable segment at address 0 holds the vector table.
+    let table = (0..phnum)
+        .map(|k| phoff + k * phentsize)
+        .find(|&ph| u32_at(&elf, ph) == 1 && u32_at(&elf, ph + 12) == 0)
+        .map(|ph| u32_at(&elf, ph + 4))
+        .expect("vector table segment");
+    for entry in [1, 3] {
+        elf[table + 4 * entry..table + 4 * entry + 4].fill(0);
+    }
+    let p = dir.join("lockup.elf");
+    std::fs::write(&p, elf).unwrap();
+    p
+}
+
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
 fn images_qemu_cannot_run_are_named() {
@@ -183,13 +206,14 @@ fn images_qemu_cannot_run_are_named() {
     let cut = dir.join("cut.elf");
     std::fs::write(&cut, &real[..3000]).unwrap();
     for (img, needle) in [
-        (s(&dir).to_string(), "is a directory"),
-        (not_elf, "is not an ELF file"),
-        // QEMU loads it, runs into garbage and aborts: its exit and its
-        // own message are the error, not the serial line's "broken pipe".
+        (s(&dir).to_string(), "is a directory".to_string()),
+        (not_elf, "is not an ELF file".to_string()),
+        (s(&cut).to_string(), format!("{} is cut short", s(&cut))),
+        // QEMU runs it and aborts: its exit and its own message are the
+        // error, not the serial line's "broken pipe".
         (
-            s(&cut).to_string(),
-            "qemu-system-arm was killed by signal 6 (SIGABRT); it said: qemu",
+            s(&image_that_locks_up(&dir)).to_string(),
+            "qemu-system-arm was killed by signal 6 (SIGABRT); it said: qemu".to_string(),
         ),
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_softjoint"))
@@ -198,7 +222,7 @@ fn images_qemu_cannot_run_are_named() {
             .unwrap();
         let err = stderr(&out);
         assert_eq!(out.status.code(), Some(1), "{img}: {err}");
-        assert!(err.contains(needle), "{img}: {err}");
+        assert!(err.contains(&needle), "{img}: {err}");
         assert!(!err.contains("Broken pipe"), "{img}: {err}");
     }
 }
