@@ -145,6 +145,15 @@ fn output_to_a_full_device_is_an_error_not_a_panic() {
             "{args:?}: {err}"
         );
     }
+    // A trace file on a full device: named, before the run.
+    let out = softjoint(&["sim", &short, "--csv", "/dev/full"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("cannot write /dev/full: No space left"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
 }
 
 #[test]
