@@ -179,11 +179,9 @@ pub fn run_into<P: Port>(
         board_overfull: counter(|s| s.overfull),
         board_malformed: counter(|s| s.malformed),
         board_stale_seqs: counter(|s| s.stale_seqs),
-        lockstep_steps_per_s: if wall > 0.0 {
-            steps as f64 / wall
-        } else {
-            f64::INFINITY
-        },
+        // (No wall time means no step ran: 0, not ∞, which no result may
+        // carry.)
+        lockstep_steps_per_s: if wall > 0.0 { steps as f64 / wall } else { 0.0 },
         board_restarts: restarts,
         board_counters_read: status.is_some(),
     })

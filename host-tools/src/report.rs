@@ -101,7 +101,12 @@ pub fn table(s: &Summary) -> String {
         .iter()
         .map(|t| format!("{t:.0}"))
         .collect();
-    let _ = writeln!(out, "peak coil temperatures (°C): {}", temps.join(", "));
+    let temps = if temps.is_empty() {
+        "none (no step ran)".to_string()
+    } else {
+        temps.join(", ")
+    };
+    let _ = writeln!(out, "peak coil temperatures (°C): {temps}");
     let faults = if s.faults_seen.is_empty() {
         "none".to_string()
     } else {

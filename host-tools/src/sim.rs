@@ -474,7 +474,14 @@ where
             signal,
         }
     });
-    let mut summary = stats.finish(s, names, wall, estimator, faults_seen, peak_temp.to_vec());
+    // A run cut short before its first row has no peak temperature (the
+    // −∞ it starts from is no number a summary may carry).
+    let peaks = if stats.rows == 0 {
+        Vec::new()
+    } else {
+        peak_temp.to_vec()
+    };
+    let mut summary = stats.finish(s, names, wall, estimator, faults_seen, peaks);
     summary.cut_short = cut_short;
     summary
 }
@@ -760,10 +767,12 @@ impl SummaryBuilder {
             segments,
             sim_seconds,
             wall_seconds,
+            // (No wall time means no step ran: 0, not ∞, which no result
+            // may carry.)
             realtime_factor: if wall_seconds > 0.0 {
                 sim_seconds / wall_seconds
             } else {
-                f64::INFINITY
+                0.0
             },
             steps: self.rows,
             faults_seen: fault_names(faults_seen),
