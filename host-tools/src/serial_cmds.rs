@@ -143,9 +143,11 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
     };
     if let Some(cut) = &mut report.summary.cut_short {
         if cut.cause == host_tools::sim::CutCause::Controller {
-            if let Some(how) = ended(&mut qemu) {
-                cut.reason = format!("the emulated board ended: {how}");
-            }
+            cut.reason = match ended(&mut qemu) {
+                Some(how) => format!("the emulated board ended: {how}"),
+                // Which board, as for a failure before the run.
+                None => format!("{}, on {label}", cut.reason),
+            };
         }
     }
     args.output.finish_trace(
