@@ -1,8 +1,8 @@
-//! Every file `softjoint` writes and every JSON it prints goes through
-//! `host_tools::output`, which refuses non-finite numbers (and writes the
-//! files a user keeps atomically). This test reads the program's source
-//! and fails when a write bypasses it, so a new writer cannot forget the
-//! check.
+//! Every file `softjoint` writes and everything it prints goes through
+//! `host_tools::output`, which refuses non-finite numbers, writes the
+//! files a user keeps atomically, and prints without panicking. These
+//! tests read the program's source and fail when a write or a print
+//! bypasses it, so a new writer cannot forget the check.
 use std::path::Path;
 
 /// Calls that write a file or serialise a result outside `output`.
@@ -38,6 +38,13 @@ const ALLOWED: [(&str, &str, &str); 3] = [
         "File::create(",
         "the streamed --csv trace of sim/hil is written as the run goes (not atomically, it says whether it is complete); every value of a row is checked with output::check_number before it is formatted",
     ),
+];
+
+/// The streamed writers among [`ALLOWED`], each with the check of
+/// `host_tools::output` its code must call.
+const STREAMED: [(&str, &str); 2] = [
+    ("serial_cmds.rs", "output::check_csv("),
+    ("trace.rs", "check_number("),
 ];
 
 fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
@@ -82,6 +89,60 @@ fn every_writer_goes_through_the_finite_check() {
     assert!(
         offences.is_empty(),
         "writes that bypass host_tools::output (and its non-finite check):\n{}",
+        offences.join("\n")
+    );
+    // The writers allowed to stream must still check what they write.
+    for (name, check) in STREAMED {
+        let f = files
+            .iter()
+            .find(|f| f.file_name().is_some_and(|n| n == name))
+            .unwrap_or_else(|| panic!("{name} not found"));
+        let text = std::fs::read_to_string(f).unwrap();
+        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        assert!(code.contains(check), "{name} streams without `{check}`");
+    }
+}
+
+/// Whether `line` calls the macro `name` (`println` matches `println!(`
+/// but not `eprintln!(`).
+fn calls(line: &str, name: &str) -> bool {
+    let call = format!("{name}!(");
+    line.match_indices(&call).any(|(at, _)| {
+        !line[..at]
+            .chars()
+            .next_back()
+            .is_some_and(|c| c.is_alphanumeric() || c == '_')
+    })
+}
+
+/// Standard output is written with `outln!`/`out!` (or output's print
+/// functions), which return a failed write as an error: `println!` and
+/// `print!` panic when standard output is full or closed.
+#[test]
+fn every_print_goes_through_the_checked_stdout() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    sources(&src, &mut files);
+    assert!(calls("    println!(\"x\");", "println") && !calls("eprintln!(\"x\")", "println"));
+    let mut offences = Vec::new();
+    for f in &files {
+        if f.starts_with(src.join("output")) {
+            continue;
+        }
+        let text = std::fs::read_to_string(f).unwrap();
+        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        for (i, line) in code.lines().enumerate() {
+            if line.trim_start().starts_with("//") {
+                continue;
+            }
+            if calls(line, "println") || calls(line, "print") {
+                offences.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "prints that panic on a failed write (use outln!/out!):\n{}",
         offences.join("\n")
     );
 }
