@@ -58,34 +58,57 @@ fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
     }
 }
 
-#[test]
-fn every_writer_goes_through_the_finite_check() {
+/// A program source outside `host_tools::output`: its name and the code
+/// before its unit tests (which may write their own inputs).
+struct Source {
+    path: std::path::PathBuf,
+    name: String,
+    code: String,
+}
+
+/// Every source of the program but `host_tools::output`'s own.
+fn program_sources() -> Vec<Source> {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = Vec::new();
     sources(&src, &mut files);
     assert!(files.len() > 10, "found {} sources", files.len());
-    let mut offences = Vec::new();
-    for f in &files {
-        if f.starts_with(src.join("output")) {
-            continue;
-        }
-        let text = std::fs::read_to_string(f).unwrap();
-        // Unit tests may write their own inputs.
-        let code = text.split("#[cfg(test)]").next().unwrap_or("");
-        let name = f.file_name().unwrap().to_str().unwrap();
-        for (i, line) in code.lines().enumerate() {
-            if line.trim_start().starts_with("//") {
-                continue;
+    files
+        .into_iter()
+        .filter(|f| !f.starts_with(src.join("output")))
+        .map(|path| {
+            let text = std::fs::read_to_string(&path).unwrap();
+            Source {
+                name: path.file_name().unwrap().to_str().unwrap().to_string(),
+                code: text.split("#[cfg(test)]").next().unwrap_or("").to_string(),
+                path,
             }
-            let line = line.replace(CHECKED, "");
-            for b in BYPASSES {
-                let allowed = ALLOWED.iter().any(|(n, a, _)| *n == name && *a == b);
-                if line.contains(b) && !allowed {
-                    offences.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
-                }
+        })
+        .collect()
+}
+
+/// The lines of `sources` (comments left out) for which `offends` holds,
+/// as `file:line: text`.
+fn offences(sources: &[Source], offends: impl Fn(&Source, &str) -> bool) -> Vec<String> {
+    let mut out = Vec::new();
+    for f in sources {
+        for (i, line) in f.code.lines().enumerate() {
+            if !line.trim_start().starts_with("//") && offends(f, line) {
+                out.push(format!("{}:{}: {}", f.path.display(), i + 1, line.trim()));
             }
         }
     }
+    out
+}
+
+#[test]
+fn every_writer_goes_through_the_finite_check() {
+    let files = program_sources();
+    let offences = offences(&files, |f, line| {
+        let line = line.replace(CHECKED, "");
+        BYPASSES
+            .iter()
+            .any(|b| line.contains(b) && !ALLOWED.iter().any(|(n, a, _)| *n == f.name && a == b))
+    });
     assert!(
         offences.is_empty(),
         "writes that bypass host_tools::output (and its non-finite check):\n{}",
@@ -95,11 +118,9 @@ fn every_writer_goes_through_the_finite_check() {
     for (name, check) in STREAMED {
         let f = files
             .iter()
-            .find(|f| f.file_name().is_some_and(|n| n == name))
+            .find(|f| f.name == name)
             .unwrap_or_else(|| panic!("{name} not found"));
-        let text = std::fs::read_to_string(f).unwrap();
-        let code = text.split("#[cfg(test)]").next().unwrap_or("");
-        assert!(code.contains(check), "{name} streams without `{check}`");
+        assert!(f.code.contains(check), "{name} streams without `{check}`");
     }
 }
 
@@ -120,26 +141,10 @@ fn calls(line: &str, name: &str) -> bool {
 /// `print!` panic when standard output is full or closed.
 #[test]
 fn every_print_goes_through_the_checked_stdout() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut files = Vec::new();
-    sources(&src, &mut files);
     assert!(calls("    println!(\"x\");", "println") && !calls("eprintln!(\"x\")", "println"));
-    let mut offences = Vec::new();
-    for f in &files {
-        if f.starts_with(src.join("output")) {
-            continue;
-        }
-        let text = std::fs::read_to_string(f).unwrap();
-        let code = text.split("#[cfg(test)]").next().unwrap_or("");
-        for (i, line) in code.lines().enumerate() {
-            if line.trim_start().starts_with("//") {
-                continue;
-            }
-            if calls(line, "println") || calls(line, "print") {
-                offences.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
-            }
-        }
-    }
+    let offences = offences(&program_sources(), |_, line| {
+        calls(line, "println") || calls(line, "print")
+    });
     assert!(
         offences.is_empty(),
         "prints that panic on a failed write (use outln!/out!):\n{}",
