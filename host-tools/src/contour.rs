@@ -19,6 +19,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Chart, Panel, Series, Shape, ShapeStyle};
+use host_tools::{out, outln};
 use plant_models::contour::fit::Solver;
 use plant_models::contour::identify::data::{read_contour_csv, ContourData, FrameData};
 use plant_models::contour::identify::gcv::{Lambda, LambdaReport};
@@ -490,7 +491,7 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
     if a.json {
         output::print_json(&summary)?;
     } else {
-        print!("{}", fit_report(&summary));
+        out!("{}", fit_report(&summary));
     }
     Ok(())
 }
@@ -903,7 +904,7 @@ fn synth_cmd(a: SynthArgs) -> Result<()> {
     if a.json {
         output::print_json(&summary)?;
     } else {
-        println!(
+        outln!(
             "{}: {} frames × {} points, σ = {}, seed {}; wrote {} to {}",
             summary.case,
             summary.frames,
@@ -913,7 +914,7 @@ fn synth_cmd(a: SynthArgs) -> Result<()> {
             summary.files.join(", "),
             summary.out
         );
-        println!("fit it as the paper does: {}", summary.fit_command);
+        outln!("fit it as the paper does: {}", summary.fit_command);
     }
     Ok(())
 }

@@ -9,11 +9,13 @@
 //! a short text report or, with `--json`, a machine-readable summary.
 use std::fmt::Write as _;
 use std::fs;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::input::from_json;
+use host_tools::outln;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use plant_models::pushing::classify::{classify, MaterialModel, Tally};
@@ -23,7 +25,7 @@ use plant_models::pushing::contour_score::{
 };
 use plant_models::pushing::error::PushError;
 use plant_models::pushing::evaluate::{
-    score_run, simulate_frames, EvalSetup, PreparedVideo, RunScore,
+    score_run, score_run_observed, simulate_frames, EvalSetup, PreparedVideo, RunScore,
 };
 use plant_models::pushing::evolution::{
     calibrate, CalibrationResult, EvolutionSettings, TABLE_III_RANGES,
@@ -202,8 +204,10 @@ struct SimulateArgs {
     /// Print a machine-readable summary.
     #[arg(long)]
     json: bool,
-    /// Write the results even when the model becomes unstable (frames from
-    /// the instability on score 0); without it an unstable run is an error.
+    /// Write the results even when the model becomes unstable, from its
+    /// first frames or later (frames from the instability on score 0, a
+    /// warning on stderr); without it an unstable run exits 1, names the
+    /// frame and cause on stderr, and writes nothing.
     #[arg(long)]
     allow_unstable: bool,
 }
@@ -317,7 +321,7 @@ fn as_flag(e: PushError) -> anyhow::Error {
     }
 }
 
-fn load_video(v: &VideoArgs) -> Result<Video> {
+fn load_video(v: &VideoArgs, json: bool) -> Result<Video> {
     let mat = v.material.reference();
     let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
     match &v.video {
@@ -332,18 +336,37 @@ fn load_video(v: &VideoArgs) -> Result<Video> {
             )?)
         }
         None => {
+            if v.ref_element_px.is_nan() || v.ref_element_px < MIN_REF_ELEMENT_PX {
+                bail!(
+                    "--ref-element-px {}: must be at least {MIN_REF_ELEMENT_PX} px (the finite-element ground truth's time grows about as the cube of 1/size: below 2 px it runs for minutes; the default is 8 px)",
+                    plant_models::short_number(v.ref_element_px)
+                );
+            }
             let cfg = ReferenceConfig {
                 element_size_px: v.ref_element_px,
                 seed: v.noise_seed,
                 ..ReferenceConfig::default()
             };
-            record_push(v.material.label(), mat, &scenario, &cfg).map_err(as_flag)
+            let spinner = host_tools::progress::spinner(
+                &format!(
+                    "recording the ground-truth push ({} px elements)",
+                    v.ref_element_px
+                ),
+                json,
+            );
+            let video = record_push(v.material.label(), mat, &scenario, &cfg);
+            spinner.finish_and_clear();
+            video.map_err(as_flag)
         }
     }
 }
 
-fn prepare(v: &VideoArgs, m: &ModelArgs) -> Result<PreparedVideo> {
-    let video = load_video(v)?;
+/// Smallest `--ref-element-px`: below ≈ 2 px the ground truth ran for
+/// minutes (issue 12); 8 px is the default.
+const MIN_REF_ELEMENT_PX: f64 = 2.0;
+
+fn prepare(v: &VideoArgs, m: &ModelArgs, json: bool) -> Result<PreparedVideo> {
+    let video = load_video(v, json)?;
     PreparedVideo::new(
         video,
         &EvalSetup {
@@ -375,10 +398,18 @@ fn load_params(path: &Path) -> Result<MaterialParams> {
     Ok(p)
 }
 
+/// Creates the output directory.
 fn out_dir(dir: &Path) -> Result<()> {
-    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+    host_tools::output::create_dir(dir)
 }
 
+/// Checks the output directory can be written, before the simulation
+/// rather than after it.
+fn check_out_dir(dir: &Path) -> Result<()> {
+    host_tools::output::check_dir(dir)
+}
+
+/// Writes a result file atomically (a failed write leaves the old file).
 fn write(path: &Path, text: &str) -> Result<()> {
     if path.extension().is_some_and(|e| e == "svg") {
         output::write_svg(path, text)
@@ -390,6 +421,37 @@ fn write(path: &Path, text: &str) -> Result<()> {
 /// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
 const SNAPSHOT_FRAMES: [usize; 5] = [0, 25, 50, 75, 99];
 
+/// Mesh positions at the snapshot frames, with their frame index.
+type Snapshots = Vec<(usize, Vec<V2>)>;
+
+/// Whether frame `f` of `n` is shown in the snapshots.
+fn is_snapshot_frame(f: usize, n: usize) -> bool {
+    SNAPSHOT_FRAMES.iter().any(|&s| s.min(n - 1) == f)
+}
+
+/// Scores a run and keeps its snapshot positions in the same pass, with a
+/// progress bar over its frames (hidden unless a person watches).
+fn score_with_snapshots(
+    prep: &PreparedVideo,
+    forces: &[f64],
+    p: &MaterialParams,
+    sim: &SimConfig,
+    json: bool,
+) -> Result<(RunScore, Snapshots)> {
+    let n = prep.frame_count();
+    let bar = host_tools::progress::bar("frames", json);
+    bar.set_length(n as u64);
+    let mut shots = Vec::new();
+    let score = score_run_observed(prep, forces, p, sim, |f, pos| {
+        if is_snapshot_frame(f, n) {
+            shots.push((f, pos.to_vec()));
+        }
+        bar.set_position(f as u64 + 1);
+    })?;
+    bar.finish_and_clear();
+    Ok((score, shots))
+}
+
 /// Mesh positions of the model at the snapshot frames.
 fn snapshot_positions(
     prep: &PreparedVideo,
@@ -398,7 +460,6 @@ fn snapshot_positions(
     sim: &SimConfig,
 ) -> Result<Vec<(usize, Vec<V2>)>> {
     let n = prep.frame_count();
-    let frames: Vec<usize> = SNAPSHOT_FRAMES.iter().map(|&f| f.min(n - 1)).collect();
     let mut out = Vec::new();
     simulate_frames(
         &prep.mesh,
@@ -407,7 +468,7 @@ fn snapshot_positions(
         p,
         sim,
         |f, pos, _| {
-            if frames.contains(&f) {
+            if is_snapshot_frame(f, n) {
                 out.push((f, pos.to_vec()));
             }
         },
@@ -415,10 +476,50 @@ fn snapshot_positions(
     Ok(out)
 }
 
+/// Most grid lines drawn per direction in a snapshot panel: a 2000 × 2000
+/// mesh drawn edge by edge made a 1.44 GB SVG no viewer opens.
+const MAX_DRAWN_GRID_LINES: usize = 50;
+
+/// The mesh of a snapshot as line segments: every edge of a mesh of at
+/// most [`MAX_DRAWN_GRID_LINES`] squares per side, else every k-th grid
+/// line of the `nx × ny` grid (through every k-th vertex along it), which
+/// still shows how the block deforms. Returns the segments and k.
+fn mesh_segments(
+    mesh: &plant_models::pushing::mesh::Mesh,
+    nx: usize,
+    ny: usize,
+    pos: &[V2],
+) -> (Vec<(V2, V2)>, usize) {
+    let k = nx.max(ny).div_ceil(MAX_DRAWN_GRID_LINES).max(1);
+    if k == 1 || pos.len() != (nx + 1) * (ny + 1) {
+        let all = mesh.edges.iter().map(|e| (pos[e[0]], pos[e[1]])).collect();
+        return (all, 1);
+    }
+    let at = |i: usize, j: usize| pos[j * (nx + 1) + i];
+    // Every k-th index, and the last one (the block's far sides).
+    let picks = |n: usize| -> Vec<usize> {
+        let mut v: Vec<usize> = (0..=n).step_by(k).collect();
+        if v.last() != Some(&n) {
+            v.push(n);
+        }
+        v
+    };
+    let (is, js) = (picks(nx), picks(ny));
+    let mut out = Vec::new();
+    for &j in &js {
+        out.extend(is.windows(2).map(|w| (at(w[0], j), at(w[1], j))));
+    }
+    for &i in &is {
+        out.extend(js.windows(2).map(|w| (at(i, w[0]), at(i, w[1]))));
+    }
+    (out, k)
+}
+
 /// Mesh snapshots over frames: ground-truth outline (grey fill), the model
 /// mesh (blue), the finger (red).
 fn snapshots_svg(
     prep: &PreparedVideo,
+    (nx, ny): (usize, usize),
     shots: &[(usize, Vec<V2>)],
     score: &RunScore,
     tracked: &Tracking,
@@ -470,13 +571,20 @@ fn snapshots_svg(
             zone.push(first);
         }
         svg.polyline(zone, Stroke::dashed("#e80", 1.0));
+        let (segments, every) = mesh_segments(&prep.mesh, nx, ny, pos);
         svg.segments(
-            prep.mesh
-                .edges
-                .iter()
-                .map(|e| (tx(pos[e[0]]), tx(pos[e[1]]))),
+            segments.into_iter().map(|(a, b)| (tx(a), tx(b))),
             Stroke::solid("#1f5fbf", 0.7),
         );
+        if every > 1 && k == 0 {
+            svg.text(
+                10.0,
+                34.0,
+                11.0,
+                Anchor::Start,
+                &format!("{nx} × {ny} mesh: one grid line in {every} drawn"),
+            );
+        }
         let finger = sc.finger_at(sc.frame_time_s(*f));
         svg.circle(
             tx(finger.centre_px),
@@ -605,8 +713,10 @@ fn frames_csv(
 }
 
 fn simulate_cmd(a: SimulateArgs) -> Result<()> {
-    // The parameters first: a bad file is refused before the ground truth
-    // (seconds of finite elements) is generated.
+    // The output directory and the parameters first: an unwritable path
+    // or a bad file is refused before the ground truth (seconds of finite
+    // elements) is generated.
+    check_out_dir(&a.out)?;
     let params = match &a.params {
         Some(p) => load_params(p)?,
         None => match a.video.material {
@@ -614,7 +724,7 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
         },
     };
-    let prep = prepare(&a.video, &a.model)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
     let sim = sim_config(&a.model);
     let forces = if a.predicted_forces {
         ForcePredictor::fit(
@@ -626,9 +736,12 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     } else {
         prep.video.forces_n.clone()
     };
-    let score = score_run(&prep, &forces, &params, &sim)?;
-    // An unstable model is a failed run unless the user asked for its
-    // results anyway (frames from the instability on score 0).
+    let (score, shots) = score_with_snapshots(&prep, &forces, &params, &sim, a.json)?;
+    // An unstable model is a failed run — from its first frames (a stiff
+    // mesh at the seed's step: its pictures would only show the blow-up)
+    // or later — unless the user asked for its results anyway, with every
+    // frame from the instability on scored 0. Nothing non-finite is
+    // written either way.
     let instability = score.unstable_from_frame.map(|f| {
         let why = score
             .instability
@@ -646,7 +759,10 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
                 "{what}; nothing was written: try smaller stiffnesses or another --integrator, or give --allow-unstable to write the results with every frame from there on scored 0"
             );
         }
-        eprintln!("warning: {what}; frames from there on score 0 (--allow-unstable)");
+        let _ = writeln!(
+            std::io::stderr(),
+            "warning: {what}; frames from there on score 0 (--allow-unstable)"
+        );
     }
     let still_f = score_run(
         &prep,
@@ -665,7 +781,6 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
         &frames_csv(&prep, &forces, &score, &tracking),
     )?;
     write(&a.out.join("video.csv"), &write_video_csv(&prep.video))?;
-    let shots = snapshot_positions(&prep, &forces, &params, &sim)?;
     let title = format!(
         "{} pushed at {}: μ(F) = {:.4}",
         prep.video.material,
@@ -674,7 +789,14 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     );
     write(
         &a.out.join("snapshots.svg"),
-        &snapshots_svg(&prep, &shots, &score, &tracking, &title),
+        &snapshots_svg(
+            &prep,
+            (a.model.nx, a.model.ny),
+            &shots,
+            &score,
+            &tracking,
+            &title,
+        ),
     )?;
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
     let chart = plot::line_charts(&[
@@ -756,8 +878,8 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             .field("out", &a.out)?
             .print()?;
     } else {
-        println!("{title} (undeformed block: {still_f:.4})");
-        println!(
+        outln!("{title} (undeformed block: {still_f:.4})");
+        outln!(
             "contour distance in the finger's reach: {:.2} px mean, {:.2} px max (undeformed block {:.2} / {:.2} px): skill {:.2}",
             contour.mean_px,
             contour.max_px,
@@ -766,9 +888,9 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             contour_skill
         );
         if let Some(what) = &instability {
-            println!("{what}: scored 0 from there");
+            outln!("{what}: scored 0 from there");
         }
-        println!(
+        outln!(
             "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
             a.out.display()
         );
@@ -788,7 +910,8 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             a.generations
         );
     }
-    let prep = prepare(&a.video, &a.model)?;
+    check_out_dir(&a.out)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
     let sim = sim_config(&a.model);
     let mut tracking = Tracking::of(&prep)?;
     let mut st = EvolutionSettings::table_iii(a.seed);
@@ -899,7 +1022,14 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     );
     write(
         &a.out.join("snapshots.svg"),
-        &snapshots_svg(&prep, &shots, &score, &tracking, &title),
+        &snapshots_svg(
+            &prep,
+            (a.model.nx, a.model.ny),
+            &shots,
+            &score,
+            &tracking,
+            &title,
+        ),
     )?;
     if a.json {
         JsonObject::new()
@@ -920,7 +1050,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             .field("out", &a.out)?
             .print()?;
     } else {
-        println!(
+        outln!(
             "calibrated by {}: μ(F) {:.4} (undeformed block {:.4}), contour distance {:.2} px (undeformed block {:.2} px, skill {:.2}) after {} generations ({} simulations)",
             a.score.name(),
             score.mean_f,
@@ -931,8 +1061,8 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             result.history.len(),
             result.evaluations
         );
-        println!("{}", result.best_params);
-        println!(
+        outln!("{}", result.best_params);
+        outln!(
             "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
             a.out.display()
         );
@@ -974,7 +1104,8 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
             );
         }
     }
-    let prep = prepare(&a.video, &a.model)?;
+    check_out_dir(&a.out)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
     let sim = sim_config(&a.model);
     // Per-frame values (F, or contour distance in px) and the tally.
     let (per_frame, tally, labels) = match a.score {
@@ -1068,9 +1199,9 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
             .field("out", &a.out)?
             .print()?;
     } else {
-        println!("global vote by {}: {verdict}", a.score.name());
+        outln!("global vote by {}: {verdict}", a.score.name());
         for (k, l) in labels.iter().enumerate() {
-            println!(
+            outln!(
                 "  {l:>12}: {} frames won, weighted vote {:+.4}{}",
                 tally.frames_won[k],
                 tally.vote[k],
@@ -1081,7 +1212,7 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
                 }
             );
         }
-        println!(
+        outln!(
             "wrote classification.csv, classification.svg to {}",
             a.out.display()
         );
@@ -1119,6 +1250,31 @@ mod tests {
             ny: 2,
             cell_px: 8.0,
             no_repair: false,
+        }
+    }
+
+    #[test]
+    fn snapshots_of_large_meshes_draw_a_bounded_number_of_lines() {
+        use plant_models::pushing::mesh::Mesh;
+        let small = Mesh::grid(V2::new(0.0, 0.0), 100.0, 50.0, 20, 10).unwrap();
+        let (all, k) = mesh_segments(&small, 20, 10, &small.rest_positions_px);
+        assert_eq!((all.len(), k), (small.edges.len(), 1));
+        // 2000 × 2000 squares (the CLI's largest): 12 million edges drawn
+        // one by one were a 1.44 GB SVG. Rest positions of the grid stand in
+        // for a deformed mesh (only the positions are read).
+        let (nx, ny) = (2000, 2000);
+        let pos: Vec<V2> = (0..=ny)
+            .flat_map(|j| (0..=nx).map(move |i| V2::new(i as f64, j as f64)))
+            .collect();
+        let (drawn, k) = mesh_segments(&small, nx, ny, &pos);
+        assert_eq!(k, 40);
+        // 51 lines each way, 50 segments each.
+        assert_eq!(drawn.len(), 2 * 51 * 50);
+        // The outline is complete: the four corners are on drawn lines.
+        for corner in [(0.0, 0.0), (2000.0, 0.0), (0.0, 2000.0), (2000.0, 2000.0)] {
+            assert!(drawn
+                .iter()
+                .any(|(a, b)| (a.x, a.y) == corner || (b.x, b.y) == corner));
         }
     }
 
@@ -1198,7 +1354,7 @@ mod tests {
         // The written video reads back through --video.
         let mut v = small_video(MaterialArg::Sponge);
         v.video = Some(sim_out.join("video.csv"));
-        let again = load_video(&v).unwrap();
+        let again = load_video(&v, true).unwrap();
         assert_eq!(again.contours_px.len(), 100);
 
         for (mat, name) in [(MaterialArg::Sponge, "s"), (MaterialArg::Plasticine, "p")] {

@@ -210,6 +210,18 @@ pub fn score_run(
     params: &MaterialParams,
     sim: &SimConfig,
 ) -> Result<RunScore> {
+    score_run_observed(prepared, forces_n, params, sim, |_, _| {})
+}
+
+/// [`score_run`], also passing each frame's index and mesh positions to
+/// `observe` (snapshots and progress from the same pass).
+pub fn score_run_observed(
+    prepared: &PreparedVideo,
+    forces_n: &[f64],
+    params: &MaterialParams,
+    sim: &SimConfig,
+    mut observe: impl FnMut(usize, &[V2]),
+) -> Result<RunScore> {
     let mut img = prepared.grid.empty();
     let mut f_per_frame = Vec::with_capacity(prepared.frame_count());
     let mut unstable_from = None;
@@ -221,6 +233,7 @@ pub fn score_run(
         params,
         sim,
         |f, pos, inst| {
+            observe(f, pos);
             if let Some(i) = inst {
                 unstable_from.get_or_insert(f);
                 why.get_or_insert(i);
