@@ -436,11 +436,18 @@ impl CalibrationFile {
         Ok(())
     }
 
-    /// Writes it as TOML.
+    /// Writes it as TOML, atomically: a write that fails leaves the file
+    /// that was there.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        self.save_to(crate::output::AtomicFile::create(path)?)
+    }
+
+    /// Writes it into `file` (created before a computation, to check the
+    /// path first) and commits it.
+    pub fn save_to(&self, file: crate::output::AtomicFile) -> anyhow::Result<()> {
         let header = "# Wire-sensor calibration written by `softjoint calibrate wire`.\n\
                       # Sensor numbers are 1-based (the paper's d1..d4); angles in degrees, insertions in mm.\n";
-        crate::output::write_toml(path, header, self)
+        file.commit_toml(header, self)
     }
 
     /// The laws for the core.

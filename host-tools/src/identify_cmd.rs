@@ -65,7 +65,7 @@ pub struct JointArgs {
     #[arg(long, allow_negative_numbers = true, default_value_t = 0.75)]
     fit_fraction: f64,
     /// Minimiser iterations per stage at most.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=1000))]
     max_iterations: u32,
     /// Write recorded vs predicted angles (SVG).
     #[arg(long)]
@@ -90,7 +90,7 @@ pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
             }
             let plan = ExcitationPlan::standard(planes, a.duration_s, a.holds);
             excite::check_budget(&plan)?;
-            print!("{}", toml::to_string_pretty(&plan)?);
+            host_tools::out!("{}", toml::to_string_pretty(&plan)?);
             Ok(())
         }
         IdentifyCommand::Joint(a) => joint(a),
@@ -174,8 +174,8 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
             .field("plant_file", &a.output)?
             .print()?;
     } else {
-        print!("{}", table(&reports));
-        println!("plant file written to {}", a.output.display());
+        host_tools::out!("{}", table(&reports));
+        host_tools::outln!("plant file written to {}", a.output.display());
     }
     Ok(())
 }
@@ -373,7 +373,7 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
             .print()?;
     } else {
         let c = &r.best;
-        println!(
+        host_tools::outln!(
             "best of {} candidates × {} plants ({:.1} s): K_P {:?} V/°, K_I {:.3} V/(°·s), limit {:.2} V",
             a.candidates,
             a.plants,
@@ -384,18 +384,18 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
         );
         for (name, s) in [("tuned", &r.score), ("paper", &r.paper)] {
             let n = &s.nominal;
-            println!(
+            host_tools::outln!(
                 "{name:>6}: robust cost {:.3} (mean {:.3} + sd {:.3}); identified plant: settling {:.2} s, overshoot {:.2}°, ss error {:.3}°, peak coil {:.1} °C, budget margin {:.1} K, fault {}",
                 s.robust, s.mean, s.std, n.settling_s, n.overshoot_deg, n.steady_state_error_deg, n.peak_coil_c, n.budget_margin_k, n.fault
             );
         }
         if r.failed > 0 {
-            println!(
+            host_tools::outln!(
                 "{} candidate(s) made a plant unstable and were dropped",
                 r.failed
             );
         }
-        println!("gains written to {}", a.output.display());
+        host_tools::outln!("gains written to {}", a.output.display());
     }
     Ok(())
 }

@@ -42,8 +42,10 @@ fn near(line: &str, column: usize) -> String {
     s
 }
 
-/// Parses TOML `text` of `file` into `T`.
+/// Parses TOML `text` of `file` into `T` (a leading byte-order mark, as
+/// Windows editors write it, is dropped).
 pub fn from_toml<T: DeserializeOwned>(text: &str, file: &str) -> anyhow::Result<T> {
+    let text = plant_models::strip_bom(text);
     toml::from_str(text).map_err(|e| {
         let message = excerpt_lines(e.message());
         match e.span() {
@@ -78,8 +80,9 @@ fn excerpt_lines(message: &str) -> String {
 }
 
 /// Parses JSON `text` of `file` into `T`, refusing duplicate keys in any
-/// object first.
+/// object first (a leading byte-order mark is dropped).
 pub fn from_json<T: DeserializeOwned>(text: &str, file: &str) -> anyhow::Result<T> {
+    let text = plant_models::strip_bom(text);
     let json_error = |e: serde_json::Error| {
         let full = e.to_string();
         let suffix = format!(" at line {} column {}", e.line(), e.column());

@@ -1,13 +1,15 @@
 //! `softjoint`: simulation, hardware-in-the-loop, board console, calibration
 //! and model fitting for SMA-driven soft joints and deformable objects.
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use host_tools::{calibrate, output, report, scenario::Scenario, sim};
+use host_tools::{calibrate, out, outln, output, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
+mod contour;
 mod identify_cmd;
 mod push;
 mod viscoelastic;
@@ -38,6 +40,10 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// Periodic and closed smoothing spline contours (seed 000, Fujioka &
+    /// Kano): fit tracked contours and deforming contours over time, or
+    /// write the paper's test cases.
+    Contour(contour::ContourArgs),
     /// The joint's plant fitted to your own excitation log, and the plans
     /// to record one.
     #[command(subcommand)]
@@ -107,7 +113,7 @@ impl ExciteArgs {
             .as_ref()
             .ok_or_else(|| anyhow::anyhow!("--excite needs --log"))?;
         host_tools::excite::write_log(path, log)?;
-        println!(
+        outln!(
             "{}: {} rows ({} s) written to {}; peak coil {:.1} °C, budget peak rise {:.0} K, faults seen: [{}]",
             summary.plan,
             summary.rows,
@@ -137,34 +143,30 @@ enum CalibrateCommand {
     },
 }
 
-/// A reader that goes away early (`softjoint sim --json | head -1`) makes
-/// the next `println!` fail with EPIPE, which std turns into a panic. End
-/// quietly instead, with the status a shell gives a process killed by
-/// SIGPIPE (128 + 13), as other command-line tools do; any other panic
-/// still reports as usual.
-fn exit_quietly_on_broken_pipe() {
-    let report = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |info| {
-        let payload = info.payload();
-        let message = payload
-            .downcast_ref::<String>()
-            .map(String::as_str)
-            .or_else(|| payload.downcast_ref::<&str>().copied())
-            .unwrap_or("");
-        if message.starts_with("failed printing to std") && message.contains("Broken pipe") {
-            std::process::exit(141);
-        }
-        report(info)
-    }));
-}
-
 fn main() -> ExitCode {
-    exit_quietly_on_broken_pipe();
-    match run(Cli::parse()) {
+    if let Err(e) = host_tools::stop::file_size_limit_is_an_error() {
+        let _ = writeln!(std::io::stderr(), "warning: {e}");
+    }
+    let result = run(Cli::parse()).and_then(|()| Ok(host_tools::output::flush_stdout()?));
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            // A reader that went away early (`softjoint sim --json | head -1`)
+            // ends the program quietly with the status a shell gives a
+            // process killed by SIGPIPE (128 + 13), as other command-line
+            // tools do. Any other failed output is an error like the rest.
+            if e.downcast_ref::<host_tools::output::StdoutError>()
+                .is_some_and(|s| s.is_broken_pipe())
+            {
+                return ExitCode::from(141);
+            }
+            let _ = writeln!(std::io::stderr(), "error: {e:#}");
+            // A run cut short by a signal exits as the signal would (130
+            // for SIGINT), after its trace and summary were written.
+            match e.downcast_ref::<sim::RunCutShort>() {
+                Some(cut) => ExitCode::from(cut.exit_code()),
+                None => ExitCode::FAILURE,
+            }
         }
     }
 }
@@ -176,6 +178,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Contour(args) => contour::run(args),
         Command::Identify(cmd) => identify_cmd::run(cmd),
         Command::Tune(args) => identify_cmd::tune_command(args),
         Command::Calibrate(CalibrateCommand::Wire {
@@ -184,9 +187,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         }) => {
             let rows = calibrate::read_sweep(&sweep)?;
+            // The output path is checked (its temporary file made) before
+            // the fit; the file is replaced only once it is complete.
+            let pending = host_tools::output::AtomicFile::create(&output)?;
             let fits =
                 calibrate::fit(&rows).map_err(|e| anyhow::anyhow!("{}: {e}", sweep.display()))?;
-            calibrate::calibration_of(&fits)?.save(&output)?;
+            calibrate::calibration_of(&fits)?.save_to(pending)?;
             if json {
                 let out = fits
                     .iter()
@@ -212,8 +218,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .field("calibration", &output)?
                     .print()?;
             } else {
-                print!("{}", calibrate::table(&fits));
-                println!(
+                out!("{}", calibrate::table(&fits));
+                outln!(
                     "{} rows; calibration written to {}",
                     rows.len(),
                     output.display()
@@ -230,7 +236,7 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         None => Scenario::default(),
     };
     if args.print_default {
-        print!("{}", toml::to_string_pretty(&Scenario::default())?);
+        out!("{}", toml::to_string_pretty(&Scenario::default())?);
         return Ok(());
     }
     if let Some(plan) = args.excite.plan(&scenario)? {
@@ -239,24 +245,35 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         return args.excite.finish(&log, &summary);
     }
     if let Some(path) = &args.calibration_sweep {
+        let pending = host_tools::output::AtomicFile::create(path)?;
         let rows = sim::calibration_sweep(&scenario)?;
+        drop(pending);
         calibrate::write_sweep(path, &rows)?;
-        println!("{} sweep rows written to {}", rows.len(), path.display());
+        outln!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }
-    let out =
-        sim::run_with(&scenario, args.output.wants_trace()).map_err(|e| match &args.scenario {
+    let stop = host_tools::stop::Stop::on_signals()?;
+    // Output paths are checked (the CSV created) before the run.
+    let mut files = args.output.open_trace(&sim::angle_names(&scenario))?;
+    let progress = args.output.progress("steps");
+    let mut summary = sim::run_into(&scenario, &mut files, &stop, &progress).map_err(|e| {
+        match &args.scenario {
             Some(p) => e.context(format!("scenario {}", p.display())),
             None => e,
-        })?;
+        }
+    })?;
+    progress.finish_and_clear();
     args.output
-        .write_files(&scenario.name, &out.summary, &out.trace)?;
+        .finish_trace(files, &scenario.name, &mut summary)?;
     if args.output.json {
-        output::print_json(&out.summary)?;
+        output::print_json(&summary)?;
     } else {
-        print!("{}", report::table(&out.summary));
+        out!("{}", report::table(&summary));
     }
-    Ok(())
+    match summary.cut_short {
+        Some(cut) => Err(sim::RunCutShort(cut).into()),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]

@@ -15,10 +15,12 @@ use host_tools::link::{open_port, Link, Port};
 use host_tools::qemu::Qemu;
 use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
+use host_tools::stop::Stop;
 use host_tools::{
     calibrate::{CalibrationFile, LawSpec},
     output, report,
 };
+use host_tools::{out, outln};
 use plant_models::csv_input::excerpt;
 use plant_models::short_number;
 
@@ -60,6 +62,11 @@ pub struct HilArgs {
     /// so a loaded host needs more slack than a real board does.
     #[arg(allow_negative_numbers = true, long, default_value_t = 250, value_parser = link_timeout_ms)]
     link_timeout_ms: u16,
+    /// A board that restarts during the run is set up again and the run
+    /// goes on (its controller state starts afresh); without this flag the
+    /// run ends there, naming the restart.
+    #[arg(long)]
+    resume_after_restart: bool,
     #[command(flatten)]
     output: report::OutputArgs,
     #[command(flatten)]
@@ -90,9 +97,15 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         timeout: Duration::from_millis(args.timeout_ms),
         lose_every: args.lose_every,
         link_timeout_ms: Some(args.link_timeout_ms),
+        resume_after_restart: args.resume_after_restart,
         ..HilOptions::default()
     };
-    let _qemu;
+    let stop = Stop::on_signals()?;
+    // Output paths are checked (the CSV created) before QEMU starts.
+    let mut files = args
+        .output
+        .open_trace(&host_tools::sim::angle_names(&scenario))?;
+    let mut qemu = None;
     let (port, label) = match &args.port {
         Some(p) => (open_port(p, args.baud)?, p.clone()),
         None => {
@@ -100,11 +113,12 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
                 Some(i) => i.clone(),
                 None => host_tools::qemu::default_image()?,
             };
-            let q = Qemu::launch(&image, !args.no_icount)?;
+            let q = qemu.insert(Qemu::launch(&image, !args.no_icount)?);
             let pty = q.pty.to_string_lossy().into_owned();
-            let port = open_port(&pty, args.baud)?;
-            _qemu = q;
-            (port, format!("QEMU's pty {pty} ({})", image.display()))
+            (
+                open_port(&pty, args.baud)?,
+                format!("QEMU's pty {pty} ({})", image.display()),
+            )
         }
     };
     let mut link = Link::new(port);
@@ -119,25 +133,56 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         .map_err(|e| name_the_board(e, &label, args.baud))?;
         return args.excite.finish(&log, &summary);
     }
-    let out =
-        hil::run(&scenario, &mut link, opts).map_err(|e| name_the_board(e, &label, args.baud))?;
-    args.output.write_files(
+    let progress = args.output.progress("lockstep steps");
+    let ctx = host_tools::sim::RunContext {
+        stop: &stop,
+        progress: &progress,
+    };
+    let run = hil::run_into(&scenario, &mut link, opts, &mut files, &ctx);
+    progress.finish_and_clear();
+    // A QEMU that ended is the reason the link failed: say how it ended
+    // (its exit status or signal and its last words) rather than only
+    // what the serial line did.
+    let ended =
+        |qemu: &mut Option<Qemu>| qemu.as_mut().and_then(|q| q.ended(Duration::from_secs(2)));
+    let mut report = match run {
+        Ok(r) => r,
+        Err(e) => match ended(&mut qemu) {
+            // QEMU's own words say why; the link's view (a closed line)
+            // would only repeat it.
+            Some(how) => bail!("the emulated board ended before the run began: {how}"),
+            None => return Err(name_the_board(e, &label, args.baud)),
+        },
+    };
+    if let Some(cut) = &mut report.summary.cut_short {
+        if cut.cause == host_tools::sim::CutCause::Controller {
+            cut.reason = match ended(&mut qemu) {
+                Some(how) => format!("the emulated board ended: {how}"),
+                // Which board, as for a failure before the run.
+                None => format!("{}, on {label}", cut.reason),
+            };
+        }
+    }
+    args.output.finish_trace(
+        files,
         &format!("{} (HIL)", scenario.name),
-        &out.report.summary,
-        &out.trace,
+        &mut report.summary,
     )?;
     if args.output.json {
-        host_tools::output::print_json(&out.report)?;
+        output::print_json(&report)?;
     } else {
-        print!("{}", report::table(&out.report.summary));
-        let l = &out.report.link;
-        println!(
+        out!("{}", report::table(&report.summary));
+        let l = &report.link;
+        outln!(
             "link: {} frames sent, {} received, {} retries, {} CRC errors, {} unexpected; board saw {} frames, {} CRC errors",
-            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, out.report.board_frames_ok, out.report.board_crc_errors
+            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, report.board_frames_ok, report.board_crc_errors
         );
-        println!("lockstep: {:.0} steps/s", out.report.lockstep_steps_per_s);
+        outln!("lockstep: {:.0} steps/s", report.lockstep_steps_per_s);
     }
-    Ok(())
+    match report.summary.cut_short {
+        Some(cut) => Err(host_tools::sim::RunCutShort(cut).into()),
+        None => Ok(()),
+    }
 }
 
 #[derive(Args)]
@@ -181,7 +226,7 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.script {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read script {}", path.display()))?;
-        for (i, l) in text.lines().enumerate() {
+        for (i, l) in plant_models::strip_bom(&text).lines().enumerate() {
             let l = l.split('#').next().unwrap_or("").trim();
             if !l.is_empty() {
                 lines.push((format!("{}:{}", path.display(), i + 1), l.to_string()));
@@ -192,7 +237,7 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
         lines.push(("command line".into(), args.commands.join(" ")));
     }
     if lines.iter().any(|(_, l)| l == "help") || lines.is_empty() {
-        println!("{HELP}");
+        outln!("{HELP}");
         return Ok(());
     }
     let port = open_port(&args.port, args.baud)?;
@@ -270,8 +315,18 @@ fn plane_arg(words: &[&str], i: usize) -> anyhow::Result<u8> {
     Ok(p)
 }
 
-/// Longest `wait` or `stream` (s): a console session is interactive.
-const MAX_CONSOLE_SECONDS: f64 = 3600.0;
+/// Longest `wait` or `stream` (s): a day (a telemetry stream goes to its
+/// CSV row by row, so a long one costs no memory).
+const MAX_CONSOLE_SECONDS: f64 = 86_400.0;
+
+/// A duration in seconds from the user (`wait`, `stream`), checked by
+/// [`arg_in`] before it becomes a `Duration`: not a number, negative,
+/// infinite or longer than a day is refused by name instead of panicking
+/// in the conversion or in the clock arithmetic.
+fn seconds(words: &[&str], i: usize) -> anyhow::Result<Duration> {
+    let secs = arg_in(words, i, "SECONDS", 0.0, MAX_CONSOLE_SECONDS, "s")?;
+    Duration::try_from_secs_f64(secs).map_err(|e| anyhow::anyhow!("SECONDS: {e}"))
+}
 
 fn run_console_command<P: Port>(
     link: &mut Link<P>,
@@ -285,11 +340,11 @@ fn run_console_command<P: Port>(
     match words.as_slice() {
         ["hello"] => {
             hil::handshake(link)?;
-            println!("hello: protocol and schema match");
+            outln!("hello: protocol and schema match");
         }
         ["status"] => {
             let s = hil::status(link)?;
-            println!(
+            outln!(
                 "armed {} mode {} faults [{}] latched [{}] estimate α {:.2}° β {:.2}° target α {:.2}° β {:.2}° outputs {} mV / {} mV t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
                 s.armed,
                 if s.mode == 1 { "lockstep" } else { "free-running" },
@@ -345,7 +400,7 @@ fn run_console_command<P: Port>(
                 matches!(m, Message::Calibration(_))
             })?;
             if let Message::Calibration(Calibration { plane, law }) = r {
-                println!(
+                outln!(
                     "plane {plane}: {}",
                     host_tools::calibrate::describe(&LawSpec::from_law(&law))
                 );
@@ -390,8 +445,9 @@ fn run_console_command<P: Port>(
             },
         )?,
         ["stream", ..] => {
-            let secs = arg_in(&words, 1, "SECONDS", 0.0, MAX_CONSOLE_SECONDS, "s")?;
-            let end = Instant::now() + Duration::from_secs_f64(secs);
+            let span = seconds(&words, 1)?;
+            let secs = span.as_secs_f64();
+            let end = Instant::now() + span;
             let mut csv = csv;
             let mut n = 0u64;
             while let Some(m) = link.recv_until(end)? {
@@ -409,7 +465,7 @@ fn run_console_command<P: Port>(
                     output::check_csv("the telemetry", &format!("{TELEMETRY_HEADER}\n{line}"))?;
                     match csv.as_deref_mut() {
                         Some(f) => writeln!(f, "{line}")?,
-                        None => println!("{line}"),
+                        None => outln!("{line}"),
                     }
                 }
             }
@@ -430,14 +486,7 @@ fn run_console_command<P: Port>(
                 );
             }
         }
-        ["wait", ..] => std::thread::sleep(Duration::from_secs_f64(arg_in(
-            &words,
-            1,
-            "SECONDS",
-            0.0,
-            MAX_CONSOLE_SECONDS,
-            "s",
-        )?)),
+        ["wait", ..] => std::thread::sleep(seconds(&words, 1)?),
         _ => bail!("unknown command; try `help`\n{HELP}"),
     }
     Ok(())
@@ -445,6 +494,6 @@ fn run_console_command<P: Port>(
 
 fn ack<P: Port>(link: &mut Link<P>, msg: impl Into<Message>) -> anyhow::Result<()> {
     link.command(&msg.into(), T, 5)?;
-    println!("ok");
+    outln!("ok");
     Ok(())
 }

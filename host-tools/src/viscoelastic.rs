@@ -4,6 +4,7 @@
 //! argument handling, file I/O and reports.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
+use host_tools::outln;
 use host_tools::output;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
@@ -146,8 +147,11 @@ pub fn run(args: ViscoArgs) -> Result<()> {
     }
 }
 
+/// Reads a text input (CSV, OBJ), without a leading byte-order mark.
 fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(plant_models::strip_bom(&text).to_string())
 }
 
 /// Checks a model parameter flag: finite and > 0 (or ≥ 0 if `zero_ok`).
@@ -269,10 +273,10 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
             .field("samples", &t.len())?
             .print()?;
     } else {
-        println!("k1 = {:.6e} N/m ({})", r.k1_n_per_m, spread(0));
-        println!("k2 = {:.6e} N/m ({})", r.k2_n_per_m, spread(1));
-        println!("b  = {:.6e} N s/m ({})", r.b_n_s_per_m, spread(2));
-        println!(
+        outln!("k1 = {:.6e} N/m ({})", r.k1_n_per_m, spread(0));
+        outln!("k2 = {:.6e} N/m ({})", r.k2_n_per_m, spread(1));
+        outln!("b  = {:.6e} N s/m ({})", r.b_n_s_per_m, spread(2));
+        outln!(
             "rms residual = {:.4e} N over {} samples ({} weighting, {} evaluations)",
             r.rms_residual_n,
             t.len(),
@@ -312,6 +316,11 @@ fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
 /// ~200-vertex mesh at this length: 0.2 GB of frames, 0.5 GB of CSV text.
 const MAX_OBJECT_DURATION_S: f64 = 600.0;
 
+/// Most surface vertices `object` takes: its time grows about as n³
+/// (1,982 vertices took 30 s, a 19,462-vertex sphere ran past 60 s with no
+/// end in sight); 3,000 vertices is about two minutes.
+const MAX_OBJECT_VERTICES: usize = 3000;
+
 /// Scalar options of `object`.
 struct ObjectRun {
     duration_s: f64,
@@ -321,7 +330,7 @@ struct ObjectRun {
 }
 
 fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    output::create_dir(dir)?;
     let mut index = String::from(
         "file,vertex,speed_m_per_s,ux,uy,uz,true_k1_n_per_m,true_k2_n_per_m,true_b_n_s_per_m\n",
     );
@@ -373,13 +382,32 @@ fn object(
     if every == 0 {
         bail!("--probe-every must be at least 1 (probe every N-th traction vertex)");
     }
+    // The outputs are checked before the long part, not after it.
+    output::check_dir(out_dir)?;
+    if let Some(dir) = trials_dir {
+        output::check_dir(dir)?;
+    }
     let mesh = match mesh_path {
         Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,
         None => SurfaceMesh::default_object(),
     };
+    let n = mesh.vertices_m.len();
+    if n > MAX_OBJECT_VERTICES {
+        // Measured: 872 vertices 4 s, 1,982 vertices 30 s (release build):
+        // about n³, so the estimate scales the latter.
+        let minutes = 0.5 * (n as f64 / 1982.0).powi(3);
+        bail!(
+            "{}: {n} vertices is more than {MAX_OBJECT_VERTICES}: the DGFM and its fits take time growing as the cube of the vertex count (about {} minutes for this mesh; 1,982 vertices took 30 s); simplify the mesh (the seed's object has 193 vertices)",
+            mesh_path.map_or("the mesh".into(), |p| p.display().to_string()),
+            plant_models::short_number(minutes.round())
+        );
+    }
+    let phase =
+        host_tools::progress::spinner(&format!("building the DGFM of {n} vertices (FEM)"), false);
     let fixed = support_below(&mesh, DEFAULT_SUPPORT_HEIGHT_FRACTION);
     let dgfm = Dgfm::from_mesh(mesh, LinearElastic::default(), fixed, &DEFAULT_SHELL_SCALES)?;
     // Measure (simulated), fit, estimate and spread, as in seed §4.
+    phase.set_message("simulating and fitting the probe campaign");
     let truths = synthetic_truth(&dgfm, every)?;
     let protocol = ProbeProtocol {
         speeds_m_per_s: vec![20.0e-3],
@@ -440,6 +468,7 @@ fn object(
             _ => anyhow::Error::new(e),
         }
     };
+    phase.set_message("running the probe script at 1 kHz");
     let reference = ViscoObject::new(dgfm.clone(), params.clone(), HAPTIC_PERIOD_S)?;
     let mut exact = HapticLoop::new(reference)?;
     let exact_samples = run_script(&mut exact, &events, duration_s).map_err(name_script_error)?;
@@ -447,8 +476,8 @@ fn object(
     let mut haptic = HapticLoop::new(core)?;
     let samples = run_script(&mut haptic, &events, duration_s).map_err(name_script_error)?;
     let difference = CoreDifference::of(&samples, &exact_samples, &haptic.frames, &exact.frames);
-    std::fs::create_dir_all(out_dir)
-        .with_context(|| format!("cannot create {}", out_dir.display()))?;
+    phase.finish_and_clear();
+    output::create_dir(out_dir)?;
     let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");
     for fr in &haptic.frames {
         for v in 0..nv {
@@ -490,7 +519,7 @@ fn object(
         &out_dir.join("damping.svg"),
         &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption),
     )?;
-    println!(
+    outln!(
         "{} vertices ({} traction), {} trials fitted, {} vertices estimated; {} haptic steps, {} display frames written to {}",
         nv,
         fixed_flags.iter().filter(|f| !**f).count(),
@@ -500,7 +529,7 @@ fn object(
         haptic.frames.len(),
         out_dir.display()
     );
-    println!(
+    outln!(
         "firmware update vs exact reference: contact max |Δu| {:.3e} m ({:.3} % of max |u|), all vertices over the display frames {:.3e} m ({:.3} %)",
         difference.contact_m,
         100.0 * difference.contact_rel,

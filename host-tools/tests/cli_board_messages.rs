@@ -101,15 +101,15 @@ fn console_numbers_out_of_range_are_refused_with_the_range() {
         // `wait inf` quietly became 3600 s; NaN and 1e20 panicked.
         (
             "wait inf",
-            "SECONDS must be a finite number in 0..=3600 s, got inf",
+            "SECONDS must be a finite number in 0..=86400 s, got inf",
         ),
         (
             "wait NaN",
-            "SECONDS must be a finite number in 0..=3600 s, got NaN",
+            "SECONDS must be a finite number in 0..=86400 s, got NaN",
         ),
         (
             "stream 1e20",
-            "SECONDS must be a finite number in 0..=3600 s, got 1e20",
+            "SECONDS must be a finite number in 0..=86400 s, got 1e20",
         ),
         ("target 0 1e30", "DEG must be a finite number in -25..=25"),
         ("target 2 0", "PLANE must be 0 (α) or 1 (β), got 2"),

@@ -52,7 +52,7 @@ fn push_classify_reports_a_tie_as_a_tie() {
     let o = softjoint(&args);
     ok(&o);
     assert!(
-        stdout(&o).contains("global vote: tie between a and b"),
+        stdout(&o).contains("global vote by f: tie between a and b"),
         "{}",
         stdout(&o)
     );

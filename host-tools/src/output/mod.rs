@@ -1,30 +1,91 @@
-//! Every result `softjoint` writes — CSV, SVG, JSON and TOML files, and the
-//! JSON or CSV it prints — leaves through this module, and none of it may
-//! hold a number that is not finite. A NaN or ±∞ in a result is a defect
-//! upstream (an instability, an overflow, a division by zero); it is
-//! refused here, naming the file, the line and column or the field, rather
-//! than written for someone to find later.
+//! Where results go. Every result `softjoint` writes — CSV, SVG, JSON and
+//! TOML files, and the JSON, CSV or text it prints — leaves through this
+//! module, which guarantees three things:
 //!
-//! How each kind is checked:
-//! - CSV: every field of every data line that reads as a number
-//!   (`NaN`, `inf`, `1e999` included) must be finite; the error names the
-//!   header's column.
-//! - SVG and other text: every word that reads as a number must be finite
-//!   (the plot module already leaves non-finite coordinates out; this
-//!   catches numbers printed into labels).
-//! - JSON and TOML: the value is walked before it is serialised
-//!   ([`finite::first_non_finite`]), because serde_json writes NaN as
-//!   `null`; the error names the field's path.
+//! 1. **No non-finite number.** A NaN or ±∞ in a result is a defect
+//!    upstream (an instability, an overflow, a division by zero); it is
+//!    refused here, naming the file, the line and column or the field,
+//!    rather than written for someone to find later. How each kind is
+//!    checked:
+//!    - CSV: every field of every data line that reads as a number
+//!      (`NaN`, `inf`, `1e999` included) must be finite; the error names
+//!      the header's column.
+//!    - SVG and other text: every word that reads as a number must be
+//!      finite (the plot module already leaves non-finite coordinates out;
+//!      this catches numbers printed into labels).
+//!    - JSON and TOML: the value is walked before it is serialised
+//!      ([`finite::first_non_finite`]), because serde_json writes NaN as
+//!      `null`; the error names the field's path.
+//! 2. **Files a user keeps are written atomically** ([`AtomicFile`]): a
+//!    temporary file in the same directory, renamed over the target only
+//!    when complete, so a failed write (disk full, `ulimit -f`, an
+//!    interrupted run) leaves the previous file as it was. Commands that
+//!    compute for long create the [`AtomicFile`] (or [`check_dir`] their
+//!    output directory) first, so an unwritable path is refused before the
+//!    work, not after it.
+//! 3. **Printing never panics.** [`outln!`](crate::outln) and
+//!    [`out!`](crate::out) print like `println!`/`print!`, but a failed
+//!    write (`> /dev/full`, a closed pipe) is a [`StdoutError`] returned
+//!    with `?`.
 //!
-//! `tests/writers_check_finite.rs` holds every file write and every JSON
-//! print of the program to this module.
+//! Streamed traces (`sim`/`hil --csv`, the console's telemetry CSV) are
+//! the exception to 2: they are written as the run goes (`crate::trace`)
+//! and say whether they are complete. They are not the exception to 1:
+//! each value is checked with [`check_number`] before it is formatted, and
+//! a missing angle estimate is an empty field ([`estimate_field`]).
+//!
+//! `tests/writers_check_finite.rs` holds every file write and every print
+//! of the program to this module.
 use std::fmt;
+use std::io::{self, Write as _};
 use std::path::Path;
 
-use anyhow::Context;
 use serde::Serialize;
 
+mod atomic;
 pub mod finite;
+
+pub use atomic::{check_dir, create_dir, AtomicFile};
+
+/// A write to standard output failed.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write to standard output: {0}")]
+pub struct StdoutError(pub io::Error);
+
+impl StdoutError {
+    /// Whether the reader went away (`softjoint … | head -1`): shells
+    /// report that as SIGPIPE, not as an error.
+    pub fn is_broken_pipe(&self) -> bool {
+        self.0.kind() == io::ErrorKind::BrokenPipe
+    }
+}
+
+/// Writes formatted text to standard output (what [`outln!`](crate::outln)
+/// and [`out!`](crate::out) expand to).
+pub fn stdout(args: fmt::Arguments) -> Result<(), StdoutError> {
+    io::stdout().lock().write_fmt(args).map_err(StdoutError)
+}
+
+/// Flushes standard output; a program calls it before it exits so that a
+/// last line without a newline cannot fail unseen.
+pub fn flush_stdout() -> Result<(), StdoutError> {
+    io::stdout().lock().flush().map_err(StdoutError)
+}
+
+/// `println!` that returns a failed write with `?` instead of panicking.
+#[macro_export]
+macro_rules! outln {
+    () => { $crate::output::stdout(format_args!("\n"))? };
+    ($($arg:tt)*) => {
+        $crate::output::stdout(format_args!("{}\n", format_args!($($arg)*)))?
+    };
+}
+
+/// `print!` that returns a failed write with `?` instead of panicking.
+#[macro_export]
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::output::stdout(format_args!($($arg)*))? };
+}
 
 /// A result that would have carried a non-finite number.
 #[derive(Debug, thiserror::Error)]
@@ -93,6 +154,25 @@ pub fn estimate_field(estimate_deg: f64, decimals: usize) -> String {
     }
 }
 
+/// Checks one number that a streaming writer is about to put at `line`,
+/// column `column()` of `target` (the column is named only when the check
+/// fails, so the check costs one comparison per value).
+pub fn check_number(
+    target: &Path,
+    line: u64,
+    column: impl FnOnce() -> String,
+    value: f64,
+) -> Result<(), NonFinite> {
+    if value.is_finite() {
+        return Ok(());
+    }
+    Err(NonFinite {
+        target: target.display().to_string(),
+        place: format!("line {line}, column `{}`", column()),
+        value: value.to_string(),
+    })
+}
+
 /// Checks any other text (SVG, tables): every word that reads as a
 /// number must be finite.
 pub fn check_text(target: &str, text: &str) -> Result<(), NonFinite> {
@@ -138,20 +218,14 @@ fn check_field<T: Serialize + ?Sized>(target: &str, prefix: &str, value: &T) -> 
     }
 }
 
-fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
-}
-
-/// Writes a CSV file after [`check_csv`].
+/// Writes a CSV file, atomically, after [`check_csv`].
 pub fn write_csv(path: &Path, text: &str) -> anyhow::Result<()> {
-    check_csv(&path.display().to_string(), text)?;
-    write_file(path, text)
+    AtomicFile::create(path)?.commit_csv(text)
 }
 
-/// Writes an SVG (or other text) file after [`check_text`].
+/// Writes an SVG (or other text) file, atomically, after [`check_text`].
 pub fn write_svg(path: &Path, text: &str) -> anyhow::Result<()> {
-    check_text(&path.display().to_string(), text)?;
-    write_file(path, text)
+    AtomicFile::create(path)?.commit_svg(text)
 }
 
 /// Pretty JSON of `value` after [`check_value`] (`target` names where it
@@ -161,33 +235,31 @@ pub fn json<T: Serialize + ?Sized>(target: &str, value: &T) -> anyhow::Result<St
     Ok(serde_json::to_string_pretty(value)?)
 }
 
-/// Writes `value` as a pretty JSON file.
+/// Writes `value` as a pretty JSON file, atomically.
 pub fn write_json<T: Serialize + ?Sized>(path: &Path, value: &T) -> anyhow::Result<()> {
-    let text = json(&path.display().to_string(), value)?;
-    write_file(path, &text)
+    AtomicFile::create(path)?.commit_json(value)
 }
 
-/// Writes `value` as TOML after `header` (comment lines).
+/// Writes `value` as TOML after `header` (comment lines), atomically.
 pub fn write_toml<T: Serialize + ?Sized>(
     path: &Path,
     header: &str,
     value: &T,
 ) -> anyhow::Result<()> {
-    check_value(&path.display().to_string(), value)?;
-    let text = toml::to_string_pretty(value)?;
-    write_file(path, &format!("{header}{text}"))
+    AtomicFile::create(path)?.commit_toml(header, value)
 }
 
 /// Prints `value` as pretty JSON on standard output.
 pub fn print_json<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
-    println!("{}", json("standard output", value)?);
+    let text = json("standard output", value)?;
+    crate::outln!("{text}");
     Ok(())
 }
 
 /// Prints CSV text on standard output after [`check_csv`].
 pub fn print_csv(text: &str) -> anyhow::Result<()> {
     check_csv("standard output", text)?;
-    print!("{text}");
+    crate::out!("{text}");
     Ok(())
 }
 

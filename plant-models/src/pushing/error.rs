@@ -39,6 +39,9 @@ pub enum PushError {
         got: usize,
         expected: usize,
     },
+    /// The tracked contour could not be fitted by a periodic spline.
+    #[error("contour tracking: {0}")]
+    Tracking(#[from] crate::contour::ContourError),
 }
 
 /// Result alias of the pushing module.

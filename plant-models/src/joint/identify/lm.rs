@@ -35,7 +35,7 @@ pub struct LmOptions {
 impl Default for LmOptions {
     fn default() -> Self {
         Self {
-            max_iterations: 30,
+            max_iterations: 100,
             ftol: 1e-4,
             step: 1e-3,
         }

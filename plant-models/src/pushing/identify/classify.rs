@@ -94,12 +94,66 @@ pub fn classify(
     for m in models {
         f_per_frame.push(score_run(prepared, forces_n, &m.params, sim)?.f_per_frame);
     }
-    let frames = prepared.frame_count();
+    let Tally {
+        frame_winner,
+        frames_won,
+        vote,
+        winner,
+        leaders,
+    } = tally(&f_per_frame);
+    Ok(Classification {
+        labels: models.iter().map(|m| m.label.clone()).collect(),
+        f_per_frame,
+        frame_winner,
+        frames_won,
+        vote,
+        winner,
+        leaders,
+    })
+}
+
+/// Per-frame winners and the weighted global vote over several models'
+/// per-frame scores (outer index: model; higher is better).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Tally {
+    /// Per-frame winner (index of the model); `None` on a tie.
+    pub frame_winner: Vec<Option<usize>>,
+    /// Frames won by each model.
+    pub frames_won: Vec<usize>,
+    /// Each model's summed margin over the frame's mean of all models.
+    pub vote: Vec<f64>,
+    /// Index of the global winner; `None` when the best votes tie.
+    pub winner: Option<usize>,
+    /// The models whose votes tie for first place (one entry when there is
+    /// a winner).
+    pub leaders: Vec<usize>,
+}
+
+impl Tally {
+    /// The verdict in words for models called `labels`: the winner's
+    /// label, or `tie between a and b`.
+    pub fn verdict(&self, labels: &[String]) -> String {
+        match self.winner {
+            Some(k) => labels[k].clone(),
+            None => {
+                let names: Vec<&str> = self.leaders.iter().map(|&k| labels[k].as_str()).collect();
+                format!("tie between {}", names.join(" and "))
+            }
+        }
+    }
+}
+
+/// Counts per-frame wins and the weighted vote of §VIII-E for `scores`
+/// (outer: model, inner: frame; higher is better — negate a distance).
+/// Scores within [`TIE_TOLERANCE`] of the best are ties.
+pub fn tally(scores: &[Vec<f64>]) -> Tally {
+    let models = scores.len();
+    let frames = scores.iter().map(Vec::len).min().unwrap_or(0);
     let mut frame_winner = Vec::with_capacity(frames);
-    let mut frames_won = vec![0usize; models.len()];
-    let mut vote = vec![0.0; models.len()];
+    let mut frames_won = vec![0usize; models];
+    let mut vote = vec![0.0; models];
     for f in 0..frames {
-        let col: Vec<f64> = f_per_frame.iter().map(|v| v[f]).collect();
+        let col: Vec<f64> = scores.iter().map(|v| v[f]).collect();
         let mean = col.iter().sum::<f64>() / col.len() as f64;
         for (k, v) in col.iter().enumerate() {
             vote[k] += v - mean;
@@ -114,15 +168,13 @@ pub fn classify(
     }
     let top = leaders(&vote);
     let winner = (top.len() == 1).then(|| top[0]);
-    Ok(Classification {
-        labels: models.iter().map(|m| m.label.clone()).collect(),
-        f_per_frame,
+    Tally {
         frame_winner,
         frames_won,
         vote,
         winner,
         leaders: top,
-    })
+    }
 }
 
 #[cfg(test)]
