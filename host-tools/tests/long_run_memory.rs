@@ -37,6 +37,7 @@ fn a_two_hour_run_with_a_csv_trace_peaks_under_50_mb() {
         }],
         plant: PlantSpec {
             rigid_bearing: true,
+            ..PlantSpec::default()
         },
         estimator: host_tools::scenario::EstimatorSpec {
             method: host_tools::scenario::EstimatorMethod::Paper,

@@ -5,9 +5,11 @@
 //! paper's gains on the hidden joint itself, with the real thumbv7em image
 //! in lockstep, and without a supervisor fault.
 //!
-//! Needs QEMU and the image, so it is ignored in a plain `cargo test`;
-//! `scripts/test-all.sh` runs it with `--ignored` (a separate file from
-//! `qemu_hil.rs` so the two can change independently).
+//! Needs QEMU and the image, so it is ignored in a plain `cargo test`.
+//! It does **not hold** today (the tuned gains lose on the hidden joint in
+//! `sim` too, see the joint README), so `scripts/test-all.sh` does not run
+//! it: `cargo test -p integration-tests --test qemu_tuned_gains -- --ignored`.
+//! A separate file from `qemu_hil.rs` so the two can change independently.
 use std::path::PathBuf;
 
 use host_tools::hil::{self, HilOptions};
