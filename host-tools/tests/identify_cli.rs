@@ -334,8 +334,14 @@ fn the_plan_through_hil_logs_what_sim_logs() {
     let (sim_log, sim_summary) = host_tools::excite::run_sim(&plan, &s, true).unwrap();
     let (board, host_end) = PtyBoard::start().expect("pty pair");
     let mut link = Link::new(host_end);
+    // The pty board's clock is the host's: a loaded host needs a link
+    // timeout with slack (the board's own 50 ms saw a link loss).
+    let opts = HilOptions {
+        link_timeout_ms: Some(2000),
+        ..HilOptions::default()
+    };
     let (hil_log, hil_summary) =
-        host_tools::excite::run_hil(&plan, &s, &mut link, HilOptions::default(), true).unwrap();
+        host_tools::excite::run_hil(&plan, &s, &mut link, opts, true).unwrap();
     drop(board);
     assert_eq!(hil_log.len(), 300);
     assert_eq!(hil_summary.faults_seen, sim_summary.faults_seen);
