@@ -90,7 +90,7 @@ pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
             }
             let plan = ExcitationPlan::standard(planes, a.duration_s, a.holds);
             excite::check_budget(&plan)?;
-            host_tools::out!("{}", toml::to_string_pretty(&plan)?);
+            output::print_toml(&plan)?;
             Ok(())
         }
         IdentifyCommand::Joint(a) => joint(a),

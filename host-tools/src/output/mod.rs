@@ -249,6 +249,15 @@ pub fn write_toml<T: Serialize + ?Sized>(
     AtomicFile::create(path)?.commit_toml(header, value)
 }
 
+/// Prints `value` as TOML on standard output, after the same check as
+/// every other result (`softjoint identify plan`).
+pub fn print_toml<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
+    check_value("standard output", value)?;
+    let text = toml::to_string_pretty(value)?;
+    crate::out!("{text}");
+    Ok(())
+}
+
 /// Prints `value` as pretty JSON on standard output.
 pub fn print_json<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
     let text = json("standard output", value)?;
