@@ -196,8 +196,8 @@ fn table(reports: &[PlaneReport]) -> String {
         let _ = writeln!(s, "plane {}", r.plane);
         let _ = writeln!(
             s,
-            "  {:32} {:>14} {:>12} {:>14}  {:11} {}",
-            "parameter", "value", "± 1σ", "prior", "stage", "unit"
+            "  {:32} {:>14} {:>12} {:>14}  {:11} unit",
+            "parameter", "value", "± 1σ", "prior", "stage"
         );
         for e in &r.estimates {
             let sd = if e.std.is_finite() {

@@ -15,6 +15,9 @@ use plant_models::joint::{Joint2dParams, Joint3dParams};
 use serde::{Deserialize, Serialize};
 
 /// The parameters of one joint.
+// A few per scenario and per sampled plant; boxing the 3D variant would
+// only add an indirection to every match.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum PlantParams {
     /// The 2D joint.
@@ -93,7 +96,7 @@ impl PlantFile {
             bail!("plant file {}: {e}", path.display());
         }
         for (i, u) in f.uncertainty.iter().enumerate() {
-            if !(u.std >= 0.0) {
+            if u.std.is_nan() || u.std < 0.0 {
                 bail!(
                     "plant file {}: `uncertainty[{i}].std` must be ≥ 0",
                     path.display()

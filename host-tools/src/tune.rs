@@ -268,8 +268,7 @@ impl Meter {
         } else {
             Some(self.targets[seg - 1].1)
         };
-        for p in 0..self.planes {
-            let th = true_deg[p];
+        for (p, &th) in true_deg.iter().enumerate().take(self.planes) {
             if seg == 0 && t_s == 0.0 {
                 self.start_deg[p] = th;
             }
@@ -424,7 +423,13 @@ pub fn sample_plants(file: &PlantFile, n: usize, seed: u64) -> anyhow::Result<Ve
         let u = &file.uncertainty;
         let drawn = match &base {
             PlantParams::TwoD(p) => {
-                let (plane, w) = perturb_plane(&p.plane, &[p.wire.clone()], "theta", u, &mut rng);
+                let (plane, w) = perturb_plane(
+                    &p.plane,
+                    std::slice::from_ref(&p.wire),
+                    "theta",
+                    u,
+                    &mut rng,
+                );
                 let mut q: Joint2dParams = p.clone();
                 q.plane = plane;
                 q.wire = w[0].clone();

@@ -326,6 +326,7 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 
 /// A stage: fits `free` (coordinates from `model`) with `residuals`,
 /// drops the undetermined ones back to `prior` and fits again.
+#[allow(clippy::too_many_arguments)] // one call site per stage; a struct would only rename them
 fn stage<F>(
     name: &str,
     model: &mut PlaneModel,
@@ -425,9 +426,9 @@ fn driver_regression(
 ) -> Option<[(f64, f64); 2]> {
     let cur = log.current_a.as_ref()?;
     let mut pts = Vec::new();
-    for k in 0..rows {
+    for (volts, amps) in log.volts.iter().zip(cur).take(rows) {
         for &c in &map.coils {
-            let (v, i) = (log.volts[k][c], cur[k][c]);
+            let (v, i) = (volts[c], amps[c]);
             // Conducting and clear of the channel limit (and of the supply
             // saturation, which sits above 0.6 A for the defaults).
             if i > 0.02 && i < 0.85 * max_current_a {
