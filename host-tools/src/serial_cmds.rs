@@ -11,7 +11,7 @@ use firmware::protocol::{
 };
 use host_tools::hil::{self, HilOptions};
 use host_tools::link::{open_port, Link, Port};
-use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
+use host_tools::qemu::{Qemu, QemuBoard};
 use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
 use host_tools::{
@@ -25,14 +25,18 @@ pub struct HilArgs {
     scenario: Option<PathBuf>,
     /// A real board's serial device; without it the firmware image runs
     /// under QEMU on a pty.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["board", "image"])]
     port: Option<String>,
     /// Baud rate for --port.
     #[arg(long, default_value_t = 115_200)]
     baud: u32,
-    /// Firmware image for QEMU.
-    #[arg(long, default_value = DEFAULT_IMAGE)]
-    image: PathBuf,
+    /// The board image QEMU runs: mps2-an386 (`softjoint-fw`) or stm32f4
+    /// (the STM32F4 board image's QEMU flavour on netduinoplus2).
+    #[arg(long, value_enum, default_value_t = QemuBoard::Mps2An386)]
+    board: QemuBoard,
+    /// Firmware image for QEMU [default: the board's image under target/].
+    #[arg(long)]
+    image: Option<PathBuf>,
     /// Run QEMU without `-icount shift=0`. By default the guest's clock
     /// advances with executed instructions (1 ns each), so host scheduling
     /// cannot make the board's link watchdog see time jump; without it
@@ -45,11 +49,13 @@ pub struct HilArgs {
     /// Fault injection: lose the first copy of every Nth sensor frame.
     #[arg(long)]
     lose_every: Option<u32>,
-    /// Link-loss timeout to set on the board (ms of its clock). The board's
-    /// own default is 50 ms; an emulated board's clock follows the host's,
-    /// so a loaded host needs more slack than a real board does.
-    #[arg(long, default_value_t = 250)]
-    link_timeout_ms: u16,
+    /// Link-loss timeout to set on the board (ms of its clock)
+    /// [default: 250; under QEMU the board's own: 250 for mps2-an386, 1000
+    /// for stm32f4]. The board's built-in default is 50 ms; an emulated
+    /// board's clock depends on host scheduling, so a loaded host needs
+    /// more slack than a real board does.
+    #[arg(long)]
+    link_timeout_ms: Option<u16>,
     #[command(flatten)]
     output: report::OutputArgs,
 }
@@ -62,14 +68,21 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
     let opts = HilOptions {
         timeout: Duration::from_millis(args.timeout_ms.max(1)),
         lose_every: args.lose_every,
-        link_timeout_ms: Some(args.link_timeout_ms),
+        link_timeout_ms: Some(args.link_timeout_ms.unwrap_or(match args.port {
+            Some(_) => 250,
+            None => args.board.hil_link_timeout_ms(),
+        })),
         ..HilOptions::default()
     };
     let _qemu;
     let port = match &args.port {
         Some(p) => open_port(p, args.baud)?,
         None => {
-            let q = Qemu::launch(&args.image, !args.no_icount)?;
+            let image = args
+                .image
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(args.board.default_image()));
+            let q = Qemu::launch(args.board, &image, !args.no_icount)?;
             let port = open_port(&q.pty.to_string_lossy(), args.baud)?;
             _qemu = q;
             port

@@ -1,8 +1,11 @@
-//! The real thumbv7em firmware image under `qemu-system-arm -machine
-//! mps2-an386`, in lockstep with the simulated joint over QEMU's pty.
+//! The real thumbv7em firmware images under QEMU, in lockstep with the
+//! simulated joint over QEMU's pty: the mps2-an386 image (`softjoint-fw`)
+//! and the STM32F4 board image in its QEMU flavour on `netduinoplus2`
+//! (`softjoint-stm32f4-qemu`: the Nucleo-F446RE image without clock setup
+//! and timer I/O).
 //!
-//! These need QEMU and the image, so they are ignored in a plain
-//! `cargo test`; `scripts/test-all.sh` installs QEMU, builds the image and
+//! These need QEMU and the images, so they are ignored in a plain
+//! `cargo test`; `scripts/test-all.sh` installs QEMU, builds the images and
 //! runs them with `--ignored`.
 use std::path::PathBuf;
 use std::time::Duration;
@@ -11,22 +14,28 @@ use firmware::protocol::{HilSensor, Message};
 use firmware::supervisor::Faults;
 use host_tools::hil::{self, HilOptions};
 use host_tools::link::{open_port, Link};
-use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
+use host_tools::qemu::{Qemu, QemuBoard};
 use host_tools::scenario::{Scenario, TargetStep};
 use host_tools::sim;
 
-fn image() -> PathBuf {
-    // Tests run in the crate directory; the image is under the workspace.
+fn image(board: QemuBoard) -> PathBuf {
+    // Tests run in the crate directory; the images are under the workspace.
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("..")
-        .join(DEFAULT_IMAGE);
+        .join(board.default_image());
     assert!(
         p.exists(),
         "{} missing: run `{}`",
         p.display(),
-        host_tools::qemu::BUILD_IMAGE
+        board.build_command()
     );
     p
+}
+
+fn launch(board: QemuBoard, icount: bool) -> (Qemu, Link<Box<dyn serialport::SerialPort>>) {
+    let qemu = Qemu::launch(board, &image(board), icount).expect("qemu");
+    let link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    (qemu, link)
 }
 
 fn short_default() -> Scenario {
@@ -51,19 +60,24 @@ fn short_default() -> Scenario {
     }
 }
 
-#[test]
-#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
-fn image_in_lockstep_reproduces_the_simulation() {
-    // The built-in default scenario, in full (30 s, 30 000 lockstep steps).
+/// The built-in default scenario in full (30 s, 30 000 lockstep steps)
+/// through `board`'s image gives the trajectory of `softjoint sim`.
+fn lockstep_reproduces_the_simulation(board: QemuBoard) {
     let s = Scenario::default();
     let expected = sim::run(&s).expect("sim");
-    let qemu = Qemu::launch(&image(), true).expect("qemu");
-    let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let (mut qemu, mut link) = launch(board, true);
     let opts = HilOptions {
-        link_timeout_ms: Some(250),
+        link_timeout_ms: Some(board.hil_link_timeout_ms()),
         ..HilOptions::default()
     };
-    let got = hil::run(&s, &mut link, opts).expect("hil run");
+    let got = match hil::run(&s, &mut link, opts) {
+        Ok(got) => got,
+        Err(e) => panic!(
+            "hil run: {e:#}; QEMU still running: {}; it printed: {:?}",
+            qemu.is_running(),
+            qemu.output()
+        ),
+    };
     assert_eq!(got.trace.rows.len(), expected.trace.rows.len());
     for (k, (h, e)) in got.trace.rows.iter().zip(&expected.trace.rows).enumerate() {
         // Same control core, same inputs, same plant: identical trajectory
@@ -95,7 +109,7 @@ fn image_in_lockstep_reproduces_the_simulation() {
         got.report.summary
     );
     println!(
-        "lockstep: {:.0} steps/s, {:?}",
+        "{board:?} lockstep: {:.0} steps/s, {:?}",
         got.report.lockstep_steps_per_s, got.report.link
     );
     // Every frame answered (a reply slower than the timeout on a loaded host
@@ -114,13 +128,35 @@ fn image_in_lockstep_reproduces_the_simulation() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn image_in_lockstep_reproduces_the_simulation() {
+    lockstep_reproduces_the_simulation(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn stm32f4_image_in_lockstep_reproduces_the_simulation() {
+    lockstep_reproduces_the_simulation(QemuBoard::Stm32f4);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
 fn lost_frames_are_retried_through_qemu() {
+    lost_frames_are_retried(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn lost_frames_are_retried_through_the_stm32f4_image() {
+    lost_frames_are_retried(QemuBoard::Stm32f4);
+}
+
+/// Lost sensor frames are re-sent with the same seq and answered once.
+fn lost_frames_are_retried(board: QemuBoard) {
     let s = Scenario {
         duration_s: 1.5,
         ..short_default()
     };
-    let qemu = Qemu::launch(&image(), true).expect("qemu");
-    let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let (_qemu, mut link) = launch(board, true);
     let opts = HilOptions {
         lose_every: Some(100),
         link_timeout_ms: Some(1000),
@@ -151,10 +187,21 @@ fn lost_frames_are_retried_through_qemu() {
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
 fn dead_link_zeroes_the_image_outputs() {
+    dead_link_zeroes_the_outputs(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn dead_link_zeroes_the_stm32f4_image_outputs() {
+    dead_link_zeroes_the_outputs(QemuBoard::Stm32f4);
+}
+
+/// The board's own link watchdog (its default 50 ms): a host that stops
+/// talking in lockstep leaves the outputs at zero and link loss latched.
+fn dead_link_zeroes_the_outputs(board: QemuBoard) {
     // Without -icount the guest clock follows the host's, so a host that
     // stops talking for 0.5 s is 0.5 s of firmware time.
-    let qemu = Qemu::launch(&image(), false).expect("qemu");
-    let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let (_qemu, mut link) = launch(board, false);
     let t = Duration::from_millis(300);
     integration_tests::start_lockstep(&mut link, None, 10.0, t);
     let mut last = None;
