@@ -92,10 +92,11 @@ pub const PWM_HZ: u32 = 10_000;
 /// timers at twice that) an 84 MHz clock.
 pub const SYSCLK_HZ: u32 = 84_000_000;
 
-/// Loop passes may be this far apart (ms) before the loop counts as
-/// stalled. A pass is normally microseconds; the longest legitimate one
-/// sends a full-size reply and telemetry frame on the blocking transmit
-/// path, under 10 ms at [`BAUD`].
+/// The loop may go this long (ms) without a heartbeat before it counts as
+/// stalled. It beats at the end of every pass (at least once per SysTick)
+/// and after every frame it sends; the longest legitimate gap is one
+/// frame on the blocking transmit path: the longest frame (`Status`, 47
+/// bytes with its delimiter, docs/protocol.md) takes 4.1 ms at [`BAUD`].
 pub const STALL_LIMIT_MS: u32 = 25;
 
 /// Independent-watchdog timeout (ms at the nominal 32 kHz LSI). The LSI
@@ -270,6 +271,9 @@ pub fn run<F: Flavour>() -> ! {
             // busy; the HAL's write has no error of its own.
             let _ = nb::block!(tx.write(b));
         }
+        // A frame sent is progress: a pass that answers many queued
+        // requests (each reply up to 4.1 ms of line time) stays alive.
+        beat();
     };
     let mut clock = Clock(MillisCounter::new());
     let mut reported = (0u32, 0u32);
@@ -282,7 +286,7 @@ pub fn run<F: Flavour>() -> ! {
         }
         app.poll(clock.now(), &mut io, &mut send);
         io.apply(app.outputs(), app.joint().driver());
-        HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+        beat();
         let lost = (
             RX_DROPPED.load(Ordering::Relaxed),
             RX_ERRORS.load(Ordering::Relaxed),
@@ -299,6 +303,11 @@ pub fn run<F: Flavour>() -> ! {
         // control period), or a received byte.
         cortex_m::asm::wfi();
     }
+}
+
+/// The loop made progress (a pass completed, or a frame went out).
+fn beat() {
+    HEARTBEAT.fetch_add(1, Ordering::Relaxed);
 }
 
 /// SysTick, every millisecond: the clock, and the stall policy deciding
