@@ -13,7 +13,7 @@ use std::time::Duration;
 use firmware::protocol::{HilSensor, Message};
 use firmware::supervisor::Faults;
 use host_tools::hil::{self, HilOptions};
-use host_tools::link::{open_port, Link};
+use host_tools::link::{open_port, Link, SerialDevice};
 use host_tools::qemu::{Qemu, QemuBoard};
 use host_tools::scenario::{Scenario, TargetStep};
 use host_tools::sim;
@@ -32,7 +32,7 @@ fn image(board: QemuBoard) -> PathBuf {
     p
 }
 
-fn launch(board: QemuBoard, icount: bool) -> (Qemu, Link<Box<dyn serialport::SerialPort>>) {
+fn launch(board: QemuBoard, icount: bool) -> (Qemu, Link<SerialDevice>) {
     let qemu = Qemu::launch(board, &image(board), icount).expect("qemu");
     let link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
     (qemu, link)
@@ -66,8 +66,12 @@ fn lockstep_reproduces_the_simulation(board: QemuBoard) {
     let s = Scenario::default();
     let expected = sim::run(&s).expect("sim");
     let (mut qemu, mut link) = launch(board, true);
+    // What is compared is the control, not the link watchdog (the dead-link
+    // tests check that): a link timeout of 10 s of the board's clock keeps
+    // a stalled host, or a reopened pty (see host_tools::link::SerialDevice),
+    // on a loaded machine from latching link loss mid-run.
     let opts = HilOptions {
-        link_timeout_ms: Some(board.hil_link_timeout_ms()),
+        link_timeout_ms: Some(10_000),
         ..HilOptions::default()
     };
     let got = match hil::run(&s, &mut link, opts) {
