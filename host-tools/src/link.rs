@@ -1,8 +1,8 @@
 //! The host end of the serial protocol (`firmware::protocol`): framing,
 //! bounded waits and retries, and the counters a user needs to judge a link.
 //!
-//! The host always speaks first (QEMU's pty drops what the guest writes
-//! before the host opens it; a board never speaks unasked except for
+//! The host always speaks first (QEMU drops what the guest writes before
+//! the host connects; a board never speaks unasked except for
 //! telemetry). Every wait has a deadline; a request that times out is sent
 //! again unchanged — board requests are idempotent (a repeated lockstep
 //! `seq` is answered from the board's cache) — up to a retry limit.
@@ -77,21 +77,12 @@ pub struct HostLinkStats {
     /// Decoded frames that were not the awaited reply (stale replies to
     /// retried requests, telemetry while waiting).
     pub unexpected: u64,
-    /// Times the port was closed and opened again after
-    /// [`REOPEN_AFTER_SILENT_ATTEMPTS`] silent attempts.
-    pub reopens: u64,
 }
 
 /// A byte port with a read timeout.
 pub trait Port: Read + Write + Send {
     /// Sets how long a read may block.
     fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()>;
-
-    /// Closes the device and opens it again; `Ok(false)` if this port
-    /// cannot (a pty pair end, a test double).
-    fn reopen(&mut self) -> io::Result<bool> {
-        Ok(false)
-    }
 }
 
 impl Port for Box<dyn serialport::SerialPort> {
@@ -107,85 +98,76 @@ impl Port for serialport::TTYPort {
     }
 }
 
-/// A serial device opened by path (a board, or QEMU's pty), which can be
-/// closed and opened again.
-///
-/// QEMU 7.2's pty backend can stop reading its end of the pty while the
-/// host holds the other end open: seen under heavy host load with both
-/// the mps2-an386 and the netduinoplus2 images, after thousands of
-/// lockstep steps, QEMU's main loop no longer polls the pty, the guest's
-/// UART stays empty and every retry goes unanswered. Opening the device
-/// again makes QEMU poll it again. [`Link::request`] does that after
-/// [`REOPEN_AFTER_SILENT_ATTEMPTS`] attempts without a byte received, and
-/// counts it in [`HostLinkStats::reopens`].
+/// A serial device opened by path: a board's serial port, or `unix:PATH`,
+/// a Unix socket such as the one QEMU serves the guest's UART on
+/// ([`crate::qemu`]).
 pub struct SerialDevice {
-    path: String,
-    baud: u32,
-    port: Option<Box<dyn serialport::SerialPort>>,
+    port: Box<dyn ByteStream>,
+}
+
+/// What a [`SerialDevice`] reads and writes: a serial port, or (a path
+/// `unix:PATH`) a Unix socket such as QEMU's `-serial unix:PATH,server=on`.
+trait ByteStream: Read + Write + Send {
+    fn set_stream_timeout(&mut self, timeout: Duration) -> io::Result<()>;
+}
+
+impl ByteStream for Box<dyn serialport::SerialPort> {
+    fn set_stream_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        serialport::SerialPort::set_timeout(self.as_mut(), timeout).map_err(io::Error::from)
+    }
+}
+
+#[cfg(unix)]
+impl ByteStream for std::os::unix::net::UnixStream {
+    fn set_stream_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        // A zero timeout means "block for ever" to a socket.
+        self.set_read_timeout(Some(timeout.max(Duration::from_micros(1))))
+    }
 }
 
 impl SerialDevice {
-    fn open(path: &str, baud: u32) -> io::Result<Box<dyn serialport::SerialPort>> {
-        serialport::new(path, baud)
-            .timeout(Duration::from_millis(10))
-            .open()
-            .map_err(io::Error::from)
-    }
-
-    fn port(&mut self) -> io::Result<&mut Box<dyn serialport::SerialPort>> {
-        self.port.as_mut().ok_or_else(|| {
-            io::Error::new(
-                io::ErrorKind::NotConnected,
-                format!("serial port {} could not be opened again", self.path),
-            )
-        })
+    fn open(path: &str, baud: u32) -> io::Result<Box<dyn ByteStream>> {
+        #[cfg(unix)]
+        if let Some(socket) = path.strip_prefix("unix:") {
+            return Ok(Box::new(std::os::unix::net::UnixStream::connect(socket)?));
+        }
+        Ok(Box::new(
+            serialport::new(path, baud)
+                .timeout(Duration::from_millis(10))
+                .open()
+                .map_err(io::Error::from)?,
+        ))
     }
 }
 
 impl Read for SerialDevice {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        self.port()?.read(buf)
+        self.port.read(buf)
     }
 }
 
 impl Write for SerialDevice {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.port()?.write(buf)
+        self.port.write(buf)
     }
 
     fn flush(&mut self) -> io::Result<()> {
-        self.port()?.flush()
+        self.port.flush()
     }
 }
 
 impl Port for SerialDevice {
     fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()> {
-        self.port()?.set_read_timeout(timeout)
-    }
-
-    fn reopen(&mut self) -> io::Result<bool> {
-        // Close first: the device is opened exclusively.
-        self.port = None;
-        self.port = Some(Self::open(&self.path, self.baud)?);
-        Ok(true)
+        self.port.set_stream_timeout(timeout)
     }
 }
 
-/// Opens a serial device (a board, or QEMU's pty) in raw mode.
+/// Opens a serial device (a board's port in raw mode, or `unix:PATH`).
 pub fn open_port(path: &str, baud: u32) -> anyhow::Result<SerialDevice> {
     let port = SerialDevice::open(path, baud)
         .map_err(|e| anyhow::anyhow!("cannot open serial port {path}: {e}"))?;
-    Ok(SerialDevice {
-        path: path.to_string(),
-        baud,
-        port: Some(port),
-    })
+    Ok(SerialDevice { port })
 }
-
-/// Attempts of one request without a single byte received after which
-/// [`Link::request`] reopens a port that can be reopened (see
-/// [`SerialDevice`]).
-pub const REOPEN_AFTER_SILENT_ATTEMPTS: u32 = 3;
 
 /// The host end of a link.
 pub struct Link<P: Port> {
@@ -196,8 +178,6 @@ pub struct Link<P: Port> {
     buf: [u8; 256],
     buffered: (usize, usize),
     lose_next: bool,
-    /// Bytes read from the port so far.
-    bytes_read: u64,
 }
 
 impl<P: Port> Link<P> {
@@ -211,7 +191,6 @@ impl<P: Port> Link<P> {
             buf: [0; 256],
             buffered: (0, 0),
             lose_next: false,
-            bytes_read: 0,
         }
     }
 
@@ -281,10 +260,7 @@ impl<P: Port> Link<P> {
                 .set_read_timeout((deadline - now).min(Duration::from_millis(100)))?;
             match self.port.read(&mut self.buf) {
                 Ok(0) => {}
-                Ok(n) => {
-                    self.buffered = (0, n);
-                    self.bytes_read += n as u64;
-                }
+                Ok(n) => self.buffered = (0, n),
                 Err(e)
                     if e.kind() == io::ErrorKind::TimedOut
                         || e.kind() == io::ErrorKind::WouldBlock => {}
@@ -307,18 +283,10 @@ impl<P: Port> Link<P> {
         accept: impl Fn(&Message) -> bool,
     ) -> Result<Message, LinkError> {
         let request = msg.kind();
-        let mut silent = 0;
         for attempt in 0..attempts.max(1) {
             if attempt > 0 {
                 self.stats.retries += 1;
             }
-            if silent >= REOPEN_AFTER_SILENT_ATTEMPTS && self.port.reopen()? {
-                self.stats.reopens += 1;
-                silent = 0;
-                // A lone delimiter ends any partial frame on the far side.
-                self.send_raw(&[0])?;
-            }
-            let read_before = self.bytes_read;
             self.send(msg)?;
             let deadline = Instant::now() + timeout;
             while let Some(reply) = self.recv_until(deadline)? {
@@ -336,11 +304,6 @@ impl<P: Port> Link<P> {
                     self.queued.pop_front();
                 }
             }
-            silent = if self.bytes_read == read_before {
-                silent + 1
-            } else {
-                0
-            };
         }
         Err(LinkError::Timeout {
             request,
@@ -364,123 +327,5 @@ impl<P: Port> Link<P> {
             |r| matches!(r, Message::Ack(a) if a.request == kind),
         )
         .map(|_| ())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use firmware::protocol::{kind, Ack, Arm};
-
-    /// A board on a port that stops reading (as QEMU's pty backend can)
-    /// until the port is reopened; it answers every complete frame with an
-    /// `Ack` while it reads.
-    struct StuckPort {
-        stuck: bool,
-        can_reopen: bool,
-        reopened: u32,
-        written: Vec<u8>,
-        reply: VecDeque<u8>,
-    }
-
-    impl StuckPort {
-        fn new(can_reopen: bool) -> Self {
-            Self {
-                stuck: true,
-                can_reopen,
-                reopened: 0,
-                written: Vec::new(),
-                reply: VecDeque::new(),
-            }
-        }
-    }
-
-    impl Read for StuckPort {
-        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-            if self.reply.is_empty() {
-                // As a serial port with a read timeout: nothing arrived.
-                std::thread::sleep(Duration::from_millis(1));
-                return Err(io::ErrorKind::TimedOut.into());
-            }
-            let n = buf.len().min(self.reply.len());
-            for b in buf.iter_mut().take(n) {
-                *b = self.reply.pop_front().unwrap();
-            }
-            Ok(n)
-        }
-    }
-
-    impl Write for StuckPort {
-        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-            if self.stuck {
-                return Ok(buf.len()); // written, never read
-            }
-            for &b in buf {
-                self.written.push(b);
-                if b == 0 && self.written.len() > 1 {
-                    let mut frame = [0u8; MAX_FRAME];
-                    let n = encode_frame(&Ack { request: kind::ARM }.into(), &mut frame);
-                    self.reply.extend(&frame[..n]);
-                }
-                if b == 0 {
-                    self.written.clear();
-                }
-            }
-            Ok(buf.len())
-        }
-        fn flush(&mut self) -> io::Result<()> {
-            Ok(())
-        }
-    }
-
-    impl Port for StuckPort {
-        fn set_read_timeout(&mut self, _timeout: Duration) -> io::Result<()> {
-            Ok(())
-        }
-        fn reopen(&mut self) -> io::Result<bool> {
-            if self.can_reopen {
-                self.stuck = false;
-                self.reopened += 1;
-            }
-            Ok(self.can_reopen)
-        }
-    }
-
-    #[test]
-    fn a_port_silent_for_three_attempts_is_reopened_and_the_request_answered() {
-        let mut link = Link::new(StuckPort::new(true));
-        link.command(&Arm {}.into(), Duration::from_millis(5), 10)
-            .expect("answered after the reopen");
-        let s = link.stats();
-        assert_eq!(
-            (s.reopens, s.retries),
-            (1, REOPEN_AFTER_SILENT_ATTEMPTS as u64)
-        );
-        assert_eq!(link.port_mut().reopened, 1);
-    }
-
-    #[test]
-    fn a_port_that_cannot_reopen_times_out_after_every_attempt() {
-        let mut link = Link::new(StuckPort::new(false));
-        let err = link
-            .command(&Arm {}.into(), Duration::from_millis(5), 6)
-            .unwrap_err();
-        assert!(
-            matches!(err, LinkError::Timeout { attempts: 6, .. }),
-            "{err}"
-        );
-        assert_eq!((link.stats().reopens, link.stats().retries), (0, 5));
-    }
-
-    #[test]
-    fn a_port_that_answers_is_never_reopened() {
-        let mut port = StuckPort::new(true);
-        port.stuck = false;
-        let mut link = Link::new(port);
-        for _ in 0..10 {
-            link.command(&Arm {}.into(), Duration::from_millis(5), 3)
-                .unwrap();
-        }
-        assert_eq!(link.stats().reopens, 0);
     }
 }

@@ -1,16 +1,29 @@
-//! Starting a firmware image under QEMU with its UART on a pty.
+//! Starting a firmware image under QEMU with its protocol UART on a Unix
+//! socket.
 //!
 //! Two boards: the mps2-an386 image (`softjoint-fw`, CMSDK UART0) and the
 //! STM32F4 board image in its QEMU flavour (`softjoint-stm32f4-qemu`) on
 //! `netduinoplus2`, an STM32F405, whose USART2 is QEMU's second serial
-//! port: `-serial null -serial pty`.
+//! port: `-serial null -serial unix:…`.
+//!
+//! The UART is a Unix socket QEMU listens on (`server=on,wait=off`), not a
+//! pty. QEMU 7.2's pty backend, on this machine's kernel (Linux 6.18),
+//! stops polling its end of the pty within seconds of the host opening
+//! the other end when the line is idle, and now and then in the middle of
+//! a lockstep run: the guest's UART then stays empty and every request goes
+//! unanswered (`strace` of QEMU: the pty no longer in its poll set; a
+//! connected socket stays in it). As with a pty, QEMU drops what the guest
+//! writes before the host connects, so the host speaks first.
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::mpsc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
+
+use crate::link::{open_port, SerialDevice};
 
 /// Where `cargo build -p firmware --release --target thumbv7em-none-eabihf`
 /// puts the mps2-an386 image, relative to the workspace root.
@@ -70,45 +83,34 @@ impl QemuBoard {
         }
     }
 
-    /// QEMU's machine and the serial ports: the board's protocol UART on a
-    /// pty, any UART before it on `null`.
+    /// QEMU's machine and the serial ports before the board's protocol
+    /// UART (on `null`); the protocol UART's `-serial` follows.
     fn machine_args(self) -> &'static [&'static str] {
         match self {
-            QemuBoard::Mps2An386 => &[
-                "-cpu",
-                "cortex-m4",
-                "-machine",
-                "mps2-an386",
-                "-serial",
-                "pty",
-            ],
+            QemuBoard::Mps2An386 => &["-cpu", "cortex-m4", "-machine", "mps2-an386"],
             // USART1 is serial0, USART2 (the Nucleo's virtual COM port,
             // the image's protocol UART) serial1.
-            QemuBoard::Stm32f4 => &[
-                "-machine",
-                "netduinoplus2",
-                "-serial",
-                "null",
-                "-serial",
-                "pty",
-            ],
+            QemuBoard::Stm32f4 => &["-machine", "netduinoplus2", "-serial", "null"],
         }
     }
 }
 
-/// A running QEMU; killed when dropped.
+/// A running QEMU; killed when dropped (and its socket removed).
 pub struct Qemu {
     child: Child,
-    /// The pty QEMU connected the guest's protocol UART to.
-    pub pty: PathBuf,
+    /// The guest's protocol UART, as a port for [`open_port`]: `unix:PATH`
+    /// (see [`Qemu::connect`]).
+    pub port: String,
+    socket: PathBuf,
     lines: mpsc::Receiver<String>,
 }
 
 impl Qemu {
     /// Starts `qemu-system-arm` (the `board`'s machine, semihosting on,
-    /// the protocol UART on a pty) with `image`; `icount` adds `-icount
-    /// shift=0` (one instruction per virtual ns: the guest's clock then
-    /// follows the instructions it executes, not the host's clock).
+    /// the protocol UART on a Unix socket) with `image`, and waits until the
+    /// socket is there; `icount` adds `-icount shift=0` (one instruction
+    /// per virtual ns: the guest's clock then follows the instructions it
+    /// executes, not the host's clock).
     pub fn launch(board: QemuBoard, image: &Path, icount: bool) -> anyhow::Result<Self> {
         if !image.exists() {
             bail!(
@@ -117,8 +119,17 @@ impl Qemu {
                 board.build_command()
             );
         }
+        static LAUNCHED: AtomicU32 = AtomicU32::new(0);
+        let socket = std::env::temp_dir().join(format!(
+            "softjoint-qemu-{}-{}.sock",
+            std::process::id(),
+            LAUNCHED.fetch_add(1, Ordering::Relaxed)
+        ));
+        let _ = std::fs::remove_file(&socket);
         let mut cmd = Command::new("qemu-system-arm");
         cmd.args(board.machine_args())
+            .arg("-serial")
+            .arg(format!("unix:{},server=on,wait=off", socket.display()))
             .args(["-nographic", "-monitor", "none"])
             .args(["-semihosting-config", "enable=on,target=native"]);
         if icount {
@@ -150,32 +161,40 @@ impl Qemu {
                 }
             }
         });
-        let mut seen = Vec::new();
-        let pty = loop {
-            match rx.recv_timeout(Duration::from_secs(10)) {
-                Ok(line) => {
-                    // QEMU 7.2: "char device redirected to /dev/pts/N (label
-                    // serial0)"; a `null` port prints nothing.
-                    if let Some(rest) = line.split("redirected to ").nth(1) {
-                        let path = rest.split_whitespace().next().unwrap_or_default();
-                        break PathBuf::from(path);
-                    }
-                    seen.push(line);
-                }
-                Err(_) => {
-                    let _ = child.kill();
-                    bail!(
-                        "qemu did not report its pty within 10 s; it printed: {}",
-                        seen.join(" | ")
-                    );
-                }
-            }
-        };
-        Ok(Self {
+        let mut qemu = Self {
             child,
-            pty,
+            port: format!("unix:{}", socket.display()),
+            socket,
             lines: rx,
-        })
+        };
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !qemu.socket.exists() {
+            if !qemu.is_running() || Instant::now() > deadline {
+                bail!(
+                    "qemu did not open its socket {} within 10 s; it printed: {}",
+                    qemu.socket.display(),
+                    qemu.output().join(" | ")
+                );
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        Ok(qemu)
+    }
+
+    /// Connects to the guest's UART. QEMU creates its socket before it
+    /// listens on it, so a refused connection is tried again for up to
+    /// 10 s while QEMU runs.
+    pub fn connect(&mut self) -> anyhow::Result<SerialDevice> {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            match open_port(&self.port, 0) {
+                Ok(port) => return Ok(port),
+                Err(e) if Instant::now() > deadline || !self.is_running() => {
+                    return Err(e.context(format!("QEMU printed: {}", self.output().join(" | "))))
+                }
+                Err(_) => std::thread::sleep(Duration::from_millis(10)),
+            }
+        }
     }
 
     /// Lines QEMU printed since the last call (semihosting output, errors).
@@ -193,5 +212,6 @@ impl Drop for Qemu {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        let _ = std::fs::remove_file(&self.socket);
     }
 }

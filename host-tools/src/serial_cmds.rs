@@ -82,8 +82,8 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
                 .image
                 .clone()
                 .unwrap_or_else(|| PathBuf::from(args.board.default_image()));
-            let q = Qemu::launch(args.board, &image, !args.no_icount)?;
-            let port = open_port(&q.pty.to_string_lossy(), args.baud)?;
+            let mut q = Qemu::launch(args.board, &image, !args.no_icount)?;
+            let port = q.connect()?;
             _qemu = q;
             port
         }
@@ -101,8 +101,8 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         print!("{}", report::table(&out.report.summary));
         let l = &out.report.link;
         println!(
-            "link: {} frames sent, {} received, {} retries, {} CRC errors, {} unexpected, {} reopens; board saw {} frames, {} CRC errors",
-            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, l.reopens, out.report.board_frames_ok, out.report.board_crc_errors
+            "link: {} frames sent, {} received, {} retries, {} CRC errors, {} unexpected; board saw {} frames, {} CRC errors",
+            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, out.report.board_frames_ok, out.report.board_crc_errors
         );
         println!("lockstep: {:.0} steps/s", out.report.lockstep_steps_per_s);
     }

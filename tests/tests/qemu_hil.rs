@@ -1,5 +1,5 @@
 //! The real thumbv7em firmware images under QEMU, in lockstep with the
-//! simulated joint over QEMU's pty: the mps2-an386 image (`softjoint-fw`)
+//! simulated joint over QEMU's serial socket: the mps2-an386 image (`softjoint-fw`)
 //! and the STM32F4 board image in its QEMU flavour on `netduinoplus2`
 //! (`softjoint-stm32f4-qemu`: the Nucleo-F446RE image without clock setup
 //! and timer I/O).
@@ -13,7 +13,7 @@ use std::time::Duration;
 use firmware::protocol::{HilSensor, Message};
 use firmware::supervisor::Faults;
 use host_tools::hil::{self, HilOptions};
-use host_tools::link::{open_port, Link, SerialDevice};
+use host_tools::link::{Link, SerialDevice};
 use host_tools::qemu::{Qemu, QemuBoard};
 use host_tools::scenario::{Scenario, TargetStep};
 use host_tools::sim;
@@ -33,8 +33,8 @@ fn image(board: QemuBoard) -> PathBuf {
 }
 
 fn launch(board: QemuBoard, icount: bool) -> (Qemu, Link<SerialDevice>) {
-    let qemu = Qemu::launch(board, &image(board), icount).expect("qemu");
-    let link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let mut qemu = Qemu::launch(board, &image(board), icount).expect("qemu");
+    let link = Link::new(qemu.connect().expect("QEMU's serial socket"));
     (qemu, link)
 }
 
@@ -68,8 +68,7 @@ fn lockstep_reproduces_the_simulation(board: QemuBoard) {
     let (mut qemu, mut link) = launch(board, true);
     // What is compared is the control, not the link watchdog (the dead-link
     // tests check that): a link timeout of 10 s of the board's clock keeps
-    // a stalled host, or a reopened pty (see host_tools::link::SerialDevice),
-    // on a loaded machine from latching link loss mid-run.
+    // a host stalled on a loaded machine from latching link loss mid-run.
     let opts = HilOptions {
         link_timeout_ms: Some(10_000),
         ..HilOptions::default()
