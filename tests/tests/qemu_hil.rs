@@ -60,6 +60,30 @@ fn short_default() -> Scenario {
     }
 }
 
+/// Same control core, same inputs, same plant: the lockstep trace `got` is
+/// `expected` (the simulation's) step for step, trajectory, outputs and
+/// faults alike. Estimates travel in centidegrees (±0.005°), rounded in f32
+/// (≈ 1e-6 at 10°), hence 1e-5 of slack on top.
+fn assert_same_trajectory(got: &sim::Trace, expected: &sim::Trace) {
+    assert_eq!(got.rows.len(), expected.rows.len());
+    for (k, (h, e)) in got.rows.iter().zip(&expected.rows).enumerate() {
+        assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
+        assert_eq!(
+            h.coil_volts, e.coil_volts,
+            "coil voltages differ at step {k}"
+        );
+        assert_eq!(h.faults, e.faults, "faults differ at step {k}");
+        for p in 0..2 {
+            assert!(
+                (h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-5,
+                "estimate {p} at step {k}: {} vs {}",
+                h.estimate_deg[p],
+                e.estimate_deg[p]
+            );
+        }
+    }
+}
+
 /// The built-in default scenario in full (30 s, 30 000 lockstep steps)
 /// through `board`'s image gives the trajectory of `softjoint sim`.
 fn lockstep_reproduces_the_simulation(board: QemuBoard) {
@@ -81,26 +105,7 @@ fn lockstep_reproduces_the_simulation(board: QemuBoard) {
             qemu.output()
         ),
     };
-    assert_eq!(got.trace.rows.len(), expected.trace.rows.len());
-    for (k, (h, e)) in got.trace.rows.iter().zip(&expected.trace.rows).enumerate() {
-        // Same control core, same inputs, same plant: identical trajectory
-        // and outputs. Estimates travel in centidegrees (±0.005°), rounded
-        // in f32 (≈ 1e-6 at 10°), hence 1e-5 of slack on top.
-        assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
-        assert_eq!(
-            h.coil_volts, e.coil_volts,
-            "coil voltages differ at step {k}"
-        );
-        assert_eq!(h.faults, e.faults, "faults differ at step {k}");
-        for p in 0..2 {
-            assert!(
-                (h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-5,
-                "estimate {p} at step {k}: {} vs {}",
-                h.estimate_deg[p],
-                e.estimate_deg[p]
-            );
-        }
-    }
+    assert_same_trajectory(&got.trace, &expected.trace);
     // The run did something: the joint reached its targets.
     assert!(
         got.report
@@ -191,14 +196,7 @@ fn lost_frames_are_retried(board: QemuBoard) {
     );
     // A retried step is answered from the board's cache, not stepped again:
     // the trajectory is the simulation's.
-    assert_eq!(got.trace.rows.len(), expected.trace.rows.len());
-    for (k, (h, e)) in got.trace.rows.iter().zip(&expected.trace.rows).enumerate() {
-        assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
-        assert_eq!(
-            h.coil_volts, e.coil_volts,
-            "coil voltages differ at step {k}"
-        );
-    }
+    assert_same_trajectory(&got.trace, &expected.trace);
 }
 
 #[test]
@@ -216,14 +214,13 @@ fn dead_link_zeroes_the_stm32f4_image_outputs() {
 /// The board's own link watchdog: a host that stops talking in lockstep
 /// leaves the outputs at zero and link loss latched.
 fn dead_link_zeroes_the_outputs(board: QemuBoard) {
-    // Without -icount the guest clock follows the host's, so a host that
-    // stops talking for 3 s is about 3 s of firmware time, three times the
-    // 1 s link timeout set here: long enough that a loaded host's pause
-    // between the steps below is not taken for a dead link (the board's
-    // own default, 50 ms, would be).
+    // Without -icount the guest clock follows the host's; a link timeout of
+    // 500 ms (not the board's 50 ms default) keeps a loaded host's pause
+    // between the steps below from being taken for a dead link.
+    const LINK_TIMEOUT_MS: u16 = 500;
     let (_qemu, mut link) = launch(board, false);
     let t = Duration::from_millis(300);
-    integration_tests::start_lockstep(&mut link, Some(1000), 10.0, t);
+    integration_tests::start_lockstep(&mut link, Some(LINK_TIMEOUT_MS), 10.0, t);
     let mut last = None;
     for seq in 0..10u16 {
         let r = link
@@ -246,11 +243,27 @@ fn dead_link_zeroes_the_outputs(board: QemuBoard) {
         }
         other => panic!("{other:?}"),
     }
-    std::thread::sleep(Duration::from_millis(3000));
-    let s = hil::status(&mut link).unwrap();
-    assert!(
-        Faults::from_bits(u16::from(s.latched)).contains(Faults::LINK_LOSS),
-        "{s:?}"
-    );
-    assert_eq!(s.pair_mv, [0, 0], "outputs zero after link loss");
+    // The host goes silent. The board's clock, not the host's, is the
+    // judge: on a loaded host QEMU can run the guest's clock slower than
+    // wall time (timer ticks it was too late for are merged), so the test
+    // waits in rounds of 3 s and asks for the status (a frame, which feeds
+    // the watchdog again) after each. A round in which the board's own
+    // clock advanced by more than 4 × the link timeout without link loss
+    // latched is a failure; a shorter one (a starved QEMU) is waited out.
+    let mut before = hil::status(&mut link).unwrap().time_ms;
+    for _round in 0..8 {
+        std::thread::sleep(Duration::from_millis(3000));
+        let s = hil::status(&mut link).unwrap();
+        if Faults::from_bits(u16::from(s.latched)).contains(Faults::LINK_LOSS) {
+            assert_eq!(s.pair_mv, [0, 0], "outputs zero after link loss");
+            return;
+        }
+        let silent_ms = s.time_ms.wrapping_sub(before);
+        assert!(
+            silent_ms <= 4 * u32::from(LINK_TIMEOUT_MS),
+            "{silent_ms} ms of the board's clock without a frame and no link loss: {s:?}"
+        );
+        before = s.time_ms;
+    }
+    panic!("the board's clock did not advance by the link timeout in 8 rounds of 3 s");
 }
