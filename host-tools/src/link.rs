@@ -405,3 +405,55 @@ impl<P: Port> Link<P> {
         .map(|_| ())
     }
 }
+
+#[cfg(all(test, unix))]
+mod tests {
+    use super::*;
+    use firmware::protocol::{kind, Ack, Arm};
+    use std::os::unix::net::UnixListener;
+
+    /// `open_port("unix:PATH")` talks to a Unix socket as QEMU serves its
+    /// UART: a request is answered through it, and a far end that closes
+    /// is [`LinkError::PortClosed`], not a wait for the deadline.
+    #[test]
+    fn a_unix_socket_port_carries_frames_and_reports_its_hang_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("uart.sock");
+        let listener = UnixListener::bind(&path).unwrap();
+        // A board that acknowledges one frame, then hangs up.
+        let board = std::thread::spawn(move || {
+            let (mut s, _) = listener.accept().unwrap();
+            let mut got = Vec::new();
+            let mut b = [0u8; 1];
+            while got.iter().filter(|&&x| x == 0).count() < 1 {
+                s.read_exact(&mut b).unwrap();
+                got.push(b[0]);
+            }
+            let mut frame = [0u8; MAX_FRAME];
+            let n = encode_frame(&Ack { request: kind::ARM }.into(), &mut frame);
+            s.write_all(&frame[..n]).unwrap();
+            got
+        });
+        let port = open_port(&format!("unix:{}", path.display()), 0).unwrap();
+        let mut link = Link::new(port);
+        link.command(&Arm {}.into(), Duration::from_secs(10), 1)
+            .expect("acknowledged over the socket");
+        let sent = board.join().unwrap();
+        assert_eq!(sent.last(), Some(&0), "one whole frame reached the board");
+        let err = link
+            .command(&Arm {}.into(), Duration::from_secs(10), 3)
+            .unwrap_err();
+        assert!(matches!(err, LinkError::PortClosed), "{err}");
+    }
+
+    #[test]
+    fn a_missing_socket_is_named() {
+        let Err(err) = open_port("unix:/nonexistent/softjoint.sock", 0) else {
+            panic!("a socket that is not there opened");
+        };
+        assert!(
+            err.to_string().contains("/nonexistent/softjoint.sock"),
+            "{err}"
+        );
+    }
+}
