@@ -1,0 +1,1 @@
+//! Scripted hands (placeholder, filled in below).
