@@ -8,6 +8,7 @@ use host_tools::{calibrate, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
+mod dlo;
 mod push;
 mod viscoelastic;
 
@@ -37,6 +38,9 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// Deformable linear objects (seed 000): the knotting rope of Shi &
+    /// Payandeh, the static wires and belts of Wakamatsu et al.
+    Dlo(dlo::DloArgs),
 }
 
 #[derive(Args)]
@@ -109,6 +113,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Dlo(args) => dlo::run(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

@@ -171,7 +171,11 @@ mod tests {
         let x = (0..n)
             .map(|i| {
                 let t = i as f64 * 0.4;
-                V3::new(0.3 * t.cos(), 0.3 * t.sin(), 0.1 * t + 0.01 * (i % 3) as f64)
+                V3::new(
+                    0.3 * t.cos(),
+                    0.3 * t.sin(),
+                    0.1 * t + 0.01 * (i % 3) as f64,
+                )
             })
             .collect();
         let v = (0..n)
@@ -231,8 +235,16 @@ mod tests {
         let v = vec![V3::zeros(); 3];
         let f = term_forces(&p, &x, &v, Term::TorsionalSpring);
         let expect = p.torsional_stiffness_n_m * 0.5 / 1.0;
-        assert!((f[0] - V3::new(0.0, -expect, 0.0)).norm() < 1e-12, "{}", f[0]);
-        assert!((f[2] - V3::new(expect, 0.0, 0.0)).norm() < 1e-12, "{}", f[2]);
+        assert!(
+            (f[0] - V3::new(0.0, -expect, 0.0)).norm() < 1e-12,
+            "{}",
+            f[0]
+        );
+        assert!(
+            (f[2] - V3::new(expect, 0.0, 0.0)).norm() < 1e-12,
+            "{}",
+            f[2]
+        );
     }
 
     #[test]
@@ -243,7 +255,11 @@ mod tests {
             model: RopeModel::LinearOnly,
             ..RopeParams::default()
         };
-        let x = vec![V3::zeros(), V3::new(1.01, 0.0, 0.0), V3::new(2.01, 0.0, 0.0)];
+        let x = vec![
+            V3::zeros(),
+            V3::new(1.01, 0.0, 0.0),
+            V3::new(2.01, 0.0, 0.0),
+        ];
         let f = term_forces(&p, &x, &[V3::zeros(); 3], Term::LinearSpring);
         assert!((f[0].x - 800.0 * 0.01).abs() < 1e-9, "{}", f[0]);
     }

@@ -158,8 +158,14 @@ impl RopeParams {
         check_positive("radius_m", self.radius_m)?;
         check_positive("node_mass_kg", self.node_mass_kg)?;
         check_non_negative("gravity_n_per_kg", self.gravity_n_per_kg)?;
-        check_non_negative("coupling_stiffness_n_per_m", self.coupling_stiffness_n_per_m)?;
-        check_non_negative("coupling_damping_n_s_per_m", self.coupling_damping_n_s_per_m)?;
+        check_non_negative(
+            "coupling_stiffness_n_per_m",
+            self.coupling_stiffness_n_per_m,
+        )?;
+        check_non_negative(
+            "coupling_damping_n_s_per_m",
+            self.coupling_damping_n_s_per_m,
+        )?;
         check_non_negative("output_scale", self.output_scale)?;
         check_non_negative("friction", self.friction)?;
         check_non_negative("repulse_stiffness_n_per_m", self.repulse_stiffness_n_per_m)?;

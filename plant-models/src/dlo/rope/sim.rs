@@ -119,7 +119,9 @@ impl Rope {
             ));
         }
         let step = direction / norm * params.rest_length_m();
-        let x = (0..params.nodes).map(|i| start_m + step * i as f64).collect();
+        let x = (0..params.nodes)
+            .map(|i| start_m + step * i as f64)
+            .collect();
         Self::from_points(params, x)
     }
 
@@ -316,21 +318,26 @@ impl Rope {
             self.v[i] += self.force[i] * (dt * self.inv_mass[i]);
             self.x[i] += self.v[i] * dt;
         }
+        self.stats = StepStats::default();
+        self.floor();
+        self.propagate();
+        self.collide();
+        self.floor();
+        self.time_s += dt;
+        self.check()
+    }
+
+    /// Safety floor (an addition to the paper): a point whose centre is
+    /// below the desk surface (a full radius deep) is put back on it.
+    fn floor(&mut self) {
         if let Some(desk) = self.desk {
-            // Safety floor (addition): a centre below the desk surface is a
-            // full radius deep; put it back on the surface.
             for i in 0..self.x.len() {
-                if self.x[i].z < desk.height_m {
+                if self.x[i].z < desk.height_m && !self.pinned[i] {
                     self.x[i].z = desk.height_m;
                     self.v[i].z = self.v[i].z.max(0.0);
                 }
             }
         }
-        self.stats = StepStats::default();
-        self.propagate();
-        self.collide();
-        self.time_s += dt;
-        self.check()
     }
 
     /// Force propagation beyond l_min/l_max from every grabbed point
@@ -399,7 +406,7 @@ impl Rope {
             // Eq. 2: repulsion; pushing only.
             let n = (p.repulse_stiffness_n_per_m * depth
                 - p.repulse_damping_n_s_per_m * vr.dot(&c.normal))
-                .max(0.0);
+            .max(0.0);
             let impulse = n * dt;
             // Eq. 19–23: the relative velocity of C and E changes by 2i/m.
             pts.apply(&mut self.v, &self.inv_mass, c.normal * (2.0 * impulse / m));
@@ -450,6 +457,9 @@ impl Rope {
                 let shift = 2.0 * r - s + p.collision_margin_m; // 2·(r − d/2 + ε/2)
                 pts.apply(&mut self.x, &self.inv_mass, normal * shift);
             }
+            // A point shifted into the desk goes back on it; the next pass
+            // then moves the segment above it further up.
+            self.floor();
         }
         // The deepest overlap left.
         self.contacts.clear();
