@@ -9,5 +9,6 @@
 pub mod error;
 pub mod rope;
 pub mod topology;
+pub mod wire;
 
 pub use error::{DloError, Result};
