@@ -94,10 +94,16 @@ pub enum Constraint {
     Ball { centre_m: [f64; 3], radius_m: f64 },
     /// Eq. 21–24: the wire touches itself, strand at s_u on top (+y) of
     /// the one at s_l; the arc lengths are unknowns, starting from the
-    /// guesses; `upper_first` says which comes first along the wire.
+    /// guesses, whose order along the wire is kept (Eq. 24). The loop
+    /// between the two strands is at least `min_loop_m` long (default 4r):
+    /// without it the two points may slide together until they are 2r
+    /// apart along a wire that runs along y, which meets Eq. 21–23 without
+    /// any crossing.
     Crossing {
         upper_guess_m: f64,
         lower_guess_m: f64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        min_loop_m: Option<f64>,
     },
 }
 
@@ -219,7 +225,11 @@ impl WireProblem {
                 Constraint::Crossing {
                     upper_guess_m,
                     lower_guess_m,
+                    min_loop_m,
                 } => {
+                    if let Some(m) = min_loop_m {
+                        check_range(&name("min_loop_m"), *m, 0.0, l)?;
+                    }
                     in_wire(&name("upper_guess_m"), *upper_guess_m)?;
                     in_wire(&name("lower_guess_m"), *lower_guess_m)?;
                     if (upper_guess_m - lower_guess_m).abs() < 4.0 * self.wire.radius_m {
@@ -322,6 +332,7 @@ impl Compiled {
             if let Constraint::Crossing {
                 upper_guess_m,
                 lower_guess_m,
+                ..
             } = c
             {
                 x[k] = upper_guess_m / l;
@@ -655,9 +666,17 @@ impl Problem for Compiled {
                         r += 1;
                     }
                     // Eq. 24: the order along the wire is kept (the guesses
-                    // set it), at least 4r apart; both inside the wire.
+                    // set it), at least the loop length apart; both inside
+                    // the wire.
                     let sign = if self_first(c) { 1.0 } else { -1.0 };
-                    values[r] = sign * (su - sl) + 4.0 * self.radius;
+                    let gap = match c {
+                        Constraint::Crossing {
+                            min_loop_m: Some(m),
+                            ..
+                        } => m / l,
+                        _ => 4.0 * self.radius,
+                    };
+                    values[r] = sign * (su - sl) + gap;
                     jac[r][cross] = sign;
                     jac[r][cross + 1] = -sign;
                     r += 1;
@@ -726,6 +745,7 @@ fn self_first(c: &Constraint) -> bool {
         Constraint::Crossing {
             upper_guess_m,
             lower_guess_m,
+            ..
         } => upper_guess_m < lower_guess_m,
         _ => true,
     }
@@ -741,6 +761,157 @@ fn cumulative_weight(k: usize, t: usize, h: f64) -> f64 {
     } else {
         h
     }
+}
+
+/// One step of the end-distance sequence of §III-B (L811–815).
+#[derive(Debug, Clone)]
+pub struct SequenceStep {
+    /// End distance l / L.
+    pub l_fraction: f64,
+    /// The shape reached by moving one end along the axis from the straight
+    /// wire (the paper's procedure), no crossing imposed.
+    pub free: WireShape,
+    /// The one-knot shape: a loop whose strands touch at one crossing
+    /// (Eq. 21–24), followed from l = 0.1 L outwards.
+    pub knot: WireShape,
+}
+
+/// Both ends clamped in the natural orientation, x(L) − x(0) = (0, 0, l),
+/// optionally with one crossing (Eq. 21–24).
+pub fn clamped_problem(
+    wire: &WireParams,
+    l_fraction: f64,
+    crossing: bool,
+    intervals: usize,
+) -> WireProblem {
+    let l = wire.length_m;
+    let mut constraints = vec![
+        Constraint::Orientation {
+            s_m: 0.0,
+            euler_rad: [0.0; 3],
+        },
+        Constraint::Position {
+            s_a_m: 0.0,
+            s_b_m: l,
+            l_m: [0.0, 0.0, l_fraction * l],
+        },
+        Constraint::Orientation {
+            s_m: l,
+            euler_rad: [0.0; 3],
+        },
+    ];
+    if crossing {
+        constraints.push(Constraint::Crossing {
+            upper_guess_m: 0.12 * l,
+            lower_guess_m: 0.88 * l,
+            min_loop_m: Some(0.3 * l),
+        });
+    }
+    WireProblem {
+        wire: wire.clone(),
+        constraints,
+        harmonics: 4,
+        intervals,
+        self_contact: true,
+    }
+}
+
+/// The end-distance sequence (L811: l = 0.6L … 0.1L) on two branches.
+///
+/// Knot-free: from the straight wire (θ nudged by 1e-3 rad), one end moves
+/// along the axis in steps of `step` L, each solve starting from the last
+/// (continuation, as the paper moves the end). One-knot: from a single
+/// planar turn θ(s) = 2πs (a loop whose ends meet) with a crossing between
+/// s = 0.12 L and 0.88 L (loop at least 0.3 L), solved at the smallest l and followed to the
+/// larger ones. Returns the steps at `fractions` (descending).
+pub fn end_distance_sequence(
+    wire: &WireParams,
+    fractions: &[f64],
+    step: f64,
+    intervals: usize,
+    settings: &Settings,
+) -> Result<Vec<SequenceStep>> {
+    check_range("step", step, 1e-3, 0.5)?;
+    for &f in fractions {
+        check_range("l_fraction", f, 0.0, 0.99)?;
+    }
+    // Knot-free branch by continuation from l = L, multipliers carried on.
+    let mut free = Vec::new();
+    let mut start: Option<Solution> = None;
+    let mut l = 1.0;
+    let mut targets: Vec<f64> = fractions.to_vec();
+    targets.sort_by(|a, b| b.total_cmp(a));
+    for &target in &targets {
+        loop {
+            l = (l - step).max(target);
+            let p = clamped_problem(wire, l, false, intervals);
+            let c = p.compile()?;
+            let sol = match start.take() {
+                Some(prev) => optimize::solve_warm(
+                    &c,
+                    prev.x.clone(),
+                    Some((&prev.multipliers, prev.rho)),
+                    settings,
+                )?,
+                None => optimize::solve(&c, c.natural_start(1e-3), settings)?,
+            };
+            start = Some(sol.clone());
+            if (l - target).abs() < 1e-12 {
+                free.push(c.shape(sol));
+                break;
+            }
+        }
+    }
+    // One-knot branch from the loop, smallest l first. A loop reached from
+    // the straight untwisted wire carries a full turn of twist opposite to
+    // its writhe (link conserved), so the start is the turn θ = 2πs with
+    // ψ = ∓2πs; both signs are solved and the lower energy kept.
+    let mut knots = Vec::new();
+    let mut start: Option<Solution> = None;
+    for &target in targets.iter().rev() {
+        let p = clamped_problem(wire, target, true, intervals);
+        let c = p.compile()?;
+        let sol = match start.take() {
+            Some(prev) => optimize::solve_warm(
+                &c,
+                prev.x.clone(),
+                Some((&prev.multipliers, prev.rho)),
+                settings,
+            )?,
+            None => {
+                let mut best: Option<Solution> = None;
+                for sign in [1.0, -1.0] {
+                    let mut x = c.natural_start(0.0);
+                    x[c.angle_offset(1) + 1] = 2.0 * std::f64::consts::PI;
+                    x[c.angle_offset(2) + 1] = -sign * 2.0 * std::f64::consts::PI;
+                    let sol = optimize::solve(&c, x, settings)?;
+                    let mut g = vec![0.0; sol.x.len()];
+                    let better = match &best {
+                        None => true,
+                        Some(b) => {
+                            sol.converged && c.energy(&sol.x, &mut g) < c.energy(&b.x, &mut g)
+                        }
+                    };
+                    if better {
+                        best = Some(sol);
+                    }
+                }
+                best.expect("two starts were solved")
+            }
+        };
+        start = Some(sol.clone());
+        knots.push(c.shape(sol));
+    }
+    knots.reverse();
+    Ok(targets
+        .iter()
+        .zip(free.into_iter().zip(knots))
+        .map(|(&l_fraction, (free, knot))| SequenceStep {
+            l_fraction,
+            free,
+            knot,
+        })
+        .collect())
 }
 
 #[cfg(test)]
@@ -783,6 +954,7 @@ mod tests {
         p.constraints.push(Constraint::Crossing {
             upper_guess_m: 0.3,
             lower_guess_m: 0.6,
+            min_loop_m: Some(0.2),
         });
         p.constraints.push(Constraint::Ball {
             centre_m: [0.1, 0.0, 0.4],
@@ -857,5 +1029,92 @@ mod tests {
             shape.energy_j
         );
         assert!(shape.flexural_j < 1e-12);
+    }
+}
+
+#[cfg(test)]
+mod sequence_tests {
+    use super::*;
+    use crate::dlo::topology::{crossings, View};
+
+    fn check(steps: &[SequenceStep]) {
+        let free = |f: f64| {
+            &steps
+                .iter()
+                .find(|s| (s.l_fraction - f).abs() < 1e-9)
+                .unwrap()
+                .free
+        };
+        let knot = |f: f64| {
+            &steps
+                .iter()
+                .find(|s| (s.l_fraction - f).abs() < 1e-9)
+                .unwrap()
+                .knot
+        };
+        for st in steps {
+            assert!(
+                st.free.solution.converged && st.knot.solution.converged,
+                "l = {}",
+                st.l_fraction
+            );
+        }
+        // 0.6 L: the knot-free shape is the lower; it is planar (no
+        // torsion) and seen along y it does not cross itself.
+        assert!(free(0.6).energy_j < knot(0.6).energy_j);
+        assert!(free(0.6).torsional_j < 1e-12);
+        assert_eq!(crossings(&free(0.6).x_m, View::along(V3::y())).len(), 0);
+        // 0.1 L: the one-knot shape (a loop crossing itself once, with a
+        // full turn of twist: R_t(2π)²/(2L) = 5.21e-3 J) is the lower.
+        assert!(knot(0.1).energy_j < free(0.1).energy_j);
+        assert_eq!(crossings(&knot(0.1).x_m, View::along(V3::y())).len(), 1);
+        let full_turn = 2.3e-4 * (2.0 * std::f64::consts::PI).powi(2) / (2.0 * 0.871);
+        assert!(
+            (knot(0.1).torsional_j - full_turn).abs() < 0.05 * full_turn,
+            "{}",
+            knot(0.1).torsional_j
+        );
+        // Eq. 21–23 hold at the crossing: the strands touch (2r apart).
+        let (su, sl) = knot(0.1).crossings_m[0];
+        assert!(sl - su > 0.3 * 0.871 - 1e-6);
+    }
+
+    #[test]
+    fn end_distance_06l_to_01l_changes_the_lowest_shape_from_knot_free_to_one_knot() {
+        // The short form: 0.6 L and 0.1 L, coarse continuation and grid.
+        let steps = end_distance_sequence(
+            &WireParams::paper_wire(),
+            &[0.6, 0.1],
+            0.25,
+            48,
+            &Settings::default(),
+        )
+        .unwrap();
+        check(&steps);
+    }
+
+    /// The whole sequence of L811 on the finer grid; the README's table.
+    /// `cargo test --release -p plant-models --lib whole_end_distance -- --ignored --nocapture`
+    #[test]
+    #[ignore = "long in debug builds: run with --release (README)"]
+    fn whole_end_distance_sequence() {
+        let fr = [0.6, 0.5, 0.4, 0.3, 0.2, 0.1];
+        let t0 = std::time::Instant::now();
+        let steps = end_distance_sequence(
+            &WireParams::paper_wire(),
+            &fr,
+            0.05,
+            96,
+            &Settings::default(),
+        )
+        .unwrap();
+        eprintln!("sequence solved in {:?}", t0.elapsed());
+        for st in &steps {
+            eprintln!(
+                "l = {:.1} L: knot-free {:.4e} J (flex {:.3e}), one-knot {:.4e} J (flex {:.3e}, tor {:.3e})",
+                st.l_fraction, st.free.energy_j, st.free.flexural_j, st.knot.energy_j, st.knot.flexural_j, st.knot.torsional_j
+            );
+        }
+        check(&steps);
     }
 }

@@ -83,6 +83,8 @@ pub struct Solution {
     pub penalty: f64,
     /// Multipliers (reaction forces), in the order of the constraints.
     pub multipliers: Vec<f64>,
+    /// Penalty weight ρ at the end.
+    pub rho: f64,
     pub outer_iterations: usize,
     pub inner_iterations: u64,
     /// Whether the violation tolerance was met.
@@ -222,6 +224,17 @@ fn violation(kinds: &[Kind], c: &[f64]) -> f64 {
 
 /// Minimises `problem` from `x0` by the multiplier method.
 pub fn solve<P: Problem>(problem: &P, x0: Vec<f64>, s: &Settings) -> Result<Solution> {
+    solve_warm(problem, x0, None, s)
+}
+
+/// As [`solve`], starting the multipliers and ρ from `warm` (a solution
+/// of a neighbouring problem with the same constraints: continuation).
+pub fn solve_warm<P: Problem>(
+    problem: &P,
+    x0: Vec<f64>,
+    warm: Option<(&[f64], f64)>,
+    s: &Settings,
+) -> Result<Solution> {
     let n = problem.vars();
     if x0.len() != n {
         return Err(DloError::InvalidScenario(format!(
@@ -231,8 +244,10 @@ pub fn solve<P: Problem>(problem: &P, x0: Vec<f64>, s: &Settings) -> Result<Solu
     }
     let kinds = problem.kinds().to_vec();
     let m = kinds.len();
-    let mut lam = vec![0.0; m];
-    let mut rho = s.rho0;
+    let (mut lam, mut rho) = match warm {
+        Some((l, r)) if l.len() == m => (l.to_vec(), r.clamp(s.rho0, s.rho_max)),
+        _ => (vec![0.0; m], s.rho0),
+    };
     let mut x = x0;
     let mut c = vec![0.0; m];
     let mut jac = vec![vec![0.0; n]; m];
@@ -282,6 +297,7 @@ pub fn solve<P: Problem>(problem: &P, x0: Vec<f64>, s: &Settings) -> Result<Solu
         max_violation: last_violation.min(violation(&kinds, &c)),
         penalty,
         multipliers: lam,
+        rho,
         outer_iterations: outer,
         inner_iterations: inner_total,
         converged,
