@@ -17,7 +17,12 @@ use clap::{Args, Subcommand};
 use host_tools::plot::{self, Panel, PanelStroke};
 use plant_models::dlo::rope::script::{Frame, RopeScenario, RunResult};
 use plant_models::dlo::rope::V3;
+use plant_models::dlo::wire::belt::{belt_settings, BeltProblem, BeltShape};
+use plant_models::dlo::wire::linear::{end_distance_sequence, SequenceStep};
+use plant_models::dlo::wire::optimize::Settings;
+use plant_models::dlo::wire::{WireParams, WireProblem, WireShape};
 use serde::de::DeserializeOwned;
+use serde::Deserialize;
 
 #[derive(Args)]
 pub struct DloArgs {
@@ -30,6 +35,47 @@ enum DloCommand {
     /// Run the dynamic rope (default: tie an overhand knot, pull it tight,
     /// untie it).
     Rope(RopeArgs),
+    /// Solve a static wire, belt or end-distance sequence (Wakamatsu et
+    /// al.) from a TOML problem.
+    Solve(SolveArgs),
+}
+
+#[derive(Args)]
+struct SolveArgs {
+    /// Problem file (TOML): `model = "wire" | "belt" | "sequence"`.
+    problem: PathBuf,
+    /// Output directory for shape.csv and shape.svg.
+    #[arg(long, default_value = "dlo-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+}
+
+/// A `dlo solve` problem file.
+#[derive(Deserialize)]
+#[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
+enum SolveFile {
+    /// One wire (Eq. 1–24).
+    Wire { problem: WireProblem },
+    /// One belt (Eq. 31–61).
+    Belt { problem: BeltProblem },
+    /// The end-distance sequence of L811 on both branches.
+    Sequence {
+        wire: WireParams,
+        fractions: Vec<f64>,
+        #[serde(default = "default_step")]
+        step: f64,
+        #[serde(default = "default_intervals")]
+        intervals: usize,
+    },
+}
+
+fn default_step() -> f64 {
+    0.05
+}
+fn default_intervals() -> usize {
+    96
 }
 
 #[derive(Args)]
@@ -57,6 +103,7 @@ pub const OVERHAND_TOML: &str = include_str!("../../scenarios/dlo/overhand.toml"
 pub fn run(args: DloArgs) -> Result<()> {
     match args.command {
         DloCommand::Rope(a) => rope_cmd(a),
+        DloCommand::Solve(a) => solve_cmd(a),
     }
 }
 
@@ -196,25 +243,36 @@ fn rope_strokes(
     radius_m: f64,
     project: impl Fn(&V3) -> (f64, f64, f64),
 ) -> Vec<PanelStroke> {
+    // Pieces of consecutive points at least six diameters long, each drawn
+    // with a halo over its middle, in order of depth: the upper strand cuts
+    // the lower one at a crossing while the pieces join without gaps.
     let n = x.len();
-    let mut segs: Vec<(f64, PanelStroke)> = (0..n.saturating_sub(1))
-        .map(|i| {
-            let (a, b) = (project(&x[i]), project(&x[i + 1]));
-            let (r, g, bl) = plot::false_colour(i as f64 / (n - 2).max(1) as f64);
-            (
-                0.5 * (a.2 + b.2),
-                PanelStroke {
-                    points: vec![(a.0, a.1), (b.0, b.1)],
-                    colour: format!("rgb({r},{g},{bl})"),
-                    width: 2.0 * radius_m,
-                    width_in_px: false,
-                    halo: true,
-                },
-            )
-        })
-        .collect();
-    segs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    segs.into_iter().map(|s| s.1).collect()
+    let mut pieces: Vec<(f64, PanelStroke)> = Vec::new();
+    let mut start = 0;
+    while start + 1 < n {
+        let mut end = start + 1;
+        let mut len = (x[end] - x[start]).norm();
+        while end + 1 < n && len < 12.0 * radius_m {
+            len += (x[end + 1] - x[end]).norm();
+            end += 1;
+        }
+        let pts: Vec<(f64, f64, f64)> = x[start..=end].iter().map(&project).collect();
+        let depth = pts.iter().map(|p| p.2).sum::<f64>() / pts.len() as f64;
+        let (r, g, b) = plot::false_colour(start as f64 / (n - 2).max(1) as f64);
+        pieces.push((
+            depth,
+            PanelStroke {
+                points: pts.iter().map(|p| (p.0, p.1)).collect(),
+                colour: format!("rgb({r},{g},{b})"),
+                width: 2.0 * radius_m,
+                width_in_px: false,
+                halo: true,
+            },
+        ));
+        start = end;
+    }
+    pieces.sort_by(|a, b| a.0.total_cmp(&b.0));
+    pieces.into_iter().map(|s| s.1).collect()
 }
 
 fn rope_panel(s: &RopeScenario, f: &Frame, title: String, top: bool) -> Panel {
@@ -323,4 +381,292 @@ fn rope_strip(s: &RopeScenario, r: &RunResult, count: usize) -> plot::Svg {
         }
     }
     plot::panel_grid(&panels, columns, 300.0, (1.0, "1 m"), true)
+}
+
+fn solve_cmd(a: SolveArgs) -> Result<()> {
+    let file: SolveFile = load_toml(&a.problem)?;
+    let src = a.problem.display().to_string();
+    fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let csv_path = a.out.join("shape.csv");
+    let svg_path = a.out.join("shape.svg");
+    let started = std::time::Instant::now();
+    let summary = match file {
+        SolveFile::Wire { problem } => {
+            let shape = problem
+                .solve(&Settings::default(), None)
+                .map_err(|e| anyhow::anyhow!("{src}: {e}"))?;
+            let wall = started.elapsed().as_secs_f64();
+            fs::write(&csv_path, wire_csv(&[("wire", None, &shape)]))
+                .with_context(|| format!("writing {}", csv_path.display()))?;
+            let panels = three_views("wire", &shape.x_m, problem.wire.radius_m, None);
+            fs::write(
+                &svg_path,
+                plot::panel_grid(&panels, 3, 320.0, (0.1, "0.1 m"), false).finish(),
+            )
+            .with_context(|| format!("writing {}", svg_path.display()))?;
+            serde_json::json!({
+                "model": "wire",
+                "energy_j": shape.energy_j,
+                "flexural_j": shape.flexural_j,
+                "torsional_j": shape.torsional_j,
+                "extensional_j": shape.extensional_j,
+                "gravitational_j": shape.gravitational_j,
+                "max_violation": shape.max_violation,
+                "converged": shape.solution.converged,
+                "crossings_m": shape.crossings_m,
+                "min_self_distance_m": shape.min_self_distance_m,
+                "solve_s": wall,
+            })
+        }
+        SolveFile::Belt { problem } => {
+            let shape = problem
+                .solve(&belt_settings())
+                .map_err(|e| anyhow::anyhow!("{src}: {e}"))?;
+            let wall = started.elapsed().as_secs_f64();
+            fs::write(&csv_path, belt_csv(&shape))
+                .with_context(|| format!("writing {}", csv_path.display()))?;
+            fs::write(&svg_path, belt_views(&shape).finish())
+                .with_context(|| format!("writing {}", svg_path.display()))?;
+            let top = spine_top(&shape);
+            serde_json::json!({
+                "model": "belt",
+                "energy_j": shape.energy_j,
+                "highest_surface_point_m": [shape.highest_m.x, shape.highest_m.y, shape.highest_m.z],
+                "highest_spine_point_m": [top.x, top.y, top.z],
+                "paper_highest_point_lu": [0.3, 0.4, -0.01],
+                "max_violation": shape.max_violation,
+                "converged": shape.solution.converged,
+                "solve_s": wall,
+            })
+        }
+        SolveFile::Sequence {
+            wire,
+            fractions,
+            step,
+            intervals,
+        } => {
+            if fractions.is_empty() {
+                anyhow::bail!("{src}: field `fractions`: give at least one end distance");
+            }
+            let steps =
+                end_distance_sequence(&wire, &fractions, step, intervals, &Settings::default())
+                    .map_err(|e| anyhow::anyhow!("{src}: {e}"))?;
+            let wall = started.elapsed().as_secs_f64();
+            let rows: Vec<(&str, Option<f64>, &WireShape)> = steps
+                .iter()
+                .flat_map(|st| {
+                    [
+                        ("knot_free", Some(st.l_fraction), &st.free),
+                        ("one_knot", Some(st.l_fraction), &st.knot),
+                    ]
+                })
+                .collect();
+            fs::write(&csv_path, wire_csv(&rows))
+                .with_context(|| format!("writing {}", csv_path.display()))?;
+            fs::write(&svg_path, sequence_views(&steps, wire.radius_m).finish())
+                .with_context(|| format!("writing {}", svg_path.display()))?;
+            let table: Vec<serde_json::Value> = steps
+                .iter()
+                .map(|st| {
+                    serde_json::json!({
+                        "l_fraction": st.l_fraction,
+                        "knot_free_j": st.free.energy_j,
+                        "one_knot_j": st.knot.energy_j,
+                        "one_knot_torsional_j": st.knot.torsional_j,
+                        "lower": if st.knot.energy_j < st.free.energy_j { "one_knot" } else { "knot_free" },
+                        "converged": st.free.solution.converged && st.knot.solution.converged,
+                    })
+                })
+                .collect();
+            serde_json::json!({ "model": "sequence", "steps": table, "solve_s": wall })
+        }
+    };
+    if a.json {
+        let mut out = summary;
+        out["csv"] = serde_json::json!(csv_path);
+        out["picture"] = serde_json::json!(svg_path);
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        match summary["model"].as_str() {
+            Some("sequence") => {
+                println!("end distance   knot-free (J)   one-knot (J)   lower");
+                for st in summary["steps"].as_array().into_iter().flatten() {
+                    println!(
+                        "{:>10.2} L   {:>12.4e}   {:>12.4e}   {}",
+                        st["l_fraction"].as_f64().unwrap_or(f64::NAN),
+                        st["knot_free_j"].as_f64().unwrap_or(f64::NAN),
+                        st["one_knot_j"].as_f64().unwrap_or(f64::NAN),
+                        st["lower"].as_str().unwrap_or("?")
+                    );
+                }
+            }
+            _ => {
+                for (k, v) in summary.as_object().into_iter().flatten() {
+                    println!("{k:>26}: {v}");
+                }
+            }
+        }
+        println!("wrote {} and {}", csv_path.display(), svg_path.display());
+    }
+    Ok(())
+}
+
+/// The highest (largest x) spine point of a belt.
+fn spine_top(b: &BeltShape) -> V3 {
+    b.spine_m
+        .iter()
+        .copied()
+        .fold(V3::new(f64::NEG_INFINITY, 0.0, 0.0), |a, p| {
+            if p.x > a.x {
+                p
+            } else {
+                a
+            }
+        })
+}
+
+fn wire_csv(rows: &[(&str, Option<f64>, &WireShape)]) -> String {
+    let mut s = String::from("shape,l_fraction,s_m,x_m,y_m,z_m,phi_rad,theta_rad,psi_rad,strain\n");
+    for (name, l, sh) in rows {
+        for k in 0..sh.s_m.len() {
+            let (x, e) = (sh.x_m[k], sh.euler_rad[k]);
+            let _ = writeln!(
+                s,
+                "{name},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3e}",
+                l.map(|v| v.to_string()).unwrap_or_default(),
+                sh.s_m[k],
+                x.x,
+                x.y,
+                x.z,
+                e[0],
+                e[1],
+                e[2],
+                sh.strain[k]
+            );
+        }
+    }
+    s
+}
+
+fn belt_csv(b: &BeltShape) -> String {
+    let mut s = String::from(
+        "u_m,spine_x_m,spine_y_m,spine_z_m,edge1_x_m,edge1_y_m,edge1_z_m,edge2_x_m,edge2_y_m,edge2_z_m,beta\n",
+    );
+    for k in 0..b.u_m.len() {
+        let (p, e1, e2) = (b.spine_m[k], b.edges_m[0][k], b.edges_m[1][k]);
+        let _ = writeln!(
+            s,
+            "{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
+            b.u_m[k], p.x, p.y, p.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z, b.beta[k]
+        );
+    }
+    s
+}
+
+/// Top (x–y), front (x–z) and side (y–z) views of a curve drawn at its
+/// thickness, upper strands over lower ones.
+fn three_views(title: &str, x: &[V3], radius_m: f64, note: Option<String>) -> Vec<Panel> {
+    let views: [(&str, (&str, &str), fn(&V3) -> (f64, f64, f64)); 3] = [
+        ("top", ("x (m)", "y (m)"), |p| (p.x, p.y, p.z)),
+        ("front", ("x (m)", "z (m)"), |p| (p.x, p.z, -p.y)),
+        ("side", ("y (m)", "z (m)"), |p| (p.y, p.z, p.x)),
+    ];
+    views
+        .iter()
+        .map(|(name, axes, proj)| Panel {
+            title: match &note {
+                Some(n) => format!("{title} · {name} · {n}"),
+                None => format!("{title} · {name}"),
+            },
+            axes: (axes.0.into(), axes.1.into()),
+            strokes: rope_strokes(x, radius_m.max(1e-3), proj),
+            markers: vec![{
+                let q = proj(&x[0]);
+                ((q.0, q.1), "#333".into(), "s = 0".into())
+            }],
+        })
+        .collect()
+}
+
+fn belt_views(b: &BeltShape) -> plot::Svg {
+    let views: [(&str, (&str, &str), fn(&V3) -> (f64, f64)); 3] = [
+        ("(a) top", ("y", "x"), |p| (p.y, p.x)),
+        ("(b) front", ("y", "z"), |p| (p.y, p.z)),
+        ("(c) side", ("z", "x"), |p| (p.z, p.x)),
+    ];
+    let top = spine_top(b);
+    let panels: Vec<Panel> = views
+        .iter()
+        .map(|(name, axes, proj)| {
+            let mut strokes = Vec::new();
+            // Rib lines every few points, then the edges and the spine.
+            for k in (0..b.u_m.len()).step_by(4) {
+                strokes.push(PanelStroke {
+                    points: vec![proj(&b.edges_m[0][k]), proj(&b.edges_m[1][k])],
+                    colour: "#9ecae1".into(),
+                    width: 1.0,
+                    width_in_px: true,
+                    halo: false,
+                });
+            }
+            for (edge, colour) in [
+                (&b.edges_m[0], "#3182bd"),
+                (&b.edges_m[1], "#3182bd"),
+                (&b.spine_m, "#d62728"),
+            ] {
+                strokes.push(PanelStroke {
+                    points: edge.iter().map(proj).collect(),
+                    colour: colour.into(),
+                    width: 2.0,
+                    width_in_px: true,
+                    halo: false,
+                });
+            }
+            Panel {
+                title: format!("belt {name}"),
+                axes: (format!("{} (m)", axes.0), format!("{} (m)", axes.1)),
+                strokes,
+                markers: vec![(
+                    proj(&top),
+                    "#2ca02c".into(),
+                    format!("highest [{:.2}, {:.2}, {:.2}]", top.x, top.y, top.z),
+                )],
+            }
+        })
+        .collect();
+    plot::panel_grid(&panels, 3, 320.0, (0.1, "0.1 m"), false)
+}
+
+fn sequence_views(steps: &[SequenceStep], radius_m: f64) -> plot::Svg {
+    // Each end distance: the knot-free and the one-knot shape seen along y
+    // (the x–z plane of the paper's Fig. 2) and along x.
+    let mut panels = Vec::new();
+    for st in steps {
+        for (name, sh) in [("knot-free", &st.free), ("one-knot", &st.knot)] {
+            let lower = if (name == "one-knot") == (st.knot.energy_j < st.free.energy_j) {
+                " ✓"
+            } else {
+                ""
+            };
+            for (view, axes, proj) in [
+                (
+                    "∥y",
+                    ("x (m)", "z (m)"),
+                    (|p: &V3| (p.x, p.z, -p.y)) as fn(&V3) -> (f64, f64, f64),
+                ),
+                ("∥x", ("y (m)", "z (m)"), |p: &V3| (p.y, p.z, p.x)),
+            ] {
+                panels.push(Panel {
+                    title: format!(
+                        "{:.1}L {name} {view} {:.2e} J{lower}",
+                        st.l_fraction, sh.energy_j
+                    ),
+                    axes: (axes.0.into(), axes.1.into()),
+                    strokes: rope_strokes(&sh.x_m, radius_m.max(2e-3), proj),
+                    markers: Vec::new(),
+                });
+            }
+        }
+    }
+    plot::panel_grid(&panels, 4, 280.0, (0.1, "0.1 m"), false)
 }

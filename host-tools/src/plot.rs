@@ -625,8 +625,11 @@ pub fn panel_grid(
                 let (a, b) = (pts[0], pts[1]);
                 let at = |t: f64| (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
                 svg.polyline([at(0.2), at(0.8)], Stroke::solid("white", width + 4.0));
-            } else if s.halo {
-                svg.polyline(pts.iter().copied(), Stroke::solid("white", width + 4.0));
+            } else if s.halo && pts.len() > 2 {
+                svg.polyline(
+                    pts[1..pts.len() - 1].iter().copied(),
+                    Stroke::solid("white", width + 4.0),
+                );
             }
             svg.polyline(pts, Stroke::solid(&s.colour, width));
         }

@@ -122,6 +122,14 @@ pub struct WireProblem {
     /// Keep the wire out of itself (Eq. 15).
     #[serde(default = "default_true")]
     pub self_contact: bool,
+    /// Tilt of the start away from the straight natural state, rad (see
+    /// [`Compiled::natural_start`]; 0 keeps a straight solution straight).
+    #[serde(default = "default_tilt")]
+    pub initial_tilt_rad: f64,
+}
+
+fn default_tilt() -> f64 {
+    1e-3
 }
 
 fn default_harmonics() -> usize {
@@ -198,6 +206,7 @@ impl WireProblem {
         self.wire.validate()?;
         check_range("harmonics", self.harmonics as f64, 0.0, 12.0)?;
         check_range("intervals", self.intervals as f64, 16.0, 2000.0)?;
+        check_range("initial_tilt_rad", self.initial_tilt_rad, -1.0, 1.0)?;
         let l = self.wire.length_m;
         let in_wire = |name: &str, s: f64| check_range(name, s, 0.0, l);
         for (k, c) in self.constraints.iter().enumerate() {
@@ -295,7 +304,7 @@ impl WireProblem {
     /// coefficients; see [`Compiled::natural_start`]).
     pub fn solve(&self, settings: &Settings, start: Option<Vec<f64>>) -> Result<WireShape> {
         let c = self.compile()?;
-        let x0 = start.unwrap_or_else(|| c.natural_start(1e-3));
+        let x0 = start.unwrap_or_else(|| c.natural_start(self.initial_tilt_rad));
         let sol = optimize::solve(&c, x0, settings)?;
         Ok(c.shape(sol))
     }
@@ -813,6 +822,7 @@ pub fn clamped_problem(
         harmonics: 4,
         intervals,
         self_contact: true,
+        initial_tilt_rad: 1e-3,
     }
 }
 
@@ -941,6 +951,7 @@ mod tests {
             harmonics: 4,
             intervals: 64,
             self_contact: false,
+            initial_tilt_rad: 0.0,
         }
     }
 
