@@ -563,10 +563,23 @@ fn belt_csv(b: &BeltShape) -> String {
     s
 }
 
+/// A named view: title, axis names, projection with depth.
+type View3 = (
+    &'static str,
+    (&'static str, &'static str),
+    fn(&V3) -> (f64, f64, f64),
+);
+/// A named view: title, axis names, projection.
+type View2 = (
+    &'static str,
+    (&'static str, &'static str),
+    fn(&V3) -> (f64, f64),
+);
+
 /// Top (x–y), front (x–z) and side (y–z) views of a curve drawn at its
 /// thickness, upper strands over lower ones.
 fn three_views(title: &str, x: &[V3], radius_m: f64, note: Option<String>) -> Vec<Panel> {
-    let views: [(&str, (&str, &str), fn(&V3) -> (f64, f64, f64)); 3] = [
+    let views: [View3; 3] = [
         ("top", ("x (m)", "y (m)"), |p| (p.x, p.y, p.z)),
         ("front", ("x (m)", "z (m)"), |p| (p.x, p.z, -p.y)),
         ("side", ("y (m)", "z (m)"), |p| (p.y, p.z, p.x)),
@@ -589,7 +602,7 @@ fn three_views(title: &str, x: &[V3], radius_m: f64, note: Option<String>) -> Ve
 }
 
 fn belt_views(b: &BeltShape) -> plot::Svg {
-    let views: [(&str, (&str, &str), fn(&V3) -> (f64, f64)); 3] = [
+    let views: [View2; 3] = [
         ("(a) top", ("y", "x"), |p| (p.y, p.x)),
         ("(b) front", ("y", "z"), |p| (p.y, p.z)),
         ("(c) side", ("z", "x"), |p| (p.z, p.x)),

@@ -609,15 +609,16 @@ mod tests {
                 rope.v[i] = V3::new(0.0, 0.0, omega).cross(&r);
             }
             let lz0 = rope.angular_momentum(top).z;
-            for _ in 0..10_000 {
+            for _ in 0..6_000 {
                 rope.step().unwrap();
             }
             rope.angular_momentum(top).z / lz0
         };
         let model3 = lz_after(RopeModel::TorsionalDamper);
         let model4 = lz_after(RopeModel::Swivel);
-        eprintln!("after 10 s: model 3 keeps {model3}, model 4 {model4} of L_z");
+        // Measured after 6 s: model 3 keeps 1.000, model 4 about 0.4 (0.22
+        // after 10 s).
         assert!(model3 > 0.97, "model 3 kept {model3} of its orbit");
-        assert!(model4 < 0.35, "model 4 kept {model4} of its orbit");
+        assert!(model4 < 0.5, "model 4 kept {model4} of its orbit");
     }
 }

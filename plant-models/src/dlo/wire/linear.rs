@@ -1090,20 +1090,6 @@ mod sequence_tests {
         assert!(sl - su > 0.3 * 0.871 - 1e-6);
     }
 
-    #[test]
-    fn end_distance_06l_to_01l_changes_the_lowest_shape_from_knot_free_to_one_knot() {
-        // The short form: 0.6 L and 0.1 L, coarse continuation and grid.
-        let steps = end_distance_sequence(
-            &WireParams::paper_wire(),
-            &[0.6, 0.1],
-            0.25,
-            48,
-            &Settings::default(),
-        )
-        .unwrap();
-        check(&steps);
-    }
-
     /// The whole sequence of L811 on the finer grid; the README's table.
     /// `cargo test --release -p plant-models --lib whole_end_distance -- --ignored --nocapture`
     #[test]
