@@ -10,6 +10,7 @@ use host_tools::{calibrate, out, outln, output, report, scenario::Scenario, sim}
 mod serial_cmds;
 
 mod contour;
+mod dlo;
 mod push;
 mod viscoelastic;
 
@@ -43,6 +44,9 @@ enum Command {
     /// Kano): fit tracked contours and deforming contours over time, or
     /// write the paper's test cases.
     Contour(contour::ContourArgs),
+    /// Deformable linear objects (seed 000): the knotting rope of Shi &
+    /// Payandeh, the static wires and belts of Wakamatsu et al.
+    Dlo(dlo::DloArgs),
 }
 
 #[derive(Args)]
@@ -114,6 +118,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
         Command::Contour(args) => contour::run(args),
+        Command::Dlo(args) => dlo::run(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

@@ -4,6 +4,7 @@
 #![deny(unsafe_code)]
 pub mod contour;
 pub mod csv_input;
+pub mod dlo;
 pub mod joint;
 pub mod linalg;
 pub mod pushing;
