@@ -3,6 +3,7 @@
 //! random effects take an explicit seeded RNG.
 #![deny(unsafe_code)]
 pub mod csv_input;
+pub mod fem;
 pub mod joint;
 pub mod pushing;
 pub mod viscoelastic;
