@@ -458,9 +458,9 @@ impl ElasticSystem {
         }
         let mut rhs = vec![0.0; self.equations()];
         for (k, f) in forces_n.iter().enumerate() {
-            for c in 0..3 {
+            for (c, &fc) in f.iter().enumerate() {
                 if let Some(e) = self.equation[3 * k + c] {
-                    rhs[e] = f[c];
+                    rhs[e] = fc;
                 }
             }
         }
@@ -603,7 +603,7 @@ mod tests {
                 -0.004 * p[0] + 0.002 * p[1] - 0.03 * p[2] + 0.002,
             ]
         };
-        let on_boundary = |p: [f64; 3]| p.iter().any(|&c| c < 1e-12 || c > 1.0 - 1e-12);
+        let on_boundary = |p: [f64; 3]| p.iter().any(|&c| !(1e-12..=1.0 - 1e-12).contains(&c));
         let mut prescribed = vec![false; 3 * nodes.len()];
         let mut values = vec![0.0; 3 * nodes.len()];
         for (k, p) in nodes.iter().enumerate() {

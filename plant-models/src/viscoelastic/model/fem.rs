@@ -213,9 +213,9 @@ impl FemSystem {
                     rhs[ej] = 1.0;
                     sys.solve_equations_in_place(&mut rhs);
                     for (blk, &i) in blocks.iter_mut().zip(rows) {
-                        for r in 0..3 {
+                        for (r, row) in blk.iter_mut().enumerate() {
                             if let Some(ei) = sys.equation_of(3 * i + r) {
-                                blk[r][c] = rhs[ei];
+                                row[c] = rhs[ei];
                             }
                         }
                     }
