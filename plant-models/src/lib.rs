@@ -6,6 +6,7 @@ pub mod csv_input;
 pub mod fem;
 pub mod joint;
 pub mod pushing;
+pub mod tissue;
 pub mod viscoelastic;
 
 pub mod rng {
@@ -23,6 +24,11 @@ pub mod rng {
     //! | [`CAMERA`] | the joint's camera noise and occlusion |
     //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
+    //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
+    //! | [`TISSUE_WARP`] | `tissue::field` synthetic twin: the non-rigid warp's bumps |
+    //! | [`TISSUE_NOISE_INITIAL`] | `tissue::field` noise of the initial volume |
+    //! | [`TISSUE_NOISE_DEFORMED`] | `tissue::field` noise of the deformed volume |
+    //! | [`TISSUE_DELAUNAY_JITTER`] | `tissue::field` tie-breaking jitter of the Delaunay points |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -33,6 +39,19 @@ pub mod rng {
     /// `hal-sim`'s simulated coder k draws its dropouts from
     /// `HAL_SIM_SENSOR_BASE + k`.
     pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+
+    /// The tissue module's streams start here (seed 000, Zhang and Kita).
+    pub const TISSUE_BASE: u64 = 0x600;
+    /// Texture of the synthetic calf volumes.
+    pub const TISSUE_TEXTURE: u64 = TISSUE_BASE;
+    /// Bumps of the synthetic twin's non-rigid warp.
+    pub const TISSUE_WARP: u64 = TISSUE_BASE + 1;
+    /// Noise of the synthetic initial volume.
+    pub const TISSUE_NOISE_INITIAL: u64 = TISSUE_BASE + 2;
+    /// Noise of the synthetic deformed volume.
+    pub const TISSUE_NOISE_DEFORMED: u64 = TISSUE_BASE + 3;
+    /// Sub-micrometre jitter that breaks ties of co-spherical Delaunay points.
+    pub const TISSUE_DELAUNAY_JITTER: u64 = TISSUE_BASE + 4;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
