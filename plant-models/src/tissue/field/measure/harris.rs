@@ -69,13 +69,13 @@ pub struct HarrisParams {
 }
 
 impl Default for HarrisParams {
-    /// σ_d = 0.8 mm, σ_i = 1.5 mm (estimates: about one and two in-plane
-    /// voxels of the paper's volumes), Eq. 3, margins of the 9 × 9 × 3
+    /// σ_d = 0.6 mm, σ_i = 1.0 mm (estimates: about one in-plane voxel
+    /// of the paper's volumes each), Eq. 3, margins of the 9 × 9 × 3
     /// match cube (L571) plus one.
     fn default() -> Self {
         HarrisParams {
-            derivative_sigma_mm: 0.8,
-            integration_sigma_mm: 1.5,
+            derivative_sigma_mm: 0.6,
+            integration_sigma_mm: 1.0,
             response: Response::DetOverTrace,
             margin_vox: [5, 5, 2],
         }

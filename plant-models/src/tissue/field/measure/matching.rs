@@ -100,8 +100,10 @@ pub struct MatchParams {
     pub match_half_vox: [usize; 3],
     /// Half size of the search cube (voxels): 17 × 17 × 3 → 8, 8, 1 (L571).
     pub search_half_vox: [usize; 3],
-    /// Smallest correlation of a candidate (estimate; Zhang et al. 1995
-    /// used 0.8 on photographs).
+    /// Smallest correlation of a candidate (estimate: low enough that most
+    /// points keep more than one candidate under the twins' noise, so the
+    /// relaxation has something to decide; Zhang et al. 1995 used 0.8 on
+    /// photographs).
     pub min_correlation: f64,
     /// Radius of the neighbourhood N(p) (mm, estimate: about 30
     /// neighbours at the paper's 1000 points in a calf).
@@ -114,6 +116,11 @@ pub struct MatchParams {
     /// Displacements shorter than this (mm) have no direction (half an
     /// in-plane voxel of the paper's volumes).
     pub min_motion_mm: f64,
+    /// Smallest strength SM of an accepted match: mutual best pairs below
+    /// it are not fixed, so matches without support from consistent
+    /// neighbours are rejected (estimate; the paper gives none; the README
+    /// shows the comparison at 0.9, 1.1 and 1.3).
+    pub min_strength: f64,
     /// Most relaxation rounds.
     pub max_rounds: usize,
     /// How neighbours are weighted.
@@ -125,11 +132,12 @@ impl Default for MatchParams {
         MatchParams {
             match_half_vox: [4, 4, 1],
             search_half_vox: [8, 8, 1],
-            min_correlation: 0.7,
+            min_correlation: 0.5,
             neighbourhood_mm: 15.0,
             relative_distance_limit: 0.3,
             fix_fraction: 0.6,
             min_motion_mm: 0.4,
+            min_strength: 1.1,
             max_rounds: 50,
             consistency: Consistency::Direction,
         }
@@ -142,6 +150,7 @@ impl MatchParams {
         check_positive("neighbourhood_mm", self.neighbourhood_mm)?;
         check_positive("relative_distance_limit", self.relative_distance_limit)?;
         check_range("fix_fraction", self.fix_fraction, 1e-6, 1.0, "must be in (0, 1]")?;
+        check_range("min_strength", self.min_strength, 0.0, 10.0, "must be 0 to 10")?;
         check_range("min_motion_mm", self.min_motion_mm, 0.0, 1e3, "must be 0 to 1000 mm")?;
         Ok(())
     }
@@ -396,6 +405,7 @@ pub fn relax(
                 }
             }
         }
+        mutual.retain(|m| m.strength >= params.min_strength);
         if mutual.is_empty() {
             break;
         }
@@ -491,6 +501,7 @@ mod tests {
         let params = MatchParams {
             neighbourhood_mm: 7.0,
             relative_distance_limit: 0.6,
+            min_strength: 0.0,
             ..MatchParams::default()
         };
         let m = relax(&iv, &fv, &cand, &params).unwrap();

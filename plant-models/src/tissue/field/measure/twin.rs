@@ -9,7 +9,7 @@
 //! the true one. Dense errors and Eq. 12 are taken over the voxels every
 //! variant's tetrahedra cover, so a variant with a larger hull is not
 //! scored on extra (harder) voxels.
-use super::horn::rotation_difference_deg;
+use super::horn::{horn, rotation_difference_deg};
 use super::matching::Consistency;
 use super::pipeline::{features, measure_from, rms_slices, FieldParams, Features, MeasuredField};
 use crate::tissue::error::Result;
@@ -43,7 +43,9 @@ pub struct VariantReport {
     pub registration_rms: f64,
     /// Horn's rotation angle (degrees).
     pub horn_angle_deg: f64,
-    /// Angle between Horn's rotation and the true one (degrees).
+    /// Angle between Horn's rotation and Horn's rotation of the true
+    /// motion of the same points (degrees): the rigid part of the true
+    /// field there, which includes the net rotation of the non-rigid warp.
     pub rotation_error_deg: f64,
 }
 
@@ -56,7 +58,10 @@ pub struct TwinReport {
     pub features_deformed: usize,
     /// IV points with at least one candidate.
     pub with_candidates: usize,
-    /// The true rotation angle (degrees).
+    /// Mean number of candidates of an IV point that has any.
+    pub mean_candidates: f64,
+    /// The applied rotation angle (degrees); the rigid part Horn finds in
+    /// the true field differs by the non-rigid warp's net rotation.
     pub true_rotation_deg: f64,
     /// Largest true displacement at the IV feature points (mm).
     pub max_true_displacement_mm: f64,
@@ -180,7 +185,14 @@ pub fn compare_on_twin(
             dense_endpoint_mean_mm: dense_errs.iter().sum::<f64>() / nd,
             registration_rms,
             horn_angle_deg: m.rigid.angle_deg(),
-            rotation_error_deg: rotation_difference_deg(&m.rigid.rotation, &r_true),
+            rotation_error_deg: {
+                let a: Vec<[f64; 3]> = m.matches.iter().map(|mm| feats.initial[mm.initial].position_mm).collect();
+                let b: Vec<[f64; 3]> = a.iter().map(|p| twin.warp.forward_mm(*p)).collect();
+                match horn(&a, &b) {
+                    Ok(t) => rotation_difference_deg(&m.rigid.rotation, &t.rotation),
+                    Err(_) => f64::NAN,
+                }
+            },
         });
     }
     let max_true_displacement_mm = feats
@@ -192,6 +204,10 @@ pub fn compare_on_twin(
         features_initial: feats.initial.len(),
         features_deformed: feats.deformed.len(),
         with_candidates: feats.candidates.iter().filter(|c| !c.is_empty()).count(),
+        mean_candidates: {
+            let with: Vec<usize> = feats.candidates.iter().map(Vec::len).filter(|&l| l > 0).collect();
+            with.iter().sum::<usize>() as f64 / with.len().max(1) as f64
+        },
         true_rotation_deg: rotation_difference_deg(&Matrix3::identity(), &r_true),
         max_true_displacement_mm,
         dense_points: common_dense.len(),

@@ -11,11 +11,13 @@
 //!   field of view, an estimate of a calf in a 20 cm FOV) with a 4 mm skin
 //!   layer (intensity 900);
 //! - muscle and fat compartments: the Voronoi cells of seeds on a jittered
-//!   8 mm grid, each with its own intensity in 200–700 (3-D junctions of
+//!   3 mm grid, each with its own intensity in 200–700 (3-D junctions of
 //!   cells are the high-curvature points Harris responds to);
 //! - two bones (tibia, fibula) as elliptic cylinders of intensity 1000;
-//! - vessels: 1.5 mm spheres in a third of the cells, +250;
-//! - a Gaussian point-spread blur (σ 0.5 mm) and Gaussian noise.
+//! - vessels and fat lobules: spheres of 1.0–1.8 mm radius in 80 % of the
+//!   cells, +250 or −150;
+//! - the voxel's mean over 2 × 2 × 2 samples (partial volume), a Gaussian
+//!   point-spread blur (σ 0.5 mm) and Gaussian noise.
 //!
 //! The warp (`ψ`, deformed → initial) is a rigid motion about the volume
 //! centre (rotation about z, translation) composed with a smooth
@@ -58,6 +60,9 @@ pub struct SynthSpec {
     pub noise_sigma: f64,
     /// Point-spread blur (mm, σ) of both volumes.
     pub psf_sigma_mm: f64,
+    /// Samples per voxel side of the box filter (partial-volume effect;
+    /// 1 = point sampling, which aliases the compartments' edges).
+    pub supersample: usize,
     /// Rotation about z through the volume centre (degrees).
     pub rotation_deg: f64,
     /// Translation (mm).
@@ -77,16 +82,17 @@ impl Default for SynthSpec {
     /// The paper's size with an estimated deformation: 2° rotation, 1 mm
     /// translation, ten bumps of up to 2.5 mm in-plane (0.4 mm along z)
     /// and σ 22 mm — largest total motion ≈ 5 mm (6–7 voxels), inside the
-    /// paper's 17-voxel search cube; noise σ 10 (2 % of the compartment
-    /// range).
+    /// paper's 17-voxel search cube; noise σ 20 (4 % of the compartment
+    /// range, an MR signal-to-noise ratio of about 25); 3 mm compartments.
     fn default() -> Self {
         SynthSpec {
             dims: PAPER_DIMS,
             spacing_mm: PAPER_SPACING_MM,
             seed: 1,
-            cell_mm: 8.0,
-            noise_sigma: 10.0,
+            cell_mm: 3.0,
+            noise_sigma: 20.0,
             psf_sigma_mm: 0.5,
+            supersample: 2,
             rotation_deg: 2.0,
             translation_mm: [1.0, -0.6, 0.0],
             warp_bumps: 10,
@@ -115,6 +121,7 @@ impl SynthSpec {
             check_positive("spacing_mm", s)?;
         }
         check_positive("cell_mm", self.cell_mm)?;
+        check_range("supersample", self.supersample as f64, 1.0, 8.0, "must be 1 to 8 samples per voxel side")?;
         check_range("noise_sigma", self.noise_sigma, 0.0, 1e4, "must be 0 to 10000")?;
         check_range("psf_sigma_mm", self.psf_sigma_mm, 0.0, 50.0, "must be 0 to 50 mm")?;
         check_range("rotation_deg", self.rotation_deg, -45.0, 45.0, "must be -45 to 45°")?;
@@ -134,7 +141,8 @@ impl SynthSpec {
 struct Cell {
     seed_mm: [f64; 3],
     intensity: f64,
-    vessel_mm: Option<[f64; 3]>,
+    /// A vessel or fat lobule: centre, radius (mm), intensity change.
+    vessel: Option<([f64; 3], f64, f64)>,
 }
 
 /// The continuous tissue: intensity as a function of position (mm).
@@ -150,8 +158,10 @@ pub struct Tissue {
 
 /// Skin thickness (mm), estimate.
 const SKIN_MM: f64 = 4.0;
-/// Vessel radius (mm), estimate.
-const VESSEL_MM: f64 = 1.5;
+/// Radius range of vessels and fat lobules (mm), estimate.
+const VESSEL_MM: (f64, f64) = (0.8, 1.4);
+/// Fraction of compartments holding a vessel or lobule, estimate.
+const VESSEL_FRACTION: f64 = 0.8;
 
 impl Tissue {
     fn new(spec: &SynthSpec) -> Self {
@@ -183,15 +193,18 @@ impl Tissue {
                     ];
                     let seed_mm = base.map(|b| b + (r.gen::<f64>() - 0.5) * 0.7 * cell);
                     let intensity = 200.0 + 500.0 * r.gen::<f64>();
-                    let vessel_mm = if r.gen::<f64>() < 1.0 / 3.0 {
-                        Some(base.map(|b| b + (r.gen::<f64>() - 0.5) * cell))
+                    let vessel = if r.gen::<f64>() < VESSEL_FRACTION {
+                        let c = base.map(|b| b + (r.gen::<f64>() - 0.5) * cell);
+                        let radius = VESSEL_MM.0 + (VESSEL_MM.1 - VESSEL_MM.0) * r.gen::<f64>();
+                        let change = if r.gen::<f64>() < 0.5 { 250.0 } else { -150.0 };
+                        Some((c, radius, change))
                     } else {
                         None
                     };
                     cells.push(Cell {
                         seed_mm,
                         intensity,
-                        vessel_mm,
+                        vessel,
                     });
                 }
             }
@@ -237,7 +250,7 @@ impl Tissue {
         }
         let c: [i64; 3] = std::array::from_fn(|a| ((p[a] - self.origin_mm[a]) / self.cell_mm).floor() as i64);
         let mut best = (f64::INFINITY, 0.0);
-        let mut vessel = false;
+        let mut vessel = 0.0;
         for dk in -1..=1 {
             for dj in -1..=1 {
                 for di in -1..=1 {
@@ -251,13 +264,15 @@ impl Tissue {
                     if d2 < best.0 {
                         best = (d2, cell.intensity);
                     }
-                    if let Some(vc) = cell.vessel_mm {
-                        vessel |= dist2(p, vc) <= VESSEL_MM * VESSEL_MM;
+                    if let Some((vc, radius, change)) = cell.vessel {
+                        if dist2(p, vc) <= radius * radius {
+                            vessel = change;
+                        }
                     }
                 }
             }
         }
-        best.1 + if vessel { 250.0 } else { 0.0 }
+        best.1 + vessel
     }
 }
 
@@ -405,6 +420,10 @@ fn render(
     noise_stream: u64,
 ) -> Volume {
     let [nx, ny, nz] = spec.dims;
+    let ss = spec.supersample.max(1);
+    // Sub-sample offsets (voxel units) of a box filter over the voxel.
+    let offsets: Vec<f64> = (0..ss).map(|k| (k as f64 + 0.5) / ss as f64 - 0.5).collect();
+    let weight = 1.0 / (ss * ss * ss) as f64;
     let mut v = Volume::zeros(spec.dims, spec.spacing_mm);
     v.data_mut()
         .par_chunks_mut(nx * ny)
@@ -412,12 +431,20 @@ fn render(
         .for_each(|(z, slice)| {
             for y in 0..ny {
                 for x in 0..nx {
-                    let q = [
-                        x as f64 * spec.spacing_mm[0],
-                        y as f64 * spec.spacing_mm[1],
-                        z as f64 * spec.spacing_mm[2],
-                    ];
-                    slice[x + nx * y] = tissue.intensity(backward(q)) as f32;
+                    let mut acc = 0.0;
+                    for oz in &offsets {
+                        for oy in &offsets {
+                            for ox in &offsets {
+                                let q = [
+                                    (x as f64 + ox) * spec.spacing_mm[0],
+                                    (y as f64 + oy) * spec.spacing_mm[1],
+                                    (z as f64 + oz) * spec.spacing_mm[2],
+                                ];
+                                acc += tissue.intensity(backward(q));
+                            }
+                        }
+                    }
+                    slice[x + nx * y] = (acc * weight) as f32;
                 }
             }
         });
@@ -516,6 +543,7 @@ mod tests {
         let spec = SynthSpec {
             noise_sigma: 0.0,
             psf_sigma_mm: 0.0,
+            supersample: 1,
             ..SynthSpec::with_dims([48, 48, 12])
         };
         let twin = make_twin(&spec).unwrap();
