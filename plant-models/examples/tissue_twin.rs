@@ -12,10 +12,22 @@ use plant_models::tissue::field::twin::compare_on_twin;
 use std::time::Instant;
 
 fn main() {
-    let a: Vec<usize> = std::env::args().skip(1).filter_map(|s| s.parse().ok()).collect();
-    let dims = [*a.first().unwrap_or(&256), *a.get(1).unwrap_or(&256), *a.get(2).unwrap_or(&57)];
+    let a: Vec<usize> = std::env::args()
+        .skip(1)
+        .filter_map(|s| s.parse().ok())
+        .collect();
+    let dims = [
+        *a.first().unwrap_or(&256),
+        *a.get(1).unwrap_or(&256),
+        *a.get(2).unwrap_or(&57),
+    ];
     let seed = *a.get(3).unwrap_or(&1) as u64;
-    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+    let env = |k: &str, d: f64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
     let base = SynthSpec::with_dims(dims);
     let spec = SynthSpec {
         seed,
@@ -38,5 +50,9 @@ fn main() {
     let (report, _, _) = compare_on_twin(&twin, &params, &Consistency::ALL).expect("comparison");
     let t_cmp = t1.elapsed();
     println!("{}", serde_json::to_string_pretty(&report).unwrap());
-    eprintln!("twin {:.2} s, comparison {:.2} s", t_twin.as_secs_f64(), t_cmp.as_secs_f64());
+    eprintln!(
+        "twin {:.2} s, comparison {:.2} s",
+        t_twin.as_secs_f64(),
+        t_cmp.as_secs_f64()
+    );
 }

@@ -42,7 +42,10 @@ fn harris_points_are_invariant_to_a_known_rigid_motion_within_a_voxel() {
     }
     errs.sort_by(f64::total_cmp);
     eprintln!("{within} of 50 within a voxel; errors {errs:?}");
-    assert!(within >= 45, "{within} of 50 within a voxel; errors {errs:?}");
+    assert!(
+        within >= 45,
+        "{within} of 50 within a voxel; errors {errs:?}"
+    );
     assert!(errs[25] < 0.35, "median {} voxel", errs[25]);
 }
 
@@ -60,13 +63,31 @@ fn the_measured_field_of_a_small_twin_matches_the_known_field() {
     assert!(v.matches >= 100, "{} matches", v.matches);
     // "Wrong" is more than one in-plane voxel (0.78 mm) off; on this small
     // twin about a quarter are (at the paper's size, 2–3 %: README).
-    assert!(v.wrong_matches * 3 <= v.matches, "{} wrong of {}", v.wrong_matches, v.matches);
-    assert!(v.dense_endpoint_rms_mm < 1.0, "dense RMS {} mm", v.dense_endpoint_rms_mm);
+    assert!(
+        v.wrong_matches * 3 <= v.matches,
+        "{} wrong of {}",
+        v.wrong_matches,
+        v.matches
+    );
+    assert!(
+        v.dense_endpoint_rms_mm < 1.0,
+        "dense RMS {} mm",
+        v.dense_endpoint_rms_mm
+    );
     assert!(r.max_true_displacement_mm > 3.0, "the twin barely moves");
-    assert!(v.registration_rms < 0.4 * r.rms_unregistered, "{} vs {}", v.registration_rms, r.rms_unregistered);
+    assert!(
+        v.registration_rms < 0.4 * r.rms_unregistered,
+        "{} vs {}",
+        v.registration_rms,
+        r.rms_unregistered
+    );
     assert!(v.rotation_error_deg < 1.0, "Horn {}°", v.rotation_error_deg);
     assert!(v.tetrahedra > 3 * v.matches, "{} tetrahedra", v.tetrahedra);
-    assert!(m[0].field.tets.iter().all(|t| t.iter().all(|&i| i < v.matches)));
+    assert!(m[0]
+        .field
+        .tets
+        .iter()
+        .all(|t| t.iter().all(|&i| i < v.matches)));
 }
 
 /// Table I at the paper's size (256 × 256 × 57, 1000 and 5000 points).
@@ -82,7 +103,10 @@ fn direction_constraint_lowers_the_error_at_the_papers_size() {
     let s = &r.variants[0];
     let d = &r.variants[1];
     assert_eq!(s.consistency, Consistency::StrengthOnly);
-    assert!(d.matches < s.matches, "Table I: fewer matches with the constraint");
+    assert!(
+        d.matches < s.matches,
+        "Table I: fewer matches with the constraint"
+    );
     assert!(d.wrong_matches < s.wrong_matches);
     assert!(d.match_endpoint_rms_mm < s.match_endpoint_rms_mm);
     assert!(d.dense_endpoint_rms_mm < s.dense_endpoint_rms_mm);

@@ -84,7 +84,13 @@ impl Default for HarrisParams {
 
 impl HarrisParams {
     fn validate(&self) -> Result<()> {
-        check_range("derivative_sigma_mm", self.derivative_sigma_mm, 0.0, 100.0, "must be 0 to 100 mm")?;
+        check_range(
+            "derivative_sigma_mm",
+            self.derivative_sigma_mm,
+            0.0,
+            100.0,
+            "must be 0 to 100 mm",
+        )?;
         check_positive("integration_sigma_mm", self.integration_sigma_mm)?;
         if let Response::DetMinusKTrace2 { k } = self.response {
             check_range("k", k, 0.0, 1.0, "must be 0 to 1 (Harris: 0.04 to 0.06)")?;
@@ -142,7 +148,14 @@ pub fn response_volume(vol: &Volume, params: &HarrisParams) -> Result<Vec<f64>> 
         let y = (i / nx) % ny;
         let z = i / (nx * ny);
         let g = grad(x, y, z);
-        let p = [g[0] * g[0], g[1] * g[1], g[2] * g[2], g[0] * g[1], g[0] * g[2], g[1] * g[2]];
+        let p = [
+            g[0] * g[0],
+            g[1] * g[1],
+            g[2] * g[2],
+            g[0] * g[1],
+            g[0] * g[2],
+            g[1] * g[2],
+        ];
         for (k, v) in p.iter().enumerate() {
             prod[k][i] = *v as f32;
         }
@@ -156,7 +169,11 @@ pub fn response_volume(vol: &Volume, params: &HarrisParams) -> Result<Vec<f64>> 
     });
     Ok((0..n)
         .into_par_iter()
-        .map(|i| params.response.of(std::array::from_fn(|k| f64::from(prod[k][i]))))
+        .map(|i| {
+            params
+                .response
+                .of(std::array::from_fn(|k| f64::from(prod[k][i])))
+        })
         .collect())
 }
 
@@ -273,7 +290,11 @@ mod tests {
         }
         let r = response_volume(&v, &p).unwrap();
         let face = r[v.index(15, 15, 10)];
-        assert!(face.abs() < 1e-2 * pts[0].response, "face {face} vs corner {}", pts[0].response);
+        assert!(
+            face.abs() < 1e-2 * pts[0].response,
+            "face {face} vs corner {}",
+            pts[0].response
+        );
     }
 
     #[test]
@@ -286,6 +307,9 @@ mod tests {
         assert!((r3.of(s(10.0)) / r3.of(m) - 1e4).abs() < 1e-6);
         let r2 = Response::DetMinusKTrace2 { k: 0.05 };
         let ratio = r2.of(s(10.0)) / r2.of(m);
-        assert!((ratio - 1e6).abs() > 1.0, "Eq. 2 scaled like a power: {ratio}");
+        assert!(
+            (ratio - 1e6).abs() > 1.0,
+            "Eq. 2 scaled like a power: {ratio}"
+        );
     }
 }

@@ -27,7 +27,10 @@ pub struct RigidFit {
 impl RigidFit {
     /// Rotation angle (degrees).
     pub fn angle_deg(&self) -> f64 {
-        ((self.rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+        ((self.rotation.trace() - 1.0) / 2.0)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
     }
 
     /// Applies the motion to a point.
@@ -40,7 +43,10 @@ impl RigidFit {
 /// Angle (degrees) of the rotation `R₁ᵀ R₂` between two rotations.
 pub fn rotation_difference_deg(r1: &Matrix3<f64>, r2: &Matrix3<f64>) -> f64 {
     let d = r1.transpose() * r2;
-    ((d.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+    ((d.trace() - 1.0) / 2.0)
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
 }
 
 /// Horn's least-squares rigid motion taking `a[i]` to `b[i]`. Needs three
@@ -63,7 +69,11 @@ pub fn horn(a: &[[f64; 3]], b: &[[f64; 3]]) -> Result<RigidFit> {
         });
     }
     let n = a.len() as f64;
-    let mean = |p: &[[f64; 3]]| p.iter().fold(Vector3::zeros(), |s, v| s + Vector3::from(*v)) / n;
+    let mean = |p: &[[f64; 3]]| {
+        p.iter()
+            .fold(Vector3::zeros(), |s, v| s + Vector3::from(*v))
+            / n
+    };
     let (ma, mb) = (mean(a), mean(b));
     let mut s = Matrix3::<f64>::zeros();
     for (pa, pb) in a.iter().zip(b) {
@@ -105,7 +115,9 @@ pub fn horn(a: &[[f64; 3]], b: &[[f64; 3]]) -> Result<RigidFit> {
     let sq: f64 = a
         .iter()
         .zip(b)
-        .map(|(pa, pb)| (Vector3::from(*pb) - rotation * Vector3::from(*pa) - translation_mm).norm_squared())
+        .map(|(pa, pb)| {
+            (Vector3::from(*pb) - rotation * Vector3::from(*pa) - translation_mm).norm_squared()
+        })
         .sum();
     Ok(RigidFit {
         rotation,
@@ -127,7 +139,11 @@ mod tests {
         let a: Vec<[f64; 3]> = (0..50)
             .map(|i| {
                 let f = i as f64;
-                [30.0 * (0.37 * f).sin(), 25.0 * (0.91 * f).cos(), 10.0 * (0.13 * f).sin() + f * 0.2]
+                [
+                    30.0 * (0.37 * f).sin(),
+                    25.0 * (0.91 * f).cos(),
+                    10.0 * (0.13 * f).sin() + f * 0.2,
+                ]
             })
             .collect();
         let b: Vec<[f64; 3]> = a
@@ -138,7 +154,11 @@ mod tests {
             })
             .collect();
         let fit = horn(&a, &b).unwrap();
-        assert!((fit.rotation - truth).amax() < 1e-9, "{}", fit.rotation - truth);
+        assert!(
+            (fit.rotation - truth).amax() < 1e-9,
+            "{}",
+            fit.rotation - truth
+        );
         assert!((fit.translation_mm - t).amax() < 1e-9);
         assert!(fit.rms_residual_mm < 1e-9);
         assert!(rotation_difference_deg(&fit.rotation, &truth) < 1e-6);
@@ -147,7 +167,12 @@ mod tests {
 
     #[test]
     fn collinear_or_too_few_points_are_refused() {
-        let a = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0]];
+        let a = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+        ];
         assert!(horn(&a, &a).is_err());
         assert!(horn(&a[..2], &a[..2]).is_err());
     }

@@ -146,12 +146,36 @@ impl Default for MatchParams {
 
 impl MatchParams {
     fn validate(&self) -> Result<()> {
-        check_range("min_correlation", self.min_correlation, -1.0, 1.0, "must be -1 to 1")?;
+        check_range(
+            "min_correlation",
+            self.min_correlation,
+            -1.0,
+            1.0,
+            "must be -1 to 1",
+        )?;
         check_positive("neighbourhood_mm", self.neighbourhood_mm)?;
         check_positive("relative_distance_limit", self.relative_distance_limit)?;
-        check_range("fix_fraction", self.fix_fraction, 1e-6, 1.0, "must be in (0, 1]")?;
-        check_range("min_strength", self.min_strength, 0.0, 10.0, "must be 0 to 10")?;
-        check_range("min_motion_mm", self.min_motion_mm, 0.0, 1e3, "must be 0 to 1000 mm")?;
+        check_range(
+            "fix_fraction",
+            self.fix_fraction,
+            1e-6,
+            1.0,
+            "must be in (0, 1]",
+        )?;
+        check_range(
+            "min_strength",
+            self.min_strength,
+            0.0,
+            10.0,
+            "must be 0 to 10",
+        )?;
+        check_range(
+            "min_motion_mm",
+            self.min_motion_mm,
+            0.0,
+            1e3,
+            "must be 0 to 1000 mm",
+        )?;
         Ok(())
     }
 }
@@ -179,7 +203,8 @@ fn cubes(vol: &Volume, pts: &[FeaturePoint], half: [usize; 3]) -> Vec<Vec<f32>> 
             if (0..3).any(|a| v[a] < half[a] || v[a] + half[a] >= dims[a]) {
                 return Vec::new();
             }
-            let mut c = Vec::with_capacity((2 * half[0] + 1) * (2 * half[1] + 1) * (2 * half[2] + 1));
+            let mut c =
+                Vec::with_capacity((2 * half[0] + 1) * (2 * half[1] + 1) * (2 * half[2] + 1));
             for z in v[2] - half[2]..=v[2] + half[2] {
                 for y in v[1] - half[1]..=v[1] + half[1] {
                     for x in v[0] - half[0]..=v[0] + half[0] {
@@ -188,11 +213,17 @@ fn cubes(vol: &Volume, pts: &[FeaturePoint], half: [usize; 3]) -> Vec<Vec<f32>> 
                 }
             }
             let mean = c.iter().map(|&x| f64::from(x)).sum::<f64>() / c.len() as f64;
-            let norm = c.iter().map(|&x| (f64::from(x) - mean).powi(2)).sum::<f64>().sqrt();
+            let norm = c
+                .iter()
+                .map(|&x| (f64::from(x) - mean).powi(2))
+                .sum::<f64>()
+                .sqrt();
             if norm <= 1e-9 {
                 return Vec::new();
             }
-            c.iter().map(|&x| ((f64::from(x) - mean) / norm) as f32).collect()
+            c.iter()
+                .map(|&x| ((f64::from(x) - mean) / norm) as f32)
+                .collect()
         })
         .collect()
 }
@@ -232,7 +263,8 @@ pub fn candidates(
                         };
                         for &j in list {
                             let g = pts_fv[j].voxel;
-                            if (0..3).any(|a| g[a].abs_diff(f.voxel[a]) > s[a]) || cf[j].is_empty() {
+                            if (0..3).any(|a| g[a].abs_diff(f.voxel[a]) > s[a]) || cf[j].is_empty()
+                            {
                                 continue;
                             }
                             let cs: f64 = ci[i]
@@ -262,13 +294,7 @@ pub fn direction_state(d: [f64; 3], min_motion_mm: f64) -> [i8; 3] {
     }
     let big = d.iter().map(|v| v.abs()).fold(0.0, f64::max);
     let t = (22.5f64).to_radians().tan() * big;
-    d.map(|v| {
-        if v.abs() >= t {
-            v.signum() as i8
-        } else {
-            0
-        }
-    })
+    d.map(|v| if v.abs() >= t { v.signum() as i8 } else { 0 })
 }
 
 /// The angle class A of Eq. 7 between two direction states: 0 same, 1
@@ -373,7 +399,11 @@ pub fn relax(
         let sm: Vec<Vec<(usize, f64, f64)>> = cand
             .iter()
             .enumerate()
-            .map(|(i, c)| c.iter().map(|&(j, cs)| (j, cs, strength(i, j, cs))).collect())
+            .map(|(i, c)| {
+                c.iter()
+                    .map(|&(j, cs)| (j, cs, strength(i, j, cs)))
+                    .collect()
+            })
             .collect();
         // Each IV feature's best, and each FV feature's best IV feature.
         let mut best_of_fv: HashMap<usize, (usize, f64)> = HashMap::new();
@@ -409,7 +439,11 @@ pub fn relax(
         if mutual.is_empty() {
             break;
         }
-        mutual.sort_by(|a, b| b.strength.total_cmp(&a.strength).then(a.initial.cmp(&b.initial)));
+        mutual.sort_by(|a, b| {
+            b.strength
+                .total_cmp(&a.strength)
+                .then(a.initial.cmp(&b.initial))
+        });
         let take = ((params.fix_fraction * mutual.len() as f64).ceil() as usize).max(1);
         for m in mutual.into_iter().take(take) {
             fixed[m.initial] = Some(m);
@@ -464,7 +498,11 @@ mod tests {
         assert!(p.j(diff, 1) < p.j(diff, 0));
         assert_eq!(p.j(diff, 3), p.j(diff, 0));
         let d = Consistency::Direction;
-        assert!(d.j(diff, 0) < d.j(diff, 1) && d.j(diff, 1) < d.j(diff, 2) && d.j(diff, 2) < d.j(diff, 3));
+        assert!(
+            d.j(diff, 0) < d.j(diff, 1)
+                && d.j(diff, 1) < d.j(diff, 2)
+                && d.j(diff, 2) < d.j(diff, 3)
+        );
         assert_eq!(Consistency::StrengthOnly.j(diff, 3), diff);
     }
 

@@ -88,7 +88,11 @@ pub fn features(iv: &Volume, fv: &Volume, params: &FieldParams) -> Result<Featur
         let d = |v: &Volume| format!("{}×{}×{}", v.dims()[0], v.dims()[1], v.dims()[2]);
         return Err(TissueError::VolumeShape {
             what: "deformed volume".into(),
-            reason: format!("{} voxels, but the initial volume has {}: the pair must share one grid", d(fv), d(iv)),
+            reason: format!(
+                "{} voxels, but the initial volume has {}: the pair must share one grid",
+                d(fv),
+                d(iv)
+            ),
         });
     }
     if iv.spacing_mm() != fv.spacing_mm() {
@@ -185,7 +189,11 @@ pub fn registration_rms(
 }
 
 /// The whole measurement on a pair.
-pub fn measure_field(iv: &Volume, fv: &Volume, params: &FieldParams) -> Result<(Features, MeasuredField)> {
+pub fn measure_field(
+    iv: &Volume,
+    fv: &Volume,
+    params: &FieldParams,
+) -> Result<(Features, MeasuredField)> {
     let f = features(iv, fv, params)?;
     let m = measure_from(&f, params)?;
     Ok((f, m))

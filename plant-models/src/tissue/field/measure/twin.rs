@@ -11,7 +11,7 @@
 //! scored on extra (harder) voxels.
 use super::horn::{horn, rotation_difference_deg};
 use super::matching::Consistency;
-use super::pipeline::{features, measure_from, rms_slices, FieldParams, Features, MeasuredField};
+use super::pipeline::{features, measure_from, rms_slices, Features, FieldParams, MeasuredField};
 use crate::tissue::error::Result;
 use crate::tissue::field::model::shape::rms_difference;
 use crate::tissue::field::model::synth::Twin;
@@ -166,7 +166,11 @@ pub fn compare_on_twin(
             .zip(&true_at)
             .map(|(&i, t)| {
                 let u = dense[k].displacement_mm[i].unwrap_or([f32::NAN; 3]);
-                norm([f64::from(u[0]) - t[0], f64::from(u[1]) - t[1], f64::from(u[2]) - t[2]])
+                norm([
+                    f64::from(u[0]) - t[0],
+                    f64::from(u[1]) - t[1],
+                    f64::from(u[2]) - t[2],
+                ])
             })
             .collect();
         let nd = dense_errs.len().max(1) as f64;
@@ -186,7 +190,11 @@ pub fn compare_on_twin(
             registration_rms,
             horn_angle_deg: m.rigid.angle_deg(),
             rotation_error_deg: {
-                let a: Vec<[f64; 3]> = m.matches.iter().map(|mm| feats.initial[mm.initial].position_mm).collect();
+                let a: Vec<[f64; 3]> = m
+                    .matches
+                    .iter()
+                    .map(|mm| feats.initial[mm.initial].position_mm)
+                    .collect();
                 let b: Vec<[f64; 3]> = a.iter().map(|p| twin.warp.forward_mm(*p)).collect();
                 match horn(&a, &b) {
                     Ok(t) => rotation_difference_deg(&m.rigid.rotation, &t.rotation),
@@ -205,7 +213,12 @@ pub fn compare_on_twin(
         features_deformed: feats.deformed.len(),
         with_candidates: feats.candidates.iter().filter(|c| !c.is_empty()).count(),
         mean_candidates: {
-            let with: Vec<usize> = feats.candidates.iter().map(Vec::len).filter(|&l| l > 0).collect();
+            let with: Vec<usize> = feats
+                .candidates
+                .iter()
+                .map(Vec::len)
+                .filter(|&l| l > 0)
+                .collect();
             with.iter().sum::<usize>() as f64 / with.len().max(1) as f64
         },
         true_rotation_deg: rotation_difference_deg(&Matrix3::identity(), &r_true),

@@ -185,7 +185,10 @@ impl Builder {
             }
             // Faces through p: opposite v[0], v[1], v[2]; each is the edge
             // of f not containing that vertex.
-            for (i, (a, b)) in [(f[1], f[2]), (f[0], f[2]), (f[0], f[1])].into_iter().enumerate() {
+            for (i, (a, b)) in [(f[1], f[2]), (f[0], f[2]), (f[0], f[1])]
+                .into_iter()
+                .enumerate()
+            {
                 let key = (a.min(b), a.max(b));
                 if let Some((other, oi)) = edge_owner.remove(&key) {
                     self.tets[t].n[i] = other;
@@ -229,7 +232,9 @@ pub fn tetrahedralise(points: &[[f64; 3]], seed: u64) -> Result<Tetrahedralisati
         });
     }
     if let Some(i) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-        return Err(TissueError::Delaunay(format!("point {i} has a non-finite coordinate")));
+        return Err(TissueError::Delaunay(format!(
+            "point {i} has a non-finite coordinate"
+        )));
     }
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -316,7 +321,10 @@ mod tests {
                 if s > 0.0 {
                     let c = circumcentre(v);
                     let r = dist(c, v[0]);
-                    assert!(dist(c, *p) > r - tol, "point {k} inside the sphere of {t:?}");
+                    assert!(
+                        dist(c, *p) > r - tol,
+                        "point {k} inside the sphere of {t:?}"
+                    );
                 }
             }
         }
@@ -329,7 +337,9 @@ mod tests {
     fn circumcentre(v: [[f64; 3]; 4]) -> [f64; 3] {
         let a = nalgebra::Matrix3::from_fn(|r, c| 2.0 * (v[r + 1][c] - v[0][c]));
         let b = nalgebra::Vector3::from_fn(|r, _| {
-            (0..3).map(|k| v[r + 1][k].powi(2) - v[0][k].powi(2)).sum::<f64>()
+            (0..3)
+                .map(|k| v[r + 1][k].powi(2) - v[0][k].powi(2))
+                .sum::<f64>()
         });
         let x = a.lu().solve(&b).unwrap();
         [x[0], x[1], x[2]]
@@ -341,7 +351,13 @@ mod tests {
         // the box, so the tetrahedra must fill its volume exactly.
         let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let mut pts: Vec<[f64; 3]> = (0..150)
-            .map(|_| [r.gen::<f64>() * 40.0, r.gen::<f64>() * 30.0, r.gen::<f64>() * 20.0])
+            .map(|_| {
+                [
+                    r.gen::<f64>() * 40.0,
+                    r.gen::<f64>() * 30.0,
+                    r.gen::<f64>() * 20.0,
+                ]
+            })
             .collect();
         for c in 0..8 {
             pts.push([
@@ -353,7 +369,10 @@ mod tests {
         let t = tetrahedralise(&pts, 1).unwrap();
         check_delaunay(&pts, &t.tets, 1e-4);
         let vol: f64 = t.tets.iter().map(|t| tet_volume(t.map(|i| pts[i]))).sum();
-        assert!((vol - 40.0 * 30.0 * 20.0).abs() < 1e-6 * vol, "volume {vol}");
+        assert!(
+            (vol - 40.0 * 30.0 * 20.0).abs() < 1e-6 * vol,
+            "volume {vol}"
+        );
     }
 
     #[test]
@@ -374,7 +393,10 @@ mod tests {
         // Original (unjittered) points: cells may hold flat tetrahedra, but
         // the volume is the box's.
         assert!((vol - 8.0 * 6.0 * 2.0).abs() < 1e-6, "volume {vol}");
-        assert!(t.tets.iter().all(|tt| tet_volume(tt.map(|i| pts[i])) > -1e-9));
+        assert!(t
+            .tets
+            .iter()
+            .all(|tt| tet_volume(tt.map(|i| pts[i])) > -1e-9));
     }
 
     #[test]
@@ -384,9 +406,16 @@ mod tests {
         // Jitter lifts the points off the plane; the original tetrahedra
         // are then (near) flat: either refused or of negligible volume.
         match tetrahedralise(&flat, 1) {
-            Err(e) => assert!(e.to_string().contains("Delaunay") || e.to_string().contains("plane"), "{e}"),
+            Err(e) => assert!(
+                e.to_string().contains("Delaunay") || e.to_string().contains("plane"),
+                "{e}"
+            ),
             Ok(t) => {
-                let vol: f64 = t.tets.iter().map(|t| tet_volume(t.map(|i| flat[i])).abs()).sum();
+                let vol: f64 = t
+                    .tets
+                    .iter()
+                    .map(|t| tet_volume(t.map(|i| flat[i])).abs())
+                    .sum();
                 assert!(vol < 1e-9, "{vol}");
             }
         }

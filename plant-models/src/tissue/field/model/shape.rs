@@ -124,7 +124,10 @@ fn rasterise(
                         z as f64 * spacing_mm[2] - p0[2],
                     ];
                     let n: [f64; 4] = std::array::from_fn(|m| {
-                        f64::from(u8::from(m == 0)) + grad[0][m] * d[0] + grad[1][m] * d[1] + grad[2][m] * d[2]
+                        f64::from(u8::from(m == 0))
+                            + grad[0][m] * d[0]
+                            + grad[1][m] * d[1]
+                            + grad[2][m] * d[2]
                     });
                     if n.iter().all(|&w| w >= -1e-9) {
                         done[i] = true;
@@ -163,7 +166,9 @@ impl TetField {
         rasterise(dims, spacing_mm, tets, |i, k, n| {
             let t = self.tets[k];
             out[i] = Some(std::array::from_fn(|a| {
-                (0..4).map(|m| n[m] * self.displacement_mm[t[m]][a]).sum::<f64>() as f32
+                (0..4)
+                    .map(|m| n[m] * self.displacement_mm[t[m]][a])
+                    .sum::<f64>() as f32
             }));
         });
         DenseField {
@@ -204,7 +209,8 @@ impl TetField {
         let mut values = Vec::new();
         rasterise(dims, sp, tets, |i, k, n| {
             let t = self.tets[k];
-            let p: [f64; 3] = std::array::from_fn(|a| (0..4).map(|m| n[m] * self.nodes_mm[t[m]][a]).sum());
+            let p: [f64; 3] =
+                std::array::from_fn(|a| (0..4).map(|m| n[m] * self.nodes_mm[t[m]][a]).sum());
             if let Some(v) = initial.sample_mm(p) {
                 values.push((i, v));
             }
@@ -268,7 +274,11 @@ mod tests {
             for j in 0..4 {
                 for i in 0..4 {
                     let w = ((i * 7 + j * 3 + k * 5) % 11) as f64 * 0.13;
-                    nodes.push([i as f64 * 5.0 + w, j as f64 * 4.0 - w, k as f64 * 3.0 + 0.5 * w]);
+                    nodes.push([
+                        i as f64 * 5.0 + w,
+                        j as f64 * 4.0 - w,
+                        k as f64 * 3.0 + 0.5 * w,
+                    ]);
                 }
             }
         }
@@ -323,7 +333,9 @@ mod tests {
         // A constant field of +2 voxels in x: the warped volume at q is the
         // initial at q − 2.
         let dims = [20, 10, 6];
-        let data = (0..20 * 10 * 6).map(|i| ((i % 20) as f32).powi(2)).collect();
+        let data = (0..20 * 10 * 6)
+            .map(|i| ((i % 20) as f32).powi(2))
+            .collect();
         let vol = Volume::new(dims, [1.0; 3], data, "ramp").unwrap();
         let mut f = field();
         for d in &mut f.displacement_mm {

@@ -121,16 +121,58 @@ impl SynthSpec {
             check_positive("spacing_mm", s)?;
         }
         check_positive("cell_mm", self.cell_mm)?;
-        check_range("supersample", self.supersample as f64, 1.0, 8.0, "must be 1 to 8 samples per voxel side")?;
-        check_range("noise_sigma", self.noise_sigma, 0.0, 1e4, "must be 0 to 10000")?;
-        check_range("psf_sigma_mm", self.psf_sigma_mm, 0.0, 50.0, "must be 0 to 50 mm")?;
-        check_range("rotation_deg", self.rotation_deg, -45.0, 45.0, "must be -45 to 45°")?;
+        check_range(
+            "supersample",
+            self.supersample as f64,
+            1.0,
+            8.0,
+            "must be 1 to 8 samples per voxel side",
+        )?;
+        check_range(
+            "noise_sigma",
+            self.noise_sigma,
+            0.0,
+            1e4,
+            "must be 0 to 10000",
+        )?;
+        check_range(
+            "psf_sigma_mm",
+            self.psf_sigma_mm,
+            0.0,
+            50.0,
+            "must be 0 to 50 mm",
+        )?;
+        check_range(
+            "rotation_deg",
+            self.rotation_deg,
+            -45.0,
+            45.0,
+            "must be -45 to 45°",
+        )?;
         for &t in &self.translation_mm {
             check_range("translation_mm", t, -1e3, 1e3, "must be within ±1000 mm")?;
         }
-        check_range("warp_bumps", self.warp_bumps as f64, 0.0, 1000.0, "must be 0 to 1000")?;
-        check_range("warp_amplitude_mm", self.warp_amplitude_mm, 0.0, 1e3, "must be 0 to 1000 mm")?;
-        check_range("warp_z_amplitude_mm", self.warp_z_amplitude_mm, 0.0, 1e3, "must be 0 to 1000 mm")?;
+        check_range(
+            "warp_bumps",
+            self.warp_bumps as f64,
+            0.0,
+            1000.0,
+            "must be 0 to 1000",
+        )?;
+        check_range(
+            "warp_amplitude_mm",
+            self.warp_amplitude_mm,
+            0.0,
+            1e3,
+            "must be 0 to 1000 mm",
+        )?;
+        check_range(
+            "warp_z_amplitude_mm",
+            self.warp_z_amplitude_mm,
+            0.0,
+            1e3,
+            "must be 0 to 1000 mm",
+        )?;
         check_positive("warp_sigma_mm", self.warp_sigma_mm)?;
         Ok(())
     }
@@ -248,7 +290,8 @@ impl Tissue {
         if bone(-0.15, -0.35, 0.17, 0.2) || bone(0.45, -0.05, 0.09, 0.11) {
             return 1000.0;
         }
-        let c: [i64; 3] = std::array::from_fn(|a| ((p[a] - self.origin_mm[a]) / self.cell_mm).floor() as i64);
+        let c: [i64; 3] =
+            std::array::from_fn(|a| ((p[a] - self.origin_mm[a]) / self.cell_mm).floor() as i64);
         let mut best = (f64::INFINITY, 0.0);
         let mut vessel = 0.0;
         for dk in -1..=1 {
@@ -258,7 +301,8 @@ impl Tissue {
                     if (0..3).any(|a| q[a] < 0 || q[a] >= self.grid[a] as i64) {
                         continue;
                     }
-                    let idx = q[0] as usize + self.grid[0] * (q[1] as usize + self.grid[1] * q[2] as usize);
+                    let idx = q[0] as usize
+                        + self.grid[0] * (q[1] as usize + self.grid[1] * q[2] as usize);
                     let cell = &self.cells[idx];
                     let d2 = dist2(p, cell.seed_mm);
                     if d2 < best.0 {
@@ -369,7 +413,11 @@ impl KnownWarp {
                 break;
             }
         }
-        let d = [s[0] - self.centre_mm[0], s[1] - self.centre_mm[1], s[2] - self.centre_mm[2]];
+        let d = [
+            s[0] - self.centre_mm[0],
+            s[1] - self.centre_mm[1],
+            s[2] - self.centre_mm[2],
+        ];
         std::array::from_fn(|r| {
             (0..3).map(|k| self.rotation[r][k] * d[k]).sum::<f64>()
                 + self.centre_mm[r]
@@ -422,7 +470,9 @@ fn render(
     let [nx, ny, nz] = spec.dims;
     let ss = spec.supersample.max(1);
     // Sub-sample offsets (voxel units) of a box filter over the voxel.
-    let offsets: Vec<f64> = (0..ss).map(|k| (k as f64 + 0.5) / ss as f64 - 0.5).collect();
+    let offsets: Vec<f64> = (0..ss)
+        .map(|k| (k as f64 + 0.5) / ss as f64 - 0.5)
+        .collect();
     let weight = 1.0 / (ss * ss * ss) as f64;
     let mut v = Volume::zeros(spec.dims, spec.spacing_mm);
     v.data_mut()
@@ -502,7 +552,12 @@ pub fn make_twin(spec: &SynthSpec) -> Result<Twin> {
         });
     }
     let initial = render(spec, &tissue, &|q| q, rng::TISSUE_NOISE_INITIAL);
-    let deformed = render(spec, &tissue, &|q| warp.backward_mm(q), rng::TISSUE_NOISE_DEFORMED);
+    let deformed = render(
+        spec,
+        &tissue,
+        &|q| warp.backward_mm(q),
+        rng::TISSUE_NOISE_DEFORMED,
+    );
     Ok(Twin {
         initial,
         deformed,

@@ -35,7 +35,10 @@ impl Volume {
         if dims.contains(&0) {
             return Err(TissueError::VolumeShape {
                 what: what.into(),
-                reason: format!("{}×{}×{} voxels: every side needs at least one", dims[0], dims[1], dims[2]),
+                reason: format!(
+                    "{}×{}×{} voxels: every side needs at least one",
+                    dims[0], dims[1], dims[2]
+                ),
             });
         }
         let n = dims[0] * dims[1] * dims[2];
@@ -55,7 +58,10 @@ impl Volume {
             if !(s.is_finite() && s > 0.0) {
                 return Err(TissueError::VolumeShape {
                     what: what.into(),
-                    reason: format!("voxel spacing along {axis} is {} mm: must be finite and > 0", crate::short_number(s)),
+                    reason: format!(
+                        "voxel spacing along {axis} is {} mm: must be finite and > 0",
+                        crate::short_number(s)
+                    ),
                 });
             }
         }
@@ -259,7 +265,11 @@ impl Volume {
 
 /// Voxel `(x, y, z)` of linear index `i`.
 pub fn unravel(dims: [usize; 3], i: usize) -> [usize; 3] {
-    [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])]
+    [
+        i % dims[0],
+        (i / dims[0]) % dims[1],
+        i / (dims[0] * dims[1]),
+    ]
 }
 
 /// Normalised Gaussian kernel of standard deviation `sigma` (samples),
@@ -288,9 +298,7 @@ pub(crate) fn blur_axis(data: &mut [f32], dims: [usize; 3], axis: usize, sigma: 
         _ => dims[0] * dims[1],
     };
     let mut line = vec![0.0f64; n];
-    let lines: Vec<usize> = (0..data.len())
-        .filter(|&i| (i / stride) % n == 0)
-        .collect();
+    let lines: Vec<usize> = (0..data.len()).filter(|&i| (i / stride) % n == 0).collect();
     for start in lines {
         for (j, l) in line.iter_mut().enumerate() {
             *l = f64::from(data[start + j * stride]);
@@ -355,11 +363,17 @@ mod tests {
     #[test]
     fn bad_volumes_are_refused_by_name() {
         let e = Volume::new([2, 2, 2], [1.0; 3], vec![0.0; 7], "a").unwrap_err();
-        assert!(e.to_string().contains("7 values for 2×2×2 = 8 voxels"), "{e}");
+        assert!(
+            e.to_string().contains("7 values for 2×2×2 = 8 voxels"),
+            "{e}"
+        );
         let mut d = vec![0.0; 8];
         d[5] = f32::NAN;
         let e = Volume::new([2, 2, 2], [1.0; 3], d, "b.nii").unwrap_err();
-        assert_eq!(e.to_string(), "b.nii: voxel (1, 0, 1) is not a finite number");
+        assert_eq!(
+            e.to_string(),
+            "b.nii: voxel (1, 0, 1) is not a finite number"
+        );
         let e = Volume::new([2, 2, 2], [1.0, 0.0, 1.0], vec![0.0; 8], "c").unwrap_err();
         assert!(e.to_string().contains("spacing along y"), "{e}");
         let e = Volume::read_nifti(Path::new("/nonexistent/x.nii")).unwrap_err();
