@@ -9,6 +9,7 @@ use host_tools::{calibrate, report, scenario::Scenario, sim};
 mod serial_cmds;
 
 mod push;
+mod tissue;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -37,6 +38,9 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// Inner deformation of soft tissue (seed 000): deformation fields from
+    /// volume images (Zhang) and breast compression between plates (Kita).
+    Tissue(tissue::TissueArgs),
 }
 
 #[derive(Args)]
@@ -109,6 +113,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Tissue(args) => tissue::run(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,
