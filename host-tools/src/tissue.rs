@@ -626,9 +626,9 @@ fn markers_picture(o: &CompressionOutcome, view: View) -> String {
         })
         .collect();
     // Horizontal and vertical axes (mm) of the picture.
-    let (hx, vy): (Box<dyn Fn([f64; 3]) -> f64>, Box<dyn Fn([f64; 3]) -> f64>) = match view {
-        View::Top => (Box::new(|p| p[0]), Box::new(|p| p[1])),
-        View::Section => (Box::new(|p| p[1]), Box::new(|p| p[2])),
+    let (hx, vy) = match view {
+        View::Top => (0, 1),
+        View::Section => (1, 2),
     };
     let (h_lo, h_hi, v_lo, v_hi) = match view {
         View::Top => (-a - 15.0, a + 15.0, -b - 10.0, b + 10.0),
@@ -638,7 +638,7 @@ fn markers_picture(o: &CompressionOutcome, view: View) -> String {
     let (ox, oy) = (20.0, 60.0);
     let w = (h_hi - h_lo) * scale;
     let hgt = (v_hi - v_lo) * scale;
-    let to = |p: [f64; 3]| (ox + (hx(p) - h_lo) * scale, oy + (v_hi - vy(p)) * scale);
+    let to = |p: [f64; 3]| (ox + (p[hx] - h_lo) * scale, oy + (v_hi - p[vy]) * scale);
     let mut svg = Svg::new(w + 40.0, hgt + 110.0);
     let colours = ["#d62", "#26c", "#2a2", "#a2a"];
     // The body's outline in that plane.

@@ -143,6 +143,7 @@ pub fn response_volume(vol: &Volume, params: &HarrisParams) -> Result<Vec<f64>> 
             c(2, z0, z1, idx(x, y, z0), idx(x, y, z1)),
         ]
     };
+    #[allow(clippy::needless_range_loop)] // i is the voxel and indexes six arrays
     for i in 0..n {
         let x = i % nx;
         let y = (i / nx) % ny;
@@ -200,7 +201,7 @@ pub fn detect(vol: &Volume, params: &HarrisParams, count: usize) -> Result<Vec<F
             (m[1]..ny - m[1]).flat_map(move |y| {
                 (m[0]..nx - m[0]).filter_map(move |x| {
                     let v = r[idx(x, y, z)];
-                    if !(v > 0.0) {
+                    if v.is_nan() || v <= 0.0 {
                         return None;
                     }
                     for dz in -1i64..=1 {

@@ -95,7 +95,7 @@ pub fn horn(a: &[[f64; 3]], b: &[[f64; 3]]) -> Result<RigidFit> {
     let (l0, l1) = (eig.eigenvalues[order[0]], eig.eigenvalues[order[1]]);
     // Collinear (or coincident) points leave the largest eigenvalue double.
     let scale = eig.eigenvalues.iter().map(|v| v.abs()).fold(0.0, f64::max);
-    if !(scale > 0.0) || (l0 - l1) <= 1e-12 * scale {
+    if scale.is_nan() || scale <= 0.0 || (l0 - l1) <= 1e-12 * scale {
         return Err(TissueError::TooFew {
             stage: "Horn's method",
             what: "non-collinear point pairs (the rotation is not determined)",

@@ -85,7 +85,7 @@ fn rasterise(
             let mx = t.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max) / spacing_mm[a];
             let l = mn.ceil().max(0.0);
             let h = mx.floor().min((dims[a] - 1) as f64);
-            if !(l <= h) {
+            if l.is_nan() || h.is_nan() || l > h {
                 empty = true;
                 break;
             }

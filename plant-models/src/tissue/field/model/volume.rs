@@ -173,8 +173,8 @@ impl Volume {
     /// replicated.
     pub fn gaussian_blur(&self, sigma_mm: [f64; 3]) -> Volume {
         let mut out = self.clone();
-        for a in 0..3 {
-            let sigma_vox = sigma_mm[a] / self.spacing_mm[a];
+        for (a, (s, sp)) in sigma_mm.iter().zip(&self.spacing_mm).enumerate() {
+            let sigma_vox = s / sp;
             if sigma_vox > 0.0 && self.dims[a] > 1 {
                 blur_axis(&mut out.data, self.dims, a, sigma_vox);
             }
@@ -214,8 +214,8 @@ impl Volume {
             3 => 1e-3,   // micrometres
             _ => 1.0,    // millimetres, or unknown (taken as mm)
         };
-        for a in 0..3 {
-            spacing_mm[a] = f64::from(header.pixdim[a + 1]).abs() * unit_mm;
+        for (a, s) in spacing_mm.iter_mut().enumerate() {
+            *s = f64::from(header.pixdim[a + 1]).abs() * unit_mm;
         }
         let array = volume
             .into_ndarray::<f32>()
