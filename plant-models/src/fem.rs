@@ -170,6 +170,20 @@ pub fn element_stiffness(p: [[f64; 3]; 4], d: &SMatrix<f64, 6, 6>) -> Option<SMa
     Some(b.transpose() * d * b * vol)
 }
 
+/// The six tetrahedra of a hexahedral cell around its diagonal 0–6, as
+/// corner indices; corners 0–3 go round the bottom face (x, then y) and
+/// 4–7 the top face above them. Every cell split the same way (or mirrored
+/// as a whole) shares faces with its neighbours. Orientation is not fixed:
+/// callers check the sign of each volume.
+pub const HEX_TETS: [[usize; 4]; 6] = [
+    [0, 1, 2, 6],
+    [0, 2, 3, 6],
+    [0, 3, 7, 6],
+    [0, 7, 4, 6],
+    [0, 4, 5, 6],
+    [0, 5, 1, 6],
+];
+
 /// A symmetric positive-definite matrix in skyline (variable band) storage,
 /// factored in place as `L Lᵀ`.
 #[derive(Clone, Debug)]
@@ -569,14 +583,7 @@ mod tests {
                         id(i + 1, j + 1, k + 1),
                         id(i, j + 1, k + 1),
                     ];
-                    for t in [
-                        [0, 1, 2, 6],
-                        [0, 2, 3, 6],
-                        [0, 3, 7, 6],
-                        [0, 7, 4, 6],
-                        [0, 4, 5, 6],
-                        [0, 5, 1, 6],
-                    ] {
+                    for t in HEX_TETS {
                         let mut tet = t.map(|v| c[v]);
                         if tet_volume(tet.map(|v| nodes[v])) < 0.0 {
                             tet.swap(0, 1);

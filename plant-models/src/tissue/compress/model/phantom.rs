@@ -18,7 +18,7 @@
 //! the spacing is ours: an 11 mm lattice (x offset by half a step, y
 //! through the mid-plane, z from 10 mm) kept 4 mm inside the surface holds
 //! exactly 286.
-use crate::fem::tet_volume;
+use crate::fem::{tet_volume, HEX_TETS};
 use crate::tissue::error::{check_range, Result, TissueError};
 
 /// The paper's phantom: semi-axes (mm) along x, y, z (L2456).
@@ -159,14 +159,7 @@ impl SemiEllipsoid {
                         corner(1, 1, 1),
                         corner(0, 1, 1),
                     ];
-                    for t in [
-                        [0, 1, 2, 6],
-                        [0, 2, 3, 6],
-                        [0, 3, 7, 6],
-                        [0, 7, 4, 6],
-                        [0, 4, 5, 6],
-                        [0, 5, 1, 6],
-                    ] {
+                    for t in HEX_TETS {
                         let mut tet = t.map(|x| v[x]);
                         let vol = tet_volume(tet.map(|x| nodes[x]));
                         if vol < 0.0 {
