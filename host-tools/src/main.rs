@@ -12,6 +12,7 @@ mod serial_cmds;
 mod contour;
 mod dlo;
 mod push;
+mod tissue;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -47,6 +48,9 @@ enum Command {
     /// Deformable linear objects (seed 000): the knotting rope of Shi &
     /// Payandeh, the static wires and belts of Wakamatsu et al.
     Dlo(dlo::DloArgs),
+    /// Inner deformation of soft tissue (seed 000): deformation fields from
+    /// volume images (Zhang) and breast compression between plates (Kita).
+    Tissue(tissue::TissueArgs),
 }
 
 #[derive(Args)]
@@ -119,6 +123,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Push(args) => push::run(args),
         Command::Contour(args) => contour::run(args),
         Command::Dlo(args) => dlo::run(args),
+        Command::Tissue(args) => tissue::run(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

@@ -274,8 +274,50 @@ impl Svg {
         );
     }
 
-    /// A filled dot (a data point).
-    pub fn dot(&mut self, centre: (f64, f64), radius: f64, colour: &str) {
+    /// An arrow from `from` to `to` with a head of `head` px (vector
+    /// fields); left out if a coordinate is not finite, drawn as a dot when
+    /// shorter than a pixel.
+    pub fn arrow(&mut self, from: (f64, f64), to: (f64, f64), head: f64, stroke: Stroke<'_>) {
+        if !(finite(&from) && finite(&to) && head.is_finite()) {
+            self.skipped += 1;
+            return;
+        }
+        let (dx, dy) = (to.0 - from.0, to.1 - from.1);
+        let len = (dx * dx + dy * dy).sqrt();
+        if len < 1.0 {
+            let _ = writeln!(
+                self.body,
+                r#"<circle cx="{:.1}" cy="{:.1}" r="{:.1}" fill="{}"/>"#,
+                from.0,
+                from.1,
+                0.5 * stroke.width.max(1.0),
+                escape(stroke.colour)
+            );
+            return;
+        }
+        let (ux, uy) = (dx / len, dy / len);
+        let h = head.min(0.5 * len);
+        let left = (to.0 - h * (ux + 0.5 * uy), to.1 - h * (uy - 0.5 * ux));
+        let right = (to.0 - h * (ux - 0.5 * uy), to.1 - h * (uy + 0.5 * ux));
+        let _ = writeln!(
+            self.body,
+            r#"<path d="M{:.1},{:.1}L{:.1},{:.1}M{:.1},{:.1}L{:.1},{:.1}L{:.1},{:.1}" fill="none" {}/>"#,
+            from.0,
+            from.1,
+            to.0,
+            to.1,
+            left.0,
+            left.1,
+            to.0,
+            to.1,
+            right.0,
+            right.1,
+            stroke.attributes()
+        );
+    }
+
+    /// A filled circle (a marker).
+    pub fn dot(&mut self, centre: (f64, f64), radius: f64, fill: &str) {
         if !(finite(&centre) && radius.is_finite()) {
             self.skipped += 1;
             return;
@@ -285,7 +327,7 @@ impl Svg {
             r#"<circle cx="{:.1}" cy="{:.1}" r="{radius:.1}" fill="{}"/>"#,
             centre.0,
             centre.1,
-            escape(colour)
+            escape(fill)
         );
     }
 
