@@ -10,7 +10,9 @@ use host_tools::{calibrate, out, outln, output, report, scenario::Scenario, sim}
 mod serial_cmds;
 
 mod contour;
+mod dlo;
 mod push;
+mod tissue;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -43,6 +45,12 @@ enum Command {
     /// Kano): fit tracked contours and deforming contours over time, or
     /// write the paper's test cases.
     Contour(contour::ContourArgs),
+    /// Deformable linear objects (seed 000): the knotting rope of Shi &
+    /// Payandeh, the static wires and belts of Wakamatsu et al.
+    Dlo(dlo::DloArgs),
+    /// Inner deformation of soft tissue (seed 000): deformation fields from
+    /// volume images (Zhang) and breast compression between plates (Kita).
+    Tissue(tissue::TissueArgs),
 }
 
 #[derive(Args)]
@@ -114,6 +122,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
         Command::Contour(args) => contour::run(args),
+        Command::Dlo(args) => dlo::run(args),
+        Command::Tissue(args) => tissue::run(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

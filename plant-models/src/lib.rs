@@ -4,9 +4,12 @@
 #![deny(unsafe_code)]
 pub mod contour;
 pub mod csv_input;
+pub mod dlo;
+pub mod fem;
 pub mod joint;
 pub mod linalg;
 pub mod pushing;
+pub mod tissue;
 pub mod viscoelastic;
 
 pub mod rng {
@@ -26,6 +29,11 @@ pub mod rng {
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
     //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise) |
     //! | [`LINK_FAULTS_BASE`] + d | the lockstep fault campaign's faults, direction d (0 host → board, 1 board → host) |
+    //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
+    //! | [`TISSUE_WARP`] | `tissue::field` synthetic twin: the non-rigid warp's bumps |
+    //! | [`TISSUE_NOISE_INITIAL`] | `tissue::field` noise of the initial volume |
+    //! | [`TISSUE_NOISE_DEFORMED`] | `tissue::field` noise of the deformed volume |
+    //! | [`TISSUE_DELAUNAY_JITTER`] | `tissue::field` tie-breaking jitter of the Delaunay points |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -47,6 +55,19 @@ pub mod rng {
     /// The fault campaign of the lockstep link (`tests/src/fault_injector.rs`)
     /// draws the faults of direction d from `LINK_FAULTS_BASE + d`.
     pub const LINK_FAULTS_BASE: u64 = 0x200;
+
+    /// The tissue module's streams start here (seed 000, Zhang and Kita).
+    pub const TISSUE_BASE: u64 = 0x600;
+    /// Texture of the synthetic calf volumes.
+    pub const TISSUE_TEXTURE: u64 = TISSUE_BASE;
+    /// Bumps of the synthetic twin's non-rigid warp.
+    pub const TISSUE_WARP: u64 = TISSUE_BASE + 1;
+    /// Noise of the synthetic initial volume.
+    pub const TISSUE_NOISE_INITIAL: u64 = TISSUE_BASE + 2;
+    /// Noise of the synthetic deformed volume.
+    pub const TISSUE_NOISE_DEFORMED: u64 = TISSUE_BASE + 3;
+    /// Sub-micrometre jitter that breaks ties of co-spherical Delaunay points.
+    pub const TISSUE_DELAUNAY_JITTER: u64 = TISSUE_BASE + 4;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {

@@ -288,6 +288,16 @@ impl JsonObject {
     }
 }
 
+/// A field already added (`Value::Null` if there is none), for a text
+/// report made from the same checked object.
+impl std::ops::Index<&str> for JsonObject {
+    type Output = serde_json::Value;
+
+    fn index(&self, key: &str) -> &serde_json::Value {
+        self.0.get(key).unwrap_or(&serde_json::Value::Null)
+    }
+}
+
 impl Serialize for JsonObject {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         self.0.serialize(s)
