@@ -5,6 +5,7 @@
 pub mod csv_input;
 pub mod joint;
 pub mod pushing;
+pub mod tetmsd;
 pub mod viscoelastic;
 
 pub mod rng {
@@ -22,6 +23,9 @@ pub mod rng {
     //! | [`CAMERA`] | the joint's camera noise and occlusion |
     //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
+    //! | [`TETMSD_DELAY_BASE`] + s | `tetmsd`: one-way delays of the packets site s sends |
+    //! | [`TETMSD_LOSS_BASE`] + s | `tetmsd`: loss and reordering draws of site s's packets |
+    //! | [`TETMSD_TEST_BASE`] + k | `tetmsd` tests: random points, states and packets |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -32,6 +36,14 @@ pub mod rng {
     /// `hal-sim`'s simulated coder k draws its dropouts from
     /// `HAL_SIM_SENSOR_BASE + k`.
     pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+    /// The tetrahedral session's network emulator draws the one-way delays
+    /// of the packets site s (0 or 1) sends from `TETMSD_DELAY_BASE + s`.
+    pub const TETMSD_DELAY_BASE: u64 = 0x300;
+    /// … and their loss and reordering from `TETMSD_LOSS_BASE + s`.
+    pub const TETMSD_LOSS_BASE: u64 = 0x302;
+    /// Test data of the tetrahedral module (points, states, packets):
+    /// `TETMSD_TEST_BASE + k`, k < 16.
+    pub const TETMSD_TEST_BASE: u64 = 0x310;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {

@@ -323,7 +323,7 @@ const HUB_DEGREE: usize = 64;
 
 /// Reverse Cuthill–McKee order of the nodes in `keep` (a bandwidth-
 /// reducing permutation); returns the kept nodes in the new order.
-fn reverse_cuthill_mckee(adj: &[Vec<usize>], keep: &[bool]) -> Vec<usize> {
+pub(crate) fn reverse_cuthill_mckee(adj: &[Vec<usize>], keep: &[bool]) -> Vec<usize> {
     let n = adj.len();
     let degree = |i: usize| adj[i].iter().filter(|&&j| keep[j]).count();
     let mut seen = vec![false; n];
