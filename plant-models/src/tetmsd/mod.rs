@@ -14,7 +14,8 @@
 //!   retransmission ([`link`]), the network emulator with the paper's
 //!   round-trip profiles ([`netem`]), the two replicas with a deterministic
 //!   update order ([`replica`]) and a whole two-site session in virtual
-//!   time over the codec ([`pair`]). The real-time runtime (threads at
+//!   time over the codec ([`pair`]), and the scenario file ([`scenario`]).
+//!   The real-time runtime (threads at
 //!   1 kHz / deformation / 30 Hz and UDP sockets) lives in `host-tools`
 //!   and drives these same types.
 //!
@@ -33,4 +34,4 @@ pub mod session;
 
 pub use error::{Result, TetError};
 pub use model::{locate, mesh, probe, statics, voigt, V3};
-// SESSION_REEXPORT
+pub use session::{link, netem, packet, pair, replica, scenario};

@@ -31,7 +31,12 @@
 //! * **Manipulation.** A user's held node ([`Hold`]) moves linearly from
 //!   its position at the start of the tick to the held position over the
 //!   substeps, with the matching velocity, as the seed's "deformation by
-//!   manipulation" sets a node to the position in the packet.
+//!   manipulation" sets a node to the position in the packet. It moves at
+//!   most [`MAX_HOLD_SPEED_M_S`] · 1 ms per tick towards the target: a
+//!   stylus never moves that fast, but a target can jump (two users hold
+//!   the same node and one lets go; a peer's packet after a gap), and an
+//!   unbounded jump would fling the node. When both users hold one node,
+//!   site 1's hold wins (holds apply in site order).
 //!
 //! Instability (a non-finite or runaway node, a collapsed edge) is reported
 //! as [`TetError::Unstable`] with the tick, never as silent NaN.
@@ -49,6 +54,11 @@ pub const TICK_S: f64 = 1e-3;
 /// tangent of a stretched spring is up to twice its rest stiffness, and the
 /// bound below is not tight; 0.5 keeps a margin for both).
 const STABILITY_SAFETY: f64 = 0.5;
+
+/// Fastest a held node moves towards its target (m/s). Estimate: hand
+/// motions with a desktop stylus stay well below 0.5 m/s (a brisk stroke
+/// across a 6 cm object in 0.2 s is 0.3 m/s).
+pub const MAX_HOLD_SPEED_M_S: f64 = 0.5;
 
 /// A node further than this many cube sides from its rest position means
 /// the integration has blown up.
@@ -479,7 +489,13 @@ impl VoigtModel {
                 continue;
             }
             held.retain(|(j, _, _)| *j != i);
-            held.push((i, s.x_m[i], h.target_m - s.x_m[i]));
+            let mut delta = h.target_m - s.x_m[i];
+            let reach = MAX_HOLD_SPEED_M_S * TICK_S;
+            let len = delta.norm();
+            if len > reach {
+                delta *= reach / len;
+            }
+            held.push((i, s.x_m[i], delta));
         }
         let dt = TICK_S / f64::from(self.substeps);
         for &(i, _, delta) in &held {
@@ -847,7 +863,7 @@ mod tests {
         let m = VoigtModel::new(CubeMesh::new(3, 0.06).unwrap(), VoigtMaterial::default()).unwrap();
         let mut s = m.rest_state();
         let top = m.mesh().nearest_node(V3::new(0.03, 0.03, 0.06));
-        let target = m.mesh().nodes_m[top] - V3::z() * 0.002;
+        let target = m.mesh().nodes_m[top] - V3::z() * 0.0004;
         let mut scratch = Vec::new();
         m.step(
             &mut s,
@@ -859,7 +875,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(s.x_m[top], target);
-        assert!((s.v_m_s[top] + V3::z() * 2.0).norm() < 1e-12);
+        assert!((s.v_m_s[top] + V3::z() * 0.4).norm() < 1e-12);
         for i in 0..m.mesh().node_count() {
             if m.is_fixed(i) {
                 assert_eq!(s.x_m[i], m.mesh().nodes_m[i]);
