@@ -11,4 +11,5 @@ pub mod qemu;
 pub mod report;
 pub mod scenario;
 pub mod sim;
+pub mod tetmsd_rt;
 pub mod visco_core;

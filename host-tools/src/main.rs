@@ -9,6 +9,7 @@ use host_tools::{calibrate, report, scenario::Scenario, sim};
 mod serial_cmds;
 
 mod push;
+mod tetmsd;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -37,6 +38,9 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// A tetrahedral Voigt cube deformed by two haptic users at two sites
+    /// over a network (seed 000, Yamaguchi): simulate, pair.
+    Tetmsd(tetmsd::TetArgs),
 }
 
 #[derive(Args)]
@@ -109,6 +113,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Tetmsd(args) => tetmsd::run(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

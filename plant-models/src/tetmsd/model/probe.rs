@@ -10,7 +10,11 @@
 //! * **Contact starts** when the tip lies in a tetrahedron by Eq. 3
 //!   ([`locate`]) on the current (deformed) shape. The gripped node is the
 //!   vertex of that tetrahedron nearest to the tip among the vertices that
-//!   are on the surface and not on the support.
+//!   are on the surface, not on the support and not held by the other
+//!   user as far as this site knows (two grips on one node fight: the
+//!   node goes where site 1 puts it, and site 0 feels the pull between
+//!   them; with the peer's latest grip excluded that happens only when
+//!   both grab within one network delay).
 //! * **During contact** the node follows the tip with the offset it had at
 //!   the first touch (so the grip starts without a jump), and the user
 //!   feels the network's force on that node (Eq. 1), which pushes the
@@ -133,8 +137,14 @@ impl Probe {
     }
 
     /// The manipulation for a stylus at `tip_m` over the object's current
-    /// node positions `x_m`.
-    pub fn update(&mut self, tip_m: V3, geometry: &ContactGeometry, x_m: &[V3]) -> Manipulation {
+    /// node positions `x_m`; `taken` is a node the other user holds.
+    pub fn update(
+        &mut self,
+        tip_m: V3,
+        geometry: &ContactGeometry,
+        x_m: &[V3],
+        taken: Option<u16>,
+    ) -> Manipulation {
         if let Some(a) = self.active {
             if (tip_m - a.entry_m).dot(&a.normal) > 0.0 {
                 self.active = None;
@@ -163,7 +173,7 @@ impl Probe {
         let node = geometry.tets[t]
             .iter()
             .map(|&i| i as usize)
-            .filter(|&i| geometry.grippable[i])
+            .filter(|&i| geometry.grippable[i] && taken != Some(i as u16))
             .min_by(|&i, &j| {
                 let (di, dj) = ((x_m[i] - tip_m).norm(), (x_m[j] - tip_m).norm());
                 di.total_cmp(&dj).then(i.cmp(&j))
@@ -356,7 +366,7 @@ mod tests {
         let mut deepest_force = V3::zeros();
         for k in 0..1000u64 {
             let tip = path.at(k as f64 * 1e-3);
-            let m = probe.update(tip, &geometry, &s.x_m);
+            let m = probe.update(tip, &geometry, &s.x_m, None);
             if let Some(g) = m.grip {
                 first_touch.get_or_insert((k, g));
                 let start = first_touch.unwrap().1;

@@ -108,9 +108,10 @@ impl Haptic {
         &self.geometry
     }
 
-    /// The manipulation for a stylus at `tip_m` over the shape `x_m`.
-    pub fn manipulate(&mut self, tip_m: V3, x_m: &[V3]) -> Manipulation {
-        self.probe.update(tip_m, &self.geometry, x_m)
+    /// The manipulation for a stylus at `tip_m` over the shape `x_m`,
+    /// leaving alone the node `taken` that the other user holds.
+    pub fn manipulate(&mut self, tip_m: V3, x_m: &[V3], taken: Option<u16>) -> Manipulation {
+        self.probe.update(tip_m, &self.geometry, x_m, taken)
     }
 }
 
@@ -184,6 +185,9 @@ pub struct PairReport {
     pub completed_tick: u64,
     /// Site 0's final committed state.
     pub final_state: State,
+    /// Site 0's displayed state at the frame where the two users pushed
+    /// hardest (largest sum of felt forces), for pictures.
+    pub peak_state: State,
 }
 
 fn deliver(from: &mut Site, to: &mut Site, now_us: u64, nodes: usize) -> Result<()> {
@@ -221,6 +225,7 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
     let mut contact_ticks = [0u64; 2];
     let mut max_force = [0.0f64; 2];
     let mut max_gap: f64 = 0.0;
+    let mut peak = (-1.0, model.rest_state());
     let frame = u64::from(cfg.session.replica.frame_ticks);
     let every = cfg.trace_every_ticks.max(1);
     let mut k = 0u64;
@@ -236,9 +241,11 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
         if k < cfg.duration_ticks {
             for (s, site) in sites.iter_mut().enumerate() {
                 let tip = cfg.trajectories[s].at(k as f64 * TICK_S);
-                let m = site
-                    .haptic
-                    .manipulate(tip, &site.replicas.speculative().x_m);
+                let m = site.haptic.manipulate(
+                    tip,
+                    &site.replicas.speculative().x_m,
+                    site.replicas.peer_grip(),
+                );
                 let force = felt_force_n(&site.replicas, &m);
                 row.tip_m[s] = tip;
                 row.force_n[s] = force;
@@ -275,6 +282,10 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
                 .speculative()
                 .max_distance_m(sites[1].replicas.speculative());
             max_gap = max_gap.max(gap);
+            let push = row.force_n[0].norm() + row.force_n[1].norm();
+            if push > peak.0 {
+                peak = (push, sites[0].replicas.speculative().clone());
+            }
         }
         k += 1;
         let done = sites
@@ -319,6 +330,7 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
         final_distance_m,
         completed_tick: k,
         final_state,
+        peak_state: peak.1,
     })
 }
 

@@ -78,8 +78,8 @@ pub struct ReplicaStats {
     pub frames_checked: u64,
     /// Displayed frames dropped before the committed replica got there.
     pub frames_unchecked: u64,
-    /// Divergence of every checked frame (m), in order.
-    pub divergence_m: Vec<f64>,
+    /// (tick, divergence in m) of every checked frame, in order.
+    pub divergence: Vec<(u64, f64)>,
     /// Largest gap between the speculative and committed tick.
     pub max_lag_ticks: u64,
 }
@@ -87,21 +87,21 @@ pub struct ReplicaStats {
 impl ReplicaStats {
     /// Largest recorded divergence (m).
     pub fn max_divergence_m(&self) -> f64 {
-        self.divergence_m.iter().copied().fold(0.0, f64::max)
+        self.divergence.iter().map(|d| d.1).fold(0.0, f64::max)
     }
 
     /// Mean recorded divergence (m).
     pub fn mean_divergence_m(&self) -> f64 {
-        if self.divergence_m.is_empty() {
+        if self.divergence.is_empty() {
             0.0
         } else {
-            self.divergence_m.iter().sum::<f64>() / self.divergence_m.len() as f64
+            self.divergence.iter().map(|d| d.1).sum::<f64>() / self.divergence.len() as f64
         }
     }
 
     /// The `q` quantile (0..=1) of the recorded divergence (m).
     pub fn divergence_quantile_m(&self, q: f64) -> f64 {
-        let mut v = self.divergence_m.clone();
+        let mut v: Vec<f64> = self.divergence.iter().map(|d| d.1).collect();
         if v.is_empty() {
             return 0.0;
         }
@@ -200,6 +200,15 @@ impl Replicas {
             &self.speculative.v_m_s,
             node,
         )
+    }
+
+    /// The node the peer holds at the speculative tick, as far as this
+    /// site knows (its input there, or the prediction of it).
+    pub fn peer_grip(&self) -> Option<u16> {
+        self.peer_input(self.speculative.tick)
+            .0
+            .grip
+            .map(|g| g.node)
     }
 
     /// This site's input for its next tick ([`Self::local_end`]).
@@ -320,7 +329,7 @@ impl Replicas {
             self.shown += 1;
             self.stats.speculative_ticks += 1;
             if self.shown % frame == 0 {
-                self.stats.divergence_m.push(0.0);
+                self.stats.divergence.push((self.shown, 0.0));
                 self.stats.frames_checked += 1;
             }
         }
@@ -382,7 +391,7 @@ impl Replicas {
                     .zip(&self.committed.x_m)
                     .map(|(a, b)| (a - b).norm())
                     .fold(0.0, f64::max);
-                self.stats.divergence_m.push(d);
+                self.stats.divergence.push((*tick, d));
                 self.stats.frames_checked += 1;
             } else {
                 self.stats.frames_unchecked += 1;
