@@ -371,10 +371,10 @@ mod tests {
     #[test]
     fn short_replays_of_every_table_end_bit_identical_with_bounded_divergence() {
         // The CI form of the 60 s replays (those are #[ignore]d below and
-        // `softjoint tetmsd pair --virtual`): 4 s of each table with 2 %
+        // `softjoint tetmsd pair --virtual`): 2.5 s of each table with 2 %
         // loss and 1 % extra reordering at level 3.
         for table in [&TABLE_2, &TABLE_3, &TABLE_4, &TABLE_5] {
-            let cfg = config(Profile::Paper(table), 4.0, 0.02);
+            let cfg = config(Profile::Paper(table), 2.5, 0.02);
             let r = run_virtual(&cfg).unwrap();
             assert!(r.identical, "{}", table.name);
             assert_eq!(r.sites[0].final_hash, r.sites[1].final_hash);
@@ -445,7 +445,7 @@ mod tests {
 
     #[test]
     fn a_run_repeats_exactly() {
-        let mut cfg = config(Profile::Constant(12_000), 1.5, 0.05);
+        let mut cfg = config(Profile::Constant(12_000), 1.0, 0.05);
         cfg.netem.reorder = 0.2;
         let a = run_virtual(&cfg).unwrap();
         let b = run_virtual(&cfg).unwrap();
