@@ -285,6 +285,56 @@ mod tests {
         }
     }
 
+    /// Force (N) to push a flat square punch of half the cube's width
+    /// 1.5 mm into the top face: every top node within 15 mm (x and y) of
+    /// the centre is held 1.5 mm down; static equilibrium by Newton.
+    fn punch_force_n(level: u32) -> f64 {
+        let model = VoigtModel::new(
+            CubeMesh::new(level, SIDE_M).unwrap(),
+            VoigtMaterial::default(),
+        )
+        .unwrap();
+        let mesh = model.mesh();
+        let holds: Vec<Hold> = (0..mesh.node_count())
+            .filter(|&i| {
+                let p = mesh.nodes_m[i];
+                p.z == SIDE_M
+                    && (p.x - SIDE_M / 2.0).abs() <= 0.015 + 1e-12
+                    && (p.y - SIDE_M / 2.0).abs() <= 0.015 + 1e-12
+            })
+            .map(|i| Hold {
+                node: i as u32,
+                target_m: mesh.nodes_m[i] - V3::z() * 0.0015,
+            })
+            .collect();
+        let s = equilibrium(&model, &holds, &mesh.nodes_m, 1e-10).unwrap();
+        let zero = vec![V3::zeros(); mesh.node_count()];
+        holds
+            .iter()
+            .map(|h| model.node_force(&s.x_m, &zero, h.node as usize).z)
+            .sum()
+    }
+
+    #[test]
+    #[ignore = "the refinement study to level 12 takes minutes; run with --release --ignored --nocapture"]
+    fn flat_punch_force_converges_with_refinement() {
+        // The regular levels 3, 6, 9, 12 (h = 30, 15, 7.5, 3.75 mm): the
+        // punch force settles as h shrinks (the network's elasticity does
+        // not depend on the level, see voigt.rs); the differences between
+        // successive regular levels must shrink from level 6 on (at level
+        // 3 the 30 mm punch covers the centre node only).
+        let f: Vec<f64> = [3, 6, 9, 12].iter().map(|&l| punch_force_n(l)).collect();
+        for (l, v) in [3, 6, 9, 12].iter().zip(&f) {
+            println!("level {l}: punch force {v:.5} N");
+        }
+        let d: Vec<f64> = f.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        println!(
+            "successive differences {d:?}, ratios {:?}",
+            [d[1] / d[0], d[2] / d[1]]
+        );
+        assert!(d[2] < d[1], "{f:?}");
+    }
+
     #[test]
     fn an_affine_boundary_gives_an_affine_interior_on_the_regular_levels() {
         // Closed form: on the regular Kuhn grids (levels 3m) every interior

@@ -4,6 +4,9 @@
 //! user (8 B) and that node's position (8 B × 3): 24 + 8 + 8 + 24 = 64
 //! bytes.
 //!
+//! `docs/tetmsd-packet.md` specifies it for other implementations (held to
+//! this code by `plant-models/tests/tetmsd_packet_doc.rs`).
+//!
 //! The seed gives no header. The two ID fields are 64-bit words whose
 //! indices need 16 bits (the largest mesh here has 24,576 tetrahedra), so
 //! the header lives in their upper bytes and the packet stays exactly 64

@@ -389,7 +389,7 @@ mod tests {
                     "{}: every gap filled",
                     table.name
                 );
-                assert!(s.replica.frames_checked > 100);
+                assert!(s.replica.frames_checked >= 70);
                 // Bounded by how far a held node can move (the hold speed
                 // cap) while the committed replica lags the display; the
                 // measured values are in the README (level 3 here: both
