@@ -110,6 +110,16 @@ impl VoigtMaterial {
     }
 }
 
+/// One element's ends and constants, packed.
+#[derive(Clone, Copy, Debug)]
+struct Packed {
+    i: u32,
+    j: u32,
+    rest_m: f64,
+    k_n_per_m: f64,
+    c_n_s_per_m: f64,
+}
+
 /// A node held at a position for one tick (a user's manipulation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hold {
@@ -178,6 +188,9 @@ pub struct VoigtModel {
     rest_length_m: Vec<f64>,
     stiffness_n_per_m: Vec<f64>,
     damping_n_s_per_m: Vec<f64>,
+    /// The same per-element data packed for the hot loop (one 32-byte
+    /// record per element instead of four arrays).
+    packed: Vec<Packed>,
     mass_kg: Vec<f64>,
     /// 1/M for free nodes, 0 for fixed ones.
     inverse_mass: Vec<f64>,
@@ -217,11 +230,11 @@ impl VoigtModel {
             .zip(&rest_length_m)
             .map(|(v, l)| v / (l * l))
             .collect();
-        let stiffness_n_per_m = per_length2
+        let stiffness_n_per_m: Vec<f64> = per_length2
             .iter()
             .map(|g| material.stiffness_modulus_pa * g)
             .collect();
-        let damping_n_s_per_m = per_length2
+        let damping_n_s_per_m: Vec<f64> = per_length2
             .iter()
             .map(|g| material.damping_modulus_pa_s * g)
             .collect();
@@ -249,9 +262,22 @@ impl VoigtModel {
                 fill[i as usize] += 1;
             }
         }
+        let packed = mesh
+            .edges
+            .iter()
+            .enumerate()
+            .map(|(e, edge)| Packed {
+                i: edge[0],
+                j: edge[1],
+                rest_m: rest_length_m[e],
+                k_n_per_m: stiffness_n_per_m[e],
+                c_n_s_per_m: damping_n_s_per_m[e],
+            })
+            .collect();
         let mut model = VoigtModel {
             mesh,
             material,
+            packed,
             rest_length_m,
             stiffness_n_per_m,
             damping_n_s_per_m,
@@ -388,47 +414,25 @@ impl VoigtModel {
         }
     }
 
-    /// The force of element `e` on its first node (Eq. 1's term; its
-    /// second node gets the opposite), or `None` if the edge collapsed.
-    /// Plain component arithmetic: the hot loop of every tick, and fast in
-    /// unoptimised test builds too.
+    /// The force of element `e` on its first node (see [`element_force`]).
     #[inline]
     fn element_force(&self, e: usize, x: &[V3], v: &[V3]) -> Option<[f64; 3]> {
-        let [i, j] = self.mesh.edges[e];
-        let (i, j) = (i as usize, j as usize);
-        let (xi, xj, vi, vj) = (c3(&x[i]), c3(&x[j]), c3(&v[i]), c3(&v[j]));
-        let d = [xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]];
-        let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let rest = self.rest_length_m[e];
-        // Collapsed (or NaN) edges have no direction.
-        if l.is_nan() || l <= 1e-9 * rest {
-            return None;
-        }
-        let inv = 1.0 / l;
-        let unit = [d[0] * inv, d[1] * inv, d[2] * inv];
-        let rate =
-            unit[0] * (vi[0] - vj[0]) + unit[1] * (vi[1] - vj[1]) + unit[2] * (vi[2] - vj[2]);
-        let magnitude = self.stiffness_n_per_m[e] * (l - rest) + self.damping_n_s_per_m[e] * rate;
-        Some([
-            -unit[0] * magnitude,
-            -unit[1] * magnitude,
-            -unit[2] * magnitude,
-        ])
+        element_force(&self.packed[e], x, v)
     }
 
     /// Eq. 1 for every node: the internal force (N) into `out`. Returns the
     /// first collapsed edge, if any.
     pub fn internal_forces(&self, x: &[V3], v: &[V3], out: &mut [V3]) -> Option<usize> {
         out.iter_mut().for_each(|f| *c3_mut(f) = [0.0; 3]);
-        for (e, edge) in self.mesh.edges.iter().enumerate() {
-            let Some(f) = self.element_force(e, x, v) else {
+        for (e, p) in self.packed.iter().enumerate() {
+            let Some(f) = element_force(p, x, v) else {
                 return Some(e);
             };
-            let a = c3_mut(&mut out[edge[0] as usize]);
+            let a = c3_mut(&mut out[p.i as usize]);
             a[0] += f[0];
             a[1] += f[1];
             a[2] += f[2];
-            let b = c3_mut(&mut out[edge[1] as usize]);
+            let b = c3_mut(&mut out[p.j as usize]);
             b[0] -= f[0];
             b[1] -= f[1];
             b[2] -= f[2];
@@ -596,6 +600,31 @@ impl VoigtModel {
         }
         Ok(())
     }
+}
+
+/// The force of element `p` on its first node (Eq. 1's term; its second
+/// node gets the opposite), or `None` if the edge collapsed. Plain
+/// component arithmetic: the hot loop of every tick, and fast in
+/// unoptimised test builds too.
+#[inline]
+fn element_force(p: &Packed, x: &[V3], v: &[V3]) -> Option<[f64; 3]> {
+    let (i, j) = (p.i as usize, p.j as usize);
+    let (xi, xj, vi, vj) = (c3(&x[i]), c3(&x[j]), c3(&v[i]), c3(&v[j]));
+    let d = [xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]];
+    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    // Collapsed (or NaN) edges have no direction.
+    if l.is_nan() || l <= 1e-9 * p.rest_m {
+        return None;
+    }
+    let inv = 1.0 / l;
+    let unit = [d[0] * inv, d[1] * inv, d[2] * inv];
+    let rate = unit[0] * (vi[0] - vj[0]) + unit[1] * (vi[1] - vj[1]) + unit[2] * (vi[2] - vj[2]);
+    let magnitude = p.k_n_per_m * (l - p.rest_m) + p.c_n_s_per_m * rate;
+    Some([
+        -unit[0] * magnitude,
+        -unit[1] * magnitude,
+        -unit[2] * magnitude,
+    ])
 }
 
 #[cfg(test)]
