@@ -122,6 +122,11 @@ struct PairArgs {
     /// core per site.
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     spin_us: i64,
+    /// Run each site's haptic thread at this real-time (SCHED_FIFO)
+    /// priority, 1–99 (0: the normal scheduler). Needs CAP_SYS_NICE; a
+    /// refusal is reported, not fatal.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    rt_priority: i64,
 }
 
 #[derive(Args)]
@@ -135,6 +140,9 @@ struct SiteArgs {
     /// Busy-wait before each haptic deadline (µs).
     #[arg(long, default_value_t = 0)]
     spin_us: u64,
+    /// SCHED_FIFO priority of the haptic thread (0: normal).
+    #[arg(long, default_value_t = 0)]
+    rt_priority: u8,
 }
 
 /// Runs a `softjoint tetmsd` subcommand.
@@ -358,7 +366,7 @@ struct PairOutcome {
     wall_s: f64,
 }
 
-fn site_setup(scenario: &Scenario, site: u8, spin_us: u64) -> Result<SiteSetup> {
+fn site_setup(scenario: &Scenario, site: u8, spin_us: u64, rt_priority: u8) -> Result<SiteSetup> {
     let cfg = scenario
         .pair_config("scenario")
         .map_err(|e| anyhow!("{e}"))?;
@@ -372,6 +380,7 @@ fn site_setup(scenario: &Scenario, site: u8, spin_us: u64) -> Result<SiteSetup> 
         trajectory: if site == 0 { t0 } else { t1 },
         spin_us,
         trace_every_ticks: cfg.trace_every_ticks,
+        rt_priority,
     })
 }
 
@@ -383,6 +392,10 @@ fn pair(args: &PairArgs) -> Result<()> {
         bail!("--spin-us must be 0 to 1000 µs, got {}", args.spin_us);
     }
     let spin = args.spin_us as u64;
+    if args.rt_priority < 0 || args.rt_priority > 99 {
+        bail!("--rt-priority must be 0 to 99, got {}", args.rt_priority);
+    }
+    let rt = args.rt_priority as u8;
     let (scenario, name) = load(&args.scenario)?;
     let started = Instant::now();
     let outcome = if args.r#virtual {
@@ -391,8 +404,8 @@ fn pair(args: &PairArgs) -> Result<()> {
         let sockets = [bind()?, bind()?];
         let addrs = [sockets[0].local_addr()?, sockets[1].local_addr()?];
         let setups = [
-            site_setup(&scenario, 0, spin)?,
-            site_setup(&scenario, 1, spin)?,
+            site_setup(&scenario, 0, spin, rt)?,
+            site_setup(&scenario, 1, spin, rt)?,
         ];
         let [s0, s1] = sockets;
         let [u0, u1] = setups;
@@ -414,7 +427,7 @@ fn pair(args: &PairArgs) -> Result<()> {
             wall_s: 0.0,
         }
     } else {
-        processes(&scenario, spin)?
+        processes(&scenario, spin, rt)?
     };
     let outcome = PairOutcome {
         wall_s: started.elapsed().as_secs_f64(),
@@ -477,7 +490,7 @@ fn virtual_pair(scenario: &Scenario, name: &str) -> Result<PairOutcome> {
 }
 
 /// Two child processes `softjoint tetmsd site`, over UDP on loopback.
-fn processes(scenario: &Scenario, spin_us: u64) -> Result<PairOutcome> {
+fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairOutcome> {
     let exe = std::env::current_exe().context("cannot find the softjoint binary")?;
     let file = std::env::temp_dir().join(format!("softjoint-tetmsd-{}.toml", std::process::id()));
     write_text(&file, &toml::to_string_pretty(scenario)?)?;
@@ -492,6 +505,8 @@ fn processes(scenario: &Scenario, spin_us: u64) -> Result<PairOutcome> {
                     &s.to_string(),
                     "--spin-us",
                     &spin_us.to_string(),
+                    "--rt-priority",
+                    &rt_priority.to_string(),
                 ])
                 .arg("--scenario")
                 .arg(&file)
@@ -558,7 +573,7 @@ fn site(args: &SiteArgs) -> Result<()> {
         .with_context(|| format!("cannot read {}", args.scenario.display()))?;
     let scenario: Scenario =
         toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", args.scenario.display()))?;
-    let setup = site_setup(&scenario, args.site, args.spin_us)?;
+    let setup = site_setup(&scenario, args.site, args.spin_us, args.rt_priority)?;
     let socket = bind()?;
     println!("port {}", socket.local_addr()?.port());
     std::io::stdout().flush()?;
@@ -728,8 +743,8 @@ fn pair_table(s: &PairSummary<'_>, o: &PairOutcome) -> String {
         if let Some(h) = &r.haptic {
             let _ = writeln!(
                 t,
-                "  haptic 1 kHz   {} ticks, {} missed; lateness p50 {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs, max {:.0} µs; work {:.1} µs mean",
-                h.ticks, h.missed_ticks, h.late_p50_us, h.late_p99_us, h.late_p999_us, h.late_max_us, h.work_mean_us
+                "  haptic 1 kHz   {} ticks, {} missed; lateness p50 {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs, max {:.0} µs; work {:.1} µs mean; {}",
+                h.ticks, h.missed_ticks, h.late_p50_us, h.late_p99_us, h.late_p999_us, h.late_max_us, h.work_mean_us, h.scheduling
             );
         }
         if let Some(d) = &r.deformation {

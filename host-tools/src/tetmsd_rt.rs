@@ -76,6 +76,9 @@ pub struct SiteSetup {
     pub spin_us: u64,
     /// Ticks between rows of the force trace.
     pub trace_every_ticks: u64,
+    /// Run the haptic thread at this SCHED_FIFO priority (1–99; 0: the
+    /// normal scheduler).
+    pub rt_priority: u8,
 }
 
 /// One row of a site's force trace.
@@ -116,6 +119,9 @@ pub struct HapticTiming {
     pub backlogged: u64,
     /// Busy-wait before each deadline (µs).
     pub spin_us: u64,
+    /// The haptic thread's scheduling: `normal`, `SCHED_FIFO N`, or why
+    /// the real-time priority was refused.
+    pub scheduling: String,
 }
 
 /// The deformation thread's work.
@@ -344,6 +350,30 @@ fn quantile(v: &[f64], q: f64) -> f64 {
     v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
+/// Puts the calling thread on SCHED_FIFO at `priority` (0: leave it) and
+/// says what it got.
+fn realtime(priority: u8) -> String {
+    use thread_priority::{
+        set_thread_priority_and_policy, thread_native_id, RealtimeThreadSchedulePolicy,
+        ThreadPriority, ThreadPriorityValue, ThreadSchedulePolicy,
+    };
+    if priority == 0 {
+        return "normal".into();
+    }
+    let value = match ThreadPriorityValue::try_from(priority) {
+        Ok(v) => v,
+        Err(e) => return format!("normal (priority {priority} refused: {e})"),
+    };
+    match set_thread_priority_and_policy(
+        thread_native_id(),
+        ThreadPriority::Crossplatform(value),
+        ThreadSchedulePolicy::Realtime(RealtimeThreadSchedulePolicy::Fifo),
+    ) {
+        Ok(()) => format!("SCHED_FIFO {priority}"),
+        Err(e) => format!("normal (SCHED_FIFO refused: {e:?})"),
+    }
+}
+
 /// Sleeps (and spins for the last `spin`) until `deadline`.
 fn wait_until(deadline: Instant, spin: Duration) {
     loop {
@@ -405,6 +435,7 @@ fn haptic_thread(
     );
     let mut timing = HapticTiming {
         spin_us: setup.spin_us,
+        scheduling: realtime(setup.rt_priority),
         ..HapticTiming::default()
     };
     let mut shape = shared
@@ -722,11 +753,12 @@ fn network_thread(
                     backlog.push_back((u64::from(tick), input));
                 }
                 Arrival::Hello(_) => {
-                    // The peer missed our last hello: tell it again.
+                    // The peer missed our last hello: tell it again,
+                    // through the emulated network like everything else.
                     let mut p = Packet::decode(&link.hello_packet(setup.session.hash()))
                         .map_err(|e| anyhow!("{e}"))?;
                     p.seq = 1;
-                    socket.send_to(&p.encode(), peer).ok();
+                    emulator.push(now_us, p.encode());
                 }
                 Arrival::Bye => peer_bye = true,
                 Arrival::Nothing => {}
@@ -754,7 +786,8 @@ fn network_thread(
             && shared.committed_tick.load(Ordering::Relaxed) >= setup.duration_ticks;
         if complete && bye_at.is_none() {
             for _ in 0..3 {
-                socket.send_to(&link.bye_packet(), peer).ok();
+                let bytes = link.bye_packet();
+                emulator.push(now_us, bytes);
             }
             bye_at = Some(Instant::now());
         }
