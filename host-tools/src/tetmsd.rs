@@ -123,8 +123,8 @@ struct PairArgs {
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     spin_us: i64,
     /// Run each site's haptic thread at this real-time (SCHED_FIFO)
-    /// priority, 1–99 (0: the normal scheduler). Needs CAP_SYS_NICE; a
-    /// refusal is reported, not fatal.
+    /// priority, 1–99, and its network thread one below (0: the normal
+    /// scheduler). Needs CAP_SYS_NICE; a refusal is reported, not fatal.
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     rt_priority: i64,
 }

@@ -13,6 +13,8 @@
 //!   Deadlines are absolute (`t0 + k ms`); a late tick is not skipped but
 //!   run at once, and its lateness recorded. A tick whose work starts a
 //!   whole period (1 ms) or more after its deadline is a *missed* tick.
+//!   With `rt_priority` it runs on SCHED_FIFO at that priority, and the
+//!   network thread one below it (both sleep most of the time).
 //! * **Deformation** (the seed's OpenGL thread's deformation, L2661–2664):
 //!   feeds local and peer inputs to the replicas, advances them as far as
 //!   it can, and publishes the speculative shape and the held node's
@@ -181,6 +183,8 @@ pub struct LinkSummary {
     pub rtt_max_us: u64,
     /// Datagrams the socket refused to send.
     pub send_errors: u64,
+    /// The network thread's scheduling (`normal` or `SCHED_FIFO N`).
+    pub scheduling: String,
 }
 
 impl From<&LinkStats> for LinkSummary {
@@ -205,6 +209,7 @@ impl From<&LinkStats> for LinkSummary {
             rtt_mean_us: s.rtt_mean_us(),
             rtt_max_us: s.rtt_max_us,
             send_errors: 0,
+            scheduling: "virtual".into(),
         }
     }
 }
@@ -683,6 +688,7 @@ struct NetOut {
     link: Link,
     emulator: Emulator,
     send_errors: u64,
+    scheduling: String,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -699,6 +705,9 @@ fn network_thread(
     nodes: usize,
 ) -> Result<NetOut> {
     let mut emulator = Emulator::new(setup.netem, setup.seed, setup.site)?;
+    // The network thread times the emulator's releases and the acks: one
+    // step below the haptic thread when that one is real-time.
+    let scheduling = realtime(setup.rt_priority.saturating_sub(1));
     socket.set_read_timeout(Some(Duration::from_micros(NET_POLL_US)))?;
     let mut buf = [0u8; 128];
     let mut backlog: VecDeque<(u64, Manipulation)> = VecDeque::new();
@@ -809,6 +818,7 @@ fn network_thread(
         link,
         emulator,
         send_errors,
+        scheduling,
     })
 }
 
@@ -898,6 +908,7 @@ pub fn run_site(setup: SiteSetup, socket: UdpSocket, peer: SocketAddr) -> Result
     let committed = deform_out.replicas.committed();
     let mut link_summary = LinkSummary::from(net_out.link.stats());
     link_summary.send_errors = net_out.send_errors;
+    link_summary.scheduling = net_out.scheduling;
     Ok(SiteReport {
         site: setup.site,
         haptic: Some(haptic_out.timing),
