@@ -8,12 +8,16 @@
 //! XML.
 //!
 //! - [`Svg`]: a document in pixel coordinates with the few primitives the
-//!   pictures use. Non-finite coordinates never reach the file: a polyline
-//!   lifts its pen at them, a polygon with one is left out (and counted in
-//!   [`Svg::skipped`]), text is escaped.
+//!   pictures use. Non-finite coordinates (and finite ones beyond a
+//!   million pixels, an exploding simulation's) never reach the file: a
+//!   polyline lifts its pen at them, a polygon with one is left out (and
+//!   counted in [`Svg::skipped`]), text is escaped.
 //! - [`line_charts`]: stacked charts of series against an x axis, each with
 //!   its own axis labels and legend (time series, μ(F) per generation, fit
 //!   curves).
+//! - [`shape_panels`]: outlines and point sets drawn to one equal-aspect
+//!   scale in a grid of panels (contours of tracked objects and their
+//!   fits, frame by frame).
 //! - [`false_colour`]: the colour ramp of the seed 002 damping images.
 use std::fmt::Write as _;
 
@@ -86,8 +90,18 @@ fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// Largest |coordinate| drawn (px): beyond it a point is left out like a
+/// non-finite one. An exploding simulation gives finite coordinates of
+/// 1e200 px, which viewers cannot render and no page can show; a million
+/// pixels is far outside any picture here (estimate).
+const MAX_COORDINATE_PX: f64 = 1e6;
+
+fn drawable(v: f64) -> bool {
+    v.is_finite() && v.abs() <= MAX_COORDINATE_PX
+}
+
 fn finite(p: &(f64, f64)) -> bool {
-    p.0.is_finite() && p.1.is_finite()
+    drawable(p.0) && drawable(p.1)
 }
 
 impl Svg {
@@ -123,7 +137,7 @@ impl Svg {
         style: &str,
         text: &str,
     ) {
-        if !(x.is_finite() && y.is_finite()) {
+        if !finite(&(x, y)) {
             self.skipped += 1;
             return;
         }
@@ -237,7 +251,7 @@ impl Svg {
 
     /// A circle outline.
     pub fn circle(&mut self, centre: (f64, f64), radius: f64, stroke: Stroke<'_>) {
-        if !(finite(&centre) && radius.is_finite()) {
+        if !(finite(&centre) && drawable(radius)) {
             self.skipped += 1;
             return;
         }
@@ -250,9 +264,24 @@ impl Svg {
         );
     }
 
+    /// A filled dot (a data point).
+    pub fn dot(&mut self, centre: (f64, f64), radius: f64, colour: &str) {
+        if !(finite(&centre) && radius.is_finite()) {
+            self.skipped += 1;
+            return;
+        }
+        let _ = writeln!(
+            self.body,
+            r#"<circle cx="{:.1}" cy="{:.1}" r="{radius:.1}" fill="{}"/>"#,
+            centre.0,
+            centre.1,
+            escape(colour)
+        );
+    }
+
     /// A rectangle.
     pub fn rect(&mut self, x: f64, y: f64, w: f64, h: f64, fill: &str, stroke: Option<Stroke<'_>>) {
-        if ![x, y, w, h].iter().all(|v| v.is_finite()) {
+        if ![x, y, w, h].into_iter().all(drawable) {
             self.skipped += 1;
             return;
         }
@@ -450,6 +479,148 @@ pub fn line_charts(charts: &[Chart]) -> Svg {
     svg
 }
 
+/// How a [`Shape`] is drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShapeStyle {
+    /// A closed outline.
+    Closed {
+        /// Line width, px.
+        width: f64,
+        /// Dashed.
+        dashed: bool,
+    },
+    /// An open polyline.
+    Open {
+        /// Line width, px.
+        width: f64,
+        /// Dashed.
+        dashed: bool,
+    },
+    /// One dot per point.
+    Dots {
+        /// Dot radius, px.
+        radius: f64,
+    },
+}
+
+/// Points drawn in a panel, in data coordinates.
+pub struct Shape {
+    /// The points.
+    pub points: Vec<(f64, f64)>,
+    /// Colour (CSS).
+    pub colour: &'static str,
+    /// How.
+    pub style: ShapeStyle,
+}
+
+/// One panel of [`shape_panels`].
+pub struct Panel {
+    /// Caption under the panel.
+    pub caption: String,
+    /// What to draw, in order (later on top).
+    pub shapes: Vec<Shape>,
+}
+
+/// Width of one shape panel, px.
+const PANEL_W: f64 = 240.0;
+
+/// Panels in a grid of up to `columns` columns, all drawn to one
+/// equal-aspect scale fitted to every finite point; `y_up` puts +y at the
+/// top (physics) rather than the bottom (image rows). `legend` is written
+/// at the foot.
+pub fn shape_panels(
+    title: &str,
+    panels: &[Panel],
+    columns: usize,
+    y_up: bool,
+    legend: &str,
+) -> Svg {
+    let pts = || {
+        panels
+            .iter()
+            .flat_map(|p| p.shapes.iter().flat_map(|s| s.points.iter()))
+            .filter(|p| finite(p))
+    };
+    let (x0, x1) = range(pts().map(|p| p.0));
+    let (y0, y1) = range(pts().map(|p| p.1));
+    let scale = (PANEL_W / (x1 - x0)).min(PANEL_W / (y1 - y0));
+    let panel_h = (y1 - y0) * scale;
+    let cols = columns.clamp(1, panels.len().max(1));
+    let rows = panels.len().div_ceil(cols).max(1);
+    let (top, gap, caption) = (36.0, 12.0, 20.0);
+    let width = gap + cols as f64 * (PANEL_W + gap);
+    let height = top + rows as f64 * (panel_h + caption + gap) + 24.0;
+    let mut svg = Svg::new(width.max(480.0), height);
+    svg.text_styled(
+        gap,
+        22.0,
+        14.0,
+        Anchor::Start,
+        r#"font-weight="bold""#,
+        title,
+    );
+    for (k, panel) in panels.iter().enumerate() {
+        let ox = gap + (k % cols) as f64 * (PANEL_W + gap);
+        let oy = top + (k / cols) as f64 * (panel_h + caption + gap);
+        let tx = |p: &(f64, f64)| {
+            let y = if y_up { y1 - p.1 } else { p.1 - y0 };
+            (ox + (p.0 - x0) * scale, oy + y * scale)
+        };
+        svg.rect(
+            ox,
+            oy,
+            PANEL_W,
+            panel_h,
+            "none",
+            Some(Stroke::solid("#ccc", 1.0)),
+        );
+        for shape in &panel.shapes {
+            let screen: Vec<(f64, f64)> = shape.points.iter().map(tx).collect();
+            match shape.style {
+                ShapeStyle::Closed { width, dashed } => {
+                    let mut closed = screen.clone();
+                    if let Some(&first) = screen.first() {
+                        closed.push(first);
+                    }
+                    svg.polyline(
+                        closed,
+                        Stroke {
+                            colour: shape.colour,
+                            width,
+                            dashed,
+                        },
+                    );
+                }
+                ShapeStyle::Open { width, dashed } => {
+                    svg.polyline(
+                        screen,
+                        Stroke {
+                            colour: shape.colour,
+                            width,
+                            dashed,
+                        },
+                    );
+                }
+                ShapeStyle::Dots { radius } => {
+                    for p in screen {
+                        svg.dot(p, radius, shape.colour);
+                    }
+                }
+            }
+        }
+        svg.text(ox, oy + panel_h + 15.0, 12.0, Anchor::Start, &panel.caption);
+    }
+    svg.text_styled(
+        gap,
+        height - 8.0,
+        12.0,
+        Anchor::Start,
+        r##"fill="#555""##,
+        legend,
+    );
+    svg
+}
+
 /// Blue (0) → cyan → green → yellow → red (1), the seed 002 Fig. 9 ramp;
 /// non-finite values are blue.
 pub fn false_colour(t: f64) -> (u8, u8, u8) {
@@ -479,6 +650,7 @@ mod tests {
                 (f64::NAN, 1.0),
                 (2.0, 2.0),
                 (3.0, f64::INFINITY),
+                (4.0, 1e200),
             ],
             Stroke::solid("red", 1.0),
         );
@@ -509,6 +681,58 @@ mod tests {
         assert!(out.contains(">generation<") && out.contains(">μ(F)<"));
         assert!(out.contains("a &lt; b &amp; c"));
         assert!(!out.contains("time (s)"));
+    }
+
+    #[test]
+    fn shape_panels_share_one_scale_and_skip_non_finite_points() {
+        let square = vec![(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (0.0, 1.0)];
+        let panels = vec![
+            Panel {
+                caption: "a".into(),
+                shapes: vec![Shape {
+                    points: square.clone(),
+                    colour: "#d22",
+                    style: ShapeStyle::Closed {
+                        width: 1.0,
+                        dashed: false,
+                    },
+                }],
+            },
+            Panel {
+                caption: "b & c".into(),
+                shapes: vec![Shape {
+                    points: vec![(1.0, 0.5), (f64::NAN, 0.0)],
+                    colour: "#1f5fbf",
+                    style: ShapeStyle::Dots { radius: 2.0 },
+                }],
+            },
+        ];
+        let svg = shape_panels("t", &panels, 2, true, "legend");
+        assert_eq!(svg.skipped(), 1);
+        let out = svg.finish();
+        assert!(out.contains("b &amp; c") && out.contains("<circle") && !out.contains("NaN"));
+        // The closed outline returns to its first point.
+        let path = out.lines().find(|l| l.starts_with("<path")).unwrap();
+        let d = path.split('"').nth(1).unwrap();
+        let first = d.trim_start_matches('M').split(' ').next().unwrap();
+        let last = d.rsplit('L').next().unwrap();
+        assert_eq!(first, last, "{path}");
+        // Equal aspect: the 2 × 1 square is twice as wide as high.
+        let xs: Vec<f64> = d
+            .split([' ', 'M', 'L'])
+            .filter(|t| !t.is_empty())
+            .map(|t| t.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        let ys: Vec<f64> = d
+            .split([' ', 'M', 'L'])
+            .filter(|t| !t.is_empty())
+            .map(|t| t.split(',').nth(1).unwrap().parse().unwrap())
+            .collect();
+        let w = xs.iter().cloned().fold(f64::MIN, f64::max)
+            - xs.iter().cloned().fold(f64::MAX, f64::min);
+        let h = ys.iter().cloned().fold(f64::MIN, f64::max)
+            - ys.iter().cloned().fold(f64::MAX, f64::min);
+        assert!((w / h - 2.0).abs() < 0.01, "{w} × {h}");
     }
 
     #[test]

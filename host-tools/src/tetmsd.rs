@@ -22,17 +22,19 @@ use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
+use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::tetmsd_rt::{
     run_site, ForceRow, LinkSummary, NetemSummary, ReplicaSummary, SiteReport, SiteSetup,
 };
+use host_tools::{out, outln};
 use plant_models::tetmsd::mesh::CubeMesh;
 use plant_models::tetmsd::model::voigt::{Hold, TICK_S};
 use plant_models::tetmsd::model::V3;
 use plant_models::tetmsd::pair::{run_virtual, Haptic};
 use plant_models::tetmsd::scenario::Scenario;
 use serde::Serialize;
-use serde_json::{json, Value};
+use serde_json::Value;
 
 /// Arguments of `softjoint tetmsd`.
 #[derive(Args)]
@@ -69,7 +71,7 @@ struct ScenarioArgs {
     #[arg(long, allow_negative_numbers = true)]
     duration_s: Option<f64>,
     /// Seed of the network's delays, loss and reordering.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     seed: Option<u64>,
     /// Round-trip profile: none, table2, table3, table4, table5 (the seed's
     /// Tables 2–5) or rtt-MS (a fixed round trip of MS ms).
@@ -132,16 +134,16 @@ struct PairArgs {
 #[derive(Args)]
 struct SiteArgs {
     /// Which site (0 or 1).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     site: u8,
     /// The scenario, as `pair` wrote it.
     #[arg(long)]
     scenario: PathBuf,
     /// Busy-wait before each haptic deadline (µs).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     spin_us: u64,
     /// SCHED_FIFO priority of the haptic thread (0: normal).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     rt_priority: u8,
 }
 
@@ -201,20 +203,24 @@ fn load(args: &ScenarioArgs) -> Result<(Scenario, String)> {
 }
 
 fn print_default() -> Result<()> {
-    print!(
-        "# softjoint tetmsd scenario (all tables refuse unknown fields)\n{}",
-        toml::to_string_pretty(&Scenario::default())?
-    );
-    Ok(())
+    output::print_toml(
+        "# softjoint tetmsd scenario (all tables refuse unknown fields)\n",
+        &Scenario::default(),
+    )
 }
 
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+/// Refuses an unwritable `--out-dir` before the run rather than after it.
+fn check_out_dir(out: &OutArgs) -> Result<()> {
+    match &out.out_dir {
+        Some(d) => output::check_dir(d),
+        None => Ok(()),
+    }
 }
 
+/// Creates `--out-dir` when the results are written.
 fn out_dir(out: &OutArgs) -> Result<Option<PathBuf>> {
     if let Some(d) = &out.out_dir {
-        std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+        output::create_dir(d)?;
     }
     Ok(out.out_dir.clone())
 }
@@ -230,6 +236,7 @@ fn simulate(args: &SimulateArgs) -> Result<()> {
         return print_default();
     }
     let (scenario, name) = load(&args.scenario)?;
+    check_out_dir(&args.out)?;
     let cfg = scenario.pair_config(&name).map_err(|e| anyhow!("{e}"))?;
     let model = cfg.session.model()?;
     let mut haptics = [Haptic::new(&model), Haptic::new(&model)];
@@ -289,24 +296,23 @@ fn simulate(args: &SimulateArgs) -> Result<()> {
     let mesh = model.mesh();
     let energy = model.energy(&state);
     let rate = cfg.duration_ticks as f64 / compute_s.max(1e-12);
-    let summary = json!({
-        "scenario": name,
-        "level": scenario.level,
-        "nodes": mesh.node_count(),
-        "tetrahedra": mesh.tets.len(),
-        "elements": mesh.edges.len(),
-        "substeps_per_tick": model.substeps(),
-        "ticks": cfg.duration_ticks,
-        "compute_s": compute_s,
-        "deformation_rate_hz": rate,
-        "max_force_n": max_force,
-        "contact_ticks": contact,
-        "final_kinetic_j": energy.kinetic_j,
-        "final_elastic_j": energy.elastic_j,
-    });
+    let summary = JsonObject::new()
+        .field("scenario", &name)?
+        .field("level", &scenario.level)?
+        .field("nodes", &mesh.node_count())?
+        .field("tetrahedra", &mesh.tets.len())?
+        .field("elements", &mesh.edges.len())?
+        .field("substeps_per_tick", &model.substeps())?
+        .field("ticks", &cfg.duration_ticks)?
+        .field("compute_s", &compute_s)?
+        .field("deformation_rate_hz", &rate)?
+        .field("max_force_n", &max_force)?
+        .field("contact_ticks", &contact)?
+        .field("final_kinetic_j", &energy.kinetic_j)?
+        .field("final_elastic_j", &energy.elastic_j)?;
     if let Some(dir) = out_dir(&args.out)? {
         write_forces_csv(&dir.join("forces.csv"), &traces)?;
-        write_text(
+        output::write_svg(
             &dir.join("forces.svg"),
             &forces_svg(
                 &format!(
@@ -319,7 +325,7 @@ fn simulate(args: &SimulateArgs) -> Result<()> {
             ),
         )?;
         let x: Vec<[f64; 3]> = peak.1.iter().map(|p| arr(*p)).collect();
-        write_text(
+        output::write_svg(
             &dir.join("mesh.svg"),
             &mesh_svg(
                 mesh,
@@ -329,10 +335,10 @@ fn simulate(args: &SimulateArgs) -> Result<()> {
         )?;
     }
     if args.out.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        summary.print()?;
     } else {
-        println!("scenario   {name}");
-        println!(
+        outln!("scenario   {name}");
+        outln!(
             "mesh       level {}: {} nodes, {} tetrahedra, {} Voigt elements, {} substeps per 1 ms tick",
             scenario.level,
             mesh.node_count(),
@@ -340,12 +346,12 @@ fn simulate(args: &SimulateArgs) -> Result<()> {
             mesh.edges.len(),
             model.substeps()
         );
-        println!(
+        outln!(
             "run        {} ticks in {:.3} s of computation: {:.0} deformation updates/s (the seed: 1000 Hz at level 3 to 50 Hz at 729 nodes)",
             cfg.duration_ticks, compute_s, rate
         );
         for s in 0..2 {
-            println!(
+            outln!(
                 "user {s}     in contact {:.2} s, largest force {:.3} N",
                 contact[s] as f64 * TICK_S,
                 max_force[s]
@@ -397,6 +403,7 @@ fn pair(args: &PairArgs) -> Result<()> {
     }
     let rt = args.rt_priority as u8;
     let (scenario, name) = load(&args.scenario)?;
+    check_out_dir(&args.out)?;
     let started = Instant::now();
     let outcome = if args.r#virtual {
         virtual_pair(&scenario, &name)?
@@ -493,7 +500,7 @@ fn virtual_pair(scenario: &Scenario, name: &str) -> Result<PairOutcome> {
 fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairOutcome> {
     let exe = std::env::current_exe().context("cannot find the softjoint binary")?;
     let file = std::env::temp_dir().join(format!("softjoint-tetmsd-{}.toml", std::process::id()));
-    write_text(&file, &toml::to_string_pretty(scenario)?)?;
+    output::write_toml(&file, "", scenario)?;
     let result = (|| {
         let mut children = Vec::new();
         for s in 0..2 {
@@ -575,8 +582,8 @@ fn site(args: &SiteArgs) -> Result<()> {
         toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", args.scenario.display()))?;
     let setup = site_setup(&scenario, args.site, args.spin_us, args.rt_priority)?;
     let socket = bind()?;
-    println!("port {}", socket.local_addr()?.port());
-    std::io::stdout().flush()?;
+    outln!("port {}", socket.local_addr()?.port());
+    output::flush_stdout()?;
     let mut line = String::new();
     std::io::stdin().read_line(&mut line)?;
     let port: u16 = line
@@ -586,7 +593,7 @@ fn site(args: &SiteArgs) -> Result<()> {
         .ok_or_else(|| anyhow!("expected `peer PORT` on standard input, got {line:?}"))?;
     let peer = SocketAddr::from(([127, 0, 0, 1], port));
     let report = run_site(setup, socket, peer)?;
-    println!("{}", serde_json::to_string(&report)?);
+    output::print_json(&report)?;
     Ok(())
 }
 
@@ -661,12 +668,12 @@ fn report_pair(scenario: &Scenario, name: &str, o: &PairOutcome, out: &OutArgs) 
             Some(&o.sites[0].replica.divergence_series),
             Some(&o.sites[1].replica.divergence_series),
         ];
-        write_text(
+        output::write_svg(
             &dir.join("forces.svg"),
             &forces_svg(&title, &traces, &series),
         )?;
         let mesh = CubeMesh::new(scenario.level, scenario.side_mm * 1e-3)?;
-        write_text(
+        output::write_svg(
             &dir.join("mesh.svg"),
             &mesh_svg(
                 &mesh,
@@ -696,9 +703,9 @@ fn report_pair(scenario: &Scenario, name: &str, o: &PairOutcome, out: &OutArgs) 
         sites: vec![site_json(&o.sites[0])?, site_json(&o.sites[1])?],
     };
     if out.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        output::print_json(&summary)?;
     } else {
-        print!("{}", pair_table(&summary, o));
+        out!("{}", pair_table(&summary, o));
     }
     if !identical {
         bail!("the final replicas differ (largest node distance {dist} m): this is a defect");
@@ -814,7 +821,7 @@ fn write_forces_csv(path: &Path, traces: &[Vec<ForceRow>; 2]) -> Result<()> {
         }
         s.push('\n');
     }
-    write_text(path, &s)
+    output::write_csv(path, &s)
 }
 
 fn write_divergence_csv(path: &Path, sites: &[SiteReport; 2]) -> Result<()> {
@@ -824,7 +831,7 @@ fn write_divergence_csv(path: &Path, sites: &[SiteReport; 2]) -> Result<()> {
             let _ = writeln!(s, "{},{},{}", r.site, *tick as f64 * TICK_S, d);
         }
     }
-    write_text(path, &s)
+    output::write_csv(path, &s)
 }
 
 /// Force, stylus depth and (for pairs) divergence against time.

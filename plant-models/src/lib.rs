@@ -2,8 +2,10 @@
 //! deformable objects it handles. Everything here is std and deterministic:
 //! random effects take an explicit seeded RNG.
 #![deny(unsafe_code)]
+pub mod contour;
 pub mod csv_input;
 pub mod joint;
+pub mod linalg;
 pub mod pushing;
 pub mod tetmsd;
 pub mod viscoelastic;
@@ -26,6 +28,8 @@ pub mod rng {
     //! | [`TETMSD_DELAY_BASE`] + s | `tetmsd`: one-way delays of the packets site s sends |
     //! | [`TETMSD_LOSS_BASE`] + s | `tetmsd`: loss and reordering draws of site s's packets |
     //! | [`TETMSD_TEST_BASE`] + k | `tetmsd` tests: random points, states and packets |
+    //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise) |
+    //! | [`LINK_FAULTS_BASE`] + d | the lockstep fault campaign's faults, direction d (0 host → board, 1 board → host) |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -44,6 +48,17 @@ pub mod rng {
     /// Test data of the tetrahedral module (points, states, packets):
     /// `TETMSD_TEST_BASE + k`, k < 16.
     pub const TETMSD_TEST_BASE: u64 = 0x310;
+    /// First stream of the contour splines (`plant_models::contour`).
+    pub const CONTOUR_BASE: u64 = 0x500;
+    /// Noise of the synthetic contour data `softjoint contour synth` writes.
+    pub const CONTOUR_SYNTH_NOISE: u64 = CONTOUR_BASE;
+    /// Noise of the Monte-Carlo replicates of Theorem 1.
+    pub const CONTOUR_MONTE_CARLO: u64 = CONTOUR_BASE + 1;
+    /// Tracker noise of the synthetic deforming-contour movie.
+    pub const CONTOUR_MOVIE_NOISE: u64 = CONTOUR_BASE + 2;
+    /// The fault campaign of the lockstep link (`tests/src/fault_injector.rs`)
+    /// draws the faults of direction d from `LINK_FAULTS_BASE + d`.
+    pub const LINK_FAULTS_BASE: u64 = 0x200;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
@@ -76,6 +91,13 @@ pub mod rng {
             }
         }
     }
+}
+
+/// `text` without a leading UTF-8 byte-order mark, which Windows editors
+/// and Excel write at the start of text files (the CSV reader drops it
+/// itself; JSON parsers and line-based formats do not).
+pub fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
 /// A number for an error message: as `{}` prints it, or in exponent form

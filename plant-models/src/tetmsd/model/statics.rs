@@ -7,7 +7,7 @@
 //! Each iteration assembles the exact tangent `K = Σ_e k(eeᵀ + (1 −
 //! L/l)(I − eeᵀ))` of the springs (dampers do no work at rest), orders the
 //! unknowns by reverse Cuthill–McKee and factors `K` with the skyline
-//! Cholesky of the seed-002 FEM ([`SkylineCholesky`]), then steps with
+//! Cholesky the project shares (`crate::linalg`, [`SkylineCholesky`]), then steps with
 //! backtracking until the largest force imbalance is below the tolerance.
 //!
 //! Left out: arc-length continuation; a tangent that is not positive
@@ -15,8 +15,8 @@
 //! followed.
 use super::voigt::{Hold, VoigtModel};
 use super::V3;
+use crate::linalg::{reverse_cuthill_mckee, SkylineCholesky};
 use crate::tetmsd::error::{Result, TetError};
-use crate::viscoelastic::fem::{reverse_cuthill_mckee, SkylineCholesky};
 
 /// Newton iterations before giving up.
 const MAX_ITERATIONS: u32 = 60;
@@ -317,9 +317,14 @@ mod tests {
         // is not positive definite.
         let mut x = mesh.nodes_m.clone();
         for step in 1..=10 {
-            x = equilibrium(&model, &holds_at(0.0015 * f64::from(step) / 10.0), &x, 1e-10)
-                .unwrap()
-                .x_m;
+            x = equilibrium(
+                &model,
+                &holds_at(0.0015 * f64::from(step) / 10.0),
+                &x,
+                1e-10,
+            )
+            .unwrap()
+            .x_m;
         }
         let holds = holds_at(0.0015);
         let s = StaticSolution {

@@ -21,10 +21,11 @@
 //! Left out: large deformation (the seed, too, is linear small-strain),
 //! inertia (quasi-static, as the DGFM), contact between parts of the object.
 use super::mesh::{cross, dot, sub, SurfaceMesh};
+use crate::linalg::reverse_cuthill_mckee;
+pub use crate::linalg::SkylineCholesky;
 use crate::viscoelastic::error::{check_positive, Result, VeError};
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
-use std::collections::VecDeque;
 
 /// Isotropic linear-elastic material.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -221,138 +222,8 @@ fn element_stiffness(p: [[f64; 3]; 4], d: &SMatrix<f64, 6, 6>) -> Option<SMatrix
     Some(b.transpose() * d * b * vol)
 }
 
-/// A symmetric positive-definite matrix in skyline (variable band) storage,
-/// factored in place as `L Lᵀ`.
-#[derive(Clone, Debug)]
-pub struct SkylineCholesky {
-    first: Vec<usize>,
-    offset: Vec<usize>,
-    data: Vec<f64>,
-}
-
-impl SkylineCholesky {
-    /// Storage for `n` equations where row `i` has nonzeros from column
-    /// `first[i]` to `i`.
-    pub fn with_profile(first: Vec<usize>) -> Self {
-        let mut offset = Vec::with_capacity(first.len() + 1);
-        let mut total = 0;
-        for (i, &f) in first.iter().enumerate() {
-            offset.push(total);
-            total += i + 1 - f.min(i);
-        }
-        offset.push(total);
-        let first = first.iter().enumerate().map(|(i, &f)| f.min(i)).collect();
-        SkylineCholesky {
-            first,
-            offset,
-            data: vec![0.0; total],
-        }
-    }
-
-    /// Number of stored entries (the profile size).
-    pub fn profile_len(&self) -> usize {
-        self.data.len()
-    }
-
-    /// Adds `v` to entry (i, j) of the lower triangle (`j ≤ i`, inside the
-    /// profile; entries outside it are a caller bug and are ignored).
-    pub fn add(&mut self, i: usize, j: usize, v: f64) {
-        let (i, j) = if j > i { (j, i) } else { (i, j) };
-        if j >= self.first[i] {
-            self.data[self.offset[i] + j - self.first[i]] += v;
-        }
-    }
-
-    /// In-place Cholesky factorisation.
-    pub fn factor(&mut self) -> Result<()> {
-        let n = self.first.len();
-        for i in 0..n {
-            let (fi, oi) = (self.first[i], self.offset[i]);
-            for j in fi..=i {
-                let (fj, oj) = (self.first[j], self.offset[j]);
-                let k0 = fi.max(fj);
-                let (row_i, row_j) = (
-                    &self.data[oi + k0 - fi..oi + j - fi],
-                    &self.data[oj + k0 - fj..oj + j - fj],
-                );
-                let s: f64 = row_i.iter().zip(row_j).map(|(a, b)| a * b).sum();
-                let a = self.data[oi + j - fi] - s;
-                if i == j {
-                    if !(a > 0.0 && a.is_finite()) {
-                        return Err(VeError::NotPositiveDefinite { equation: i });
-                    }
-                    self.data[oi + j - fi] = a.sqrt();
-                } else {
-                    let djj = self.data[oj + j - fj];
-                    self.data[oi + j - fi] = a / djj;
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Solves `L Lᵀ x = b` in place (after [`factor`](Self::factor)).
-    pub fn solve_in_place(&self, b: &mut [f64]) {
-        // Leading zeros of b stay zero in the forward pass: skip them.
-        let start = b.iter().position(|v| *v != 0.0).unwrap_or(b.len());
-        self.solve_from(b, start);
-    }
-
-    fn solve_from(&self, b: &mut [f64], start: usize) {
-        let n = self.first.len();
-        for i in start..n {
-            let (fi, oi) = (self.first[i], self.offset[i]);
-            let k0 = fi.max(start);
-            let row = &self.data[oi + k0 - fi..oi + i - fi];
-            let s: f64 = row.iter().zip(&b[k0..i]).map(|(a, x)| a * x).sum();
-            b[i] = (b[i] - s) / self.data[oi + i - fi];
-        }
-        for i in (0..n).rev() {
-            let (fi, oi) = (self.first[i], self.offset[i]);
-            b[i] /= self.data[oi + i - fi];
-            let xi = b[i];
-            for (bk, l) in b[fi..i].iter_mut().zip(&self.data[oi..oi + i - fi]) {
-                *bk -= l * xi;
-            }
-        }
-    }
-}
-
 /// Nodes with more neighbours than this are ordered last (see `FemSystem::new`).
 const HUB_DEGREE: usize = 64;
-
-/// Reverse Cuthill–McKee order of the nodes in `keep` (a bandwidth-
-/// reducing permutation); returns the kept nodes in the new order.
-pub(crate) fn reverse_cuthill_mckee(adj: &[Vec<usize>], keep: &[bool]) -> Vec<usize> {
-    let n = adj.len();
-    let degree = |i: usize| adj[i].iter().filter(|&&j| keep[j]).count();
-    let mut seen = vec![false; n];
-    let mut order = Vec::with_capacity(n);
-    loop {
-        // Start each component at a kept, unseen node of minimum degree.
-        let start = (0..n)
-            .filter(|&i| keep[i] && !seen[i])
-            .min_by_key(|&i| (degree(i), i));
-        let Some(start) = start else { break };
-        seen[start] = true;
-        let mut queue = VecDeque::from([start]);
-        while let Some(i) = queue.pop_front() {
-            order.push(i);
-            let mut next: Vec<usize> = adj[i]
-                .iter()
-                .copied()
-                .filter(|&j| keep[j] && !seen[j])
-                .collect();
-            next.sort_by_key(|&j| (degree(j), j));
-            for j in next {
-                seen[j] = true;
-                queue.push_back(j);
-            }
-        }
-    }
-    order.reverse();
-    order
-}
 
 /// The assembled and factored FEM of an object with some surface nodes
 /// held fixed (the displacement-constrained set Λu).
@@ -442,7 +313,9 @@ impl FemSystem {
                 }
             }
         }
-        chol.factor()?;
+        chol.factor().map_err(|e| VeError::NotPositiveDefinite {
+            equation: e.equation,
+        })?;
         Ok(FemSystem {
             tet,
             dof_base,
@@ -528,42 +401,6 @@ impl FemSystem {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::DMatrix;
-
-    #[test]
-    fn skyline_cholesky_matches_dense_nalgebra_solve() {
-        // A banded SPD matrix with a ragged profile.
-        let n = 40;
-        let mut dense = DMatrix::<f64>::zeros(n, n);
-        let first: Vec<usize> = (0..n).map(|i| i.saturating_sub(1 + (i * 7) % 5)).collect();
-        let mut sky = SkylineCholesky::with_profile(first.clone());
-        for i in 0..n {
-            for j in first[i]..i {
-                let v = ((i * 31 + j * 17) % 11) as f64 / 11.0 - 0.5;
-                dense[(i, j)] = v;
-                dense[(j, i)] = v;
-                sky.add(i, j, v);
-            }
-            dense[(i, i)] = 6.0;
-            sky.add(i, i, 6.0);
-        }
-        sky.factor().unwrap();
-        let b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
-        let mut x = b.clone();
-        sky.solve_in_place(&mut x);
-        let want = dense
-            .cholesky()
-            .unwrap()
-            .solve(&nalgebra::DVector::from_vec(b));
-        for i in 0..n {
-            assert!(
-                (x[i] - want[i]).abs() < 1e-13,
-                "row {i}: {} vs {}",
-                x[i],
-                want[i]
-            );
-        }
-    }
 
     #[test]
     fn element_stiffness_has_rigid_body_null_space() {
