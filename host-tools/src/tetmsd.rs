@@ -163,7 +163,7 @@ fn load(args: &ScenarioArgs) -> Result<(Scenario, String)> {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read {}", p.display()))?;
             let name = p.display().to_string();
-            let s: Scenario = toml::from_str(&text).map_err(|e| anyhow!("{name}: {e}"))?;
+            let s: Scenario = host_tools::input::from_toml(&text, &name)?;
             (s, name)
         }
         None => (Scenario::default(), "the default scenario".to_string()),
@@ -579,7 +579,7 @@ fn site(args: &SiteArgs) -> Result<()> {
     let text = std::fs::read_to_string(&args.scenario)
         .with_context(|| format!("cannot read {}", args.scenario.display()))?;
     let scenario: Scenario =
-        toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", args.scenario.display()))?;
+        host_tools::input::from_toml(&text, &args.scenario.display().to_string())?;
     let setup = site_setup(&scenario, args.site, args.spin_us, args.rt_priority)?;
     let socket = bind()?;
     outln!("port {}", socket.local_addr()?.port());

@@ -48,8 +48,13 @@ use std::time::{Duration, Instant};
 /// Capacity of each inter-thread channel and of the haptic thread's
 /// backlog (ticks): 4 s of input.
 const CHANNEL_TICKS: usize = 4096;
-/// The network thread's socket wait (µs): the emulator's release
-/// resolution.
+/// How long the network thread sleeps after a pass that received nothing
+/// (µs): the emulator's release resolution. The socket is non-blocking and
+/// the thread sleeps (nanosleep, a high-resolution timer) rather than
+/// waiting in a socket read timeout: Linux rounds `SO_RCVTIMEO` up to
+/// whole scheduler ticks, and a 200 µs timeout measured 6–16 ms on the
+/// benchmark machine, which added about 7 ms to every round trip and had
+/// half the inputs resent spuriously.
 const NET_POLL_US: u64 = 200;
 /// How long a site waits for its peer's hello.
 const HELLO_TIMEOUT: Duration = Duration::from_secs(20);
@@ -535,6 +540,8 @@ fn deformation_thread(
     let mut busy = Duration::ZERO;
     let mut grip_node = None;
     let mut local_open = true;
+    // Published snapshots the haptic or display thread may still hold.
+    let mut retired: Vec<Arc<Snapshot>> = Vec::new();
     loop {
         if shared.abort.load(Ordering::Relaxed) {
             bail!("stopped: another thread failed");
@@ -576,8 +583,15 @@ fn deformation_thread(
                 peer_grip: replicas.peer_grip(),
             });
             if let Ok(mut s) = shared.shape.lock() {
-                *s = snap;
+                retired.push(std::mem::replace(&mut *s, snap));
             }
+            // The haptic thread must never free a snapshot: free() of
+            // memory this thread allocated takes this thread's malloc
+            // arena lock, and waiting for it behind a preempted
+            // deformation thread stalled the real-time haptic loop for up
+            // to 36 ms. Snapshots are freed here once only this list holds
+            // them.
+            retired.retain(|a| Arc::strong_count(a) > 1);
             shared
                 .committed_tick
                 .store(replicas.committed().tick, Ordering::Relaxed);
@@ -708,7 +722,9 @@ fn network_thread(
     // The network thread times the emulator's releases and the acks: one
     // step below the haptic thread when that one is real-time.
     let scheduling = realtime(setup.rt_priority.saturating_sub(1));
-    socket.set_read_timeout(Some(Duration::from_micros(NET_POLL_US)))?;
+    socket
+        .set_nonblocking(true)
+        .context("cannot make the UDP socket non-blocking")?;
     let mut buf = [0u8; 128];
     let mut backlog: VecDeque<(u64, Manipulation)> = VecDeque::new();
     let mut send_errors = 0u64;
@@ -751,6 +767,7 @@ fn network_thread(
         }
         let mut got = 0;
         while got < 64 {
+            // Empty (WouldBlock) or a transient error: try again next pass.
             let Ok((len, _)) = socket.recv_from(&mut buf) else {
                 break;
             };
@@ -804,6 +821,9 @@ fn network_thread(
             if peer_bye || t.elapsed() > LINGER {
                 break;
             }
+        }
+        if got == 0 {
+            thread::sleep(Duration::from_micros(NET_POLL_US));
         }
         if local_done && last_input_at.elapsed() > DRAIN_LIMIT {
             bail!(
