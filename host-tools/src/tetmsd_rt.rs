@@ -587,10 +587,10 @@ fn deformation_thread(
             }
             // The haptic thread must never free a snapshot: free() of
             // memory this thread allocated takes this thread's malloc
-            // arena lock, and waiting for it behind a preempted
-            // deformation thread stalled the real-time haptic loop for up
-            // to 36 ms. Snapshots are freed here once only this list holds
-            // them.
+            // arena lock, which a preempted deformation thread may hold.
+            // With the frees here the haptic loop's worst lateness in 10 s
+            // runs fell from 26–36 ms to about 6 ms. Snapshots are freed
+            // once only this list holds them.
             retired.retain(|a| Arc::strong_count(a) > 1);
             shared
                 .committed_tick
