@@ -15,5 +15,6 @@ pub mod report;
 pub mod scenario;
 pub mod sim;
 pub mod stop;
+pub mod tetmsd_rt;
 pub mod trace;
 pub mod visco_core;

@@ -12,6 +12,7 @@ mod serial_cmds;
 mod contour;
 mod dlo;
 mod push;
+mod tetmsd;
 mod tissue;
 mod viscoelastic;
 
@@ -41,6 +42,9 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// A tetrahedral Voigt cube deformed by two haptic users at two sites
+    /// over a network (seed 000, Yamaguchi): simulate, pair.
+    Tetmsd(tetmsd::TetArgs),
     /// Periodic and closed smoothing spline contours (seed 000, Fujioka &
     /// Kano): fit tracked contours and deforming contours over time, or
     /// write the paper's test cases.
@@ -121,6 +125,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Tetmsd(args) => tetmsd::run(args),
         Command::Contour(args) => contour::run(args),
         Command::Dlo(args) => dlo::run(args),
         Command::Tissue(args) => tissue::run(args),

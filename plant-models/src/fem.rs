@@ -16,7 +16,6 @@
 //! inertia (quasi-static), contact (callers decide what is prescribed),
 //! other element types.
 use nalgebra::{SMatrix, SVector};
-use std::collections::VecDeque;
 use thiserror::Error;
 
 /// Why an FEM assembly or solve refused its input.
@@ -184,44 +183,12 @@ pub const HEX_TETS: [[usize; 4]; 6] = [
     [0, 5, 1, 6],
 ];
 
+use crate::linalg::reverse_cuthill_mckee;
 pub use crate::linalg::SkylineCholesky;
 
 /// Nodes with more neighbours than this are ordered last (see
 /// [`ElasticSystem::new`]).
 const HUB_DEGREE: usize = 64;
-
-/// Reverse Cuthill–McKee order of the nodes in `keep` (a bandwidth-
-/// reducing permutation); returns the kept nodes in the new order.
-fn reverse_cuthill_mckee(adj: &[Vec<usize>], keep: &[bool]) -> Vec<usize> {
-    let n = adj.len();
-    let degree = |i: usize| adj[i].iter().filter(|&&j| keep[j]).count();
-    let mut seen = vec![false; n];
-    let mut order = Vec::with_capacity(n);
-    loop {
-        // Start each component at a kept, unseen node of minimum degree.
-        let start = (0..n)
-            .filter(|&i| keep[i] && !seen[i])
-            .min_by_key(|&i| (degree(i), i));
-        let Some(start) = start else { break };
-        seen[start] = true;
-        let mut queue = VecDeque::from([start]);
-        while let Some(i) = queue.pop_front() {
-            order.push(i);
-            let mut next: Vec<usize> = adj[i]
-                .iter()
-                .copied()
-                .filter(|&j| keep[j] && !seen[j])
-                .collect();
-            next.sort_by_key(|&j| (degree(j), j));
-            for j in next {
-                seen[j] = true;
-                queue.push_back(j);
-            }
-        }
-    }
-    order.reverse();
-    order
-}
 
 /// The assembled and factored stiffness of a tetrahedral body with some
 /// degrees of freedom prescribed. Degree of freedom `3 n + c` is component

@@ -9,6 +9,7 @@ pub mod fem;
 pub mod joint;
 pub mod linalg;
 pub mod pushing;
+pub mod tetmsd;
 pub mod tissue;
 pub mod viscoelastic;
 
@@ -27,6 +28,9 @@ pub mod rng {
     //! | [`CAMERA`] | the joint's camera noise and occlusion |
     //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
+    //! | [`TETMSD_DELAY_BASE`] + s | `tetmsd`: one-way delays of the packets site s sends |
+    //! | [`TETMSD_LOSS_BASE`] + s | `tetmsd`: loss and reordering draws of site s's packets |
+    //! | [`TETMSD_TEST_BASE`] + k | `tetmsd` tests: random points, states and packets |
     //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise) |
     //! | [`LINK_FAULTS_BASE`] + d | the lockstep fault campaign's faults, direction d (0 host → board, 1 board → host) |
     //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
@@ -44,6 +48,14 @@ pub mod rng {
     /// `hal-sim`'s simulated coder k draws its dropouts from
     /// `HAL_SIM_SENSOR_BASE + k`.
     pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+    /// The tetrahedral session's network emulator draws the one-way delays
+    /// of the packets site s (0 or 1) sends from `TETMSD_DELAY_BASE + s`.
+    pub const TETMSD_DELAY_BASE: u64 = 0x300;
+    /// … and their loss and reordering from `TETMSD_LOSS_BASE + s`.
+    pub const TETMSD_LOSS_BASE: u64 = 0x302;
+    /// Test data of the tetrahedral module (points, states, packets):
+    /// `TETMSD_TEST_BASE + k`, k < 16.
+    pub const TETMSD_TEST_BASE: u64 = 0x310;
     /// First stream of the contour splines (`plant_models::contour`).
     pub const CONTOUR_BASE: u64 = 0x500;
     /// Noise of the synthetic contour data `softjoint contour synth` writes.

@@ -256,6 +256,24 @@ pub fn print_json<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `value` as TOML after `header` (comment lines), after [`check_value`]
+/// (`target` names where it goes, for the error).
+pub fn toml<T: Serialize + ?Sized>(
+    target: &str,
+    header: &str,
+    value: &T,
+) -> anyhow::Result<String> {
+    check_value(target, value)?;
+    Ok(format!("{header}{}", toml::to_string_pretty(value)?))
+}
+
+/// Prints `value` as TOML after `header` on standard output.
+pub fn print_toml<T: Serialize + ?Sized>(header: &str, value: &T) -> anyhow::Result<()> {
+    let text = toml("standard output", header, value)?;
+    crate::out!("{text}");
+    Ok(())
+}
+
 /// Prints CSV text on standard output after [`check_csv`].
 pub fn print_csv(text: &str) -> anyhow::Result<()> {
     check_csv("standard output", text)?;
