@@ -5,6 +5,7 @@
 pub mod csv_input;
 pub mod joint;
 pub mod pushing;
+pub mod rheology;
 pub mod viscoelastic;
 
 pub mod rng {
@@ -22,6 +23,10 @@ pub mod rng {
     //! | [`CAMERA`] | the joint's camera noise and occlusion |
     //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
+    //! | [`RHEOLOGY_POINTS`] | the rheology reference's surface-point sampling |
+    //! | [`RHEOLOGY_POINT_NOISE`] | its surface-point noise |
+    //! | [`RHEOLOGY_FORCE_NOISE`] | its force-sensor noise |
+    //! | [`RHEOLOGY_SEARCH`] | the rheology calibrations (GA, RA, uniform search) |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -32,6 +37,14 @@ pub mod rng {
     /// `hal-sim`'s simulated coder k draws its dropouts from
     /// `HAL_SIM_SENSOR_BASE + k`.
     pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+    /// The rheology reference block's choice of surface points.
+    pub const RHEOLOGY_POINTS: u64 = 0x200;
+    /// The rheology reference block's surface-point noise.
+    pub const RHEOLOGY_POINT_NOISE: u64 = 0x201;
+    /// The rheology reference block's force-sensor noise.
+    pub const RHEOLOGY_FORCE_NOISE: u64 = 0x202;
+    /// The rheology calibrations' random draws (GA, RA, uniform search).
+    pub const RHEOLOGY_SEARCH: u64 = 0x203;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
