@@ -9,6 +9,7 @@ use host_tools::{calibrate, report, scenario::Scenario, sim};
 mod serial_cmds;
 
 mod push;
+mod rheology;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -37,6 +38,9 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// Rheology lattice of a dough-like block (seed 000, Noborio):
+    /// simulate a push, calibrate by the paper's GA or RA.
+    Rheology(rheology::RheologyArgs),
 }
 
 #[derive(Args)]
@@ -109,6 +113,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Rheology(args) => rheology::run_command(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

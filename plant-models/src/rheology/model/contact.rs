@@ -334,8 +334,10 @@ impl Contacts {
         for n in 0..x.len() {
             let (xn, vn) = (&x[n], &v[n]);
             let area = self.areas_m2[n];
-            // Table at y = 0.
-            let pen = -(xn.y + h * vn.y);
+            // Table at y = 0. In contact when the mass is in the table now
+            // or would be at the end of the step at its present velocity
+            // (a look-ahead alone would toggle a resting mass on and off).
+            let pen = (-xn.y).max(-(xn.y + h * vn.y));
             let st = &mut self.states[n];
             if pen > 0.0 {
                 let stiff = kp * area;
@@ -358,7 +360,7 @@ impl Contacts {
             if let (Some(plate), Some(face)) = (&self.plate, face) {
                 let cover = plate.coverage(xn.x, xn.z, self.cell_m);
                 let stiff = kp * area * cover;
-                let pen = xn.y + h * vn.y - face;
+                let pen = (xn.y - face).max(xn.y + h * vn.y - face);
                 if cover > 0.0 && pen > 0.0 {
                     if st.plate == Tangential::Free {
                         st.plate = Tangential::Stuck([xn.x, xn.z]);

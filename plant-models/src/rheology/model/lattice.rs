@@ -297,6 +297,36 @@ impl Lattice {
     }
 }
 
+/// The section through the middle of a grid of `nodes` (x, y, z) at
+/// positions `x` (grid nodes first, index `i + nx·(j + ny·k)`): nx × ny
+/// points, row by row in j, the mean of the two middle layers when nz is
+/// even.
+pub fn mid_section(nodes: [usize; 3], x: &[V3]) -> Vec<V3> {
+    let [nx, ny, nz] = nodes;
+    let (k0, k1) = if nz % 2 == 1 {
+        (nz / 2, nz / 2)
+    } else {
+        (nz / 2 - 1, nz / 2)
+    };
+    let mut out = Vec::with_capacity(nx * ny);
+    for j in 0..ny {
+        for i in 0..nx {
+            let a = x[i + nx * (j + ny * k0)];
+            let b = x[i + nx * (j + ny * k1)];
+            out.push((a + b) * 0.5);
+        }
+    }
+    out
+}
+
+/// The distinct masses on a surface (sorted).
+pub fn surface_nodes(surface: &[[u32; 3]]) -> Vec<usize> {
+    let mut n: Vec<usize> = surface.iter().flatten().map(|&v| v as usize).collect();
+    n.sort_unstable();
+    n.dedup();
+    n
+}
+
 /// Volume enclosed by outward triangles (divergence theorem).
 pub fn enclosed_volume_m3(surface: &[[u32; 3]], x: &[V3]) -> f64 {
     surface

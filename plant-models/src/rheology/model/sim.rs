@@ -165,6 +165,9 @@ pub struct LatticeSim<'a> {
     dir: Vec<V3>,
     f0: Vec<f64>,
     beta: Vec<f64>,
+    pairs: Vec<[u32; 2]>,
+    scaled_dir: Vec<V3>,
+    v_prev: Vec<V3>,
     rhs: Vec<V3>,
     diag: Vec<M3>,
     grad: Vec<V3>,
@@ -247,6 +250,9 @@ impl<'a> LatticeSim<'a> {
             dir: vec![V3::zeros(); ne],
             f0: vec![0.0; ne],
             beta: vec![0.0; ne],
+            pairs: lattice.elements.iter().map(|e| [e.i, e.j]).collect(),
+            scaled_dir: vec![V3::zeros(); ne],
+            v_prev: vec![V3::zeros(); n],
             rhs: vec![V3::zeros(); n],
             diag: vec![M3::zeros(); n],
             grad: vec![V3::zeros(); n],
@@ -388,6 +394,7 @@ impl<'a> LatticeSim<'a> {
             self.f0[e] = f0;
             self.beta[e] = beta;
             let n = self.dir[e];
+            self.scaled_dir[e] = n * beta.sqrt();
             self.rhs[el.i as usize] += f0 * n;
             self.rhs[el.j as usize] -= f0 * n;
             let block = n.outer(&n) * beta;
@@ -410,7 +417,10 @@ impl<'a> LatticeSim<'a> {
         for d in self.diag.iter_mut() {
             *d = invert_block(d);
         }
-        self.v_new.copy_from_slice(&self.v);
+        // Warm start: the velocity extrapolated linearly over the step.
+        for i in 0..self.v.len() {
+            self.v_new[i] = self.v[i] * 2.0 - self.v_prev[i];
+        }
         for d in &self.drives {
             let vel = self.drive_velocity(d, t_next, dt);
             for a in 0..3 {
@@ -419,16 +429,15 @@ impl<'a> LatticeSim<'a> {
                 }
             }
         }
-        let lattice = self.lattice;
-        let (dir, beta, contacts, grad) = (&self.dir, &self.beta, &self.contacts, &self.grad);
+        let (pairs, sdir, contacts, grad) =
+            (&self.pairs, &self.scaled_dir, &self.contacts, &self.grad);
         let mut apply = |v: &[V3], out: &mut [V3]| {
             for (o, vi) in out.iter_mut().zip(v) {
                 *o = *vi * (m / dt);
             }
-            for (e, el) in lattice.elements.iter().enumerate() {
-                let (i, j) = (el.i as usize, el.j as usize);
-                let n = dir[e];
-                let f = beta[e] * n.dot(&(v[i] - v[j])) * n;
+            for (&[i, j], s) in pairs.iter().zip(sdir) {
+                let (i, j) = (i as usize, j as usize);
+                let f = *s * s.dot(&(v[i] - v[j]));
                 out[i] += f;
                 out[j] -= f;
             }
@@ -462,6 +471,7 @@ impl<'a> LatticeSim<'a> {
             self.q[e] += dt * f / self.constants[e].c2_ns_per_m;
         }
         for i in 0..self.x.len() {
+            self.v_prev[i] = self.v[i];
             self.v[i] = self.v_new[i];
             self.x[i] += dt * self.v_new[i];
         }
