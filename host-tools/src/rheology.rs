@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use plant_models::rheology::contact::ContactParams;
 use plant_models::rheology::identify::calibrate::{calibrate, CalibrationSettings, Problem};
 use plant_models::rheology::identify::ga::GaSettings;
 use plant_models::rheology::identify::measurement::Measurement;
@@ -32,7 +33,6 @@ use plant_models::rheology::scenario::{
     lattice_sim, push_schedule_mm, run, BlockSpec, MeasureSpec, ModelSpec, Objective, ParamsSpec,
     PlateSpec, Run, Scenario,
 };
-use plant_models::rheology::contact::ContactParams;
 use serde::{Deserialize, Serialize};
 
 /// Arguments of `softjoint rheology`.
@@ -98,7 +98,7 @@ struct SimulateArgs {
     measured: Option<PathBuf>,
     /// Times of the cross-sections (s), comma-separated. Default: 0, the
     /// scenario's frame times.
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     section_times: Option<Vec<f64>>,
     /// Output directory.
     #[arg(long, default_value = "rheology-out")]
@@ -368,16 +368,28 @@ fn simulate_reference(
     write(&a.out.join("sections.svg"), &svg)?;
     let chart = force_chart(
         "Reference block: plate force (as measured, with sensor noise)",
-        &[("reference, measured", "#555", false, &r.t_s, &measured_force)],
+        &[(
+            "reference, measured",
+            "#555",
+            false,
+            &r.t_s,
+            &measured_force,
+        )],
         &[(
             "reference",
             "#555",
             &r.t_s,
-            &r.volume_m3.iter().map(|v| v / r.volume0_m3).collect::<Vec<_>>(),
+            &r.volume_m3
+                .iter()
+                .map(|v| v / r.volume0_m3)
+                .collect::<Vec<_>>(),
         )],
     );
     write(&a.out.join("force.svg"), &chart)?;
-    let peak = measured_force.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let peak = measured_force
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
     if a.json {
         println!(
             "{}",
@@ -546,7 +558,9 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 fn finite_or_null(v: f64) -> serde_json::Value {
-    finite(v).map(serde_json::Value::from).unwrap_or(serde_json::Value::Null)
+    finite(v)
+        .map(serde_json::Value::from)
+        .unwrap_or(serde_json::Value::Null)
 }
 
 fn score_json(s: Score) -> serde_json::Value {
@@ -654,7 +668,14 @@ fn sections_svg(
         let oy = top + (k / cols) as f64 * (panel_h + 34.0);
         let floor = oy + panel_h - 6.0;
         let tx = |p: V3| (ox + (p.x + margin_m) * scale, floor - p.y * scale);
-        svg.rect(ox, oy, panel_w, panel_h, "none", Some(Stroke::solid("#ddd", 1.0)));
+        svg.rect(
+            ox,
+            oy,
+            panel_w,
+            panel_h,
+            "none",
+            Some(Stroke::solid("#ddd", 1.0)),
+        );
         svg.line(
             (ox, floor),
             (ox + panel_w, floor),
@@ -695,10 +716,25 @@ fn sections_svg(
         // The plate.
         if let Some(pl) = &plate {
             if let Some(face) = pl.face_y_m(*t) {
-                let (x0, y0) = tx(V3::new(pl.centre_xz_m[0] - pl.footprint_m[0] / 2.0, face, 0.0));
-                let (x1, _) = tx(V3::new(pl.centre_xz_m[0] + pl.footprint_m[0] / 2.0, face, 0.0));
+                let (x0, y0) = tx(V3::new(
+                    pl.centre_xz_m[0] - pl.footprint_m[0] / 2.0,
+                    face,
+                    0.0,
+                ));
+                let (x1, _) = tx(V3::new(
+                    pl.centre_xz_m[0] + pl.footprint_m[0] / 2.0,
+                    face,
+                    0.0,
+                ));
                 let (x0, x1) = (x0.max(ox), x1.min(ox + panel_w));
-                svg.rect(x0, (y0 - 14.0).max(oy), x1 - x0, (y0 - oy).clamp(0.0, 14.0), "#f3c6c6", Some(Stroke::solid("#d22", 1.5)));
+                svg.rect(
+                    x0,
+                    (y0 - 14.0).max(oy),
+                    x1 - x0,
+                    (y0 - oy).clamp(0.0, 14.0),
+                    "#f3c6c6",
+                    Some(Stroke::solid("#d22", 1.5)),
+                );
             }
         }
         svg.text(
@@ -751,9 +787,11 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         }
     }
     let budget = Budget {
-        max_evaluations: a
-            .evaluations
-            .or(if a.seconds.is_none() { Some(1000) } else { None }),
+        max_evaluations: a.evaluations.or(if a.seconds.is_none() {
+            Some(1000)
+        } else {
+            None
+        }),
         max_seconds: a.seconds,
     };
     if a.measured.is_some() && (a.validate_depth_mm.is_some() || a.validate_push_s.is_some()) {
@@ -820,7 +858,8 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     let (best_score, best_run) = problem.score(&cal.best_params)?;
     fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     write(&a.out.join("params.toml"), &params_toml(&cal.best_params)?)?;
-    let mut csv = String::from("generation,evaluations,best_s,batch_best_s,batch_mean_s,elapsed_s\n");
+    let mut csv =
+        String::from("generation,evaluations,best_s,batch_best_s,batch_mean_s,elapsed_s\n");
     for h in &cal.search.history {
         let _ = writeln!(
             csv,
@@ -861,8 +900,20 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             "Plate force: measured, lattice with the defaults, calibrated lattice",
             &[
                 ("measured", "#555", false, &mt, &mf),
-                ("defaults", "#e80", true, &default_run.t_s, &default_run.plate_force_n),
-                ("calibrated", "#1f5fbf", false, &best_run.t_s, &best_run.plate_force_n),
+                (
+                    "defaults",
+                    "#e80",
+                    true,
+                    &default_run.t_s,
+                    &default_run.plate_force_n,
+                ),
+                (
+                    "calibrated",
+                    "#1f5fbf",
+                    false,
+                    &best_run.t_s,
+                    &best_run.plate_force_n,
+                ),
             ],
             &[
                 ("defaults", "#e80", &default_run.t_s, &vd),

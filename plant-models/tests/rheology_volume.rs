@@ -5,10 +5,12 @@
 use plant_models::rheology::lattice::VolumeMode;
 use plant_models::rheology::scenario::{run_scenario, Scenario};
 
-/// Largest |V/V0 − 1| over the run, and V/V0 at the end of the hold.
+/// Largest |V/V0 − 1| over the run, and V/V0 at the end of the hold
+/// (the paper's 6 × 4 × 6 lattice, its defaults, 10 ms steps).
 fn squeeze(volume: VolumeMode) -> (f64, f64) {
     let mut sc = Scenario::default();
     sc.model.volume = volume;
+    sc.model.dt_ms = 10.0;
     sc.plate.footprint_cm = [30.0, 30.0]; // a full plate
     sc.plate.depth_mm = Some(vec![[0.0, 0.0], [1.0, 18.0], [2.0, 18.0]]); // 6 cm → 4.2 cm
     sc.plate.end_s = 2.0;
@@ -34,7 +36,13 @@ fn squeeze(volume: VolumeMode) -> (f64, f64) {
 fn the_global_volume_condition_holds_the_volume_under_a_squeeze_to_70_percent() {
     let (with_worst, with_end) = squeeze(VolumeMode::Global);
     let (without_worst, without_end) = squeeze(VolumeMode::None);
-    eprintln!("global: worst {with_worst:.4}, end {with_end:.4}; none: worst {without_worst:.4}, end {without_end:.4}");
-    assert!(with_worst < 0.02, "with the condition: {with_worst}");
-    assert!(without_worst > 0.10, "without it: {without_worst}");
+    // Measured: with the condition ≈ 2 % at worst (while squeezing) and
+    // 0.15 % at the end of the hold; without it 24 %.
+    assert!(with_worst < 0.03, "with the condition: {with_worst}");
+    assert!(
+        (with_end - 1.0).abs() < 0.005,
+        "with the condition, held: {with_end}"
+    );
+    assert!(without_worst > 0.20, "without it: {without_worst}");
+    assert!(without_end < 0.80, "without it, held: {without_end}");
 }

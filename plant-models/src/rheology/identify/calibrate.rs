@@ -129,8 +129,22 @@ pub fn calibrate(
     let ranges = problem.set.ranges();
     let f = |g: &[f64]| problem.s_of_genes(g);
     let search = match settings.method {
-        Method::Ga => ga::run(&f, &ranges, &settings.ga, settings.budget, settings.seed, on_progress)?,
-        Method::Ra => ra::run(&f, &ranges, &settings.ra, settings.budget, settings.seed, on_progress)?,
+        Method::Ga => ga::run(
+            &f,
+            &ranges,
+            &settings.ga,
+            settings.budget,
+            settings.seed,
+            on_progress,
+        )?,
+        Method::Ra => ra::run(
+            &f,
+            &ranges,
+            &settings.ra,
+            settings.budget,
+            settings.seed,
+            on_progress,
+        )?,
         Method::Uniform => search::uniform(
             &f,
             &ranges,

@@ -140,7 +140,12 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
                 child
             })
             .collect();
-        let scores = tr.evaluate(&children.iter().map(|g| to_unit(g, bits)).collect::<Vec<_>>());
+        let scores = tr.evaluate(
+            &children
+                .iter()
+                .map(|g| to_unit(g, bits))
+                .collect::<Vec<_>>(),
+        );
         generation += 1;
         tr.record(generation, &scores);
         pop.extend(children.into_iter().zip(scores));
@@ -165,12 +170,24 @@ mod tests {
     #[test]
     fn the_ga_is_seeded_counts_its_evaluations_and_improves_on_a_bowl() {
         let target = [1.0, -2.0, 3.0, 0.5];
-        let f = |g: &[f64]| g.iter().zip(target).map(|(x, t)| (x - t).powi(2)).sum::<f64>();
+        let f = |g: &[f64]| {
+            g.iter()
+                .zip(target)
+                .map(|(x, t)| (x - t).powi(2))
+                .sum::<f64>()
+        };
         let r = ranges(4);
         let mut calls = 0;
         let mut progress = |_: &Progress| calls += 1;
-        let a = run(&f, &r, &GaSettings::default(), Budget::evaluations(2050), 7, &mut progress)
-            .unwrap();
+        let a = run(
+            &f,
+            &r,
+            &GaSettings::default(),
+            Budget::evaluations(2050),
+            7,
+            &mut progress,
+        )
+        .unwrap();
         assert_eq!(a.evaluations, 2050);
         assert_eq!(calls, a.history.len());
         // 50 first, then 40 per generation: 51 generations.
@@ -184,11 +201,25 @@ mod tests {
             a.best_s,
             a.history[0].best_s
         );
-        let b = run(&f, &r, &GaSettings::default(), Budget::evaluations(2050), 7, &mut |_| {})
-            .unwrap();
+        let b = run(
+            &f,
+            &r,
+            &GaSettings::default(),
+            Budget::evaluations(2050),
+            7,
+            &mut |_| {},
+        )
+        .unwrap();
         assert_eq!(a.best_genes, b.best_genes);
-        let c = run(&f, &r, &GaSettings::default(), Budget::evaluations(2050), 8, &mut |_| {})
-            .unwrap();
+        let c = run(
+            &f,
+            &r,
+            &GaSettings::default(),
+            Budget::evaluations(2050),
+            8,
+            &mut |_| {},
+        )
+        .unwrap();
         assert_ne!(a.best_genes, c.best_genes);
         // Best S never rises.
         assert!(a.history.windows(2).all(|w| w[1].best_s <= w[0].best_s));

@@ -87,14 +87,16 @@ impl Measurement {
                 "{}:{}{}",
                 e.file,
                 e.line,
-                e.column.map(|c| format!(": column `{c}`")).unwrap_or_default()
+                e.column
+                    .map(|c| format!(": column `{c}`"))
+                    .unwrap_or_default()
             ),
             reason: e.reason,
         };
         let t = read_numeric(points_text, points_file).map_err(malformed)?;
         t.require_rows(1, "of surface points").map_err(malformed)?;
-        let cols = ["frame", "time_s", "x_cm", "y_cm", "z_cm"]
-            .map(|c| t.column(c).map_err(malformed));
+        let cols =
+            ["frame", "time_s", "x_cm", "y_cm", "z_cm"].map(|c| t.column(c).map_err(malformed));
         let [fc, tc, xc, yc, zc] = cols;
         let (fc, tc, xc, yc, zc) = (fc?, tc?, xc?, yc?, zc?);
         let mut frames: Vec<PointFrame> = Vec::new();
@@ -200,7 +202,8 @@ mod tests {
                 },
             ],
         };
-        let back = Measurement::from_csv(&m.points_csv(), "p.csv", &m.forces_csv(), "f.csv").unwrap();
+        let back =
+            Measurement::from_csv(&m.points_csv(), "p.csv", &m.forces_csv(), "f.csv").unwrap();
         assert_eq!(back.frames.len(), 2);
         assert_eq!(back.point_count(), 3);
         assert!((back.frames[1].points_m[0] - V3::new(0.07, 0.08, 0.09)).norm() < 1e-9);
@@ -211,8 +214,8 @@ mod tests {
         let bad = "time_s,force_n\n0.1,1\n0.1,2\n";
         let e = Measurement::from_csv(&m.points_csv(), "p.csv", bad, "f.csv").unwrap_err();
         assert!(e.to_string().starts_with("f.csv:3: column `time_s`"), "{e}");
-        let e = Measurement::from_csv("frame,time_s,x_cm\n0,1,2\n", "p.csv", bad, "f.csv")
-            .unwrap_err();
+        let e =
+            Measurement::from_csv("frame,time_s,x_cm\n0,1,2\n", "p.csv", bad, "f.csv").unwrap_err();
         assert!(e.to_string().contains("y_cm"), "{e}");
     }
 }

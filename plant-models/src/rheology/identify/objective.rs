@@ -67,11 +67,11 @@ pub fn score(
     if obj.shape_per_cm > 0.0 {
         let mut grid = TriangleGrid::default();
         for frame in &m.frames {
-            let Some(model) = run
-                .frames
-                .iter()
-                .min_by(|a, b| (a.t_s - frame.t_s).abs().total_cmp(&(b.t_s - frame.t_s).abs()))
-            else {
+            let Some(model) = run.frames.iter().min_by(|a, b| {
+                (a.t_s - frame.t_s)
+                    .abs()
+                    .total_cmp(&(b.t_s - frame.t_s).abs())
+            }) else {
                 return out;
             };
             grid.build(surface, &model.positions_m);
@@ -176,7 +176,8 @@ impl TriangleGrid {
         let biggest = span.x.max(span.y).max(span.z);
         self.cell = mean_edge.max(biggest / 64.0);
         self.lo = lo;
-        self.dims = [span.x, span.y, span.z].map(|s| ((s / self.cell).floor() as usize + 1).min(65));
+        self.dims =
+            [span.x, span.y, span.z].map(|s| ((s / self.cell).floor() as usize + 1).min(65));
         let ncell = self.dims[0] * self.dims[1] * self.dims[2];
         self.counts.clear();
         self.counts.resize(ncell + 1, 0);
@@ -236,15 +237,14 @@ impl TriangleGrid {
             for k in lo[2]..=hi[2] {
                 for j in lo[1]..=hi[1] {
                     for i in lo[0]..=hi[0] {
-                        let on_shell = [i, j, k]
-                            .iter()
-                            .zip(c)
-                            .any(|(&q, cq)| q.abs_diff(cq) == r);
+                        let on_shell = [i, j, k].iter().zip(c).any(|(&q, cq)| q.abs_diff(cq) == r);
                         if !on_shell {
                             continue;
                         }
                         let cell = i + self.dims[0] * (j + self.dims[1] * k);
-                        for &t in &self.items[self.start[cell] as usize..self.start[cell + 1] as usize] {
+                        for &t in
+                            &self.items[self.start[cell] as usize..self.start[cell + 1] as usize]
+                        {
                             let [a, b, cc] = surface[t as usize].map(|n| x[n as usize]);
                             best = best.min(point_triangle_distance(p, &a, &b, &cc));
                         }

@@ -96,7 +96,11 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
             let penalty = s.abs() + 1.0;
             let g: Vec<f64> = (0..dim)
                 .map(|i| {
-                    let fi = if fs[i].is_finite() { fs[i] } else { s + penalty };
+                    let fi = if fs[i].is_finite() {
+                        fs[i]
+                    } else {
+                        s + penalty
+                    };
                     (fi - s) / (probes[i][i] - u[i])
                 })
                 .collect();
@@ -167,12 +171,26 @@ mod tests {
             })
             .collect();
         let f = |g: &[f64]| (g[0] - 3.0).powi(2) + (g[1] - 7.0).powi(2) + (g[2] - 5.0).abs();
-        let a = run(&f, &ranges, &RaSettings::default(), Budget::evaluations(600), 3, &mut |_| {})
-            .unwrap();
+        let a = run(
+            &f,
+            &ranges,
+            &RaSettings::default(),
+            Budget::evaluations(600),
+            3,
+            &mut |_| {},
+        )
+        .unwrap();
         assert_eq!(a.evaluations, 600);
         assert!(a.best_s < 0.05, "best {}", a.best_s);
-        let b = run(&f, &ranges, &RaSettings::default(), Budget::evaluations(600), 3, &mut |_| {})
-            .unwrap();
+        let b = run(
+            &f,
+            &ranges,
+            &RaSettings::default(),
+            Budget::evaluations(600),
+            3,
+            &mut |_| {},
+        )
+        .unwrap();
         assert_eq!(a.best_genes, b.best_genes);
         assert!(a.history.len() > 1, "several descent cycles");
     }

@@ -38,15 +38,17 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
 use crate::rheology::error::{
-    bad_setting, check_non_negative, check_positive, check_range, Instability, Result, RheologyError,
+    bad_setting, check_non_negative, check_positive, check_range, Instability, Result,
+    RheologyError,
 };
 use crate::rheology::identify::measurement::{ForceSample, Measurement, PointFrame};
 use crate::rheology::model::contact::{ContactParams, Contacts, Plate};
 use crate::rheology::model::lattice::{enclosed_volume_m3, V3};
 use crate::rheology::model::scenario::{Frame, Scenario};
 use crate::rheology::model::sim::GRAVITY_M_S2;
-use crate::rheology::model::solver::{invert_block, pcg, PcgWork};
+use crate::rheology::model::solver::{block_jacobi, invert_block, pcg, PcgWork};
 use crate::rheology::model::vec3::M3;
+use crate::viscoelastic::fem::SkylineCholesky;
 
 /// The reference dough's Burgers material (hidden constants; estimates
 /// chosen so that the lattice parameters that fit it best lie inside the
@@ -83,8 +85,14 @@ impl Default for BurgersMaterial {
 
 impl BurgersMaterial {
     fn validate(&self) -> Result<()> {
-        check_positive("reference.material.instant_shear_kpa", self.instant_shear_kpa)?;
-        check_positive("reference.material.retarded_shear_kpa", self.retarded_shear_kpa)?;
+        check_positive(
+            "reference.material.instant_shear_kpa",
+            self.instant_shear_kpa,
+        )?;
+        check_positive(
+            "reference.material.retarded_shear_kpa",
+            self.retarded_shear_kpa,
+        )?;
         check_positive(
             "reference.material.retarded_viscosity_kpa_s",
             self.retarded_viscosity_kpa_s,
@@ -170,7 +178,12 @@ impl ReferenceConfig {
         self.material.validate()?;
         self.contact.validate()?;
         check_positive("reference.dt_ms", self.dt_ms)?;
-        check_range("reference.solver_tolerance", self.solver_tolerance, 1e-14, 1e-2)?;
+        check_range(
+            "reference.solver_tolerance",
+            self.solver_tolerance,
+            1e-14,
+            1e-2,
+        )?;
         check_non_negative("reference.point_noise_mm", self.point_noise_mm)?;
         check_non_negative("reference.force_noise_n", self.force_noise_n)?;
         if self.points_per_frame == 0 || self.points_per_frame > 1_000_000 {
@@ -220,12 +233,20 @@ impl ReferenceBlock {
             for cj in 0..cells[1] {
                 for ci in 0..cells[0] {
                     let corner = |b: usize| id(ci + (b & 1), cj + ((b >> 1) & 1), ck + (b >> 2));
-                    for perm in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+                    for perm in [
+                        [0, 1, 2],
+                        [0, 2, 1],
+                        [1, 0, 2],
+                        [1, 2, 0],
+                        [2, 0, 1],
+                        [2, 1, 0],
+                    ] {
                         let b1 = 1usize << perm[0];
                         let b2 = b1 | (1 << perm[1]);
                         let mut t = [corner(0), corner(b1), corner(b2), corner(7)];
                         let p = |n: u32| rest_m[n as usize];
-                        let vol = (p(t[1]) - p(t[0])).dot(&(p(t[2]) - p(t[0])).cross(&(p(t[3]) - p(t[0]))));
+                        let vol = (p(t[1]) - p(t[0]))
+                            .dot(&(p(t[2]) - p(t[0])).cross(&(p(t[3]) - p(t[0]))));
                         if vol < 0.0 {
                             t.swap(2, 3);
                         }
@@ -243,9 +264,9 @@ impl ReferenceBlock {
             let p = t.map(|n| rest_m[n as usize]);
             let dm = M3::from_columns(p[1] - p[0], p[2] - p[0], p[3] - p[0]);
             let vol = dm.determinant() / 6.0;
-            let inv = dm.try_inverse().ok_or_else(|| {
-                bad_setting("reference.cells", "a degenerate tetrahedron")
-            })?;
+            let inv = dm
+                .try_inverse()
+                .ok_or_else(|| bad_setting("reference.cells", "a degenerate tetrahedron"))?;
             let row = |r: usize| V3::new(inv[(r, 0)], inv[(r, 1)], inv[(r, 2)]);
             let (g1, g2, g3) = (row(0), row(1), row(2));
             grads.push([-(g1 + g2 + g3), g1, g2, g3]);
@@ -356,13 +377,44 @@ pub fn polar_rotation(f: &M3) -> Option<M3> {
     Some(x)
 }
 
+/// Refactor the preconditioner when a solve took more iterations than
+/// this …
+const REFACTOR_ITERATIONS: usize = 12;
+/// … or after this many steps.
+const REFACTOR_STEPS: usize = 100;
+
 fn dev(m: &M3) -> M3 {
     *m - M3::identity() * (m.trace() / 3.0)
+}
+
+/// A tetrahedron's step matrix `scale·K_e` (12×12, row-major, node-major
+/// xyz) with the rotation `r` held: block (k, l) is
+/// `G (g_l·g_k) I + G (R g_l)(R g_k)ᵀ + (K − 2G/3)(R g_k)(R g_l)ᵀ`
+/// (the co-rotated small-strain stiffness; equal to probing
+/// [`tet_force_change`] with unit velocities, as a test checks).
+fn tet_step_matrix(r: &M3, grads: &[V3; 4], g: f64, bulk: f64, scale: f64, ke: &mut [f64; 144]) {
+    let h = grads.map(|gk| *r * gk);
+    let lam = bulk - 2.0 * g / 3.0;
+    for k in 0..4 {
+        for l in 0..4 {
+            let gg = g * grads[l].dot(&grads[k]);
+            for a in 0..3 {
+                for b in 0..3 {
+                    let mut v = g * h[l][a] * h[k][b] + lam * h[k][a] * h[l][b];
+                    if a == b {
+                        v += gg;
+                    }
+                    ke[(3 * k + a) * 12 + 3 * l + b] = v * scale;
+                }
+            }
+        }
+    }
 }
 
 /// The force change on a tetrahedron's nodes (per unit volume) for nodal
 /// velocities `dv`, rotation `r` held: the co-rotated small-strain
 /// increment times the step's moduli.
+#[cfg(test)]
 fn tet_force_change(r: &M3, grads: &[V3; 4], g: f64, bulk: f64, dv: &[V3; 4]) -> [V3; 4] {
     let mut df = M3::zeros();
     for k in 0..4 {
@@ -491,7 +543,9 @@ fn sample_surface(
     let mut points = Vec::with_capacity(count);
     for _ in 0..count {
         let r = rng.gen::<f64>() * total;
-        let k = cumulative.partition_point(|&c| c < r).min(visible.len() - 1);
+        let k = cumulative
+            .partition_point(|&c| c < r)
+            .min(visible.len() - 1);
         let t = visible[k];
         let [a, b, c] = block.surface[t].map(|n| x[n as usize]);
         let (u, v): (f64, f64) = (rng.gen(), rng.gen());
@@ -524,6 +578,16 @@ struct ReferenceSim<'a> {
     /// xyz), rebuilt every step with the step's rotation.
     stiffness: Vec<[f64; 144]>,
     iterations: usize,
+    /// Cholesky factor of a recent step matrix, the preconditioner (the
+    /// matrix changes slowly: rotations and contacts); refreshed when a
+    /// solve takes more than `REFACTOR_ITERATIONS` or every
+    /// `REFACTOR_STEPS` steps.
+    factor: Option<SkylineCholesky>,
+    profile: Vec<usize>,
+    since_factor: usize,
+    last_iterations: usize,
+    flat: Vec<f64>,
+    blocks: Vec<M3>,
     rhs: Vec<V3>,
     diag: Vec<M3>,
     v_new: Vec<V3>,
@@ -533,7 +597,12 @@ struct ReferenceSim<'a> {
 }
 
 impl<'a> ReferenceSim<'a> {
-    fn new(block: &'a ReferenceBlock, cfg: &ReferenceConfig, contacts: Contacts, gravity: bool) -> Self {
+    fn new(
+        block: &'a ReferenceBlock,
+        cfg: &ReferenceConfig,
+        contacts: Contacts,
+        gravity: bool,
+    ) -> Self {
         let (n, t) = (block.rest_m.len(), block.tets.len());
         Self {
             block,
@@ -550,6 +619,23 @@ impl<'a> ReferenceSim<'a> {
             e_star: vec![M3::zeros(); t],
             stiffness: vec![[0.0; 144]; t],
             iterations: 0,
+            factor: None,
+            profile: {
+                // Row 3n+a starts at the first coordinate of n's lowest
+                // neighbour.
+                let mut low: Vec<usize> = (0..n).collect();
+                for tet in &block.tets {
+                    let m = *tet.iter().min().unwrap_or(&0) as usize;
+                    for &v in tet {
+                        low[v as usize] = low[v as usize].min(m);
+                    }
+                }
+                (0..3 * n).map(|r| 3 * low[r / 3]).collect()
+            },
+            since_factor: 0,
+            last_iterations: 0,
+            flat: vec![0.0; 3 * n],
+            blocks: vec![M3::zeros(); n],
             rhs: vec![V3::zeros(); n],
             diag: vec![M3::zeros(); n],
             v_new: vec![V3::zeros(); n],
@@ -577,7 +663,48 @@ impl<'a> ReferenceSim<'a> {
             m.flow_viscosity_kpa_s * 1e3,
         );
         let voigt = g2 + eta2 / dt;
-        (1.0 / (1.0 / g1 + 1.0 / voigt + dt / eta1), eta2 / dt / voigt)
+        (
+            1.0 / (1.0 / g1 + 1.0 / voigt + dt / eta1),
+            eta2 / dt / voigt,
+        )
+    }
+
+    /// Factors this step's matrix (mass, tetrahedra, contacts) for the
+    /// preconditioner; on failure the solve falls back to block Jacobi.
+    fn refactor(&mut self, dt: f64) {
+        let block = self.block;
+        let mut sk = SkylineCholesky::with_profile(self.profile.clone());
+        for (i, m) in block.node_mass_kg.iter().enumerate() {
+            for a in 0..3 {
+                sk.add(3 * i + a, 3 * i + a, m / dt);
+            }
+        }
+        for (t, ke) in self.stiffness.iter().enumerate() {
+            let tet = block.tets[t];
+            for r in 0..12 {
+                let gr = 3 * tet[r / 3] as usize + r % 3;
+                for c in 0..12 {
+                    let gc = 3 * tet[c / 3] as usize + c % 3;
+                    if gc <= gr {
+                        sk.add(gr, gc, ke[r * 12 + c]);
+                    }
+                }
+            }
+        }
+        self.blocks.fill(M3::zeros());
+        self.contacts.add_diag(&mut self.blocks);
+        for (i, b) in self.blocks.iter().enumerate() {
+            for a in 0..3 {
+                for c in 0..=a {
+                    if b[(a, c)] != 0.0 {
+                        sk.add(3 * i + a, 3 * i + c, b[(a, c)]);
+                    }
+                }
+            }
+        }
+        self.factor = sk.factor().ok().map(|_| sk);
+        self.since_factor = 0;
+        self.last_iterations = 0;
     }
 
     fn deformation(&self, t: usize, x: &[V3]) -> M3 {
@@ -617,27 +744,16 @@ impl<'a> ReferenceSim<'a> {
             self.rot[t] = r;
             self.e_star[t] = self.e_flow[t] + self.e_voigt[t] * voigt_share;
             let eps = (r.transpose() * f).sym() - M3::identity();
-            let sigma = (dev(&eps) - self.e_star[t]) * (2.0 * g)
-                + M3::identity() * (bulk * eps.trace());
+            let sigma =
+                (dev(&eps) - self.e_star[t]) * (2.0 * g) + M3::identity() * (bulk * eps.trace());
             let p = r * sigma;
             let vol = block.volumes_m3[t];
             let gr = &block.grads[t];
             for k in 0..4 {
                 self.rhs[block.tets[t][k] as usize] -= (p * gr[k]) * vol;
             }
-            // The step matrix, column by column: the force change of a
-            // unit velocity of one node coordinate.
             let ke = &mut self.stiffness[t];
-            for col in 0..12 {
-                let mut unit = [V3::zeros(); 4];
-                unit[col / 3][col % 3] = 1.0;
-                let out = tet_force_change(&r, gr, g, bulk, &unit);
-                for (k, o) in out.iter().enumerate() {
-                    for a in 0..3 {
-                        ke[(3 * k + a) * 12 + col] = o[a] * vol * dt;
-                    }
-                }
-            }
+            tet_step_matrix(&r, gr, g, bulk, vol * dt, ke);
             for k in 0..4 {
                 let n = block.tets[t][k] as usize;
                 for a in 0..3 {
@@ -649,6 +765,13 @@ impl<'a> ReferenceSim<'a> {
         }
         self.contacts.add_rhs(&mut self.rhs);
         self.contacts.add_diag(&mut self.diag);
+        if self.factor.is_none()
+            || self.last_iterations > REFACTOR_ITERATIONS
+            || self.since_factor >= REFACTOR_STEPS
+        {
+            self.refactor(dt);
+        }
+        self.since_factor += 1;
         for d in self.diag.iter_mut() {
             *d = invert_block(d);
         }
@@ -680,9 +803,25 @@ impl<'a> ReferenceSim<'a> {
             }
             contacts.add_apply(v, out);
         };
+        let mut jacobi = block_jacobi(&self.diag);
+        let (factor, flat) = (&self.factor, &mut self.flat);
+        let mut precondition = |r: &[V3], z: &mut [V3]| match factor {
+            Some(f) => {
+                for (i, ri) in r.iter().enumerate() {
+                    flat[3 * i] = ri.x;
+                    flat[3 * i + 1] = ri.y;
+                    flat[3 * i + 2] = ri.z;
+                }
+                f.solve_in_place(flat);
+                for (i, zi) in z.iter_mut().enumerate() {
+                    *zi = V3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
+                }
+            }
+            None => jacobi(r, z),
+        };
         let iterations = pcg(
             &mut apply,
-            &self.diag,
+            &mut precondition,
             &self.fixed,
             &self.rhs,
             &mut self.v_new,
@@ -700,6 +839,7 @@ impl<'a> ReferenceSim<'a> {
             )
         })?;
         self.iterations += iterations;
+        self.last_iterations = iterations;
         for i in 0..self.x.len() {
             self.v_prev[i] = self.v[i];
             self.v[i] = self.v_new[i];
@@ -750,6 +890,42 @@ mod tests {
         let mut mirror = M3::identity();
         mirror[(0, 0)] = -1.0;
         assert!(polar_rotation(&mirror).is_none());
+    }
+
+    #[test]
+    fn the_analytic_step_matrix_equals_probing_the_force_change() {
+        let b = ReferenceBlock::new([0.02, 0.01, 0.02], 0.01, [1, 1, 1]).unwrap();
+        let r = polar_rotation(&M3 {
+            m: [[0.9, -0.3, 0.1], [0.35, 0.95, 0.0], [-0.1, 0.05, 1.1]],
+        })
+        .unwrap();
+        let (g, bulk) = (1.3e6, 9e6);
+        for t in 0..b.tet_count() {
+            let mut ke = [0.0; 144];
+            tet_step_matrix(&r, &b.grads[t], g, bulk, 1.0, &mut ke);
+            for col in 0..12 {
+                let mut unit = [V3::zeros(); 4];
+                unit[col / 3][col % 3] = 1.0;
+                let out = tet_force_change(&r, &b.grads[t], g, bulk, &unit);
+                for (k, o) in out.iter().enumerate() {
+                    for a in 0..3 {
+                        let want = o[a];
+                        let got = ke[(3 * k + a) * 12 + col];
+                        assert!(
+                            (got - want).abs() < 1e-9 * want.abs().max(1.0),
+                            "{got} vs {want}"
+                        );
+                    }
+                }
+            }
+            // Symmetric.
+            for i in 0..12 {
+                for j in 0..12 {
+                    let scale = ke[i * 12 + j].abs().max(1.0);
+                    assert!((ke[i * 12 + j] - ke[j * 12 + i]).abs() < 1e-12 * scale);
+                }
+            }
+        }
     }
 
     #[test]

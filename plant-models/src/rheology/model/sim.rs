@@ -35,7 +35,7 @@ use crate::rheology::error::{
 use crate::rheology::model::contact::{Contacts, Schedule};
 use crate::rheology::model::element::ElementConstants;
 use crate::rheology::model::lattice::{volume_gradient, Lattice, V3};
-use crate::rheology::model::solver::{invert_block, pcg, PcgWork};
+use crate::rheology::model::solver::{block_jacobi, invert_block, pcg, PcgWork};
 
 /// Standard gravity (m/s²).
 pub const GRAVITY_M_S2: f64 = 9.806_65;
@@ -451,7 +451,7 @@ impl<'a> LatticeSim<'a> {
         };
         let iterations = pcg(
             &mut apply,
-            &self.diag,
+            &mut block_jacobi(&self.diag),
             &self.fixed,
             &self.rhs,
             &mut self.v_new,

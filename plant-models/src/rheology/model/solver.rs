@@ -29,13 +29,14 @@ fn dot(a: &[V3], b: &[V3]) -> f64 {
 
 /// Solves `A x = b` for the free components (`fixed[n][a]` 0), keeping
 /// `x` of the fixed ones (`fixed[n][a]` 1) as given and starting the free ones from `x` (a warm
-/// start). `apply(v, out)` writes `A v`; `inv_diag` holds the inverse 3×3
-/// diagonal blocks of A. Stops when `‖r‖ ≤ tol·‖b_free − A_fc x_c‖`.
+/// start). `apply(v, out)` writes `A v`; `precondition(r, z)` writes an
+/// approximation of `A⁻¹ r` (symmetric positive definite; see
+/// [`block_jacobi`]). Stops when `‖r‖ ≤ tol·‖b_free − A_fc x_c‖`.
 /// Returns the iterations used.
 #[allow(clippy::too_many_arguments)]
 pub fn pcg(
     apply: &mut dyn FnMut(&[V3], &mut [V3]),
-    inv_diag: &[M3],
+    precondition: &mut dyn FnMut(&[V3], &mut [V3]),
     fixed: &[V3],
     b: &[V3],
     x: &mut [V3],
@@ -74,8 +75,9 @@ pub fn pcg(
     if dot(&w.r, &w.r).sqrt() <= target {
         return Ok(0);
     }
+    precondition(&w.r, &mut w.z);
     for i in 0..n {
-        w.z[i] = free(i, inv_diag[i] * w.r[i]);
+        w.z[i] = free(i, w.z[i]);
         w.p[i] = w.z[i];
     }
     let mut rz = dot(&w.r, &w.z);
@@ -103,8 +105,9 @@ pub fn pcg(
         if !rn.is_finite() {
             break;
         }
+        precondition(&w.r, &mut w.z);
         for i in 0..n {
-            w.z[i] = free(i, inv_diag[i] * w.r[i]);
+            w.z[i] = free(i, w.z[i]);
         }
         let rz_new = dot(&w.r, &w.z);
         let beta = rz_new / rz;
@@ -117,6 +120,15 @@ pub fn pcg(
         iterations: max_iter,
         relative_residual: dot(&w.r, &w.r).sqrt() / scale,
     })
+}
+
+/// The block-Jacobi preconditioner of inverse diagonal blocks `inv_diag`.
+pub fn block_jacobi(inv_diag: &[M3]) -> impl FnMut(&[V3], &mut [V3]) + '_ {
+    move |r: &[V3], z: &mut [V3]| {
+        for ((zi, ri), d) in z.iter_mut().zip(r).zip(inv_diag) {
+            *zi = *d * *ri;
+        }
+    }
 }
 
 /// The inverse of a symmetric positive 3×3 block, or of its diagonal when
@@ -160,7 +172,17 @@ mod tests {
         let mut x = vec![V3::zeros(); n];
         x[0] = V3::new(0.5, -0.5, 1.0);
         let mut w = PcgWork::default();
-        let it = pcg(&mut apply, &diag, &fixed, &b, &mut x, 1e-12, 100, &mut w).unwrap();
+        let it = pcg(
+            &mut apply,
+            &mut block_jacobi(&diag),
+            &fixed,
+            &b,
+            &mut x,
+            1e-12,
+            100,
+            &mut w,
+        )
+        .unwrap();
         assert!(it <= n);
         // Dense reference, per axis.
         for a in 0..3 {
