@@ -72,10 +72,7 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
     let dim = tr.dim();
     let mut u: Vec<f64> = (0..dim).map(|_| rng.gen::<f64>()).collect();
     let mut cycle = 0;
-    'outer: loop {
-        let Some(&s0) = tr.evaluate(std::slice::from_ref(&u)).first() else {
-            break;
-        };
+    'outer: while let Some(&s0) = tr.evaluate(std::slice::from_ref(&u)).first() {
         let mut s = s0;
         let mut batch_scores = vec![s0];
         // Steepest descent.
@@ -105,7 +102,8 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
                 })
                 .collect();
             let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
-            if !(norm > 0.0 && norm.is_finite()) || !s.is_finite() {
+            let descending = norm.is_finite() && norm > 0.0 && s.is_finite();
+            if !descending {
                 break;
             }
             let trials: Vec<Vec<f64>> = LINE_STEPS

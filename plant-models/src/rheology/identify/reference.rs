@@ -360,7 +360,8 @@ pub struct ReferenceRun {
 /// The rotation of the polar decomposition F = R·S (scaled Newton
 /// iteration, Higham 1986); `None` for an inverted or degenerate F.
 pub fn polar_rotation(f: &M3) -> Option<M3> {
-    if !(f.determinant() > 1e-9) {
+    let det = f.determinant();
+    if det.is_nan() || det <= 1e-9 {
         return None;
     }
     let mut x = *f;
@@ -749,8 +750,8 @@ impl<'a> ReferenceSim<'a> {
             let p = r * sigma;
             let vol = block.volumes_m3[t];
             let gr = &block.grads[t];
-            for k in 0..4 {
-                self.rhs[block.tets[t][k] as usize] -= (p * gr[k]) * vol;
+            for (&n, g_k) in block.tets[t].iter().zip(gr) {
+                self.rhs[n as usize] -= (p * *g_k) * vol;
             }
             let ke = &mut self.stiffness[t];
             tet_step_matrix(&r, gr, g, bulk, vol * dt, ke);
@@ -861,7 +862,7 @@ impl<'a> ReferenceSim<'a> {
             let eps = (self.rot[t].transpose() * f).sym() - M3::identity();
             let s = (dev(&eps) - self.e_star[t]) * (2.0 * g);
             self.e_voigt[t] = (s * 0.5 + self.e_voigt[t] * (eta2 / dt)) * (1.0 / (g2 + eta2 / dt));
-            self.e_flow[t] = self.e_flow[t] + s * (dt / (2.0 * eta1));
+            self.e_flow[t] += s * (dt / (2.0 * eta1));
         }
         self.steps += 1;
         Ok(self.contacts.finish(&self.x, &self.v))

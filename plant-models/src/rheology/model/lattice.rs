@@ -267,9 +267,9 @@ impl Lattice {
     /// Grid spacing per axis (m).
     pub fn spacing_m(&self) -> [f64; 3] {
         let mut h = [0.0; 3];
-        for a in 0..3 {
-            if self.nodes[a] > 1 {
-                h[a] = self.size_m[a] / (self.nodes[a] - 1) as f64;
+        for ((h, &n), &size) in h.iter_mut().zip(&self.nodes).zip(&self.size_m) {
+            if n > 1 {
+                *h = size / (n - 1) as f64;
             }
         }
         h

@@ -361,7 +361,7 @@ impl<'a> LatticeSim<'a> {
         for (e, el) in self.lattice.elements.iter().enumerate() {
             let d = self.x[el.j as usize] - self.x[el.i as usize];
             let len = d.norm();
-            if !(len > 0.01 * el.rest_m) {
+            if len.is_nan() || len <= 0.01 * el.rest_m {
                 return Err(Instability::Collapsed {
                     element: e,
                     length_ratio: len / el.rest_m,

@@ -50,19 +50,21 @@ pub fn pcg(
     }
     // The right-hand side seen by the free nodes: b − A x with x's fixed
     // part; its norm (with x_free = 0) scales the tolerance.
-    let free = |i: usize, v: V3| v - v.component_mul(&fixed[i]);
-    for i in 0..n {
-        w.p[i] = x[i].component_mul(&fixed[i]);
+    let free = |v: V3, fixed: &V3| v - v.component_mul(fixed);
+    for ((p, xi), fi) in w.p.iter_mut().zip(x.iter()).zip(fixed) {
+        *p = xi.component_mul(fi);
     }
     apply(&w.p, &mut w.ap);
-    let mut scale = 0.0;
-    for i in 0..n {
-        scale += free(i, b[i] - w.ap[i]).norm_squared();
-    }
-    let scale = scale.sqrt();
+    let scale = b
+        .iter()
+        .zip(&w.ap)
+        .zip(fixed)
+        .map(|((bi, ai), fi)| free(*bi - *ai, fi).norm_squared())
+        .sum::<f64>()
+        .sqrt();
     apply(x, &mut w.ap);
-    for i in 0..n {
-        w.r[i] = free(i, b[i] - w.ap[i]);
+    for (((r, bi), ai), fi) in w.r.iter_mut().zip(b).zip(&w.ap).zip(fixed) {
+        *r = free(*bi - *ai, fi);
     }
     if scale == 0.0 {
         // Nothing drives the free components: 0 solves it.
@@ -76,15 +78,15 @@ pub fn pcg(
         return Ok(0);
     }
     precondition(&w.r, &mut w.z);
-    for i in 0..n {
-        w.z[i] = free(i, w.z[i]);
-        w.p[i] = w.z[i];
+    for ((z, p), fi) in w.z.iter_mut().zip(w.p.iter_mut()).zip(fixed) {
+        *z = free(*z, fi);
+        *p = *z;
     }
     let mut rz = dot(&w.r, &w.z);
     for it in 1..=max_iter {
         apply(&w.p, &mut w.ap);
-        for i in 0..n {
-            w.ap[i] = free(i, w.ap[i]);
+        for (ap, fi) in w.ap.iter_mut().zip(fixed) {
+            *ap = free(*ap, fi);
         }
         let pap = dot(&w.p, &w.ap);
         if !(pap.is_finite() && pap > 0.0) {
@@ -94,9 +96,11 @@ pub fn pcg(
             });
         }
         let alpha = rz / pap;
-        for i in 0..n {
-            x[i] += alpha * w.p[i];
-            w.r[i] -= alpha * w.ap[i];
+        for (xi, pi) in x.iter_mut().zip(&w.p) {
+            *xi += alpha * *pi;
+        }
+        for (ri, ai) in w.r.iter_mut().zip(&w.ap) {
+            *ri -= alpha * *ai;
         }
         let rn = dot(&w.r, &w.r).sqrt();
         if rn <= target {
@@ -106,8 +110,8 @@ pub fn pcg(
             break;
         }
         precondition(&w.r, &mut w.z);
-        for i in 0..n {
-            w.z[i] = free(i, w.z[i]);
+        for (z, fi) in w.z.iter_mut().zip(fixed) {
+            *z = free(*z, fi);
         }
         let rz_new = dot(&w.r, &w.z);
         let beta = rz_new / rz;
