@@ -46,3 +46,7 @@ cargo test --workspace --locked
 
 step "the firmware image under QEMU in lockstep with the simulated joint (needs the image built above)"
 cargo test -p integration-tests --test qemu_hil --locked -- --ignored
+step "fault campaign of the lockstep link against the image under QEMU (short form; the pty-board form runs with the host tests)"
+cargo test -p integration-tests --test fault_campaign --locked -- --ignored fault_campaign_qemu
+step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images"
+cargo test -p host-tools --test hil_qemu_cli --locked -- --ignored --test-threads 1

@@ -51,6 +51,9 @@ pub enum CalibrationError {
     /// The differential law's gain is zero: the estimate would be its
     /// offset whatever the sensors read.
     GainZero,
+    /// The single-sensor law's `a` and `b` are both zero: the estimate
+    /// would be its constant `c` whatever the sensor reads.
+    QuadraticFlat,
 }
 
 impl core::fmt::Display for CalibrationError {
@@ -66,6 +69,9 @@ impl core::fmt::Display for CalibrationError {
             }
             CalibrationError::GainZero => {
                 "the differential gain must be non-zero (with 0 the estimate ignores the sensors)"
+            }
+            CalibrationError::QuadraticFlat => {
+                "the single-sensor law needs a or b non-zero (with both 0 the estimate is c whatever the sensor reads)"
             }
         })
     }
@@ -263,6 +269,9 @@ impl PlaneLaw {
         match *self {
             PlaneLaw::Single { sensor, law } => {
                 finite(&[law.a, law.b, law.c])?;
+                if law.a == 0.0 && law.b == 0.0 {
+                    return Err(CalibrationError::QuadraticFlat);
+                }
                 if !idx_ok(sensor) {
                     return Err(CalibrationError::SensorIndexOutOfRange);
                 }
@@ -508,5 +517,27 @@ mod tests {
             PlaneEstimator::<4>::new(flat).err(),
             Some(CalibrationError::GainZero)
         );
+        let constant = PlaneLaw::Single {
+            sensor: 0,
+            law: QuadraticLaw {
+                a: 0.0,
+                b: 0.0,
+                c: 5.0,
+            },
+        };
+        assert_eq!(
+            PlaneEstimator::<1>::new(constant).err(),
+            Some(CalibrationError::QuadraticFlat)
+        );
+        // One of the two is enough (a linear single-sensor law is fine).
+        let linear = PlaneLaw::Single {
+            sensor: 0,
+            law: QuadraticLaw {
+                a: 0.0,
+                b: -5.5,
+                c: 0.7,
+            },
+        };
+        assert!(PlaneEstimator::<1>::new(linear).is_ok());
     }
 }

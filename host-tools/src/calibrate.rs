@@ -56,7 +56,7 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
         s.push_str(&cells.join(","));
         s.push('\n');
     }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_csv(path, &s)
 }
 
 /// Reads a sweep CSV; a bad row is an error naming the file and line.
@@ -366,13 +366,19 @@ impl LawSpec {
             }
         }
         self.to_law()?.validate(sensors).map_err(|e| {
-            let gain = self
-                .number_fields()
-                .into_iter()
-                .find_map(|(n, v)| (n == "gain").then_some(v));
-            match gain {
-                Some(g) if e == CalibrationError::GainZero && g != 0.0 => {
+            let field = |name: &str| {
+                self.number_fields()
+                    .into_iter()
+                    .find_map(|(n, v)| (n == name).then_some(v))
+            };
+            match (field("gain"), field("a"), field("b")) {
+                (Some(g), ..) if e == CalibrationError::GainZero && g != 0.0 => {
                     anyhow::anyhow!("field `gain` = {g:e}, 0 in f32: {e}")
+                }
+                (_, Some(a), Some(b))
+                    if e == CalibrationError::QuadraticFlat && (a != 0.0 || b != 0.0) =>
+                {
+                    anyhow::anyhow!("fields `a` = {a:e} and `b` = {b:e}, both 0 in f32: {e}")
                 }
                 _ => anyhow::anyhow!("{e}"),
             }
@@ -404,8 +410,7 @@ impl CalibrationFile {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read calibration {}", path.display()))?;
-        let c: CalibrationFile = toml::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        let c: CalibrationFile = crate::input::from_toml(&text, &path.display().to_string())?;
         c.check()
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         Ok(c)
@@ -431,13 +436,18 @@ impl CalibrationFile {
         Ok(())
     }
 
-    /// Writes it as TOML.
+    /// Writes it as TOML, atomically: a write that fails leaves the file
+    /// that was there.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let text = toml::to_string_pretty(self)?;
+        self.save_to(crate::output::AtomicFile::create(path)?)
+    }
+
+    /// Writes it into `file` (created before a computation, to check the
+    /// path first) and commits it.
+    pub fn save_to(&self, file: crate::output::AtomicFile) -> anyhow::Result<()> {
         let header = "# Wire-sensor calibration written by `softjoint calibrate wire`.\n\
                       # Sensor numbers are 1-based (the paper's d1..d4); angles in degrees, insertions in mm.\n";
-        std::fs::write(path, format!("{header}{text}"))
-            .with_context(|| format!("cannot write {}", path.display()))
+        file.commit_toml(header, self)
     }
 
     /// The laws for the core.
@@ -494,6 +504,12 @@ pub fn fit(rows: &[SweepRow]) -> anyhow::Result<Vec<PlaneFit>> {
     ])
 }
 
+/// Smallest span of reference angles a sweep must cover (deg). Below it a
+/// law would fit the reference's noise (the camera's ≈ 0.03°) and the
+/// wires' stick-slip, not the joint: a constant angle gave a = b = 0 with
+/// 0.000° error as the "chosen" law. The paper sweeps ±20° (estimate).
+pub const MIN_SWEEP_SPAN_DEG: f64 = 1.0;
+
 /// Step of the threshold search (deg).
 const THRESHOLD_GRID_DEG: f64 = 0.1;
 /// Most thresholds the search tries (a 10 000° span at 0.1°).
@@ -507,6 +523,21 @@ fn fit_plane<const S: usize>(
     minus: Option<usize>,
 ) -> anyhow::Result<PlaneFit> {
     let ang = |r: &SweepRow| r.angle_deg[plane];
+    let (lo_deg, hi_deg) = rows
+        .iter()
+        .map(ang)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(v), h.max(v))
+        });
+    // (NaN spans cannot occur: the reader refuses non-finite values.)
+    if hi_deg - lo_deg < MIN_SWEEP_SPAN_DEG {
+        bail!(
+            "{name}: the sweep's `{name}_deg` only spans {}° to {}° over its {} rows; a calibration needs the joint moved through at least {MIN_SWEEP_SPAN_DEG}° (the paper sweeps ±20°), or the law fits noise",
+            short(lo_deg),
+            short(hi_deg),
+            rows.len()
+        );
+    }
     let [a, b, c] =
         fit_quadratic(rows.iter().map(|r| (r.d_mm[plus], ang(r)))).ok_or_else(|| {
             anyhow::anyhow!(

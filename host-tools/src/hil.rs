@@ -15,6 +15,8 @@ use crate::board::{BoardController, LockstepSetup};
 use crate::link::{HostLinkStats, Link, Port};
 use crate::scenario::{FeedbackKind, JointKind, Scenario};
 use crate::sim::{self, Summary, Trace};
+use crate::stop::Stop;
+use crate::trace::RowSink;
 
 pub use crate::board::{handshake, status};
 
@@ -31,6 +33,10 @@ pub struct HilOptions {
     /// Link-loss timeout to configure on the board (ms); `None` keeps the
     /// board's own (50 ms by default).
     pub link_timeout_ms: Option<u16>,
+    /// Set a board that restarts mid-run up again and go on (see
+    /// [`LockstepSetup::resume_after_restart`]); otherwise the run ends
+    /// there.
+    pub resume_after_restart: bool,
 }
 
 impl Default for HilOptions {
@@ -40,6 +46,7 @@ impl Default for HilOptions {
             attempts: 20,
             lose_every: None,
             link_timeout_ms: None,
+            resume_after_restart: false,
         }
     }
 }
@@ -66,6 +73,11 @@ pub struct HilReport {
     pub board_stale_seqs: u16,
     /// Lockstep steps per wall-clock second.
     pub lockstep_steps_per_s: f64,
+    /// Times the board restarted and was set up again.
+    pub board_restarts: u32,
+    /// Whether the board's counters above were read at the end (not when
+    /// the link had failed).
+    pub board_counters_read: bool,
 }
 
 /// A finished HIL run.
@@ -76,12 +88,41 @@ pub struct HilOutput {
     pub trace: Trace,
 }
 
-/// Runs a 3D wire-feedback scenario in lockstep with the board on `link`.
+/// Runs a 3D wire-feedback scenario in lockstep with the board on `link`,
+/// keeping the time series; a run that ends early is an error
+/// ([`sim::RunCutShort`]).
 pub fn run<P: Port>(
     s: &Scenario,
     link: &mut Link<P>,
     opts: HilOptions,
 ) -> anyhow::Result<HilOutput> {
+    let mut rows = Vec::new();
+    let ctx = sim::RunContext {
+        stop: &Stop::never(),
+        progress: &indicatif::ProgressBar::hidden(),
+    };
+    let report = run_into(s, link, opts, &mut rows, &ctx)?;
+    if let Some(cut) = report.summary.cut_short.clone() {
+        return Err(sim::RunCutShort(cut).into());
+    }
+    Ok(HilOutput {
+        report,
+        trace: Trace { planes: 2, rows },
+    })
+}
+
+/// Runs a 3D wire-feedback scenario in lockstep with the board on `link`,
+/// every row to `sink`. Errors are what prevents the run from starting
+/// (the scenario, the board's setup); a run that ends early (the board,
+/// its link, the plant, `ctx.stop`) returns its report with
+/// `summary.cut_short` set.
+pub fn run_into<P: Port>(
+    s: &Scenario,
+    link: &mut Link<P>,
+    opts: HilOptions,
+    sink: &mut impl RowSink,
+    ctx: &sim::RunContext,
+) -> anyhow::Result<HilReport> {
     s.validate()?;
     if s.joint != JointKind::ThreeD || s.feedback != FeedbackKind::Wire {
         bail!("hardware-in-the-loop runs the 3D joint with wire-sensor feedback (the board's sensor frame carries wire counts)");
@@ -105,33 +146,43 @@ pub fn run<P: Port>(
         timeout: opts.timeout,
         attempts: opts.attempts,
         lose_every: opts.lose_every,
+        resume_after_restart: opts.resume_after_restart,
     };
     let plant = sim::plant_3d(s)?;
     let board = BoardController::start(link, setup)?;
     let mut cl = ClosedLoop::new(plant, board, s.control_period_us)?;
     let started = Instant::now();
-    let out = sim::run_scenario(s, &mut cl, true, estimator, &["alpha", "beta"])?;
+    let summary = sim::run_scenario(s, &mut cl, sink, ctx, estimator, &["alpha", "beta"]);
     let wall = started.elapsed().as_secs_f64();
     let mut board = cl.controller;
     let stats = board.link().stats();
-    let status = board.finish()?;
-    let report = HilReport {
-        summary: out.summary,
-        link: stats,
-        board_frames_ok: status.frames_ok,
-        board_crc_errors: status.crc_errors,
-        board_cobs_errors: status.cobs_errors,
-        board_overfull: status.overfull,
-        board_malformed: status.malformed,
-        board_stale_seqs: status.stale_seqs,
-        lockstep_steps_per_s: if wall > 0.0 {
-            s.steps() as f64 / wall
-        } else {
-            f64::INFINITY
-        },
+    let restarts = board.restarts();
+    let steps = board.steps();
+    // A board whose link failed is not asked for anything more (each
+    // request would wait out its retries on a dead line).
+    let link_failed = summary
+        .cut_short
+        .as_ref()
+        .is_some_and(|c| c.cause == sim::CutCause::Controller);
+    let status = if link_failed {
+        None
+    } else {
+        Some(board.finish()?)
     };
-    Ok(HilOutput {
-        report,
-        trace: out.trace,
+    let counter = |f: fn(&firmware::protocol::Status) -> u16| status.as_ref().map_or(0, f);
+    Ok(HilReport {
+        summary,
+        link: stats,
+        board_frames_ok: status.as_ref().map_or(0, |s| s.frames_ok),
+        board_crc_errors: counter(|s| s.crc_errors),
+        board_cobs_errors: counter(|s| s.cobs_errors),
+        board_overfull: counter(|s| s.overfull),
+        board_malformed: counter(|s| s.malformed),
+        board_stale_seqs: counter(|s| s.stale_seqs),
+        // (No wall time means no step ran: 0, not ∞, which no result may
+        // carry.)
+        lockstep_steps_per_s: if wall > 0.0 { steps as f64 / wall } else { 0.0 },
+        board_restarts: restarts,
+        board_counters_read: status.is_some(),
     })
 }

@@ -4,11 +4,16 @@
 pub mod board;
 pub mod calibrate;
 pub mod hil;
+pub mod input;
 pub mod link;
+pub mod output;
 pub mod plot;
+pub mod progress;
 pub mod pty_board;
 pub mod qemu;
 pub mod report;
 pub mod scenario;
 pub mod sim;
+pub mod stop;
+pub mod trace;
 pub mod visco_core;

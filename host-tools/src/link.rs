@@ -6,6 +6,13 @@
 //! telemetry). Every wait has a deadline; a request that times out is sent
 //! again unchanged — board requests are idempotent (a repeated lockstep
 //! `seq` is answered from the board's cache) — up to a retry limit.
+//!
+//! Telemetry that arrives while a request waits for its reply is set aside
+//! for [`Link::recv_until`] (at most [`TELEMETRY_QUEUE`] frames; older ones
+//! are dropped and counted), never read again by the waiting request: a
+//! board streaming at 1 kHz cannot keep a request from reaching its
+//! deadline. A port that hangs up (QEMU exited, a board unplugged) is
+//! [`LinkError::PortClosed`], not a wait until the deadline.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
@@ -44,10 +51,42 @@ pub enum LinkError {
         /// Type byte of the reply.
         reply: u8,
     },
-    /// The port failed.
+    /// The other end of the line went away: the pty's QEMU exited, the
+    /// pty board stopped, a USB adapter was unplugged.
+    #[error(
+        "the serial line closed: the other end hung up (a QEMU that exited, an unplugged board)"
+    )]
+    PortClosed,
+    /// The port failed otherwise. The I/O error is part of the message
+    /// and deliberately not also `source()`, so a reporter that prints
+    /// the chain does not print it twice.
     #[error("serial port: {0}")]
-    Io(#[from] io::Error),
+    Io(io::Error),
 }
+
+impl From<io::Error> for LinkError {
+    fn from(e: io::Error) -> Self {
+        if is_hang_up(&e) {
+            LinkError::PortClosed
+        } else {
+            LinkError::Io(e)
+        }
+    }
+}
+
+/// Whether an I/O error means the other end of the line went away
+/// (serialport reports a pty whose master closed as `BrokenPipe`; a read
+/// of a hung-up tty gives `EIO` or end of file).
+pub fn is_hang_up(e: &io::Error) -> bool {
+    matches!(
+        e.kind(),
+        io::ErrorKind::BrokenPipe | io::ErrorKind::UnexpectedEof | io::ErrorKind::ConnectionReset
+    ) || e.raw_os_error() == Some(5) // EIO
+}
+
+/// Most telemetry frames kept for [`Link::recv_until`] while requests wait
+/// (2 s of a 500 Hz stream); older ones are dropped and counted.
+pub const TELEMETRY_QUEUE: usize = 1024;
 
 /// A message type by name and type byte, e.g. `SetTarget (0x10)`.
 fn name(kind: u8) -> String {
@@ -55,6 +94,20 @@ fn name(kind: u8) -> String {
         Some(n) => format!("{n} ({kind:#04x})"),
         None => format!("type {kind:#04x}"),
     }
+}
+
+/// Longest single wait for a reply: an hour. A longer per-attempt timeout
+/// (a user's `--timeout-ms`) is held to it rather than overflowing the
+/// clock.
+pub const MAX_REPLY_WAIT: Duration = Duration::from_secs(3600);
+
+/// How long a write may wait for room in the port's buffer (the far end
+/// not reading) before it fails.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// The instant `timeout` from now, `timeout` held to [`MAX_REPLY_WAIT`].
+pub fn deadline_after(timeout: Duration) -> Instant {
+    Instant::now() + timeout.min(MAX_REPLY_WAIT)
 }
 
 /// Host-side link counters.
@@ -75,8 +128,11 @@ pub struct HostLinkStats {
     /// Received CRC-valid frames of unknown type or wrong length.
     pub malformed: u64,
     /// Decoded frames that were not the awaited reply (stale replies to
-    /// retried requests, telemetry while waiting).
+    /// retried requests); telemetry is counted apart.
     pub unexpected: u64,
+    /// Telemetry frames that arrived while a request waited and were
+    /// dropped because [`TELEMETRY_QUEUE`] frames were already waiting.
+    pub telemetry_dropped: u64,
 }
 
 /// A byte port with a read timeout.
@@ -164,6 +220,9 @@ impl<P: Port> Link<P> {
         let n = encode_frame(msg, &mut frame);
         // No flush: on a tty it is tcdrain, which would block until the far
         // end (QEMU feeds its UART one byte at a time) has read everything.
+        // The port has one timeout for reads and writes, and the last read
+        // may have left it at a millisecond: a write gets its own.
+        self.port.set_read_timeout(WRITE_TIMEOUT)?;
         self.port.write_all(&frame[..n])?;
         self.stats.frames_sent += 1;
         Ok(())
@@ -175,11 +234,19 @@ impl<P: Port> Link<P> {
         self.port.write_all(bytes)
     }
 
-    /// Next message received before `deadline` (queued ones first).
-    pub fn recv_until(&mut self, deadline: Instant) -> io::Result<Option<Message>> {
+    /// Next message received before `deadline` (telemetry set aside by
+    /// requests first).
+    pub fn recv_until(&mut self, deadline: Instant) -> Result<Option<Message>, LinkError> {
         if let Some(m) = self.queued.pop_front() {
             return Ok(Some(m));
         }
+        self.recv_wire_until(deadline)
+    }
+
+    /// Next message read from the line before `deadline`, ignoring what
+    /// is set aside: every call either returns a newly decoded frame or
+    /// waits on the port, so a caller looping on it reaches its deadline.
+    fn recv_wire_until(&mut self, deadline: Instant) -> Result<Option<Message>, LinkError> {
         loop {
             while self.buffered.0 < self.buffered.1 {
                 let b = self.buf[self.buffered.0];
@@ -196,13 +263,15 @@ impl<P: Port> Link<P> {
             self.port
                 .set_read_timeout((deadline - now).min(Duration::from_millis(100)))?;
             match self.port.read(&mut self.buf) {
-                Ok(0) => {}
+                // A tty read that poll() found ready and that returns
+                // nothing is end of file: the other end hung up.
+                Ok(0) => return Err(LinkError::PortClosed),
                 Ok(n) => self.buffered = (0, n),
                 Err(e)
                     if e.kind() == io::ErrorKind::TimedOut
                         || e.kind() == io::ErrorKind::WouldBlock => {}
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                Err(e) => return Err(e),
+                Err(e) => return Err(e.into()),
             }
         }
     }
@@ -210,8 +279,8 @@ impl<P: Port> Link<P> {
     /// Sends `msg` and waits up to `timeout` for a reply that `accept`
     /// takes; on a timeout sends it again, up to `attempts` times in all.
     /// An `Error` reply to this request type ends the wait. Other messages
-    /// that arrive meanwhile are counted as unexpected (telemetry is kept
-    /// for [`Link::recv_until`]).
+    /// that arrive meanwhile are counted as unexpected; telemetry is set
+    /// aside for [`Link::recv_until`] (bounded, see [`TELEMETRY_QUEUE`]).
     pub fn request(
         &mut self,
         msg: &Message,
@@ -225,8 +294,8 @@ impl<P: Port> Link<P> {
                 self.stats.retries += 1;
             }
             self.send(msg)?;
-            let deadline = Instant::now() + timeout;
-            while let Some(reply) = self.recv_until(deadline)? {
+            let deadline = deadline_after(timeout);
+            while let Some(reply) = self.recv_wire_until(deadline)? {
                 if accept(&reply) {
                     return Ok(reply);
                 }
@@ -234,11 +303,14 @@ impl<P: Port> Link<P> {
                     Message::Nak(firmware::protocol::Nak { request: r, code }) if r == request => {
                         return Err(LinkError::Refused { request, code });
                     }
-                    Message::Telemetry(_) => self.queued.push_back(reply),
+                    Message::Telemetry(_) => {
+                        if self.queued.len() >= TELEMETRY_QUEUE {
+                            self.queued.pop_front();
+                            self.stats.telemetry_dropped += 1;
+                        }
+                        self.queued.push_back(reply);
+                    }
                     _ => self.stats.unexpected += 1,
-                }
-                if self.queued.len() > 1024 {
-                    self.queued.pop_front();
                 }
             }
         }

@@ -1,15 +1,19 @@
 //! `softjoint`: simulation, hardware-in-the-loop, board console, calibration
 //! and model fitting for SMA-driven soft joints and deformable objects.
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use host_tools::{calibrate, report, scenario::Scenario, sim};
+use host_tools::{calibrate, out, outln, output, report, scenario::Scenario, sim};
 
 mod serial_cmds;
 
+mod contour;
+mod dlo;
 mod push;
 mod rheology;
+mod tissue;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -38,6 +42,16 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// Periodic and closed smoothing spline contours (seed 000, Fujioka &
+    /// Kano): fit tracked contours and deforming contours over time, or
+    /// write the paper's test cases.
+    Contour(contour::ContourArgs),
+    /// Deformable linear objects (seed 000): the knotting rope of Shi &
+    /// Payandeh, the static wires and belts of Wakamatsu et al.
+    Dlo(dlo::DloArgs),
+    /// Inner deformation of soft tissue (seed 000): deformation fields from
+    /// volume images (Zhang) and breast compression between plates (Kita).
+    Tissue(tissue::TissueArgs),
     /// Rheology lattice of a dough-like block (seed 000, Noborio):
     /// simulate a push, calibrate by the paper's GA or RA.
     Rheology(rheology::RheologyArgs),
@@ -50,11 +64,13 @@ struct SimArgs {
     #[command(flatten)]
     output: report::OutputArgs,
     /// Instead of a control run, write a calibration sweep of the simulated
-    /// joint (slow ±20° sweep, camera reference) to this CSV.
-    #[arg(long, value_name = "PATH")]
+    /// joint (slow ±20° sweep, camera reference) to this CSV. There is no
+    /// control run, so --csv, --plot and --json cannot go with it.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["csv", "plot", "json"])]
     calibration_sweep: Option<PathBuf>,
-    /// Print the built-in default scenario as TOML and exit.
-    #[arg(long)]
+    /// Print the built-in default scenario as TOML and exit (nothing else
+    /// runs, so it takes no other argument).
+    #[arg(long, conflicts_with_all = ["scenario", "csv", "plot", "json", "calibration_sweep"])]
     print_default: bool,
 }
 
@@ -74,34 +90,30 @@ enum CalibrateCommand {
     },
 }
 
-/// A reader that goes away early (`softjoint sim --json | head -1`) makes
-/// the next `println!` fail with EPIPE, which std turns into a panic. End
-/// quietly instead, with the status a shell gives a process killed by
-/// SIGPIPE (128 + 13), as other command-line tools do; any other panic
-/// still reports as usual.
-fn exit_quietly_on_broken_pipe() {
-    let report = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |info| {
-        let payload = info.payload();
-        let message = payload
-            .downcast_ref::<String>()
-            .map(String::as_str)
-            .or_else(|| payload.downcast_ref::<&str>().copied())
-            .unwrap_or("");
-        if message.starts_with("failed printing to std") && message.contains("Broken pipe") {
-            std::process::exit(141);
-        }
-        report(info)
-    }));
-}
-
 fn main() -> ExitCode {
-    exit_quietly_on_broken_pipe();
-    match run(Cli::parse()) {
+    if let Err(e) = host_tools::stop::file_size_limit_is_an_error() {
+        let _ = writeln!(std::io::stderr(), "warning: {e}");
+    }
+    let result = run(Cli::parse()).and_then(|()| Ok(host_tools::output::flush_stdout()?));
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            // A reader that went away early (`softjoint sim --json | head -1`)
+            // ends the program quietly with the status a shell gives a
+            // process killed by SIGPIPE (128 + 13), as other command-line
+            // tools do. Any other failed output is an error like the rest.
+            if e.downcast_ref::<host_tools::output::StdoutError>()
+                .is_some_and(|s| s.is_broken_pipe())
+            {
+                return ExitCode::from(141);
+            }
+            let _ = writeln!(std::io::stderr(), "error: {e:#}");
+            // A run cut short by a signal exits as the signal would (130
+            // for SIGINT), after its trace and summary were written.
+            match e.downcast_ref::<sim::RunCutShort>() {
+                Some(cut) => ExitCode::from(cut.exit_code()),
+                None => ExitCode::FAILURE,
+            }
         }
     }
 }
@@ -113,6 +125,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Contour(args) => contour::run(args),
+        Command::Dlo(args) => dlo::run(args),
+        Command::Tissue(args) => tissue::run(args),
         Command::Rheology(args) => rheology::run_command(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
@@ -120,36 +135,39 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         }) => {
             let rows = calibrate::read_sweep(&sweep)?;
+            // The output path is checked (its temporary file made) before
+            // the fit; the file is replaced only once it is complete.
+            let pending = host_tools::output::AtomicFile::create(&output)?;
             let fits =
                 calibrate::fit(&rows).map_err(|e| anyhow::anyhow!("{}: {e}", sweep.display()))?;
-            calibrate::calibration_of(&fits)?.save(&output)?;
+            calibrate::calibration_of(&fits)?.save_to(pending)?;
             if json {
-                let out: Vec<serde_json::Value> = fits
+                let out = fits
                     .iter()
                     .map(|f| {
-                        serde_json::json!({
-                            "angle": f.angle,
-                            "chosen": f.chosen,
-                            "threshold_deg": f.chosen.threshold_deg(),
-                            "max_error_deg": f.chosen_errors.max_error_deg,
-                            "rms_error_deg": f.chosen_errors.rms_error_deg,
-                            "methods": {
-                                "single": f.single.1,
-                                "differential": f.differential.as_ref().map(|d| d.1),
-                                "switching": f.switching.as_ref().map(|d| d.1),
-                            },
-                        })
+                        output::JsonObject::new()
+                            .field("angle", &f.angle)?
+                            .field("chosen", &f.chosen)?
+                            .field("threshold_deg", &f.chosen.threshold_deg())?
+                            .field("max_error_deg", &f.chosen_errors.max_error_deg)?
+                            .field("rms_error_deg", &f.chosen_errors.rms_error_deg)?
+                            .field(
+                                "methods",
+                                &output::JsonObject::new()
+                                    .field("single", &f.single.1)?
+                                    .field("differential", &f.differential.as_ref().map(|d| d.1))?
+                                    .field("switching", &f.switching.as_ref().map(|d| d.1))?,
+                            )
                     })
-                    .collect();
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(
-                        &serde_json::json!({ "rows": rows.len(), "angles": out, "calibration": output })
-                    )?
-                );
+                    .collect::<anyhow::Result<Vec<_>>>()?;
+                output::JsonObject::new()
+                    .field("rows", &rows.len())?
+                    .field("angles", &out)?
+                    .field("calibration", &output)?
+                    .print()?;
             } else {
-                print!("{}", calibrate::table(&fits));
-                println!(
+                out!("{}", calibrate::table(&fits));
+                outln!(
                     "{} rows; calibration written to {}",
                     rows.len(),
                     output.display()
@@ -166,22 +184,84 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         None => Scenario::default(),
     };
     if args.print_default {
-        print!("{}", toml::to_string_pretty(&Scenario::default())?);
+        out!("{}", toml::to_string_pretty(&Scenario::default())?);
         return Ok(());
     }
     if let Some(path) = &args.calibration_sweep {
+        let pending = host_tools::output::AtomicFile::create(path)?;
         let rows = sim::calibration_sweep(&scenario)?;
+        drop(pending);
         calibrate::write_sweep(path, &rows)?;
-        println!("{} sweep rows written to {}", rows.len(), path.display());
+        outln!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }
-    let out = sim::run_with(&scenario, args.output.wants_trace())?;
+    let stop = host_tools::stop::Stop::on_signals()?;
+    // Output paths are checked (the CSV created) before the run.
+    let mut files = args.output.open_trace(&sim::angle_names(&scenario))?;
+    let progress = args.output.progress("steps");
+    let mut summary = sim::run_into(&scenario, &mut files, &stop, &progress).map_err(|e| {
+        match &args.scenario {
+            Some(p) => e.context(format!("scenario {}", p.display())),
+            None => e,
+        }
+    })?;
+    progress.finish_and_clear();
     args.output
-        .write_files(&scenario.name, &out.summary, &out.trace)?;
+        .finish_trace(files, &scenario.name, &mut summary)?;
     if args.output.json {
-        println!("{}", serde_json::to_string_pretty(&out.summary)?);
+        output::print_json(&summary)?;
     } else {
-        print!("{}", report::table(&out.summary));
+        out!("{}", report::table(&summary));
     }
-    Ok(())
+    match summary.cut_short {
+        Some(cut) => Err(sim::RunCutShort(cut).into()),
+        None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::builder::ValueParser;
+    use clap::CommandFactory;
+
+    /// Every option and positional argument that takes a number, in every
+    /// subcommand.
+    fn numeric_args(cmd: &clap::Command, path: &str, out: &mut Vec<(String, bool)>) {
+        let numeric = [
+            ValueParser::from(clap::value_parser!(f64)).type_id(),
+            ValueParser::from(clap::value_parser!(u64)).type_id(),
+            ValueParser::from(clap::value_parser!(u32)).type_id(),
+            ValueParser::from(clap::value_parser!(u16)).type_id(),
+            ValueParser::from(clap::value_parser!(usize)).type_id(),
+        ];
+        for a in cmd.get_arguments() {
+            if numeric.contains(&a.get_value_parser().type_id()) {
+                out.push((
+                    format!("{path} --{}", a.get_id()),
+                    a.is_allow_negative_numbers_set() || a.is_allow_hyphen_values_set(),
+                ));
+            }
+        }
+        for sub in cmd.get_subcommands() {
+            numeric_args(sub, &format!("{path} {}", sub.get_name()), out);
+        }
+    }
+
+    /// `--k1 -1` was `unexpected argument '-1'`: clap took the value for a
+    /// flag. Every numeric option takes a negative number as its value,
+    /// so the range check that follows can name the flag and the range.
+    #[test]
+    fn every_numeric_option_accepts_a_negative_value() {
+        let mut args = Vec::new();
+        numeric_args(&Cli::command(), "softjoint", &mut args);
+        assert!(args.len() >= 15, "{args:?}");
+        let refused: Vec<&String> = args.iter().filter(|(_, ok)| !ok).map(|(n, _)| n).collect();
+        assert!(refused.is_empty(), "read as flags: {refused:?}");
+        let e = Cli::try_parse_from(["softjoint", "push", "simulate", "--nx", "-3"])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("--nx") && e.contains("-3"), "{e}");
+    }
 }

@@ -21,6 +21,10 @@ pub struct BoardFaults {
     pub drop_replies: u32,
     /// Hold each reply this long before writing it.
     pub delay_replies: Duration,
+    /// Restart the board application as a reset button would (a fresh
+    /// application, as after power-up: free-running, disarmed, default
+    /// configuration, counters at zero); cleared once done.
+    pub reset: bool,
 }
 
 /// What the board thread reports.
@@ -34,6 +38,8 @@ pub struct BoardState {
     pub outputs_off_at_ms: Option<u32>,
     /// Replies dropped by fault injection.
     pub dropped: u32,
+    /// Resets done.
+    pub resets: u32,
 }
 
 /// The board application on a pty, in a thread.
@@ -108,6 +114,12 @@ fn board_loop(
     let mut out: Vec<Vec<u8>> = Vec::new();
     let mut was_driving = false;
     while !stop.load(Ordering::SeqCst) {
+        if std::mem::take(&mut faults.lock().unwrap().reset) {
+            let Ok(fresh) = App::new() else { return };
+            app = fresh;
+            out.clear();
+            state.lock().unwrap().resets += 1;
+        }
         if let Ok(n) = port.read(&mut buf) {
             if n > 0 {
                 state.lock().unwrap().last_rx_ms = Some(now_ms());

@@ -1,11 +1,8 @@
-//! What a run prints and writes: the summary table, the CSV time series and
-//! the SVG plot.
+//! What a run prints and writes: the output flags, the summary table and
+//! the SVG plot (the CSV time series streams through `crate::trace`).
 use std::fmt::Write as _;
-use std::path::Path;
 
-use anyhow::Context;
-
-use crate::sim::{Summary, Trace};
+use crate::sim::{Row, Summary};
 
 /// The output flags shared by `sim` and `hil`.
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -22,20 +19,34 @@ pub struct OutputArgs {
 }
 
 impl OutputArgs {
-    /// Whether a file that needs the time series (CSV, plot) is asked for.
-    pub fn wants_trace(&self) -> bool {
-        self.csv.is_some() || self.plot.is_some()
+    /// Opens the trace files asked for (the CSV with its header, the
+    /// plot's temporary file) before the run, so an unwritable path is
+    /// refused before any work.
+    pub fn open_trace(&self, angles: &[String]) -> anyhow::Result<crate::trace::TraceFiles> {
+        crate::trace::TraceFiles::open(self.csv.as_deref(), self.plot.as_deref(), angles)
     }
 
-    /// Writes the CSV and the plot if asked for.
-    pub fn write_files(&self, title: &str, summary: &Summary, trace: &Trace) -> anyhow::Result<()> {
-        if let Some(p) = &self.csv {
-            write_csv(p, &summary.angles, trace)?;
-        }
-        if let Some(p) = &self.plot {
-            write_plot(p, title, &summary.angles, trace)?;
-        }
+    /// Writes what the trace files still wait for (the CSV's last rows,
+    /// the plot) after the run — early end or not — and records the CSV in
+    /// the summary.
+    pub fn finish_trace(
+        &self,
+        files: crate::trace::TraceFiles,
+        title: &str,
+        summary: &mut Summary,
+    ) -> anyhow::Result<()> {
+        let title = match &summary.cut_short {
+            Some(c) => format!("{title} — cut short at t = {:.3} s", c.at_t_s),
+            None => title.to_string(),
+        };
+        summary.trace = files.finish(&title, &summary.angles, summary.planned_steps)?;
         Ok(())
+    }
+
+    /// The progress bar of a run of `steps` control periods: drawn on
+    /// stderr when it is a terminal and the output is not `--json`.
+    pub fn progress(&self, what: &str) -> indicatif::ProgressBar {
+        crate::progress::bar(what, self.json)
     }
 }
 use crate::plot::{line_charts, Chart, Series};
@@ -66,14 +77,23 @@ pub fn table(s: &Summary) -> String {
                 g.desired_deg[p], g.steady_state_error_deg[p], g.overshoot_deg[p]
             );
         }
+        if !g.complete {
+            line.push_str("  (run cut short in this segment: error at its last row)");
+        }
         let _ = writeln!(out, "{line}");
     }
     let _ = writeln!(out);
+    let any_complete = s.segments.iter().any(|g| g.complete);
     for (p, a) in s.angles.iter().enumerate() {
+        let sse = if any_complete {
+            format!("{:.3}°", s.steady_state_error_deg[p])
+        } else {
+            "— (no target segment completed)".to_string()
+        };
         let _ = writeln!(
             out,
-            "{a:<6} worst steady-state error {:.3}°, max estimation error {:.3}°",
-            s.steady_state_error_deg[p], s.max_estimation_error_deg[p]
+            "{a:<6} worst steady-state error {sse}, max estimation error {:.3}°",
+            s.max_estimation_error_deg[p]
         );
     }
     let temps: Vec<String> = s
@@ -81,7 +101,12 @@ pub fn table(s: &Summary) -> String {
         .iter()
         .map(|t| format!("{t:.0}"))
         .collect();
-    let _ = writeln!(out, "peak coil temperatures (°C): {}", temps.join(", "));
+    let temps = if temps.is_empty() {
+        "none (no step ran)".to_string()
+    } else {
+        temps.join(", ")
+    };
+    let _ = writeln!(out, "peak coil temperatures (°C): {temps}");
     let faults = if s.faults_seen.is_empty() {
         "none".to_string()
     } else {
@@ -93,52 +118,35 @@ pub fn table(s: &Summary) -> String {
         "{:.1} s simulated in {:.3} s wall ({} steps): {:.0}× real time",
         s.sim_seconds, s.wall_seconds, s.steps, s.realtime_factor
     );
+    if let Some(t) = &s.trace {
+        let _ = writeln!(
+            out,
+            "trace: {} rows in {}{}",
+            t.rows,
+            t.csv.display(),
+            if t.complete {
+                ""
+            } else {
+                " (not the whole run)"
+            }
+        );
+    }
+    if let Some(cut) = &s.cut_short {
+        let _ = writeln!(
+            out,
+            "CUT SHORT after {} of {} steps (t = {:.3} s): {}",
+            s.steps, s.planned_steps, cut.at_t_s, cut.reason
+        );
+    }
     out
 }
 
-/// Writes the time series as CSV.
-pub fn write_csv(path: &Path, angles: &[String], trace: &Trace) -> anyhow::Result<()> {
-    let mut s = String::from("t_s");
-    for a in angles {
-        let _ = write!(s, ",{a}_true_deg,{a}_estimate_deg,{a}_desired_deg");
-    }
-    let coils = 2 * trace.planes;
-    for c in 1..=coils {
-        let _ = write!(s, ",v{c}_V");
-    }
-    s.push_str(",faults\n");
-    for r in &trace.rows {
-        let _ = write!(s, "{:.4}", r.t_s);
-        for p in 0..angles.len() {
-            let _ = write!(
-                s,
-                ",{:.4},{:.4},{:.4}",
-                r.true_deg[p], r.estimate_deg[p], r.desired_deg[p]
-            );
-        }
-        for v in r.coil_volts.iter().take(coils) {
-            let _ = write!(s, ",{v:.3}");
-        }
-        let _ = writeln!(s, ",{}", r.faults);
-    }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
-}
-
-/// Writes an SVG of angles (true, estimated, desired) and coil voltages
-/// against time.
-pub fn write_plot(
-    path: &Path,
-    title: &str,
-    angles: &[String],
-    trace: &Trace,
-) -> anyhow::Result<()> {
-    // Thin the series to ≤ 4000 points per line; plots need no more.
-    let stride = (trace.rows.len() / 4000).max(1);
-    let rows: Vec<_> = trace.rows.iter().step_by(stride).collect();
+/// An SVG of angles (true, estimated, desired) and coil voltages against
+/// time, from `rows` (a decimated copy of the run: `trace::Decimated`).
+pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
     let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
     let colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
-    let column =
-        |f: &dyn Fn(&crate::sim::Row) -> f64| rows.iter().map(|r| f(r)).collect::<Vec<_>>();
+    let column = |f: &dyn Fn(&crate::sim::Row) -> f64| rows.iter().map(f).collect::<Vec<_>>();
     let mut angle_series = Vec::new();
     for (p, a) in angles.iter().enumerate() {
         let c = colours[p % colours.len()];
@@ -164,7 +172,7 @@ pub fn write_plot(
             &column(&|r| r.desired_deg[p]),
         ));
     }
-    let coils = 2 * trace.planes;
+    let coils = 2 * angles.len();
     let volt_series = (0..coils)
         .map(|c| {
             Series::over(
@@ -190,6 +198,5 @@ pub fn write_plot(
             series: volt_series,
         },
     ];
-    std::fs::write(path, line_charts(&charts).finish())
-        .with_context(|| format!("cannot write {}", path.display()))
+    line_charts(&charts).finish()
 }

@@ -18,7 +18,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use host_tools::{out, outln};
 use plant_models::rheology::contact::ContactParams;
 use plant_models::rheology::identify::calibrate::{calibrate, CalibrationSettings, Problem};
 use plant_models::rheology::identify::ga::GaSettings;
@@ -126,16 +128,16 @@ struct CalibrateArgs {
     method: MethodArg,
     /// Parameters to calibrate: 4 (all elements), 8 (surface/core) or 16
     /// (surface/core × in/on voxel).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, allow_negative_numbers = true)]
     params: usize,
     /// Budget in simulations (default 1000 when no --seconds is given).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     evaluations: Option<usize>,
     /// Budget in wall-clock seconds (the paper ran 168 h).
     #[arg(long, allow_negative_numbers = true)]
     seconds: Option<f64>,
     /// Seed of the search.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     seed: u64,
     /// Check the result on a generated push to this depth (mm) that the
     /// calibration did not see.
@@ -211,8 +213,14 @@ pub fn run_command(args: RheologyArgs) -> Result<()> {
     }
 }
 
+/// Writes a CSV or SVG result through the checked writer (no non-finite
+/// number, atomic).
 fn write(path: &Path, text: &str) -> Result<()> {
-    fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    if path.extension().is_some_and(|e| e == "csv") {
+        output::write_csv(path, text)
+    } else {
+        output::write_svg(path, text)
+    }
 }
 
 fn load_params(path: &Path) -> Result<LatticeParams> {
@@ -224,15 +232,14 @@ fn load_params(path: &Path) -> Result<LatticeParams> {
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
-fn params_toml(p: &LatticeParams) -> Result<String> {
-    let spec = ParamsSpec {
+fn params_spec(p: &LatticeParams) -> ParamsSpec {
+    ParamsSpec {
         all: None,
         surface_on: Some(p.surface_on),
         surface_in: Some(p.surface_in),
         core_on: Some(p.core_on),
         core_in: Some(p.core_in),
-    };
-    Ok(toml::to_string(&spec)?)
+    }
 }
 
 fn load_measurement(dir: &Path) -> Result<Measurement> {
@@ -285,7 +292,7 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
         let mut d = ScenarioFile::default();
         d.plate.depth_mm = Some(push_schedule_mm(15.0, 1.0));
         d.model.params.all = Some(plant_models::rheology::params::ElementParams::PAPER_DEFAULT);
-        print!("{}", toml::to_string(&d)?);
+        out!("{}", toml::to_string(&d)?);
         return Ok(());
     }
     let mut file = ScenarioFile::load(a.scenario.as_deref())?;
@@ -310,7 +317,7 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     if sections.is_empty() || sections.len() > 12 {
         bail!("--section-times: give 1 to 12 times");
     }
-    fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    output::create_dir(&a.out)?;
     match a.model {
         ModelArg::Reference => {
             if a.measured.is_some() || a.params.is_some() {
@@ -334,7 +341,7 @@ fn simulate_reference(
     // The measurement keeps only the scenario's frames.
     let mut m = r.measurement.clone();
     m.frames
-        .retain(|f| sc.measure.frame_times_s.iter().any(|&t| t == f.t_s));
+        .retain(|f| sc.measure.frame_times_s.contains(&f.t_s));
     let top = sc.size_m()[1];
     let plate = sc.plate()?;
     let depth: Vec<f64> = r
@@ -391,20 +398,28 @@ fn simulate_reference(
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "model": "reference",
-                "cells": cfg.cells,
-                "steps": r.t_s.len(),
-                "peak_force_n": peak,
-                "final_volume_ratio": r.volume_m3.last().map(|v| v / r.volume0_m3),
-                "frames": m.frames.iter().map(|f| serde_json::json!({"time_s": f.t_s, "points": f.points_m.len()})).collect::<Vec<_>>(),
-                "out": a.out,
-            }))?
-        );
+        let frames: Vec<FrameJson> = m
+            .frames
+            .iter()
+            .map(|f| FrameJson {
+                time_s: f.t_s,
+                points: f.points_m.len(),
+            })
+            .collect();
+        JsonObject::new()
+            .field("model", "reference")?
+            .field("cells", &cfg.cells)?
+            .field("steps", &r.t_s.len())?
+            .field("peak_force_n", &peak)?
+            .field(
+                "final_volume_ratio",
+                &r.volume_m3.last().map(|v| v / r.volume0_m3),
+            )?
+            .field("frames", &frames)?
+            .field("out", &a.out)?
+            .print()?;
     } else {
-        println!(
+        outln!(
             "reference block {}×{}×{} cubes: {} steps, peak force {:.1} N, {} surface points in {} frames",
             cfg.cells[0],
             cfg.cells[1],
@@ -414,7 +429,7 @@ fn simulate_reference(
             m.point_count(),
             m.frames.len()
         );
-        println!(
+        outln!(
             "wrote forces.csv, surface_points.csv (a measured push for `calibrate --measured`), sections.svg, force.svg to {}",
             a.out.display()
         );
@@ -477,7 +492,7 @@ fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result
     )?;
     let mt: Vec<f64>;
     let mf: Vec<f64>;
-    let mut series: Vec<(&str, &'static str, bool, &[f64], &[f64])> =
+    let mut series: Vec<ForceSeries> =
         vec![("lattice", "#1f5fbf", false, &r.t_s, &r.plate_force_n)];
     if let Some(m) = &measured {
         mt = m.forces.iter().map(|f| f.t_s).collect();
@@ -509,40 +524,37 @@ fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result
         .fold(f64::NEG_INFINITY, f64::max);
     let instability = r.instability.as_ref().map(|e| e.to_string());
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "model": "lattice",
-                "grid": lattice.nodes,
-                "masses": lattice.masses(),
-                "elements": lattice.elements.len(),
-                "volume_condition": sc.model.volume.name(),
-                "integrator": sc.model.integrator.name(),
-                "dt_ms": sc.model.dt_ms,
-                "steps": r.t_s.len(),
-                "solver_iterations": r.iterations,
-                "wall_s": wall_s,
-                "peak_force_n": finite_or_null(peak),
-                "final_volume_ratio": vol.last().copied().and_then(finite),
-                "instability": instability,
-                "score": s.map(score_json),
-                "out": a.out,
-            }))?
-        );
+        JsonObject::new()
+            .field("model", "lattice")?
+            .field("grid", &lattice.nodes)?
+            .field("masses", &lattice.masses())?
+            .field("elements", &lattice.elements.len())?
+            .field("volume_condition", sc.model.volume.name())?
+            .field("integrator", sc.model.integrator.name())?
+            .field("dt_ms", &sc.model.dt_ms)?
+            .field("steps", &r.t_s.len())?
+            .field("solver_iterations", &r.iterations)?
+            .field("wall_s", &wall_s)?
+            .field("peak_force_n", &finite(peak))?
+            .field("final_volume_ratio", &vol.last().copied().and_then(finite))?
+            .field("instability", &instability)?
+            .field("score", &s.map(score_json))?
+            .field("out", &a.out)?
+            .print()?;
     } else {
-        println!("{title}: {} steps in {:.2} s", r.t_s.len(), wall_s);
+        outln!("{title}: {} steps in {:.2} s", r.t_s.len(), wall_s);
         if let Some(e) = &instability {
-            println!("UNSTABLE: {e}; the files stop there");
+            outln!("UNSTABLE: {e}; the files stop there");
         }
-        println!(
+        outln!(
             "peak force {:.1} N, volume at the end {:.2} % of rest",
             peak,
             100.0 * vol.last().copied().unwrap_or(f64::NAN)
         );
         if let Some(s) = s {
-            println!("{}", score_text(&s));
+            outln!("{}", score_text(&s));
         }
-        println!(
+        outln!(
             "wrote forces.csv, surface_points.csv, sections.svg, force.svg to {}",
             a.out.display()
         );
@@ -557,22 +569,44 @@ fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
-fn finite_or_null(v: f64) -> serde_json::Value {
-    finite(v)
-        .map(serde_json::Value::from)
-        .unwrap_or(serde_json::Value::Null)
+/// A frame of a measured push in `--json`.
+#[derive(Serialize)]
+struct FrameJson {
+    time_s: f64,
+    points: usize,
 }
 
-fn score_json(s: Score) -> serde_json::Value {
-    serde_json::json!({
-        "s": finite_or_null(s.s),
-        "shape_cm": s.shape_cm,
-        "force_n": s.force_n,
-        "points": s.points,
-        "force_samples": s.samples,
-        "mean_distance_mm": s.mean_distance_mm(),
-        "mean_force_error_n": s.mean_force_error_n(),
-    })
+/// S and its parts in `--json` (S null when the run was unstable).
+#[derive(Serialize)]
+struct ScoreJson {
+    s: Option<f64>,
+    shape_cm: f64,
+    force_n: f64,
+    points: usize,
+    force_samples: usize,
+    mean_distance_mm: f64,
+    mean_force_error_n: f64,
+}
+
+fn score_json(s: Score) -> ScoreJson {
+    ScoreJson {
+        s: finite(s.s),
+        shape_cm: s.shape_cm,
+        force_n: s.force_n,
+        points: s.points,
+        force_samples: s.samples,
+        mean_distance_mm: s.mean_distance_mm(),
+        mean_force_error_n: s.mean_force_error_n(),
+    }
+}
+
+/// The check on a push the calibration did not see, in `--json`.
+#[derive(Serialize)]
+struct ValidationJson {
+    depth_mm: f64,
+    push_s: f64,
+    default: ScoreJson,
+    calibrated: ScoreJson,
 }
 
 fn score_text(s: &Score) -> String {
@@ -603,9 +637,12 @@ fn score_text(s: &Score) -> String {
 
 /// Force (and volume) against time.
 #[allow(clippy::type_complexity)]
+/// A force curve: label, colour, dashed, times (s), forces (N).
+type ForceSeries<'a> = (&'a str, &'static str, bool, &'a [f64], &'a [f64]);
+
 fn force_chart(
     title: &str,
-    force: &[(&str, &'static str, bool, &[f64], &[f64])],
+    force: &[ForceSeries],
     volume: &[(&str, &'static str, &[f64], &[f64])],
 ) -> String {
     plot::line_charts(&[
@@ -856,8 +893,12 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     let cal = calibrate(&problem, &settings, &mut progress)?;
     bar.finish_and_clear();
     let (best_score, best_run) = problem.score(&cal.best_params)?;
-    fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    write(&a.out.join("params.toml"), &params_toml(&cal.best_params)?)?;
+    output::create_dir(&a.out)?;
+    output::write_toml(
+        &a.out.join("params.toml"),
+        "# Calibrated rheology parameters (softjoint rheology calibrate); `simulate --params` reads them.\n",
+        &params_spec(&cal.best_params),
+    )?;
     let mut csv =
         String::from("generation,evaluations,best_s,batch_best_s,batch_mean_s,elapsed_s\n");
     for h in &cal.search.history {
@@ -953,30 +994,44 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         }
     };
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "method": settings.method.name(),
-                "params": set.len(),
-                "seed": a.seed,
-                "evaluations": cal.search.evaluations,
-                "unstable": cal.search.unstable,
-                "stopped_by": cal.search.stopped_by,
-                "elapsed_s": cal.search.elapsed_s,
-                "default": score_json(default_score),
-                "calibrated": score_json(best_score),
-                "best_params": cal.best_params,
-                "best_genes": set.ranges().iter().zip(&cal.search.best_genes).map(|(r, g)| (r.name.clone(), *g)).collect::<std::collections::BTreeMap<_, _>>(),
-                "best_s_per_generation": cal.search.history.iter().map(|h| finite_or_null(h.best_s)).collect::<Vec<_>>(),
-                "validation": validation.map(|(depth, push, d, c)| serde_json::json!({
-                    "depth_mm": depth, "push_s": push,
-                    "default": score_json(d), "calibrated": score_json(c),
-                })),
-                "out": a.out,
-            }))?
-        );
+        let best_genes: std::collections::BTreeMap<_, _> = set
+            .ranges()
+            .iter()
+            .zip(&cal.search.best_genes)
+            .map(|(r, g)| (r.name.clone(), *g))
+            .collect();
+        let best_s_per_generation: Vec<Option<f64>> = cal
+            .search
+            .history
+            .iter()
+            .map(|h| finite(h.best_s))
+            .collect();
+        JsonObject::new()
+            .field("method", settings.method.name())?
+            .field("params", &set.len())?
+            .field("seed", &a.seed)?
+            .field("evaluations", &cal.search.evaluations)?
+            .field("unstable", &cal.search.unstable)?
+            .field("stopped_by", cal.search.stopped_by)?
+            .field("elapsed_s", &cal.search.elapsed_s)?
+            .field("default", &score_json(default_score))?
+            .field("calibrated", &score_json(best_score))?
+            .field("best_params", &cal.best_params)?
+            .field("best_genes", &best_genes)?
+            .field("best_s_per_generation", &best_s_per_generation)?
+            .field(
+                "validation",
+                &validation.map(|(depth_mm, push_s, d, c)| ValidationJson {
+                    depth_mm,
+                    push_s,
+                    default: score_json(d),
+                    calibrated: score_json(c),
+                }),
+            )?
+            .field("out", &a.out)?
+            .print()?;
     } else {
-        println!(
+        outln!(
             "{} on {} parameters: {} simulations in {:.1} s ({} unstable), stopped by {}",
             settings.method.name(),
             set.len(),
@@ -985,17 +1040,17 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             cal.search.unstable,
             cal.search.stopped_by
         );
-        println!("defaults:   {}", score_text(&default_score));
-        println!("calibrated: {}", score_text(&best_score));
+        outln!("defaults:   {}", score_text(&default_score));
+        outln!("calibrated: {}", score_text(&best_score));
         for (r, g) in set.ranges().iter().zip(&cal.search.best_genes) {
-            println!("  {:<28} {:>12.4}   (range {}–{})", r.name, g, r.min, r.max);
+            outln!("  {:<28} {:>12.4}   (range {}–{})", r.name, g, r.min, r.max);
         }
         if let Some((depth, push, d, c)) = validation {
-            println!("unseen push ({depth} mm over {push} s):");
-            println!("  defaults:   {}", score_text(&d));
-            println!("  calibrated: {}", score_text(&c));
+            outln!("unseen push ({depth} mm over {push} s):");
+            outln!("  defaults:   {}", score_text(&d));
+            outln!("  calibrated: {}", score_text(&c));
         }
-        println!(
+        outln!(
             "wrote params.toml, generations.csv, s_per_generation.svg, force.svg, sections.svg to {}",
             a.out.display()
         );

@@ -11,12 +11,19 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use hal_sim::{Loads, Schedule};
 use plant_models::joint::{LoadId, PlantError};
+use plant_models::short_number as short;
 use serde::{Deserialize, Serialize};
 
 /// Gains the control core can hold: it computes in f32, where a smaller
 /// positive gain rounds to zero (or a subnormal) and a larger one to infinity.
 const F32_GAIN_RANGE: std::ops::RangeInclusive<f64> =
     (f32::MIN_POSITIVE as f64)..=(f32::MAX as f64);
+
+/// Longest scenario (s): 31 years, a bound no run reaches, far inside
+/// what the step count (u64), the core's clock (u64 µs: 584,000 years) and
+/// f64 time (exact step times) can hold. The old 3600 s cap existed only
+/// because the whole trace was kept in memory.
+pub const MAX_DURATION_S: f64 = 1e9;
 
 /// Which joint to simulate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -264,8 +271,7 @@ impl Scenario {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read scenario {}", path.display()))?;
-        let mut s: Scenario = toml::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        let mut s: Scenario = crate::input::from_toml(&text, &path.display().to_string())?;
         if let Some(c) = &s.estimator.calibration {
             if c.is_relative() {
                 let base = path.parent().unwrap_or(Path::new("."));
@@ -281,15 +287,20 @@ impl Scenario {
     pub fn validate(&self) -> anyhow::Result<()> {
         let finite_pos = |field: &str, v: f64| -> anyhow::Result<()> {
             if !(v.is_finite() && v > 0.0) {
-                bail!("field `{field}`: must be a finite number > 0, got {v}");
+                bail!(
+                    "field `{field}`: must be a finite number > 0, got {}",
+                    short(v)
+                );
             }
             Ok(())
         };
         finite_pos("duration_s", self.duration_s)?;
-        if self.duration_s > 3600.0 {
+        // Memory does not grow with the run (the trace streams to disk, the
+        // summary is accumulated), so the only bound is one no run reaches.
+        if self.duration_s > MAX_DURATION_S {
             bail!(
-                "field `duration_s`: at most 3600 s, got {}",
-                self.duration_s
+                "field `duration_s`: at most {MAX_DURATION_S:e} s (31 years), got {}",
+                short(self.duration_s)
             );
         }
         if !(100..=1_000_000).contains(&self.control_period_us) {
@@ -335,7 +346,7 @@ impl Scenario {
             ),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                bail!("field `{f}`: must be a finite number ≥ 0, got {v}");
+                bail!("field `{f}`: must be a finite number ≥ 0, got {}", short(v));
             }
             if v > *F32_GAIN_RANGE.end() {
                 bail!(
@@ -360,14 +371,14 @@ impl Scenario {
             if !(t.t_s.is_finite() && t.t_s >= 0.0) {
                 bail!(
                     "field `targets[{i}].t_s`: must be a finite time ≥ 0, got {}",
-                    t.t_s
+                    short(t.t_s)
                 );
             }
             if t.t_s < last_t {
                 bail!(
                     "field `targets[{i}].t_s`: targets must be in time order ({} after {})",
-                    t.t_s,
-                    last_t
+                    short(t.t_s),
+                    short(last_t)
                 );
             }
             last_t = t.t_s;
@@ -382,8 +393,9 @@ impl Scenario {
                 if !(d.is_finite() && d.abs() <= f64::from(firmware::joint::DEFAULT_MAX_TARGET_DEG))
                 {
                     bail!(
-                        "field `targets[{i}].deg[{k}]`: must be within ±{}°, got {d}",
-                        firmware::joint::DEFAULT_MAX_TARGET_DEG
+                        "field `targets[{i}].deg[{k}]`: must be within ±{}°, got {}",
+                        firmware::joint::DEFAULT_MAX_TARGET_DEG,
+                        short(*d)
                     );
                 }
             }
@@ -403,7 +415,10 @@ impl Scenario {
                         );
                     }
                     if !(volts.is_finite() && (0.0..=5.0).contains(volts)) {
-                        bail!("field `disturbances[{i}].volts`: must be within 0–5 V, got {volts}");
+                        bail!(
+                            "field `disturbances[{i}].volts`: must be within 0–5 V, got {}",
+                            short(*volts)
+                        );
                     }
                     (*from_s, *to_s)
                 }
@@ -421,14 +436,18 @@ impl Scenario {
                         // a subnormal length overflows it.
                         if !(dir.iter().all(|v| v.is_finite()) && dir[0].hypot(dir[1]).is_normal())
                         {
-                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector (length at least {:e}), got [{}, {}]", f64::MIN_POSITIVE, dir[0], dir[1]);
+                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector (length at least {:e}), got [{}, {}]", f64::MIN_POSITIVE, short(dir[0]), short(dir[1]));
                         }
                     }
                     (*from_s, *to_s)
                 }
             };
             if !(from.is_finite() && to.is_finite() && from >= 0.0 && to > from) {
-                bail!("fields `disturbances[{i}].from_s/to_s`: need 0 ≤ from_s < to_s, got {from}..{to}");
+                bail!(
+                    "fields `disturbances[{i}].from_s/to_s`: need 0 ≤ from_s < to_s, got {}..{}",
+                    short(from),
+                    short(to)
+                );
             }
         }
         Ok(())

@@ -9,15 +9,20 @@ use firmware::protocol::{
     Arm, Calibration, ClearFaults, Disarm, GetCalibration, HilStop, Message, SetCalibration,
     SetGains, SetLinkTimeout, SetTarget, SetTelemetry,
 };
+use host_tools::board::name_the_board;
 use host_tools::hil::{self, HilOptions};
 use host_tools::link::{open_port, Link, Port};
-use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
+use host_tools::qemu::Qemu;
 use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
+use host_tools::stop::Stop;
 use host_tools::{
     calibrate::{CalibrationFile, LawSpec},
-    report,
+    output, report,
 };
+use host_tools::{out, outln};
+use plant_models::csv_input::excerpt;
+use plant_models::short_number;
 
 #[derive(Args)]
 pub struct HilArgs {
@@ -25,14 +30,21 @@ pub struct HilArgs {
     scenario: Option<PathBuf>,
     /// A real board's serial device; without it the firmware image runs
     /// under QEMU on a pty.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["image", "no_icount"])]
     port: Option<String>,
     /// Baud rate for --port.
-    #[arg(long, default_value_t = 115_200)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        default_value_t = 115_200,
+        requires = "port"
+    )]
     baud: u32,
-    /// Firmware image for QEMU.
-    #[arg(long, default_value = DEFAULT_IMAGE)]
-    image: PathBuf,
+    /// Firmware image for QEMU [default: the workspace's
+    /// target/thumbv7em-none-eabihf/release/softjoint-fw, found from the
+    /// softjoint program's own location].
+    #[arg(long)]
+    image: Option<PathBuf>,
     /// Run QEMU without `-icount shift=0`. By default the guest's clock
     /// advances with executed instructions (1 ns each), so host scheduling
     /// cannot make the board's link watchdog see time jump; without it
@@ -40,18 +52,38 @@ pub struct HilArgs {
     #[arg(long)]
     no_icount: bool,
     /// Reply timeout per attempt (ms).
-    #[arg(long, default_value_t = 100)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..=60_000))]
     timeout_ms: u64,
     /// Fault injection: lose the first copy of every Nth sensor frame.
-    #[arg(long)]
+    #[arg(allow_negative_numbers = true, long)]
     lose_every: Option<u32>,
     /// Link-loss timeout to set on the board (ms of its clock). The board's
     /// own default is 50 ms; an emulated board's clock follows the host's,
     /// so a loaded host needs more slack than a real board does.
-    #[arg(long, default_value_t = 250)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 250, value_parser = link_timeout_ms)]
     link_timeout_ms: u16,
+    /// A board that restarts during the run is set up again and the run
+    /// goes on (its controller state starts afresh); without this flag the
+    /// run ends there, naming the restart.
+    #[arg(long)]
+    resume_after_restart: bool,
     #[command(flatten)]
     output: report::OutputArgs,
+}
+
+/// The board's link-timeout range, checked before a board is involved.
+fn link_timeout_ms(text: &str) -> Result<u16, String> {
+    let range = firmware::app::LINK_TIMEOUT_MS;
+    text.parse::<u16>()
+        .ok()
+        .filter(|v| range.contains(v))
+        .ok_or_else(|| {
+            format!(
+                "must be a whole number of milliseconds in {}..={} (the board's range)",
+                range.start(),
+                range.end()
+            )
+        })
 }
 
 pub fn hil(args: HilArgs) -> anyhow::Result<()> {
@@ -60,40 +92,84 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         None => Scenario::default(),
     };
     let opts = HilOptions {
-        timeout: Duration::from_millis(args.timeout_ms.max(1)),
+        timeout: Duration::from_millis(args.timeout_ms),
         lose_every: args.lose_every,
         link_timeout_ms: Some(args.link_timeout_ms),
+        resume_after_restart: args.resume_after_restart,
         ..HilOptions::default()
     };
-    let _qemu;
-    let port = match &args.port {
-        Some(p) => open_port(p, args.baud)?,
+    let stop = Stop::on_signals()?;
+    // Output paths are checked (the CSV created) before QEMU starts.
+    let mut files = args
+        .output
+        .open_trace(&host_tools::sim::angle_names(&scenario))?;
+    let mut qemu = None;
+    let (port, label) = match &args.port {
+        Some(p) => (open_port(p, args.baud)?, p.clone()),
         None => {
-            let q = Qemu::launch(&args.image, !args.no_icount)?;
-            let port = open_port(&q.pty.to_string_lossy(), args.baud)?;
-            _qemu = q;
-            port
+            let image = match &args.image {
+                Some(i) => i.clone(),
+                None => host_tools::qemu::default_image()?,
+            };
+            let q = qemu.insert(Qemu::launch(&image, !args.no_icount)?);
+            let pty = q.pty.to_string_lossy().into_owned();
+            (
+                open_port(&pty, args.baud)?,
+                format!("QEMU's pty {pty} ({})", image.display()),
+            )
         }
     };
     let mut link = Link::new(port);
-    let out = hil::run(&scenario, &mut link, opts)?;
-    args.output.write_files(
+    let progress = args.output.progress("lockstep steps");
+    let ctx = host_tools::sim::RunContext {
+        stop: &stop,
+        progress: &progress,
+    };
+    let run = hil::run_into(&scenario, &mut link, opts, &mut files, &ctx);
+    progress.finish_and_clear();
+    // A QEMU that ended is the reason the link failed: say how it ended
+    // (its exit status or signal and its last words) rather than only
+    // what the serial line did.
+    let ended =
+        |qemu: &mut Option<Qemu>| qemu.as_mut().and_then(|q| q.ended(Duration::from_secs(2)));
+    let mut report = match run {
+        Ok(r) => r,
+        Err(e) => match ended(&mut qemu) {
+            // QEMU's own words say why; the link's view (a closed line)
+            // would only repeat it.
+            Some(how) => bail!("the emulated board ended before the run began: {how}"),
+            None => return Err(name_the_board(e, &label, args.baud)),
+        },
+    };
+    if let Some(cut) = &mut report.summary.cut_short {
+        if cut.cause == host_tools::sim::CutCause::Controller {
+            cut.reason = match ended(&mut qemu) {
+                Some(how) => format!("the emulated board ended: {how}"),
+                // Which board, as for a failure before the run.
+                None => format!("{}, on {label}", cut.reason),
+            };
+        }
+    }
+    args.output.finish_trace(
+        files,
         &format!("{} (HIL)", scenario.name),
-        &out.report.summary,
-        &out.trace,
+        &mut report.summary,
     )?;
     if args.output.json {
-        println!("{}", serde_json::to_string_pretty(&out.report)?);
+        output::print_json(&report)?;
     } else {
-        print!("{}", report::table(&out.report.summary));
-        let l = &out.report.link;
-        println!(
+        out!("{}", report::table(&report.summary));
+        let l = &report.link;
+        outln!(
             "link: {} frames sent, {} received, {} retries, {} CRC errors, {} unexpected; board saw {} frames, {} CRC errors",
-            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, out.report.board_frames_ok, out.report.board_crc_errors
+            l.frames_sent, l.frames_received, l.retries, l.crc_errors, l.unexpected, report.board_frames_ok, report.board_crc_errors
         );
-        println!("lockstep: {:.0} steps/s", out.report.lockstep_steps_per_s);
+        outln!("lockstep: {:.0} steps/s", report.lockstep_steps_per_s);
     }
-    Ok(())
+    match report.summary.cut_short {
+        Some(cut) => Err(host_tools::sim::RunCutShort(cut).into()),
+        None => Ok(()),
+    }
 }
 
 #[derive(Args)]
@@ -102,7 +178,7 @@ pub struct ConsoleArgs {
     #[arg(long)]
     port: String,
     /// Baud rate.
-    #[arg(long, default_value_t = 115_200)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 115_200)]
     baud: u32,
     /// Read commands from this file (one per line, `#` comments).
     #[arg(long)]
@@ -111,7 +187,9 @@ pub struct ConsoleArgs {
     #[arg(long)]
     csv: Option<PathBuf>,
     /// Commands, e.g. `status`, `arm`, `target 0 5`, `stream 2`
-    /// (see `softjoint console --port P help`).
+    /// (see `softjoint console --port P help`). Everything after the
+    /// first command word is the command's, negative numbers included.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
     commands: Vec<String>,
 }
 
@@ -134,7 +212,7 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.script {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read script {}", path.display()))?;
-        for (i, l) in text.lines().enumerate() {
+        for (i, l) in plant_models::strip_bom(&text).lines().enumerate() {
             let l = l.split('#').next().unwrap_or("").trim();
             if !l.is_empty() {
                 lines.push((format!("{}:{}", path.display(), i + 1), l.to_string()));
@@ -145,7 +223,7 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
         lines.push(("command line".into(), args.commands.join(" ")));
     }
     if lines.iter().any(|(_, l)| l == "help") || lines.is_empty() {
-        println!("{HELP}");
+        outln!("{HELP}");
         return Ok(());
     }
     let port = open_port(&args.port, args.baud)?;
@@ -157,8 +235,9 @@ pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
     };
     for (origin, line) in &lines {
         for cmd in line.split(';').map(str::trim).filter(|c| !c.is_empty()) {
-            run_console_command(&mut link, cmd, csv.as_mut())
-                .with_context(|| format!("{origin}: `{cmd}`"))?;
+            run_console_command(&mut link, cmd, csv.as_mut(), &args.port)
+                .map_err(|e| name_the_board(e, &args.port, args.baud))
+                .with_context(|| format!("{origin}: `{}`", excerpt(cmd)))?;
         }
     }
     Ok(())
@@ -172,38 +251,86 @@ fn open_csv(path: &Path) -> anyhow::Result<std::fs::File> {
         .open(path)
         .with_context(|| format!("cannot open {}", path.display()))?;
     if new {
-        writeln!(
-            f,
-            "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults"
-        )?;
+        writeln!(f, "{TELEMETRY_HEADER}")?;
     }
     Ok(f)
 }
 
 const T: Duration = Duration::from_millis(300);
 
+/// Columns of the console's telemetry CSV (an estimate is empty while the
+/// board has none).
+const TELEMETRY_HEADER: &str = "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults";
+
 fn arg<T: std::str::FromStr>(words: &[&str], i: usize, what: &str) -> anyhow::Result<T> {
     let w = words
         .get(i)
         .ok_or_else(|| anyhow::anyhow!("missing {what}"))?;
     w.parse()
-        .map_err(|_| anyhow::anyhow!("{what}: cannot parse `{w}`"))
+        .map_err(|_| anyhow::anyhow!("{what}: cannot parse `{}`", excerpt(w)))
+}
+
+/// A number argument that must lie in `lo..=hi` (the board's range, or
+/// the console's), named in the error.
+fn arg_in(
+    words: &[&str],
+    i: usize,
+    what: &str,
+    lo: f64,
+    hi: f64,
+    unit: &str,
+) -> anyhow::Result<f64> {
+    let v: f64 = arg(words, i, what)?;
+    if !(v.is_finite() && (lo..=hi).contains(&v)) {
+        bail!(
+            "{what} must be a finite number in {}..={} {unit}, got {}",
+            short_number(lo),
+            short_number(hi),
+            short_number(v)
+        );
+    }
+    Ok(v)
+}
+
+/// A plane number: 0 (α) or 1 (β).
+fn plane_arg(words: &[&str], i: usize) -> anyhow::Result<u8> {
+    let p: u8 = arg(words, i, "PLANE")?;
+    if p > 1 {
+        bail!("PLANE must be 0 (α) or 1 (β), got {p}");
+    }
+    Ok(p)
+}
+
+/// Longest `wait` or `stream` (s): a day (a telemetry stream goes to its
+/// CSV row by row, so a long one costs no memory).
+const MAX_CONSOLE_SECONDS: f64 = 86_400.0;
+
+/// A duration in seconds from the user (`wait`, `stream`), checked by
+/// [`arg_in`] before it becomes a `Duration`: not a number, negative,
+/// infinite or longer than a day is refused by name instead of panicking
+/// in the conversion or in the clock arithmetic.
+fn seconds(words: &[&str], i: usize) -> anyhow::Result<Duration> {
+    let secs = arg_in(words, i, "SECONDS", 0.0, MAX_CONSOLE_SECONDS, "s")?;
+    Duration::try_from_secs_f64(secs).map_err(|e| anyhow::anyhow!("SECONDS: {e}"))
 }
 
 fn run_console_command<P: Port>(
     link: &mut Link<P>,
     cmd: &str,
     csv: Option<&mut std::fs::File>,
+    port: &str,
 ) -> anyhow::Result<()> {
+    use firmware::app::{LINK_TIMEOUT_MS, MAX_TELEMETRY_HZ};
+    use firmware::joint::DEFAULT_MAX_TARGET_DEG;
     let words: Vec<&str> = cmd.split_whitespace().collect();
     match words.as_slice() {
         ["hello"] => {
             hil::handshake(link)?;
-            println!("hello: protocol and schema match");
+            outln!("hello: protocol and schema match");
         }
         ["status"] => {
             let s = hil::status(link)?;
-            println!(
+            outln!(
                 "armed {} mode {} faults [{}] latched [{}] estimate α {:.2}° β {:.2}° target α {:.2}° β {:.2}° outputs {} mV / {} mV t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
                 s.armed,
                 if s.mode == 1 { "lockstep" } else { "free-running" },
@@ -217,17 +344,21 @@ fn run_console_command<P: Port>(
         ["disarm"] => ack(link, Disarm {})?,
         ["clear"] => ack(link, ClearFaults {})?,
         ["hil-stop"] => ack(link, HilStop {})?,
-        ["target", ..] => ack(
-            link,
-            SetTarget {
-                plane: arg(&words, 1, "PLANE")?,
-                target_deg: arg(&words, 2, "DEG")?,
-            },
-        )?,
+        ["target", ..] => {
+            let max = f64::from(DEFAULT_MAX_TARGET_DEG);
+            ack(
+                link,
+                SetTarget {
+                    plane: plane_arg(&words, 1)?,
+                    target_deg: arg_in(&words, 2, "DEG", -max, max, "deg (the board's range)")?
+                        as f32,
+                },
+            )?
+        }
         ["gains", ..] => ack(
             link,
             SetGains {
-                plane: arg(&words, 1, "PLANE")?,
+                plane: plane_arg(&words, 1)?,
                 kp_agonist: arg(&words, 2, "KP_AG")?,
                 kp_antagonist: arg(&words, 3, "KP_ANT")?,
                 ki: arg(&words, 4, "KI")?,
@@ -235,12 +366,12 @@ fn run_console_command<P: Port>(
             },
         )?,
         ["calibration", "get", ..] => {
-            let plane: u8 = arg(&words, 2, "PLANE")?;
+            let plane = plane_arg(&words, 2)?;
             let r = link.request(&GetCalibration { plane }.into(), T, 5, |m| {
                 matches!(m, Message::Calibration(_))
             })?;
             if let Message::Calibration(Calibration { plane, law }) = r {
-                println!(
+                outln!(
                     "plane {plane}: {}",
                     host_tools::calibrate::describe(&LawSpec::from_law(&law))
                 );
@@ -261,46 +392,72 @@ fn run_console_command<P: Port>(
         ["telemetry", ..] => ack(
             link,
             SetTelemetry {
-                rate_hz: arg(&words, 1, "HZ")?,
+                rate_hz: arg_in(
+                    &words,
+                    1,
+                    "HZ",
+                    0.0,
+                    f64::from(MAX_TELEMETRY_HZ),
+                    "Hz (the board's range; 0 = off)",
+                )? as u16,
             },
         )?,
         ["link-timeout", ..] => ack(
             link,
             SetLinkTimeout {
-                timeout_ms: arg(&words, 1, "MS")?,
+                timeout_ms: arg_in(
+                    &words,
+                    1,
+                    "MS",
+                    f64::from(*LINK_TIMEOUT_MS.start()),
+                    f64::from(*LINK_TIMEOUT_MS.end()),
+                    "ms (the board's range)",
+                )? as u16,
             },
         )?,
         ["stream", ..] => {
-            let secs: f64 = arg(&words, 1, "SECONDS")?;
-            if !(secs.is_finite() && secs >= 0.0) {
-                bail!("SECONDS must be ≥ 0");
-            }
-            let end = Instant::now() + Duration::from_secs_f64(secs);
+            let span = seconds(&words, 1)?;
+            let secs = span.as_secs_f64();
+            let end = Instant::now() + span;
             let mut csv = csv;
             let mut n = 0u64;
             while let Some(m) = link.recv_until(end)? {
                 if let Message::Telemetry(t) = m {
                     n += 1;
                     let line = format!(
-                        "{},{:.3},{:.3},{},{},{}",
+                        "{},{},{},{},{},{}",
                         t.time_ms,
-                        t.estimate_deg[0],
-                        t.estimate_deg[1],
+                        output::estimate_field(f64::from(t.estimate_deg[0]), 3),
+                        output::estimate_field(f64::from(t.estimate_deg[1]), 3),
                         t.pair_mv[0],
                         t.pair_mv[1],
                         t.faults
                     );
+                    output::check_csv("the telemetry", &format!("{TELEMETRY_HEADER}\n{line}"))?;
                     match csv.as_deref_mut() {
                         Some(f) => writeln!(f, "{line}")?,
-                        None => println!("{line}"),
+                        None => outln!("{line}"),
                     }
                 }
             }
             eprintln!("{n} telemetry frames in {secs} s");
+            if n == 0 && secs > 0.0 {
+                let st = link.stats();
+                let noise = st.crc_errors + st.cobs_errors + st.overfull + st.malformed;
+                let heard = if noise > 0 || st.frames_received > 0 {
+                    format!(
+                        "it sent {} frame(s) of other kinds and {noise} that did not decode (CRC {}, COBS {}, oversized {}, malformed {})",
+                        st.frames_received, st.crc_errors, st.cobs_errors, st.overfull, st.malformed
+                    )
+                } else {
+                    "nothing at all arrived".into()
+                };
+                bail!(
+                    "no telemetry from {port} in {secs} s: {heard}; turn it on first (`telemetry 10; stream {secs}`), and check that a board running softjoint-fw is on {port} at the right --baud"
+                );
+            }
         }
-        ["wait", ..] => std::thread::sleep(Duration::from_secs_f64(
-            arg::<f64>(&words, 1, "SECONDS")?.clamp(0.0, 3600.0),
-        )),
+        ["wait", ..] => std::thread::sleep(seconds(&words, 1)?),
         _ => bail!("unknown command; try `help`\n{HELP}"),
     }
     Ok(())
@@ -308,6 +465,6 @@ fn run_console_command<P: Port>(
 
 fn ack<P: Port>(link: &mut Link<P>, msg: impl Into<Message>) -> anyhow::Result<()> {
     link.command(&msg.into(), T, 5)?;
-    println!("ok");
+    outln!("ok");
     Ok(())
 }

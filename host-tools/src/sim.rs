@@ -8,7 +8,7 @@ use firmware::control::PairGains;
 use firmware::estimate::PlaneLaw;
 use firmware::joint::{JointConfig, JointController};
 use firmware::supervisor::Faults;
-use hal_sim::{ClosedLoop, Controller, CoreController, FeedbackSource, Plant, Schedule};
+use hal_sim::{ClosedLoop, Controller, CoreController, FeedbackSource, LoopError, Plant, Schedule};
 use plant_models::joint::{Joint2d, Joint2dParams, Joint3d, Joint3dParams};
 use serde::Serialize;
 
@@ -16,6 +16,8 @@ use crate::calibrate::{self, CalibrationFile, SweepRow};
 use crate::scenario::{
     ControlMode, EstimatorMethod, FeedbackKind, JointKind, Scenario, ScenarioSchedule,
 };
+use crate::stop::{Stop, StopSignal};
+use crate::trace::{NoRows, RowSink, TraceFileReport};
 
 /// One row of the time series. Fixed-size so recording a step does not
 /// allocate: a 2D joint uses index 0 of the angle arrays and coils 0–1.
@@ -61,6 +63,11 @@ pub struct Segment {
     pub steady_state_error_deg: Vec<f64>,
     /// Largest excursion beyond the target in the direction of travel (deg).
     pub overshoot_deg: Vec<f64>,
+    /// Whether the run reached the segment's end. For a segment it did
+    /// not (a run cut short), `steady_state_error_deg` is the error at its
+    /// last row when no row of its last 20 % ran, and the summary's
+    /// worst-case figures leave it out.
+    pub complete: bool,
 }
 
 /// The summary of a run (also the `--json` output).
@@ -92,6 +99,70 @@ pub struct Summary {
     pub estimator: String,
     /// Peak modelled coil temperature (°C), per coil.
     pub peak_coil_temperature_c: Vec<f64>,
+    /// Control steps the scenario asked for (`steps` is fewer when the run
+    /// was cut short).
+    pub planned_steps: u64,
+    /// Where and why the run ended early; absent when it ran to the end.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cut_short: Option<CutShort>,
+    /// The streamed CSV trace, if one was written: its rows and whether
+    /// they are the whole run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace: Option<TraceFileReport>,
+}
+
+/// Why a run ended before its last step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CutCause {
+    /// The plant refused a step (instability, a load it cannot take).
+    Plant,
+    /// The controller failed: for `hil` the board, its link or its
+    /// emulator.
+    Controller,
+    /// A trace file could not be written.
+    Output,
+    /// SIGINT or SIGTERM.
+    Signal,
+}
+
+/// Where and why a run ended early.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CutShort {
+    /// The step that did not complete (= steps completed; 0-based).
+    pub at_step: u64,
+    /// Its time (s).
+    pub at_t_s: f64,
+    /// What kind of reason.
+    pub cause: CutCause,
+    /// The reason, for a person.
+    pub reason: String,
+    /// The signal, when one stopped the run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub signal: Option<StopSignal>,
+}
+
+impl std::fmt::Display for CutShort {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "run cut short at step {} (t = {:.3} s): {}",
+            self.at_step, self.at_t_s, self.reason
+        )
+    }
+}
+
+/// A run that ended early, as an error: the summary and trace are written
+/// first; the program then exits with [`RunCutShort::exit_code`].
+#[derive(Clone, Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct RunCutShort(pub CutShort);
+
+impl RunCutShort {
+    /// 128 + the signal for a stop by signal (130 for SIGINT), else 1.
+    pub fn exit_code(&self) -> u8 {
+        self.0.signal.map_or(1, StopSignal::exit_code)
+    }
 }
 
 /// Names of the set bits of a fault word.
@@ -152,9 +223,15 @@ pub fn laws_for(s: &Scenario) -> anyhow::Result<(Option<Vec<PlaneLaw>>, String)>
     };
     let laws = fits_cal.laws()?;
     if laws.len() != s.planes() {
+        let tables = if laws.len() == 1 {
+            "[alpha] only: a 2D calibration"
+        } else {
+            "[alpha] and [beta]: a 3D calibration"
+        };
         bail!(
-            "calibration has {} angle(s), the scenario's joint has {}",
+            "{source} has {} angle(s) ({tables}), but the scenario's `joint = \"{}\"` has {}",
             laws.len(),
+            if s.planes() == 1 { "2d" } else { "3d" },
             s.planes()
         );
     }
@@ -182,11 +259,50 @@ pub fn run(s: &Scenario) -> anyhow::Result<RunOutput> {
 /// Runs a scenario to completion with the firmware core in process; the
 /// time series is kept only with `keep_trace` (otherwise `trace.rows` is
 /// empty). The summary is the same either way: it is accumulated row by row
-/// ([`SummaryBuilder`]). A 600 s run's series is 58 MB, which costs page
-/// faults and memory traffic when nobody asked for `--csv` or `--plot`.
+/// ([`SummaryBuilder`]). A run that ends early is an error here
+/// ([`RunCutShort`]); [`run_into`] returns its summary instead.
 pub fn run_with(s: &Scenario, keep_trace: bool) -> anyhow::Result<RunOutput> {
+    let mut rows = Vec::new();
+    let summary = if keep_trace {
+        run_into(
+            s,
+            &mut rows,
+            &Stop::never(),
+            &indicatif::ProgressBar::hidden(),
+        )?
+    } else {
+        run_into(
+            s,
+            &mut NoRows,
+            &Stop::never(),
+            &indicatif::ProgressBar::hidden(),
+        )?
+    };
+    if let Some(cut) = summary.cut_short {
+        return Err(RunCutShort(cut).into());
+    }
+    Ok(RunOutput {
+        trace: Trace {
+            planes: s.planes(),
+            rows,
+        },
+        summary,
+    })
+}
+
+/// Runs a scenario with the firmware core in process, every row to `sink`,
+/// until its end, a failure or `stop`. Errors are what prevents the run
+/// from starting; a run that ends early returns its summary with
+/// [`Summary::cut_short`] set.
+pub fn run_into(
+    s: &Scenario,
+    sink: &mut impl RowSink,
+    stop: &Stop,
+    progress: &indicatif::ProgressBar,
+) -> anyhow::Result<Summary> {
     s.validate()?;
     let (laws, estimator) = laws_for(s)?;
+    let ctx = RunContext { stop, progress };
     match s.joint {
         JointKind::ThreeD => {
             let plant = plant_3d(s)?;
@@ -209,7 +325,14 @@ pub fn run_with(s: &Scenario, keep_trace: bool) -> anyhow::Result<RunOutput> {
                 s.seed,
             );
             let mut cl = ClosedLoop::new(plant, core, s.control_period_us)?;
-            run_scenario(s, &mut cl, keep_trace, estimator, &["alpha", "beta"])
+            Ok(run_scenario(
+                s,
+                &mut cl,
+                sink,
+                &ctx,
+                estimator,
+                &["alpha", "beta"],
+            ))
         }
         JointKind::TwoD => {
             let plant = plant_2d(s)?;
@@ -230,58 +353,137 @@ pub fn run_with(s: &Scenario, keep_trace: bool) -> anyhow::Result<RunOutput> {
                 s.seed,
             );
             let mut cl = ClosedLoop::new(plant, core, s.control_period_us)?;
-            run_scenario(s, &mut cl, keep_trace, estimator, &["theta"])
+            Ok(run_scenario(s, &mut cl, sink, &ctx, estimator, &["theta"]))
         }
     }
 }
 
+/// Names of a scenario's angles, as the summary and the CSV call them.
+pub fn angle_names(s: &Scenario) -> Vec<String> {
+    let names: &[&str] = match s.joint {
+        JointKind::ThreeD => &["alpha", "beta"],
+        JointKind::TwoD => &["theta"],
+    };
+    names.iter().map(|n| n.to_string()).collect()
+}
+
+/// What a run reads besides its scenario: the stop flag and the progress
+/// bar (hidden unless a person watches).
+pub struct RunContext<'a> {
+    /// Set by SIGINT/SIGTERM (or a caller).
+    pub stop: &'a Stop,
+    /// Advanced every few thousand steps.
+    pub progress: &'a indicatif::ProgressBar,
+}
+
+/// Why [`ClosedLoop::run`] stopped before its last step.
+enum Cut<E: std::error::Error + 'static> {
+    Loop(LoopError<E>),
+    Sink(anyhow::Error),
+    Stop(StopSignal),
+}
+
+impl<E: std::error::Error + 'static> From<LoopError<E>> for Cut<E> {
+    fn from(e: LoopError<E>) -> Self {
+        Cut::Loop(e)
+    }
+}
+
+/// Steps between progress-bar updates.
+const PROGRESS_EVERY: u64 = 4096;
+
 /// Runs scenario `s` through a closed loop — the firmware core in process,
 /// or a board behind a link (`hil`): the one run of the joint. Targets and
 /// disturbances come from the scenario ([`ScenarioSchedule`]); every period
-/// gives one [`Row`] of the summary (and of the trace with `keep_trace`).
+/// gives one [`Row`] to the summary and to `sink`. The run ends at its last
+/// step, or early when the loop fails (plant, controller), `sink` fails or
+/// `ctx.stop` is set; the summary then says where and why
+/// ([`Summary::cut_short`]), and `sink` holds every row up to there.
 pub fn run_scenario<Pl, Ctl, const P: usize, const S: usize, const C: usize>(
     s: &Scenario,
     cl: &mut ClosedLoop<Pl, Ctl, P, S, C>,
-    keep_trace: bool,
+    sink: &mut impl RowSink,
+    ctx: &RunContext,
     estimator: String,
     names: &[&str],
-) -> anyhow::Result<RunOutput>
+) -> Summary
 where
     Pl: Plant<P, S, C>,
     Ctl: Controller<P, S>,
 {
     let steps = s.steps();
-    let mut rows = Vec::with_capacity(if keep_trace { steps as usize } else { 0 });
     let mut stats = SummaryBuilder::new(s, P);
     let mut faults_seen = 0u16;
     let mut peak_temp = [f64::NEG_INFINITY; C];
     let mut schedule = ScenarioSchedule::new(s);
+    ctx.progress.set_length(steps);
     let started = Instant::now();
-    cl.run(steps, &mut schedule, |sample| -> anyhow::Result<()> {
-        faults_seen |= sample.faults;
-        for (p, c) in peak_temp.iter_mut().zip(sample.coil_temperatures_c) {
-            *p = p.max(c);
-        }
-        let row = Row {
-            t_s: sample.t_s,
-            true_deg: pad(sample.true_deg),
-            estimate_deg: pad(sample.estimate_deg),
-            desired_deg: pad(sample.desired_deg),
-            coil_volts: pad(sample.coil_volts),
-            faults: sample.faults,
-        };
-        stats.push(&row);
-        if keep_trace {
-            rows.push(row);
-        }
-        Ok(())
-    })?;
+    let result = cl.run(
+        steps,
+        &mut schedule,
+        |sample| -> Result<(), Cut<Ctl::Error>> {
+            faults_seen |= sample.faults;
+            for (p, c) in peak_temp.iter_mut().zip(sample.coil_temperatures_c) {
+                *p = p.max(c);
+            }
+            let row = Row {
+                t_s: sample.t_s,
+                true_deg: pad(sample.true_deg),
+                estimate_deg: pad(sample.estimate_deg),
+                desired_deg: pad(sample.desired_deg),
+                coil_volts: pad(sample.coil_volts),
+                faults: sample.faults,
+            };
+            stats.push(&row);
+            sink.row(&row).map_err(Cut::Sink)?;
+            let done = stats.rows;
+            if done % PROGRESS_EVERY == 0 {
+                ctx.progress.set_position(done);
+            }
+            match ctx.stop.requested() {
+                Some(signal) if done < steps => Err(Cut::Stop(signal)),
+                _ => Ok(()),
+            }
+        },
+    );
     let wall = started.elapsed().as_secs_f64();
-    let summary = stats.finish(s, names, wall, estimator, faults_seen, peak_temp.to_vec());
-    Ok(RunOutput {
-        summary,
-        trace: Trace { planes: P, rows },
-    })
+    ctx.progress.set_position(stats.rows);
+    let at_step = stats.rows;
+    let at_t_s = at_step as f64 * s.period_s();
+    let cut_short = result.err().map(|cut| {
+        let (cause, reason, signal) = match cut {
+            Cut::Loop(LoopError::Plant { error, .. }) => {
+                (CutCause::Plant, format!("plant: {error}"), None)
+            }
+            Cut::Loop(LoopError::Controller { error, .. }) => {
+                (CutCause::Controller, format!("controller: {error}"), None)
+            }
+            Cut::Loop(e @ LoopError::Period(_)) => (CutCause::Controller, e.to_string(), None),
+            Cut::Sink(e) => (CutCause::Output, format!("{e:#}"), None),
+            Cut::Stop(sig) => (
+                CutCause::Signal,
+                format!("stopped by {}", sig.name()),
+                Some(sig),
+            ),
+        };
+        CutShort {
+            at_step,
+            at_t_s,
+            cause,
+            reason,
+            signal,
+        }
+    });
+    // A run cut short before its first row has no peak temperature (the
+    // −∞ it starts from is no number a summary may carry).
+    let peaks = if stats.rows == 0 {
+        Vec::new()
+    } else {
+        peak_temp.to_vec()
+    };
+    let mut summary = stats.finish(s, names, wall, estimator, faults_seen, peaks);
+    summary.cut_short = cut_short;
+    summary
 }
 
 /// The 3D plant of a scenario.
@@ -366,6 +568,7 @@ struct SegmentStats {
     desired_deg: Vec<f64>,
     rows: u64,
     first_true_deg: [f64; 2],
+    last_true_deg: [f64; 2],
     tail_sum_deg: [f64; 2],
     tail_rows: usize,
     /// Running max (from 0) of `true − desired`: the overshoot if the
@@ -390,6 +593,10 @@ pub struct SummaryBuilder {
     /// validated in time order, so segments are ordered and disjoint and
     /// each row belongs to this one or to none.
     cursor: usize,
+    /// Time of the last row (s); −∞ before the first.
+    last_t_s: f64,
+    /// Control period (s).
+    period_s: f64,
 }
 
 impl SummaryBuilder {
@@ -410,6 +617,7 @@ impl SummaryBuilder {
                     desired_deg: t.deg.clone(),
                     rows: 0,
                     first_true_deg: [0.0; 2],
+                    last_true_deg: [0.0; 2],
                     tail_sum_deg: [sum_start(); 2],
                     tail_rows: 0,
                     above_deg: [0.0; 2],
@@ -423,6 +631,8 @@ impl SummaryBuilder {
             max_estimation_error_deg: [0.0; 2],
             segments,
             cursor: 0,
+            last_t_s: f64::NEG_INFINITY,
+            period_s: s.period_s(),
         }
     }
 
@@ -430,6 +640,7 @@ impl SummaryBuilder {
     #[inline]
     pub fn push(&mut self, r: &Row) {
         self.rows += 1;
+        self.last_t_s = r.t_s;
         for (p, m) in self
             .max_estimation_error_deg
             .iter_mut()
@@ -456,6 +667,7 @@ impl SummaryBuilder {
                 g.first_true_deg = r.true_deg;
             }
             g.rows += 1;
+            g.last_true_deg = r.true_deg;
             let tail = r.t_s >= g.tail_from_s;
             if tail {
                 g.tail_rows += 1;
@@ -480,10 +692,16 @@ impl SummaryBuilder {
         let mut prev_target: Option<&[f64]> = None;
         for g in self.segments.iter().filter(|g| g.rows > 0) {
             let planes = g.desired_deg.len();
+            // Rows of a segment: those with from ≤ t < to, one per period.
+            let complete = self.last_t_s + self.period_s >= g.to_s - 1e-9;
             let sse = (0..planes)
                 .map(|p| {
-                    let mean = g.tail_sum_deg[p] / g.tail_rows.max(1) as f64;
-                    (mean - g.desired_deg[p]).abs()
+                    let at = if g.tail_rows == 0 && !complete {
+                        g.last_true_deg[p]
+                    } else {
+                        g.tail_sum_deg[p] / g.tail_rows.max(1) as f64
+                    };
+                    (at - g.desired_deg[p]).abs()
                 })
                 .collect();
             let overshoot = (0..planes)
@@ -506,6 +724,7 @@ impl SummaryBuilder {
                 desired_deg: g.desired_deg.clone(),
                 steady_state_error_deg: sse,
                 overshoot_deg: overshoot,
+                complete,
             });
             prev_target = Some(&g.desired_deg);
         }
@@ -528,6 +747,7 @@ impl SummaryBuilder {
             .map(|p| {
                 segments
                     .iter()
+                    .filter(|g| g.complete)
                     .map(|g| g.steady_state_error_deg[p])
                     .fold(0.0, f64::max)
             })
@@ -547,15 +767,20 @@ impl SummaryBuilder {
             segments,
             sim_seconds,
             wall_seconds,
+            // (No wall time means no step ran: 0, not ∞, which no result
+            // may carry.)
             realtime_factor: if wall_seconds > 0.0 {
                 sim_seconds / wall_seconds
             } else {
-                f64::INFINITY
+                0.0
             },
             steps: self.rows,
             faults_seen: fault_names(faults_seen),
             estimator,
             peak_coil_temperature_c,
+            planned_steps: s.steps(),
+            cut_short: None,
+            trace: None,
         }
     }
 }
@@ -736,6 +961,7 @@ mod tests {
                 desired_deg: t.deg.clone(),
                 steady_state_error_deg: sse,
                 overshoot_deg: overshoot,
+                complete: true,
             });
             prev_target = Some(t.deg.clone());
         }

@@ -4,6 +4,8 @@
 //! argument handling, file I/O and reports.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
+use host_tools::outln;
+use host_tools::output;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
 use plant_models::viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
@@ -38,13 +40,13 @@ enum ViscoCommand {
         /// Input CSV with a header.
         input: PathBuf,
         /// Delayed spring k1 (N/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         k1: f64,
         /// Series (instantaneous) spring k2 (N/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         k2: f64,
         /// Dashpot b (N·s/m).
-        #[arg(long)]
+        #[arg(allow_negative_numbers = true, long)]
         b: f64,
         /// Output CSV (default: standard output).
         #[arg(short, long)]
@@ -80,13 +82,13 @@ enum ViscoCommand {
         #[arg(long)]
         script: Option<PathBuf>,
         /// Simulated duration (s).
-        #[arg(long, default_value_t = 1.5)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 1.5)]
         duration_s: f64,
         /// Probe every N-th traction vertex in the simulated campaign.
-        #[arg(long, default_value_t = 10)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
         probe_every: usize,
         /// Seed of the measurement noise.
-        #[arg(long, default_value_t = 1)]
+        #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
         seed: u64,
         /// Use general damping tensors instead of Rayleigh damping.
         #[arg(long)]
@@ -145,12 +147,11 @@ pub fn run(args: ViscoArgs) -> Result<()> {
     }
 }
 
+/// Reads a text input (CSV, OBJ), without a leading byte-order mark.
 fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
-}
-
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(plant_models::strip_bom(&text).to_string())
 }
 
 /// Checks a model parameter flag: finite and > 0 (or ≥ 0 if `zero_ok`).
@@ -158,7 +159,10 @@ fn check_flag(flag: &str, value: f64, zero_ok: bool, unit: &str) -> Result<()> {
     let ok = value.is_finite() && (value > 0.0 || zero_ok && value == 0.0);
     if !ok {
         let range = if zero_ok { ">= 0" } else { "> 0" };
-        bail!("{flag} must be finite and {range} ({unit}), got {value}");
+        bail!(
+            "{flag} must be finite and {range} ({unit}), got {}",
+            plant_models::short_number(value)
+        );
     }
     Ok(())
 }
@@ -204,11 +208,8 @@ fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Re
         let _ = writeln!(s, "{},{},{}", t[k], u[k], f[k]);
     }
     match output {
-        Some(p) => write_text(p, &s),
-        None => {
-            print!("{s}");
-            Ok(())
-        }
+        Some(p) => output::write_csv(p, &s),
+        None => output::print_csv(&s),
     }
 }
 
@@ -232,9 +233,12 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
     if !(r.rms_residual_n.is_finite() && r.weighted_cost_n2.is_finite()) {
         bail!(
             "fitting {name}: the model's force overflowed (rms residual {} N): displacements and forces this large cannot be fitted",
-            r.rms_residual_n
+            plant_models::short_number(r.rms_residual_n)
         );
     }
+    // Numbers the data do not determine are not a result.
+    r.check_determined()
+        .with_context(|| format!("fitting {name}"))?;
     if let Some(p) = plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
@@ -244,25 +248,35 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
             r.b_n_s_per_m,
             if uniform { "uniform" } else { "seed" }
         );
-        write_text(p, &fit_plot(t, f, &fitted, &caption))?;
+        output::write_svg(p, &fit_plot(t, f, &fitted, &caption))?;
     }
+    // How far each parameter could move before the fit changes by its
+    // own misfit: a factor (1.05 is ±5 %).
+    let factor = r.ln_uncertainty.map(f64::exp);
+    let spread = |k: usize| {
+        if factor[k] < 2.0 {
+            format!("±{:.1} %", 100.0 * (factor[k] - 1.0))
+        } else {
+            format!("within a factor of {:.1}", factor[k])
+        }
+    };
     if json {
-        println!(
-            "{{\"k1_n_per_m\": {:e}, \"k2_n_per_m\": {:e}, \"b_n_s_per_m\": {:e}, \"rms_residual_n\": {:e}, \"weighted_cost_n2\": {:e}, \"evaluations\": {}, \"weighting\": \"{}\", \"samples\": {}}}",
-            r.k1_n_per_m,
-            r.k2_n_per_m,
-            r.b_n_s_per_m,
-            r.rms_residual_n,
-            r.weighted_cost_n2,
-            r.evaluations,
-            if uniform { "uniform" } else { "seed" },
-            t.len()
-        );
+        output::JsonObject::new()
+            .field("k1_n_per_m", &r.k1_n_per_m)?
+            .field("k2_n_per_m", &r.k2_n_per_m)?
+            .field("b_n_s_per_m", &r.b_n_s_per_m)?
+            .field("rms_residual_n", &r.rms_residual_n)?
+            .field("weighted_cost_n2", &r.weighted_cost_n2)?
+            .field("uncertainty_factor", &factor)?
+            .field("evaluations", &r.evaluations)?
+            .field("weighting", if uniform { "uniform" } else { "seed" })?
+            .field("samples", &t.len())?
+            .print()?;
     } else {
-        println!("k1 = {:.6e} N/m", r.k1_n_per_m);
-        println!("k2 = {:.6e} N/m", r.k2_n_per_m);
-        println!("b  = {:.6e} N s/m", r.b_n_s_per_m);
-        println!(
+        outln!("k1 = {:.6e} N/m ({})", r.k1_n_per_m, spread(0));
+        outln!("k2 = {:.6e} N/m ({})", r.k2_n_per_m, spread(1));
+        outln!("b  = {:.6e} N s/m ({})", r.b_n_s_per_m, spread(2));
+        outln!(
             "rms residual = {:.4e} N over {} samples ({} weighting, {} evaluations)",
             r.rms_residual_n,
             t.len(),
@@ -302,6 +316,11 @@ fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
 /// ~200-vertex mesh at this length: 0.2 GB of frames, 0.5 GB of CSV text.
 const MAX_OBJECT_DURATION_S: f64 = 600.0;
 
+/// Most surface vertices `object` takes: its time grows about as n³
+/// (1,982 vertices took 30 s, a 19,462-vertex sphere ran past 60 s with no
+/// end in sight); 3,000 vertices is about two minutes.
+const MAX_OBJECT_VERTICES: usize = 3000;
+
 /// Scalar options of `object`.
 struct ObjectRun {
     duration_s: f64,
@@ -311,7 +330,7 @@ struct ObjectRun {
 }
 
 fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    output::create_dir(dir)?;
     let mut index = String::from(
         "file,vertex,speed_m_per_s,ux,uy,uz,true_k1_n_per_m,true_k2_n_per_m,true_b_n_s_per_m\n",
     );
@@ -325,7 +344,7 @@ fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<
                 t.time_s[i], t.displacement_m[i], t.force_n[i]
             );
         }
-        write_text(&dir.join(&name), &s)?;
+        output::write_csv(&dir.join(&name), &s)?;
         let truth = truths
             .iter()
             .find(|v| v.vertex == t.vertex)
@@ -338,7 +357,7 @@ fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<
             t.vertex, t.speed_m_per_s, d[0], d[1], d[2]
         );
     }
-    write_text(&dir.join("trials.csv"), &index)
+    output::write_csv(&dir.join("trials.csv"), &index)
 }
 
 fn object(
@@ -363,13 +382,32 @@ fn object(
     if every == 0 {
         bail!("--probe-every must be at least 1 (probe every N-th traction vertex)");
     }
+    // The outputs are checked before the long part, not after it.
+    output::check_dir(out_dir)?;
+    if let Some(dir) = trials_dir {
+        output::check_dir(dir)?;
+    }
     let mesh = match mesh_path {
         Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,
         None => SurfaceMesh::default_object(),
     };
+    let n = mesh.vertices_m.len();
+    if n > MAX_OBJECT_VERTICES {
+        // Measured: 872 vertices 4 s, 1,982 vertices 30 s (release build):
+        // about n³, so the estimate scales the latter.
+        let minutes = 0.5 * (n as f64 / 1982.0).powi(3);
+        bail!(
+            "{}: {n} vertices is more than {MAX_OBJECT_VERTICES}: the DGFM and its fits take time growing as the cube of the vertex count (about {} minutes for this mesh; 1,982 vertices took 30 s); simplify the mesh (the seed's object has 193 vertices)",
+            mesh_path.map_or("the mesh".into(), |p| p.display().to_string()),
+            plant_models::short_number(minutes.round())
+        );
+    }
+    let phase =
+        host_tools::progress::spinner(&format!("building the DGFM of {n} vertices (FEM)"), false);
     let fixed = support_below(&mesh, DEFAULT_SUPPORT_HEIGHT_FRACTION);
     let dgfm = Dgfm::from_mesh(mesh, LinearElastic::default(), fixed, &DEFAULT_SHELL_SCALES)?;
     // Measure (simulated), fit, estimate and spread, as in seed §4.
+    phase.set_message("simulating and fitting the probe campaign");
     let truths = synthetic_truth(&dgfm, every)?;
     let protocol = ProbeProtocol {
         speeds_m_per_s: vec![20.0e-3],
@@ -430,6 +468,7 @@ fn object(
             _ => anyhow::Error::new(e),
         }
     };
+    phase.set_message("running the probe script at 1 kHz");
     let reference = ViscoObject::new(dgfm.clone(), params.clone(), HAPTIC_PERIOD_S)?;
     let mut exact = HapticLoop::new(reference)?;
     let exact_samples = run_script(&mut exact, &events, duration_s).map_err(name_script_error)?;
@@ -437,8 +476,8 @@ fn object(
     let mut haptic = HapticLoop::new(core)?;
     let samples = run_script(&mut haptic, &events, duration_s).map_err(name_script_error)?;
     let difference = CoreDifference::of(&samples, &exact_samples, &haptic.frames, &exact.frames);
-    std::fs::create_dir_all(out_dir)
-        .with_context(|| format!("cannot create {}", out_dir.display()))?;
+    phase.finish_and_clear();
+    output::create_dir(out_dir)?;
     let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");
     for fr in &haptic.frames {
         for v in 0..nv {
@@ -450,7 +489,7 @@ fn object(
             );
         }
     }
-    write_text(&out_dir.join("frames.csv"), &frames)?;
+    output::write_csv(&out_dir.join("frames.csv"), &frames)?;
     let mut hs =
         String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m,exact_ux_m,exact_uy_m,exact_uz_m\n");
     for (s, e) in samples.iter().zip(&exact_samples) {
@@ -465,22 +504,22 @@ fn object(
             s.time_s, f[0], f[1], f[2], u[0], u[1], u[2], x[0], x[1], x[2]
         );
     }
-    write_text(&out_dir.join("haptic.csv"), &hs)?;
+    output::write_csv(&out_dir.join("haptic.csv"), &hs)?;
     let mut ps = String::from("vertex,fixed,damping_magnitude_n_s_per_m\n");
     for v in 0..nv {
         let _ = writeln!(ps, "{v},{},{:e}", u8::from(fixed_flags[v]), per_vertex[v]);
     }
-    write_text(&out_dir.join("params.csv"), &ps)?;
+    output::write_csv(&out_dir.join("params.csv"), &ps)?;
     let caption = format!(
         "damping magnitude ({} trials, {} vertices estimated)",
         trials.len(),
         estimates.len()
     );
-    write_text(
+    output::write_svg(
         &out_dir.join("damping.svg"),
         &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption),
     )?;
-    println!(
+    outln!(
         "{} vertices ({} traction), {} trials fitted, {} vertices estimated; {} haptic steps, {} display frames written to {}",
         nv,
         fixed_flags.iter().filter(|f| !**f).count(),
@@ -490,7 +529,7 @@ fn object(
         haptic.frames.len(),
         out_dir.display()
     );
-    println!(
+    outln!(
         "firmware update vs exact reference: contact max |Δu| {:.3e} m ({:.3} % of max |u|), all vertices over the display frames {:.3e} m ({:.3} %)",
         difference.contact_m,
         100.0 * difference.contact_rel,

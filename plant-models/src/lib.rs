@@ -2,10 +2,15 @@
 //! deformable objects it handles. Everything here is std and deterministic:
 //! random effects take an explicit seeded RNG.
 #![deny(unsafe_code)]
+pub mod contour;
 pub mod csv_input;
+pub mod dlo;
+pub mod fem;
 pub mod joint;
+pub mod linalg;
 pub mod pushing;
 pub mod rheology;
+pub mod tissue;
 pub mod viscoelastic;
 
 pub mod rng {
@@ -23,7 +28,14 @@ pub mod rng {
     //! | [`CAMERA`] | the joint's camera noise and occlusion |
     //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
-    //! | [`RHEOLOGY_POINTS`] | the rheology reference's surface-point sampling |
+    //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise) |
+    //! | [`LINK_FAULTS_BASE`] + d | the lockstep fault campaign's faults, direction d (0 host → board, 1 board → host) |
+    //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
+    //! | [`TISSUE_WARP`] | `tissue::field` synthetic twin: the non-rigid warp's bumps |
+    //! | [`TISSUE_NOISE_INITIAL`] | `tissue::field` noise of the initial volume |
+    //! | [`TISSUE_NOISE_DEFORMED`] | `tissue::field` noise of the deformed volume |
+    //! | [`TISSUE_DELAUNAY_JITTER`] | `tissue::field` tie-breaking jitter of the Delaunay points |
+    //! | [`RHEOLOGY_BASE`]: [`RHEOLOGY_POINTS`] | the rheology reference's surface-point sampling |
     //! | [`RHEOLOGY_POINT_NOISE`] | its surface-point noise |
     //! | [`RHEOLOGY_FORCE_NOISE`] | its force-sensor noise |
     //! | [`RHEOLOGY_SEARCH`] | the rheology calibrations (GA, RA, uniform search) |
@@ -37,14 +49,42 @@ pub mod rng {
     /// `hal-sim`'s simulated coder k draws its dropouts from
     /// `HAL_SIM_SENSOR_BASE + k`.
     pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+    /// First stream of the contour splines (`plant_models::contour`).
+    pub const CONTOUR_BASE: u64 = 0x500;
+    /// Noise of the synthetic contour data `softjoint contour synth` writes.
+    pub const CONTOUR_SYNTH_NOISE: u64 = CONTOUR_BASE;
+    /// Noise of the Monte-Carlo replicates of Theorem 1.
+    pub const CONTOUR_MONTE_CARLO: u64 = CONTOUR_BASE + 1;
+    /// Tracker noise of the synthetic deforming-contour movie.
+    pub const CONTOUR_MOVIE_NOISE: u64 = CONTOUR_BASE + 2;
+    /// The fault campaign of the lockstep link (`tests/src/fault_injector.rs`)
+    /// draws the faults of direction d from `LINK_FAULTS_BASE + d`.
+    pub const LINK_FAULTS_BASE: u64 = 0x200;
+
+    /// The tissue module's streams start here (seed 000, Zhang and Kita).
+    pub const TISSUE_BASE: u64 = 0x600;
+    /// Texture of the synthetic calf volumes.
+    pub const TISSUE_TEXTURE: u64 = TISSUE_BASE;
+    /// Bumps of the synthetic twin's non-rigid warp.
+    pub const TISSUE_WARP: u64 = TISSUE_BASE + 1;
+    /// Noise of the synthetic initial volume.
+    pub const TISSUE_NOISE_INITIAL: u64 = TISSUE_BASE + 2;
+    /// Noise of the synthetic deformed volume.
+    pub const TISSUE_NOISE_DEFORMED: u64 = TISSUE_BASE + 3;
+    /// Sub-micrometre jitter that breaks ties of co-spherical Delaunay points.
+    pub const TISSUE_DELAUNAY_JITTER: u64 = TISSUE_BASE + 4;
+
+    /// The rheology module's streams start here (seed 000, Noborio; issue
+    /// 14's number × 0x100).
+    pub const RHEOLOGY_BASE: u64 = 0xE00;
     /// The rheology reference block's choice of surface points.
-    pub const RHEOLOGY_POINTS: u64 = 0x200;
+    pub const RHEOLOGY_POINTS: u64 = RHEOLOGY_BASE;
     /// The rheology reference block's surface-point noise.
-    pub const RHEOLOGY_POINT_NOISE: u64 = 0x201;
+    pub const RHEOLOGY_POINT_NOISE: u64 = RHEOLOGY_BASE + 1;
     /// The rheology reference block's force-sensor noise.
-    pub const RHEOLOGY_FORCE_NOISE: u64 = 0x202;
+    pub const RHEOLOGY_FORCE_NOISE: u64 = RHEOLOGY_BASE + 2;
     /// The rheology calibrations' random draws (GA, RA, uniform search).
-    pub const RHEOLOGY_SEARCH: u64 = 0x203;
+    pub const RHEOLOGY_SEARCH: u64 = RHEOLOGY_BASE + 3;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
@@ -77,6 +117,13 @@ pub mod rng {
             }
         }
     }
+}
+
+/// `text` without a leading UTF-8 byte-order mark, which Windows editors
+/// and Excel write at the start of text files (the CSV reader drops it
+/// itself; JSON parsers and line-based formats do not).
+pub fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
 /// A number for an error message: as `{}` prints it, or in exponent form

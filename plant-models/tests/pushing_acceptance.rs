@@ -314,13 +314,13 @@ fn global_classification_is_right_on_all_six_pushes() {
                 "{} {:?}: classified {} (frames won {:?}, votes {:.3?})",
                 m.label,
                 v.video.scenario.site,
-                c.winner_label(),
+                c.verdict(),
                 c.frames_won,
                 c.vote
             );
             assert_eq!(
                 c.winner_label(),
-                m.label,
+                Some(m.label),
                 "{:?} of {}: votes {:?}, frames won {:?}",
                 v.video.scenario.site,
                 m.label,

@@ -140,18 +140,23 @@ fn bad_meshes_and_parameters_are_refused_with_named_errors() {
     );
     let mut bad = params(1.0, 1.0, 1.0);
     bad.max_alpha = 1.0;
-    assert!(matches!(
-        bad.validate(),
-        Err(PushError::InvalidParameter {
-            name: "max_alpha",
-            ..
-        })
-    ));
+    let err = bad.validate().unwrap_err();
+    assert!(
+        matches!(
+            err,
+            PushError::OutOfRange {
+                name: "max_alpha",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("0..=0.99"), "{err}");
     let mut bad = params(1.0, 1.0, 1.0);
     bad.k_area = -3.0;
     assert!(matches!(
         bad.validate(),
-        Err(PushError::InvalidParameter { name: "k_area", .. })
+        Err(PushError::OutOfRange { name: "k_area", .. })
     ));
     let cfg = SimConfig {
         step_s: 0.0,

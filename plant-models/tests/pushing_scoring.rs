@@ -252,7 +252,7 @@ fn ground_truth_is_bit_identical_and_refuses_bad_materials() {
     bad.poisson_ratio = 0.5;
     assert!(matches!(
         record_push("s", bad, &sc, &cfg),
-        Err(PushError::InvalidParameter {
+        Err(PushError::OutOfRange {
             name: "poisson_ratio",
             ..
         })
@@ -276,7 +276,7 @@ fn ground_truth_is_bit_identical_and_refuses_bad_materials() {
                 ..cfg
             }
         ),
-        Err(PushError::InvalidParameter {
+        Err(PushError::OutOfRange {
             name: "contour_noise_px",
             ..
         })
@@ -285,7 +285,7 @@ fn ground_truth_is_bit_identical_and_refuses_bad_materials() {
     sc_bad.push_depth_px = sc.block_height_px;
     assert!(matches!(
         record_push("s", ReferenceMaterial::SPONGE, &sc_bad, &cfg),
-        Err(PushError::InvalidParameter {
+        Err(PushError::OutOfRange {
             name: "push_depth_px",
             ..
         })
@@ -558,7 +558,7 @@ fn evolutionary_search_improves_and_is_deterministic_across_thread_counts() {
     bad.p_special = 1.5;
     assert!(matches!(
         calibrate(&bad, &TABLE_III_RANGES, toy_fitness, |_| {}),
-        Err(PushError::InvalidParameter {
+        Err(PushError::OutOfRange {
             name: "p_special",
             ..
         })

@@ -256,3 +256,81 @@ fn fits_of_bad_series_are_errors() {
     .is_err());
     assert!(simulate_force(1.0, 2.0, 0.5, &t, &u[..2]).is_err());
 }
+
+/// The refusal of undetermined fits on a simulated probe campaign (noise
+/// and the contact-area artefact on, 5 and 20 mm/s, both weightings)
+/// against the known truth: every fit it accepts is within 60 % of the
+/// generating parameters (the seed-weighted slow trials carry the known
+/// slow-trial bias, up to 47 % in b), and every fit it refuses is off by
+/// more than 100 % (uniform weighting on the slow trials: b off by
+/// ≈ 3300 %, k1 free by a factor of ~10⁹). Measured uncertainty factors:
+/// seed weighting ≤ 1.3 (20 mm/s) and ≤ 8.3 (5 mm/s); uniform 5.3
+/// (20 mm/s) and ≥ 4·10⁵ (5 mm/s), against the threshold of 100.
+#[test]
+fn fits_of_the_probe_campaign_are_refused_exactly_when_they_are_wrong() {
+    let truths = truths();
+    let trials = simulate_campaign(object_dgfm(), &truths, &ProbeProtocol::default(), 21).unwrap();
+    let (mut accepted, mut refused) = (0, 0);
+    for weighting in [Weighting::Seed, Weighting::Uniform] {
+        let fits = fit_trials(&trials, weighting, NelderMeadOptions::default());
+        for (t, f) in trials.iter().zip(&fits) {
+            let f = f.as_ref().unwrap();
+            let err = worst(rel_errors(t, f, &truths));
+            let what = format!(
+                "{weighting:?} vertex {} speed {}: error {err:.3}, uncertainty {:.3?}",
+                t.vertex, t.speed_m_per_s, f.ln_uncertainty
+            );
+            match f.check_determined() {
+                Ok(()) => {
+                    accepted += 1;
+                    assert!(err < 0.6, "accepted: {what}");
+                }
+                Err(_) => {
+                    refused += 1;
+                    assert!(err > 1.0, "refused: {what}");
+                }
+            }
+        }
+    }
+    // Seed weighting at both speeds and uniform at 20 mm/s accepted,
+    // uniform at 5 mm/s refused.
+    assert_eq!((accepted, refused), (30, 10));
+}
+
+/// A trial that cannot determine the parameters is refused, not printed:
+/// a constant force under a constant displacement (k1 = 2.3e17 and
+/// b = 3e-10 came out, with no warning) and a purely elastic force (no
+/// relaxation). And a trial's forces in any unit give the same fit, scaled:
+/// forces of 1e150 N overflowed the cost (rms residual 1.3e144 N, exit 0).
+#[test]
+fn fits_the_data_do_not_determine_are_refused_and_scale_does_not_matter() {
+    let t: Vec<f64> = (0..50).map(|k| f64::from(k) * 0.01).collect();
+    let held = vec![1e-3; t.len()];
+    let constant = vec![1.0; t.len()];
+    let opts = NelderMeadOptions::default();
+    let f = fit_trial(&t, &held, &constant, Weighting::Seed, opts).unwrap();
+    let e = f.check_determined().unwrap_err().to_string();
+    assert!(e.contains("does not determine k1 and b"), "{e}");
+    let ramp: Vec<f64> = t
+        .iter()
+        .map(|&s| 1e-4 * (1.0 + (s / 0.1).min(1.0)))
+        .collect();
+    let elastic: Vec<f64> = ramp.iter().map(|u| 500.0 * u).collect();
+    let f = fit_trial(&t[..], &ramp, &elastic, Weighting::Seed, opts).unwrap();
+    assert!(f.check_determined().is_err(), "{f:?}");
+    // A relaxing trial, in newtons and in units 1e150 times smaller.
+    let relaxing = simulate_force(800.0, 400.0, 60.0, &t, &ramp).unwrap();
+    let a = fit_trial(&t, &ramp, &relaxing, Weighting::Seed, opts).unwrap();
+    a.check_determined().unwrap();
+    assert!((a.k1_n_per_m / 800.0 - 1.0).abs() < 1e-3, "{a:?}");
+    let huge: Vec<f64> = relaxing.iter().map(|f| f * 1e150).collect();
+    let b = fit_trial(&t, &ramp, &huge, Weighting::Seed, opts).unwrap();
+    b.check_determined().unwrap();
+    for (x, y) in [
+        (a.k1_n_per_m, b.k1_n_per_m),
+        (a.k2_n_per_m, b.k2_n_per_m),
+        (a.b_n_s_per_m, b.b_n_s_per_m),
+    ] {
+        assert!((y / (x * 1e150) - 1.0).abs() < 1e-6, "{x:e} vs {y:e}");
+    }
+}

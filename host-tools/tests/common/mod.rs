@@ -89,3 +89,12 @@ pub fn refused(args: &[&str], needles: &[&str]) -> String {
     }
     err
 }
+
+/// Sends `signal` (e.g. `-TERM`) to process `pid` with kill(1).
+pub fn kill(signal: &str, pid: u32) {
+    let ok = Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(ok.success(), "kill {signal} {pid} failed");
+}

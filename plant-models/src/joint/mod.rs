@@ -105,7 +105,7 @@ pub enum PlantError {
         coil: usize,
     },
     /// The step length is not finite and positive.
-    #[error("step length {dt_s} s must be finite and > 0")]
+    #[error("step length {} s must be finite and > 0", crate::short_number(*.dt_s))]
     BadStep {
         /// The rejected step (s).
         dt_s: f64,
@@ -120,7 +120,9 @@ pub enum PlantError {
     },
     /// The link's kinetic energy exceeded the physical bound.
     #[error(
-        "numerical instability in plane {plane}: kinetic energy {kinetic_j} J exceeds {limit_j} J"
+        "numerical instability in plane {plane}: kinetic energy {} J exceeds {} J",
+        crate::short_number(*.kinetic_j),
+        crate::short_number(*.limit_j)
     )]
     EnergyRunaway {
         /// Plane.
@@ -133,7 +135,9 @@ pub enum PlantError {
     /// The link left the mechanism's range (|θ| > 1.2 rad or the base more
     /// than 20 mm from the joint origin).
     #[error(
-        "plane {plane}: link out of range (θ = {theta_deg}°, base offset {base_offset_mm} mm)"
+        "plane {plane}: link out of range (θ = {}°, base offset {} mm)",
+        crate::short_number(*.theta_deg),
+        crate::short_number(*.base_offset_mm)
     )]
     PoseOutOfRange {
         /// Plane.

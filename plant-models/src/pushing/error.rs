@@ -7,11 +7,24 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum PushError {
     /// A named scalar parameter is NaN/infinite or outside its valid range.
-    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    #[error("invalid parameter `{name}` = {}: {reason}", crate::short_number(*.value))]
     InvalidParameter {
         name: &'static str,
         value: f64,
         reason: &'static str,
+    },
+    /// A named scalar parameter is outside its range `[min, max]`.
+    #[error(
+        "invalid parameter `{name}` = {}: must be within {}..={}",
+        crate::short_number(*.value),
+        crate::short_number(*.min),
+        crate::short_number(*.max)
+    )]
+    OutOfRange {
+        name: &'static str,
+        value: f64,
+        min: f64,
+        max: f64,
     },
     /// A mesh could not be built or validated.
     #[error("invalid mesh: {0}")]
@@ -26,6 +39,9 @@ pub enum PushError {
         got: usize,
         expected: usize,
     },
+    /// The tracked contour could not be fitted by a periodic spline.
+    #[error("contour tracking: {0}")]
+    Tracking(#[from] crate::contour::ContourError),
 }
 
 /// Result alias of the pushing module.
@@ -41,10 +57,11 @@ pub(crate) fn check_range(name: &'static str, value: f64, min: f64, max: f64) ->
         });
     }
     if value < min || value > max {
-        return Err(PushError::InvalidParameter {
+        return Err(PushError::OutOfRange {
             name,
             value,
-            reason: "outside its allowed range",
+            min,
+            max,
         });
     }
     Ok(value)

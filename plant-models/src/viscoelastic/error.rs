@@ -55,11 +55,19 @@ pub enum VeError {
         /// Samples given.
         got: usize,
     },
+    /// A fit's parameters are not determined by its data (see
+    /// `TrialFit::check_determined`).
+    #[error("{reason}; a trial must show the force relaxing under a held displacement (a constant or purely elastic force fixes one stiffness only)")]
+    NotDetermined {
+        /// Which parameters are free and how far, or why the fit did not
+        /// settle.
+        reason: String,
+    },
     /// A probe-script event could not be applied (`index` counts the
     /// script's events from 0, so a reader can name the file's line).
     /// `error` is shown in this message and not also returned as the
     /// source, so that chain-printing reporters show it once.
-    #[error("probe event {index} (time_s = {time_s}): {error}")]
+    #[error("probe event {index} (time_s = {}): {error}", crate::short_number(*.time_s))]
     ProbeEvent {
         /// Index of the event in the script.
         index: usize,
@@ -89,6 +97,35 @@ pub enum VeError {
         /// The length it should have.
         expected: usize,
     },
+}
+
+impl From<crate::fem::FemError> for VeError {
+    /// The shared FEM's refusals, in this module's words.
+    fn from(e: crate::fem::FemError) -> Self {
+        use crate::fem::FemError as F;
+        match e {
+            F::InvalidParameter {
+                name,
+                value,
+                reason,
+            } => VeError::InvalidParameter {
+                name,
+                value,
+                reason,
+            },
+            F::NotPositiveDefinite { equation } => VeError::NotPositiveDefinite { equation },
+            F::LengthMismatch {
+                what,
+                got,
+                expected,
+            } => VeError::LengthMismatch {
+                what,
+                got,
+                expected,
+            },
+            other => VeError::InvalidMesh(other.to_string()),
+        }
+    }
 }
 
 /// Result alias of the viscoelastic module.

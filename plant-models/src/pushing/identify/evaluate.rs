@@ -64,7 +64,35 @@ impl PreparedVideo {
     /// on the first contour's bounding box. `nx`/`ny` follow the video's
     /// orientation: the longer count goes along the longer side.
     pub fn new(video: Video, setup: &EvalSetup) -> Result<Self> {
+        let truth = video.contours_px.clone();
+        Self::with_truth_contours(video, setup, &truth)
+    }
+
+    /// As [`new`](Self::new), but the images scored against, and the
+    /// first frame's bounding box the mesh starts from, come from
+    /// `truth_contours` (one closed polygon per frame) instead of the
+    /// video's raw tracked points — e.g. the tracked contour smoothed by a
+    /// periodic spline and resampled densely
+    /// ([`contour_score::track_video`](crate::pushing::contour_score::track_video)).
+    pub fn with_truth_contours(
+        video: Video,
+        setup: &EvalSetup,
+        truth_contours: &[Vec<V2>],
+    ) -> Result<Self> {
         video.validate()?;
+        if truth_contours.len() != video.contours_px.len() {
+            return Err(PushError::LengthMismatch {
+                what: "truth_contours",
+                got: truth_contours.len(),
+                expected: video.contours_px.len(),
+            });
+        }
+        if let Some(f) = truth_contours.iter().position(|c| c.len() < 3) {
+            return Err(PushError::MalformedInput {
+                location: format!("truth contour of frame {f}"),
+                reason: "fewer than 3 points".into(),
+            });
+        }
         check_range("cell_px", setup.cell_px, 1e-3, 1e3)?;
         for (name, n) in [("nx", setup.nx), ("ny", setup.ny)] {
             if n == 0 || n > 2000 {
@@ -76,13 +104,13 @@ impl PreparedVideo {
             }
         }
         let grid = raster_grid(&video.scenario, setup.cell_px)?;
-        let mut truth = Vec::with_capacity(video.contours_px.len());
-        for c in &video.contours_px {
+        let mut truth = Vec::with_capacity(truth_contours.len());
+        for c in truth_contours {
             let mut img = grid.empty();
             rasterise_polygon(&grid, &mut img, c);
             truth.push(img);
         }
-        let first = &video.contours_px[0];
+        let first = &truth_contours[0];
         let mut lo = first[0];
         let mut hi = first[0];
         for p in first {
@@ -182,6 +210,18 @@ pub fn score_run(
     params: &MaterialParams,
     sim: &SimConfig,
 ) -> Result<RunScore> {
+    score_run_observed(prepared, forces_n, params, sim, |_, _| {})
+}
+
+/// [`score_run`], also passing each frame's index and mesh positions to
+/// `observe` (snapshots and progress from the same pass).
+pub fn score_run_observed(
+    prepared: &PreparedVideo,
+    forces_n: &[f64],
+    params: &MaterialParams,
+    sim: &SimConfig,
+    mut observe: impl FnMut(usize, &[V2]),
+) -> Result<RunScore> {
     let mut img = prepared.grid.empty();
     let mut f_per_frame = Vec::with_capacity(prepared.frame_count());
     let mut unstable_from = None;
@@ -193,6 +233,7 @@ pub fn score_run(
         params,
         sim,
         |f, pos, inst| {
+            observe(f, pos);
             if let Some(i) = inst {
                 unstable_from.get_or_insert(f);
                 why.get_or_insert(i);

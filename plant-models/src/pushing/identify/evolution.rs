@@ -168,6 +168,7 @@ impl EvolutionSettings {
 
 /// Statistics of one evaluated generation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GenerationReport {
     /// 1-based generation number.
     pub generation: usize,
@@ -181,6 +182,7 @@ pub struct GenerationReport {
 
 /// Outcome of a calibration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CalibrationResult {
     pub best_params: MaterialParams,
     pub best_score: f64,

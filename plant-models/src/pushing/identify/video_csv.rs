@@ -53,6 +53,12 @@ impl From<crate::csv_input::CsvError> for PushError {
     }
 }
 
+/// Largest |contour coordinate| a video may hold (px). A camera frame is a
+/// few thousand pixels; coordinates far beyond overflowed the block's mesh
+/// (`vertex 2 has a non-finite coordinate`, naming no file or line). A
+/// million pixels is far outside any frame (estimate).
+pub const MAX_COORDINATE_PX: f64 = 1e6;
+
 /// Parses a video CSV (named `file` in errors) for `scenario`, labelled
 /// `material`.
 pub fn parse_video_csv(
@@ -83,8 +89,24 @@ pub fn parse_video_csv(
             return Err(bad(
                 file,
                 row.line,
-                format!("frame `{f}` is not a non-negative integer"),
+                format!(
+                    "frame `{}` is not a non-negative integer",
+                    crate::short_number(f)
+                ),
             ));
+        }
+        for (v, column) in [(x, "x_px"), (y, "y_px")] {
+            if v.abs() > MAX_COORDINATE_PX {
+                return Err(PushError::from(table.error(
+                    row.line,
+                    Some(column),
+                    format!(
+                        "{} px is outside any camera frame (|value| <= {} px)",
+                        crate::short_number(v),
+                        crate::short_number(MAX_COORDINATE_PX)
+                    ),
+                )));
+            }
         }
         let frame = f as usize;
         if frame == contours.len() {

@@ -28,6 +28,7 @@ use serde::{Deserialize, Serialize};
 /// Stiffnesses are in model units (unit masses, lengths in px): the
 /// calibration absorbs the conversion to SI, as in the seed.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MaterialParams {
     /// k_L: length preservation stiffness (Eq. 20). Table III: [1e-5, 1e4].
     pub k_length: f64,

@@ -57,6 +57,9 @@ pub struct NelderMeadResult<const N: usize> {
     pub cost: f64,
     /// Cost evaluations used (all runs).
     pub evaluations: usize,
+    /// False when the last run stopped at its evaluation budget rather
+    /// than at its tolerances.
+    pub converged: bool,
 }
 
 /// Minimises `f` from `x0` with initial simplex steps `step` (Nelder–Mead
@@ -80,6 +83,7 @@ pub fn nelder_mead<const N: usize>(
     let mut evaluations = 0;
     let mut best = x0;
     let mut best_cost = eval(&x0, &mut evaluations);
+    let mut converged = false;
     for _run in 0..=opts.restarts {
         let mut simplex: Vec<([f64; N], f64)> = Vec::with_capacity(N + 1);
         simplex.push((best, best_cost));
@@ -104,8 +108,12 @@ pub fn nelder_mead<const N: usize>(
             if (hi - lo).abs() <= opts.cost_tolerance_rel * lo.abs().max(f64::MIN_POSITIVE)
                 && spread <= opts.x_tolerance
                 || spread <= opts.x_tolerance * 1e-3
-                || evaluations >= budget_end
             {
+                converged = true;
+                break;
+            }
+            if evaluations >= budget_end {
+                converged = false;
                 break;
             }
             let mut centroid = [0.0; N];
@@ -160,6 +168,7 @@ pub fn nelder_mead<const N: usize>(
         x: best,
         cost: best_cost,
         evaluations,
+        converged,
     }
 }
 
@@ -358,16 +367,105 @@ pub struct TrialFit {
     pub weighted_cost_n2: f64,
     /// Cost evaluations used.
     pub evaluations: usize,
+    /// Whether the minimiser stopped at its tolerances (not its budget).
+    pub converged: bool,
+    /// How well the trial determines each parameter, in ln units, for
+    /// (k1, k2, b): how far ln θ may move (the others re-adjusting) before
+    /// the weighted rms model force changes by the fit's own rms residual
+    /// or by [`FORCE_RESOLUTION_REL`] of the largest force, whichever is
+    /// larger. From the Gauss–Newton Hessian at the optimum; +∞ where it is
+    /// singular. 0.1 is ±10 %; ln 10 is a factor of ten either way.
+    pub ln_uncertainty: [f64; 3],
+}
+
+/// The smallest force change a trial is taken to resolve, relative to its
+/// largest force (estimate: a load cell's 0.1 % of range). It floors the
+/// misfit in [`TrialFit::ln_uncertainty`], so an exactly fitted trial is
+/// not credited with infinite precision.
+pub const FORCE_RESOLUTION_REL: f64 = 1e-3;
+
+/// Largest [`TrialFit::ln_uncertainty`] of a parameter the trial
+/// determines: ln 100, a factor of a hundred either way. The measure is
+/// conservative (it allows the fit to change by its whole misfit, not by
+/// a standard error), so the threshold separates orders of magnitude: on a
+/// simulated campaign (`fits_of_the_probe_campaign_are_refused_exactly_when_they_are_wrong`)
+/// the fits it accepts have factors up to 8.3 and errors up to 47 %, the
+/// ones it refuses factors beyond 4·10⁵ and errors beyond 3000 %; a
+/// constant or purely elastic force leaves k1 and b free entirely.
+pub const MAX_LN_UNCERTAINTY: f64 = 4.605_170_185_988_092; // ln 100
+
+/// Names of the fitted parameters, in [`TrialFit::ln_uncertainty`] order.
+pub const FIT_PARAMETERS: [&str; 3] = ["k1", "k2", "b"];
+
+impl TrialFit {
+    /// Refuses a fit whose parameters the trial does not determine: the
+    /// minimiser ran out of evaluations, a parameter left f64 (0 or ∞
+    /// after `exp`), or a parameter could change by more than a factor
+    /// [`MAX_LN_UNCERTAINTY`].exp() without the fit changing by more than
+    /// its own misfit.
+    pub fn check_determined(&self) -> Result<()> {
+        let values = [self.k1_n_per_m, self.k2_n_per_m, self.b_n_s_per_m];
+        let free: Vec<usize> = (0..3)
+            .filter(|&k| !(values[k].is_normal() && self.ln_uncertainty[k] <= MAX_LN_UNCERTAINTY))
+            .collect();
+        if free.is_empty() && self.converged {
+            return Ok(());
+        }
+        let factor = |k: usize| {
+            let u = self.ln_uncertainty[k];
+            if u.is_finite() && u < 700.0 {
+                let x = u.exp();
+                if x < 1e6 {
+                    format!("a factor of {x:.2}")
+                } else {
+                    format!("a factor of {}", crate::short_number(x))
+                }
+            } else {
+                "any factor".into()
+            }
+        };
+        let reason = if free.is_empty() {
+            format!(
+                "the fit did not settle within its {} evaluations (an ill-conditioned trial)",
+                self.evaluations
+            )
+        } else {
+            format!(
+                "the trial does not determine {}: the fit stays as good with {}",
+                free.iter()
+                    .map(|&k| FIT_PARAMETERS[k])
+                    .collect::<Vec<_>>()
+                    .join(" and "),
+                free.iter()
+                    .map(|&k| format!("{} changed by {}", FIT_PARAMETERS[k], factor(k)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        };
+        Err(VeError::NotDetermined { reason })
+    }
 }
 
 /// Weighted squared force error of parameters `(k1, k2, b)`; allocation-free.
-fn cost(k1: f64, k2: f64, b: f64, time_s: &[f64], u: &[f64], f: &[f64], w: &[f64]) -> f64 {
+/// Residuals are multiplied by `scale` (a power of two, so exactly)
+/// before squaring: forces of 1e150 N would overflow their squares.
+#[allow(clippy::too_many_arguments)]
+fn cost(
+    k1: f64,
+    k2: f64,
+    b: f64,
+    time_s: &[f64],
+    u: &[f64],
+    f: &[f64],
+    w: &[f64],
+    scale: f64,
+) -> f64 {
     let Ok(m) = Element::new(k1, k2, b) else {
         return f64::INFINITY;
     };
     let mut total = 0.0;
     let run = series(&m, Drive::Displacement, time_s, u, |k, model_f| {
-        let r = model_f - f[k];
+        let r = (model_f - f[k]) * scale;
         total += w[k] * r * r;
         Ok(())
     });
@@ -431,6 +529,12 @@ pub fn fit_trial(
     let b_0 = tau_0 * (k1_0 + k2_0);
     let w = weights(force_n, weighting);
     let norm = w.iter().sum::<f64>();
+    // Residuals in units of the largest force, rounded to a power of two
+    // so that the scaling is exact: ordinary trials (forces of order 1 N)
+    // fit bit for bit as before, and forces of 1e150 N no longer overflow
+    // the cost (their fits went astray at 1e144 N rms with exit 0).
+    let force_max = force_n.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let scale = 2f64.powi(-(force_max.log2().round() as i32));
     let objective = |x: &[f64; 3]| {
         cost(
             x[0].exp(),
@@ -440,6 +544,7 @@ pub fn fit_trial(
             displacement_m,
             force_n,
             &w,
+            scale,
         ) / norm
     };
     let ln2 = std::f64::consts::LN_2;
@@ -454,18 +559,85 @@ pub fn fit_trial(
     let rms = (sim
         .iter()
         .zip(force_n)
-        .map(|(a, b)| (a - b) * (a - b))
+        .map(|(a, b)| ((a - b) * scale).powi(2))
         .sum::<f64>()
         / n as f64)
-        .sqrt();
+        .sqrt()
+        / scale;
+    let misfit = (res.cost.max(0.0).sqrt()).max(FORCE_RESOLUTION_REL * force_max * scale);
     Ok(TrialFit {
         k1_n_per_m: k1,
         k2_n_per_m: k2,
         b_n_s_per_m: b,
         rms_residual_n: rms,
-        weighted_cost_n2: res.cost,
+        weighted_cost_n2: res.cost / (scale * scale),
         evaluations: res.evaluations,
+        converged: res.converged,
+        ln_uncertainty: ln_uncertainty(res.x, time_s, displacement_m, &w, norm, scale, misfit),
     })
+}
+
+/// [`TrialFit::ln_uncertainty`] at `x` = (ln k1, ln k2, ln b): the
+/// Gauss–Newton Hessian `A = Σ w J Jᵀ / Σ w` of the scaled model force
+/// (J by central differences in ln units), and `misfit · √(A⁻¹)_kk`.
+fn ln_uncertainty(
+    x: [f64; 3],
+    time_s: &[f64],
+    u: &[f64],
+    w: &[f64],
+    norm: f64,
+    scale: f64,
+    misfit: f64,
+) -> [f64; 3] {
+    const H: f64 = 1e-4;
+    let force = |x: [f64; 3]| {
+        let [k1, k2, b] = x.map(f64::exp);
+        simulate_force(k1, k2, b, time_s, u).ok()
+    };
+    let mut jac: Vec<Vec<f64>> = Vec::with_capacity(3);
+    for k in 0..3 {
+        let (mut up, mut down) = (x, x);
+        up[k] += H;
+        down[k] -= H;
+        match (force(up), force(down)) {
+            (Some(a), Some(b)) => jac.push(
+                a.iter()
+                    .zip(&b)
+                    .map(|(p, m)| (p - m) * scale / (2.0 * H))
+                    .collect(),
+            ),
+            _ => return [f64::INFINITY; 3],
+        }
+    }
+    let mut a = nalgebra::Matrix3::<f64>::zeros();
+    for i in 0..time_s.len() {
+        for r in 0..3 {
+            for c in 0..3 {
+                a[(r, c)] += w[i] * jac[r][i] * jac[c][i] / norm;
+            }
+        }
+    }
+    // Relative to the largest eigenvalue, anything below 1e-14 is rounding:
+    // the Hessian is singular there and the parameters not determined.
+    let eig = a.symmetric_eigen();
+    let largest = eig.eigenvalues.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !(largest > 0.0 && largest.is_finite()) {
+        return [f64::INFINITY; 3];
+    }
+    // inv = Σ v vᵀ / λ over the eigenpairs; a parameter that enters a
+    // singular direction (component above 1e-6) is not determined at all.
+    let mut out = [0.0f64; 3];
+    for (k, &l) in eig.eigenvalues.iter().enumerate() {
+        let v = eig.eigenvectors.column(k);
+        for (p, o) in out.iter_mut().enumerate() {
+            if l > 1e-14 * largest {
+                *o += v[p] * v[p] / l;
+            } else if v[p].abs() > 1e-6 {
+                *o = f64::INFINITY;
+            }
+        }
+    }
+    out.map(|d| misfit * d.sqrt())
 }
 
 /// Fits every trial in parallel (order preserved; identical to serial).

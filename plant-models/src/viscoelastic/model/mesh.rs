@@ -12,6 +12,14 @@ use crate::viscoelastic::error::{Result, VeError};
 use std::collections::HashMap;
 use std::fmt::Write as _;
 
+/// What a mesh check found at fault.
+#[derive(Clone, Copy, Debug)]
+enum Culprit {
+    Vertex(usize),
+    Triangle(usize),
+    Whole,
+}
+
 /// A closed triangle surface mesh, positions in metres.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SurfaceMesh {
@@ -216,7 +224,13 @@ impl SurfaceMesh {
     /// opposite directions (closed, consistently oriented two-manifold),
     /// every vertex used, and positive enclosed volume (outward normals).
     pub fn validate(&self) -> Result<()> {
-        let bad = |s: String| Err(VeError::InvalidMesh(s));
+        self.check().map_err(|(_, m)| VeError::InvalidMesh(m))
+    }
+
+    /// [`SurfaceMesh::validate`], saying which vertex or triangle is at
+    /// fault (for a reader to name its line).
+    fn check(&self) -> core::result::Result<(), (Culprit, String)> {
+        let bad = |s: String| Err((Culprit::Whole, s));
         if self.len() < 4 || self.triangles.len() < 4 {
             return bad(format!(
                 "{} vertices / {} triangles: a closed surface needs at least 4 of each",
@@ -229,15 +243,41 @@ impl SurfaceMesh {
             .iter()
             .position(|v| !v.iter().all(|c| c.is_finite()))
         {
-            return bad(format!("vertex {i} has a non-finite coordinate"));
+            return Err((
+                Culprit::Vertex(i),
+                format!("vertex {i} has a non-finite coordinate"),
+            ));
+        }
+        let scale = self.bounding_size_m();
+        // Areas and volumes go as the size squared and cubed: a mesh whose
+        // cube overflows cannot be measured (each coordinate finite, the
+        // areas not: such a mesh was refused for a "(near) zero area").
+        if !scale.powi(3).is_finite() {
+            let far = self
+                .vertices_m
+                .iter()
+                .enumerate()
+                .max_by(|a, b| {
+                    let m = |v: &[f64; 3]| v.iter().fold(0.0f64, |x, c| x.max(c.abs()));
+                    m(a.1).total_cmp(&m(b.1))
+                })
+                .map_or(0, |(i, _)| i);
+            return Err((
+                Culprit::Vertex(far),
+                format!(
+                    "vertex {far} lies {} m out: the mesh spans {} m, so its volume overflows (coordinates are in metres)",
+                    crate::short_number(self.vertices_m[far].iter().fold(0.0f64, |x, c| x.max(c.abs()))),
+                    crate::short_number(scale)
+                ),
+            ));
         }
         let mut used = vec![false; self.len()];
         let mut edges: HashMap<(usize, usize), usize> = HashMap::new();
-        let scale = self.bounding_size_m();
         for (t, tri) in self.triangles.iter().enumerate() {
+            let at = |m: String| Err((Culprit::Triangle(t), m));
             for &i in tri {
                 if i >= self.len() {
-                    return bad(format!(
+                    return at(format!(
                         "triangle {t} uses vertex {i}, but there are only {}",
                         self.len()
                     ));
@@ -245,10 +285,10 @@ impl SurfaceMesh {
                 used[i] = true;
             }
             if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
-                return bad(format!("triangle {t} repeats a vertex"));
+                return at(format!("triangle {t} repeats a vertex"));
             }
             if self.triangle_area_m2(t) <= 1e-12 * scale * scale {
-                return bad(format!("triangle {t} has (near) zero area"));
+                return at(format!("triangle {t} has (near) zero area"));
             }
             for k in 0..3 {
                 *edges.entry((tri[k], tri[(k + 1) % 3])).or_insert(0) += 1;
@@ -262,7 +302,10 @@ impl SurfaceMesh {
             }
         }
         if let Some(i) = used.iter().position(|u| !u) {
-            return bad(format!("vertex {i} is not used by any triangle"));
+            return Err((
+                Culprit::Vertex(i),
+                format!("vertex {i} is not used by any triangle"),
+            ));
         }
         if self.signed_volume_m3() <= 0.0 {
             return bad("enclosed volume is not positive: triangles must be counter-clockwise seen from outside".into());
@@ -306,6 +349,8 @@ impl SurfaceMesh {
         };
         let mut v: Vec<[f64; 3]> = Vec::new();
         let mut t: Vec<[usize; 3]> = Vec::new();
+        // The line of every vertex and triangle, to name it in errors.
+        let (mut v_lines, mut t_lines) = (Vec::new(), Vec::new());
         for (k, raw) in text.lines().enumerate() {
             let line_no = k + 1;
             let line = raw.split('#').next().unwrap_or("").trim();
@@ -322,23 +367,39 @@ impl SurfaceMesh {
                     let mut p = [0.0; 3];
                     for (slot, s) in p.iter_mut().zip(c.iter()) {
                         *slot = s.parse::<f64>().map_err(|_| {
-                            err(line_no, format!("vertex coordinate `{s}` is not a number"))
+                            err(
+                                line_no,
+                                format!(
+                                    "vertex coordinate `{}` is not a number",
+                                    crate::csv_input::excerpt(s)
+                                ),
+                            )
                         })?;
                         if !slot.is_finite() {
                             return Err(err(
                                 line_no,
-                                format!("vertex coordinate `{s}` is not finite"),
+                                format!(
+                                    "vertex coordinate `{}` is not finite",
+                                    crate::csv_input::excerpt(s)
+                                ),
                             ));
                         }
                     }
                     v.push(p);
+                    v_lines.push(line_no);
                 }
                 Some("f") => {
                     let mut idx = Vec::new();
                     for s in it {
                         let first = s.split('/').next().unwrap_or("");
                         let i: i64 = first.parse().map_err(|_| {
-                            err(line_no, format!("face index `{s}` is not an integer"))
+                            err(
+                                line_no,
+                                format!(
+                                    "face index `{}` is not an integer",
+                                    crate::csv_input::excerpt(s)
+                                ),
+                            )
                         })?;
                         let resolved = if i > 0 {
                             i - 1
@@ -360,6 +421,7 @@ impl SurfaceMesh {
                     }
                     for k in 1..idx.len() - 1 {
                         t.push([idx[0], idx[k], idx[k + 1]]);
+                        t_lines.push(line_no);
                     }
                 }
                 _ => {}
@@ -369,9 +431,16 @@ impl SurfaceMesh {
             vertices_m: v,
             triangles: t,
         };
-        mesh.validate().map_err(|e| match e {
-            VeError::InvalidMesh(m) => VeError::InvalidMesh(format!("{source}: {m}")),
-            other => other,
+        mesh.check().map_err(|(culprit, m)| {
+            let line = match culprit {
+                Culprit::Vertex(i) => v_lines.get(i).copied(),
+                Culprit::Triangle(k) => t_lines.get(k).copied(),
+                Culprit::Whole => None,
+            };
+            match line {
+                Some(line) => err(line, m),
+                None => VeError::InvalidMesh(format!("{source}: {m}")),
+            }
         })?;
         Ok(mesh)
     }

@@ -1,0 +1,351 @@
+//! Where results go. Every result `softjoint` writes — CSV, SVG, JSON and
+//! TOML files, and the JSON, CSV or text it prints — leaves through this
+//! module, which guarantees three things:
+//!
+//! 1. **No non-finite number.** A NaN or ±∞ in a result is a defect
+//!    upstream (an instability, an overflow, a division by zero); it is
+//!    refused here, naming the file, the line and column or the field,
+//!    rather than written for someone to find later. How each kind is
+//!    checked:
+//!    - CSV: every field of every data line that reads as a number
+//!      (`NaN`, `inf`, `1e999` included) must be finite; the error names
+//!      the header's column.
+//!    - SVG and other text: every word that reads as a number must be
+//!      finite (the plot module already leaves non-finite coordinates out;
+//!      this catches numbers printed into labels).
+//!    - JSON and TOML: the value is walked before it is serialised
+//!      ([`finite::first_non_finite`]), because serde_json writes NaN as
+//!      `null`; the error names the field's path.
+//! 2. **Files a user keeps are written atomically** ([`AtomicFile`]): a
+//!    temporary file in the same directory, renamed over the target only
+//!    when complete, so a failed write (disk full, `ulimit -f`, an
+//!    interrupted run) leaves the previous file as it was. Commands that
+//!    compute for long create the [`AtomicFile`] (or [`check_dir`] their
+//!    output directory) first, so an unwritable path is refused before the
+//!    work, not after it.
+//! 3. **Printing never panics.** [`outln!`](crate::outln) and
+//!    [`out!`](crate::out) print like `println!`/`print!`, but a failed
+//!    write (`> /dev/full`, a closed pipe) is a [`StdoutError`] returned
+//!    with `?`.
+//!
+//! Streamed traces (`sim`/`hil --csv`, the console's telemetry CSV) are
+//! the exception to 2: they are written as the run goes (`crate::trace`)
+//! and say whether they are complete. They are not the exception to 1:
+//! each value is checked with [`check_number`] before it is formatted, and
+//! a missing angle estimate is an empty field ([`estimate_field`]).
+//!
+//! `tests/writers_check_finite.rs` holds every file write and every print
+//! of the program to this module.
+use std::fmt;
+use std::io::{self, Write as _};
+use std::path::Path;
+
+use serde::Serialize;
+
+mod atomic;
+pub mod finite;
+
+pub use atomic::{check_dir, create_dir, AtomicFile};
+
+/// A write to standard output failed.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write to standard output: {0}")]
+pub struct StdoutError(pub io::Error);
+
+impl StdoutError {
+    /// Whether the reader went away (`softjoint … | head -1`): shells
+    /// report that as SIGPIPE, not as an error.
+    pub fn is_broken_pipe(&self) -> bool {
+        self.0.kind() == io::ErrorKind::BrokenPipe
+    }
+}
+
+/// Writes formatted text to standard output (what [`outln!`](crate::outln)
+/// and [`out!`](crate::out) expand to).
+pub fn stdout(args: fmt::Arguments) -> Result<(), StdoutError> {
+    io::stdout().lock().write_fmt(args).map_err(StdoutError)
+}
+
+/// Flushes standard output; a program calls it before it exits so that a
+/// last line without a newline cannot fail unseen.
+pub fn flush_stdout() -> Result<(), StdoutError> {
+    io::stdout().lock().flush().map_err(StdoutError)
+}
+
+/// `println!` that returns a failed write with `?` instead of panicking.
+#[macro_export]
+macro_rules! outln {
+    () => { $crate::output::stdout(format_args!("\n"))? };
+    ($($arg:tt)*) => {
+        $crate::output::stdout(format_args!("{}\n", format_args!($($arg)*)))?
+    };
+}
+
+/// `print!` that returns a failed write with `?` instead of panicking.
+#[macro_export]
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::output::stdout(format_args!($($arg)*))? };
+}
+
+/// A result that would have carried a non-finite number.
+#[derive(Debug, thiserror::Error)]
+pub struct NonFinite {
+    /// The file (or `standard output`).
+    pub target: String,
+    /// Where in it: `line 12, column \`ux_m\``, or a JSON field path.
+    pub place: String,
+    /// The offending text or value.
+    pub value: String,
+}
+
+impl fmt::Display for NonFinite {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "refusing to write {}: {} would be `{}`, not a finite number (the computation behind it failed; nothing was written)",
+            self.target, self.place, self.value
+        )
+    }
+}
+
+/// The first word of `text` that reads as a number and is not finite.
+fn non_finite_word(text: &str) -> Option<&str> {
+    text.split(|c: char| !(c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.' | '_')))
+        .find(|w| w.parse::<f64>().is_ok_and(|v| !v.is_finite()))
+}
+
+/// Checks CSV text (header line first; `#` lines are comments).
+pub fn check_csv(target: &str, text: &str) -> Result<(), NonFinite> {
+    let mut header: Option<Vec<&str>> = None;
+    for (i, line) in text.lines().enumerate() {
+        if line.trim_start().starts_with('#') || line.trim().is_empty() {
+            continue;
+        }
+        let Some(columns) = &header else {
+            header = Some(line.split(',').map(str::trim).collect());
+            continue;
+        };
+        for (k, field) in line.split(',').enumerate() {
+            if let Some(w) = non_finite_word(field.trim()) {
+                let column = columns
+                    .get(k)
+                    .map(|c| format!(", column `{c}`"))
+                    .unwrap_or_else(|| format!(", field {}", k + 1));
+                return Err(NonFinite {
+                    target: target.to_string(),
+                    place: format!("line {}{column}", i + 1),
+                    value: w.to_string(),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// An angle estimate for a CSV field with `decimals` decimals, or an empty
+/// field when there is none: the control core reports "no estimate yet"
+/// (before every sensor a law reads has delivered) as NaN, which is a
+/// missing value, not a failed computation.
+pub fn estimate_field(estimate_deg: f64, decimals: usize) -> String {
+    if estimate_deg.is_nan() {
+        String::new()
+    } else {
+        format!("{estimate_deg:.decimals$}")
+    }
+}
+
+/// Checks one number that a streaming writer is about to put at `line`,
+/// column `column()` of `target` (the column is named only when the check
+/// fails, so the check costs one comparison per value).
+pub fn check_number(
+    target: &Path,
+    line: u64,
+    column: impl FnOnce() -> String,
+    value: f64,
+) -> Result<(), NonFinite> {
+    if value.is_finite() {
+        return Ok(());
+    }
+    Err(NonFinite {
+        target: target.display().to_string(),
+        place: format!("line {line}, column `{}`", column()),
+        value: value.to_string(),
+    })
+}
+
+/// Checks any other text (SVG, tables): every word that reads as a
+/// number must be finite.
+pub fn check_text(target: &str, text: &str) -> Result<(), NonFinite> {
+    for (i, line) in text.lines().enumerate() {
+        if let Some(w) = non_finite_word(line) {
+            return Err(NonFinite {
+                target: target.to_string(),
+                place: format!("line {}", i + 1),
+                value: plant_models::csv_input::excerpt(w),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Checks a value that will be serialised (JSON, TOML).
+pub fn check_value<T: Serialize + ?Sized>(target: &str, value: &T) -> anyhow::Result<()> {
+    check_field(target, "", value)
+}
+
+/// [`check_value`] of a value that will be field `prefix` of its output.
+fn check_field<T: Serialize + ?Sized>(target: &str, prefix: &str, value: &T) -> anyhow::Result<()> {
+    match finite::first_non_finite(value).map_err(anyhow::Error::msg)? {
+        None => Ok(()),
+        Some(found) => {
+            let sep = if prefix.is_empty() || found.path.is_empty() || found.path.starts_with('[') {
+                ""
+            } else {
+                "."
+            };
+            let path = format!("{prefix}{sep}{}", found.path);
+            Err(NonFinite {
+                target: target.to_string(),
+                place: if path.is_empty() {
+                    "the value".into()
+                } else {
+                    format!("field `{path}`")
+                },
+                value: found.value.to_string(),
+            }
+            .into())
+        }
+    }
+}
+
+/// Writes a CSV file, atomically, after [`check_csv`].
+pub fn write_csv(path: &Path, text: &str) -> anyhow::Result<()> {
+    AtomicFile::create(path)?.commit_csv(text)
+}
+
+/// Writes an SVG (or other text) file, atomically, after [`check_text`].
+pub fn write_svg(path: &Path, text: &str) -> anyhow::Result<()> {
+    AtomicFile::create(path)?.commit_svg(text)
+}
+
+/// Pretty JSON of `value` after [`check_value`] (`target` names where it
+/// goes, for the error).
+pub fn json<T: Serialize + ?Sized>(target: &str, value: &T) -> anyhow::Result<String> {
+    check_value(target, value)?;
+    Ok(serde_json::to_string_pretty(value)?)
+}
+
+/// Writes `value` as a pretty JSON file, atomically.
+pub fn write_json<T: Serialize + ?Sized>(path: &Path, value: &T) -> anyhow::Result<()> {
+    AtomicFile::create(path)?.commit_json(value)
+}
+
+/// Writes `value` as TOML after `header` (comment lines), atomically.
+pub fn write_toml<T: Serialize + ?Sized>(
+    path: &Path,
+    header: &str,
+    value: &T,
+) -> anyhow::Result<()> {
+    AtomicFile::create(path)?.commit_toml(header, value)
+}
+
+/// Prints `value` as pretty JSON on standard output.
+pub fn print_json<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
+    let text = json("standard output", value)?;
+    crate::outln!("{text}");
+    Ok(())
+}
+
+/// Prints CSV text on standard output after [`check_csv`].
+pub fn print_csv(text: &str) -> anyhow::Result<()> {
+    check_csv("standard output", text)?;
+    crate::out!("{text}");
+    Ok(())
+}
+
+/// A JSON object built field by field, each checked as it is added (the
+/// checked form of `serde_json::json!({…})`, which turns NaN into `null`
+/// before anything could see it). Keys come out sorted.
+#[derive(Default)]
+pub struct JsonObject(serde_json::Map<String, serde_json::Value>);
+
+impl JsonObject {
+    /// An empty object.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds `key`: `value`, refusing a non-finite number anywhere in it.
+    pub fn field<T: Serialize + ?Sized>(mut self, key: &str, value: &T) -> anyhow::Result<Self> {
+        check_field("the JSON summary", key, value)?;
+        self.0.insert(key.to_string(), serde_json::to_value(value)?);
+        Ok(self)
+    }
+
+    /// Prints the object on standard output.
+    pub fn print(self) -> anyhow::Result<()> {
+        print_json(&self.0)
+    }
+}
+
+/// A field already added (`Value::Null` if there is none), for a text
+/// report made from the same checked object.
+impl std::ops::Index<&str> for JsonObject {
+    type Output = serde_json::Value;
+
+    fn index(&self, key: &str) -> &serde_json::Value {
+        self.0.get(key).unwrap_or(&serde_json::Value::Null)
+    }
+}
+
+impl Serialize for JsonObject {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.0.serialize(s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_names_line_and_column_of_a_non_finite_field() {
+        let ok = "t_s,x_m\n# comment\n0,1e-3\n1,-2\n";
+        assert!(check_csv("f.csv", ok).is_ok());
+        for (bad, line, column, value) in [
+            ("t_s,x_m\n0,1\n1,NaN\n", 3, "x_m", "NaN"),
+            ("t_s,x_m\n\n0,inf\n", 3, "x_m", "inf"),
+            ("t_s,x_m\n-inf,0\n", 2, "t_s", "-inf"),
+            ("t_s,x_m\n0,1e999\n", 2, "x_m", "1e999"),
+        ] {
+            let e = check_csv("f.csv", bad).unwrap_err();
+            assert_eq!(e.place, format!("line {line}, column `{column}`"), "{bad}");
+            assert_eq!(e.value, value);
+            let text = e.to_string();
+            assert!(
+                text.contains("f.csv") && text.contains("not a finite number"),
+                "{text}"
+            );
+        }
+        // Words that merely contain the letters are not numbers.
+        assert!(check_csv("f.csv", "label,info\nnanny,infinite_loop\n").is_ok());
+    }
+
+    #[test]
+    fn text_and_values_are_checked_too() {
+        assert!(check_text("a.svg", "<text>F = 0.500</text>").is_ok());
+        let e = check_text("a.svg", "<svg>\n<text>F = NaN</text>").unwrap_err();
+        assert_eq!((e.place.as_str(), e.value.as_str()), ("line 2", "NaN"));
+        assert!(check_text("a.svg", r#"<path d="M1.0,inf"/>"#).is_err());
+        let e = check_value("out.json", &serde_json::json!({"a": [1.0]})).map(|_| ());
+        assert!(e.is_ok());
+        let e = json("out.json", &[1.0, f64::NAN]).unwrap_err().to_string();
+        assert!(e.contains("out.json") && e.contains("field `[1]`"), "{e}");
+        let e = JsonObject::new()
+            .field("mean_f", &f64::INFINITY)
+            .err()
+            .map(|e| format!("{e:#}"))
+            .unwrap();
+        assert!(e.contains("mean_f") && e.contains("inf"), "{e}");
+    }
+}

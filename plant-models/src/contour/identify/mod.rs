@@ -1,0 +1,11 @@
+//! Fitting splines to data: λ by generalised cross-validation, contours
+//! from tracked points (signatures about the centroid, parametric closed
+//! curves), deforming contours over time, distances between contours, and
+//! the paper's test cases (Eq. 38, Theorem 1, the closed surface, a
+//! deforming-contour movie with held-out frames).
+pub mod data;
+pub mod distance;
+pub mod gcv;
+pub mod movie;
+pub mod paper;
+pub mod tracked;
