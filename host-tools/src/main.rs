@@ -12,6 +12,7 @@ mod serial_cmds;
 mod contour;
 mod dlo;
 mod push;
+mod rheology;
 mod tetmsd;
 mod tissue;
 mod viscoelastic;
@@ -55,6 +56,9 @@ enum Command {
     /// Inner deformation of soft tissue (seed 000): deformation fields from
     /// volume images (Zhang) and breast compression between plates (Kita).
     Tissue(tissue::TissueArgs),
+    /// Rheology lattice of a dough-like block (seed 000, Noborio):
+    /// simulate a push, calibrate by the paper's GA or RA.
+    Rheology(rheology::RheologyArgs),
 }
 
 #[derive(Args)]
@@ -129,6 +133,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Contour(args) => contour::run(args),
         Command::Dlo(args) => dlo::run(args),
         Command::Tissue(args) => tissue::run(args),
+        Command::Rheology(args) => rheology::run_command(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

@@ -9,6 +9,7 @@ pub mod fem;
 pub mod joint;
 pub mod linalg;
 pub mod pushing;
+pub mod rheology;
 pub mod tetmsd;
 pub mod tissue;
 pub mod viscoelastic;
@@ -38,6 +39,10 @@ pub mod rng {
     //! | [`TISSUE_NOISE_INITIAL`] | `tissue::field` noise of the initial volume |
     //! | [`TISSUE_NOISE_DEFORMED`] | `tissue::field` noise of the deformed volume |
     //! | [`TISSUE_DELAUNAY_JITTER`] | `tissue::field` tie-breaking jitter of the Delaunay points |
+    //! | [`RHEOLOGY_BASE`]: [`RHEOLOGY_POINTS`] | the rheology reference's surface-point sampling |
+    //! | [`RHEOLOGY_POINT_NOISE`] | its surface-point noise |
+    //! | [`RHEOLOGY_FORCE_NOISE`] | its force-sensor noise |
+    //! | [`RHEOLOGY_SEARCH`] | the rheology calibrations (GA, RA, uniform search) |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -80,6 +85,18 @@ pub mod rng {
     pub const TISSUE_NOISE_DEFORMED: u64 = TISSUE_BASE + 3;
     /// Sub-micrometre jitter that breaks ties of co-spherical Delaunay points.
     pub const TISSUE_DELAUNAY_JITTER: u64 = TISSUE_BASE + 4;
+
+    /// The rheology module's streams start here (seed 000, Noborio; issue
+    /// 14's number × 0x100).
+    pub const RHEOLOGY_BASE: u64 = 0xE00;
+    /// The rheology reference block's choice of surface points.
+    pub const RHEOLOGY_POINTS: u64 = RHEOLOGY_BASE;
+    /// The rheology reference block's surface-point noise.
+    pub const RHEOLOGY_POINT_NOISE: u64 = RHEOLOGY_BASE + 1;
+    /// The rheology reference block's force-sensor noise.
+    pub const RHEOLOGY_FORCE_NOISE: u64 = RHEOLOGY_BASE + 2;
+    /// The rheology calibrations' random draws (GA, RA, uniform search).
+    pub const RHEOLOGY_SEARCH: u64 = RHEOLOGY_BASE + 3;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
