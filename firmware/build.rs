@@ -1,7 +1,8 @@
-//! Link setup for the Cortex-M image: puts the workspace's `memory.x` on the
-//! linker search path and passes cortex-m-rt's `link.x` (plus defmt's
-//! `defmt.x` when the `defmt` feature is on) to this package's binaries.
-//! Host builds are untouched.
+//! Link setup for the Cortex-M images: puts the workspace's `memory.x` (the
+//! mps2-an386 board's) on the linker search path when that board is
+//! selected, and passes cortex-m-rt's `link.x` (plus defmt's `defmt.x` when
+//! the `defmt` feature is on) to this package's binaries. Host builds are
+//! untouched.
 use std::{env, fs, path::PathBuf};
 
 fn main() {
@@ -9,13 +10,20 @@ fn main() {
     if target_os != "none" {
         return;
     }
-    let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    // The root memory.x is the mps2-an386 board's. A link-search path set
+    // here also reaches the link of every crate that depends on this one,
+    // so a board crate that uses the core (default-features = false, e.g.
+    // firmware/stm32f4 with its own memory.x) must not see it.
     let manifest =
         PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let memory = manifest.join("..").join("memory.x");
-    fs::copy(&memory, out.join("memory.x")).expect("memory.x at the workspace root");
-    println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", memory.display());
+    println!("cargo:rerun-if-changed=build.rs");
+    if env::var_os("CARGO_FEATURE_BOARD_MPS2_AN386").is_some() {
+        let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+        fs::copy(&memory, out.join("memory.x")).expect("memory.x at the workspace root");
+        println!("cargo:rustc-link-search={}", out.display());
+    }
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
     if env::var_os("CARGO_FEATURE_DEFMT").is_some() {
         println!("cargo:rustc-link-arg-bins=-Tdefmt.x");

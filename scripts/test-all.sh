@@ -29,10 +29,18 @@ step "firmware image: thumbv7em build, with and without defmt"
 cargo build -p firmware --release --target thumbv7em-none-eabihf --locked
 cargo build -p firmware --release --target thumbv7em-none-eabihf --features defmt --locked
 
+step "STM32F4 board images (firmware/stm32f4, its own workspace): the Nucleo-F446RE image and its QEMU flavour"
+# Built from its directory: its .cargo/config.toml sets the thumb target,
+# the shared target/ directory and the probe-rs runner.
+(cd firmware/stm32f4 && cargo build --release --locked)
+llvm-size target/thumbv7em-none-eabihf/release/softjoint-stm32f4 \
+    target/thumbv7em-none-eabihf/release/softjoint-stm32f4-qemu 2>/dev/null || true
+
 step "clippy -D warnings: host (all crates, all targets) and thumb"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 cargo clippy -p firmware --target thumbv7em-none-eabihf --lib --bins --locked -- -D warnings
 cargo clippy -p firmware --target thumbv7em-none-eabihf --features defmt --lib --bins --locked -- -D warnings
+(cd firmware/stm32f4 && cargo clippy --release --lib --bins --locked -- -D warnings)
 
 step "the core's 3D control step running in the Cortex-M4F image under QEMU"
 cargo build -p firmware --release --target thumbv7em-none-eabihf --bin step-probe --locked
@@ -44,7 +52,7 @@ echo "step-probe exited 0 (every output bounded, no fault)"
 step "tests: unit, property, closed-loop and integration (host)"
 cargo test --workspace --locked
 
-step "the firmware image under QEMU in lockstep with the simulated joint (needs the image built above)"
+step "the firmware images under QEMU (mps2-an386, and the STM32F4 image on netduinoplus2) in lockstep with the simulated joint (needs the images built above)"
 cargo test -p integration-tests --test qemu_hil --locked -- --ignored
 step "fault campaign of the lockstep link against the image under QEMU (short form; the pty-board form runs with the host tests)"
 cargo test -p integration-tests --test fault_campaign --locked -- --ignored fault_campaign_qemu

@@ -11,12 +11,14 @@
 //!   last paper, Eq. 1 and the 2D/3D pair laws) and their driver outputs;
 //! - [`estimate`]: wire-sensor angle estimation (Eq. 2–5) with threshold
 //!   switching, and the least-squares fits that calibrate it ([`fit`]);
-//! - [`sensor`]: the wire-sensor trait and validity checks;
+//! - [`sensor`]: the wire-sensor trait, validity checks, and the extension
+//!   of a board's 16-bit quadrature counters;
 //! - [`supervisor`]: thermal budget, fault flags and the latched safe state;
 //! - [`joint`]: one complete control step (estimate → control → supervise);
 //! - [`time`]: integer microsecond instants and durations;
 //! - [`app`]: the board's protocol state machine; [`protocol`]: the wire
-//!   format;
+//!   format; [`watchdog`]: the loop-stall policy behind a board's hardware
+//!   watchdog;
 //! - [`viscoelastic`]: the 3-element model of seed 002 (Eq. 3–12) in scalar,
 //!   tensor, Rayleigh and multi-vertex DGFM forms.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -49,3 +51,4 @@ pub mod sensor;
 pub mod supervisor;
 pub mod time;
 pub mod viscoelastic;
+pub mod watchdog;

@@ -211,6 +211,49 @@ impl<const S: usize> SensorGuard<S> {
     }
 }
 
+/// Extends a 16-bit hardware quadrature counter to an `i32` count.
+///
+/// A timer in encoder mode counts up and down modulo 2¹⁶ (a 32-bit timer
+/// read through its low 16 bits is the same counter). Each reading adds the
+/// wrapping difference from the previous reading, taken as a signed 16-bit
+/// number, so the count follows the wire through any number of wraps in
+/// either direction as long as it moves by less than 32,768 counts between
+/// two readings (at a 1 kHz read rate: 32.8 million counts per second; a
+/// faster coder, or a slower loop, would alias). The count is 0 at the raw
+/// value given to [`QuadratureCount::new`] (the counter's value at reset),
+/// and it saturates at the ends of `i32` instead of wrapping.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct QuadratureCount {
+    last_raw: u16,
+    count: i32,
+}
+
+impl QuadratureCount {
+    /// A count of 0 at the counter value `raw_at_zero`.
+    pub const fn new(raw_at_zero: u16) -> Self {
+        Self {
+            last_raw: raw_at_zero,
+            count: 0,
+        }
+    }
+
+    /// Takes the counter's reading `raw` and returns the extended count.
+    pub fn update(&mut self, raw: u16) -> i32 {
+        // The two's-complement reading of the wrapping difference: −32768
+        // ..= 32767 counts since the last reading.
+        let step = raw.wrapping_sub(self.last_raw) as i16;
+        self.last_raw = raw;
+        self.count = self.count.saturating_add(i32::from(step));
+        self.count
+    }
+
+    /// The extended count at the last reading.
+    pub fn count(&self) -> i32 {
+        self.count
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -283,6 +326,61 @@ mod tests {
         ] {
             range_rate_and_staleness_from(t0);
         }
+    }
+
+    #[test]
+    fn a_16_bit_counter_extends_across_wraps_in_both_directions() {
+        // Start 3 counts below the wrap and move up 10: 65533 → 7.
+        let mut q = QuadratureCount::new(65_533);
+        let mut raw = 65_533u16;
+        for k in 1..=10 {
+            raw = raw.wrapping_add(1);
+            assert_eq!(q.update(raw), k, "up through the wrap at raw {raw}");
+        }
+        // Back down 20: through 0 → 65535 again, to −10.
+        for k in 1..=20 {
+            raw = raw.wrapping_sub(1);
+            assert_eq!(q.update(raw), 10 - k, "down through the wrap at raw {raw}");
+        }
+        assert_eq!(q.count(), -10);
+        // Steps of 30,000 counts (below half the range) wrap many times and
+        // lose nothing: 10 steps up is 300,000 counts, 4.6 wraps.
+        let mut q = QuadratureCount::new(0);
+        let mut raw = 0u16;
+        for _ in 0..10 {
+            raw = raw.wrapping_add(30_000);
+            q.update(raw);
+        }
+        assert_eq!(q.count(), 300_000);
+        for _ in 0..20 {
+            raw = raw.wrapping_sub(30_000);
+            q.update(raw);
+        }
+        assert_eq!(q.count(), -300_000);
+    }
+
+    #[test]
+    fn the_largest_unambiguous_step_is_half_the_counter_range() {
+        let mut q = QuadratureCount::new(0);
+        assert_eq!(q.update(32_767), 32_767);
+        let mut q = QuadratureCount::new(0);
+        // 32,768 counts up cannot be told from 32,768 down: it reads as down.
+        assert_eq!(q.update(32_768), -32_768);
+    }
+
+    #[test]
+    fn the_extended_count_saturates_instead_of_wrapping() {
+        let mut q = QuadratureCount::new(0);
+        let mut raw = 0u16;
+        // 2³¹ / 30,000 ≈ 71,583 steps reach i32::MAX; go well past it.
+        for _ in 0..80_000 {
+            raw = raw.wrapping_add(30_000);
+            q.update(raw);
+        }
+        assert_eq!(q.count(), i32::MAX);
+        // And it comes back down from the end, count for count.
+        raw = raw.wrapping_sub(5);
+        assert_eq!(q.update(raw), i32::MAX - 5);
     }
 
     #[test]

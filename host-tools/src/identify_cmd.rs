@@ -90,7 +90,7 @@ pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
             }
             let plan = ExcitationPlan::standard(planes, a.duration_s, a.holds);
             excite::check_budget(&plan)?;
-            output::print_toml(&plan)?;
+            output::print_toml("", &plan)?;
             Ok(())
         }
         IdentifyCommand::Joint(a) => joint(a),

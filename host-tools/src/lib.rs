@@ -17,6 +17,7 @@ pub mod report;
 pub mod scenario;
 pub mod sim;
 pub mod stop;
+pub mod tetmsd_rt;
 pub mod trace;
 pub mod tune;
 pub mod visco_core;

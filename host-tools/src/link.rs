@@ -1,8 +1,8 @@
 //! The host end of the serial protocol (`firmware::protocol`): framing,
 //! bounded waits and retries, and the counters a user needs to judge a link.
 //!
-//! The host always speaks first (QEMU's pty drops what the guest writes
-//! before the host opens it; a board never speaks unasked except for
+//! The host always speaks first (QEMU drops what the guest writes before
+//! the host connects; a board never speaks unasked except for
 //! telemetry). Every wait has a deadline; a request that times out is sent
 //! again unchanged — board requests are idempotent (a repeated lockstep
 //! `seq` is answered from the board's cache) — up to a retry limit.
@@ -154,12 +154,79 @@ impl Port for serialport::TTYPort {
     }
 }
 
-/// Opens a serial device (a board, or QEMU's pty) in raw mode.
-pub fn open_port(path: &str, baud: u32) -> anyhow::Result<Box<dyn serialport::SerialPort>> {
-    serialport::new(path, baud)
-        .timeout(Duration::from_millis(10))
-        .open()
-        .map_err(|e| anyhow::anyhow!("cannot open serial port {path}: {e}"))
+/// A serial device opened by path: a board's serial port, or `unix:PATH`,
+/// a Unix socket such as the one QEMU serves the guest's UART on
+/// ([`crate::qemu`]).
+pub struct SerialDevice {
+    port: Box<dyn ByteStream>,
+}
+
+/// What a [`SerialDevice`] reads and writes: a serial port, or (a path
+/// `unix:PATH`) a Unix socket such as QEMU's `-serial unix:PATH,server=on`.
+trait ByteStream: Read + Write + Send {
+    fn set_stream_timeout(&mut self, timeout: Duration) -> io::Result<()>;
+}
+
+impl ByteStream for Box<dyn serialport::SerialPort> {
+    fn set_stream_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        serialport::SerialPort::set_timeout(self.as_mut(), timeout).map_err(io::Error::from)
+    }
+}
+
+#[cfg(unix)]
+impl ByteStream for std::os::unix::net::UnixStream {
+    fn set_stream_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        // One timeout for reads and writes, as a serial port has ([`Link`]
+        // sets it before each); a zero timeout means "block for ever" to a
+        // socket.
+        let timeout = Some(timeout.max(Duration::from_micros(1)));
+        self.set_read_timeout(timeout)?;
+        self.set_write_timeout(timeout)
+    }
+}
+
+impl SerialDevice {
+    fn open(path: &str, baud: u32) -> io::Result<Box<dyn ByteStream>> {
+        #[cfg(unix)]
+        if let Some(socket) = path.strip_prefix("unix:") {
+            return Ok(Box::new(std::os::unix::net::UnixStream::connect(socket)?));
+        }
+        Ok(Box::new(
+            serialport::new(path, baud)
+                .timeout(Duration::from_millis(10))
+                .open()
+                .map_err(io::Error::from)?,
+        ))
+    }
+}
+
+impl Read for SerialDevice {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        self.port.read(buf)
+    }
+}
+
+impl Write for SerialDevice {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.port.write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.port.flush()
+    }
+}
+
+impl Port for SerialDevice {
+    fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        self.port.set_stream_timeout(timeout)
+    }
+}
+
+/// Opens a serial device (a board's port in raw mode, or `unix:PATH`).
+pub fn open_port(path: &str, baud: u32) -> anyhow::Result<SerialDevice> {
+    let port = SerialDevice::open(path, baud)
+        .map_err(|e| anyhow::anyhow!("cannot open serial port {path}: {e}"))?;
+    Ok(SerialDevice { port })
 }
 
 /// The host end of a link.
@@ -336,5 +403,57 @@ impl<P: Port> Link<P> {
             |r| matches!(r, Message::Ack(a) if a.request == kind),
         )
         .map(|_| ())
+    }
+}
+
+#[cfg(all(test, unix))]
+mod tests {
+    use super::*;
+    use firmware::protocol::{kind, Ack, Arm};
+    use std::os::unix::net::UnixListener;
+
+    /// `open_port("unix:PATH")` talks to a Unix socket as QEMU serves its
+    /// UART: a request is answered through it, and a far end that closes
+    /// is [`LinkError::PortClosed`], not a wait for the deadline.
+    #[test]
+    fn a_unix_socket_port_carries_frames_and_reports_its_hang_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("uart.sock");
+        let listener = UnixListener::bind(&path).unwrap();
+        // A board that acknowledges one frame, then hangs up.
+        let board = std::thread::spawn(move || {
+            let (mut s, _) = listener.accept().unwrap();
+            let mut got = Vec::new();
+            let mut b = [0u8; 1];
+            while got.iter().filter(|&&x| x == 0).count() < 1 {
+                s.read_exact(&mut b).unwrap();
+                got.push(b[0]);
+            }
+            let mut frame = [0u8; MAX_FRAME];
+            let n = encode_frame(&Ack { request: kind::ARM }.into(), &mut frame);
+            s.write_all(&frame[..n]).unwrap();
+            got
+        });
+        let port = open_port(&format!("unix:{}", path.display()), 0).unwrap();
+        let mut link = Link::new(port);
+        link.command(&Arm {}.into(), Duration::from_secs(10), 1)
+            .expect("acknowledged over the socket");
+        let sent = board.join().unwrap();
+        assert_eq!(sent.last(), Some(&0), "one whole frame reached the board");
+        let err = link
+            .command(&Arm {}.into(), Duration::from_secs(10), 3)
+            .unwrap_err();
+        assert!(matches!(err, LinkError::PortClosed), "{err}");
+    }
+
+    #[test]
+    fn a_missing_socket_is_named() {
+        let Err(err) = open_port("unix:/nonexistent/softjoint.sock", 0) else {
+            panic!("a socket that is not there opened");
+        };
+        assert!(
+            err.to_string().contains("/nonexistent/softjoint.sock"),
+            "{err}"
+        );
     }
 }

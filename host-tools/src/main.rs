@@ -10,8 +10,12 @@ use host_tools::{calibrate, out, outln, output, report, scenario::Scenario, sim}
 mod serial_cmds;
 
 mod contour;
+mod dlo;
 mod identify_cmd;
 mod push;
+mod rheology;
+mod tetmsd;
+mod tissue;
 mod viscoelastic;
 
 #[derive(Parser)]
@@ -40,6 +44,9 @@ enum Command {
     /// Deformable blocks under robotic pushing (seed 001): simulate,
     /// calibrate (Algorithm 5), classify.
     Push(push::PushArgs),
+    /// A tetrahedral Voigt cube deformed by two haptic users at two sites
+    /// over a network (seed 000, Yamaguchi): simulate, pair.
+    Tetmsd(tetmsd::TetArgs),
     /// Periodic and closed smoothing spline contours (seed 000, Fujioka &
     /// Kano): fit tracked contours and deforming contours over time, or
     /// write the paper's test cases.
@@ -51,6 +58,15 @@ enum Command {
     /// Search controller gains on an identified plant, robust over its
     /// uncertainty; writes a gains file the console and scenarios load.
     Tune(identify_cmd::TuneArgs),
+    /// Deformable linear objects (seed 000): the knotting rope of Shi &
+    /// Payandeh, the static wires and belts of Wakamatsu et al.
+    Dlo(dlo::DloArgs),
+    /// Inner deformation of soft tissue (seed 000): deformation fields from
+    /// volume images (Zhang) and breast compression between plates (Kita).
+    Tissue(tissue::TissueArgs),
+    /// Rheology lattice of a dough-like block (seed 000, Noborio):
+    /// simulate a push, calibrate by the paper's GA or RA.
+    Rheology(rheology::RheologyArgs),
 }
 
 #[derive(Args)]
@@ -178,9 +194,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Console(args) => serial_cmds::console(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
+        Command::Tetmsd(args) => tetmsd::run(args),
         Command::Contour(args) => contour::run(args),
         Command::Identify(cmd) => identify_cmd::run(cmd),
         Command::Tune(args) => identify_cmd::tune_command(args),
+        Command::Dlo(args) => dlo::run(args),
+        Command::Tissue(args) => tissue::run(args),
+        Command::Rheology(args) => rheology::run_command(args),
         Command::Calibrate(CalibrateCommand::Wire {
             sweep,
             output,

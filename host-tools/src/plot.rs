@@ -19,6 +19,9 @@
 //!   scale in a grid of panels (contours of tracked objects and their
 //!   fits, frame by frame).
 //! - [`false_colour`]: the colour ramp of the seed 002 damping images.
+//! - [`panel_grid`]: a grid of equal-aspect 2D views sharing one scale
+//!   (projected 3D shapes, animation frame strips), each drawn in painter's
+//!   order so that a rope's upper strand hides the lower one at a crossing.
 use std::fmt::Write as _;
 
 /// An SVG document under construction, in pixels, origin top left.
@@ -198,9 +201,16 @@ impl Svg {
             pen_up = false;
         }
         if !d.is_empty() {
+            // Thick lines (a rope drawn at its diameter) get round joins
+            // and caps so consecutive pieces join without notches.
+            let round = if stroke.width >= 4.0 {
+                r#" stroke-linecap="round" stroke-linejoin="round""#
+            } else {
+                ""
+            };
             let _ = writeln!(
                 self.body,
-                r#"<path d="{}" fill="none" {}/>"#,
+                r#"<path d="{}" fill="none" {}{round}/>"#,
                 d.trim_end(),
                 stroke.attributes()
             );
@@ -264,8 +274,50 @@ impl Svg {
         );
     }
 
-    /// A filled dot (a data point).
-    pub fn dot(&mut self, centre: (f64, f64), radius: f64, colour: &str) {
+    /// An arrow from `from` to `to` with a head of `head` px (vector
+    /// fields); left out if a coordinate is not finite, drawn as a dot when
+    /// shorter than a pixel.
+    pub fn arrow(&mut self, from: (f64, f64), to: (f64, f64), head: f64, stroke: Stroke<'_>) {
+        if !(finite(&from) && finite(&to) && head.is_finite()) {
+            self.skipped += 1;
+            return;
+        }
+        let (dx, dy) = (to.0 - from.0, to.1 - from.1);
+        let len = (dx * dx + dy * dy).sqrt();
+        if len < 1.0 {
+            let _ = writeln!(
+                self.body,
+                r#"<circle cx="{:.1}" cy="{:.1}" r="{:.1}" fill="{}"/>"#,
+                from.0,
+                from.1,
+                0.5 * stroke.width.max(1.0),
+                escape(stroke.colour)
+            );
+            return;
+        }
+        let (ux, uy) = (dx / len, dy / len);
+        let h = head.min(0.5 * len);
+        let left = (to.0 - h * (ux + 0.5 * uy), to.1 - h * (uy - 0.5 * ux));
+        let right = (to.0 - h * (ux - 0.5 * uy), to.1 - h * (uy + 0.5 * ux));
+        let _ = writeln!(
+            self.body,
+            r#"<path d="M{:.1},{:.1}L{:.1},{:.1}M{:.1},{:.1}L{:.1},{:.1}L{:.1},{:.1}" fill="none" {}/>"#,
+            from.0,
+            from.1,
+            to.0,
+            to.1,
+            left.0,
+            left.1,
+            to.0,
+            to.1,
+            right.0,
+            right.1,
+            stroke.attributes()
+        );
+    }
+
+    /// A filled circle (a marker).
+    pub fn dot(&mut self, centre: (f64, f64), radius: f64, fill: &str) {
         if !(finite(&centre) && radius.is_finite()) {
             self.skipped += 1;
             return;
@@ -275,7 +327,7 @@ impl Svg {
             r#"<circle cx="{:.1}" cy="{:.1}" r="{radius:.1}" fill="{}"/>"#,
             centre.0,
             centre.1,
-            escape(colour)
+            escape(fill)
         );
     }
 
@@ -635,6 +687,184 @@ pub fn false_colour(t: f64) -> (u8, u8, u8) {
         ramp(1.0 - (2.0 * t - 1.0).abs()),
         ramp(1.0 - 2.0 * t),
     )
+}
+
+/// One stroke of a [`ViewPanel`], in world units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PanelStroke {
+    /// Polyline, world coordinates (x right, y up).
+    pub points: Vec<(f64, f64)>,
+    /// Colour (CSS).
+    pub colour: String,
+    /// Line width in world units (a rope's diameter), or in px if
+    /// `width_in_px`.
+    pub width: f64,
+    pub width_in_px: bool,
+    /// Draw a white halo under the line (crossings read as over/under).
+    pub halo: bool,
+}
+
+/// One view of a [`panel_grid`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ViewPanel {
+    pub title: String,
+    /// Axis names, e.g. ("x (m)", "y (m)").
+    pub axes: (String, String),
+    /// Drawn in order: later strokes on top.
+    pub strokes: Vec<PanelStroke>,
+    /// Markers: position, colour, label.
+    pub markers: Vec<((f64, f64), String, String)>,
+}
+
+/// Panels in a grid of `columns`, each `size_px` square, all at one scale
+/// (the largest extent of any panel, padded), equal aspect; a scale bar
+/// says how long `scale_bar` world units are.
+pub fn panel_grid(
+    panels: &[ViewPanel],
+    columns: usize,
+    size_px: f64,
+    scale_bar: (f64, &str),
+    shared_window: bool,
+) -> Svg {
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
+    let head = 22.0;
+    let foot = 18.0;
+    let (w, h) = (
+        size_px * columns as f64,
+        (size_px + head + foot) * rows as f64 + 24.0,
+    );
+    let mut svg = Svg::new(w, h);
+    // One scale for all: the largest extent.
+    let mut extent: f64 = 1e-9;
+    let mut centres = Vec::new();
+    for p in panels {
+        let pts = p
+            .strokes
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .chain(p.markers.iter().map(|m| &m.0))
+            .filter(|q| finite(q));
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for q in pts {
+            x0 = x0.min(q.0);
+            x1 = x1.max(q.0);
+            y0 = y0.min(q.1);
+            y1 = y1.max(q.1);
+        }
+        if !x0.is_finite() {
+            (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+        }
+        extent = extent.max(x1 - x0).max(y1 - y0);
+        centres.push((0.5 * (x0 + x1), 0.5 * (y0 + y1)));
+    }
+    if shared_window {
+        // One window for all: the centre of the union of the panels.
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for p in panels {
+            for q in p
+                .strokes
+                .iter()
+                .flat_map(|s| s.points.iter())
+                .filter(|q| finite(q))
+            {
+                x0 = x0.min(q.0);
+                x1 = x1.max(q.0);
+                y0 = y0.min(q.1);
+                y1 = y1.max(q.1);
+            }
+        }
+        if x0.is_finite() {
+            extent = (x1 - x0).max(y1 - y0);
+            centres.fill((0.5 * (x0 + x1), 0.5 * (y0 + y1)));
+        }
+    }
+    let scale = (size_px - 30.0) / (extent * 1.08);
+    for (k, p) in panels.iter().enumerate() {
+        let (col, row) = (k % columns, k / columns);
+        let ox = col as f64 * size_px;
+        let oy = row as f64 * (size_px + head + foot);
+        let (cx, cy) = centres[k];
+        let px = |q: (f64, f64)| {
+            (
+                ox + size_px / 2.0 + (q.0 - cx) * scale,
+                oy + head + size_px / 2.0 - (q.1 - cy) * scale,
+            )
+        };
+        svg.rect(
+            ox + 2.0,
+            oy + head,
+            size_px - 4.0,
+            size_px,
+            "none",
+            Some(Stroke::solid("#ccc", 1.0)),
+        );
+        svg.text_styled(
+            ox + 6.0,
+            oy + 16.0,
+            13.0,
+            Anchor::Start,
+            r#"font-weight="bold""#,
+            &p.title,
+        );
+        svg.text(
+            ox + size_px / 2.0,
+            oy + head + size_px + 14.0,
+            11.0,
+            Anchor::Middle,
+            &format!("→ {}   ↑ {}", p.axes.0, p.axes.1),
+        );
+        for s in &p.strokes {
+            let width = if s.width_in_px {
+                s.width
+            } else {
+                (s.width * scale).max(1.0)
+            };
+            let pts: Vec<(f64, f64)> = s.points.iter().map(|&q| px(q)).collect();
+            if s.halo && pts.len() == 2 {
+                // The halo covers the middle of a piece only, so that
+                // consecutive pieces join without gaps while an upper
+                // strand still cuts the one below.
+                let (a, b) = (pts[0], pts[1]);
+                let at = |t: f64| (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
+                svg.polyline([at(0.2), at(0.8)], Stroke::solid("white", width + 4.0));
+            } else if s.halo && pts.len() > 2 {
+                svg.polyline(
+                    pts[1..pts.len() - 1].iter().copied(),
+                    Stroke::solid("white", width + 4.0),
+                );
+            }
+            svg.polyline(pts, Stroke::solid(&s.colour, width));
+        }
+        for (q, colour, label) in &p.markers {
+            let c = px(*q);
+            svg.circle(c, 5.0, Stroke::solid(colour, 2.5));
+            if !label.is_empty() {
+                svg.text(c.0 + 7.0, c.1 - 7.0, 11.0, Anchor::Start, label);
+            }
+        }
+    }
+    let (len, label) = scale_bar;
+    if len.is_finite() && len > 0.0 {
+        let y = h - 10.0;
+        svg.line(
+            (10.0, y),
+            (10.0 + len * scale, y),
+            Stroke::solid("#333", 2.0),
+        );
+        svg.text(16.0 + len * scale, y + 4.0, 11.0, Anchor::Start, label);
+    }
+    svg
 }
 
 #[cfg(test)]

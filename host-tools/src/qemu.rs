@@ -1,5 +1,19 @@
-//! Starting the firmware image under QEMU with its UART on a pty, and
-//! telling how it ended.
+//! Starting a firmware image under QEMU with its protocol UART on a Unix
+//! socket, and telling how it ended.
+//!
+//! Two boards: the mps2-an386 image (`softjoint-fw`, CMSDK UART0) and the
+//! STM32F4 board image in its QEMU flavour (`softjoint-stm32f4-qemu`) on
+//! `netduinoplus2`, an STM32F405, whose USART2 is QEMU's second serial
+//! port: `-serial null -serial unix:…`.
+//!
+//! The UART is a Unix socket QEMU listens on (`server=on,wait=off`), not a
+//! pty. QEMU 7.2's pty backend, on this machine's kernel (Linux 6.18),
+//! stops polling its end of the pty within seconds of the host opening
+//! the other end when the line is idle, and now and then in the middle of
+//! a lockstep run: the guest's UART then stays empty and every request goes
+//! unanswered (`strace` of QEMU: the pty no longer in its poll set; a
+//! connected socket stays in it). As with a pty, QEMU drops what the guest
+//! writes before the host connects, so the host speaks first.
 //!
 //! QEMU dies with its parent however the parent ends: it is dropped (and
 //! killed) when `softjoint` returns, including after SIGINT/SIGTERM (which
@@ -12,62 +26,135 @@
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 
+use crate::link::{open_port, SerialDevice};
+
 /// Where `cargo build -p firmware --release --target thumbv7em-none-eabihf`
-/// puts the image, relative to the workspace root.
-pub const DEFAULT_IMAGE: &str = "target/thumbv7em-none-eabihf/release/softjoint-fw";
+/// puts the mps2-an386 image, relative to the workspace root.
+pub const DEFAULT_IMAGE: &str = QemuBoard::Mps2An386.default_image();
 
-/// The command that builds the image.
-pub const BUILD_IMAGE: &str =
-    "cargo build -p firmware --release --target thumbv7em-none-eabihf --bin softjoint-fw";
+/// The command that builds the mps2-an386 image.
+pub const BUILD_IMAGE: &str = QemuBoard::Mps2An386.build_command();
 
+/// A board image QEMU can run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum QemuBoard {
+    /// QEMU's `mps2-an386` (Cortex-M4F FPGA image), image `softjoint-fw`.
+    #[default]
+    #[value(name = "mps2-an386")]
+    Mps2An386,
+    /// The STM32F4 board image (firmware/stm32f4) in its QEMU flavour on
+    /// `netduinoplus2` (STM32F405), image `softjoint-stm32f4-qemu`.
+    #[value(name = "stm32f4")]
+    Stm32f4,
+}
+
+impl QemuBoard {
+    /// The image's path relative to the workspace root.
+    pub const fn default_image(self) -> &'static str {
+        match self {
+            QemuBoard::Mps2An386 => "target/thumbv7em-none-eabihf/release/softjoint-fw",
+            QemuBoard::Stm32f4 => "target/thumbv7em-none-eabihf/release/softjoint-stm32f4-qemu",
+        }
+    }
+
+    /// The command (from the workspace root) that builds the image.
+    pub const fn build_command(self) -> &'static str {
+        match self {
+            QemuBoard::Mps2An386 => {
+                "cargo build -p firmware --release --target thumbv7em-none-eabihf --bin softjoint-fw"
+            }
+            QemuBoard::Stm32f4 => {
+                "(cd firmware/stm32f4 && cargo build --release --bin softjoint-stm32f4-qemu)"
+            }
+        }
+    }
+
+    /// The link-loss timeout (ms of the board's clock) `softjoint hil`
+    /// sets on this board under QEMU, unless told otherwise. An emulated
+    /// board's clock depends on host scheduling, and the two images spend
+    /// their waiting time differently: the mps2-an386 image spins, so
+    /// under `-icount shift=0` its clock advances only with the
+    /// instructions QEMU manages to execute (0.06–0.23× wall time here),
+    /// and 250 ms of its clock is 1–4 s of a stalled host; the STM32F4
+    /// image sleeps in WFI between interrupts, and QEMU then advances its
+    /// clock with wall time (0.9× here, as a real board's), so the same
+    /// slack against a stalled host needs about 1 s.
+    pub const fn hil_link_timeout_ms(self) -> u16 {
+        match self {
+            QemuBoard::Mps2An386 => 250,
+            QemuBoard::Stm32f4 => 1000,
+        }
+    }
+
+    /// QEMU's machine and the serial ports before the board's protocol
+    /// UART (on `null`); the protocol UART's `-serial` follows.
+    fn machine_args(self) -> &'static [&'static str] {
+        match self {
+            QemuBoard::Mps2An386 => &["-cpu", "cortex-m4", "-machine", "mps2-an386"],
+            // USART1 is serial0, USART2 (the Nucleo's virtual COM port,
+            // the image's protocol UART) serial1.
+            QemuBoard::Stm32f4 => &["-machine", "netduinoplus2", "-serial", "null"],
+        }
+    }
+}
+
+/// A running QEMU; killed when dropped (and its socket removed).
 /// Where to look for the image when `--image` is not given, best first:
 /// beside the running program (`softjoint` in `target/<profile>/`, the
 /// image in `target/thumbv7em-none-eabihf/release/`), the workspace this
 /// program was built from, and the working directory. A relative default
 /// alone made `hil` fail outside the repository.
-pub fn image_candidates() -> Vec<PathBuf> {
-    image_candidates_for(std::env::current_exe().ok().as_deref())
+pub fn image_candidates(board: QemuBoard) -> Vec<PathBuf> {
+    image_candidates_for(board, std::env::current_exe().ok().as_deref())
 }
 
 /// [`image_candidates`] for a program at `exe`.
-pub fn image_candidates_for(exe: Option<&Path>) -> Vec<PathBuf> {
+pub fn image_candidates_for(board: QemuBoard, exe: Option<&Path>) -> Vec<PathBuf> {
     let mut out = Vec::new();
+    let relative = board.default_image();
     // target/<profile>/softjoint → target/
-    if let Some(target) = exe.and_then(Path::parent).and_then(Path::parent) {
-        out.push(target.join("thumbv7em-none-eabihf/release/softjoint-fw"));
+    if let (Some(target), Some(in_target)) = (
+        exe.and_then(Path::parent).and_then(Path::parent),
+        relative.strip_prefix("target/"),
+    ) {
+        out.push(target.join(in_target));
     }
     if let Some(workspace) = Path::new(env!("CARGO_MANIFEST_DIR")).parent() {
-        out.push(workspace.join(DEFAULT_IMAGE));
+        out.push(workspace.join(relative));
     }
-    out.push(PathBuf::from(DEFAULT_IMAGE));
+    out.push(PathBuf::from(relative));
     out.dedup();
     out
 }
 
 /// The first of [`image_candidates`] that exists, or an error listing
 /// where it looked and how to build the image or give one with `--image`.
-pub fn default_image() -> anyhow::Result<PathBuf> {
-    let candidates = image_candidates();
+pub fn default_image(board: QemuBoard) -> anyhow::Result<PathBuf> {
+    let candidates = image_candidates(board);
     if let Some(found) = candidates.iter().find(|p| p.is_file()) {
         return Ok(found.clone());
     }
     let looked: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
     bail!(
-        "no firmware image found (looked in {}); give one with --image PATH, or build it in the softjoint workspace with `{BUILD_IMAGE}`",
-        looked.join(", ")
+        "no firmware image found (looked in {}); give one with --image PATH, or build it in the softjoint workspace with `{}`",
+        looked.join(", "),
+        board.build_command()
     )
 }
 
-/// A running QEMU; killed when dropped.
+/// A running QEMU; killed when dropped (and its socket removed).
 pub struct Qemu {
     child: Child,
-    /// The pty QEMU connected the guest's UART0 to.
-    pub pty: PathBuf,
+    /// The guest's protocol UART, as a port for [`open_port`]: `unix:PATH`
+    /// (see [`Qemu::connect`]).
+    pub port: String,
+    socket: PathBuf,
     lines: mpsc::Receiver<String>,
     /// The last lines QEMU printed (its own error messages among them).
     tail: Vec<String>,
@@ -128,43 +215,53 @@ fn die_with_parent(cmd: &mut Command) {
 }
 
 impl Qemu {
-    /// Starts `qemu-system-arm` (machine mps2-an386, semihosting on, UART0
-    /// on a pty) with `image`; `icount` adds `-icount shift=0` (one
-    /// instruction per virtual ns, for instruction counting).
-    pub fn launch(image: &Path, icount: bool) -> anyhow::Result<Self> {
-        Self::start(image, icount, None)
+    /// Starts `qemu-system-arm` (the `board`'s machine, semihosting on,
+    /// the protocol UART on a Unix socket) with `image`, and waits until the
+    /// socket is there; `icount` adds `-icount shift=0` (one instruction
+    /// per virtual ns: the guest's clock then follows the instructions it
+    /// executes, not the host's clock). [`Qemu::connect`] connects to it.
+    pub fn launch(board: QemuBoard, image: &Path, icount: bool) -> anyhow::Result<Self> {
+        Self::start(board, image, icount, None)
     }
 
     /// [`Qemu::launch`] with a QMP control socket at `qmp` (a Unix socket
     /// path), through which [`Qemu::reset`] resets the board.
-    pub fn launch_with_control(image: &Path, icount: bool, qmp: &Path) -> anyhow::Result<Self> {
-        Self::start(image, icount, Some(qmp))
+    pub fn launch_with_control(
+        board: QemuBoard,
+        image: &Path,
+        icount: bool,
+        qmp: &Path,
+    ) -> anyhow::Result<Self> {
+        Self::start(board, image, icount, Some(qmp))
     }
 
-    fn start(image: &Path, icount: bool, qmp: Option<&Path>) -> anyhow::Result<Self> {
+    fn start(
+        board: QemuBoard,
+        image: &Path,
+        icount: bool,
+        qmp: Option<&Path>,
+    ) -> anyhow::Result<Self> {
         if !image.exists() {
             bail!(
-                "firmware image {} not found; check the --image path, or build the image in the softjoint workspace with `{BUILD_IMAGE}`",
-                image.display()
+                "firmware image {} not found; check the --image path, or build the image in the softjoint workspace with `{}`",
+                image.display(),
+                board.build_command()
             );
         }
-        check_elf(image)?;
+        check_elf(image, board.build_command())?;
+        static LAUNCHED: AtomicU32 = AtomicU32::new(0);
+        let socket = std::env::temp_dir().join(format!(
+            "softjoint-qemu-{}-{}.sock",
+            std::process::id(),
+            LAUNCHED.fetch_add(1, Ordering::Relaxed)
+        ));
+        let _ = std::fs::remove_file(&socket);
         let mut cmd = Command::new("qemu-system-arm");
-        cmd.args([
-            "-cpu",
-            "cortex-m4",
-            "-machine",
-            "mps2-an386",
-            "-nographic",
-            "-monitor",
-            "none",
-        ])
-        .args([
-            "-semihosting-config",
-            "enable=on,target=native",
-            "-serial",
-            "pty",
-        ]);
+        cmd.args(board.machine_args())
+            .arg("-serial")
+            .arg(format!("unix:{},server=on,wait=off", socket.display()))
+            .args(["-nographic", "-monitor", "none"])
+            .args(["-semihosting-config", "enable=on,target=native"]);
         if icount {
             cmd.args(["-icount", "shift=0"]);
         }
@@ -199,49 +296,58 @@ impl Qemu {
                 }
             }
         });
-        let mut seen: Vec<String> = Vec::new();
-        let started = Instant::now();
-        let pty = loop {
-            match rx.recv_timeout(Duration::from_millis(100)) {
-                Ok(line) => {
-                    // QEMU 7.2: "char device redirected to /dev/pts/N (label serial0)"
-                    if let Some(rest) = line.split("redirected to ").nth(1) {
-                        let path = rest.split_whitespace().next().unwrap_or_default();
-                        break PathBuf::from(path);
-                    }
-                    seen.push(line);
-                }
-                Err(_) => {
-                    if let Ok(Some(status)) = child.try_wait() {
-                        // Its output threads may still hold its last lines.
-                        seen.extend(rx.recv_timeout(Duration::from_millis(200)).ok());
-                        seen.extend(rx.try_iter());
-                        bail!(
-                            "qemu-system-arm {} before reporting its pty{}",
-                            describe_exit(status),
-                            said(&seen)
-                        );
-                    }
-                    if started.elapsed() >= Duration::from_secs(10) {
-                        let _ = child.kill();
-                        let _ = child.wait();
-                        bail!(
-                            "qemu-system-arm did not report its pty within 10 s{}",
-                            said(&seen)
-                        );
-                    }
-                }
-            }
-        };
         let mut q = Self {
             child,
-            pty,
+            port: format!("unix:{}", socket.display()),
+            socket,
             lines: rx,
             tail: Vec::new(),
             qmp: qmp.map(Path::to_path_buf),
         };
-        q.keep_tail(&seen);
+        // QEMU creates the socket once it has parsed its options and
+        // opened its devices; an image or option it cannot use ends it
+        // before that.
+        let started = Instant::now();
+        while !q.socket.exists() {
+            if let Some(how) = q.ended(Duration::ZERO) {
+                bail!("{how} before opening its serial socket");
+            }
+            if started.elapsed() >= Duration::from_secs(10) {
+                let seen = q.output();
+                bail!(
+                    "qemu-system-arm did not open its serial socket {} within 10 s{}",
+                    q.socket.display(),
+                    said(&seen)
+                );
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
         Ok(q)
+    }
+
+    /// Connects to the guest's UART. QEMU creates its socket before it
+    /// listens on it, so a refused connection is tried again for up to
+    /// 10 s while QEMU runs.
+    pub fn connect(&mut self) -> anyhow::Result<SerialDevice> {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            match open_port(&self.port, 0) {
+                Ok(port) => return Ok(port),
+                Err(e) => {
+                    if let Some(how) = self.ended(Duration::ZERO) {
+                        return Err(e.context(how));
+                    }
+                    if Instant::now() > deadline {
+                        let seen = self.output();
+                        return Err(e.context(format!(
+                            "QEMU runs but does not accept connections{}",
+                            said(&seen)
+                        )));
+                    }
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
+        }
     }
 
     /// Lines QEMU printed since the last call (semihosting output, errors).
@@ -273,8 +379,8 @@ impl Qemu {
         self.child.id()
     }
 
-    /// If QEMU has ended, or ends within `wait` (a pty can report the hang
-    /// up a moment before the process is gone), how — its exit status or
+    /// If QEMU has ended, or ends within `wait` (the serial line can report
+    /// the hang up a moment before the process is gone), how — its exit status or
     /// signal and its last words, e.g. `qemu-system-arm was killed by
     /// signal 9 (SIGKILL)` or `… exited with status 1; it said: …could not
     /// load kernel…`.
@@ -310,7 +416,7 @@ impl Qemu {
 
     /// Resets the emulated board (QMP `system_reset`) as a reset button
     /// would: the firmware starts again from its reset vector, the UART's
-    /// pty stays open. Needs [`Qemu::launch_with_control`].
+    /// socket stays connected. Needs [`Qemu::launch_with_control`].
     #[cfg(unix)]
     pub fn reset(&mut self) -> anyhow::Result<()> {
         use std::io::Write as _;
@@ -349,10 +455,10 @@ impl Qemu {
 /// (QEMU loads any other file as a raw binary at address 0 and runs the
 /// bytes, which then never answer), or one cut short (a segment that ends
 /// past the end of the file: a copy or build that did not finish).
-fn check_elf(image: &Path) -> anyhow::Result<()> {
+fn check_elf(image: &Path, build: &str) -> anyhow::Result<()> {
     if image.is_dir() {
         bail!(
-            "firmware image {} is a directory, not an ELF file; build the image with `{BUILD_IMAGE}`",
+            "firmware image {} is a directory, not an ELF file; build the image with `{build}`",
             image.display()
         );
     }
@@ -361,7 +467,7 @@ fn check_elf(image: &Path) -> anyhow::Result<()> {
     let head = bytes.get(..4).unwrap_or(&bytes);
     if head != b"\x7fELF" {
         bail!(
-            "firmware image {} is not an ELF file (it starts with `{}`); build the image with `{BUILD_IMAGE}`",
+            "firmware image {} is not an ELF file (it starts with `{}`); build the image with `{build}`",
             image.display(),
             head.escape_ascii()
         );
@@ -381,13 +487,13 @@ fn check_elf(image: &Path) -> anyhow::Result<()> {
     // bytes each, e_phnum (0x2C) of them.
     if bytes.get(4..6) != Some(&[1, 1]) || u16_at(0x12) != Some(40) {
         bail!(
-            "firmware image {} is an ELF file for another machine (not 32-bit little-endian ARM); build the image with `{BUILD_IMAGE}`",
+            "firmware image {} is an ELF file for another machine (not 32-bit little-endian ARM); build the image with `{build}`",
             image.display()
         );
     }
     let cut = |what: &str| {
         anyhow::anyhow!(
-            "firmware image {} is cut short ({what} past its {} bytes); build the image again with `{BUILD_IMAGE}`",
+            "firmware image {} is cut short ({what} past its {} bytes); build the image again with `{build}`",
             image.display(),
             bytes.len()
         )
@@ -421,6 +527,7 @@ impl Drop for Qemu {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        let _ = std::fs::remove_file(&self.socket);
     }
 }
 
@@ -430,14 +537,23 @@ mod tests {
 
     #[test]
     fn the_default_image_is_looked_for_beside_the_program_first() {
-        let c = image_candidates_for(Some(Path::new("/opt/sj/target/release/softjoint")));
-        assert_eq!(
-            c[0],
-            Path::new("/opt/sj/target/thumbv7em-none-eabihf/release/softjoint-fw")
-        );
-        // Then the workspace it was built from (absolute), then the
-        // working directory.
-        assert!(c[1].is_absolute() && c[1].ends_with(DEFAULT_IMAGE), "{c:?}");
-        assert_eq!(c.last().unwrap(), Path::new(DEFAULT_IMAGE));
+        let exe = Path::new("/opt/sj/target/release/softjoint");
+        for (board, name) in [
+            (QemuBoard::Mps2An386, "softjoint-fw"),
+            (QemuBoard::Stm32f4, "softjoint-stm32f4-qemu"),
+        ] {
+            let c = image_candidates_for(board, Some(exe));
+            assert_eq!(
+                c[0],
+                Path::new("/opt/sj/target/thumbv7em-none-eabihf/release").join(name)
+            );
+            // Then the workspace it was built from (absolute), then the
+            // working directory.
+            assert!(
+                c[1].is_absolute() && c[1].ends_with(board.default_image()),
+                "{c:?}"
+            );
+            assert_eq!(c.last().unwrap(), Path::new(board.default_image()));
+        }
     }
 }

@@ -12,7 +12,7 @@ use firmware::protocol::{
 use host_tools::board::name_the_board;
 use host_tools::hil::{self, HilOptions};
 use host_tools::link::{open_port, Link, Port};
-use host_tools::qemu::Qemu;
+use host_tools::qemu::{Qemu, QemuBoard};
 use host_tools::scenario::Scenario;
 use host_tools::sim::fault_names;
 use host_tools::stop::Stop;
@@ -29,8 +29,8 @@ pub struct HilArgs {
     /// Scenario file (TOML); without it the built-in 3D default runs.
     scenario: Option<PathBuf>,
     /// A real board's serial device; without it the firmware image runs
-    /// under QEMU on a pty.
-    #[arg(long, conflicts_with_all = ["image", "no_icount"])]
+    /// under QEMU (its UART on a Unix socket).
+    #[arg(long, conflicts_with_all = ["board", "image", "no_icount"])]
     port: Option<String>,
     /// Baud rate for --port.
     #[arg(
@@ -40,9 +40,14 @@ pub struct HilArgs {
         requires = "port"
     )]
     baud: u32,
-    /// Firmware image for QEMU [default: the workspace's
-    /// target/thumbv7em-none-eabihf/release/softjoint-fw, found from the
-    /// softjoint program's own location].
+    /// The board image QEMU runs: mps2-an386 (`softjoint-fw`) or stm32f4
+    /// (the STM32F4 board image's QEMU flavour on netduinoplus2).
+    #[arg(long, value_enum, default_value_t = QemuBoard::Mps2An386)]
+    board: QemuBoard,
+    /// Firmware image for QEMU [default: the board's image in the
+    /// workspace's target/thumbv7em-none-eabihf/release/ (softjoint-fw,
+    /// softjoint-stm32f4-qemu), found from the softjoint program's own
+    /// location].
     #[arg(long)]
     image: Option<PathBuf>,
     /// Run QEMU without `-icount shift=0`. By default the guest's clock
@@ -57,11 +62,13 @@ pub struct HilArgs {
     /// Fault injection: lose the first copy of every Nth sensor frame.
     #[arg(allow_negative_numbers = true, long)]
     lose_every: Option<u32>,
-    /// Link-loss timeout to set on the board (ms of its clock). The board's
-    /// own default is 50 ms; an emulated board's clock follows the host's,
-    /// so a loaded host needs more slack than a real board does.
-    #[arg(allow_negative_numbers = true, long, default_value_t = 250, value_parser = link_timeout_ms)]
-    link_timeout_ms: u16,
+    /// Link-loss timeout to set on the board (ms of its clock)
+    /// [default: 250; under QEMU the board's own: 250 for mps2-an386, 1000
+    /// for stm32f4]. The board's built-in default is 50 ms; an emulated
+    /// board's clock depends on host scheduling, so a loaded host needs
+    /// more slack than a real board does.
+    #[arg(allow_negative_numbers = true, long, value_parser = link_timeout_ms)]
+    link_timeout_ms: Option<u16>,
     /// A board that restarts during the run is set up again and the run
     /// goes on (its controller state starts afresh); without this flag the
     /// run ends there, naming the restart.
@@ -96,7 +103,10 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
     let opts = HilOptions {
         timeout: Duration::from_millis(args.timeout_ms),
         lose_every: args.lose_every,
-        link_timeout_ms: Some(args.link_timeout_ms),
+        link_timeout_ms: Some(args.link_timeout_ms.unwrap_or(match args.port {
+            Some(_) => 250,
+            None => args.board.hil_link_timeout_ms(),
+        })),
         resume_after_restart: args.resume_after_restart,
         ..HilOptions::default()
     };
@@ -111,13 +121,13 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
         None => {
             let image = match &args.image {
                 Some(i) => i.clone(),
-                None => host_tools::qemu::default_image()?,
+                None => host_tools::qemu::default_image(args.board)?,
             };
-            let q = qemu.insert(Qemu::launch(&image, !args.no_icount)?);
-            let pty = q.pty.to_string_lossy().into_owned();
+            let q = qemu.insert(Qemu::launch(args.board, &image, !args.no_icount)?);
+            let port = q.connect()?;
             (
-                open_port(&pty, args.baud)?,
-                format!("QEMU's pty {pty} ({})", image.display()),
+                port,
+                format!("QEMU's serial socket {} ({})", q.port, image.display()),
             )
         }
     };
@@ -187,7 +197,7 @@ pub fn hil(args: HilArgs) -> anyhow::Result<()> {
 
 #[derive(Args)]
 pub struct ConsoleArgs {
-    /// The board's serial device (or QEMU's pty).
+    /// The board's serial device, or `unix:PATH` (QEMU's serial socket).
     #[arg(long)]
     port: String,
     /// Baud rate.

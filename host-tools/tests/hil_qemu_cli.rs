@@ -1,6 +1,6 @@
 //! `softjoint hil` with the firmware image under QEMU, as a user runs it:
-//! QEMU killed mid-run, `hil` itself stopped by SIGTERM or killed, images
-//! QEMU cannot run. Each must end with the trace up to the last step, a
+//! the STM32F4 board image through `--board stm32f4`, QEMU killed mid-run,
+//! `hil` itself stopped by SIGTERM or killed, images QEMU cannot run. Each must end with the trace up to the last step, a
 //! message that names what happened, and no QEMU left running.
 //!
 //! They need QEMU and the thumbv7em image, so they are ignored in a plain
@@ -96,11 +96,16 @@ fn start_hil(dir: &Path) -> (Child, u32, PathBuf) {
 /// scenario (the lockstep reproduces the simulation exactly, see
 /// tests/tests/qemu_hil.rs), step for step.
 fn assert_rows_are_the_steps_run(csv: &Path, steps: u64) {
+    assert_rows_are_the_steps_of(csv, SCENARIO, steps);
+}
+
+/// [`assert_rows_are_the_steps_run`] for the scenario `scenario_toml`.
+fn assert_rows_are_the_steps_of(csv: &Path, scenario_toml: &str, steps: u64) {
     let text = std::fs::read_to_string(csv).unwrap();
     assert!(text.ends_with('\n'), "last row cut off");
     let rows: Vec<&str> = text.lines().skip(1).collect();
     assert_eq!(rows.len() as u64, steps, "rows in the CSV vs steps run");
-    let scenario: host_tools::scenario::Scenario = toml::from_str(SCENARIO).unwrap();
+    let scenario: host_tools::scenario::Scenario = toml::from_str(scenario_toml).unwrap();
     let sim = host_tools::sim::run(&scenario).unwrap();
     let angles = ["alpha".to_string(), "beta".to_string()];
     for (k, (got, want)) in rows.iter().zip(&sim.trace.rows).enumerate() {
@@ -115,6 +120,52 @@ fn assert_rows_are_the_steps_run(csv: &Path, steps: u64) {
             assert_eq!(got[c], want[c], "row {k} column {c}");
         }
     }
+}
+
+/// `softjoint hil --board stm32f4` finds the STM32F4 image's QEMU flavour
+/// by itself, runs it on netduinoplus2 and writes the trace of `softjoint
+/// sim` (a 2 s scenario: 2,000 lockstep steps through the board's USART2).
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn hil_board_stm32f4_runs_the_board_image_in_lockstep() {
+    let dir = scratch("hil-stm32f4");
+    let toml = format!("duration_s = 2.0\n{SCENARIO}");
+    let scen = file(&dir, "s.toml", &toml);
+    let csv = dir.join("trace.csv");
+    let child = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(["hil", &scen, "--board", "stm32f4", "--json", "--csv"])
+        .arg(&csv)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The QEMU it started runs the STM32F4 image on netduinoplus2.
+    // (A child between fork and exec still has softjoint's command line.)
+    let cmdline = |pid: u32| {
+        let raw = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+        String::from_utf8_lossy(&raw).replace('\0', " ")
+    };
+    let mut cmd = String::new();
+    wait_until("QEMU started", Duration::from_secs(30), || {
+        cmd = children(child.id())
+            .into_iter()
+            .map(cmdline)
+            .find(|c| c.starts_with("qemu-system-arm"))
+            .unwrap_or_default();
+        !cmd.is_empty()
+    });
+    let cmdline = cmd;
+    assert!(
+        cmdline.contains("netduinoplus2") && cmdline.contains("softjoint-stm32f4-qemu"),
+        "{cmdline}"
+    );
+    let out = child.wait_with_output().unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let summary: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    assert_eq!(summary["steps"].as_u64(), Some(2000), "{summary}");
+    assert!(summary["cut_short"].is_null(), "{summary}");
+    assert_rows_are_the_steps_of(&csv, &toml, 2000);
 }
 
 #[test]

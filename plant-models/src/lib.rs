@@ -4,9 +4,14 @@
 #![deny(unsafe_code)]
 pub mod contour;
 pub mod csv_input;
+pub mod dlo;
+pub mod fem;
 pub mod joint;
 pub mod linalg;
 pub mod pushing;
+pub mod rheology;
+pub mod tetmsd;
+pub mod tissue;
 pub mod viscoelastic;
 
 pub mod rng {
@@ -24,12 +29,24 @@ pub mod rng {
     //! | [`CAMERA`] | the joint's camera noise and occlusion |
     //! | [`WIRE_BASE`] + k | wire sensor k's stick-slip (k = 0..4) |
     //! | [`HAL_SIM_SENSOR_BASE`] + k | `hal-sim`'s injected dropouts of coder k |
+    //! | [`TETMSD_DELAY_BASE`] + s | `tetmsd`: one-way delays of the packets site s sends |
+    //! | [`TETMSD_LOSS_BASE`] + s | `tetmsd`: loss and reordering draws of site s's packets |
+    //! | [`TETMSD_TEST_BASE`] + k | `tetmsd` tests: random points, states and packets |
     //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise) |
     //! | [`LINK_FAULTS_BASE`] + d | the lockstep fault campaign's faults, direction d (0 host → board, 1 board → host) |
     //! | [`IDENTIFY_NOISE`] | identification logs: the electrical measurement noise |
     //! | [`IDENTIFY_REPLAY`] | identification replays (never drawn: no stick events) |
     //! | [`IDENTIFY_SAMPLE`] | `softjoint tune`: plants sampled from the uncertainty |
     //! | [`IDENTIFY_SEARCH`] | `softjoint tune`: the candidate gains |
+    //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
+    //! | [`TISSUE_WARP`] | `tissue::field` synthetic twin: the non-rigid warp's bumps |
+    //! | [`TISSUE_NOISE_INITIAL`] | `tissue::field` noise of the initial volume |
+    //! | [`TISSUE_NOISE_DEFORMED`] | `tissue::field` noise of the deformed volume |
+    //! | [`TISSUE_DELAUNAY_JITTER`] | `tissue::field` tie-breaking jitter of the Delaunay points |
+    //! | [`RHEOLOGY_BASE`]: [`RHEOLOGY_POINTS`] | the rheology reference's surface-point sampling |
+    //! | [`RHEOLOGY_POINT_NOISE`] | its surface-point noise |
+    //! | [`RHEOLOGY_FORCE_NOISE`] | its force-sensor noise |
+    //! | [`RHEOLOGY_SEARCH`] | the rheology calibrations (GA, RA, uniform search) |
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
@@ -40,6 +57,14 @@ pub mod rng {
     /// `hal-sim`'s simulated coder k draws its dropouts from
     /// `HAL_SIM_SENSOR_BASE + k`.
     pub const HAL_SIM_SENSOR_BASE: u64 = 0x100;
+    /// The tetrahedral session's network emulator draws the one-way delays
+    /// of the packets site s (0 or 1) sends from `TETMSD_DELAY_BASE + s`.
+    pub const TETMSD_DELAY_BASE: u64 = 0x300;
+    /// … and their loss and reordering from `TETMSD_LOSS_BASE + s`.
+    pub const TETMSD_LOSS_BASE: u64 = 0x302;
+    /// Test data of the tetrahedral module (points, states, packets):
+    /// `TETMSD_TEST_BASE + k`, k < 16.
+    pub const TETMSD_TEST_BASE: u64 = 0x310;
     /// First stream of the contour splines (`plant_models::contour`).
     pub const CONTOUR_BASE: u64 = 0x500;
     /// Noise of the synthetic contour data `softjoint contour synth` writes.
@@ -51,14 +76,41 @@ pub mod rng {
     /// The fault campaign of the lockstep link (`tests/src/fault_injector.rs`)
     /// draws the faults of direction d from `LINK_FAULTS_BASE + d`.
     pub const LINK_FAULTS_BASE: u64 = 0x200;
-    /// Electrical measurement noise of identification logs.
-    pub const IDENTIFY_NOISE: u64 = 0x600;
+    /// Electrical measurement noise of identification logs (issue 20:
+    /// 0x1400 + k; the README figures were made when these were 0x600 + k,
+    /// which tissue now uses).
+    pub const IDENTIFY_NOISE: u64 = 0x1400;
     /// Identification replays (a stream they never draw from).
-    pub const IDENTIFY_REPLAY: u64 = 0x601;
+    pub const IDENTIFY_REPLAY: u64 = 0x1401;
     /// Plants sampled from an identification's uncertainty.
-    pub const IDENTIFY_SAMPLE: u64 = 0x602;
+    pub const IDENTIFY_SAMPLE: u64 = 0x1402;
     /// Candidate gains of a tuning search.
-    pub const IDENTIFY_SEARCH: u64 = 0x603;
+    pub const IDENTIFY_SEARCH: u64 = 0x1403;
+
+    /// The tissue module's streams start here (seed 000, Zhang and Kita).
+    pub const TISSUE_BASE: u64 = 0x600;
+    /// Texture of the synthetic calf volumes.
+    pub const TISSUE_TEXTURE: u64 = TISSUE_BASE;
+    /// Bumps of the synthetic twin's non-rigid warp.
+    pub const TISSUE_WARP: u64 = TISSUE_BASE + 1;
+    /// Noise of the synthetic initial volume.
+    pub const TISSUE_NOISE_INITIAL: u64 = TISSUE_BASE + 2;
+    /// Noise of the synthetic deformed volume.
+    pub const TISSUE_NOISE_DEFORMED: u64 = TISSUE_BASE + 3;
+    /// Sub-micrometre jitter that breaks ties of co-spherical Delaunay points.
+    pub const TISSUE_DELAUNAY_JITTER: u64 = TISSUE_BASE + 4;
+
+    /// The rheology module's streams start here (seed 000, Noborio; issue
+    /// 14's number × 0x100).
+    pub const RHEOLOGY_BASE: u64 = 0xE00;
+    /// The rheology reference block's choice of surface points.
+    pub const RHEOLOGY_POINTS: u64 = RHEOLOGY_BASE;
+    /// The rheology reference block's surface-point noise.
+    pub const RHEOLOGY_POINT_NOISE: u64 = RHEOLOGY_BASE + 1;
+    /// The rheology reference block's force-sensor noise.
+    pub const RHEOLOGY_FORCE_NOISE: u64 = RHEOLOGY_BASE + 2;
+    /// The rheology calibrations' random draws (GA, RA, uniform search).
+    pub const RHEOLOGY_SEARCH: u64 = RHEOLOGY_BASE + 3;
 
     /// Stream `stream` of seed `seed`.
     pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {

@@ -1,13 +1,16 @@
 //! Sparse symmetric solves shared by the systems that need them: a skyline
-//! (variable-band, "profile") Cholesky factorisation, its solve, and the
-//! entries of the inverse inside the profile (selected inversion).
+//! (variable-band, "profile") Cholesky factorisation, its solve, the
+//! entries of the inverse inside the profile (selected inversion), and the
+//! reverse Cuthill–McKee ordering that keeps the profile narrow.
 //!
 //! Used by the tetrahedral FEM of seed 002 (`viscoelastic::fem`, the
-//! stiffness solve) and by the smoothing splines of Fujioka & Kano
+//! stiffness solve), by the static reference of the tetrahedral Voigt
+//! network (`tetmsd::statics`), and by the smoothing splines of Fujioka & Kano
 //! (`contour`, the penalised least-squares normal equations and the trace of
 //! their hat matrix for generalised cross-validation). The cost of a
 //! factorisation is O(Σ row length²), O(n·b²) for a band of half-width b,
 //! instead of the dense O(n³).
+use std::collections::VecDeque;
 use thiserror::Error;
 
 /// The matrix handed to [`SkylineCholesky::factor`] is not (numerically)
@@ -205,6 +208,39 @@ impl SkylineCholesky {
         }
         z
     }
+}
+
+/// Reverse Cuthill–McKee order of the nodes in `keep` (a bandwidth-
+/// reducing permutation); returns the kept nodes in the new order.
+pub fn reverse_cuthill_mckee(adj: &[Vec<usize>], keep: &[bool]) -> Vec<usize> {
+    let n = adj.len();
+    let degree = |i: usize| adj[i].iter().filter(|&&j| keep[j]).count();
+    let mut seen = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    loop {
+        // Start each component at a kept, unseen node of minimum degree.
+        let start = (0..n)
+            .filter(|&i| keep[i] && !seen[i])
+            .min_by_key(|&i| (degree(i), i));
+        let Some(start) = start else { break };
+        seen[start] = true;
+        let mut queue = VecDeque::from([start]);
+        while let Some(i) = queue.pop_front() {
+            order.push(i);
+            let mut next: Vec<usize> = adj[i]
+                .iter()
+                .copied()
+                .filter(|&j| keep[j] && !seen[j])
+                .collect();
+            next.sort_by_key(|&j| (degree(j), j));
+            for j in next {
+                seen[j] = true;
+                queue.push_back(j);
+            }
+        }
+    }
+    order.reverse();
+    order
 }
 
 #[cfg(test)]

@@ -519,8 +519,10 @@ fn qemu_campaign(steps: u64, seed: u64, rate: f64) {
         .join(host_tools::qemu::DEFAULT_IMAGE);
     let dir = tempfile::tempdir().unwrap();
     let qmp = dir.path().join("qmp.sock");
-    let q = host_tools::qemu::Qemu::launch_with_control(&image, true, &qmp).expect("qemu");
-    let port = host_tools::link::open_port(&q.pty.to_string_lossy(), 115_200).expect("pty");
+    let board = host_tools::qemu::QemuBoard::Mps2An386;
+    let mut q =
+        host_tools::qemu::Qemu::launch_with_control(board, &image, true, &qmp).expect("qemu");
+    let port = q.connect().expect("QEMU's serial socket");
     let wait = Duration::from_millis(60);
     let r = campaign(Board::Qemu(q, dir), port, steps, seed, wait, rate);
     r.print("QEMU image");

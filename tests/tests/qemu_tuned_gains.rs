@@ -13,9 +13,9 @@
 use std::path::PathBuf;
 
 use host_tools::hil::{self, HilOptions};
-use host_tools::link::{open_port, Link};
+use host_tools::link::Link;
 use host_tools::plant_file::PlantParams;
-use host_tools::qemu::{Qemu, DEFAULT_IMAGE};
+use host_tools::qemu::{Qemu, QemuBoard, DEFAULT_IMAGE};
 use host_tools::scenario::JointKind;
 use host_tools::sim;
 use host_tools::tune::{self, Gains, GainsFile, RunCost};
@@ -42,8 +42,8 @@ fn run_on_image(gains: &Gains) -> (RunCost, Vec<String>) {
     let hidden = PlantParams::ThreeD(hidden::joint_3d(7));
     let s = tune::test_scenario(JointKind::ThreeD, gains, hidden, 1);
     let expected = sim::run(&s).expect("sim");
-    let qemu = Qemu::launch(&image, true).expect("qemu");
-    let mut link = Link::new(open_port(&qemu.pty.to_string_lossy(), 115_200).expect("pty"));
+    let mut qemu = Qemu::launch(QemuBoard::Mps2An386, &image, true).expect("qemu");
+    let mut link = Link::new(qemu.connect().expect("QEMU's serial socket"));
     let opts = HilOptions {
         link_timeout_ms: Some(250),
         ..HilOptions::default()

@@ -95,9 +95,8 @@ impl AtomicFile {
     /// Commits `value` as TOML after `header` (comment lines), after
     /// [`super::check_value`].
     pub fn commit_toml<T: Serialize + ?Sized>(self, header: &str, value: &T) -> anyhow::Result<()> {
-        super::check_value(&self.name(), value)?;
-        let text = toml::to_string_pretty(value)?;
-        self.commit(format!("{header}{text}").as_bytes())
+        let text = super::toml(&self.name(), header, value)?;
+        self.commit(text.as_bytes())
     }
 
     /// Writes `bytes` (already checked by the caller), flushes them to

@@ -249,19 +249,28 @@ pub fn write_toml<T: Serialize + ?Sized>(
     AtomicFile::create(path)?.commit_toml(header, value)
 }
 
-/// Prints `value` as TOML on standard output, after the same check as
-/// every other result (`softjoint identify plan`).
-pub fn print_toml<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
-    check_value("standard output", value)?;
-    let text = toml::to_string_pretty(value)?;
-    crate::out!("{text}");
-    Ok(())
-}
-
 /// Prints `value` as pretty JSON on standard output.
 pub fn print_json<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
     let text = json("standard output", value)?;
     crate::outln!("{text}");
+    Ok(())
+}
+
+/// `value` as TOML after `header` (comment lines), after [`check_value`]
+/// (`target` names where it goes, for the error).
+pub fn toml<T: Serialize + ?Sized>(
+    target: &str,
+    header: &str,
+    value: &T,
+) -> anyhow::Result<String> {
+    check_value(target, value)?;
+    Ok(format!("{header}{}", toml::to_string_pretty(value)?))
+}
+
+/// Prints `value` as TOML after `header` on standard output.
+pub fn print_toml<T: Serialize + ?Sized>(header: &str, value: &T) -> anyhow::Result<()> {
+    let text = toml("standard output", header, value)?;
+    crate::out!("{text}");
     Ok(())
 }
 
@@ -294,6 +303,16 @@ impl JsonObject {
     /// Prints the object on standard output.
     pub fn print(self) -> anyhow::Result<()> {
         print_json(&self.0)
+    }
+}
+
+/// A field already added (`Value::Null` if there is none), for a text
+/// report made from the same checked object.
+impl std::ops::Index<&str> for JsonObject {
+    type Output = serde_json::Value;
+
+    fn index(&self, key: &str) -> &serde_json::Value {
+        self.0.get(key).unwrap_or(&serde_json::Value::Null)
     }
 }
 

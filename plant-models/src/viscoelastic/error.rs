@@ -99,6 +99,35 @@ pub enum VeError {
     },
 }
 
+impl From<crate::fem::FemError> for VeError {
+    /// The shared FEM's refusals, in this module's words.
+    fn from(e: crate::fem::FemError) -> Self {
+        use crate::fem::FemError as F;
+        match e {
+            F::InvalidParameter {
+                name,
+                value,
+                reason,
+            } => VeError::InvalidParameter {
+                name,
+                value,
+                reason,
+            },
+            F::NotPositiveDefinite { equation } => VeError::NotPositiveDefinite { equation },
+            F::LengthMismatch {
+                what,
+                got,
+                expected,
+            } => VeError::LengthMismatch {
+                what,
+                got,
+                expected,
+            },
+            other => VeError::InvalidMesh(other.to_string()),
+        }
+    }
+}
+
 /// Result alias of the viscoelastic module.
 pub type Result<T> = core::result::Result<T, VeError>;
 

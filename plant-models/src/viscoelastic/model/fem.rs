@@ -13,72 +13,17 @@
 //! are rejected with an error rather than meshed wrongly. A general
 //! constrained Delaunay mesher (TetGen-like) is left out.
 //!
-//! The stiffness matrix is solved by a skyline (profile) Cholesky after a
-//! reverse Cuthill–McKee ordering: the cost is O(n·b²) instead of the dense
-//! O(n³), which keeps the ~1,800-equation default object quick even in a
-//! debug build. It is checked against nalgebra's dense Cholesky in tests.
+//! The element stiffness, assembly and the skyline Cholesky after a
+//! reverse Cuthill–McKee ordering live in the shared [`crate::fem`]
+//! (O(n·b²) instead of the dense O(n³), which keeps the ~1,800-equation
+//! default object quick even in a debug build).
 //!
 //! Left out: large deformation (the seed, too, is linear small-strain),
 //! inertia (quasi-static, as the DGFM), contact between parts of the object.
 use super::mesh::{cross, dot, sub, SurfaceMesh};
-pub use crate::linalg::SkylineCholesky;
-use crate::viscoelastic::error::{check_positive, Result, VeError};
-use nalgebra::{SMatrix, SVector};
+pub use crate::fem::{tet_volume, ElasticSystem, LinearElastic, SkylineCholesky};
+use crate::viscoelastic::error::{Result, VeError};
 use rayon::prelude::*;
-use std::collections::VecDeque;
-
-/// Isotropic linear-elastic material.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LinearElastic {
-    /// Young's modulus E (Pa).
-    pub youngs_modulus_pa: f64,
-    /// Poisson's ratio ν (dimensionless, in (−1, 0.5)).
-    pub poisson_ratio: f64,
-}
-
-impl Default for LinearElastic {
-    /// Soft rubber toy (estimate; the seed gives no material constants):
-    /// E = 200 kPa, ν = 0.45 (nearly incompressible rubber, kept below 0.5
-    /// because linear tetrahedra lock as ν → 0.5).
-    fn default() -> Self {
-        LinearElastic {
-            youngs_modulus_pa: 2.0e5,
-            poisson_ratio: 0.45,
-        }
-    }
-}
-
-impl LinearElastic {
-    fn validate(&self) -> Result<()> {
-        check_positive("youngs_modulus_pa", self.youngs_modulus_pa)?;
-        let nu = self.poisson_ratio;
-        if !(nu.is_finite() && nu > -1.0 && nu < 0.5) {
-            return Err(VeError::InvalidParameter {
-                name: "poisson_ratio",
-                value: nu,
-                reason: "must be in (-1, 0.5)",
-            });
-        }
-        Ok(())
-    }
-
-    /// The 6×6 isotropic elasticity matrix in Voigt order
-    /// (xx, yy, zz, yz, xz, xy) with engineering shear strains.
-    fn d_matrix(&self) -> SMatrix<f64, 6, 6> {
-        let (e, nu) = (self.youngs_modulus_pa, self.poisson_ratio);
-        let lambda = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-        let mu = e / (2.0 * (1.0 + nu));
-        let mut d = SMatrix::<f64, 6, 6>::zeros();
-        for i in 0..3 {
-            for j in 0..3 {
-                d[(i, j)] = lambda;
-            }
-            d[(i, i)] = lambda + 2.0 * mu;
-            d[(i + 3, i + 3)] = mu;
-        }
-        d
-    }
-}
 
 /// A tetrahedral volume mesh whose first `surface_nodes` nodes are the
 /// surface mesh's vertices, in the same order.
@@ -98,10 +43,6 @@ pub struct TetMesh {
 /// the trace of the DGFM diagonal blocks by at most 13.7 % — measured once,
 /// a discretisation error left in, not a tested bound).
 pub const DEFAULT_SHELL_SCALES: [f64; 2] = [0.65, 0.3];
-
-fn tet_volume(p: [[f64; 3]; 4]) -> f64 {
-    dot(sub(p[1], p[0]), cross(sub(p[2], p[0]), sub(p[3], p[0]))) / 6.0
-}
 
 impl TetMesh {
     /// Layered radial tetrahedralisation of a validated surface (see the
@@ -187,85 +128,13 @@ impl TetMesh {
     }
 }
 
-/// Element stiffness of a linear tetrahedron: `K_e = V Bᵀ D B` (12×12,
-/// node-major, xyz per node).
-fn element_stiffness(p: [[f64; 3]; 4], d: &SMatrix<f64, 6, 6>) -> Option<SMatrix<f64, 12, 12>> {
-    let j = SMatrix::<f64, 3, 3>::from_columns(&[
-        SVector::<f64, 3>::from(sub(p[1], p[0])),
-        SVector::<f64, 3>::from(sub(p[2], p[0])),
-        SVector::<f64, 3>::from(sub(p[3], p[0])),
-    ]);
-    let vol = j.determinant().abs() / 6.0;
-    // Rows of J⁻ᵀ... : grad N_k (k = 1..3) are the rows of J⁻¹.
-    let jinv = j.try_inverse()?;
-    let mut g = [[0.0; 3]; 4];
-    for k in 0..3 {
-        for c in 0..3 {
-            g[k + 1][c] = jinv[(k, c)];
-            g[0][c] -= jinv[(k, c)];
-        }
-    }
-    let mut b = SMatrix::<f64, 6, 12>::zeros();
-    for (n, gn) in g.iter().enumerate() {
-        let (x, y, z) = (gn[0], gn[1], gn[2]);
-        let col = 3 * n;
-        b[(0, col)] = x;
-        b[(1, col + 1)] = y;
-        b[(2, col + 2)] = z;
-        b[(3, col + 1)] = z;
-        b[(3, col + 2)] = y;
-        b[(4, col)] = z;
-        b[(4, col + 2)] = x;
-        b[(5, col)] = y;
-        b[(5, col + 1)] = x;
-    }
-    Some(b.transpose() * d * b * vol)
-}
-
-/// Nodes with more neighbours than this are ordered last (see `FemSystem::new`).
-const HUB_DEGREE: usize = 64;
-
-/// Reverse Cuthill–McKee order of the nodes in `keep` (a bandwidth-
-/// reducing permutation); returns the kept nodes in the new order.
-fn reverse_cuthill_mckee(adj: &[Vec<usize>], keep: &[bool]) -> Vec<usize> {
-    let n = adj.len();
-    let degree = |i: usize| adj[i].iter().filter(|&&j| keep[j]).count();
-    let mut seen = vec![false; n];
-    let mut order = Vec::with_capacity(n);
-    loop {
-        // Start each component at a kept, unseen node of minimum degree.
-        let start = (0..n)
-            .filter(|&i| keep[i] && !seen[i])
-            .min_by_key(|&i| (degree(i), i));
-        let Some(start) = start else { break };
-        seen[start] = true;
-        let mut queue = VecDeque::from([start]);
-        while let Some(i) = queue.pop_front() {
-            order.push(i);
-            let mut next: Vec<usize> = adj[i]
-                .iter()
-                .copied()
-                .filter(|&j| keep[j] && !seen[j])
-                .collect();
-            next.sort_by_key(|&j| (degree(j), j));
-            for j in next {
-                seen[j] = true;
-                queue.push_back(j);
-            }
-        }
-    }
-    order.reverse();
-    order
-}
-
 /// The assembled and factored FEM of an object with some surface nodes
-/// held fixed (the displacement-constrained set Λu).
+/// held fixed (the displacement-constrained set Λu), on the shared
+/// [`ElasticSystem`].
 #[derive(Clone, Debug)]
 pub struct FemSystem {
     tet: TetMesh,
-    /// First equation of each node, `None` for fixed nodes.
-    dof_base: Vec<Option<usize>>,
-    chol: SkylineCholesky,
+    system: ElasticSystem,
 }
 
 impl FemSystem {
@@ -288,72 +157,11 @@ impl FemSystem {
                 reason: "at least one surface vertex must be displacement-constrained (Λu), or the body floats",
             });
         }
-        let n = tet.nodes_m.len();
-        let mut keep = vec![true; n];
-        for (k, &f) in fixed_surface.iter().enumerate() {
-            keep[k] = !f;
-        }
-        let mut adj = vec![Vec::new(); n];
-        for t in &tet.tets {
-            for &a in t {
-                for &b in t {
-                    if a != b && !adj[a].contains(&b) {
-                        adj[a].push(b);
-                    }
-                }
-            }
-        }
-        // Hub nodes (the layered mesh's centre touches every innermost-shell
-        // node) would make one huge BFS level; order them last instead, where
-        // they cost one long row rather than a wide band.
-        let hub: Vec<bool> = adj.iter().map(|a| a.len() > HUB_DEGREE).collect();
-        let rcm_keep: Vec<bool> = keep.iter().zip(&hub).map(|(&k, &h)| k && !h).collect();
-        let mut order = reverse_cuthill_mckee(&adj, &rcm_keep);
-        order.extend((0..n).filter(|&i| keep[i] && hub[i]));
-        let mut dof_base = vec![None; n];
-        for (pos, &node) in order.iter().enumerate() {
-            dof_base[node] = Some(3 * pos);
-        }
-        let neq = 3 * order.len();
-        let mut first: Vec<usize> = (0..neq).collect();
-        for t in &tet.tets {
-            let bases: Vec<usize> = t.iter().filter_map(|&k| dof_base[k]).collect();
-            if let Some(&lo) = bases.iter().min() {
-                for &b in &bases {
-                    for c in 0..3 {
-                        first[b + c] = first[b + c].min(lo);
-                    }
-                }
-            }
-        }
-        let mut chol = SkylineCholesky::with_profile(first);
-        let d = material.d_matrix();
-        for (k, t) in tet.tets.iter().enumerate() {
-            let ke = element_stiffness(t.map(|i| tet.nodes_m[i]), &d)
-                .ok_or_else(|| VeError::InvalidMesh(format!("tetrahedron {k} is degenerate")))?;
-            for (a, &na) in t.iter().enumerate() {
-                let Some(ba) = dof_base[na] else { continue };
-                for (b, &nb) in t.iter().enumerate() {
-                    let Some(bb) = dof_base[nb] else { continue };
-                    for ca in 0..3 {
-                        for cb in 0..3 {
-                            let (i, j) = (ba + ca, bb + cb);
-                            if j <= i {
-                                chol.add(i, j, ke[(3 * a + ca, 3 * b + cb)]);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        chol.factor().map_err(|e| VeError::NotPositiveDefinite {
-            equation: e.equation,
-        })?;
-        Ok(FemSystem {
-            tet,
-            dof_base,
-            chol,
-        })
+        let prescribed: Vec<bool> = (0..3 * tet.nodes_m.len())
+            .map(|dof| fixed_surface.get(dof / 3).copied().unwrap_or(false))
+            .collect();
+        let system = ElasticSystem::new(&tet.nodes_m, &tet.tets, material, &prescribed)?;
+        Ok(FemSystem { tet, system })
     }
 
     /// The volume mesh.
@@ -363,12 +171,12 @@ impl FemSystem {
 
     /// Number of equations (3 × free nodes).
     pub fn equations(&self) -> usize {
-        3 * self.dof_base.iter().filter(|b| b.is_some()).count()
+        self.system.equations()
     }
 
     /// Profile size of the factor (stored entries).
     pub fn profile_len(&self) -> usize {
-        self.chol.profile_len()
+        self.system.profile_len()
     }
 
     /// Static displacement (m) of every node for nodal forces (N) on the
@@ -382,21 +190,7 @@ impl FemSystem {
                 expected: self.tet.surface_nodes,
             });
         }
-        let mut rhs = vec![0.0; self.equations()];
-        for (k, f) in forces_n.iter().enumerate() {
-            if let Some(b) = self.dof_base[k] {
-                rhs[b..b + 3].copy_from_slice(f);
-            }
-        }
-        self.chol.solve_in_place(&mut rhs);
-        Ok(self
-            .dof_base
-            .iter()
-            .map(|b| match b {
-                Some(b) => [rhs[*b], rhs[b + 1], rhs[b + 2]],
-                None => [0.0; 3],
-            })
-            .collect())
+        Ok(self.system.solve(forces_n, &[])?)
     }
 
     /// Compliance columns: for each free surface node `j` (in `columns`)
@@ -406,21 +200,22 @@ impl FemSystem {
     /// (each column is an independent solve, so the result is identical to
     /// a serial run).
     pub fn compliance_blocks(&self, rows: &[usize], columns: &[usize]) -> Vec<Vec<[[f64; 3]; 3]>> {
+        let sys = &self.system;
         columns
             .par_iter()
             .map(|&j| {
                 let mut blocks = vec![[[0.0; 3]; 3]; rows.len()];
-                let Some(bj) = self.dof_base[j] else {
-                    return blocks;
-                };
                 for c in 0..3 {
-                    let mut rhs = vec![0.0; self.equations()];
-                    rhs[bj + c] = 1.0;
-                    self.chol.solve_in_place(&mut rhs);
+                    let Some(ej) = sys.equation_of(3 * j + c) else {
+                        return blocks;
+                    };
+                    let mut rhs = vec![0.0; sys.equations()];
+                    rhs[ej] = 1.0;
+                    sys.solve_equations_in_place(&mut rhs);
                     for (blk, &i) in blocks.iter_mut().zip(rows) {
-                        if let Some(bi) = self.dof_base[i] {
-                            for r in 0..3 {
-                                blk[r][c] = rhs[bi + r];
+                        for (r, row) in blk.iter_mut().enumerate() {
+                            if let Some(ei) = sys.equation_of(3 * i + r) {
+                                row[c] = rhs[ei];
                             }
                         }
                     }
@@ -428,32 +223,5 @@ impl FemSystem {
                 blocks
             })
             .collect()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn element_stiffness_has_rigid_body_null_space() {
-        let p = [
-            [0.0, 0.0, 0.0],
-            [0.02, 0.001, 0.0],
-            [0.003, 0.015, 0.002],
-            [0.001, 0.004, 0.018],
-        ];
-        let ke = element_stiffness(p, &LinearElastic::default().d_matrix()).unwrap();
-        let scale = ke.amax();
-        // Translation in x and a small rotation about z: zero force.
-        let mut tx = SVector::<f64, 12>::zeros();
-        let mut rz = SVector::<f64, 12>::zeros();
-        for (n, q) in p.iter().enumerate() {
-            tx[3 * n] = 1.0;
-            rz[3 * n] = -q[1];
-            rz[3 * n + 1] = q[0];
-        }
-        assert!((ke * tx).amax() < 1e-9 * scale);
-        assert!((ke * rz).amax() < 1e-9 * scale * 0.02);
     }
 }

@@ -1,0 +1,10 @@
+//! Measuring and identifying the block: the reference (ground truth) that
+//! stands in for the paper's recordings, the objective S, and the paper's
+//! randomized and genetic searches.
+pub mod calibrate;
+pub mod ga;
+pub mod measurement;
+pub mod objective;
+pub mod ra;
+pub mod reference;
+pub mod search;
