@@ -282,6 +282,17 @@ fn open_csv(path: &Path) -> anyhow::Result<std::fs::File> {
 
 const T: Duration = Duration::from_millis(300);
 
+/// An estimate on the console's status line: the core reports "no
+/// estimate yet" (before every sensor a law reads has delivered) as NaN,
+/// which the line says in words rather than as `NaN°`.
+fn status_estimate(estimate_deg: f32) -> String {
+    if estimate_deg.is_nan() {
+        "none yet".into()
+    } else {
+        format!("{estimate_deg:.2}°")
+    }
+}
+
 /// Columns of the console's telemetry CSV (an estimate is empty while the
 /// board has none).
 const TELEMETRY_HEADER: &str = "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults";
@@ -355,12 +366,13 @@ fn run_console_command<P: Port>(
         ["status"] => {
             let s = hil::status(link)?;
             outln!(
-                "armed {} mode {} faults [{}] latched [{}] estimate α {:.2}° β {:.2}° target α {:.2}° β {:.2}° outputs {} mV / {} mV t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
+                "armed {} mode {} faults [{}] latched [{}] estimate α {} β {} target α {:.2}° β {:.2}° outputs {} mV / {} mV t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
                 s.armed,
                 if s.mode == 1 { "lockstep" } else { "free-running" },
                 fault_names(u16::from(s.faults)).join(","),
                 fault_names(u16::from(s.latched)).join(","),
-                s.estimate_deg[0], s.estimate_deg[1], s.target_deg[0], s.target_deg[1],
+                status_estimate(s.estimate_deg[0]), status_estimate(s.estimate_deg[1]),
+                s.target_deg[0], s.target_deg[1],
                 s.pair_mv[0], s.pair_mv[1], s.time_ms, s.frames_ok, s.crc_errors, s.cobs_errors, s.overfull, s.malformed
             );
         }
@@ -506,4 +518,17 @@ fn ack<P: Port>(link: &mut Link<P>, msg: impl Into<Message>) -> anyhow::Result<(
     link.command(&msg.into(), T, 5)?;
     outln!("ok");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::status_estimate;
+
+    /// `status` printed `estimate α NaN°` before the sensors had delivered.
+    #[test]
+    fn a_missing_estimate_is_said_in_words_on_the_status_line() {
+        assert_eq!(status_estimate(f32::NAN), "none yet");
+        assert_eq!(status_estimate(1.234), "1.23°");
+        assert_eq!(status_estimate(-0.5), "-0.50°");
+    }
 }
