@@ -2,6 +2,7 @@
 //! deformable objects it handles. Everything here is std and deterministic:
 //! random effects take an explicit seeded RNG.
 #![deny(unsafe_code)]
+mod check;
 pub mod contour;
 pub mod csv_input;
 pub mod dlo;

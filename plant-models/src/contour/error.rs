@@ -104,14 +104,11 @@ pub type Result<T> = core::result::Result<T, ContourError>;
 
 /// Checks that `value` is finite and strictly positive.
 pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64> {
-    if !value.is_finite() || value <= 0.0 {
-        return Err(ContourError::InvalidParameter {
-            name,
-            value,
-            reason: "must be finite and > 0",
-        });
-    }
-    Ok(value)
+    crate::check::positive(value).map_err(|reason| ContourError::InvalidParameter {
+        name,
+        value,
+        reason,
+    })
 }
 
 /// Checks that `value` is finite.

@@ -69,12 +69,9 @@ pub(crate) fn check_range(name: &'static str, value: f64, min: f64, max: f64) ->
 
 /// Checks that `value` is finite and strictly positive.
 pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64> {
-    if !value.is_finite() || value <= 0.0 {
-        return Err(PushError::InvalidParameter {
-            name,
-            value,
-            reason: "must be finite and > 0",
-        });
-    }
-    Ok(value)
+    crate::check::positive(value).map_err(|reason| PushError::InvalidParameter {
+        name,
+        value,
+        reason,
+    })
 }

@@ -81,45 +81,29 @@ pub type Result<T> = core::result::Result<T, RheologyError>;
 
 /// Checks that `value` is finite and inside `[min, max]`; names it otherwise.
 pub(crate) fn check_range(name: &str, value: f64, min: f64, max: f64) -> Result<f64> {
-    if !value.is_finite() {
-        return Err(RheologyError::InvalidParameter {
-            name: name.to_string(),
-            value,
-            reason: "must be a finite number",
-        });
-    }
-    if value < min || value > max {
-        return Err(RheologyError::InvalidParameter {
-            name: name.to_string(),
-            value,
-            reason: "outside its allowed range",
-        });
-    }
-    Ok(value)
+    crate::check::in_range(value, min, max).map_err(|reason| RheologyError::InvalidParameter {
+        name: name.to_string(),
+        value,
+        reason,
+    })
 }
 
 /// Checks that `value` is finite and strictly positive.
 pub(crate) fn check_positive(name: &str, value: f64) -> Result<f64> {
-    if !value.is_finite() || value <= 0.0 {
-        return Err(RheologyError::InvalidParameter {
-            name: name.to_string(),
-            value,
-            reason: "must be finite and > 0",
-        });
-    }
-    Ok(value)
+    crate::check::positive(value).map_err(|reason| RheologyError::InvalidParameter {
+        name: name.to_string(),
+        value,
+        reason,
+    })
 }
 
 /// Checks that `value` is finite and ≥ 0.
 pub(crate) fn check_non_negative(name: &str, value: f64) -> Result<f64> {
-    if !value.is_finite() || value < 0.0 {
-        return Err(RheologyError::InvalidParameter {
-            name: name.to_string(),
-            value,
-            reason: "must be finite and >= 0",
-        });
-    }
-    Ok(value)
+    crate::check::non_negative(value).map_err(|reason| RheologyError::InvalidParameter {
+        name: name.to_string(),
+        value,
+        reason,
+    })
 }
 
 /// An [`RheologyError::InvalidSetting`].

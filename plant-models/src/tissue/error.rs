@@ -80,15 +80,11 @@ pub type Result<T> = core::result::Result<T, TissueError>;
 
 /// Checks that `value` is finite and > 0; names it otherwise.
 pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(TissueError::InvalidParameter {
-            name,
-            value,
-            reason: "must be finite and > 0",
-        })
-    }
+    crate::check::positive(value).map_err(|reason| TissueError::InvalidParameter {
+        name,
+        value,
+        reason,
+    })
 }
 
 /// Checks that `value` is finite and in `[lo, hi]`; names it otherwise

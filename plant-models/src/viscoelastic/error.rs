@@ -133,26 +133,18 @@ pub type Result<T> = core::result::Result<T, VeError>;
 
 /// Checks that `value` is finite and > 0; names it otherwise.
 pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(VeError::InvalidParameter {
-            name,
-            value,
-            reason: "must be finite and > 0",
-        })
-    }
+    crate::check::positive(value).map_err(|reason| VeError::InvalidParameter {
+        name,
+        value,
+        reason,
+    })
 }
 
 /// Checks that `value` is finite and ≥ 0; names it otherwise.
 pub(crate) fn check_non_negative(name: &'static str, value: f64) -> Result<f64> {
-    if value.is_finite() && value >= 0.0 {
-        Ok(value)
-    } else {
-        Err(VeError::InvalidParameter {
-            name,
-            value,
-            reason: "must be finite and >= 0",
-        })
-    }
+    crate::check::non_negative(value).map_err(|reason| VeError::InvalidParameter {
+        name,
+        value,
+        reason,
+    })
 }
