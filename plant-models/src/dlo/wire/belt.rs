@@ -420,36 +420,7 @@ mod tests {
         let x: Vec<f64> = (0..n)
             .map(|i| 0.2 * ((i as f64) * 0.9).cos() / (1.0 + (i % c.n) as f64))
             .collect();
-        let h = 1e-6;
-        let mut g = vec![0.0; n];
-        c.energy(&x, &mut g);
-        let m = c.kinds().len();
-        let (mut v, mut j) = (vec![0.0; m], vec![vec![0.0; n]; m]);
-        c.constraints(&x, &mut v, &mut j);
-        for i in 0..n {
-            let (mut a, mut b) = (x.clone(), x.clone());
-            a[i] += h;
-            b[i] -= h;
-            let mut t = vec![0.0; n];
-            let num = (c.energy(&a, &mut t) - c.energy(&b, &mut t)) / (2.0 * h);
-            assert!(
-                (num - g[i]).abs() < 1e-5 * (1.0 + num.abs()),
-                "energy {i}: {num} vs {}",
-                g[i]
-            );
-            let (mut va, mut vb) = (vec![0.0; m], vec![0.0; m]);
-            let mut s = vec![vec![0.0; n]; m];
-            c.constraints(&a, &mut va, &mut s);
-            c.constraints(&b, &mut vb, &mut s);
-            for r in 0..m {
-                let num = (va[r] - vb[r]) / (2.0 * h);
-                assert!(
-                    (num - j[r][i]).abs() < 1e-5 * (1.0 + num.abs()),
-                    "constraint {r} var {i}: {num} vs {}",
-                    j[r][i]
-                );
-            }
-        }
+        super::super::optimize::assert_derivatives_match_differences(&c, &x, 1e-6, None);
     }
 
     /// Two belt solves: ≈ 5 s in a release build, minutes in a debug one.

@@ -981,46 +981,7 @@ mod tests {
         let o = c.cross_offset();
         x[o] = 0.3;
         x[o + 1] = 0.62;
-        let h = 1e-6;
-        let mut g = vec![0.0; n];
-        c.energy(&x, &mut g);
-        c.penalty(&x, 7.0, &mut g);
-        let f = |x: &[f64]| {
-            let mut t = vec![0.0; n];
-            c.energy(x, &mut t) + c.penalty(x, 7.0, &mut t)
-        };
-        for i in 0..n {
-            let (mut a, mut b) = (x.clone(), x.clone());
-            a[i] += h;
-            b[i] -= h;
-            let num = (f(&a) - f(&b)) / (2.0 * h);
-            assert!(
-                (num - g[i]).abs() < 1e-5 * (1.0 + num.abs()),
-                "energy var {i}: {num} vs {}",
-                g[i]
-            );
-        }
-        let m = c.kinds().len();
-        let mut v = vec![0.0; m];
-        let mut j = vec![vec![0.0; n]; m];
-        c.constraints(&x, &mut v, &mut j);
-        for i in 0..n {
-            let (mut a, mut b) = (x.clone(), x.clone());
-            a[i] += h;
-            b[i] -= h;
-            let (mut va, mut vb) = (vec![0.0; m], vec![0.0; m]);
-            let mut scratch = vec![vec![0.0; n]; m];
-            c.constraints(&a, &mut va, &mut scratch);
-            c.constraints(&b, &mut vb, &mut scratch);
-            for r in 0..m {
-                let num = (va[r] - vb[r]) / (2.0 * h);
-                assert!(
-                    (num - j[r][i]).abs() < 1e-5 * (1.0 + num.abs()),
-                    "constraint {r} var {i}: {num} vs {}",
-                    j[r][i]
-                );
-            }
-        }
+        super::super::optimize::assert_derivatives_match_differences(&c, &x, 1e-6, Some(7.0));
     }
 
     #[test]

@@ -305,6 +305,50 @@ pub fn solve_warm<P: Problem>(
     })
 }
 
+/// Test support: the analytic gradient of the energy (plus the penalty at
+/// `penalty_weight`, if given) and every constraint row of `problem` at `x`
+/// agree with central differences of step `h` to 1e-5 relative.
+#[cfg(test)]
+pub(crate) fn assert_derivatives_match_differences(
+    problem: &impl Problem,
+    x: &[f64],
+    h: f64,
+    penalty_weight: Option<f64>,
+) {
+    let n = problem.vars();
+    let f = |x: &[f64], g: &mut [f64]| {
+        problem.energy(x, g) + penalty_weight.map_or(0.0, |w| problem.penalty(x, w, g))
+    };
+    let mut g = vec![0.0; n];
+    f(x, &mut g);
+    let m = problem.kinds().len();
+    let (mut v, mut j) = (vec![0.0; m], vec![vec![0.0; n]; m]);
+    problem.constraints(x, &mut v, &mut j);
+    let (mut va, mut vb) = (vec![0.0; m], vec![0.0; m]);
+    let (mut scratch, mut t) = (vec![vec![0.0; n]; m], vec![0.0; n]);
+    for i in 0..n {
+        let (mut a, mut b) = (x.to_vec(), x.to_vec());
+        a[i] += h;
+        b[i] -= h;
+        let num = (f(&a, &mut t) - f(&b, &mut t)) / (2.0 * h);
+        assert!(
+            (num - g[i]).abs() < 1e-5 * (1.0 + num.abs()),
+            "energy var {i}: {num} vs {}",
+            g[i]
+        );
+        problem.constraints(&a, &mut va, &mut scratch);
+        problem.constraints(&b, &mut vb, &mut scratch);
+        for r in 0..m {
+            let num = (va[r] - vb[r]) / (2.0 * h);
+            assert!(
+                (num - j[r][i]).abs() < 1e-5 * (1.0 + num.abs()),
+                "constraint {r} var {i}: {num} vs {}",
+                j[r][i]
+            );
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
