@@ -279,7 +279,7 @@ fn bad_plans_logs_and_files_are_named() {
 }
 
 #[test]
-fn standard_plans_stay_within_the_thermal_budget() {
+fn standard_and_compact_plans_stay_within_the_thermal_budget() {
     for (joint, holds) in [("2d", false), ("3d", true)] {
         let mut args = vec!["identify", "plan", "--joint", joint, "--duration-s", "600"];
         if holds {
@@ -292,6 +292,16 @@ fn standard_plans_stay_within_the_thermal_budget() {
         plan.validate(planes).unwrap();
         let peak = host_tools::excite::check_budget(&plan).unwrap();
         assert!(peak > 40.0 && peak < 95.0, "{joint}: peak rise {peak} K");
+    }
+    // The compact plan of the CI twin test too.
+    for planes in [1, 2] {
+        let plan = ExcitationPlan::compact(planes);
+        plan.validate(planes).unwrap();
+        let peak = host_tools::excite::check_budget(&plan).unwrap();
+        assert!(
+            peak > 40.0 && peak < 95.0,
+            "compact, {planes} planes: peak rise {peak} K"
+        );
     }
 }
 

@@ -22,7 +22,8 @@
 //!    temperatures without the stress shift, which biases h by ≈ 20 % when
 //!    the slope is 0.08 K/MPa), the sponge's modulus and damping and the
 //!    link inertia; g stays at stage 1's value, or
-//!    joins this stage when the log has no electrical columns.
+//!    joins this stage when stage 1 could not fit it (no electrical
+//!    columns, or no spread of unsaturated inputs in the fitted part).
 //! 3. **Wire jamming**: the buckling gain and the two lag ceilings, fitted
 //!    to the wire readings with the stage-2 plant moving the link.
 //!
@@ -481,10 +482,12 @@ pub fn identify_plane(
     let electrical = log.has_electrical();
 
     // Stage 1: electrical and thermal, from current and resistance.
+    let mut driver_fitted = false;
     if electrical {
         if let Some([(g, sd_g), (v_on, sd_v)]) =
             driver_regression(log, map, fit_rows, prior.plane.driver.max_current_a)
         {
+            driver_fitted = true;
             Param::Transconductance.set(&mut model, g);
             Param::TurnOn.set(&mut model, v_on);
             for (p, v, sd) in [
@@ -578,7 +581,11 @@ pub fn identify_plane(
         Param::SpongeDamping,
         Param::LinkInertia,
     ];
-    if !electrical {
+    // Without a driver regression (no current column, or no spread of
+    // unsaturated inputs in the fitted part) g is fitted here, from the
+    // angles and resistances, as for a log without electrical columns;
+    // the turn-on voltage then stays at its prior, unreported.
+    if !driver_fitted {
         free.insert(0, Param::Transconductance);
     }
     // Stage 1's h and temperatures were fitted without the stress (which
@@ -669,4 +676,63 @@ pub fn identify_plane(
             validation,
         },
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 2D log whose coil 1 sees `volts` row by row, with the current of
+    /// a driver g·(v − v_on) clamped at 0.5 A and a deterministic ±1 mA
+    /// ripple standing in for noise.
+    fn log_of(volts: &[f64], g: f64, v_on: f64) -> ExcitationLog {
+        let n = volts.len();
+        let amps = |k: usize, v: f64| {
+            let ripple = if k % 2 == 0 { 1e-3 } else { -1e-3 };
+            (g * (v - v_on)).clamp(0.0, 0.5) + ripple
+        };
+        ExcitationLog {
+            planes: 1,
+            period_s: 0.01,
+            t_s: (0..n).map(|k| k as f64 * 0.01).collect(),
+            volts: volts.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect(),
+            cam_capture_s: vec![-1.0; n],
+            cam_deg: vec![[0.0; 2]; n],
+            wire_mm: vec![[0.0; 4]; n],
+            current_a: Some(
+                volts
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &v)| [amps(k, v), 0.0, 0.0, 0.0])
+                    .collect(),
+            ),
+            resistance_ohm: Some(vec![[5.0; 4]; n]),
+        }
+    }
+
+    /// One unsaturated level (the rest saturated pulses) cannot separate g
+    /// from the turn-on voltage: the regression declines, and
+    /// `identify_plane` then fits g with the mechanics. A ramp's spread
+    /// determines both.
+    #[test]
+    fn driver_regression_needs_a_spread_of_unsaturated_inputs() {
+        let map = PlaneMap::of(1, 0);
+        let (g, v_on) = (0.9, 1.7);
+        let mut one_level = vec![3.0; 200];
+        one_level.extend(vec![1.9; 500]);
+        assert!(driver_regression(&log_of(&one_level, g, v_on), map, 700, 0.5).is_none());
+
+        let mut ramp = one_level.clone();
+        ramp.extend((0..700).map(|k| 1.7 + 0.2 * k as f64 / 699.0));
+        let [(g_fit, sd_g), (v_fit, sd_v)] =
+            driver_regression(&log_of(&ramp, g, v_on), map, ramp.len(), 0.5).unwrap();
+        assert!(
+            (g_fit - g).abs() < 0.01 * g && sd_g < 0.005 * g,
+            "{g_fit} ± {sd_g}"
+        );
+        assert!(
+            (v_fit - v_on).abs() < 0.01 && sd_v < 0.005,
+            "{v_fit} ± {sd_v}"
+        );
+    }
 }

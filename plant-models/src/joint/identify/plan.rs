@@ -215,9 +215,15 @@ impl ExcitationPlan {
             .map(|h| h.deg)
     }
 
-    /// A 60 s plan with the standard plan's ingredients in short form (one
-    /// level per coil, one pulse, one co-contraction), for tests that must
-    /// run in a debug build: it determines fewer parameters, less tightly.
+    /// A 60 s plan with the standard plan's ingredients in short form
+    /// (saturated pulses, a slow ramp, a sustained level, one
+    /// co-contraction), for tests that must run in a debug build: it
+    /// determines fewer parameters, less tightly. The ramp (1.7 → 1.9 V on
+    /// the antagonist before the co-contraction) is what spreads the
+    /// unsaturated inputs of the fitted part (the first 45 s) for the
+    /// driver's regression: the pulses saturate at 0.5 A, and one sustained
+    /// level alone cannot separate the transconductance from the turn-on
+    /// voltage. Inside the firmware's thermal budget like the standard plan.
     pub fn compact(planes: usize) -> Self {
         let mut drive = Vec::new();
         for p in 0..planes {
@@ -235,9 +241,21 @@ impl ExcitationPlan {
                 step(ag, 0.0, 2.0, 3.0),
                 step(ant, 10.0, 11.5, 3.0),
                 step(ag, 20.0, 21.0, 3.0),
+                Drive {
+                    coil: ant,
+                    from_s: o + 22.0,
+                    to_s: o + 29.0,
+                    volts: None,
+                    from_v: Some(1.7),
+                    to_v: Some(1.9),
+                },
                 step(ant, 30.0, 46.0, 1.9),
                 step(ag, 36.0, 37.5, 3.0),
-                step(ag, 47.0, 60.0, 1.9),
+                // The held-out quarter (45–60 s) must move the joint, or
+                // it cannot tell a right plant from a wrong one.
+                step(ag, 47.0, 49.0, 3.0),
+                step(ant, 51.0, 53.0, 3.0),
+                step(ag, 55.0, 57.0, 3.0),
             ]);
         }
         Self {
