@@ -234,9 +234,14 @@ fn table(reports: &[PlaneReport]) -> String {
         for st in &r.stages {
             let _ = writeln!(
                 s,
-                "  stage {:12} {:>3} iterations, {:>4} replays, {:>7} residuals, rms {:.3}{}",
+                "  stage {:12} {:>3} iterations{}, {:>4} replays, {:>7} residuals, rms {:.3}{}",
                 st.name,
                 st.iterations,
+                if st.starts > 1 {
+                    format!(" from {} starts", st.starts)
+                } else {
+                    String::new()
+                },
                 st.evaluations,
                 st.residuals,
                 st.rms_scaled,

@@ -6,7 +6,8 @@
 //!
 //! The CI form runs the 60 s compact plan; the 10-minute standard plan
 //! with the tolerances of the README is `#[ignore]`d:
-//! `cargo test --release -p plant-models --test joint_identify -- --ignored`.
+//! `cargo test --release -p plant-models --test joint_identify -- --ignored`
+//! (`--nocapture` prints every estimate against the truth).
 
 use plant_models::joint::identify::{
     self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, LmOptions, Param,
@@ -124,24 +125,40 @@ fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
 }
 
 /// The 10-minute standard plan on the hidden 2D joint, electrical columns
-/// logged. Tolerances as stated in plant-models/src/joint/README.md.
-#[test]
-#[ignore = "10-minute log; run with --release -- --ignored"]
-fn ten_minute_twin_2d_recovers_each_identifiable_parameter() {
+/// logged: the plane's report and its truth.
+fn ten_minute_2d() -> (PlaneReport, PlaneModel) {
     let hidden = hidden::joint_2d(7);
     let plan = ExcitationPlan::standard(1, 600.0, false);
     let log = twin::record_2d(&hidden, &plan, true, NOISE).unwrap();
-    let (_, reports) =
+    let (_, mut reports) =
         identify::identify_2d(&log, &Joint2dParams::default(), &IdentifyOptions::default())
             .unwrap();
-    let r = &reports[0];
-    let t = truth(&hidden.plane, &hidden.wire);
-    expect_standard(r, &t);
+    (reports.remove(0), truth(&hidden.plane, &hidden.wire))
 }
 
-fn expect_standard(r: &PlaneReport, t: &PlaneModel) {
+/// The same on the hidden 3D joint, whose planes are hidden differently:
+/// α's and β's reports with their truths.
+fn ten_minute_3d() -> Vec<(PlaneReport, PlaneModel)> {
+    let hidden = hidden::joint_3d(11);
+    let plan = ExcitationPlan::standard(2, 600.0, false);
+    let log = twin::record_3d(&hidden, &plan, true, NOISE).unwrap();
+    let (_, reports) =
+        identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
+            .unwrap();
+    let truths = [
+        truth(&hidden.alpha, &hidden.wires[0]),
+        truth(&hidden.beta, &hidden.wires[1]),
+    ];
+    reports.into_iter().zip(truths).collect()
+}
+
+/// Tolerances as stated in plant-models/src/joint/README.md, every
+/// parameter but the jamming gain (see
+/// `ten_minute_twins_recover_the_jamming_gain`): the failures, one line
+/// each.
+fn standard_fails(r: &PlaneReport, t: &PlaneModel) -> Vec<String> {
     print_estimates(r, t);
-    let fails: Vec<String> = [
+    let mut fails: Vec<String> = [
         check(r, t, Param::Transconductance, Some(0.02), None),
         check(r, t, Param::TurnOn, None, Some(0.02)),
         check(r, t, Param::Convection, Some(0.10), None),
@@ -153,41 +170,60 @@ fn expect_standard(r: &PlaneReport, t: &PlaneModel) {
         check(r, t, Param::SpongeModulus, Some(0.05), None),
         check(r, t, Param::SpongeDamping, Some(0.25), None),
         check(r, t, Param::JamMaxLag, Some(0.15), None),
-        check(r, t, Param::JamGain, Some(0.30), None),
         check(r, t, Param::JamLagPerMm, Some(0.60), None),
     ]
     .into_iter()
     .flatten()
+    .map(|f| format!("{}: {f}", r.plane))
     .collect();
-    assert!(fails.is_empty(), "{}: {fails:#?}", r.plane);
-    assert!(!r.estimate(Param::LinkInertia).unwrap().identifiable);
+    if r.estimate(Param::LinkInertia).unwrap().identifiable {
+        fails.push(format!("{}: link inertia called identifiable", r.plane));
+    }
     let v = &r.validation;
-    assert!(
-        v.heldout_rms_deg < 0.15,
-        "{}: held-out rms {}",
-        r.plane,
-        v.heldout_rms_deg
-    );
-    assert!(
-        v.heldout_max_deg < 0.6,
-        "{}: held-out max {}",
-        r.plane,
-        v.heldout_max_deg
-    );
+    if v.heldout_rms_deg >= 0.15 {
+        fails.push(format!("{}: held-out rms {}", r.plane, v.heldout_rms_deg));
+    }
+    if v.heldout_max_deg >= 0.6 {
+        fails.push(format!("{}: held-out max {}", r.plane, v.heldout_max_deg));
+    }
+    fails
 }
 
-/// The same on the 3D joint, whose planes are hidden differently.
+#[test]
+#[ignore = "10-minute log; run with --release -- --ignored"]
+fn ten_minute_twin_2d_recovers_each_identifiable_parameter() {
+    let (r, t) = ten_minute_2d();
+    let fails = standard_fails(&r, &t);
+    assert!(fails.is_empty(), "{fails:#?}");
+}
+
 #[test]
 #[ignore = "10-minute log; run with --release -- --ignored"]
 fn ten_minute_twin_3d_recovers_both_planes() {
-    let hidden = hidden::joint_3d(11);
-    let plan = ExcitationPlan::standard(2, 600.0, false);
-    let log = twin::record_3d(&hidden, &plan, true, NOISE).unwrap();
-    let (_, reports) =
-        identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
-            .unwrap();
-    expect_standard(&reports[0], &truth(&hidden.alpha, &hidden.wires[0]));
-    expect_standard(&reports[1], &truth(&hidden.beta, &hidden.wires[1]));
+    let fails: Vec<String> = ten_minute_3d()
+        .iter()
+        .flat_map(|(r, t)| standard_fails(r, t))
+        .collect();
+    assert!(fails.is_empty(), "{fails:#?}");
+}
+
+/// The jamming gain κ within 30 % on both twins (three planes). The
+/// replay leaves the random stick events out (module docs of `replay`),
+/// and a stick takes the whole push as lag, which looks like a higher
+/// gain: measured +31 % (2D), +99 % (3D α) and +186 % (3D β, at κ's
+/// upper bound of 1), each with a 1σ near 1 %; see the joint README.
+#[test]
+#[ignore = "fails: the jamming gain absorbs the unmodelled stick events (+31 % 2D, +99 % 3D alpha, +186 % 3D beta); 10-minute logs, run with --release -- --ignored"]
+fn ten_minute_twins_recover_the_jamming_gain() {
+    let mut planes = vec![ten_minute_2d()];
+    planes.extend(ten_minute_3d());
+    let fails: Vec<String> = planes
+        .iter()
+        .filter_map(|(r, t)| {
+            check(r, t, Param::JamGain, Some(0.30), None).map(|f| format!("{}: {f}", r.plane))
+        })
+        .collect();
+    assert!(fails.is_empty(), "{fails:#?}");
 }
 
 /// Without current and resistance the thermal parameters come from the

@@ -163,6 +163,8 @@ pub struct StageReport {
     /// The minimiser's last pass ran out of iterations: the estimates may
     /// not be the optimum (raise `LmOptions::max_iterations`).
     pub stopped_by_budget: bool,
+    /// Starting points of the first fit (the best result was kept).
+    pub starts: usize,
 }
 
 /// A held-out camera frame: recorded and predicted angle.
@@ -326,7 +328,10 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// A stage: fits `free` (coordinates from `model`) with `residuals`,
-/// drops the undetermined ones back to `prior` and fits again.
+/// drops the undetermined ones back to `prior` and fits again. With
+/// `starts` (models that differ from `model` only in `free`), the first
+/// fit runs from each of them instead and keeps the lowest cost (the
+/// first on a tie), so the result does not depend on the thread count.
 #[allow(clippy::too_many_arguments)] // one call site per stage; a struct would only rename them
 fn stage<F>(
     name: &str,
@@ -335,6 +340,7 @@ fn stage<F>(
     free: &[Param],
     opts: &IdentifyOptions,
     residuals: F,
+    starts: &[PlaneModel],
     estimates: &mut Vec<Estimate>,
     stages: &mut Vec<StageReport>,
 ) -> Result<(), IdentifyError>
@@ -346,7 +352,7 @@ where
     let mut iterations = 0;
     let mut evaluations = 0;
     let mut last: Option<LmResult> = None;
-    for _pass in 0..3 {
+    for pass in 0..3 {
         if active.is_empty() {
             break;
         }
@@ -359,11 +365,35 @@ where
             }
             m
         };
-        let x0: Vec<f64> = active.iter().map(|p| p.to_coord(p.get(model))).collect();
+        let x0_of =
+            |m: &PlaneModel| -> Vec<f64> { active.iter().map(|p| p.to_coord(p.get(m))).collect() };
         let f = |x: &[f64]| residuals(&apply(x));
-        let r = lm::levenberg_marquardt(f, &x0, opts.lm)?;
-        iterations += r.iterations;
-        evaluations += r.evaluations;
+        let x0s: Vec<Vec<f64>> = if pass == 0 && !starts.is_empty() {
+            starts.iter().map(x0_of).collect()
+        } else {
+            vec![x0_of(model)]
+        };
+        let mut best: Option<LmResult> = None;
+        let mut first_error = None;
+        for x0 in &x0s {
+            match lm::levenberg_marquardt(f, x0, opts.lm) {
+                Ok(r) => {
+                    iterations += r.iterations;
+                    evaluations += r.evaluations;
+                    if best.as_ref().is_none_or(|b| r.cost < b.cost) {
+                        best = Some(r);
+                    }
+                }
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        let Some(r) = best else {
+            return Err(first_error.unwrap_or_else(|| {
+                IdentifyError::Log(format!("stage {name}: no starting point"))
+            }));
+        };
         *model = apply(&r.x);
         let bad: Vec<usize> = (0..active.len())
             .filter(|&j| !active[j].determined(r.std[j]))
@@ -388,6 +418,7 @@ where
         residuals: r.m,
         rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
         stopped_by_budget: r.stopped_by_budget,
+        starts: starts.len().max(1),
     });
     for (j, p) in active.iter().enumerate() {
         let v = p.get(model);
@@ -415,6 +446,109 @@ where
         });
     }
     Ok(())
+}
+
+/// Stress slopes of the mechanics stage's starting grid (K/MPa): from
+/// near "off" across NiTi's 0.07–0.14 K/MPa (README, parameter table).
+/// A choice, not fitted to the twin: the grid does not contain the hidden
+/// plant's slope.
+pub const START_SLOPES_K_PER_MPA: [f64; 6] = [0.02, 0.045, 0.07, 0.095, 0.12, 0.145];
+
+/// Factors on stage 1's convection coefficient in the same grid. Stage 1
+/// sees the temperatures without the stress shift, which biases its h
+/// upwards (by 37 % on the 10-minute 2D twin, slope 0.08 K/MPa), hence
+/// the grid leans low.
+pub const START_CONVECTION_FACTORS: [f64; 4] = [0.65, 0.8, 1.0, 1.2];
+
+/// Starting points kept from the grid (a Levenberg–Marquardt fit runs
+/// from each; the lowest cost wins).
+pub const MECHANICS_STARTS: usize = 2;
+
+/// Iterations of the sponge's pre-fit before the grid.
+const SPONGE_PREFIT_ITERATIONS: usize = 10;
+
+/// The mechanics stage's starting points, and the replays spent finding
+/// them. From stage 1's values alone, Levenberg–Marquardt can settle in a
+/// basin with h far high and the slope far low (on the 10-minute 2D twin:
+/// h +38 %, slope −46 %, sponge modulus −27 %, at 2.6 times the truth's
+/// cost), because h and the slope trade along a long curved valley. So:
+/// 1. the sponge's modulus and damping are fitted alone first (at most
+///    [`SPONGE_PREFIT_ITERATIONS`]), the rest at `model`: a sponge 40 %
+///    off misranks the grid (the angles' scale is wrong everywhere);
+/// 2. the cost of every point of the (h, slope) grid
+///    ([`START_CONVECTION_FACTORS`] × h of `model`,
+///    [`START_SLOPES_K_PER_MPA`]) and of `model` itself, in parallel;
+/// 3. the [`MECHANICS_STARTS`] cheapest with distinct slopes, best first
+///    (ties in grid order). A point whose replay fails is left out.
+///
+/// The grid keeps stage 1's temperatures, which include the mean stress
+/// shift, so its costs favour low slopes; the fits from each start, not
+/// the grid's ranking, decide.
+fn mechanics_starts<F>(model: &PlaneModel, residuals: &F) -> (Vec<PlaneModel>, usize)
+where
+    F: Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
+    let mut model = model.clone();
+    let mut evaluations = 0;
+    let sponge = [Param::SpongeModulus, Param::SpongeDamping];
+    if sponge.iter().all(|p| p.get(&model).is_finite()) {
+        let base = model.clone();
+        let apply = |x: &[f64]| {
+            let mut m = base.clone();
+            for (p, v) in sponge.iter().zip(x) {
+                p.set(&mut m, p.from_coord(*v));
+            }
+            m
+        };
+        let x0: Vec<f64> = sponge.iter().map(|p| p.to_coord(p.get(&base))).collect();
+        let opts = LmOptions {
+            max_iterations: SPONGE_PREFIT_ITERATIONS,
+            ..LmOptions::default()
+        };
+        // A pre-fit that fails leaves the sponge as it was: the stage's
+        // own fits report any real failure.
+        if let Ok(r) = lm::levenberg_marquardt(|x: &[f64]| residuals(&apply(x)), &x0, opts) {
+            evaluations += r.evaluations;
+            model = apply(&r.x);
+        }
+    }
+    let h0 = Param::Convection.get(&model);
+    let mut grid = vec![model.clone()];
+    for f in START_CONVECTION_FACTORS {
+        for s in START_SLOPES_K_PER_MPA {
+            let mut m = model.clone();
+            Param::Convection.set(&mut m, f * h0);
+            Param::StressShift.set(&mut m, s);
+            grid.push(m);
+        }
+    }
+    let costs: Vec<Option<f64>> = grid
+        .par_iter()
+        .map(|m| {
+            residuals(m)
+                .ok()
+                .map(|r| r.iter().map(|x| x * x).sum::<f64>())
+                .filter(|c| c.is_finite())
+        })
+        .collect();
+    evaluations += grid.len();
+    let mut order: Vec<usize> = (0..grid.len()).filter(|&k| costs[k].is_some()).collect();
+    order.sort_by(|&a, &b| {
+        costs[a]
+            .partial_cmp(&costs[b])
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let mut out: Vec<PlaneModel> = Vec::new();
+    for k in order {
+        let s = Param::StressShift.get(&grid[k]);
+        if out.iter().all(|m| Param::StressShift.get(m) != s) {
+            out.push(grid[k].clone());
+        }
+        if out.len() == MECHANICS_STARTS {
+            break;
+        }
+    }
+    (out, evaluations)
 }
 
 /// Linear least squares i = g·(v − v_on) over one plane's unsaturated
@@ -516,6 +650,7 @@ pub fn identify_plane(
                 residuals: 0,
                 rms_scaled: 0.0,
                 stopped_by_budget: false,
+                starts: 1,
             });
         }
         let cur = log.current_a.as_ref().map(|c| c[..fit_rows].to_vec());
@@ -545,6 +680,7 @@ pub fn identify_plane(
                 ],
                 opts,
                 thermal,
+                &[],
                 &mut estimates,
                 &mut stages,
             )?;
@@ -597,6 +733,7 @@ pub fn identify_plane(
     if Param::StressShift.get(&model) <= 0.0 {
         Param::StressShift.set(&mut model, 0.02);
     }
+    let (starts, start_evaluations) = mechanics_starts(&model, &mech);
     stage(
         "mechanics",
         &mut model,
@@ -604,9 +741,13 @@ pub fn identify_plane(
         &free,
         opts,
         mech,
+        &starts,
         &mut estimates,
         &mut stages,
     )?;
+    if let Some(st) = stages.last_mut() {
+        st.evaluations += start_evaluations;
+    }
 
     // Stage 3: wire jamming from the wire readings.
     let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
@@ -629,6 +770,7 @@ pub fn identify_plane(
         &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
         opts,
         wire,
+        &[],
         &mut estimates,
         &mut stages,
     )?;
