@@ -70,6 +70,18 @@ fn print_estimates(r: &PlaneReport, t: &PlaneModel) {
             100.0 * (e.value - tv) / tv
         );
     }
+    for st in &r.stages {
+        eprintln!(
+            "{} stage {}: {} iterations, {} replays, rms {:.3}, best of {} starts: #{}",
+            r.plane,
+            st.name,
+            st.iterations,
+            st.evaluations,
+            st.rms_scaled,
+            st.starts,
+            st.best_start
+        );
+    }
     let v = &r.validation;
     eprintln!(
         "{}: held-out rms {:.3}°, max {:.3}°, prior held-out rms {:?}°",

@@ -165,6 +165,8 @@ pub struct StageReport {
     pub stopped_by_budget: bool,
     /// Starting points of the first fit (the best result was kept).
     pub starts: usize,
+    /// Which of them (0-based, best-ranked first) the kept fit ran from.
+    pub best_start: usize,
 }
 
 /// A held-out camera frame: recorded and predicted angle.
@@ -352,6 +354,7 @@ where
     let mut iterations = 0;
     let mut evaluations = 0;
     let mut last: Option<LmResult> = None;
+    let mut best_start = 0;
     for pass in 0..3 {
         if active.is_empty() {
             break;
@@ -375,13 +378,16 @@ where
         };
         let mut best: Option<LmResult> = None;
         let mut first_error = None;
-        for x0 in &x0s {
+        for (k, x0) in x0s.iter().enumerate() {
             match lm::levenberg_marquardt(f, x0, opts.lm) {
                 Ok(r) => {
                     iterations += r.iterations;
                     evaluations += r.evaluations;
                     if best.as_ref().is_none_or(|b| r.cost < b.cost) {
                         best = Some(r);
+                        if pass == 0 {
+                            best_start = k;
+                        }
                     }
                 }
                 Err(e) => {
@@ -419,6 +425,7 @@ where
         rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
         stopped_by_budget: r.stopped_by_budget,
         starts: starts.len().max(1),
+        best_start,
     });
     for (j, p) in active.iter().enumerate() {
         let v = p.get(model);
@@ -651,6 +658,7 @@ pub fn identify_plane(
                 rms_scaled: 0.0,
                 stopped_by_budget: false,
                 starts: 1,
+                best_start: 0,
             });
         }
         let cur = log.current_a.as_ref().map(|c| c[..fit_rows].to_vec());
