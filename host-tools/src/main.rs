@@ -256,7 +256,7 @@ fn sim_command(args: SimArgs) -> anyhow::Result<()> {
         None => Scenario::default(),
     };
     if args.print_default {
-        out!("{}", toml::to_string_pretty(&Scenario::default())?);
+        crate::output::print_toml("", &Scenario::default())?;
         return Ok(());
     }
     if let Some(plan) = args.excite.plan(&scenario)? {

@@ -506,7 +506,7 @@ fn load_spec(path: &Path) -> Result<CompressionSpec> {
 
 fn compress(a: &CompressArgs) -> Result<()> {
     if a.print_default {
-        out!("{}", toml::to_string_pretty(&CompressionSpec::default())?);
+        crate::output::print_toml("", &CompressionSpec::default())?;
         return Ok(());
     }
     let spec = match &a.scenario {

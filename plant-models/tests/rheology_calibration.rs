@@ -138,7 +138,10 @@ fn experiment_evaluations(default: usize) -> usize {
 /// The paper's Table (L1901–1915): for 8 parameters the GA reached S 2350
 /// and RA 2442 after 168 h each. Here: equal evaluations, 5 seeds, the
 /// small push on a 5 × 4 × 5 lattice (the smallest with core voxels, so
-/// that surface and core constants both matter).
+/// that surface and core constants both matter). The assertion holds at
+/// the default 500 evaluations and fails at `RH_EVALS=2000`, where RA's
+/// mean is lower: both methods end in one of two basins, which one
+/// depending on the seed (src/rheology/README.md, GA against RA).
 #[test]
 #[ignore = "experiment (≈ 3 min in release on 2 cores); figures in src/rheology/README.md"]
 fn ga_against_random_search_for_8_parameters_over_5_seeds() {

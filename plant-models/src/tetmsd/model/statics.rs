@@ -286,9 +286,10 @@ mod tests {
     }
 
     /// Force (N) to push a flat square punch of half the cube's width
-    /// 1.5 mm into the top face: every top node within 15 mm (x and y) of
-    /// the centre is held 1.5 mm down; static equilibrium by Newton.
-    fn punch_force_n(level: u32) -> f64 {
+    /// `depth_m` into the top face: every top node within 15 mm (x and y)
+    /// of the centre is held `depth_m` down; static equilibrium by Newton
+    /// in `load_steps` equal steps.
+    fn punch_force_n(level: u32, depth_m: f64, load_steps: u32) -> f64 {
         let model = VoigtModel::new(
             CubeMesh::new(level, SIDE_M).unwrap(),
             VoigtMaterial::default(),
@@ -312,21 +313,21 @@ mod tests {
                 })
                 .collect()
         };
-        // In ten load steps: a whole 1.5 mm jump of the punch nodes at the
+        // In load steps: a whole 1.5 mm jump of the punch nodes at the
         // finest level would start Newton from crushed edges whose tangent
         // is not positive definite.
         let mut x = mesh.nodes_m.clone();
-        for step in 1..=10 {
+        for step in 1..=load_steps {
             x = equilibrium(
                 &model,
-                &holds_at(0.0015 * f64::from(step) / 10.0),
+                &holds_at(depth_m * f64::from(step) / f64::from(load_steps)),
                 &x,
                 1e-10,
             )
             .unwrap()
             .x_m;
         }
-        let holds = holds_at(0.0015);
+        let holds = holds_at(depth_m);
         let s = StaticSolution {
             x_m: x,
             iterations: 0,
@@ -340,16 +341,26 @@ mod tests {
     }
 
     #[test]
-    #[ignore = "the refinement study to level 12 takes minutes; run with --release --ignored --nocapture"]
+    #[ignore = "fails: the punch force does not settle between levels 9 and 12 (tetmsd README, Known gaps); 1 min with --release --ignored --nocapture"]
     fn flat_punch_force_converges_with_refinement() {
         // The regular levels 3, 6, 9, 12 (h = 30, 15, 7.5, 3.75 mm): the
         // punch force settles as h shrinks (the network's elasticity does
         // not depend on the level, see voigt.rs); the differences between
         // successive regular levels must shrink from level 6 on (at level
         // 3 the 30 mm punch covers the centre node only).
-        let f: Vec<f64> = [3, 6, 9, 12].iter().map(|&l| punch_force_n(l)).collect();
+        //
+        // A small-strain study: 0.1 mm deep, under 3 % of the finest
+        // spacing, so the elements at the punch's edge stay in the linear
+        // range at every level. At 1.5 mm (40 % of the level-12 spacing)
+        // the forces were 0.822, 1.745, 1.682, 1.532 N and the last
+        // difference grew (tetmsd README, Known gaps): the edge elements'
+        // large strains, not the discretisation, set the force there.
+        let f: Vec<f64> = [3, 6, 9, 12]
+            .iter()
+            .map(|&l| punch_force_n(l, 1e-4, 1))
+            .collect();
         for (l, v) in [3, 6, 9, 12].iter().zip(&f) {
-            println!("level {l}: punch force {v:.5} N");
+            println!("level {l}: punch force {v:.6} N");
         }
         let d: Vec<f64> = f.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
         println!(
