@@ -18,7 +18,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{Anchor, Stroke, Svg};
-use host_tools::{out, outln};
+use host_tools::outln;
 use plant_models::tissue::compress::compare::{
     run as run_compression, CompressionOutcome, CompressionSpec,
 };
