@@ -125,13 +125,22 @@ pub fn replay(
         }
     }
     let b = plane.base_m();
+    // The stick events are random: the replay leaves them out (rate 0),
+    // as the module docs say. With the model's own rate it drew another
+    // realisation of them than the log's, which made the wire residuals
+    // jump when a small parameter step moved a stick (finite-difference
+    // Jacobians of the jamming stage off).
     let mut wires = model
         .wires
         .iter()
-        .map(|w| WireSensor::new(w.clone(), 1e3 * b[0], 1e3 * b[1], plane.angle_rad()))
+        .map(|w| {
+            let mut w = w.clone();
+            w.jam.stick_per_mm = 0.0;
+            WireSensor::new(w, 1e3 * b[0], 1e3 * b[1], plane.angle_rad())
+        })
         .collect::<Result<Vec<_>, _>>()?;
-    // Stick events need a stream; with the deterministic part only it is
-    // never drawn from, so any seed gives the same prediction.
+    // Stick events need a stream; at rate 0 it is never drawn from, so any
+    // seed gives the same prediction.
     let mut rng: ChaCha8Rng = crate::rng::stream(0, crate::rng::IDENTIFY_REPLAY);
     let (n, h_s) = split(log.period_s, model.substep_s);
     let h = step_length(h_s)?;
