@@ -16,9 +16,9 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::outln;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{Anchor, Stroke, Svg};
-use host_tools::outln;
 use plant_models::tissue::compress::compare::{
     run as run_compression, CompressionOutcome, CompressionSpec,
 };

@@ -24,6 +24,10 @@
 //!    link inertia; g stays at stage 1's value, or
 //!    joins this stage when stage 1 could not fit it (no electrical
 //!    columns, or no spread of unsaturated inputs in the fitted part).
+//!    It runs from two starting points picked on a coarse (h, slope) grid
+//!    after a pre-fit of the sponge, and keeps the better fit
+//!    (`mechanics_starts`): from stage 1's values alone it can settle
+//!    in a wrong basin.
 //! 3. **Wire jamming**: the buckling gain and the two lag ceilings, fitted
 //!    to the wire readings with the stage-2 plant moving the link.
 //!
