@@ -60,6 +60,8 @@ cargo test --profile ci-opt -p plant-models --lib --locked -- --ignored \
 
 step "the firmware images under QEMU (mps2-an386, and the STM32F4 image on netduinoplus2) in lockstep with the simulated joint (needs the images built above)"
 cargo test -p integration-tests --test qemu_hil --locked -- --ignored
+step "issue 20's must-show under QEMU: the committed tuned gains beat the paper's on the hidden joint, the image in lockstep"
+cargo test -p integration-tests --test qemu_tuned_gains --locked -- --ignored
 step "fault campaign of the lockstep link against the image under QEMU (short form; the pty-board form runs with the host tests)"
 cargo test -p integration-tests --test fault_campaign --locked -- --ignored fault_campaign_qemu
 step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images"

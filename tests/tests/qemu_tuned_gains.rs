@@ -6,9 +6,8 @@
 //! in lockstep, and without a supervisor fault.
 //!
 //! Needs QEMU and the image, so it is ignored in a plain `cargo test`.
-//! It does **not hold** today (the tuned gains lose on the hidden joint in
-//! `sim` too, see the joint README), so `scripts/test-all.sh` does not run
-//! it: `cargo test -p integration-tests --test qemu_tuned_gains -- --ignored`.
+//! `scripts/test-all.sh` runs it (≈ 30 s):
+//! `cargo test -p integration-tests --test qemu_tuned_gains -- --ignored`.
 //! A separate file from `qemu_hil.rs` so the two can change independently.
 use std::path::PathBuf;
 
