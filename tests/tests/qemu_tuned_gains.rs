@@ -83,3 +83,44 @@ fn tuned_gains_beat_the_paper_on_the_hidden_plant_in_hil() {
     );
     assert!(tuned.cost < paper.cost, "tuned {tuned:?}\npaper {paper:?}");
 }
+
+/// The integral path in lockstep. The present tuned gains are P only, so
+/// the test above does not exercise the firmware's integral term. This
+/// runs the gain set tuned before the plant was re-identified (P per coil
+/// plus integral action with a limit; joint README, "Tuned gains on the
+/// hidden joint") through the image: `run_on_image` asserts that the
+/// image's trajectory equals the in-process one at every step. That set
+/// once left the in-process trajectory at step 5,258; on the present
+/// main it follows it (the cause of the old divergence was not found).
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn integral_action_runs_in_lockstep_with_the_simulation() {
+    let pi = Gains {
+        kp_v_per_deg: vec![
+            2.0298156055104264,
+            0.34834449267822465,
+            0.792404647640053,
+            5.116846808848032,
+        ],
+        ki_v_per_deg_s: 0.05495564321749862,
+        integral_limit_v: 0.7040775211067198,
+    };
+    // The integral term changes the trajectory (else this would test
+    // nothing beyond the P path).
+    let p_only = Gains {
+        ki_v_per_deg_s: 0.0,
+        ..pi.clone()
+    };
+    let hidden = || PlantParams::ThreeD(hidden::joint_3d(7));
+    let with_i = sim::run(&tune::test_scenario(JointKind::ThreeD, &pi, hidden(), 1)).unwrap();
+    let without = sim::run(&tune::test_scenario(
+        JointKind::ThreeD,
+        &p_only,
+        hidden(),
+        1,
+    ))
+    .unwrap();
+    assert_ne!(with_i.trace.rows, without.trace.rows);
+    let (cost, faults) = run_on_image(&pi);
+    assert!(faults.is_empty() && !cost.fault, "{faults:?} {cost:?}");
+}
