@@ -4,8 +4,9 @@
 //! noisy current and resistance readings) records an excitation plan;
 //! identification starts from the defaults and is not told the truth.
 //!
-//! The CI form runs the 60 s compact plan; the 10-minute standard plan
-//! with the tolerances of the README is `#[ignore]`d:
+//! The debug `cargo test` runs the 60 s compact plan; the 10-minute
+//! standard plan with the tolerances of the README is `#[ignore]`d there
+//! and run optimised by `scripts/test-all.sh` (profile ci-opt), or:
 //! `cargo test --release -p plant-models --test joint_identify -- --ignored`
 //! (`--nocapture` prints every estimate against the truth).
 
@@ -202,7 +203,7 @@ fn standard_fails(r: &PlaneReport, t: &PlaneModel) -> Vec<String> {
 }
 
 #[test]
-#[ignore = "10-minute log; run with --release -- --ignored"]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
 fn ten_minute_twin_2d_recovers_each_identifiable_parameter() {
     let (r, t) = ten_minute_2d();
     let fails = standard_fails(&r, &t);
@@ -210,7 +211,7 @@ fn ten_minute_twin_2d_recovers_each_identifiable_parameter() {
 }
 
 #[test]
-#[ignore = "10-minute log; run with --release -- --ignored"]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
 fn ten_minute_twin_3d_recovers_both_planes() {
     let fails: Vec<String> = ten_minute_3d()
         .iter()
@@ -242,7 +243,7 @@ fn ten_minute_twins_recover_the_jamming_gain() {
 /// angle alone: the driver's turn-on voltage is not fitted, and the
 /// prediction still holds.
 #[test]
-#[ignore = "10-minute log; run with --release -- --ignored"]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
 fn ten_minute_twin_2d_without_electrical_columns() {
     let hidden = hidden::joint_2d(7);
     let plan = ExcitationPlan::standard(1, 600.0, false);
