@@ -32,8 +32,8 @@ use plant_models::rheology::identify::search::{Budget, Method, Progress};
 use plant_models::rheology::lattice::{mid_section, surface_nodes, V3};
 use plant_models::rheology::params::{LatticeParams, ParamSet};
 use plant_models::rheology::scenario::{
-    lattice_sim, push_schedule_mm, run, BlockSpec, MeasureSpec, ModelSpec, Objective, ParamsSpec,
-    PlateSpec, Run, Scenario,
+    lattice_sim, push_schedule_mm, run, BlockSpec, Frame, MeasureSpec, ModelSpec, Objective,
+    ParamsSpec, PlateSpec, Run, Scenario,
 };
 use serde::{Deserialize, Serialize};
 
@@ -355,15 +355,7 @@ fn simulate_reference(
         &forces_csv(&r.t_s, &depth, &measured_force, &r.volume_m3),
     )?;
     write(&a.out.join("surface_points.csv"), &m.points_csv())?;
-    let shots: Vec<(f64, Vec<V3>)> = sections
-        .iter()
-        .filter_map(|&t| {
-            r.frames
-                .iter()
-                .find(|f| f.t_s == t)
-                .map(|f| (t, mid_section(r.nodes, &f.positions_m)))
-        })
-        .collect();
+    let shots = section_shots(&r.frames, r.nodes, Some(sections));
     let all_points = r.measurement.clone();
     let svg = sections_svg(
         sc,
@@ -469,15 +461,7 @@ fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result
         }
     }
     write(&a.out.join("surface_points.csv"), &pts)?;
-    let shots: Vec<(f64, Vec<V3>)> = sections
-        .iter()
-        .filter_map(|&t| {
-            r.frames
-                .iter()
-                .find(|f| f.t_s == t)
-                .map(|f| (t, mid_section(lattice.nodes, &f.positions_m)))
-        })
-        .collect();
+    let shots = section_shots(&r.frames, lattice.nodes, Some(sections));
     let title = format!(
         "lattice {}×{}×{}, model {} ({} volume condition)",
         lattice.nodes[0],
@@ -666,6 +650,24 @@ fn force_chart(
         },
     ])
     .finish()
+}
+
+/// The mid-depth section of the block at every recorded frame, or at each
+/// of `times` in their order (a time without a recorded frame is left
+/// out).
+fn section_shots(
+    frames: &[Frame],
+    nodes: [usize; 3],
+    times: Option<&[f64]>,
+) -> Vec<(f64, Vec<V3>)> {
+    let shot = |f: &Frame| (f.t_s, mid_section(nodes, &f.positions_m));
+    match times {
+        Some(ts) => ts
+            .iter()
+            .filter_map(|&t| frames.iter().find(|f| f.t_s == t).map(shot))
+            .collect(),
+        None => frames.iter().map(shot).collect(),
+    }
 }
 
 /// Cross-sections through the middle of the block (x–y plane at mid z):
@@ -962,11 +964,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             ],
         ),
     )?;
-    let shots: Vec<(f64, Vec<V3>)> = best_run
-        .frames
-        .iter()
-        .map(|f| (f.t_s, mid_section(problem.lattice().nodes, &f.positions_m)))
-        .collect();
+    let shots = section_shots(&best_run.frames, problem.lattice().nodes, None);
     write(
         &a.out.join("sections.svg"),
         &sections_svg(
