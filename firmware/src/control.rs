@@ -167,6 +167,30 @@ impl PairCommand {
         }
     }
 
+    /// Driver inputs `[agonist, antagonist]` as bounded voltages; at most
+    /// one is non-zero.
+    pub fn coil_drive(self) -> [DriveVolts; 2] {
+        match self {
+            PairCommand::Off => [DriveVolts::ZERO; 2],
+            PairCommand::Agonist(v) => [v, DriveVolts::ZERO],
+            PairCommand::Antagonist(v) => [DriveVolts::ZERO, v],
+        }
+    }
+
+    /// The command with every coil whose supervised input `got` differs
+    /// from the command's own ([`Self::coil_drive`]) inhibited: how a
+    /// supervisor's per-coil decision maps back onto a pair command.
+    pub fn limited_to(self, got: [DriveVolts; 2]) -> PairCommand {
+        let want = self.coil_drive();
+        let mut c = self;
+        for (k, (g, w)) in got.iter().zip(want.iter()).enumerate() {
+            if g != w {
+                c = c.inhibit(k);
+            }
+        }
+        c
+    }
+
     /// The same command with its voltage replaced by 0 V on `coil`
     /// (0 = agonist, 1 = antagonist), used by the supervisor to inhibit one
     /// coil without touching the other.
@@ -439,34 +463,45 @@ impl<A: SetDutyCycle, B: SetDutyCycle> PairDriver<A, B> {
         command: PairCommand,
         driver: &DriverConfig,
     ) -> Result<(), PairDriverError<A::Error, B::Error>> {
-        match command {
-            PairCommand::Off => {
-                self.agonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Agonist)?;
-                self.antagonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Antagonist)
-            }
-            PairCommand::Agonist(v) => {
-                self.antagonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Antagonist)?;
-                let duty = volts_to_duty(v, driver, self.agonist.max_duty_cycle());
-                self.agonist
-                    .set_duty_cycle(duty)
-                    .map_err(PairDriverError::Agonist)
-            }
-            PairCommand::Antagonist(v) => {
-                self.agonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Agonist)?;
-                let duty = volts_to_duty(v, driver, self.antagonist.max_duty_cycle());
-                self.antagonist
-                    .set_duty_cycle(duty)
-                    .map_err(PairDriverError::Antagonist)
-            }
+        self.apply_coils(command.coil_drive(), driver)
+    }
+
+    /// Drives each coil of the pair with its own input `[agonist,
+    /// antagonist]` — the board's output in every mode. Both may be
+    /// non-zero only where the caller allows co-contraction (the board's
+    /// open-loop drive mode, see [`crate::app`]); a [`PairCommand`]'s
+    /// [`coil_drive`](PairCommand::coil_drive) never has both. Coils going
+    /// to 0 V are written first, so a coil that must be idle is off before
+    /// the other is driven; if such a write fails nothing is driven.
+    pub fn apply_coils(
+        &mut self,
+        volts: [DriveVolts; 2],
+        driver: &DriverConfig,
+    ) -> Result<(), PairDriverError<A::Error, B::Error>> {
+        let [ag, ant] = volts;
+        if ag.volts() <= 0.0 {
+            self.agonist
+                .set_duty_cycle_fully_off()
+                .map_err(PairDriverError::Agonist)?;
         }
+        if ant.volts() <= 0.0 {
+            self.antagonist
+                .set_duty_cycle_fully_off()
+                .map_err(PairDriverError::Antagonist)?;
+        }
+        if ag.volts() > 0.0 {
+            let duty = volts_to_duty(ag, driver, self.agonist.max_duty_cycle());
+            self.agonist
+                .set_duty_cycle(duty)
+                .map_err(PairDriverError::Agonist)?;
+        }
+        if ant.volts() > 0.0 {
+            let duty = volts_to_duty(ant, driver, self.antagonist.max_duty_cycle());
+            self.antagonist
+                .set_duty_cycle(duty)
+                .map_err(PairDriverError::Antagonist)?;
+        }
+        Ok(())
     }
 
     /// Both coils off (the safe state). Tries both channels even if the
