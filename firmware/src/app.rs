@@ -298,8 +298,13 @@ impl App {
                     self.last_estimate = out.estimate_deg;
                 }
                 if self.telemetry_hz > 0 && now >= self.next_telemetry {
-                    let interval_us = (1_000_000 / u64::from(self.telemetry_hz)).max(1);
-                    self.next_telemetry = now + Duration::from_micros(interval_us);
+                    // Fixed rate: frames on a grid of the interval from the
+                    // stream's start (a poll that comes late does not push
+                    // every later frame back), re-anchored after a gap.
+                    let interval =
+                        Duration::from_micros((1_000_000 / u64::from(self.telemetry_hz)).max(1));
+                    let next = self.next_telemetry + interval;
+                    self.next_telemetry = if next > now { next } else { now + interval };
                     let t = Telemetry {
                         time_ms: now.wrapping_millis_u32(),
                         estimate_deg: self.last_estimate,

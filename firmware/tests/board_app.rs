@@ -211,7 +211,13 @@ fn free_running_checks_hold_across_the_counter_wrap_and_at_any_uptime() {
         Some(1551),
         "50 ms after the last reading at 1500 ms"
     );
-    assert_eq!(reference.len(), 200, "100 Hz telemetry for 2 s");
+    // The first frame at the first poll, then one every 10 ms on the grid
+    // from the SetTelemetry instant (fixed rate: 10, 20, …, 2000 ms).
+    assert_eq!(reference.len(), 201, "100 Hz telemetry for 2 s");
+    assert!(
+        reference[1..].iter().all(|r| r.0 % 10 == 0),
+        "frames on the 10 ms grid"
+    );
     assert!(reference.iter().any(|r| r.2 != [0; 4]), "the board drove");
     for t0 in &UPTIMES[1..] {
         assert_eq!(run(*t0), (reference.clone(), stale_at), "from {t0}");

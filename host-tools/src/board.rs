@@ -383,8 +383,9 @@ pub fn explain(e: &LinkError, port: &str, baud: u32) -> String {
                 .map(|r| format!(": {r}"))
                 .unwrap_or_default();
             format!(
-                "the board on {port} refused {} ({code}){range}",
-                name(*request)
+                "the board on {port} refused {} ({}: {code}){range}",
+                name(*request),
+                code.name()
             )
         }
         LinkError::Timeout {
