@@ -29,6 +29,25 @@ fn excite(port: &str, plan: &str, log: &str) -> Output {
         .expect("run softjoint")
 }
 
+/// `identify joint LOG --angles board-estimate -o PLANT` with `extra`.
+fn identify_from_estimates(
+    log: &std::path::Path,
+    plant: &std::path::Path,
+    extra: &[&str],
+) -> Output {
+    let mut args = vec![
+        "identify",
+        "joint",
+        common::s(log),
+        "--angles",
+        "board-estimate",
+        "-o",
+        common::s(plant),
+    ];
+    args.extend_from_slice(extra);
+    common::softjoint(&args)
+}
+
 /// 8 s: a 2 s step on coil 1 (α's agonist), a co-contraction (coil 3
 /// warm at 1.9 V, coil 1 pulsed on top), then α held at 5° by the board's
 /// controller; β held at −4° throughout.
@@ -157,6 +176,54 @@ fn a_plan_runs_on_a_plant_backed_board_and_logs_what_identify_reads() {
     }
 }
 
+/// `identify joint` on a board log: without a camera it says what is
+/// missing; with `--angles board-estimate` it fits to the board's own
+/// estimates and says so (a short run: the figures are the ignored test's
+/// below).
+#[test]
+fn identify_runs_on_a_board_log_with_the_boards_estimates() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (board, port) = board();
+    let dir = common::scratch("console_excite_identify");
+    // The first 3 s of the session plan: one step and its decay on α.
+    let plan = PLAN.replace("duration_s = 8.0", "duration_s = 3.0");
+    let plan = plan
+        .split("[[drive]]\ncoil = 3")
+        .next()
+        .unwrap()
+        .to_string();
+    let plan_path = common::file(&dir, "plan.toml", &plan);
+    let log = dir.join("board.csv");
+    common::ok(&excite(&port, &plan_path, common::s(&log)));
+    drop(board);
+    let plant = dir.join("plant.toml");
+    let no_camera = common::softjoint(&[
+        "identify",
+        "joint",
+        common::s(&log),
+        "-o",
+        common::s(&plant),
+    ]);
+    assert!(!no_camera.status.success());
+    let err = common::stderr(&no_camera);
+    assert!(
+        err.contains("no camera frame") && err.contains("--angles board-estimate"),
+        "{err}"
+    );
+    let out = identify_from_estimates(&log, &plant, &["--max-iterations", "2"]);
+    common::ok(&out);
+    let text = common::stdout(&out);
+    assert!(
+        text.starts_with("angles: the board's wire-based estimates"),
+        "{text}"
+    );
+    assert!(
+        text.contains("plane alpha") && text.contains("plane beta"),
+        "{text}"
+    );
+    assert!(plant.exists(), "a plant file is written");
+}
+
 /// 5 V on coil 1 for 2.9 s is inside the budget from cold (modelled rise
 /// 86 K < 95 K, so the host's check lets it through), but not right after
 /// the same pulse: the board's own budget model is still warm, trips the
@@ -194,4 +261,71 @@ fn the_boards_budget_refuses_an_over_budget_plan_by_name() {
     std::thread::sleep(std::time::Duration::from_millis(20));
     let st = board.state.lock().unwrap();
     assert!(st.outputs.iter().flatten().all(|v| v.volts() == 0.0));
+}
+
+/// Issue 20's loop on a board with no camera, the figures of the joint
+/// README's "Recording on a board": a minute of the compact plan recorded
+/// on a board wired to the hidden joint of the twin tests (parameters
+/// moved 20–50 %, jamming on), then `identify joint --angles
+/// board-estimate`. Prints identified / default next to hidden / default
+/// for α. Real time (60 s) plus a few minutes of identification in a
+/// debug build:
+/// `cargo test -p host-tools --test console_excite -- --ignored --nocapture`.
+#[test]
+#[ignore = "a minute of real time and minutes of identification; figures in the joint README"]
+fn a_minute_on_a_hidden_joint_board_identifies_from_the_boards_estimates() {
+    use plant_models::joint::identify::{hidden, ExcitationPlan};
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let plant = Joint3d::new(hidden::joint_3d(7)).expect("hidden plant");
+    let (board, host_end) = PtyBoard::start_with_plant(plant).expect("pty pair");
+    let port = board.host_path.clone();
+    drop(host_end);
+    let dir = common::scratch("console_excite_minute");
+    let plan = toml::to_string(&ExcitationPlan::compact(2)).unwrap();
+    let plan_path = common::file(&dir, "compact.toml", &plan);
+    let log = dir.join("board.csv");
+    let t = std::time::Instant::now();
+    let out = excite(&port, &plan_path, common::s(&log));
+    common::ok(&out);
+    println!("{}", common::stdout(&out).trim());
+    println!("recorded in {:.1} s", t.elapsed().as_secs_f64());
+    let lag_ms = board.state.lock().unwrap().plant_lag_ms;
+    drop(board);
+    assert!(lag_ms < 20.0, "the plant lagged the clock by {lag_ms} ms");
+    let plant_file = dir.join("plant.toml");
+    let t = std::time::Instant::now();
+    let out = identify_from_estimates(&log, &plant_file, &[]);
+    common::ok(&out);
+    let text = common::stdout(&out);
+    println!("{text}");
+    println!("identified in {:.1} s", t.elapsed().as_secs_f64());
+    println!(
+        "hidden / default factors (α; β has them scaled by 0.6): {:?}",
+        hidden::FACTORS
+    );
+    println!(
+        "hidden stress slope {} K/MPa",
+        hidden::HIDDEN_STRESS_SHIFT_K_PER_MPA
+    );
+    if let Some(k) = std::env::var_os("KEEP_LOG") {
+        std::fs::copy(&log, k).unwrap();
+    }
+    // The last quarter (held out) is predicted from the inputs alone
+    // within 1.5° rms of the board's own estimate on both planes, and at
+    // least twice as well as the default plant predicts it. (Measured:
+    // α 1.19° against the default's 3.06°, β 0.97° against 2.57°; the
+    // figures and the parameters are in the joint README.)
+    let rms_after = |line: &str, key: &str| -> f64 {
+        line.split(key)
+            .nth(1)
+            .and_then(|s| s.split('°').next())
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or_else(|| panic!("no `{key}` in `{line}`"))
+    };
+    let lines: Vec<&str> = text.lines().filter(|l| l.contains("held-out")).collect();
+    assert_eq!(lines.len(), 2, "{text}");
+    for line in lines {
+        let (rms, prior) = (rms_after(line, "s) rms "), rms_after(line, "plant: rms "));
+        assert!(rms < 1.5 && rms < 0.5 * prior, "{line}");
+    }
 }
