@@ -639,11 +639,19 @@ fn drive_board<Po: crate::link::Port>(
     let mut last_row = None;
     while !rec.done() {
         if let Some(signal) = stop.requested() {
-            bail!(
-                "stopped by {} at t = {:.2} s of the plan",
-                signal.name(),
-                rec.frames.len() as f64 * dt
-            );
+            // Exits as the signal would (130 for SIGINT), after the log.
+            let at_t_s = rec.frames.len().saturating_sub(1) as f64 * dt;
+            return Err(sim::RunCutShort(sim::CutShort {
+                at_step: rec.frames.len().saturating_sub(1) as u64,
+                at_t_s,
+                cause: sim::CutCause::Signal,
+                reason: format!(
+                    "stopped by {} at t = {at_t_s:.2} s of the plan",
+                    signal.name()
+                ),
+                signal: Some(signal),
+            })
+            .into());
         }
         let deadline = crate::link::deadline_after(quiet);
         let Some(m) = link.recv_until(deadline)? else {

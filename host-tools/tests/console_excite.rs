@@ -176,6 +176,56 @@ fn a_plan_runs_on_a_plant_backed_board_and_logs_what_identify_reads() {
     }
 }
 
+/// Ctrl-C during a session: the board is disarmed, the rows recorded up
+/// to there are written, and the program exits as SIGINT would (130).
+#[test]
+fn ctrl_c_disarms_the_board_and_keeps_the_rows() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (board, port) = board();
+    let dir = common::scratch("console_excite_ctrl_c");
+    let plan_path = common::file(&dir, "plan.toml", PLAN);
+    let log_path = dir.join("board.csv");
+    let child = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(["console", "--port", &port, "excite", &plan_path, "--log"])
+        .arg(&log_path)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run softjoint");
+    // Wait until the board drives (the session runs), then a second more.
+    let t = std::time::Instant::now();
+    while board.state.lock().unwrap().outputs[0][0].volts() == 0.0 {
+        assert!(t.elapsed().as_secs() < 10, "the session never drove coil 1");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1000));
+    common::kill("-INT", child.id());
+    let out = child.wait_with_output().unwrap();
+    let (stdout, stderr) = (common::stdout(&out), common::stderr(&out));
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "stdout {stdout} stderr {stderr}"
+    );
+    assert!(
+        stderr.contains("stopped by SIGINT at t = ") && stderr.contains("disarmed"),
+        "{stderr}"
+    );
+    let log = host_tools::excite::read_log(&log_path).expect("the rows up to Ctrl-C");
+    assert!(
+        (80..400).contains(&log.len()),
+        "{} rows after about 1 s: {stdout}",
+        log.len()
+    );
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    let st = board.state.lock().unwrap();
+    assert!(
+        st.outputs.iter().flatten().all(|v| v.volts() == 0.0),
+        "still driven after Ctrl-C: {:?}",
+        st.outputs
+    );
+}
+
 /// `identify joint` on a board log: without a camera it says what is
 /// missing; with `--angles board-estimate` it fits to the board's own
 /// estimates and says so (a short run: the figures are the ignored test's
