@@ -370,15 +370,22 @@ impl App {
                 }
             }
             Message::SetGains(g) => {
-                if ![g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v]
-                    .iter()
-                    .all(|v| v.is_finite())
+                if ![
+                    g.kp_agonist,
+                    g.kp_antagonist,
+                    g.ki,
+                    g.integral_limit_v,
+                    g.v_offset_v,
+                ]
+                .iter()
+                .all(|v| v.is_finite())
                 {
                     return nak(ErrorCode::NotFinite);
                 }
                 // Bad gains and a plane the joint does not have are both
-                // out of range; the joint owns the plane check.
+                // out of range; the joint owns the plane and supply checks.
                 let set = PairGains::new(g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v)
+                    .and_then(|p| p.with_v_offset(g.v_offset_v))
                     .map_err(ConfigError::from)
                     .and_then(|gains| self.joint.set_gains(usize::from(g.plane), gains));
                 match set {

@@ -220,6 +220,7 @@ pub struct PairGains {
     kp_antagonist_v_per_deg: f32,
     ki_v_per_deg_s: f32,
     integral_limit_v: f32,
+    v_offset_v: f32,
 }
 
 impl PairGains {
@@ -255,7 +256,21 @@ impl PairGains {
             kp_antagonist_v_per_deg,
             ki_v_per_deg_s,
             integral_limit_v,
+            v_offset_v: PAPER_V_OFFSET_V,
         })
+    }
+
+    /// The same gains with the law's `v_offset` (V): the input at zero
+    /// effort, the paper's 1.7 V (its drivers' conduction threshold) by
+    /// default. Must be finite and ≥ 0; the joint also requires it below
+    /// the driver's supply ([`crate::joint::JointController::set_gains`]).
+    /// A tuned value need not equal the driver's threshold (the thermal
+    /// budget keeps using the driver's, the physical one).
+    pub fn with_v_offset(self, v_offset_v: f32) -> Result<Self, ControlError> {
+        if !(v_offset_v.is_finite() && v_offset_v >= 0.0) {
+            return Err(ControlError::OffsetOutOfRange);
+        }
+        Ok(Self { v_offset_v, ..self })
     }
 
     /// Agonist proportional gain (V/deg).
@@ -274,6 +289,10 @@ impl PairGains {
     pub fn integral_limit_v(&self) -> f32 {
         self.integral_limit_v
     }
+    /// The law's `v_offset` (V).
+    pub fn v_offset_v(&self) -> f32 {
+        self.v_offset_v
+    }
 }
 
 impl Default for PairGains {
@@ -284,6 +303,7 @@ impl Default for PairGains {
             kp_antagonist_v_per_deg: 2.0,
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 0.0,
+            v_offset_v: PAPER_V_OFFSET_V,
         }
     }
 }
@@ -350,6 +370,7 @@ impl PairController {
             return PairCommand::Off;
         }
         let g = &self.gains;
+        let offset = g.v_offset_v;
         // Signed effort in volts above the offset: > 0 heats the agonist.
         let proportional = match self.mode {
             PairMode::SingleAgonist => g.kp_agonist_v_per_deg * err_deg,
@@ -357,7 +378,7 @@ impl PairController {
             PairMode::Antagonistic => g.kp_antagonist_v_per_deg * err_deg,
         };
         if g.ki_v_per_deg_s > 0.0 {
-            let headroom = driver.supply_v() - driver.offset_v();
+            let headroom = driver.supply_v() - offset;
             let effort = proportional + self.integral_v;
             // Conditional integration: do not wind further into saturation.
             let saturated_high = effort >= headroom && err_deg > 0.0;
@@ -365,7 +386,7 @@ impl PairController {
                 PairMode::Antagonistic => effort <= -headroom && err_deg < 0.0,
                 // A single actuator cannot push back: its low saturation is
                 // the point where the input stops conducting.
-                PairMode::SingleAgonist => effort <= -driver.offset_v() && err_deg < 0.0,
+                PairMode::SingleAgonist => effort <= -offset && err_deg < 0.0,
             };
             if !saturated_high && !saturated_low {
                 let lim = g.integral_limit_v;
@@ -377,17 +398,13 @@ impl PairController {
         }
         let effort = proportional + self.integral_v;
         match self.mode {
-            PairMode::SingleAgonist => {
-                PairCommand::Agonist(driver.clamp(effort + driver.offset_v()))
-            }
+            PairMode::SingleAgonist => PairCommand::Agonist(driver.clamp(effort + offset)),
             // Paper: θ < θd heats coil 1; θ ≥ θd heats coil 2 (with the
             // corrected sign: the antagonist's voltage grows with θ − θd).
             PairMode::Antagonistic if effort > 0.0 => {
-                PairCommand::Agonist(driver.clamp(effort + driver.offset_v()))
+                PairCommand::Agonist(driver.clamp(effort + offset))
             }
-            PairMode::Antagonistic => {
-                PairCommand::Antagonist(driver.clamp(-effort + driver.offset_v()))
-            }
+            PairMode::Antagonistic => PairCommand::Antagonist(driver.clamp(-effort + offset)),
         }
     }
 }

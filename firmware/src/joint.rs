@@ -262,6 +262,13 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         for law in config.laws.iter() {
             law.validate(S)?;
         }
+        if config
+            .gains
+            .iter()
+            .any(|g| g.v_offset_v() >= config.driver.supply_v())
+        {
+            return Err(ConfigError::Control(ControlError::OffsetOutOfRange));
+        }
         let estimators = config.laws.map(PlaneEstimator::from_validated);
         let required_wires = config.laws.iter().fold(0, |m, l| m | l.sensor_mask());
         let mut pairs = config
@@ -312,8 +319,12 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         self.targets_deg
     }
 
-    /// Replaces the gains of `plane`.
+    /// Replaces the gains of `plane`. Their `v_offset` must lie below the
+    /// driver's supply.
     pub fn set_gains(&mut self, plane: usize, gains: PairGains) -> Result<(), ConfigError> {
+        if gains.v_offset_v() >= self.driver.supply_v() {
+            return Err(ConfigError::Control(ControlError::OffsetOutOfRange));
+        }
         self.pairs
             .get_mut(plane)
             .ok_or(ConfigError::NoSuchPlane)?

@@ -668,3 +668,44 @@ fn without_a_drive_the_pair_rule_holds_and_the_other_plane_stays_controlled() {
     assert_eq!(st.pair_mv[0], 0, "α is not a controller output");
     assert!(st.pair_mv[1] < 0, "β's controller drives its antagonist");
 }
+
+/// `SetGains.v_offset_v` is the law's input at zero effort: the same
+/// error with the offset at 1.2 V instead of the paper's 1.7 V drives the
+/// agonist 0.5 V lower; an offset at or above the supply, or not finite,
+/// is refused by name.
+#[test]
+fn set_gains_carries_v_offset() {
+    let mut b = Board::up_for(Instant::ZERO);
+    let gains = |v_offset_v: f32| SetGains {
+        plane: 0,
+        kp_agonist: 0.1,
+        kp_antagonist: 0.1,
+        ki: 0.0,
+        integral_limit_v: 0.0,
+        v_offset_v,
+    };
+    let mut agonist_mv = Vec::new();
+    for v in [1.7, 1.2] {
+        b.ack(gains(v));
+        b.lockstep(5.0);
+        let a = b.sensor(0, counts_for(0.0)).unwrap();
+        agonist_mv.push(a.pair_mv[0]);
+    }
+    // α ≈ 0.3° from counts_for(0): effort 0.1 V/° × 4.7° ≈ 0.47 V.
+    assert!((2100..2250).contains(&agonist_mv[0]), "{agonist_mv:?}");
+    assert_eq!(agonist_mv[0] - agonist_mv[1], 500, "{agonist_mv:?}");
+    for (v, code) in [
+        (5.0, ErrorCode::OutOfRange),
+        (-0.1, ErrorCode::OutOfRange),
+        (f32::NAN, ErrorCode::NotFinite),
+    ] {
+        assert_eq!(
+            b.send(gains(v)),
+            [Message::Nak(Nak {
+                request: kind::SET_GAINS,
+                code
+            })],
+            "v_offset {v}"
+        );
+    }
+}

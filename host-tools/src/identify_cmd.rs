@@ -404,6 +404,10 @@ pub struct TuneArgs {
     /// Write the gains file here.
     #[arg(short, long, default_value = "gains.toml")]
     output: PathBuf,
+    /// Search v_offset too (uniform in 1.2–2.2 V, the paper's 1.7 V ±
+    /// 0.5 V); without it every candidate keeps 1.7 V.
+    #[arg(long)]
+    search_v_offset: bool,
     /// Print a machine-readable result.
     #[arg(long)]
     json: bool,
@@ -421,6 +425,7 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
             a.candidates as usize,
             a.plants as usize,
             a.seed,
+            a.search_v_offset,
             !a.json,
         )
     };
@@ -445,6 +450,7 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
             seed: a.seed,
             score: r.score.clone(),
             paper: r.paper.clone(),
+            v_offset_searched: a.search_v_offset,
         }),
     };
     output::write_toml(
@@ -461,13 +467,14 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
     } else {
         let c = &r.best;
         host_tools::outln!(
-            "best of {} candidates × {} plants ({:.1} s): K_P {:?} V/°, K_I {:.3} V/(°·s), limit {:.2} V",
+            "best of {} candidates × {} plants ({:.1} s): K_P {:?} V/°, K_I {:.3} V/(°·s), limit {:.2} V, v_offset {:.3} V",
             a.candidates,
             a.plants,
             wall,
             c.kp_v_per_deg.iter().map(|k| (k * 1000.0).round() / 1000.0).collect::<Vec<_>>(),
             c.ki_v_per_deg_s,
-            c.integral_limit_v
+            c.integral_limit_v,
+            c.v_offset_v
         );
         for (name, s) in [("tuned", &r.score), ("paper", &r.paper)] {
             let n = &s.nominal;

@@ -222,7 +222,8 @@ const HELP: &str = "commands:
   arm | disarm | clear          outputs on/off; clear latched faults
   hil-stop                      leave lockstep mode (back to free-running)
   target PLANE DEG              desired angle (plane 0 = alpha, 1 = beta)
-  gains PLANE KP_AG KP_ANT KI ILIM
+  gains PLANE KP_AG KP_ANT KI ILIM [VOFF]
+                                VOFF: the law's v_offset (V, default 1.7)
   gains load FILE               every plane's gains from a gains file (softjoint tune)
   calibration get PLANE         print the plane's estimation law
   calibration set FILE          load a calibration file (softjoint calibrate wire)
@@ -421,6 +422,7 @@ fn run_console_command<P: Port>(
                         kp_antagonist,
                         ki: g.controller.ki_v_per_deg_s as f32,
                         integral_limit_v: g.controller.integral_limit_v as f32,
+                        v_offset_v: g.controller.v_offset_v as f32,
                     },
                 )?;
             }
@@ -433,6 +435,10 @@ fn run_console_command<P: Port>(
                 kp_antagonist: arg(&words, 3, "KP_ANT")?,
                 ki: arg(&words, 4, "KI")?,
                 integral_limit_v: arg(&words, 5, "ILIM")?,
+                v_offset_v: match words.get(6) {
+                    Some(_) => arg(&words, 6, "VOFF")?,
+                    None => firmware::control::PAPER_V_OFFSET_V,
+                },
             },
         )?,
         ["calibration", "get", ..] => {

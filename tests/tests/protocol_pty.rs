@@ -154,6 +154,7 @@ fn every_message_over_a_real_pty() {
             kp_antagonist: 1.0,
             ki: 0.2,
             integral_limit_v: 1.0,
+            v_offset_v: 1.7,
         }
         .into(),
         T,
@@ -168,7 +169,8 @@ fn every_message_over_a_real_pty() {
                     kp_agonist: -1.0,
                     kp_antagonist: 1.0,
                     ki: 0.0,
-                    integral_limit_v: 0.0
+                    integral_limit_v: 0.0,
+                    v_offset_v: 1.7,
                 }
                 .into(),
                 T,
@@ -185,7 +187,8 @@ fn every_message_over_a_real_pty() {
                     kp_agonist: f32::INFINITY,
                     kp_antagonist: 1.0,
                     ki: 0.0,
-                    integral_limit_v: 0.0
+                    integral_limit_v: 0.0,
+                    v_offset_v: 1.7,
                 }
                 .into(),
                 T,

@@ -269,6 +269,9 @@ protocol_messages! {
         ki: f32,
         /// Integral limit (V).
         integral_limit_v: f32,
+        /// The law's v_offset (V): the input at zero effort, 0 ≤ · <
+        /// supply (the paper's 1.7 V).
+        v_offset_v: f32,
     }
     /// Set a plane's estimation law.
     0x12 SET_CALIBRATION SetCalibration ToBoard {
