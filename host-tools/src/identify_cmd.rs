@@ -241,7 +241,13 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         output::JsonObject::new()
             .field("log", &a.log)?
             .field("rows", &log.len())?
-            .field("planes", &reports_without_frames(&reports))?
+            // A 1σ that is not finite (a parameter the log does not
+            // determine at all; `identifiable` is false) is written as
+            // null: JSON has no infinity, and the report must not fail.
+            .field(
+                "planes",
+                &serde_json::to_value(reports_without_frames(&reports))?,
+            )?
             .field("never_fitted", &NEVER_FITTED)?
             .field("plant_file", &a.output)?
             .field(

@@ -272,6 +272,19 @@ fn identify_runs_on_a_board_log_with_the_boards_estimates() {
         "{text}"
     );
     assert!(plant.exists(), "a plant file is written");
+    // The JSON report too, where a parameter the log does not determine
+    // has no finite 1σ (null).
+    let out = identify_from_estimates(&log, &plant, &["--max-iterations", "2", "--json"]);
+    common::ok(&out);
+    let report: serde_json::Value = serde_json::from_str(&common::stdout(&out)).unwrap();
+    assert!(report["angles"]
+        .as_str()
+        .is_some_and(|a| a.contains("not a camera")));
+    assert_eq!(report["rows"], 300);
+    let estimates = report["planes"][0]["estimates"].as_array().unwrap();
+    assert!(estimates
+        .iter()
+        .all(|e| e["std"].is_number() || e["identifiable"] == false));
 }
 
 /// 5 V on coil 1 for 2.9 s is inside the budget from cold (modelled rise
