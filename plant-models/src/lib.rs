@@ -39,6 +39,7 @@ pub mod rng {
     //! | [`IDENTIFY_REPLAY`] | identification replays (never drawn: no stick events) |
     //! | [`IDENTIFY_SAMPLE`] | `softjoint tune`: plants sampled from the uncertainty |
     //! | [`IDENTIFY_SEARCH`] | `softjoint tune`: the candidate gains |
+    //! | [`IDENTIFY_V_OFFSET`] | `softjoint tune --search-v-offset`: the candidates' v_offset |
     //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
     //! | [`TISSUE_WARP`] | `tissue::field` synthetic twin: the non-rigid warp's bumps |
     //! | [`TISSUE_NOISE_INITIAL`] | `tissue::field` noise of the initial volume |
@@ -87,6 +88,9 @@ pub mod rng {
     pub const IDENTIFY_SAMPLE: u64 = 0x1402;
     /// Candidate gains of a tuning search.
     pub const IDENTIFY_SEARCH: u64 = 0x1403;
+    /// The candidates' v_offset when a tuning search includes it (its own
+    /// stream, so the other gains are drawn as without it).
+    pub const IDENTIFY_V_OFFSET: u64 = 0x1404;
 
     /// The tissue module's streams start here (seed 000, Zhang and Kita).
     pub const TISSUE_BASE: u64 = 0x600;
