@@ -29,10 +29,15 @@
 //!    (`mechanics_starts`): from stage 1's values alone it can settle
 //!    in a wrong basin.
 //! 3. **Wire jamming**: the buckling gain and the two lag ceilings, fitted
-//!    to the wire readings with the stage-2 plant moving the link.
+//!    to the wire readings with the stage-2 plant moving the link; the
+//!    model side is the expected reading over the random stick events
+//!    ([`replay::expected_wire_readings`]).
 //!
-//! Each stage is Levenberg–Marquardt ([`lm`]) with the Gauss–Newton
-//! covariance. A parameter whose 1σ exceeds its threshold
+//! Each stage is Levenberg–Marquardt ([`lm`]). A parameter's 1σ is the
+//! larger of the Gauss–Newton one and the block-robust one over log
+//! segments ([`lm::block_robust_std`]: 10 s segments, lag episodes for
+//! the wires), for the wires with a reading offset of ±½ coder count
+//! added ([`lm::systematic_shift`]); see `stage`. A parameter whose 1σ exceeds its threshold
 //! ([`params::Param::scale`]) is **not identifiable from this log**: it is
 //! reported as such, put back to its prior value and the stage is fitted
 //! again without it. The fit uses the first `fit_fraction` of the log; the
@@ -43,8 +48,8 @@
 //! Never fitted (fixed at the prior, i.e. the plant file given or the
 //! defaults): coil spring rates and rest lengths, resistivities, geometry,
 //! link mass, ambient temperature, latent heat, the sponge's stiffness ratio
-//! and shear fraction, the wires' geometry and the *random* stick events
-//! (their rate and sizes; the deterministic lag model absorbs their mean).
+//! and shear fraction, the wires' geometry and the *random* stick events'
+//! rate and sizes (the wire stage averages over sticks at the prior's).
 //! Left out: the 3D joint's coupling between planes (the model has none);
 //! the weighting between the angle and resistance residuals is a priori
 //! (0.1° and 0.02 Ω), not estimated.
@@ -115,6 +120,10 @@ pub struct IdentifyOptions {
     pub angle_sigma_deg: f64,
     /// A priori noise of a resistance reading (Ω).
     pub resistance_sigma_ohm: f64,
+    /// Random realisations of the stick events the wire stage averages
+    /// over ([`replay::expected_wire_readings`]); each costs a pass of the
+    /// wire model (not the plane) over the log per evaluation.
+    pub stick_realisations: usize,
 }
 
 impl Default for IdentifyOptions {
@@ -125,6 +134,7 @@ impl Default for IdentifyOptions {
             lm: LmOptions::default(),
             angle_sigma_deg: 0.1,
             resistance_sigma_ohm: 0.02,
+            stick_realisations: replay::STICK_REALISATIONS,
         }
     }
 }
@@ -238,7 +248,7 @@ pub const NEVER_FITTED: &[&str] = &[
     "link mass and centre of mass",
     "ambient temperature and latent heat",
     "sponge stiffness ratio and shear fraction",
-    "wire stick-event rate and sizes (random; the fitted lag ceilings absorb their mean)",
+    "wire stick-event rate and sizes (random; the wire stage averages over them at the prior's rate and sizes)",
 ];
 
 /// Identifies the 2D joint from `log`, starting from `prior`.
@@ -869,7 +879,8 @@ pub fn identify_plane(
     // random sensor over stick events along them (`replay` module docs).
     let paths = replay::replay_with_wire_paths(&model, log, map, fit_rows)?;
     let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
-        let expected = replay::expected_wire_readings(&m.wires, &paths, fit_rows)?;
+        let expected =
+            replay::expected_wire_readings(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
         let mut out = Vec::with_capacity(map.sensors.len() * fit_rows);
         for (j, &s) in map.sensors.iter().enumerate() {
             out.extend(

@@ -11,7 +11,8 @@
 //! Wires: the replay records each wire's geometric insertion at every
 //! substep ([`Prediction::wire_path_mm`]); [`expected_wire_readings`]
 //! then runs the plant's own random sensor along that path
-//! [`STICK_REALISATIONS`] times, with stick events from fixed streams,
+//! a number of times ([`STICK_REALISATIONS`] by default), with stick
+//! events from fixed streams,
 //! and averages: the *expected* reading over the stick events, which the
 //! replay cannot know where the recorded wire stuck. Leaving the sticks
 //! out (as until this change) biased the buckling gain by −23 % to +49 %
@@ -139,15 +140,15 @@ pub fn replay_with_wire_paths(
 }
 
 /// Random realisations of the stick events averaged by
-/// [`expected_wire_readings`]. The 2D twin's jamming estimates moved by
-/// ≤ 1 % (κ), ≤ 0.3 % (ceilings) between 32 and 64 realisations; each
-/// costs a pass of the wire model (not the plane) over the log.
+/// [`expected_wire_readings`] by default (`IdentifyOptions::
+/// stick_realisations`); each costs a pass of the wire model (not the
+/// plane) over the log. See the joint README for what 64 changes.
 pub const STICK_REALISATIONS: usize = 32;
 
 /// The expected reading (mm) of each of `wires` at each of the first
 /// `rows` row starts along the paths of `pred` (from
-/// [`replay_with_wire_paths`]): the mean over [`STICK_REALISATIONS`]
-/// runs of the plant's random sensor, realisation r of sensor j drawing
+/// [`replay_with_wire_paths`]): the mean over `realisations` (at least
+/// one) runs of the plant's random sensor, realisation r of sensor j drawing
 /// its sticks from `rng::stream(r·8 + j, rng::IDENTIFY_STICKS)` (module
 /// docs). Unquantised: the mean of the counts would be a staircase in
 /// the parameters. Realisations run in parallel and are summed in order.
@@ -155,13 +156,15 @@ pub fn expected_wire_readings(
     wires: &[WireSensorParams],
     pred: &Prediction,
     rows: usize,
+    realisations: usize,
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    let realisations = realisations.max(1);
     use rayon::prelude::*;
     let n = pred.substeps_per_row;
     let mut out = Vec::with_capacity(wires.len());
     for (j, (w, path)) in wires.iter().zip(&pred.wire_path_mm).enumerate() {
         let rows = rows.min(path.len() / n.max(1));
-        let runs: Vec<Vec<f64>> = (0..STICK_REALISATIONS)
+        let runs: Vec<Vec<f64>> = (0..realisations)
             .into_par_iter()
             .map(|r| {
                 let mut sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0)?;
@@ -183,7 +186,7 @@ pub fn expected_wire_readings(
                 *m += v;
             }
         }
-        let k = STICK_REALISATIONS as f64;
+        let k = realisations as f64;
         mean.iter_mut().for_each(|m| *m /= k);
         out.push(mean);
     }
