@@ -60,7 +60,8 @@ cargo test --profile ci-opt -p plant-models --lib --locked -- --ignored \
 # Issue 20's 10-minute twins (identification within the README's
 # tolerances, the jamming gain recovered or named not identifiable, the
 # README twin's beta inertia named not identifiable): four
-# identifications, 4 min 44 s optimised on the loaded 2-core machine.
+# identifications, 4 min 44 s to 5 min 54 s optimised on the loaded
+# 2-core machine (load average 2.5-4).
 cargo test --profile ci-opt -p plant-models --test joint_identify --locked -- --ignored
 
 step "the firmware images under QEMU (mps2-an386, and the STM32F4 image on netduinoplus2) in lockstep with the simulated joint (needs the images built above)"
