@@ -28,10 +28,25 @@
 //!   clock), [`Faults::LINK_LOSS`] is latched and every output is zero until
 //!   the host clears it.
 //!
-//! The pair rule and output bounds are the core's: outputs are
-//! [`PairCommand`]s straight from the supervisor.
+//! - **open-loop drive** (a plane of free-running mode after [`Drive`]):
+//!   the plane's coils get the host's inputs — both coils of a pair may be
+//!   heated (co-contraction), which only this mode allows — to record a
+//!   log for identification. Every input still goes through the
+//!   supervisor (arm state, latched faults, each coil's thermal budget:
+//!   a trip cuts that coil and is reported as over-budget). A drive holds
+//!   for its `hold_ms` (≤ [`MAX_DRIVE_HOLD_MS`]); not refreshed by then,
+//!   the plane's coils go **unpowered** and stay so until the next
+//!   `Drive` or a `SetTarget` for the plane, which gives it back to the
+//!   controller. `Disarm` and `HilStart` end every drive. A `Drive` is
+//!   refused by name when disarmed, with a fault latched, in lockstep, for
+//!   a coil cooling after a trip, or with a value out of range.
+//!
+//! Outputs are per coil ([`App::outputs`], `[agonist, antagonist]` per
+//! pair), bounded to the driver's range. For planes under the controller
+//! they are the supervisor's [`PairCommand`]s, so the pair rule holds by
+//! type; only a driven plane may heat both coils.
 
-use crate::control::{PairCommand, PairGains};
+use crate::control::{DriveVolts, PairCommand, PairGains};
 use crate::joint::{ConfigError, Feedback, Joint3d, JointConfig, StepInput};
 use crate::protocol::*;
 use crate::supervisor::Faults;
@@ -62,6 +77,23 @@ pub const LOCKSTEP_PERIOD_US: core::ops::RangeInclusive<u32> = 100..=1_000_000;
 pub const LINK_TIMEOUT_MS: core::ops::RangeInclusive<u16> = 1..=60_000;
 /// Highest telemetry rate (frames per second).
 pub const MAX_TELEMETRY_HZ: u16 = 1000;
+/// Longest hold of one [`Drive`] (ms): a host that stops refreshing leaves
+/// its coils heated for at most this long.
+pub const MAX_DRIVE_HOLD_MS: u16 = 1000;
+
+/// How a plane's coils are driven in free-running mode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PlaneDrive {
+    /// By the plane's controller (the pair rule holds).
+    Control,
+    /// Open loop, `[agonist, antagonist]`, until `until`.
+    Driven {
+        volts: [DriveVolts; 2],
+        until: Instant,
+    },
+    /// A drive expired: unpowered until the next `Drive` or `SetTarget`.
+    Released,
+}
 
 /// The last lockstep step, for idempotent retries.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,7 +130,12 @@ pub struct App {
     joint: Joint3d,
     mode: Mode,
     decoder: FrameDecoder,
-    outputs: [PairCommand; 2],
+    /// Per pair `[agonist, antagonist]`: what the drivers are set to.
+    outputs: [[DriveVolts; 2]; 2],
+    /// The controller's commands (planes under control; `Off` otherwise).
+    pair_commands: [PairCommand; 2],
+    drive: [PlaneDrive; 2],
+    last_counts: [Option<i32>; 4],
     last_faults: Faults,
     last_estimate: [f32; 2],
     link_timeout: Duration,
@@ -121,7 +158,10 @@ impl App {
             joint,
             mode: Mode::FreeRunning { last_step: None },
             decoder: FrameDecoder::board(),
-            outputs: [PairCommand::Off; 2],
+            outputs: [[DriveVolts::ZERO; 2]; 2],
+            pair_commands: [PairCommand::Off; 2],
+            drive: [PlaneDrive::Control; 2],
+            last_counts: [None; 4],
             last_faults: Faults::NONE,
             last_estimate: [f32::NAN; 2],
             link_timeout: Duration::from_millis(u64::from(DEFAULT_LINK_TIMEOUT_MS)),
@@ -132,9 +172,38 @@ impl App {
         }
     }
 
-    /// What the SMA drivers must be set to now.
-    pub fn outputs(&self) -> [PairCommand; 2] {
+    /// What the SMA drivers must be set to now: per pair (α, β) the inputs
+    /// `[agonist, antagonist]`. Both are non-zero only for a plane in
+    /// open-loop drive mode.
+    pub fn outputs(&self) -> [[DriveVolts; 2]; 2] {
         self.outputs
+    }
+
+    /// The outputs as coil inputs 1–4 in paper numbering (mV, the wire's
+    /// rounding).
+    pub fn coil_mv(&self) -> [u16; 4] {
+        let d = self.joint.driver();
+        let [[c1, c3], [c2, c4]] = self.outputs;
+        [c1, c2, c3, c4].map(|v| coil_to_mv(v, d))
+    }
+
+    /// Planes in open-loop drive mode (driven, or released after a drive
+    /// expired), bit 0 = α.
+    pub fn drive_planes(&self) -> u8 {
+        self.drive
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| **d != PlaneDrive::Control)
+            .fold(0, |m, (p, _)| m | (1 << p))
+    }
+
+    fn set_pair_outputs(&mut self, commands: [PairCommand; 2]) {
+        self.pair_commands = commands;
+        self.outputs = commands.map(PairCommand::coil_drive);
+    }
+
+    fn outputs_off(&mut self) {
+        self.set_pair_outputs([PairCommand::Off; 2]);
     }
 
     /// The joint (read-only).
@@ -190,11 +259,18 @@ impl App {
                         log_warn!("link lost at {=u64} ms", now.as_millis());
                     }
                     self.joint.report_fault(Faults::LINK_LOSS);
-                    self.outputs = [PairCommand::Off; 2];
+                    self.outputs_off();
                     self.last_faults |= Faults::LINK_LOSS;
                 }
             }
             Mode::FreeRunning { last_step } => {
+                // An expired drive cuts its coils now, not at the next step.
+                for (d, out) in self.drive.iter_mut().zip(self.outputs.iter_mut()) {
+                    if matches!(d, PlaneDrive::Driven { until, .. } if now >= *until) {
+                        *d = PlaneDrive::Released;
+                        *out = [DriveVolts::ZERO; 2];
+                    }
+                }
                 let due = last_step.is_none_or(|t| now - t >= FREE_RUNNING_PERIOD);
                 if due {
                     // The measured time since the last step (a late poll
@@ -203,23 +279,37 @@ impl App {
                     self.mode = Mode::FreeRunning {
                         last_step: Some(now),
                     };
+                    let counts = sensors.read_counts();
+                    self.last_counts = counts;
                     let input = StepInput {
                         now,
                         dt,
-                        feedback: Feedback::WireCounts(sensors.read_counts()),
+                        feedback: Feedback::WireCounts(counts),
                     };
-                    let out = self.joint.step(&input);
-                    self.outputs = out.commands;
+                    let drive = self.drive.map(|d| match d {
+                        PlaneDrive::Control => None,
+                        PlaneDrive::Driven { volts, .. } => Some(volts),
+                        PlaneDrive::Released => Some([DriveVolts::ZERO; 2]),
+                    });
+                    let out = self.joint.step_driven(&input, drive);
+                    self.pair_commands = out.commands;
+                    self.outputs = out.coils;
                     self.last_faults = out.faults;
                     self.last_estimate = out.estimate_deg;
                 }
                 if self.telemetry_hz > 0 && now >= self.next_telemetry {
-                    let interval_us = (1_000_000 / u64::from(self.telemetry_hz)).max(1);
-                    self.next_telemetry = now + Duration::from_micros(interval_us);
+                    // Fixed rate: frames on a grid of the interval from the
+                    // stream's start (a poll that comes late does not push
+                    // every later frame back), re-anchored after a gap.
+                    let interval =
+                        Duration::from_micros((1_000_000 / u64::from(self.telemetry_hz)).max(1));
+                    let next = self.next_telemetry + interval;
+                    self.next_telemetry = if next > now { next } else { now + interval };
                     let t = Telemetry {
                         time_ms: now.wrapping_millis_u32(),
                         estimate_deg: self.last_estimate,
-                        pair_mv: self.outputs.map(|c| pair_to_mv(c, self.joint.driver())),
+                        coil_mv: self.coil_mv(),
+                        counts: self.last_counts.map(|c| c.unwrap_or(i32::MIN)),
                         faults: faults_to_u8(self.last_faults),
                     };
                     emit(&Message::Telemetry(t), send);
@@ -269,20 +359,33 @@ impl App {
                     return nak(ErrorCode::NotFinite);
                 }
                 match self.joint.set_target(usize::from(plane), target_deg) {
-                    Ok(()) => ack,
+                    Ok(()) => {
+                        // The plane goes back to its controller.
+                        if let Some(d) = self.drive.get_mut(usize::from(plane)) {
+                            *d = PlaneDrive::Control;
+                        }
+                        ack
+                    }
                     Err(_) => nak(ErrorCode::OutOfRange),
                 }
             }
             Message::SetGains(g) => {
-                if ![g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v]
-                    .iter()
-                    .all(|v| v.is_finite())
+                if ![
+                    g.kp_agonist,
+                    g.kp_antagonist,
+                    g.ki,
+                    g.integral_limit_v,
+                    g.v_offset_v,
+                ]
+                .iter()
+                .all(|v| v.is_finite())
                 {
                     return nak(ErrorCode::NotFinite);
                 }
                 // Bad gains and a plane the joint does not have are both
-                // out of range; the joint owns the plane check.
+                // out of range; the joint owns the plane and supply checks.
                 let set = PairGains::new(g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v)
+                    .and_then(|p| p.with_v_offset(g.v_offset_v))
                     .map_err(ConfigError::from)
                     .and_then(|gains| self.joint.set_gains(usize::from(g.plane), gains));
                 match set {
@@ -312,9 +415,14 @@ impl App {
             }
             Message::Disarm(Disarm {}) => {
                 self.joint.disarm();
-                self.outputs = [PairCommand::Off; 2];
+                self.drive = [PlaneDrive::Control; 2];
+                self.outputs_off();
                 ack
             }
+            Message::Drive(d) => match self.start_drive(d, now) {
+                Ok(()) => ack,
+                Err(code) => nak(code),
+            },
             Message::ClearFaults(ClearFaults {}) => match self.joint.clear_faults() {
                 Ok(()) => {
                     self.last_faults = Faults::NONE;
@@ -350,11 +458,55 @@ impl App {
         }
     }
 
+    /// Checks a [`Drive`] and starts it (see the module docs for the
+    /// rules); the error is the NAK's code.
+    fn start_drive(&mut self, d: Drive, now: Instant) -> Result<(), ErrorCode> {
+        if self.in_hil() {
+            return Err(ErrorCode::WrongMode);
+        }
+        if !(1..=3).contains(&d.planes) || !(1..=MAX_DRIVE_HOLD_MS).contains(&d.hold_ms) {
+            return Err(ErrorCode::OutOfRange);
+        }
+        let driver = *self.joint.driver();
+        let [m1, m2, m3, m4] = d.coil_mv;
+        let mut volts = [[DriveVolts::ZERO; 2]; 2];
+        for (p, (v, mv)) in volts.iter_mut().zip([[m1, m3], [m2, m4]]).enumerate() {
+            let driven = d.planes & (1 << p) != 0;
+            for (slot, m) in v.iter_mut().zip(mv) {
+                if !driven && m != 0 {
+                    return Err(ErrorCode::OutOfRange);
+                }
+                *slot = mv_to_coil(m, &driver).ok_or(ErrorCode::OutOfRange)?;
+            }
+        }
+        if !self.joint.is_armed() {
+            return Err(ErrorCode::Disarmed);
+        }
+        if !self.joint.supervisor().latched().is_empty() {
+            return Err(ErrorCode::Latched);
+        }
+        for (p, v) in volts.iter().enumerate() {
+            for (k, c) in v.iter().enumerate() {
+                if c.volts() > 0.0 && self.joint.supervisor().coil_tripped(p, k) {
+                    return Err(ErrorCode::OverBudget);
+                }
+            }
+        }
+        let until = now + Duration::from_millis(u64::from(d.hold_ms));
+        for (p, (slot, v)) in self.drive.iter_mut().zip(volts).enumerate() {
+            if d.planes & (1 << p) != 0 {
+                *slot = PlaneDrive::Driven { volts: v, until };
+            }
+        }
+        Ok(())
+    }
+
     /// Entering or leaving lockstep: outputs off, and the core starts a new
     /// time base (sensor checks, estimator, integrators, present fault
     /// causes). The arm state and latched faults are kept.
     fn enter_new_time_base(&mut self) {
-        self.outputs = [PairCommand::Off; 2];
+        self.drive = [PlaneDrive::Control; 2];
+        self.outputs_off();
         self.joint.restart_time_base();
         self.last_faults = self.joint.supervisor().latched();
         self.last_estimate = [f32::NAN; 2];
@@ -405,7 +557,7 @@ impl App {
             feedback: Feedback::WireCounts(frame.counts.map(|c| Some(i32::from(c)))),
         };
         let out = self.joint.step(&input);
-        self.outputs = out.commands;
+        self.set_pair_outputs(out.commands);
         self.last_faults = out.faults;
         self.last_estimate = out.estimate_deg;
         let reply = HilActuator {
@@ -437,7 +589,11 @@ impl App {
             latched: faults_to_u8(self.joint.supervisor().latched()),
             estimate_deg: self.last_estimate,
             target_deg: self.joint.targets_deg(),
-            pair_mv: self.outputs.map(|c| pair_to_mv(c, self.joint.driver())),
+            pair_mv: self
+                .pair_commands
+                .map(|c| pair_to_mv(c, self.joint.driver())),
+            coil_mv: self.coil_mv(),
+            drive_planes: self.drive_planes(),
             time_ms: now.wrapping_millis_u32(),
             frames_ok: s.frames_ok,
             crc_errors: sat16(s.crc_errors),

@@ -167,6 +167,30 @@ impl PairCommand {
         }
     }
 
+    /// Driver inputs `[agonist, antagonist]` as bounded voltages; at most
+    /// one is non-zero.
+    pub fn coil_drive(self) -> [DriveVolts; 2] {
+        match self {
+            PairCommand::Off => [DriveVolts::ZERO; 2],
+            PairCommand::Agonist(v) => [v, DriveVolts::ZERO],
+            PairCommand::Antagonist(v) => [DriveVolts::ZERO, v],
+        }
+    }
+
+    /// The command with every coil whose supervised input `got` differs
+    /// from the command's own ([`Self::coil_drive`]) inhibited: how a
+    /// supervisor's per-coil decision maps back onto a pair command.
+    pub fn limited_to(self, got: [DriveVolts; 2]) -> PairCommand {
+        let want = self.coil_drive();
+        let mut c = self;
+        for (k, (g, w)) in got.iter().zip(want.iter()).enumerate() {
+            if g != w {
+                c = c.inhibit(k);
+            }
+        }
+        c
+    }
+
     /// The same command with its voltage replaced by 0 V on `coil`
     /// (0 = agonist, 1 = antagonist), used by the supervisor to inhibit one
     /// coil without touching the other.
@@ -196,6 +220,7 @@ pub struct PairGains {
     kp_antagonist_v_per_deg: f32,
     ki_v_per_deg_s: f32,
     integral_limit_v: f32,
+    v_offset_v: f32,
 }
 
 impl PairGains {
@@ -231,7 +256,21 @@ impl PairGains {
             kp_antagonist_v_per_deg,
             ki_v_per_deg_s,
             integral_limit_v,
+            v_offset_v: PAPER_V_OFFSET_V,
         })
+    }
+
+    /// The same gains with the law's `v_offset` (V): the input at zero
+    /// effort, the paper's 1.7 V (its drivers' conduction threshold) by
+    /// default. Must be finite and ≥ 0; the joint also requires it below
+    /// the driver's supply ([`crate::joint::JointController::set_gains`]).
+    /// A tuned value need not equal the driver's threshold (the thermal
+    /// budget keeps using the driver's, the physical one).
+    pub fn with_v_offset(self, v_offset_v: f32) -> Result<Self, ControlError> {
+        if !(v_offset_v.is_finite() && v_offset_v >= 0.0) {
+            return Err(ControlError::OffsetOutOfRange);
+        }
+        Ok(Self { v_offset_v, ..self })
     }
 
     /// Agonist proportional gain (V/deg).
@@ -250,6 +289,10 @@ impl PairGains {
     pub fn integral_limit_v(&self) -> f32 {
         self.integral_limit_v
     }
+    /// The law's `v_offset` (V).
+    pub fn v_offset_v(&self) -> f32 {
+        self.v_offset_v
+    }
 }
 
 impl Default for PairGains {
@@ -260,6 +303,7 @@ impl Default for PairGains {
             kp_antagonist_v_per_deg: 2.0,
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 0.0,
+            v_offset_v: PAPER_V_OFFSET_V,
         }
     }
 }
@@ -326,6 +370,7 @@ impl PairController {
             return PairCommand::Off;
         }
         let g = &self.gains;
+        let offset = g.v_offset_v;
         // Signed effort in volts above the offset: > 0 heats the agonist.
         let proportional = match self.mode {
             PairMode::SingleAgonist => g.kp_agonist_v_per_deg * err_deg,
@@ -333,7 +378,7 @@ impl PairController {
             PairMode::Antagonistic => g.kp_antagonist_v_per_deg * err_deg,
         };
         if g.ki_v_per_deg_s > 0.0 {
-            let headroom = driver.supply_v() - driver.offset_v();
+            let headroom = driver.supply_v() - offset;
             let effort = proportional + self.integral_v;
             // Conditional integration: do not wind further into saturation.
             let saturated_high = effort >= headroom && err_deg > 0.0;
@@ -341,7 +386,7 @@ impl PairController {
                 PairMode::Antagonistic => effort <= -headroom && err_deg < 0.0,
                 // A single actuator cannot push back: its low saturation is
                 // the point where the input stops conducting.
-                PairMode::SingleAgonist => effort <= -driver.offset_v() && err_deg < 0.0,
+                PairMode::SingleAgonist => effort <= -offset && err_deg < 0.0,
             };
             if !saturated_high && !saturated_low {
                 let lim = g.integral_limit_v;
@@ -353,17 +398,13 @@ impl PairController {
         }
         let effort = proportional + self.integral_v;
         match self.mode {
-            PairMode::SingleAgonist => {
-                PairCommand::Agonist(driver.clamp(effort + driver.offset_v()))
-            }
+            PairMode::SingleAgonist => PairCommand::Agonist(driver.clamp(effort + offset)),
             // Paper: θ < θd heats coil 1; θ ≥ θd heats coil 2 (with the
             // corrected sign: the antagonist's voltage grows with θ − θd).
             PairMode::Antagonistic if effort > 0.0 => {
-                PairCommand::Agonist(driver.clamp(effort + driver.offset_v()))
+                PairCommand::Agonist(driver.clamp(effort + offset))
             }
-            PairMode::Antagonistic => {
-                PairCommand::Antagonist(driver.clamp(-effort + driver.offset_v()))
-            }
+            PairMode::Antagonistic => PairCommand::Antagonist(driver.clamp(-effort + offset)),
         }
     }
 }
@@ -439,34 +480,45 @@ impl<A: SetDutyCycle, B: SetDutyCycle> PairDriver<A, B> {
         command: PairCommand,
         driver: &DriverConfig,
     ) -> Result<(), PairDriverError<A::Error, B::Error>> {
-        match command {
-            PairCommand::Off => {
-                self.agonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Agonist)?;
-                self.antagonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Antagonist)
-            }
-            PairCommand::Agonist(v) => {
-                self.antagonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Antagonist)?;
-                let duty = volts_to_duty(v, driver, self.agonist.max_duty_cycle());
-                self.agonist
-                    .set_duty_cycle(duty)
-                    .map_err(PairDriverError::Agonist)
-            }
-            PairCommand::Antagonist(v) => {
-                self.agonist
-                    .set_duty_cycle_fully_off()
-                    .map_err(PairDriverError::Agonist)?;
-                let duty = volts_to_duty(v, driver, self.antagonist.max_duty_cycle());
-                self.antagonist
-                    .set_duty_cycle(duty)
-                    .map_err(PairDriverError::Antagonist)
-            }
+        self.apply_coils(command.coil_drive(), driver)
+    }
+
+    /// Drives each coil of the pair with its own input `[agonist,
+    /// antagonist]` — the board's output in every mode. Both may be
+    /// non-zero only where the caller allows co-contraction (the board's
+    /// open-loop drive mode, see [`crate::app`]); a [`PairCommand`]'s
+    /// [`coil_drive`](PairCommand::coil_drive) never has both. Coils going
+    /// to 0 V are written first, so a coil that must be idle is off before
+    /// the other is driven; if such a write fails nothing is driven.
+    pub fn apply_coils(
+        &mut self,
+        volts: [DriveVolts; 2],
+        driver: &DriverConfig,
+    ) -> Result<(), PairDriverError<A::Error, B::Error>> {
+        let [ag, ant] = volts;
+        if ag.volts() <= 0.0 {
+            self.agonist
+                .set_duty_cycle_fully_off()
+                .map_err(PairDriverError::Agonist)?;
         }
+        if ant.volts() <= 0.0 {
+            self.antagonist
+                .set_duty_cycle_fully_off()
+                .map_err(PairDriverError::Antagonist)?;
+        }
+        if ag.volts() > 0.0 {
+            let duty = volts_to_duty(ag, driver, self.agonist.max_duty_cycle());
+            self.agonist
+                .set_duty_cycle(duty)
+                .map_err(PairDriverError::Agonist)?;
+        }
+        if ant.volts() > 0.0 {
+            let duty = volts_to_duty(ant, driver, self.antagonist.max_duty_cycle());
+            self.antagonist
+                .set_duty_cycle(duty)
+                .map_err(PairDriverError::Antagonist)?;
+        }
+        Ok(())
     }
 
     /// Both coils off (the safe state). Tries both channels even if the

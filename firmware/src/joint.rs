@@ -17,7 +17,8 @@
 //! [`PairCommand`] whose voltage lies in [0, supply].
 
 use crate::control::{
-    ControlError, DriverConfig, PairCommand, PairController, PairDriver, PairGains, PairMode,
+    ControlError, DriveVolts, DriverConfig, PairCommand, PairController, PairDriver, PairGains,
+    PairMode,
 };
 use crate::estimate::{
     CalibrationError, LinearLaw, Method, PlaneEstimator, PlaneLaw, PulseCoder, QuadraticLaw,
@@ -201,6 +202,11 @@ pub struct StepOutput<const P: usize> {
     pub methods: [Option<Method>; P],
     /// Faults active or latched.
     pub faults: Faults,
+    /// What reaches each pair's coils, `[agonist, antagonist]`: the
+    /// commands' voltages for planes under the controller, the supervised
+    /// open-loop inputs for planes in drive mode
+    /// ([`JointController::step_driven`]).
+    pub coils: [[DriveVolts; 2]; P],
 }
 
 impl<const P: usize> StepOutput<P> {
@@ -256,6 +262,13 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         for law in config.laws.iter() {
             law.validate(S)?;
         }
+        if config
+            .gains
+            .iter()
+            .any(|g| g.v_offset_v() >= config.driver.supply_v())
+        {
+            return Err(ConfigError::Control(ControlError::OffsetOutOfRange));
+        }
         let estimators = config.laws.map(PlaneEstimator::from_validated);
         let required_wires = config.laws.iter().fold(0, |m, l| m | l.sensor_mask());
         let mut pairs = config
@@ -306,8 +319,12 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         self.targets_deg
     }
 
-    /// Replaces the gains of `plane`.
+    /// Replaces the gains of `plane`. Their `v_offset` must lie below the
+    /// driver's supply.
     pub fn set_gains(&mut self, plane: usize, gains: PairGains) -> Result<(), ConfigError> {
+        if gains.v_offset_v() >= self.driver.supply_v() {
+            return Err(ConfigError::Control(ControlError::OffsetOutOfRange));
+        }
         self.pairs
             .get_mut(plane)
             .ok_or(ConfigError::NoSuchPlane)?
@@ -415,9 +432,9 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         let driver = self.driver;
         let failed = drivers
             .iter_mut()
-            .zip(out.commands.iter())
-            .fold(false, |failed, (d, cmd)| {
-                d.apply(*cmd, &driver).is_err() || failed
+            .zip(out.coils.iter())
+            .fold(false, |failed, (d, volts)| {
+                d.apply_coils(*volts, &driver).is_err() || failed
             });
         if failed {
             for d in drivers.iter_mut() {
@@ -430,6 +447,7 @@ impl<const P: usize, const S: usize> JointController<P, S> {
                 p.reset();
             }
             out.commands = [PairCommand::Off; P];
+            out.coils = [[DriveVolts::ZERO; 2]; P];
             out.faults |= Faults::DRIVER;
         }
         out
@@ -442,6 +460,24 @@ impl<const P: usize, const S: usize> JointController<P, S> {
 
     /// Runs one control step.
     pub fn step(&mut self, input: &StepInput<S, P>) -> StepOutput<P> {
+        self.step_driven(input, [None; P])
+    }
+
+    /// Runs one step with some planes driven open loop: `drive[p] =
+    /// Some([agonist, antagonist])` replaces plane `p`'s control law by
+    /// those inputs (both coils may be heated: co-contraction), `None`
+    /// leaves the plane under its controller. Sensors are still checked and
+    /// the estimate still runs; every input goes through the supervisor
+    /// (arm state, latched faults, each coil's thermal budget). A driven
+    /// plane's controller is reset, so it resumes without integrator state.
+    /// An open-loop drive does not need the estimate, so it is applied
+    /// before every sensor has delivered (but not after a sensor fault,
+    /// which latches).
+    pub fn step_driven(
+        &mut self,
+        input: &StepInput<S, P>,
+        drive: [Option<[DriveVolts; 2]>; P],
+    ) -> StepOutput<P> {
         let mut faults = Faults::NONE;
         // Time must not run backwards on one time base; a caller that
         // restarts its clock calls `restart_time_base` first.
@@ -500,18 +536,44 @@ impl<const P: usize, const S: usize> JointController<P, S> {
 
         let mut commands = [PairCommand::Off; P];
         let dt_s = input.dt.as_secs_f32();
-        if ready && faults.is_empty() {
-            for ((cmd, pair), (angle, target)) in commands
-                .iter_mut()
-                .zip(self.pairs.iter_mut())
-                .zip(self.estimate_deg.iter().zip(self.targets_deg.iter()))
-            {
+        for (((cmd, pair), (angle, target)), d) in commands
+            .iter_mut()
+            .zip(self.pairs.iter_mut())
+            .zip(self.estimate_deg.iter().zip(self.targets_deg.iter()))
+            .zip(drive.iter())
+        {
+            if d.is_some() {
+                pair.reset();
+            } else if ready && faults.is_empty() {
                 *cmd = pair.update(&self.driver, *angle, *target, dt_s);
             }
         }
+        let mut want = [[DriveVolts::ZERO; 2]; P];
+        for ((w, c), d) in want.iter_mut().zip(commands.iter()).zip(drive.iter()) {
+            *w = match d {
+                Some(v) if faults.is_empty() => *v,
+                Some(_) => [DriveVolts::ZERO; 2],
+                None => c.coil_drive(),
+            };
+        }
         let supervised =
             self.supervisor
-                .supervise(input.now, input.dt, commands, faults, &self.driver);
+                .supervise_coils(input.now, input.dt, want, faults, &self.driver);
+        // Planes under the controller: their commands with whatever the
+        // supervisor removed removed (the pair rule holds for them).
+        let mut out_commands = [PairCommand::Off; P];
+        if supervised.allowed {
+            for (((slot, cmd), d), got) in out_commands
+                .iter_mut()
+                .zip(commands.iter())
+                .zip(drive.iter())
+                .zip(supervised.coils.iter())
+            {
+                if d.is_none() {
+                    *slot = cmd.limited_to(*got);
+                }
+            }
+        }
         if supervised.faults.intersects(Faults::LATCHING) || !self.supervisor.is_armed() {
             // While outputs are forced off, integrators must not keep state
             // that would kick the coils when control resumes.
@@ -520,10 +582,11 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             }
         }
         StepOutput {
-            commands: supervised.commands,
+            commands: out_commands,
             estimate_deg: self.estimate_deg,
             methods,
             faults: supervised.faults,
+            coils: supervised.coils,
         }
     }
 }

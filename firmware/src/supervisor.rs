@@ -402,6 +402,37 @@ impl<const P: usize> Supervisor<P> {
         faults: Faults,
         driver: &DriverConfig,
     ) -> Supervised<P> {
+        let mut want = [[DriveVolts::ZERO; 2]; P];
+        for (w, c) in want.iter_mut().zip(commands.iter()) {
+            *w = c.coil_drive();
+        }
+        let s = self.supervise_coils(now, dt, want, faults, driver);
+        let mut out = [PairCommand::Off; P];
+        if s.allowed {
+            for ((slot, cmd), got) in out.iter_mut().zip(commands.iter()).zip(s.coils.iter()) {
+                *slot = cmd.limited_to(*got);
+            }
+        }
+        Supervised {
+            commands: out,
+            faults: s.faults,
+        }
+    }
+
+    /// Filters one step's per-coil inputs (`[agonist, antagonist]` per
+    /// pair), the board's open-loop drive mode where both coils of a pair
+    /// may be heated. The same rules as [`Self::supervise`]: off unless
+    /// armed and nothing is latched, every coil counted by its own thermal
+    /// budget and held off while tripped. The inputs are bounded already
+    /// ([`DriveVolts`]); the supervisor only removes drive.
+    pub fn supervise_coils(
+        &mut self,
+        now: Instant,
+        dt: Duration,
+        want: [[DriveVolts; 2]; P],
+        faults: Faults,
+        driver: &DriverConfig,
+    ) -> SupervisedCoils<P> {
         let mut present = faults;
         if let Some(timeout) = self.config.link_timeout {
             let lost = match self.last_link {
@@ -419,45 +450,63 @@ impl<const P: usize> Supervisor<P> {
         }
         self.latched |= new;
 
-        let allow = self.armed && self.latched.is_empty();
-        let mut out = [PairCommand::Off; P];
+        let allowed = self.armed && self.latched.is_empty();
+        let mut out = [[DriveVolts::ZERO; 2]; P];
         let mut over_budget = false;
         let dt = dt.as_secs_f32();
         let cfg = self.config.thermal;
-        for ((slot, cmd), coils) in out
-            .iter_mut()
-            .zip(commands.iter())
-            .zip(self.coils.iter_mut())
-        {
-            let mut c = if allow { *cmd } else { PairCommand::Off };
-            for (k, coil) in coils.iter().enumerate() {
-                if coil.tripped {
-                    c = c.inhibit(k);
-                }
-            }
-            // Heat for this step is counted with the drive as decided above;
-            // a coil that trips during the step is cut in this step's output
-            // too (conservative: its last dt of heat is still counted).
-            let volts = c.coil_volts();
-            for (k, (coil, v)) in coils.iter_mut().zip(volts.iter()).enumerate() {
-                let i = cfg.current_a(driver.clamp(*v), driver);
+        for ((slot, w), coils) in out.iter_mut().zip(want.iter()).zip(self.coils.iter_mut()) {
+            for ((o, v), coil) in slot.iter_mut().zip(w.iter()).zip(coils.iter_mut()) {
+                let mut v = if allowed && !coil.tripped {
+                    *v
+                } else {
+                    DriveVolts::ZERO
+                };
+                // Heat for this step is counted with the drive as decided
+                // above; a coil that trips during the step is cut in this
+                // step's output too (conservative: its last dt of heat is
+                // still counted).
+                let i = cfg.current_a(v, driver);
                 coil.advance(i * i * cfg.coil_resistance_ohm, dt, &cfg);
                 if coil.tripped {
-                    c = c.inhibit(k);
+                    v = DriveVolts::ZERO;
                     over_budget = true;
                 }
+                *o = v;
             }
-            *slot = c;
         }
         let mut reported = self.latched;
         if over_budget {
             reported |= Faults::OVER_BUDGET;
         }
-        Supervised {
-            commands: out,
+        SupervisedCoils {
+            coils: out,
             faults: reported,
+            allowed,
         }
     }
+
+    /// True when coil `coil` (0 = agonist, 1 = antagonist) of `pair` is
+    /// held off to cool (its budget tripped and it has not cooled to the
+    /// resume level).
+    pub fn coil_tripped(&self, pair: usize, coil: usize) -> bool {
+        self.coils
+            .get(pair)
+            .and_then(|c| c.get(coil))
+            .is_some_and(|c| c.tripped)
+    }
+}
+
+/// What [`Supervisor::supervise_coils`] let through.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SupervisedCoils<const P: usize> {
+    /// Per pair, `[agonist, antagonist]` inputs to apply.
+    pub coils: [[DriveVolts; 2]; P],
+    /// Every fault active or latched after this step.
+    pub faults: Faults,
+    /// False when outputs were forced off (disarmed or a fault latched).
+    pub allowed: bool,
 }
 
 #[cfg(test)]

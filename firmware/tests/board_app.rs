@@ -7,7 +7,7 @@
 //! - a lockstep seq behind the last one answered never steps the core, and
 //!   a forward gap longer than the link timeout is a link loss.
 use firmware::app::{App, BoardSensors, NoSensors};
-use firmware::control::PairCommand;
+use firmware::control::DriveVolts;
 use firmware::protocol::*;
 use firmware::supervisor::Faults;
 use firmware::time::{Instant, MillisCounter};
@@ -161,8 +161,8 @@ impl BoardSensors for Scripted {
     }
 }
 
-fn driving(outputs: [PairCommand; 2]) -> bool {
-    outputs != [PairCommand::Off; 2]
+fn driving(outputs: [[DriveVolts; 2]; 2]) -> bool {
+    outputs.iter().flatten().any(|v| v.volts() > 0.0)
 }
 
 #[test]
@@ -187,7 +187,7 @@ fn free_running_checks_hold_across_the_counter_wrap_and_at_any_uptime() {
             for m in frames {
                 if let Message::Telemetry(t) = m {
                     assert_eq!(t.time_ms, b.now().wrapping_millis_u32());
-                    record.push((k, t.estimate_deg.map(f32::to_bits), t.pair_mv, t.faults));
+                    record.push((k, t.estimate_deg.map(f32::to_bits), t.coil_mv, t.faults));
                 }
             }
             if stale_at.is_none()
@@ -211,8 +211,14 @@ fn free_running_checks_hold_across_the_counter_wrap_and_at_any_uptime() {
         Some(1551),
         "50 ms after the last reading at 1500 ms"
     );
-    assert_eq!(reference.len(), 200, "100 Hz telemetry for 2 s");
-    assert!(reference.iter().any(|r| r.2 != [0, 0]), "the board drove");
+    // The first frame at the first poll, then one every 10 ms on the grid
+    // from the SetTelemetry instant (fixed rate: 10, 20, …, 2000 ms).
+    assert_eq!(reference.len(), 201, "100 Hz telemetry for 2 s");
+    assert!(
+        reference[1..].iter().all(|r| r.0 % 10 == 0),
+        "frames on the 10 ms grid"
+    );
+    assert!(reference.iter().any(|r| r.2 != [0; 4]), "the board drove");
     for t0 in &UPTIMES[1..] {
         assert_eq!(run(*t0), (reference.clone(), stale_at), "from {t0}");
     }
@@ -439,4 +445,267 @@ fn hil_stop_returns_to_free_running() {
     assert_eq!(s.reads, 20);
     assert_eq!(telemetry, 20);
     assert!(driving(b.app.outputs()), "still armed after HilStop");
+}
+
+// ---- Open-loop drive mode (`Drive`, the excitation sessions of issue 20).
+
+/// α's coils 1 and 3 both heated (co-contraction), β left to its
+/// controller.
+fn alpha_drive(c1_mv: u16, c3_mv: u16, hold_ms: u16) -> Drive {
+    Drive {
+        planes: 1,
+        coil_mv: [c1_mv, 0, c3_mv, 0],
+        hold_ms,
+    }
+}
+
+fn nak_code(b: &mut Board, msg: impl Into<Message>) -> Option<ErrorCode> {
+    match b.send(msg).as_slice() {
+        [Message::Nak(n)] => Some(n.code),
+        [Message::Ack(_)] => None,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// An armed free-running board whose sensors deliver (α = β ≈ 0°).
+fn armed_free_running(t0: Instant) -> (Board, Scripted) {
+    let mut b = Board::up_for(t0);
+    let mut s = Scripted::all_from(0);
+    for _ in 0..5 {
+        b.tick(&mut s);
+    }
+    b.ack(Arm {});
+    (b, s)
+}
+
+#[test]
+fn a_drive_co_contracts_and_ends_unpowered_when_not_refreshed() {
+    for t0 in UPTIMES {
+        let (mut b, mut s) = armed_free_running(t0);
+        b.ack(alpha_drive(3000, 1900, 100));
+        let mut on_for = 0;
+        let mut off_at = None;
+        for k in 1..=600u64 {
+            b.tick(&mut s);
+            let [[ag, ant], _] = b.app.outputs();
+            if ag.volts() > 0.0 && ant.volts() > 0.0 {
+                // Both coils of the pair at the requested inputs.
+                assert_eq!((ag.volts(), ant.volts()), (3.0, 1.9), "from {t0}");
+                on_for = k;
+            } else if off_at.is_none() {
+                off_at = Some(k);
+            }
+            if let Some(off) = off_at {
+                assert_eq!(
+                    b.app.outputs()[0],
+                    [DriveVolts::ZERO; 2],
+                    "from {t0}: α powered again at {k} ms after the drive ended at {off} ms"
+                );
+            }
+        }
+        assert_eq!((on_for, off_at), (99, Some(100)), "from {t0}: hold 100 ms");
+        let st = b.status();
+        // α's coils 1 and 3 are off; β (coils 2, 4) is its controller's.
+        assert_eq!(
+            (st.coil_mv[0], st.coil_mv[2], st.drive_planes),
+            (0, 0, 1),
+            "from {t0}"
+        );
+        // A target gives the plane back to its controller.
+        b.ack(SetTarget {
+            plane: 0,
+            target_deg: 5.0,
+        });
+        b.tick(&mut s);
+        assert_eq!(b.status().drive_planes, 0);
+        let [[ag, ant], _] = b.app.outputs();
+        assert!(ag.volts() > 0.0 && ant.volts() == 0.0, "controller again");
+    }
+}
+
+#[test]
+fn a_drive_is_refused_by_name() {
+    let (mut b, mut s) = armed_free_running(Instant::from_secs(3600));
+    let out_of_range = [
+        Drive {
+            planes: 0,
+            coil_mv: [0; 4],
+            hold_ms: 10,
+        },
+        Drive {
+            planes: 4,
+            coil_mv: [0; 4],
+            hold_ms: 10,
+        },
+        alpha_drive(3000, 0, 0),
+        alpha_drive(3000, 0, 1001),
+        alpha_drive(5001, 0, 10),
+        // A coil of β, which the frame does not drive.
+        Drive {
+            planes: 1,
+            coil_mv: [3000, 1, 0, 0],
+            hold_ms: 10,
+        },
+    ];
+    for d in out_of_range {
+        assert_eq!(nak_code(&mut b, d), Some(ErrorCode::OutOfRange), "{d:?}");
+    }
+    assert_eq!(nak_code(&mut b, alpha_drive(5000, 5000, 1000)), None);
+    b.ack(Disarm {});
+    assert_eq!(b.status().drive_planes, 0, "Disarm ends every drive");
+    assert_eq!(
+        nak_code(&mut b, alpha_drive(3000, 0, 10)),
+        Some(ErrorCode::Disarmed)
+    );
+    // Lockstep: the host owns time, so there is no open loop.
+    b.ack(HilStart { period_us: 1000 });
+    b.ack(Arm {});
+    assert_eq!(
+        nak_code(&mut b, alpha_drive(3000, 0, 10)),
+        Some(ErrorCode::WrongMode)
+    );
+    b.ack(HilStop {});
+    // A latched fault (the sensors went silent: stale).
+    s.silent_after = Some(s.reads);
+    for _ in 0..100 {
+        b.tick(&mut s);
+    }
+    assert!(b
+        .app
+        .joint()
+        .supervisor()
+        .latched()
+        .contains(Faults::SENSOR_STALE));
+    assert_eq!(
+        nak_code(&mut b, alpha_drive(3000, 0, 10)),
+        Some(ErrorCode::Latched)
+    );
+}
+
+#[test]
+fn a_sustained_over_budget_drive_trips_that_coil_and_is_then_refused() {
+    use firmware::supervisor::ThermalConfig;
+    let (mut b, mut s) = armed_free_running(Instant::from_secs(5 * 3600));
+    b.ack(SetTelemetry { rate_hz: 100 });
+    // Coil 1 at the supply (0.5 A: steady rise 195 K > trip 95 K), coil 3
+    // warm at 1.9 V (steady rise 14 K: never trips), refreshed every
+    // 500 ms as a host would.
+    let mut tripped_at = None;
+    let mut over_budget_seen = false;
+    for k in 0..6000u64 {
+        if k % 500 == 0 {
+            let refused = nak_code(&mut b, alpha_drive(5000, 1900, 600));
+            if tripped_at.is_some() {
+                assert_eq!(refused, Some(ErrorCode::OverBudget));
+                break;
+            }
+            assert_eq!(refused, None, "at {k} ms");
+        }
+        for m in b.tick(&mut s) {
+            if let Message::Telemetry(t) = m {
+                over_budget_seen |= t.faults & faults_to_u8(Faults::OVER_BUDGET) != 0;
+                if tripped_at.is_none() {
+                    assert_eq!(t.coil_mv[0], 5000, "at {k} ms: {t:?}");
+                }
+                assert_eq!(t.coil_mv[2], 1900, "the other coil is unaffected: {t:?}");
+                assert!(t.counts.iter().all(|c| *c != i32::MIN), "{t:?}");
+            }
+        }
+        let [[ag, ant], _] = b.app.outputs();
+        assert_eq!(ant.volts(), 1.9, "coil 3 still driven at {k} ms");
+        if ag.volts() == 0.0 && tripped_at.is_none() {
+            tripped_at = Some(k);
+        }
+    }
+    // Closed form of the first-order budget: the rise T∞(1 − e^(−t/τ))
+    // reaches 95 K at −τ ln(1 − 95/195.3) ≈ 3.34 s.
+    let cfg = ThermalConfig::default();
+    let d = firmware::control::DriverConfig::default();
+    let expect_s =
+        -cfg.time_constant_s * (1.0 - cfg.trip_rise_k / cfg.steady_rise_k(d.clamp(5.0), &d)).ln();
+    let t_s = tripped_at.expect("never tripped") as f32 * 1e-3;
+    assert!(
+        (t_s - expect_s).abs() < 0.02,
+        "tripped at {t_s} s, closed form {expect_s} s"
+    );
+    assert!(over_budget_seen, "telemetry said over-budget");
+    // The trip is not latched: the other coil may still be driven.
+    assert_eq!(nak_code(&mut b, alpha_drive(0, 1900, 100)), None);
+}
+
+#[test]
+fn without_a_drive_the_pair_rule_holds_and_the_other_plane_stays_controlled() {
+    let (mut b, mut s) = armed_free_running(Instant::ZERO);
+    b.ack(SetTarget {
+        plane: 1,
+        target_deg: -5.0,
+    });
+    b.ack(SetTarget {
+        plane: 0,
+        target_deg: 5.0,
+    });
+    // Closed loop: never both coils of a pair.
+    for _ in 0..200 {
+        b.tick(&mut s);
+        for [ag, ant] in b.app.outputs() {
+            assert!(ag.volts() == 0.0 || ant.volts() == 0.0);
+        }
+    }
+    // α driven open loop; β keeps its controller (antagonist for −5°).
+    b.ack(alpha_drive(2500, 2000, 1000));
+    for _ in 0..50 {
+        b.tick(&mut s);
+    }
+    let [alpha, [b_ag, b_ant]] = b.app.outputs();
+    assert_eq!(alpha.map(DriveVolts::volts), [2.5, 2.0]);
+    assert!(
+        b_ag.volts() == 0.0 && b_ant.volts() > 1.7,
+        "β under control"
+    );
+    let st = b.status();
+    assert_eq!(st.coil_mv[0], 2500);
+    assert_eq!(st.coil_mv[2], 2000);
+    assert_eq!(st.pair_mv[0], 0, "α is not a controller output");
+    assert!(st.pair_mv[1] < 0, "β's controller drives its antagonist");
+}
+
+/// `SetGains.v_offset_v` is the law's input at zero effort: the same
+/// error with the offset at 1.2 V instead of the paper's 1.7 V drives the
+/// agonist 0.5 V lower; an offset at or above the supply, or not finite,
+/// is refused by name.
+#[test]
+fn set_gains_carries_v_offset() {
+    let mut b = Board::up_for(Instant::ZERO);
+    let gains = |v_offset_v: f32| SetGains {
+        plane: 0,
+        kp_agonist: 0.1,
+        kp_antagonist: 0.1,
+        ki: 0.0,
+        integral_limit_v: 0.0,
+        v_offset_v,
+    };
+    let mut agonist_mv = Vec::new();
+    for v in [1.7, 1.2] {
+        b.ack(gains(v));
+        b.lockstep(5.0);
+        let a = b.sensor(0, counts_for(0.0)).unwrap();
+        agonist_mv.push(a.pair_mv[0]);
+    }
+    // α ≈ 0.3° from counts_for(0): effort 0.1 V/° × 4.7° ≈ 0.47 V.
+    assert!((2100..2250).contains(&agonist_mv[0]), "{agonist_mv:?}");
+    assert_eq!(agonist_mv[0] - agonist_mv[1], 500, "{agonist_mv:?}");
+    for (v, code) in [
+        (5.0, ErrorCode::OutOfRange),
+        (-0.1, ErrorCode::OutOfRange),
+        (f32::NAN, ErrorCode::NotFinite),
+    ] {
+        assert_eq!(
+            b.send(gains(v)),
+            [Message::Nak(Nak {
+                request: kind::SET_GAINS,
+                code
+            })],
+            "v_offset {v}"
+        );
+    }
 }

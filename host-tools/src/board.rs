@@ -73,8 +73,8 @@ pub fn status<P: Port>(link: &mut Link<P>) -> Result<Status, LinkError> {
 pub struct LockstepSetup {
     /// Control period (µs).
     pub period_us: u32,
-    /// Gains per plane: `(kp_agonist, kp_antagonist, ki, integral_limit_v)`.
-    pub gains: [(f32, f32, f32, f32); 2],
+    /// Gains per plane.
+    pub gains: [firmware::control::PairGains; 2],
     /// Estimation law per plane.
     pub laws: [PlaneLaw; 2],
     /// Link-loss timeout to set (ms of the board's clock); `None` keeps the
@@ -138,16 +138,15 @@ pub enum BoardError {
 fn configure<P: Port>(link: &mut Link<P>, setup: &LockstepSetup) -> anyhow::Result<()> {
     handshake(link)?;
     link.command(&Disarm {}.into(), CMD_TIMEOUT, CMD_ATTEMPTS)?;
-    for (plane, ((kp_agonist, kp_antagonist, ki, integral_limit_v), law)) in
-        (0u8..).zip(setup.gains.iter().copied().zip(setup.laws))
-    {
+    for (plane, (g, law)) in (0u8..).zip(setup.gains.iter().zip(setup.laws)) {
         link.command(
             &SetGains {
                 plane,
-                kp_agonist,
-                kp_antagonist,
-                ki,
-                integral_limit_v,
+                kp_agonist: g.kp_agonist(),
+                kp_antagonist: g.kp_antagonist(),
+                ki: g.ki(),
+                integral_limit_v: g.integral_limit_v(),
+                v_offset_v: g.v_offset_v(),
             }
             .into(),
             CMD_TIMEOUT,
@@ -383,8 +382,9 @@ pub fn explain(e: &LinkError, port: &str, baud: u32) -> String {
                 .map(|r| format!(": {r}"))
                 .unwrap_or_default();
             format!(
-                "the board on {port} refused {} ({code}){range}",
-                name(*request)
+                "the board on {port} refused {} ({}: {code}){range}",
+                name(*request),
+                code.name()
             )
         }
         LinkError::Timeout {

@@ -278,6 +278,32 @@ pub fn log_csv(log: &ExcitationLog) -> String {
     out
 }
 
+/// A board session's log as CSV: the columns of [`log_csv`] (what
+/// `identify joint` reads) and the board's estimates and fault byte
+/// (`est_alpha_deg`, `est_beta_deg`, `faults`; an estimate is empty where
+/// the board had none).
+pub fn board_log_csv(log: &ExcitationLog, extras: &BoardExtras) -> String {
+    let base = log_csv(log);
+    let mut out = String::with_capacity(base.len() * 5 / 4);
+    for (k, line) in base.lines().enumerate() {
+        out.push_str(line);
+        match k.checked_sub(1) {
+            None => out.push_str(",est_alpha_deg,est_beta_deg,faults"),
+            Some(r) => {
+                let e = extras.estimate_deg.get(r).copied().unwrap_or([f64::NAN; 2]);
+                out.push_str(&format!(
+                    ",{},{},{}",
+                    crate::output::estimate_field(e[0], 3),
+                    crate::output::estimate_field(e[1], 3),
+                    extras.faults.get(r).copied().unwrap_or(0)
+                ));
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
 /// Writes the log (checked writer).
 pub fn write_log(path: &Path, log: &ExcitationLog) -> anyhow::Result<()> {
     crate::output::write_csv(path, &log_csv(log))
@@ -313,4 +339,341 @@ pub fn run_hil<Po: crate::link::Port>(
     let out = run_loop(plan, &mut cl, electrical, s.seed)?;
     cl.controller.finish()?;
     Ok(out)
+}
+
+/// How long one `Drive` of a board session holds (ms of the board's
+/// clock): a session refreshes every log interval, so this is the longest
+/// a coil stays heated after the host stops talking (a crash, an unplugged
+/// cable) before the board unpowers it.
+pub const BOARD_DRIVE_HOLD_MS: u16 = 250;
+
+/// What a board session recorded besides the log: the board's own angle
+/// estimates and fault flags per row.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BoardExtras {
+    /// The board's estimates (α, β) per row (deg).
+    pub estimate_deg: Vec<[f64; 2]>,
+    /// The board's fault byte per row.
+    pub faults: Vec<u8>,
+}
+
+/// A summary of a session recorded on a board.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BoardSessionSummary {
+    /// The plan's name.
+    pub plan: String,
+    /// Log rows written.
+    pub rows: usize,
+    /// Seconds of the plan the rows cover.
+    pub recorded_s: f64,
+    /// Seconds the plan asked for.
+    pub planned_s: f64,
+    /// Rows whose telemetry frame did not arrive (filled with the previous
+    /// row's values).
+    pub rows_filled: usize,
+    /// Fault flags the board reported during the session.
+    pub faults_seen: Vec<String>,
+    /// Highest input of each coil the board reported (mV, coils 1–4).
+    pub peak_coil_mv: [u16; 4],
+    /// Why the session ended before the plan did, if it did.
+    pub ended_early: Option<String>,
+}
+
+/// The result of a board session: what was recorded (always, up to where
+/// it stopped) and how it ended.
+pub struct BoardRun {
+    /// The log rows recorded.
+    pub log: ExcitationLog,
+    /// The board's estimates and faults per row.
+    pub extras: BoardExtras,
+    /// The summary.
+    pub summary: BoardSessionSummary,
+    /// Why the session failed or was stopped (`None`: the plan ran to its
+    /// end and the board was disarmed).
+    pub error: Option<anyhow::Error>,
+}
+
+/// Builds the log from telemetry frames. Row k is at `k·Δ` of the board's
+/// clock from the first frame; its wires and estimates are frame k's, its
+/// driver inputs frame k+1's: the board reports the inputs it has set, and
+/// those of frame k+1 are the ones the host's commands for interval k set
+/// (sent on frame k's arrival), so they held over `[t_k, t_(k+1))` up to
+/// the link's latency.
+struct BoardRecorder {
+    interval_ms: u32,
+    max_rows: usize,
+    t0_ms: Option<u32>,
+    frames: Vec<firmware::protocol::Telemetry>,
+    filled: usize,
+    coder: firmware::estimate::PulseCoder,
+}
+
+impl BoardRecorder {
+    /// Takes a frame; returns its row index, or `None` for a frame that
+    /// repeats a row already taken. An error names a frame without a
+    /// sensor reading.
+    fn push(&mut self, t: &firmware::protocol::Telemetry) -> anyhow::Result<Option<usize>> {
+        let t0 = *self.t0_ms.get_or_insert(t.time_ms);
+        let rel = t.time_ms.wrapping_sub(t0);
+        let k = ((rel + self.interval_ms / 2) / self.interval_ms) as usize;
+        if k < self.frames.len() {
+            return Ok(None);
+        }
+        if let Some(s) = t.counts.iter().position(|c| *c == i32::MIN) {
+            bail!(
+                "wire sensor {} gave no reading at board time {} ms: a log needs every wire",
+                s + 1,
+                t.time_ms
+            );
+        }
+        while self.frames.len() < k {
+            // A frame that did not arrive: hold the previous one.
+            let last = *self.frames.last().context("no first frame")?;
+            self.frames.push(last);
+            self.filled += 1;
+        }
+        self.frames.push(*t);
+        Ok(Some(k))
+    }
+
+    fn done(&self) -> bool {
+        self.frames.len() > self.max_rows
+    }
+
+    /// The log of the rows whose inputs are known (every frame but the
+    /// last).
+    fn finish(&self) -> (ExcitationLog, BoardExtras, usize) {
+        let rows = self.frames.len().saturating_sub(1).min(self.max_rows);
+        let dt = f64::from(self.interval_ms) * 1e-3;
+        let mut log = ExcitationLog {
+            planes: 2,
+            period_s: dt,
+            ..Default::default()
+        };
+        let mut extras = BoardExtras::default();
+        for (k, pair) in self.frames.windows(2).take(rows).enumerate() {
+            let (now, next) = (&pair[0], &pair[1]);
+            log.t_s.push(k as f64 * dt);
+            log.volts
+                .push(next.coil_mv.map(firmware::protocol::millivolts_to_volts));
+            log.cam_capture_s.push(-1.0);
+            log.cam_deg.push([0.0; 2]);
+            log.wire_mm
+                .push(now.counts.map(|c| f64::from(self.coder.insertion_mm(c))));
+            extras.estimate_deg.push(now.estimate_deg.map(f64::from));
+            extras.faults.push(now.faults);
+        }
+        (log, extras, rows)
+    }
+}
+
+/// Runs `plan` on a board in free-running mode over `link`: open-loop
+/// drives with `Drive` (refreshed every log interval, each holding
+/// [`BOARD_DRIVE_HOLD_MS`]), holds with `SetTarget`, paced by the board's
+/// telemetry (one frame per log interval: the host answers each frame
+/// with the commands for the interval it starts). The board's supervisor
+/// has the last word: a refused command (a coil over its thermal budget,
+/// a latched fault) ends the session by name. The board is disarmed at the
+/// end, on an error and when `stop` is asked; what was recorded up to
+/// there is returned either way.
+pub fn run_board<Po: crate::link::Port>(
+    plan: &ExcitationPlan,
+    link: &mut crate::link::Link<Po>,
+    stop: &crate::stop::Stop,
+) -> BoardRun {
+    let max_rows = (plan.duration_s * 1e3 / f64::from(plan.log_interval_ms)).round() as usize;
+    let mut rec = BoardRecorder {
+        interval_ms: plan.log_interval_ms,
+        max_rows,
+        t0_ms: None,
+        frames: Vec::new(),
+        filled: 0,
+        coder: firmware::estimate::PulseCoder::default(),
+    };
+    let result = drive_board(plan, link, stop, &mut rec);
+    // Outputs off whatever happened; a failure here is reported too.
+    let off = link
+        .command(
+            &firmware::protocol::Disarm {}.into(),
+            crate::board::CMD_TIMEOUT,
+            crate::board::CMD_ATTEMPTS,
+        )
+        .and_then(|()| {
+            link.command(
+                &firmware::protocol::SetTelemetry { rate_hz: 0 }.into(),
+                crate::board::CMD_TIMEOUT,
+                crate::board::CMD_ATTEMPTS,
+            )
+        });
+    let error = match (result, off) {
+        (Ok(()), Ok(())) => None,
+        (Err(e), _) => Some(e),
+        (Ok(()), Err(e)) => Some(anyhow::Error::new(e).context("disarming the board at the end")),
+    };
+    let (log, extras, rows) = rec.finish();
+    let mut faults = 0u16;
+    let mut peak = [0u16; 4];
+    for f in rec.frames.iter().take(rows + 1) {
+        faults |= u16::from(f.faults);
+        for (p, v) in peak.iter_mut().zip(f.coil_mv) {
+            *p = (*p).max(v);
+        }
+    }
+    let dt = f64::from(plan.log_interval_ms) * 1e-3;
+    let summary = BoardSessionSummary {
+        plan: plan.name.clone(),
+        rows,
+        recorded_s: rows as f64 * dt,
+        planned_s: plan.duration_s,
+        rows_filled: rec.filled,
+        faults_seen: sim::fault_names(faults),
+        peak_coil_mv: peak,
+        ended_early: error.as_ref().map(|e| format!("{e:#}")),
+    };
+    BoardRun {
+        log,
+        extras,
+        summary,
+        error,
+    }
+}
+
+/// The commands of interval `[t, t + Δ)`: a `Drive` for the planes not
+/// held, a `SetTarget` for a plane whose hold begins or changes.
+fn send_interval<Po: crate::link::Port>(
+    plan: &ExcitationPlan,
+    link: &mut crate::link::Link<Po>,
+    t_s: f64,
+    targets: &mut [Option<f64>; 2],
+) -> anyhow::Result<()> {
+    use crate::board::{CMD_ATTEMPTS, CMD_TIMEOUT};
+    use firmware::protocol::{Drive, SetTarget};
+    let dt = f64::from(plan.log_interval_ms) * 1e-3;
+    // A ramp's mean over the interval is its midpoint value.
+    let volts = plan.volts_at(2, t_s + 0.5 * dt);
+    let driver = DriverConfig::default();
+    let mut planes = 0u8;
+    let mut coil_mv = [0u16; 4];
+    for (p, target) in targets.iter_mut().enumerate() {
+        match plan.held(p, t_s) {
+            Some(deg) => {
+                if *target != Some(deg) {
+                    link.command(
+                        &SetTarget {
+                            plane: p as u8,
+                            target_deg: deg as f32,
+                        }
+                        .into(),
+                        CMD_TIMEOUT,
+                        CMD_ATTEMPTS,
+                    )
+                    .with_context(|| format!("holding plane {p} at {deg}° from t = {t_s:.2} s"))?;
+                    *target = Some(deg);
+                }
+            }
+            None => {
+                *target = None;
+                planes |= 1 << p;
+                for c in [p, p + 2] {
+                    let v = volts[c].unwrap_or(0.0) as f32;
+                    coil_mv[c] = firmware::protocol::coil_to_mv(driver.clamp(v), &driver);
+                }
+            }
+        }
+    }
+    if planes != 0 {
+        link.command(
+            &Drive {
+                planes,
+                coil_mv,
+                hold_ms: BOARD_DRIVE_HOLD_MS,
+            }
+            .into(),
+            CMD_TIMEOUT,
+            CMD_ATTEMPTS,
+        )
+        .with_context(|| {
+            format!(
+                "driving coils 1–4 at {} mV from t = {t_s:.2} s",
+                coil_mv.map(|m| m.to_string()).join("/")
+            )
+        })?;
+    }
+    Ok(())
+}
+
+fn drive_board<Po: crate::link::Port>(
+    plan: &ExcitationPlan,
+    link: &mut crate::link::Link<Po>,
+    stop: &crate::stop::Stop,
+    rec: &mut BoardRecorder,
+) -> anyhow::Result<()> {
+    use crate::board::{CMD_ATTEMPTS, CMD_TIMEOUT};
+    use firmware::protocol::{Arm, ClearFaults, HilStop, Message, SetTelemetry};
+    if 1000 % plan.log_interval_ms != 0 {
+        bail!(
+            "`log_interval_ms` = {} does not divide 1000: the board streams telemetry at a whole rate in Hz, one frame per row",
+            plan.log_interval_ms
+        );
+    }
+    crate::board::handshake(link)?;
+    let cmd =
+        |link: &mut crate::link::Link<Po>, m: Message| link.command(&m, CMD_TIMEOUT, CMD_ATTEMPTS);
+    if crate::board::status(link)?.mode != 0 {
+        cmd(link, HilStop {}.into()).context("leaving lockstep mode")?;
+    }
+    cmd(link, ClearFaults {}.into()).context("clearing the board's faults before the session")?;
+    cmd(link, Arm {}.into())?;
+    let mut targets = [None; 2];
+    send_interval(plan, link, 0.0, &mut targets)?;
+    let start_ms = crate::board::status(link)?.time_ms;
+    cmd(
+        link,
+        SetTelemetry {
+            rate_hz: (1000 / plan.log_interval_ms) as u16,
+        }
+        .into(),
+    )?;
+    let dt = f64::from(plan.log_interval_ms) * 1e-3;
+    let quiet = std::time::Duration::from_millis(u64::from(plan.log_interval_ms) * 20 + 500);
+    let mut last_row = None;
+    while !rec.done() {
+        if let Some(signal) = stop.requested() {
+            // Exits as the signal would (130 for SIGINT), after the log.
+            let at_t_s = rec.frames.len().saturating_sub(1) as f64 * dt;
+            return Err(sim::RunCutShort(sim::CutShort {
+                at_step: rec.frames.len().saturating_sub(1) as u64,
+                at_t_s,
+                cause: sim::CutCause::Signal,
+                reason: format!(
+                    "stopped by {} at t = {at_t_s:.2} s of the plan",
+                    signal.name()
+                ),
+                signal: Some(signal),
+            })
+            .into());
+        }
+        let deadline = crate::link::deadline_after(quiet);
+        let Some(m) = link.recv_until(deadline)? else {
+            bail!(
+                "the board's telemetry stopped at t = {:.2} s of the plan (nothing for {} ms)",
+                rec.frames.len() as f64 * dt,
+                quiet.as_millis()
+            );
+        };
+        let Message::Telemetry(t) = m else { continue };
+        if (t.time_ms.wrapping_sub(start_ms) as i32) < 0 {
+            // A frame of an earlier stream, still on the line.
+            continue;
+        }
+        let Some(k) = rec.push(&t)? else { continue };
+        if last_row == Some(k) {
+            continue;
+        }
+        last_row = Some(k);
+        if !rec.done() {
+            send_interval(plan, link, k as f64 * dt, &mut targets)?;
+        }
+    }
+    Ok(())
 }

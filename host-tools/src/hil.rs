@@ -172,18 +172,9 @@ pub fn lockstep_setup(s: &Scenario, opts: &HilOptions) -> anyhow::Result<(Lockst
     }
     let (laws, estimator) = sim::laws_for(s)?;
     let laws = laws.unwrap_or_else(|| JointConfig::paper_3d().laws.to_vec());
-    let gain = |p: usize| -> anyhow::Result<(f32, f32, f32, f32)> {
-        let g = sim::pair_gains(s, p)?;
-        Ok((
-            g.kp_agonist(),
-            g.kp_antagonist(),
-            g.ki(),
-            g.integral_limit_v(),
-        ))
-    };
     let setup = LockstepSetup {
         period_us: s.control_period_us,
-        gains: [gain(0)?, gain(1)?],
+        gains: [sim::pair_gains(s, 0)?, sim::pair_gains(s, 1)?],
         laws: [laws[0], laws[1]],
         link_timeout_ms: opts.link_timeout_ms,
         timeout: opts.timeout,

@@ -50,6 +50,17 @@ pub struct PlanArgs {
     holds: bool,
 }
 
+/// Where the angles that the mechanics stage fits come from.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AngleSource {
+    /// The log's camera columns (`sim`, `hil`, a lab's camera).
+    Camera,
+    /// The board's own wire-based estimates (columns `est_alpha_deg`,
+    /// `est_beta_deg` of a `console excite` log), one every 3rd row.
+    #[value(name = "board-estimate")]
+    BoardEstimate,
+}
+
 #[derive(Args)]
 pub struct JointArgs {
     /// The log (CSV).
@@ -73,6 +84,56 @@ pub struct JointArgs {
     /// Print a machine-readable report instead of the table.
     #[arg(long)]
     json: bool,
+    /// The angles the mechanics stage fits: the camera's, or, for a log
+    /// recorded on a board without a camera (`console excite`), the
+    /// board's own estimates from its wires — which carry the estimation
+    /// law's error and the wires' jamming into the mechanics, and leave the
+    /// jamming stage fitting the wires against an angle read off the wires.
+    #[arg(long, value_enum, default_value = "camera")]
+    angles: AngleSource,
+}
+
+/// What `--angles board-estimate` tells the reader with every result.
+const BOARD_ESTIMATE_NOTE: &str = "angles: the board's wire-based estimates (est_*_deg), not a camera — the mechanics absorb the estimation law's error and the wires' jamming, and the jamming parameters are fitted against an angle read off the same wires (not independent)";
+
+/// Rows between two board estimates used as angle frames (every 3rd row
+/// of a 10 ms log: 33 frames/s, about the camera's 30, so the angle
+/// residuals keep the weight the camera's would have).
+const ESTIMATE_FRAME_ROWS: usize = 3;
+
+/// The log's camera columns replaced by the board's estimates (see
+/// [`AngleSource::BoardEstimate`]); errors name the file and column.
+fn angles_from_board_estimates(
+    log: &mut identify::ExcitationLog,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    if log.cam_capture_s.iter().any(|c| *c >= 0.0) {
+        bail!(
+            "{}: the log has camera frames; --angles board-estimate is for a log without a camera (`console excite`)",
+            path.display()
+        );
+    }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read log {}", path.display()))?;
+    let table = plant_models::csv_input::read_numeric(&text, &path.display().to_string())?;
+    let names = ["est_alpha_deg", "est_beta_deg"];
+    let mut cols = Vec::new();
+    for name in names.iter().take(log.planes) {
+        cols.push(table.values(table.column(name)?));
+    }
+    for (k, (cap, deg)) in log
+        .cam_capture_s
+        .iter_mut()
+        .zip(log.cam_deg.iter_mut())
+        .enumerate()
+    {
+        let frame = k - k % ESTIMATE_FRAME_ROWS;
+        *cap = log.t_s[frame];
+        for (d, col) in deg.iter_mut().zip(&cols) {
+            *d = col[frame];
+        }
+    }
+    Ok(())
 }
 
 pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
@@ -104,7 +165,18 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
             plant_models::short_number(a.fit_fraction)
         );
     }
-    let log = excite::read_log(&a.log)?;
+    let mut log = excite::read_log(&a.log)?;
+    match a.angles {
+        AngleSource::BoardEstimate => angles_from_board_estimates(&mut log, &a.log)?,
+        AngleSource::Camera => {
+            if !log.cam_capture_s.iter().any(|c| *c >= 0.0) && !log.has_electrical() {
+                bail!(
+                    "{}: the log has no camera frame and no coil resistances, so nothing measures the angle the mechanics are fitted to; for a log recorded on a board (`console excite`), --angles board-estimate fits them to the board's own estimates",
+                    a.log.display()
+                );
+            }
+        }
+    }
     let prior = match &a.prior {
         Some(p) => Some(PlantFile::load(p)?.params()?),
         None => None,
@@ -169,11 +241,27 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         output::JsonObject::new()
             .field("log", &a.log)?
             .field("rows", &log.len())?
-            .field("planes", &reports_without_frames(&reports))?
+            // A 1σ that is not finite (a parameter the log does not
+            // determine at all; `identifiable` is false) is written as
+            // null: JSON has no infinity, and the report must not fail.
+            .field(
+                "planes",
+                &serde_json::to_value(reports_without_frames(&reports))?,
+            )?
             .field("never_fitted", &NEVER_FITTED)?
             .field("plant_file", &a.output)?
+            .field(
+                "angles",
+                match a.angles {
+                    AngleSource::Camera => "camera",
+                    AngleSource::BoardEstimate => BOARD_ESTIMATE_NOTE,
+                },
+            )?
             .print()?;
     } else {
+        if a.angles == AngleSource::BoardEstimate {
+            host_tools::outln!("{BOARD_ESTIMATE_NOTE}");
+        }
         host_tools::out!("{}", table(&reports));
         host_tools::outln!("plant file written to {}", a.output.display());
     }
@@ -329,6 +417,10 @@ pub struct TuneArgs {
     /// Write the gains file here.
     #[arg(short, long, default_value = "gains.toml")]
     output: PathBuf,
+    /// Search v_offset too (uniform in 1.2–2.2 V, the paper's 1.7 V ±
+    /// 0.5 V); without it every candidate keeps 1.7 V.
+    #[arg(long)]
+    search_v_offset: bool,
     /// Print a machine-readable result.
     #[arg(long)]
     json: bool,
@@ -346,6 +438,7 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
             a.candidates as usize,
             a.plants as usize,
             a.seed,
+            a.search_v_offset,
             !a.json,
         )
     };
@@ -370,6 +463,7 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
             seed: a.seed,
             score: r.score.clone(),
             paper: r.paper.clone(),
+            v_offset_searched: a.search_v_offset,
         }),
     };
     output::write_toml(
@@ -386,13 +480,14 @@ pub fn tune_command(a: TuneArgs) -> anyhow::Result<()> {
     } else {
         let c = &r.best;
         host_tools::outln!(
-            "best of {} candidates × {} plants ({:.1} s): K_P {:?} V/°, K_I {:.3} V/(°·s), limit {:.2} V",
+            "best of {} candidates × {} plants ({:.1} s): K_P {:?} V/°, K_I {:.3} V/(°·s), limit {:.2} V, v_offset {:.3} V",
             a.candidates,
             a.plants,
             wall,
             c.kp_v_per_deg.iter().map(|k| (k * 1000.0).round() / 1000.0).collect::<Vec<_>>(),
             c.ki_v_per_deg_s,
-            c.integral_limit_v
+            c.integral_limit_v,
+            c.v_offset_v
         );
         for (name, s) in [("tuned", &r.score), ("paper", &r.paper)] {
             let n = &s.nominal;

@@ -70,9 +70,12 @@ pub struct ControllerSpec {
     pub ki_v_per_deg_s: f64,
     /// Limit of the integral contribution (V).
     pub integral_limit_v: f64,
+    /// The law's v_offset (V): its input at zero effort, 0 ≤ · < 5 (the
+    /// paper's 1.7 V, its drivers' conduction threshold).
+    pub v_offset_v: f64,
     /// A gains file written by `softjoint tune` (relative to the scenario
-    /// file): its gains replace `kp_v_per_deg`, `ki_v_per_deg_s` and
-    /// `integral_limit_v`.
+    /// file): its gains replace `kp_v_per_deg`, `ki_v_per_deg_s`,
+    /// `integral_limit_v` and `v_offset_v`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gains_file: Option<PathBuf>,
 }
@@ -84,6 +87,7 @@ impl Default for ControllerSpec {
             kp_v_per_deg: vec![2.0],
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 1.0,
+            v_offset_v: f64::from(firmware::control::PAPER_V_OFFSET_V),
             gains_file: None,
         }
     }
@@ -311,6 +315,7 @@ impl Scenario {
             s.controller.kp_v_per_deg = gains.controller.kp_v_per_deg.clone();
             s.controller.ki_v_per_deg_s = gains.controller.ki_v_per_deg_s;
             s.controller.integral_limit_v = gains.controller.integral_limit_v;
+            s.controller.v_offset_v = gains.controller.v_offset_v;
         }
         s.validate()
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
@@ -388,6 +393,15 @@ impl Scenario {
                     F32_GAIN_RANGE.end()
                 );
             }
+        }
+        let v = self.controller.v_offset_v;
+        let supply = f64::from(firmware::control::PAPER_SUPPLY_V);
+        if !(v.is_finite() && (0.0..supply).contains(&v)) {
+            bail!(
+                "field `controller.v_offset_v`: must be in 0..{} V (below the driver's supply), got {}",
+                short(supply),
+                short(v)
+            );
         }
         if self.planes() == 1
             && matches!(

@@ -222,13 +222,19 @@ const HELP: &str = "commands:
   arm | disarm | clear          outputs on/off; clear latched faults
   hil-stop                      leave lockstep mode (back to free-running)
   target PLANE DEG              desired angle (plane 0 = alpha, 1 = beta)
-  gains PLANE KP_AG KP_ANT KI ILIM
+  gains PLANE KP_AG KP_ANT KI ILIM [VOFF]
+                                VOFF: the law's v_offset (V, default 1.7)
   gains load FILE               every plane's gains from a gains file (softjoint tune)
   calibration get PLANE         print the plane's estimation law
   calibration set FILE          load a calibration file (softjoint calibrate wire)
   telemetry HZ                  stream telemetry at HZ (0 = off)
   link-timeout MS               link-loss timeout
   stream SECONDS                print (or --csv) telemetry for SECONDS
+  excite PLAN.toml --log LOG.csv
+                                run an excitation plan on the board (open-loop
+                                drives, holds) and record the log that
+                                `softjoint identify joint` reads; disarms at the
+                                end, on an error and on Ctrl-C
   wait SECONDS                  pause";
 
 pub fn console(args: ConsoleArgs) -> anyhow::Result<()> {
@@ -295,7 +301,18 @@ fn status_estimate(estimate_deg: f32) -> String {
 
 /// Columns of the console's telemetry CSV (an estimate is empty while the
 /// board has none).
-const TELEMETRY_HEADER: &str = "time_ms,alpha_deg,beta_deg,pair_alpha_mv,pair_beta_mv,faults";
+const TELEMETRY_HEADER: &str =
+    "time_ms,alpha_deg,beta_deg,v1_mv,v2_mv,v3_mv,v4_mv,count1,count2,count3,count4,faults";
+
+/// A wire count for a CSV field: empty when the sensor gave no reading
+/// (`i32::MIN` on the wire).
+fn count_field(c: i32) -> String {
+    if c == i32::MIN {
+        String::new()
+    } else {
+        c.to_string()
+    }
+}
 
 fn arg<T: std::str::FromStr>(words: &[&str], i: usize, what: &str) -> anyhow::Result<T> {
     let w = words
@@ -366,14 +383,17 @@ fn run_console_command<P: Port>(
         ["status"] => {
             let s = hil::status(link)?;
             outln!(
-                "armed {} mode {} faults [{}] latched [{}] estimate α {} β {} target α {:.2}° β {:.2}° outputs {} mV / {} mV t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
+                "armed {} mode {} faults [{}] latched [{}] estimate α {} β {} target α {:.2}° β {:.2}° outputs {} mV / {} mV coils {} mV drive [{}] t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
                 s.armed,
                 if s.mode == 1 { "lockstep" } else { "free-running" },
                 fault_names(u16::from(s.faults)).join(","),
                 fault_names(u16::from(s.latched)).join(","),
                 status_estimate(s.estimate_deg[0]), status_estimate(s.estimate_deg[1]),
                 s.target_deg[0], s.target_deg[1],
-                s.pair_mv[0], s.pair_mv[1], s.time_ms, s.frames_ok, s.crc_errors, s.cobs_errors, s.overfull, s.malformed
+                s.pair_mv[0], s.pair_mv[1],
+                s.coil_mv.map(|m| m.to_string()).join("/"),
+                drive_planes(s.drive_planes),
+                s.time_ms, s.frames_ok, s.crc_errors, s.cobs_errors, s.overfull, s.malformed
             );
         }
         ["arm"] => ack(link, Arm {})?,
@@ -402,6 +422,7 @@ fn run_console_command<P: Port>(
                         kp_antagonist,
                         ki: g.controller.ki_v_per_deg_s as f32,
                         integral_limit_v: g.controller.integral_limit_v as f32,
+                        v_offset_v: g.controller.v_offset_v as f32,
                     },
                 )?;
             }
@@ -414,6 +435,10 @@ fn run_console_command<P: Port>(
                 kp_antagonist: arg(&words, 3, "KP_ANT")?,
                 ki: arg(&words, 4, "KI")?,
                 integral_limit_v: arg(&words, 5, "ILIM")?,
+                v_offset_v: match words.get(6) {
+                    Some(_) => arg(&words, 6, "VOFF")?,
+                    None => firmware::control::PAPER_V_OFFSET_V,
+                },
             },
         )?,
         ["calibration", "get", ..] => {
@@ -480,8 +505,8 @@ fn run_console_command<P: Port>(
                         t.time_ms,
                         output::estimate_field(f64::from(t.estimate_deg[0]), 3),
                         output::estimate_field(f64::from(t.estimate_deg[1]), 3),
-                        t.pair_mv[0],
-                        t.pair_mv[1],
+                        t.coil_mv.map(|m| m.to_string()).join(","),
+                        t.counts.map(count_field).join(","),
                         t.faults
                     );
                     output::check_csv("the telemetry", &format!("{TELEMETRY_HEADER}\n{line}"))?;
@@ -509,9 +534,60 @@ fn run_console_command<P: Port>(
             }
         }
         ["wait", ..] => std::thread::sleep(seconds(&words, 1)?),
+        ["excite", plan, "--log", log] => excite_on_board(link, Path::new(plan), Path::new(log))?,
+        ["excite", ..] => bail!("usage: excite PLAN.toml --log LOG.csv"),
         _ => bail!("unknown command; try `help`\n{HELP}"),
     }
     Ok(())
+}
+
+/// The planes of a `drive_planes` byte, by name.
+fn drive_planes(mask: u8) -> String {
+    let names: Vec<&str> = [(1u8, "α"), (2, "β")]
+        .iter()
+        .filter(|(b, _)| mask & b != 0)
+        .map(|(_, n)| *n)
+        .collect();
+    names.join(",")
+}
+
+/// `excite PLAN --log LOG`: the plan on the board (3D, free-running), the
+/// log written with the board's estimates and fault byte as extra columns
+/// (whatever was recorded, also when the session ended early).
+fn excite_on_board<P: Port>(link: &mut Link<P>, plan: &Path, log: &Path) -> anyhow::Result<()> {
+    let plan = host_tools::excite::load_plan(plan, 2)?;
+    // The log's file is checked before the board moves.
+    output::check_dir(
+        log.parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new(".")),
+    )?;
+    let stop = Stop::on_signals()?;
+    let run = host_tools::excite::run_board(&plan, link, &stop);
+    let s = &run.summary;
+    if s.rows > 0 {
+        let csv = host_tools::excite::board_log_csv(&run.log, &run.extras);
+        output::write_csv(log, &csv)?;
+    }
+    outln!(
+        "excite `{}`: {} rows ({} s of {} s) to {}; {} rows filled (telemetry lost); faults seen [{}]; peak coil inputs {} mV",
+        s.plan,
+        s.rows,
+        short_number(s.recorded_s),
+        short_number(s.planned_s),
+        if s.rows > 0 { log.display().to_string() } else { "nothing written".into() },
+        s.rows_filled,
+        s.faults_seen.join(","),
+        s.peak_coil_mv.map(|m| m.to_string()).join("/")
+    );
+    match run.error {
+        None => Ok(()),
+        Some(e) => Err(e.context(format!(
+            "the session ended at t = {} s of {} s (the board is disarmed; the log holds the rows up to there)",
+            short_number(s.recorded_s),
+            short_number(s.planned_s)
+        ))),
+    }
 }
 
 fn ack<P: Port>(link: &mut Link<P>, msg: impl Into<Message>) -> anyhow::Result<()> {

@@ -186,6 +186,7 @@ fn gains(s: &Scenario, pair: usize) -> anyhow::Result<PairGains> {
         s.controller.ki_v_per_deg_s as f32,
         s.controller.integral_limit_v as f32,
     )
+    .and_then(|g| g.with_v_offset(s.controller.v_offset_v as f32))
     .map_err(|e| anyhow::anyhow!("controller gains: {e}"))
 }
 

@@ -10,7 +10,10 @@
 //!   log-uniform in 0.3–6 V/°, and with probability ½ an integral gain
 //!   log-uniform in 0.02–1 V/(°·s) with a limit uniform in 0.1–1.5 V,
 //!   seeded ([`plant_models::rng::IDENTIFY_SEARCH`]). v_offset stays the
-//!   paper's 1.7 V: the board's gains message carries no v_offset.
+//!   paper's 1.7 V unless `--search-v-offset` draws it too, uniform in
+//!   1.2–2.2 V (the paper's ± 0.5 V) from its own stream
+//!   ([`plant_models::rng::IDENTIFY_V_OFFSET`]), so the other gains are
+//!   the same draws as without it. The board takes it in `SetGains`.
 //! - **Test**: the joint (wire feedback, the paper's estimation laws, 1 kHz)
 //!   steps 0 → +8° (1 s) → −6° (9 s) → 0 (17 s), 25 s, every plane alike.
 //! - **Cost** of one run: mean settling time (s; to within ±0.5° for good,
@@ -52,7 +55,19 @@ pub struct Gains {
     pub ki_v_per_deg_s: f64,
     /// Limit of the integral contribution (V).
     pub integral_limit_v: f64,
+    /// The law's v_offset (V); gains files written before it existed have
+    /// the paper's 1.7 V.
+    #[serde(default = "paper_v_offset")]
+    pub v_offset_v: f64,
 }
+
+fn paper_v_offset() -> f64 {
+    f64::from(firmware::control::PAPER_V_OFFSET_V)
+}
+
+/// The range `--search-v-offset` draws v_offset from (V): the paper's
+/// 1.7 V ± 0.5 V.
+pub const V_OFFSET_SEARCH_V: (f64, f64) = (1.2, 2.2);
 
 impl Gains {
     /// The paper's gains for a joint with `coils` coils.
@@ -61,6 +76,7 @@ impl Gains {
             kp_v_per_deg: vec![2.0; coils],
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 1.0,
+            v_offset_v: paper_v_offset(),
         }
     }
 }
@@ -95,6 +111,9 @@ pub struct Tuning {
     pub score: Score,
     /// The paper's gains' score on the same plants.
     pub paper: Score,
+    /// Whether v_offset was searched (`--search-v-offset`).
+    #[serde(default)]
+    pub v_offset_searched: bool,
 }
 
 /// A gains file (`softjoint tune -o`), loaded by scenarios
@@ -149,6 +168,15 @@ impl GainsFile {
                     plant_models::short_number(*k)
                 );
             }
+        }
+        let supply = f64::from(firmware::control::PAPER_SUPPLY_V);
+        if !(c.v_offset_v.is_finite() && (0.0..supply).contains(&c.v_offset_v)) {
+            bail!(
+                "gains file {}: `controller.v_offset_v` must be in 0..{} V (below the driver's supply), got {}",
+                path.display(),
+                plant_models::short_number(supply),
+                plant_models::short_number(c.v_offset_v)
+            );
         }
         for (f, v) in [
             ("ki_v_per_deg_s", c.ki_v_per_deg_s),
@@ -211,6 +239,7 @@ pub fn test_scenario(joint: JointKind, gains: &Gains, params: PlantParams, seed:
     s.controller.kp_v_per_deg = gains.kp_v_per_deg.clone();
     s.controller.ki_v_per_deg_s = gains.ki_v_per_deg_s;
     s.controller.integral_limit_v = gains.integral_limit_v;
+    s.controller.v_offset_v = gains.v_offset_v;
     s.plant.params = Some(params);
     s
 }
@@ -462,9 +491,12 @@ pub fn sample_plants(file: &PlantFile, n: usize, seed: u64) -> anyhow::Result<Ve
     Ok(out)
 }
 
-/// Candidate gains: the paper's first, then `n − 1` seeded draws.
-pub fn candidates(coils: usize, n: usize, seed: u64) -> Vec<Gains> {
+/// Candidate gains: the paper's first, then `n − 1` seeded draws; with
+/// `search_v_offset` each draw's v_offset too (see the module docs).
+pub fn candidates(coils: usize, n: usize, seed: u64, search_v_offset: bool) -> Vec<Gains> {
     let mut rng = plant_models::rng::stream(seed, plant_models::rng::IDENTIFY_SEARCH);
+    let mut rng_offset = plant_models::rng::stream(seed, plant_models::rng::IDENTIFY_V_OFFSET);
+    let (lo, hi) = V_OFFSET_SEARCH_V;
     let mut out = vec![Gains::paper(coils)];
     let log_uniform = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| {
         (lo.ln() + rng.gen::<f64>() * (hi.ln() - lo.ln())).exp()
@@ -480,6 +512,11 @@ pub fn candidates(coils: usize, n: usize, seed: u64) -> Vec<Gains> {
             kp_v_per_deg: kp,
             ki_v_per_deg_s: if integral { ki } else { 0.0 },
             integral_limit_v: if integral { ilim } else { 1.0 },
+            v_offset_v: if search_v_offset {
+                lo + (hi - lo) * rng_offset.gen::<f64>()
+            } else {
+                paper_v_offset()
+            },
         });
     }
     out
@@ -519,13 +556,15 @@ pub struct TuneResult {
     pub failed: usize,
 }
 
-/// Searches `n_candidates` gains on `n_plants` plants of `file`, in
-/// parallel; `progress` shows a bar on standard error.
+/// Searches `n_candidates` gains (with v_offset when `search_v_offset`)
+/// on `n_plants` plants of `file`, in parallel; `progress` shows a bar on
+/// standard error.
 pub fn tune(
     file: &PlantFile,
     n_candidates: usize,
     n_plants: usize,
     seed: u64,
+    search_v_offset: bool,
     progress: bool,
 ) -> anyhow::Result<TuneResult> {
     let params = file.params()?;
@@ -534,7 +573,7 @@ pub fn tune(
         PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
     };
     let plants = sample_plants(file, n_plants.max(1), seed)?;
-    let cands = candidates(coils, n_candidates.max(1), seed);
+    let cands = candidates(coils, n_candidates.max(1), seed, search_v_offset);
     let bar = ProgressBar::new(cands.len() as u64);
     if progress {
         bar.set_style(
@@ -571,4 +610,30 @@ pub fn tune(
         paper,
         failed,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--search-v-offset` adds v_offset to the draws without changing the
+    /// other gains (its own stream), keeps the paper's candidate first and
+    /// stays in its range; without it every candidate has 1.7 V.
+    #[test]
+    fn v_offset_is_searched_on_its_own_stream() {
+        let plain = candidates(4, 50, 3, false);
+        let searched = candidates(4, 50, 3, true);
+        assert_eq!(searched[0], Gains::paper(4));
+        let (lo, hi) = V_OFFSET_SEARCH_V;
+        let mut distinct = std::collections::BTreeSet::new();
+        for (p, s) in plain.iter().zip(&searched).skip(1) {
+            assert_eq!(p.kp_v_per_deg, s.kp_v_per_deg);
+            assert_eq!(p.ki_v_per_deg_s, s.ki_v_per_deg_s);
+            assert_eq!(p.integral_limit_v, s.integral_limit_v);
+            assert_eq!(p.v_offset_v, paper_v_offset());
+            assert!((lo..=hi).contains(&s.v_offset_v), "{}", s.v_offset_v);
+            distinct.insert((s.v_offset_v * 1e6) as i64);
+        }
+        assert_eq!(distinct.len(), 49, "every draw its own v_offset");
+    }
 }

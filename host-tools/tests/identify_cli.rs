@@ -131,6 +131,7 @@ fn record_identify_tune_and_load_the_gains() {
         "3",
         "--plants",
         "2",
+        "--search-v-offset",
         "--json",
         "-o",
         s(&gains),
@@ -139,6 +140,10 @@ fn record_identify_tune_and_load_the_gains() {
     let g = GainsFile::load(&gains).unwrap();
     assert_eq!(g.joint, JointKind::TwoD);
     assert_eq!(g.controller.kp_v_per_deg.len(), 2);
+    // v_offset searched, in its range (the scenario below runs with it).
+    assert!(g.tuning.as_ref().is_some_and(|t| t.v_offset_searched));
+    let (lo, hi) = host_tools::tune::V_OFFSET_SEARCH_V;
+    assert!((lo..=hi).contains(&g.controller.v_offset_v), "{g:?}");
     // A scenario runs with the tuned gains on the identified plant.
     write(
         &dir.join("tuned.scenario.toml"),
@@ -273,6 +278,22 @@ fn bad_plans_logs_and_files_are_named() {
     let o = softjoint(&["sim", s(&scen)]);
     assert!(
         stderr(&o).contains("kp_v_per_deg` needs 4 values"),
+        "{}",
+        stderr(&o)
+    );
+    // A v_offset at the supply is no law the board can run.
+    write(&gains, "joint = \"3d\"\n[controller]\nkp_v_per_deg = [1, 2, 1, 2]\nki_v_per_deg_s = 0\nintegral_limit_v = 1\nv_offset_v = 5.0\n");
+    let o = softjoint(&["sim", s(&scen)]);
+    assert!(
+        stderr(&o).contains("gains.toml")
+            && stderr(&o).contains("`controller.v_offset_v` must be in 0..5 V"),
+        "{}",
+        stderr(&o)
+    );
+    write(&scen, "[controller]\nv_offset_v = -0.5\n");
+    let o = softjoint(&["sim", s(&scen)]);
+    assert!(
+        stderr(&o).contains("field `controller.v_offset_v`: must be in 0..5 V"),
         "{}",
         stderr(&o)
     );

@@ -39,6 +39,7 @@ pub mod rng {
     //! | [`IDENTIFY_REPLAY`] | retired: identification replays once held it (never drawn) |
     //! | [`IDENTIFY_SAMPLE`] | `softjoint tune`: plants sampled from the uncertainty |
     //! | [`IDENTIFY_SEARCH`] | `softjoint tune`: the candidate gains |
+    //! | [`IDENTIFY_V_OFFSET`] | `softjoint tune --search-v-offset`: the candidates' v_offset |
     //! | [`IDENTIFY_STICKS`] | identification: the stick events averaged over in the wire replays (seed 8r + j: realisation r, sensor j) |
     //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
     //! | [`TISSUE_WARP`] | `tissue::field` synthetic twin: the non-rigid warp's bumps |
@@ -88,9 +89,12 @@ pub mod rng {
     pub const IDENTIFY_SAMPLE: u64 = 0x1402;
     /// Candidate gains of a tuning search.
     pub const IDENTIFY_SEARCH: u64 = 0x1403;
+    /// The candidates' v_offset when a tuning search includes it (its own
+    /// stream, so the other gains are drawn as without it).
+    pub const IDENTIFY_V_OFFSET: u64 = 0x1404;
     /// Identification's wire replays: the stick events of realisation r,
     /// sensor j, are `stream(8r + j, IDENTIFY_STICKS)`.
-    pub const IDENTIFY_STICKS: u64 = 0x1404;
+    pub const IDENTIFY_STICKS: u64 = 0x1405;
 
     /// The tissue module's streams start here (seed 000, Zhang and Kita).
     pub const TISSUE_BASE: u64 = 0x600;

@@ -371,15 +371,7 @@ fn campaign(
     let mut link = Link::new(FaultyPort::new(port, rates, seed));
     let setup = LockstepSetup {
         period_us: s.control_period_us,
-        gains: [0, 1].map(|p| {
-            let g = sim::pair_gains(&s, p).unwrap();
-            (
-                g.kp_agonist(),
-                g.kp_antagonist(),
-                g.ki(),
-                g.integral_limit_v(),
-            )
-        }),
+        gains: [0, 1].map(|p| sim::pair_gains(&s, p).unwrap()),
         laws: JointConfig::paper_3d().laws,
         // Retries and delays must never look like a dead link.
         link_timeout_ms: Some(10_000),

@@ -154,6 +154,7 @@ fn every_message_over_a_real_pty() {
             kp_antagonist: 1.0,
             ki: 0.2,
             integral_limit_v: 1.0,
+            v_offset_v: 1.7,
         }
         .into(),
         T,
@@ -168,7 +169,8 @@ fn every_message_over_a_real_pty() {
                     kp_agonist: -1.0,
                     kp_antagonist: 1.0,
                     ki: 0.0,
-                    integral_limit_v: 0.0
+                    integral_limit_v: 0.0,
+                    v_offset_v: 1.7,
                 }
                 .into(),
                 T,
@@ -185,7 +187,8 @@ fn every_message_over_a_real_pty() {
                     kp_agonist: f32::INFINITY,
                     kp_antagonist: 1.0,
                     ki: 0.0,
-                    integral_limit_v: 0.0
+                    integral_limit_v: 0.0,
+                    v_offset_v: 1.7,
                 }
                 .into(),
                 T,
@@ -534,10 +537,7 @@ fn a_dead_link_zeroes_the_outputs_within_the_link_loss_time() {
         st.last_rx_ms.unwrap(),
         st.outputs_off_at_ms.expect("outputs never went off"),
     );
-    assert!(st
-        .outputs
-        .iter()
-        .all(|c| *c == firmware::control::PairCommand::Off));
+    assert!(st.outputs.iter().flatten().all(|v| v.volts() == 0.0));
     let waited = off_at - last_rx;
     // Default link-loss time 50 ms. The board thread polls every ~1 ms; the
     // upper bound leaves room for thread scheduling on a shared 2-core CI

@@ -267,3 +267,51 @@ fn dead_link_zeroes_the_outputs(board: QemuBoard) {
     }
     panic!("the board's clock did not advance by the link timeout in 8 rounds of 3 s");
 }
+
+/// The images take the open-loop `Drive` of protocol v3 and refuse it by
+/// name as the board application does: disarmed, with a fault latched
+/// (QEMU has no sensors: sensor-stale latches 50 ms after boot) and in
+/// lockstep.
+fn images_refuse_drive_by_name(board: QemuBoard) {
+    use firmware::protocol::{Arm, ClearFaults, Disarm, Drive, ErrorCode, HilStart, HilStop};
+    use host_tools::board::{handshake, CMD_ATTEMPTS, CMD_TIMEOUT};
+    use host_tools::link::LinkError;
+    let (_qemu, mut link) = launch(board, true);
+    handshake(&mut link).expect("handshake");
+    let drive: Message = Drive {
+        planes: 1,
+        coil_mv: [3000, 0, 1900, 0],
+        hold_ms: 100,
+    }
+    .into();
+    let refused =
+        |link: &mut Link<SerialDevice>| match link.command(&drive, CMD_TIMEOUT, CMD_ATTEMPTS) {
+            Err(LinkError::Refused { code, .. }) => code,
+            other => panic!("{board:?}: Drive not refused: {other:?}"),
+        };
+    let cmd = |link: &mut Link<SerialDevice>, m: Message| {
+        link.command(&m, CMD_TIMEOUT, CMD_ATTEMPTS).unwrap()
+    };
+    cmd(&mut link, Disarm {}.into());
+    assert_eq!(refused(&mut link), ErrorCode::Disarmed, "{board:?}");
+    cmd(&mut link, Arm {}.into());
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(refused(&mut link), ErrorCode::Latched, "{board:?}");
+    cmd(&mut link, HilStart { period_us: 1000 }.into());
+    cmd(&mut link, ClearFaults {}.into());
+    assert_eq!(refused(&mut link), ErrorCode::WrongMode, "{board:?}");
+    cmd(&mut link, HilStop {}.into());
+    cmd(&mut link, Disarm {}.into());
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn the_image_refuses_drive_by_name() {
+    images_refuse_drive_by_name(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn the_stm32f4_image_refuses_drive_by_name() {
+    images_refuse_drive_by_name(QemuBoard::Stm32f4);
+}

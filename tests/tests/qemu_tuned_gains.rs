@@ -104,6 +104,7 @@ fn integral_action_runs_in_lockstep_with_the_simulation() {
         ],
         ki_v_per_deg_s: 0.05495564321749862,
         integral_limit_v: 0.7040775211067198,
+        v_offset_v: 1.7,
     };
     // The integral term changes the trajectory (else this would test
     // nothing beyond the P path).

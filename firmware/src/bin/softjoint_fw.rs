@@ -40,8 +40,8 @@ mod mps2 {
     #[cfg(feature = "defmt")]
     use defmt_semihosting as _;
     use firmware::app::{App, NoSensors};
-    use firmware::control::{DriverConfig, PairCommand};
-    use firmware::protocol::pair_to_mv;
+    use firmware::control::{DriveVolts, DriverConfig};
+    use firmware::protocol::coil_to_mv;
     use firmware::time::{Instant, MillisCounter};
 
     /// System clock of the AN386 image (ARM AN386 application note: 25 MHz).
@@ -117,15 +117,21 @@ mod mps2 {
         }
     }
 
-    /// The SMA driver outputs as the board would set them (signed mV per
-    /// pair). QEMU has no PWM peripheral, so the "hardware" is these cells;
-    /// on a real board this is where the timer compare registers are
-    /// written through `PairDriver`.
-    static OUTPUT_MV: [AtomicU16; 2] = [AtomicU16::new(0), AtomicU16::new(0)];
+    /// The SMA driver outputs as the board would set them (mV per coil:
+    /// α agonist, α antagonist, β agonist, β antagonist). QEMU has no PWM
+    /// peripheral, so the "hardware" is these cells; on a real board this
+    /// is where the timer compare registers are written through
+    /// `PairDriver::apply_coils`.
+    static OUTPUT_MV: [AtomicU16; 4] = [
+        AtomicU16::new(0),
+        AtomicU16::new(0),
+        AtomicU16::new(0),
+        AtomicU16::new(0),
+    ];
 
-    fn apply_outputs(cmds: [PairCommand; 2], driver: &DriverConfig) {
-        for (cell, cmd) in OUTPUT_MV.iter().zip(cmds) {
-            cell.store(pair_to_mv(cmd, driver) as u16, Ordering::SeqCst);
+    fn apply_outputs(coils: [[DriveVolts; 2]; 2], driver: &DriverConfig) {
+        for (cell, v) in OUTPUT_MV.iter().zip(coils.iter().flatten()) {
+            cell.store(coil_to_mv(*v, driver), Ordering::SeqCst);
         }
     }
 

@@ -229,7 +229,7 @@ macro_rules! protocol_messages {
 }
 
 protocol_messages! {
-    version: 2;
+    version: 3;
 
     /// Handshake request.
     0x01 HELLO Hello ToBoard {
@@ -269,6 +269,9 @@ protocol_messages! {
         ki: f32,
         /// Integral limit (V).
         integral_limit_v: f32,
+        /// The law's v_offset (V): the input at zero effort, 0 ≤ · <
+        /// supply (the paper's 1.7 V).
+        v_offset_v: f32,
     }
     /// Set a plane's estimation law.
     0x12 SET_CALIBRATION SetCalibration ToBoard {
@@ -299,6 +302,23 @@ protocol_messages! {
     0x19 SET_LINK_TIMEOUT SetLinkTimeout ToBoard {
         /// Timeout (ms of the board's clock), 1..=60000.
         timeout_ms: u16,
+    }
+    /// Drive coils open loop (the excitation mode; free-running only, and
+    /// only when armed with no fault latched). The coils of the planes in
+    /// `planes` get these inputs — both coils of a pair may be heated — for
+    /// `hold_ms`, still counted by each coil's thermal budget; a drive not
+    /// refreshed by then ends with those coils unpowered until the next
+    /// `Drive` or a `SetTarget` for the plane (which gives it back to the
+    /// controller). The other planes stay under the controller.
+    0x1A DRIVE Drive ToBoard {
+        /// Planes driven: bit 0 = α (coils 1, 3), bit 1 = β (coils 2, 4);
+        /// 1..=3.
+        planes: u8,
+        /// Driver inputs of coils 1–4, paper numbering (mV), 0..=supply;
+        /// a coil of a plane not in `planes` must be 0.
+        coil_mv: [u16; 4],
+        /// How long the inputs hold (ms of the board's clock), 1..=1000.
+        hold_ms: u16,
     }
     /// Handshake reply.
     0x81 HELLO_ACK HelloAck ToHost {
@@ -344,8 +364,13 @@ protocol_messages! {
         estimate_deg: [f32; 2],
         /// Targets α, β (deg).
         target_deg: [f32; 2],
-        /// Outputs now, as in [`HilActuator::pair_mv`].
+        /// Outputs now, as in [`HilActuator::pair_mv`], of the planes under
+        /// the controller (0 for a plane in drive mode).
         pair_mv: [i16; 2],
+        /// Every coil's driver input now, coils 1–4 in paper numbering (mV).
+        coil_mv: [u16; 4],
+        /// Planes in open-loop drive mode (bits as in [`Drive::planes`]).
+        drive_planes: u8,
         /// Board clock (ms since boot, wrapping).
         time_ms: u32,
         /// Frames received and decoded.
@@ -368,8 +393,11 @@ protocol_messages! {
         time_ms: u32,
         /// Estimates α, β (deg).
         estimate_deg: [f32; 2],
-        /// Outputs, as in [`HilActuator::pair_mv`].
-        pair_mv: [i16; 2],
+        /// Every coil's driver input, coils 1–4 in paper numbering (mV).
+        coil_mv: [u16; 4],
+        /// The wire counts the step read, sensors 1–4 (`i32::MIN` = no
+        /// reading).
+        counts: [i32; 4],
         /// Fault flags.
         faults: u8,
     }

@@ -47,11 +47,18 @@ pub enum ErrorCode {
     StillFaulted = 6,
     /// The protocol version in `Hello` is not supported.
     Version = 7,
+    /// `Drive` refused: the board is disarmed.
+    Disarmed = 8,
+    /// `Drive` refused: a fault is latched (clear it first).
+    Latched = 9,
+    /// `Drive` refused: a coil it heats is held off by its thermal budget
+    /// (cooling after a trip).
+    OverBudget = 10,
 }
 
 impl ErrorCode {
     /// Every code, in wire order.
-    pub const ALL: [ErrorCode; 7] = [
+    pub const ALL: [ErrorCode; 10] = [
         ErrorCode::UnknownType,
         ErrorCode::BadLength,
         ErrorCode::OutOfRange,
@@ -59,6 +66,9 @@ impl ErrorCode {
         ErrorCode::WrongMode,
         ErrorCode::StillFaulted,
         ErrorCode::Version,
+        ErrorCode::Disarmed,
+        ErrorCode::Latched,
+        ErrorCode::OverBudget,
     ];
 
     /// From the wire byte.
@@ -76,6 +86,9 @@ impl ErrorCode {
             ErrorCode::WrongMode => "WrongMode",
             ErrorCode::StillFaulted => "StillFaulted",
             ErrorCode::Version => "Version",
+            ErrorCode::Disarmed => "Disarmed",
+            ErrorCode::Latched => "Latched",
+            ErrorCode::OverBudget => "OverBudget",
         }
     }
 }
@@ -90,6 +103,9 @@ impl core::fmt::Display for ErrorCode {
             ErrorCode::WrongMode => "not valid in the board's current mode",
             ErrorCode::StillFaulted => "a fault's cause is still present",
             ErrorCode::Version => "unsupported protocol version",
+            ErrorCode::Disarmed => "the board is disarmed",
+            ErrorCode::Latched => "a fault is latched; clear it first",
+            ErrorCode::OverBudget => "a coil is held off by its thermal budget",
         })
     }
 }

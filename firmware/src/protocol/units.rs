@@ -1,7 +1,7 @@
 //! Physical quantities in their wire units: driver inputs in signed
 //! millivolts per pair, angles in centidegrees, faults in one byte.
 
-use crate::control::{DriverConfig, PairCommand};
+use crate::control::{DriveVolts, DriverConfig, PairCommand};
 use crate::supervisor::Faults;
 
 /// Encodes a pair command as signed millivolts (+ agonist, − antagonist).
@@ -10,14 +10,24 @@ use crate::supervisor::Faults;
 /// simulator driving such a channel and a host receiving these frames see
 /// identical values.
 pub fn pair_to_mv(cmd: PairCommand, driver: &DriverConfig) -> i16 {
-    let full_scale = millivolt_full_scale(driver);
-    let mv =
-        |v| i16::try_from(crate::control::volts_to_duty(v, driver, full_scale)).unwrap_or(i16::MAX);
+    let mv = |v| i16::try_from(coil_to_mv(v, driver)).unwrap_or(i16::MAX);
     match cmd {
         PairCommand::Off => 0,
         PairCommand::Agonist(v) => mv(v),
         PairCommand::Antagonist(v) => -mv(v),
     }
+}
+
+/// One coil's driver input as unsigned millivolts, with [`pair_to_mv`]'s
+/// rounding (a millivolt PWM channel's duty).
+pub fn coil_to_mv(v: DriveVolts, driver: &DriverConfig) -> u16 {
+    crate::control::volts_to_duty(v, driver, millivolt_full_scale(driver))
+}
+
+/// A coil input from the wire (mV) as a bounded voltage; `None` above the
+/// supply (the request is out of range, not silently clamped).
+pub fn mv_to_coil(mv: u16, driver: &DriverConfig) -> Option<DriveVolts> {
+    (mv <= millivolt_full_scale(driver)).then(|| driver.clamp(f32::from(mv) / 1000.0))
 }
 
 /// The supply in millivolts, as a duty-cycle full scale (saturating).

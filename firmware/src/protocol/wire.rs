@@ -109,7 +109,7 @@ macro_rules! le_number {
         }
     )*};
 }
-le_number!(u8, u16, i16, u32, f32);
+le_number!(u8, u16, i16, u32, i32, f32);
 
 impl<T: Wire + Default, const N: usize> Wire for [T; N] {
     const LEN: usize = T::LEN * N;

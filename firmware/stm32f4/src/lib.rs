@@ -58,7 +58,7 @@ use cortex_m::peripheral::syst::SystClkSource;
 use critical_section::Mutex;
 use defmt_rtt as _;
 use firmware::app::{App, BoardSensors};
-use firmware::control::{DriverConfig, PairCommand};
+use firmware::control::{DriveVolts, DriverConfig};
 use firmware::time::{Instant, MillisCounter};
 use firmware::watchdog::{StallWatchdog, WatchdogAction};
 use heapless::spsc::{Consumer, Producer, Queue};
@@ -127,10 +127,11 @@ pub struct BoardPins {
     pub sensor4: (pac::TIM8, PC6, PC7),
 }
 
-/// Applies the app's pair commands to the coils.
+/// Applies the app's per-coil outputs to the coils.
 pub trait CoilOutputs {
-    /// Drives both pairs (never both coils of a pair).
-    fn apply(&mut self, commands: [PairCommand; 2], driver: &DriverConfig);
+    /// Drives both pairs, `[agonist, antagonist]` each (both coils of a
+    /// pair only when the app has the plane in open-loop drive mode).
+    fn apply(&mut self, coils: [[DriveVolts; 2]; 2], driver: &DriverConfig);
 }
 
 /// What differs between the real board and its QEMU flavour: clock setup

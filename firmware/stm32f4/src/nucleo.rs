@@ -3,7 +3,7 @@
 //! wire-sensor pins; a fault waits for the independent watchdog's reset.
 
 use firmware::app::BoardSensors;
-use firmware::control::{DriverConfig, PairCommand, PairDriver};
+use firmware::control::{DriveVolts, DriverConfig, PairDriver};
 use firmware::sensor::QuadratureCount;
 use stm32f4xx_hal::pac::{self, TIM1, TIM2, TIM3, TIM4, TIM8};
 use stm32f4xx_hal::prelude::*;
@@ -95,12 +95,12 @@ impl Flavour for Nucleo {
 }
 
 impl CoilOutputs for NucleoIo {
-    fn apply(&mut self, commands: [PairCommand; 2], driver: &DriverConfig) {
-        let [alpha, beta] = commands;
+    fn apply(&mut self, coils: [[DriveVolts; 2]; 2], driver: &DriverConfig) {
+        let [alpha, beta] = coils;
         // The HAL's PWM channels cannot fail (their error type is
         // Infallible), so neither can the pair drivers.
-        let Ok(()) = self.alpha.apply(alpha, driver);
-        let Ok(()) = self.beta.apply(beta, driver);
+        let Ok(()) = self.alpha.apply_coils(alpha, driver);
+        let Ok(()) = self.beta.apply_coils(beta, driver);
     }
 }
 

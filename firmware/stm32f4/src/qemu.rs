@@ -16,11 +16,11 @@
 //!
 //! Everything else is the real board's code.
 
-use core::sync::atomic::{AtomicI16, Ordering};
+use core::sync::atomic::{AtomicU16, Ordering};
 
 use firmware::app::{BoardSensors, NoSensors};
-use firmware::control::{DriverConfig, PairCommand};
-use firmware::protocol::pair_to_mv;
+use firmware::control::{DriveVolts, DriverConfig};
+use firmware::protocol::coil_to_mv;
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Rcc;
@@ -34,11 +34,16 @@ pub const QEMU_SYSCLK_HZ: u32 = 168_000_000;
 /// The QEMU netduinoplus2 flavour (image `softjoint-stm32f4-qemu`).
 pub struct Qemu;
 
-/// The coil outputs as signed millivolts per pair (what the PWM would
-/// apply); no sensors.
+/// The coil outputs as millivolts per coil, `[α agonist, α antagonist,
+/// β agonist, β antagonist]` (what the PWM would apply); no sensors.
 pub struct QemuIo;
 
-static OUTPUT_MV: [AtomicI16; 2] = [AtomicI16::new(0), AtomicI16::new(0)];
+static OUTPUT_MV: [AtomicU16; 4] = [
+    AtomicU16::new(0),
+    AtomicU16::new(0),
+    AtomicU16::new(0),
+    AtomicU16::new(0),
+];
 
 impl Flavour for Qemu {
     const NAME: &'static str = "softjoint-stm32f4-qemu (netduinoplus2)";
@@ -75,9 +80,9 @@ impl Flavour for Qemu {
 }
 
 impl CoilOutputs for QemuIo {
-    fn apply(&mut self, commands: [PairCommand; 2], driver: &DriverConfig) {
-        for (cell, cmd) in OUTPUT_MV.iter().zip(commands) {
-            cell.store(pair_to_mv(cmd, driver), Ordering::SeqCst);
+    fn apply(&mut self, coils: [[DriveVolts; 2]; 2], driver: &DriverConfig) {
+        for (cell, v) in OUTPUT_MV.iter().zip(coils.iter().flatten()) {
+            cell.store(coil_to_mv(*v, driver), Ordering::SeqCst);
         }
     }
 }

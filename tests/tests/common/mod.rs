@@ -25,6 +25,7 @@ pub fn camera_p(kp: f64, target_deg: f64, duration_s: f64, seed: u64) -> Scenari
             kp_v_per_deg: vec![kp],
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 1.0,
+            v_offset_v: 1.7,
             gains_file: None,
         },
         estimator: EstimatorSpec {
