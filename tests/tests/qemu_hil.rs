@@ -295,7 +295,18 @@ fn images_refuse_drive_by_name(board: QemuBoard) {
     cmd(&mut link, Disarm {}.into());
     assert_eq!(refused(&mut link), ErrorCode::Disarmed, "{board:?}");
     cmd(&mut link, Arm {}.into());
-    std::thread::sleep(Duration::from_millis(200));
+    // Sensor-stale latches 50 ms of the *board's* clock after boot; under
+    // -icount on a loaded host that can take longer than 50 ms of wall
+    // time, so wait for the board to say so (at most 10 s).
+    let mut latched = false;
+    for _ in 0..100 {
+        if hil::status(&mut link).unwrap().latched != 0 {
+            latched = true;
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(latched, "{board:?}: no fault latched after 10 s without sensors");
     assert_eq!(refused(&mut link), ErrorCode::Latched, "{board:?}");
     cmd(&mut link, HilStart { period_us: 1000 }.into());
     cmd(&mut link, ClearFaults {}.into());
