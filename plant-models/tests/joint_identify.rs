@@ -283,9 +283,9 @@ fn ten_minute_twin_3d_recovers_both_planes() {
 /// the error (and the lag ceiling at rest e₀ within 3σ too). The wire
 /// stage averages the random stick events over 32 realisations (module
 /// docs of `replay`); what it cannot remove is that the log's own sticks
-/// are one draw. Measured (joint README): κ −19.5 % ± 14 % (−1.4σ) on θ,
+/// are one draw. Measured (joint README): κ −19.5 % ± 16 % (−1.3σ) on θ,
 /// +62 % ± 66 % on α, +2 % ± 34 % on β, each named not identifiable (θ
-/// by a hair: 1σ 0.0503 against 0.05; with other stick streams it was
+/// by a hair: 1σ 0.055 against 0.05; with other stick streams it was
 /// named identifiable at −20 % ± 13 %, so both branches are live).
 #[test]
 #[ignore = "10-minute logs: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]

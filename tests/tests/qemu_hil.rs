@@ -306,7 +306,10 @@ fn images_refuse_drive_by_name(board: QemuBoard) {
         }
         std::thread::sleep(Duration::from_millis(100));
     }
-    assert!(latched, "{board:?}: no fault latched after 10 s without sensors");
+    assert!(
+        latched,
+        "{board:?}: no fault latched after 10 s without sensors"
+    );
     assert_eq!(refused(&mut link), ErrorCode::Latched, "{board:?}");
     cmd(&mut link, HilStart { period_us: 1000 }.into());
     cmd(&mut link, ClearFaults {}.into());

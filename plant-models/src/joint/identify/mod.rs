@@ -350,14 +350,19 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
+/// Errors a stage's data cannot average out, for the model at the fit:
+/// one change of every residual per 1σ of each (see `stage`).
+type Systematic<'a> = dyn Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a;
+
 /// A stage: fits `free` (coordinates from `model`) with `residuals`,
 /// drops the undetermined ones back to `prior` and fits again. A
 /// coordinate's 1σ is the larger of the white-noise one and the
 /// block-robust one over the log segments `blocks` (one index per
 /// residual; [`lm::block_robust_std`]), so residuals correlated in time
 /// or a segment the model fits badly widen it, combined in quadrature
-/// with the shift each of `systematic` would cause (one change of every
-/// residual per 1σ of a systematic error; [`lm::systematic_shift`]). With
+/// with the shift each of `systematic(model at the fit)` would cause (one
+/// change of every residual per 1σ of an error the data cannot average
+/// out; [`lm::systematic_shift`]). With
 /// `starts` (models that differ from `model` only in `free`), the first
 /// fit runs from each of them instead and keeps the lowest cost (the
 /// first on a tie), so the result does not depend on the thread count.
@@ -370,7 +375,7 @@ fn stage<F>(
     opts: &IdentifyOptions,
     residuals: F,
     blocks: &[usize],
-    systematic: &[Vec<f64>],
+    systematic: &Systematic,
     starts: &[PlaneModel],
     estimates: &mut Vec<Estimate>,
     stages: &mut Vec<StageReport>,
@@ -381,19 +386,19 @@ where
     let mut active: Vec<Param> = free.to_vec();
     let mut undetermined: Vec<(Param, f64, f64, f64)> = Vec::new();
     // (1σ used, white-noise 1σ) per coordinate of a fit.
-    let spread = |r: &LmResult| -> (Vec<f64>, Vec<f64>) {
+    let spread = |r: &LmResult, at: &PlaneModel| -> Result<(Vec<f64>, Vec<f64>), IdentifyError> {
         if blocks.len() != r.m {
-            return (r.std.clone(), r.std.clone());
+            return Ok((r.std.clone(), r.std.clone()));
         }
         let robust = lm::block_robust_std(&r.jacobian, &r.residuals, blocks);
         let mut used: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
-        for shift in systematic.iter().filter(|s| s.len() == r.m) {
+        for shift in systematic(at)?.iter().filter(|s| s.len() == r.m) {
             let dx = lm::systematic_shift(&r.jacobian, shift);
             for (u, d) in used.iter_mut().zip(dx) {
                 *u = u.hypot(d);
             }
         }
-        (used, r.std.clone())
+        Ok((used, r.std.clone()))
     };
     let mut iterations = 0;
     let mut evaluations = 0;
@@ -445,7 +450,7 @@ where
             }));
         };
         *model = apply(&r.x);
-        let (sd, white) = spread(&r);
+        let (sd, white) = spread(&r, model)?;
         let bad: Vec<usize> = (0..active.len())
             .filter(|&j| !active[j].determined(sd[j]))
             .collect();
@@ -472,7 +477,7 @@ where
         starts: starts.len().max(1),
         best_start,
     });
-    let (sd, white) = spread(&r);
+    let (sd, white) = spread(&r, model)?;
     for (j, p) in active.iter().enumerate() {
         let v = p.get(model);
         let at = |s: &[f64]| p.value_std(v, s.get(j).copied().unwrap_or(f64::INFINITY));
@@ -791,7 +796,7 @@ pub fn identify_plane(
                 opts,
                 thermal,
                 &row_blocks(map.coils.len()),
-                &[],
+                &|_: &PlaneModel| Ok(Vec::new()),
                 &[],
                 &mut estimates,
                 &mut stages,
@@ -864,7 +869,7 @@ pub fn identify_plane(
         opts,
         mech,
         &mech_blocks,
-        &[],
+        &|_: &PlaneModel| Ok(Vec::new()),
         &starts,
         &mut estimates,
         &mut stages,
@@ -909,17 +914,37 @@ pub fn identify_plane(
     // rest pose after each move, so the rounding there is nearly the same
     // every time: an offset of the readings the fit cannot average out,
     // uniform within ±½ count (1σ = count/√12), one per sensor.
-    let offsets: Vec<Vec<f64>> = model
-        .wires
-        .iter()
-        .enumerate()
-        .map(|(j, w)| {
-            let per = w.mm_per_count / 12f64.sqrt() / 0.01;
-            (0..map.sensors.len())
-                .flat_map(|i| std::iter::repeat_n(if i == j { per } else { 0.0 }, fit_rows))
-                .collect()
-        })
-        .collect();
+    // The mean over a finite number of stick realisations is itself
+    // noisy: realisation r's deviation from the mean, scaled by
+    // 1/√(K(K − 1)), is one more such change, so that their shifts add up
+    // to the variance of the mean's shift.
+    let systematic = |m: &PlaneModel| -> Result<Vec<Vec<f64>>, IdentifyError> {
+        let mut out: Vec<Vec<f64>> = m
+            .wires
+            .iter()
+            .enumerate()
+            .map(|(j, w)| {
+                let per = w.mm_per_count / 12f64.sqrt() / 0.01;
+                (0..map.sensors.len())
+                    .flat_map(|i| std::iter::repeat_n(if i == j { per } else { 0.0 }, fit_rows))
+                    .collect()
+            })
+            .collect();
+        let sensors =
+            replay::wire_realisations(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+        let k = sensors.first().map_or(0, |s| s.1.len());
+        if k > 1 {
+            let scale = 1.0 / (0.01 * ((k * (k - 1)) as f64).sqrt());
+            for r in 0..k {
+                let mut v = Vec::with_capacity(sensors.len() * fit_rows);
+                for (mean, runs) in &sensors {
+                    v.extend(runs[r].iter().zip(mean).map(|(x, m)| (x - m) * scale));
+                }
+                out.push(v);
+            }
+        }
+        Ok(out)
+    };
     stage(
         "wire jamming",
         &mut model,
@@ -928,7 +953,7 @@ pub fn identify_plane(
         opts,
         wire,
         &episodes,
-        &offsets,
+        &systematic,
         &[],
         &mut estimates,
         &mut stages,

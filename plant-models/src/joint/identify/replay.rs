@@ -158,6 +158,22 @@ pub fn expected_wire_readings(
     rows: usize,
     realisations: usize,
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    Ok(wire_realisations(wires, pred, rows, realisations)?
+        .into_iter()
+        .map(|(mean, _)| mean)
+        .collect())
+}
+
+/// [`expected_wire_readings`] with each realisation's readings too: per
+/// sensor, (the mean, the realisations), from which the mean's own noise
+/// can be judged.
+#[allow(clippy::type_complexity)] // (mean, runs) per sensor
+pub fn wire_realisations(
+    wires: &[WireSensorParams],
+    pred: &Prediction,
+    rows: usize,
+    realisations: usize,
+) -> Result<Vec<(Vec<f64>, Vec<Vec<f64>>)>, IdentifyError> {
     let realisations = realisations.max(1);
     use rayon::prelude::*;
     let n = pred.substeps_per_row;
@@ -188,7 +204,7 @@ pub fn expected_wire_readings(
         }
         let k = realisations as f64;
         mean.iter_mut().for_each(|m| *m /= k);
-        out.push(mean);
+        out.push((mean, runs));
     }
     Ok(out)
 }
