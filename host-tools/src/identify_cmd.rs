@@ -287,6 +287,10 @@ fn table(reports: &[PlaneReport]) -> String {
             "  {:32} {:>14} {:>12} {:>14}  {:11} unit",
             "parameter", "value", "± 1σ", "prior", "stage"
         );
+        let _ = writeln!(
+            s,
+            "  (1σ: the larger of the white-noise and the segment-robust one, with the wire coder's half count; JSON gives both)"
+        );
         for e in &r.estimates {
             let sd = if e.std.is_finite() {
                 format!("{:.3e}", e.std)
@@ -303,9 +307,12 @@ fn table(reports: &[PlaneReport]) -> String {
                 e.stage,
                 e.unit,
                 if e.identifiable {
-                    ""
+                    String::new()
                 } else {
-                    "  NOT IDENTIFIABLE from this log: kept at the prior"
+                    format!(
+                        "  NOT IDENTIFIABLE from this log (the fit found {:.4e}): kept at the prior",
+                        e.fitted
+                    )
                 }
             );
         }

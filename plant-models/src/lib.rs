@@ -36,10 +36,11 @@ pub mod rng {
     //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise) |
     //! | [`LINK_FAULTS_BASE`] + d | the lockstep fault campaign's faults, direction d (0 host → board, 1 board → host) |
     //! | [`IDENTIFY_NOISE`] | identification logs: the electrical measurement noise |
-    //! | [`IDENTIFY_REPLAY`] | identification replays (never drawn: no stick events) |
+    //! | [`IDENTIFY_REPLAY`] | retired: identification replays once held it (never drawn) |
     //! | [`IDENTIFY_SAMPLE`] | `softjoint tune`: plants sampled from the uncertainty |
     //! | [`IDENTIFY_SEARCH`] | `softjoint tune`: the candidate gains |
     //! | [`IDENTIFY_V_OFFSET`] | `softjoint tune --search-v-offset`: the candidates' v_offset |
+    //! | [`IDENTIFY_STICKS`] | identification: the stick events averaged over in the wire replays (seed 8r + j: realisation r, sensor j) |
     //! | [`TISSUE_TEXTURE`] | `tissue::field` synthetic calf: compartments, vessels |
     //! | [`TISSUE_WARP`] | `tissue::field` synthetic twin: the non-rigid warp's bumps |
     //! | [`TISSUE_NOISE_INITIAL`] | `tissue::field` noise of the initial volume |
@@ -82,7 +83,7 @@ pub mod rng {
     /// 0x1400 + k; the README figures were made when these were 0x600 + k,
     /// which tissue now uses).
     pub const IDENTIFY_NOISE: u64 = 0x1400;
-    /// Identification replays (a stream they never draw from).
+    /// Retired: identification replays once held this stream (never drawn).
     pub const IDENTIFY_REPLAY: u64 = 0x1401;
     /// Plants sampled from an identification's uncertainty.
     pub const IDENTIFY_SAMPLE: u64 = 0x1402;
@@ -91,6 +92,9 @@ pub mod rng {
     /// The candidates' v_offset when a tuning search includes it (its own
     /// stream, so the other gains are drawn as without it).
     pub const IDENTIFY_V_OFFSET: u64 = 0x1404;
+    /// Identification's wire replays: the stick events of realisation r,
+    /// sensor j, are `stream(8r + j, IDENTIFY_STICKS)`.
+    pub const IDENTIFY_STICKS: u64 = 0x1405;
 
     /// The tissue module's streams start here (seed 000, Zhang and Kita).
     pub const TISSUE_BASE: u64 = 0x600;

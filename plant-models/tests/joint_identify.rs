@@ -15,6 +15,7 @@ use plant_models::joint::identify::{
     PlaneModel, PlaneReport,
 };
 use plant_models::joint::{Joint2dParams, Joint3dParams, PlaneParams, WireSensorParams};
+use std::sync::OnceLock;
 
 const NOISE: ElectricalNoise = ElectricalNoise {
     current_a: 0.002,
@@ -62,13 +63,16 @@ fn print_estimates(r: &PlaneReport, t: &PlaneModel) {
     for e in &r.estimates {
         let tv = e.param.get(t);
         eprintln!(
-            "{} {}: {:.5} ± {:.2e} (identifiable {}), true {tv:.5}, error {:+.1} %",
+            "{} {}: {:.5} (fitted {:.5}) ± {:.2e} (white {:.2e}; identifiable {}), true {tv:.5}, error {:+.1} % = {:+.1} σ",
             r.plane,
             e.field,
             e.value,
+            e.fitted,
             e.std,
+            e.white_std,
             e.identifiable,
-            100.0 * (e.value - tv) / tv
+            100.0 * (e.fitted - tv) / tv,
+            (e.fitted - tv) / e.std
         );
     }
     for st in &r.stages {
@@ -138,23 +142,27 @@ fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
 }
 
 /// The 10-minute standard plan on the hidden 2D joint, electrical columns
-/// logged: the plane's report and its truth.
-fn ten_minute_2d() -> (PlaneReport, PlaneModel) {
-    let hidden = hidden::joint_2d(7);
-    let plan = ExcitationPlan::standard(1, 600.0, false);
-    let log = twin::record_2d(&hidden, &plan, true, NOISE).unwrap();
-    let (_, mut reports) =
-        identify::identify_2d(&log, &Joint2dParams::default(), &IdentifyOptions::default())
-            .unwrap();
-    (reports.remove(0), truth(&hidden.plane, &hidden.wire))
+/// logged: the plane's report and its truth. Identified once per test
+/// process (the ignored tests share it).
+fn ten_minute_2d() -> &'static (PlaneReport, PlaneModel) {
+    static TWIN: OnceLock<(PlaneReport, PlaneModel)> = OnceLock::new();
+    TWIN.get_or_init(|| {
+        let hidden = hidden::joint_2d(7);
+        let plan = ExcitationPlan::standard(1, 600.0, false);
+        let log = twin::record_2d(&hidden, &plan, true, NOISE).unwrap();
+        let (_, mut reports) =
+            identify::identify_2d(&log, &Joint2dParams::default(), &IdentifyOptions::default())
+                .unwrap();
+        (reports.remove(0), truth(&hidden.plane, &hidden.wire))
+    })
 }
 
-/// The same on the hidden 3D joint, whose planes are hidden differently:
-/// α's and β's reports with their truths.
-fn ten_minute_3d() -> Vec<(PlaneReport, PlaneModel)> {
-    let hidden = hidden::joint_3d(11);
+/// The same on the hidden 3D joint of `seed`, whose planes are hidden
+/// differently: α's and β's reports with their truths.
+fn identify_3d_twin(seed: u64, noise: ElectricalNoise) -> Vec<(PlaneReport, PlaneModel)> {
+    let hidden = hidden::joint_3d(seed);
     let plan = ExcitationPlan::standard(2, 600.0, false);
-    let log = twin::record_3d(&hidden, &plan, true, NOISE).unwrap();
+    let log = twin::record_3d(&hidden, &plan, true, noise).unwrap();
     let (_, reports) =
         identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
             .unwrap();
@@ -163,6 +171,13 @@ fn ten_minute_3d() -> Vec<(PlaneReport, PlaneModel)> {
         truth(&hidden.beta, &hidden.wires[1]),
     ];
     reports.into_iter().zip(truths).collect()
+}
+
+/// The 3D twin of seed 11 with noisy electrical readings, once per test
+/// process.
+fn ten_minute_3d() -> &'static [(PlaneReport, PlaneModel)] {
+    static TWIN: OnceLock<Vec<(PlaneReport, PlaneModel)>> = OnceLock::new();
+    TWIN.get_or_init(|| identify_3d_twin(11, NOISE))
 }
 
 /// Tolerances as stated in plant-models/src/joint/README.md, every
@@ -202,11 +217,49 @@ fn standard_fails(r: &PlaneReport, t: &PlaneModel) -> Vec<String> {
     fails
 }
 
+/// Whether the 1σ of `params` covers the error: |fitted − truth| ≤ `k`σ.
+/// For the parameters whose model is right (electrical, thermal, slope,
+/// sponge modulus) on the noisy twins; the failures, one line each.
+fn coverage_fails(r: &PlaneReport, t: &PlaneModel, params: &[Param], k: f64) -> Vec<String> {
+    params
+        .iter()
+        .filter_map(|&p| {
+            let e = r.estimate(p)?;
+            let err = e.fitted - p.get(t);
+            (err.abs() > k * e.std).then(|| {
+                format!(
+                    "{}: {} off by {err:.3e}, {:.1} times its 1σ {:.3e}",
+                    r.plane,
+                    e.field,
+                    err.abs() / e.std,
+                    e.std
+                )
+            })
+        })
+        .collect()
+}
+
+/// The parameters whose 1σ must cover the error within 3σ (the model is
+/// right for them; see the joint README for the damping and the lag
+/// ceilings).
+const COVERED: [Param; 9] = [
+    Param::Transconductance,
+    Param::TurnOn,
+    Param::Convection,
+    Param::AusteniteStart,
+    Param::AusteniteFinish,
+    Param::MartensiteStart,
+    Param::MartensiteFinish,
+    Param::StressShift,
+    Param::SpongeModulus,
+];
+
 #[test]
 #[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
 fn ten_minute_twin_2d_recovers_each_identifiable_parameter() {
     let (r, t) = ten_minute_2d();
-    let fails = standard_fails(&r, &t);
+    let mut fails = standard_fails(r, t);
+    fails.extend(coverage_fails(r, t, &COVERED, 3.0));
     assert!(fails.is_empty(), "{fails:#?}");
 }
 
@@ -215,27 +268,54 @@ fn ten_minute_twin_2d_recovers_each_identifiable_parameter() {
 fn ten_minute_twin_3d_recovers_both_planes() {
     let fails: Vec<String> = ten_minute_3d()
         .iter()
-        .flat_map(|(r, t)| standard_fails(r, t))
+        .flat_map(|(r, t)| {
+            let mut f = standard_fails(r, t);
+            f.extend(coverage_fails(r, t, &COVERED, 3.0));
+            f
+        })
         .collect();
     assert!(fails.is_empty(), "{fails:#?}");
 }
 
-/// The jamming gain κ within 30 % on both twins (three planes). The
-/// replay leaves the random stick events out (module docs of `replay`),
-/// and a stick takes the whole push as lag, which the fit reads as another
-/// buckling curve: measured −23 % (2D), +49 % (3D α) and −5.5 % (3D β),
-/// each with a 1σ near 1 %; see the joint README.
+/// The jamming gain κ on both twins (three planes): where named
+/// identifiable, within 30 % of the truth, otherwise kept at the prior;
+/// either way the fit's value within 3σ of the truth, so the 1σ covers
+/// the error (and the lag ceiling at rest e₀ within 3σ too). The wire
+/// stage averages the random stick events over 32 realisations (module
+/// docs of `replay`); what it cannot remove is that the log's own sticks
+/// are one draw. Measured (joint README): κ −19.5 % ± 16 % (−1.3σ) on θ,
+/// +62 % ± 66 % on α, +2 % ± 34 % on β, each named not identifiable (θ
+/// by a hair: 1σ 0.055 against 0.05; with other stick streams it was
+/// named identifiable at −20 % ± 13 %, so both branches are live).
 #[test]
-#[ignore = "fails: the jamming gain absorbs the unmodelled stick events (3D alpha +49 %; 2D -23 %, 3D beta -5.5 % hold); 10-minute logs, run with --release -- --ignored"]
+#[ignore = "10-minute logs: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
 fn ten_minute_twins_recover_the_jamming_gain() {
     let mut planes = vec![ten_minute_2d()];
     planes.extend(ten_minute_3d());
-    let fails: Vec<String> = planes
-        .iter()
-        .filter_map(|(r, t)| {
-            check(r, t, Param::JamGain, Some(0.30), None).map(|f| format!("{}: {f}", r.plane))
-        })
-        .collect();
+    let mut fails = Vec::new();
+    for (r, t) in planes {
+        print_estimates(r, t);
+        let k = r.estimate(Param::JamGain).unwrap();
+        let truth = Param::JamGain.get(t);
+        if k.identifiable && ((k.fitted - truth) / truth).abs() > 0.30 {
+            fails.push(format!(
+                "{}: κ {} named identifiable, truth {truth}",
+                r.plane, k.fitted
+            ));
+        }
+        if !k.identifiable && k.value != k.prior {
+            fails.push(format!(
+                "{}: κ not identifiable but not at its prior",
+                r.plane
+            ));
+        }
+        fails.extend(coverage_fails(
+            r,
+            t,
+            &[Param::JamGain, Param::JamMaxLag],
+            2.0,
+        ));
+    }
     assert!(fails.is_empty(), "{fails:#?}");
 }
 
@@ -259,4 +339,30 @@ fn ten_minute_twin_2d_without_electrical_columns() {
         "held-out rms {}",
         v.heldout_rms_deg
     );
+}
+
+/// The README's twin: the hidden 3D joint of seed 7 with the electrical
+/// readings as `softjoint sim --excite` logs them (no noise). β's link
+/// inertia comes out 18 times the truth there with a white-noise 1σ of
+/// 8.1 %, which passes the 15 % threshold (the call before the
+/// block-robust 1σ); the block-robust 1σ is 18.5 %. The README's twin,
+/// recorded by `sim`, is alike: 17 times, 8.5 % and 19 %.
+#[test]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
+fn ten_minute_twin_3d_seed_7_names_the_inertia_not_identifiable() {
+    let planes = identify_3d_twin(7, ElectricalNoise::default());
+    let (beta, beta_truth) = &planes[1];
+    let inertia = beta.estimate(Param::LinkInertia).unwrap();
+    eprintln!(
+        "beta inertia fitted {:.3e} (truth {:.3e}), 1σ {:.3e}, white {:.3e}",
+        inertia.fitted,
+        Param::LinkInertia.get(beta_truth),
+        inertia.std,
+        inertia.white_std
+    );
+    let fails: Vec<String> = planes
+        .iter()
+        .flat_map(|(r, t)| standard_fails(r, t))
+        .collect();
+    assert!(fails.is_empty(), "{fails:#?}");
 }

@@ -372,9 +372,26 @@ impl WireSensor {
         cos_t: f64,
         rng: &mut ChaCha8Rng,
     ) {
+        let ideal = self.ideal_insertion_at_mm(x_mm, y_mm, sin_t, cos_t);
+        self.advance_to_ideal(ideal, rng);
+    }
+
+    /// The geometric insertion (mm) at the link pose (base at `x_mm`,
+    /// `y_mm`; sin θ, cos θ), the coder zeroed where this sensor was made;
+    /// the state does not change.
+    #[inline(always)]
+    pub fn ideal_insertion_at_mm(&self, x_mm: f64, y_mm: f64, sin_t: f64, cos_t: f64) -> f64 {
         let g = &self.params.geometry;
-        let ideal = g.insertion_at_rest_mm + self.ref_length_mm
-            - free_length_sc_mm(g, x_mm, y_mm, sin_t, cos_t);
+        g.insertion_at_rest_mm + self.ref_length_mm - free_length_sc_mm(g, x_mm, y_mm, sin_t, cos_t)
+    }
+
+    /// Updates the reading for a geometric insertion `ideal` (mm) found
+    /// by [`Self::ideal_insertion_at_mm`] (identification replays a
+    /// recorded path of them many times with other stick events);
+    /// `rng` drives stick events.
+    #[inline(always)]
+    pub fn advance_to_ideal(&mut self, ideal: f64, rng: &mut ChaCha8Rng) {
+        let g = &self.params.geometry;
         let delta = ideal - self.ideal_mm;
         self.ideal_mm = ideal;
         let j = &self.params.jam;

@@ -13,7 +13,13 @@
 //! Covariance: `σ² (JᵀJ)⁺` with `σ² = ‖r‖²/(m − n)`, the pseudo-inverse
 //! from the SVD (singular values below 1e-12 of the largest are dropped,
 //! their directions get an infinite variance: the parameters that move
-//! along them are not determined).
+//! along them are not determined). That form assumes independent residuals
+//! of one variance and a right model. [`block_robust_std`] drops both
+//! assumptions for residuals grouped in blocks (log segments): the
+//! cluster-robust "sandwich" `(JᵀJ)⁺ (Σ_b J_bᵀ r_b r_bᵀ J_b) (JᵀJ)⁺`, which
+//! is what the spread of the estimate over resampled segments would be to
+//! first order; residuals correlated within a block, or a block the model
+//! fits badly, widen it.
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -63,6 +69,10 @@ pub struct LmResult {
     pub std: Vec<f64>,
     /// Correlation matrix (row-major n×n; NaN where a variance is ∞).
     pub correlation: Vec<f64>,
+    /// Residuals at `x`.
+    pub residuals: Vec<f64>,
+    /// The Jacobian at `x`, one column (m values) per coordinate.
+    pub jacobian: Vec<Vec<f64>>,
 }
 
 fn sq(r: &[f64]) -> f64 {
@@ -164,6 +174,8 @@ where
         evaluations: evaluations + n,
         std,
         correlation,
+        residuals: r,
+        jacobian: jac,
     })
 }
 
@@ -190,14 +202,13 @@ where
         .collect()
 }
 
-/// Standard deviations and correlations from the Jacobian (columns) at the
-/// optimum.
-pub fn covariance(jac: &[Vec<f64>], cost: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
+/// `(JᵀJ)⁺` from the SVD and which coordinates move along a dropped
+/// (undetermined) direction.
+fn normal_pinv(jac: &[Vec<f64>], m: usize) -> (DMatrix<f64>, Vec<bool>) {
     let n = jac.len();
     let jm = DMatrix::from_fn(m, n, |i, j| jac[j][i]);
     let jtj = jm.transpose() * &jm;
-    let sigma2 = cost / (m.saturating_sub(n)).max(1) as f64;
-    let svd = jtj.clone().svd(true, true);
+    let svd = jtj.svd(true, true);
     let smax = svd.singular_values.max();
     let mut cov = DMatrix::zeros(n, n);
     let mut undetermined = vec![false; n];
@@ -217,6 +228,15 @@ pub fn covariance(jac: &[Vec<f64>], cost: f64, m: usize) -> (Vec<f64>, Vec<f64>)
             }
         }
     }
+    (cov, undetermined)
+}
+
+/// Standard deviations and correlations from the Jacobian (columns) at the
+/// optimum.
+pub fn covariance(jac: &[Vec<f64>], cost: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
+    let n = jac.len();
+    let sigma2 = cost / (m.saturating_sub(n)).max(1) as f64;
+    let (cov, undetermined) = normal_pinv(jac, m);
     let std: Vec<f64> = (0..n)
         .map(|j| {
             if undetermined[j] {
@@ -236,6 +256,72 @@ pub fn covariance(jac: &[Vec<f64>], cost: f64, m: usize) -> (Vec<f64>, Vec<f64>)
         }
     }
     (std, corr)
+}
+
+/// How far (1σ, per coordinate) a systematic change `shift` of the
+/// residuals moves the least-squares estimate, to first order:
+/// `(JᵀJ)⁺ Jᵀ shift`. For an error the data cannot average out, such as a
+/// reading offset common to the whole log (`shift` = its 1σ's effect on
+/// every residual), which neither the white-noise nor the block-robust
+/// 1σ sees.
+pub fn systematic_shift(jac: &[Vec<f64>], shift: &[f64]) -> Vec<f64> {
+    let n = jac.len();
+    let m = shift.len();
+    let (bread, undetermined) = normal_pinv(jac, m);
+    let g = DVector::from_iterator(
+        n,
+        jac.iter()
+            .map(|col| col.iter().zip(shift).map(|(a, b)| a * b).sum::<f64>()),
+    );
+    let dx = bread * g;
+    (0..n)
+        .map(|j| {
+            if undetermined[j] {
+                f64::INFINITY
+            } else {
+                dx[j].abs()
+            }
+        })
+        .collect()
+}
+
+/// Cluster-robust standard deviations of the coordinates (module docs):
+/// residual `i` belongs to block `block[i]`. With `B` blocks the sandwich
+/// is scaled by `B/(B − 1) · (m − 1)/(m − n)` (the usual small-sample
+/// factor). ∞ where the Jacobian leaves a coordinate undetermined, or with
+/// fewer than two blocks.
+pub fn block_robust_std(jac: &[Vec<f64>], r: &[f64], block: &[usize]) -> Vec<f64> {
+    let n = jac.len();
+    let m = r.len();
+    assert_eq!(block.len(), m, "one block index per residual");
+    let blocks = block.iter().max().map_or(0, |b| b + 1);
+    let mut score = vec![vec![0.0; n]; blocks];
+    for (i, (&b, &ri)) in block.iter().zip(r).enumerate() {
+        for (j, col) in jac.iter().enumerate() {
+            score[b][j] += col[i] * ri;
+        }
+    }
+    let used = score.iter().filter(|g| g.iter().any(|v| *v != 0.0)).count();
+    if used < 2 || m <= n {
+        return vec![f64::INFINITY; n];
+    }
+    let mut meat = DMatrix::<f64>::zeros(n, n);
+    for g in &score {
+        let gv = DVector::from_column_slice(g);
+        meat += &gv * gv.transpose();
+    }
+    let (bread, undetermined) = normal_pinv(jac, m);
+    let factor = used as f64 / (used - 1) as f64 * (m - 1) as f64 / (m - n) as f64;
+    let cov = &bread * meat * &bread * factor;
+    (0..n)
+        .map(|j| {
+            if undetermined[j] {
+                f64::INFINITY
+            } else {
+                cov[(j, j)].max(0.0).sqrt()
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -332,5 +418,66 @@ mod tests {
         assert!((short.x[1] - 0.7).abs() > 1e-3, "{:?}", short.x);
         let full = levenberg_marquardt(f, &[1.0, 0.2], opts(200)).unwrap();
         assert!(!full.stopped_by_budget, "{} iterations", full.iterations);
+    }
+
+    /// A straight line through residuals that come in runs (a slow wave
+    /// the model lacks): the white-noise 1σ of the slope is far too small,
+    /// the block-robust one covers the spread of the slope over
+    /// realisations of the wave; with independent residuals both agree.
+    #[test]
+    fn block_robust_std_widens_for_correlated_residuals_only() {
+        let t: Vec<f64> = (0..2000).map(|k| k as f64 * 0.01).collect();
+        let blocks: Vec<usize> = (0..t.len()).map(|k| k / 100).collect();
+        let fit = |y: &[f64]| {
+            let f = |x: &[f64]| -> Result<Vec<f64>, IdentifyError> {
+                Ok(t.iter().zip(y).map(|(t, y)| x[0] + x[1] * t - y).collect())
+            };
+            let opts = LmOptions {
+                ftol: 1e-14,
+                step: 1e-6,
+                ..Default::default()
+            };
+            let r = levenberg_marquardt(f, &[0.0, 0.0], opts).unwrap();
+            let robust = block_robust_std(&r.jacobian, &r.residuals, &blocks);
+            (r.x[1], r.std[1], robust[1])
+        };
+        // Deterministic pseudo-noise: a hash of the index, uniform ±0.5.
+        let noise = |k: usize, seed: u64| {
+            let mut z = (k as u64 ^ seed.wrapping_mul(0x9E37_79B9_7F4A_7C15))
+                .wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z ^= z >> 31;
+            z = z.wrapping_mul(0x94D0_49BB_1331_11EB);
+            (z >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut slopes, mut white, mut robust) = (Vec::new(), Vec::new(), Vec::new());
+        for seed in 0..40 {
+            // Runs: one level per 100 samples (a block), plus white noise.
+            let y: Vec<f64> = (0..t.len())
+                .map(|k| 1.0 + 0.5 * t[k] + noise(k / 100, seed + 1000) + 0.1 * noise(k, seed))
+                .collect();
+            let (s, w, r) = fit(&y);
+            slopes.push(s);
+            white.push(w);
+            robust.push(r);
+        }
+        let mean = slopes.iter().sum::<f64>() / 40.0;
+        let spread = (slopes.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / 39.0).sqrt();
+        let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        assert!(
+            avg(&white) < 0.3 * spread,
+            "white {} vs spread {spread}",
+            avg(&white)
+        );
+        assert!(
+            (avg(&robust) / spread - 1.0).abs() < 0.35,
+            "robust {} vs spread {spread}",
+            avg(&robust)
+        );
+        // Independent residuals: the two agree.
+        let y: Vec<f64> = (0..t.len())
+            .map(|k| 1.0 + 0.5 * t[k] + 0.1 * noise(k, 7))
+            .collect();
+        let (_, w, r) = fit(&y);
+        assert!((r / w - 1.0).abs() < 0.35, "robust {r} vs white {w}");
     }
 }

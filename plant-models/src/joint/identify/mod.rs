@@ -29,10 +29,15 @@
 //!    (`mechanics_starts`): from stage 1's values alone it can settle
 //!    in a wrong basin.
 //! 3. **Wire jamming**: the buckling gain and the two lag ceilings, fitted
-//!    to the wire readings with the stage-2 plant moving the link.
+//!    to the wire readings with the stage-2 plant moving the link; the
+//!    model side is the expected reading over the random stick events
+//!    ([`replay::expected_wire_readings`]).
 //!
-//! Each stage is Levenberg–Marquardt ([`lm`]) with the Gauss–Newton
-//! covariance. A parameter whose 1σ exceeds its threshold
+//! Each stage is Levenberg–Marquardt ([`lm`]). A parameter's 1σ is the
+//! larger of the Gauss–Newton one and the block-robust one over log
+//! segments ([`lm::block_robust_std`]: 10 s segments, lag episodes for
+//! the wires), for the wires with a reading offset of ±½ coder count
+//! added ([`lm::systematic_shift`]); see `stage`. A parameter whose 1σ exceeds its threshold
 //! ([`params::Param::scale`]) is **not identifiable from this log**: it is
 //! reported as such, put back to its prior value and the stage is fitted
 //! again without it. The fit uses the first `fit_fraction` of the log; the
@@ -43,8 +48,8 @@
 //! Never fitted (fixed at the prior, i.e. the plant file given or the
 //! defaults): coil spring rates and rest lengths, resistivities, geometry,
 //! link mass, ambient temperature, latent heat, the sponge's stiffness ratio
-//! and shear fraction, the wires' geometry and the *random* stick events
-//! (their rate and sizes; the deterministic lag model absorbs their mean).
+//! and shear fraction, the wires' geometry and the *random* stick events'
+//! rate and sizes (the wire stage averages over sticks at the prior's).
 //! Left out: the 3D joint's coupling between planes (the model has none);
 //! the weighting between the angle and resistance residuals is a priori
 //! (0.1° and 0.02 Ω), not estimated.
@@ -115,6 +120,10 @@ pub struct IdentifyOptions {
     pub angle_sigma_deg: f64,
     /// A priori noise of a resistance reading (Ω).
     pub resistance_sigma_ohm: f64,
+    /// Random realisations of the stick events the wire stage averages
+    /// over ([`replay::expected_wire_readings`]); each costs a pass of the
+    /// wire model (not the plane) over the log per evaluation.
+    pub stick_realisations: usize,
 }
 
 impl Default for IdentifyOptions {
@@ -125,6 +134,7 @@ impl Default for IdentifyOptions {
             lm: LmOptions::default(),
             angle_sigma_deg: 0.1,
             resistance_sigma_ohm: 0.02,
+            stick_realisations: replay::STICK_REALISATIONS,
         }
     }
 }
@@ -141,10 +151,17 @@ pub struct Estimate {
     /// The value written to the plant file (the prior where not
     /// identifiable).
     pub value: f64,
+    /// The fit's own value: `value` where identifiable; for a parameter
+    /// not identifiable, what the fit found before it was put back.
+    pub fitted: f64,
     /// The prior (plant file given, or default).
     pub prior: f64,
-    /// 1σ (same unit; +∞ where the log does not determine it).
+    /// 1σ (same unit; +∞ where the log does not determine it): the larger
+    /// of the white-noise and the block-robust one (module docs).
     pub std: f64,
+    /// The white-noise (Gauss–Newton) 1σ alone, for comparison: it assumes
+    /// independent residuals and a right model.
+    pub white_std: f64,
     /// Whether the log determines it (1σ within the parameter's threshold).
     pub identifiable: bool,
     /// The stage that fitted it.
@@ -231,7 +248,7 @@ pub const NEVER_FITTED: &[&str] = &[
     "link mass and centre of mass",
     "ambient temperature and latent heat",
     "sponge stiffness ratio and shear fraction",
-    "wire stick-event rate and sizes (random; the fitted lag ceilings absorb their mean)",
+    "wire stick-event rate and sizes (random; the wire stage averages over them at the prior's rate and sizes)",
 ];
 
 /// Identifies the 2D joint from `log`, starting from `prior`.
@@ -333,8 +350,19 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
+/// Errors a stage's data cannot average out, for the model at the fit:
+/// one change of every residual per 1σ of each (see `stage`).
+type Systematic<'a> = dyn Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a;
+
 /// A stage: fits `free` (coordinates from `model`) with `residuals`,
-/// drops the undetermined ones back to `prior` and fits again. With
+/// drops the undetermined ones back to `prior` and fits again. A
+/// coordinate's 1σ is the larger of the white-noise one and the
+/// block-robust one over the log segments `blocks` (one index per
+/// residual; [`lm::block_robust_std`]), so residuals correlated in time
+/// or a segment the model fits badly widen it, combined in quadrature
+/// with the shift each of `systematic(model at the fit)` would cause (one
+/// change of every residual per 1σ of an error the data cannot average
+/// out; [`lm::systematic_shift`]). With
 /// `starts` (models that differ from `model` only in `free`), the first
 /// fit runs from each of them instead and keeps the lowest cost (the
 /// first on a tie), so the result does not depend on the thread count.
@@ -346,6 +374,8 @@ fn stage<F>(
     free: &[Param],
     opts: &IdentifyOptions,
     residuals: F,
+    blocks: &[usize],
+    systematic: &Systematic,
     starts: &[PlaneModel],
     estimates: &mut Vec<Estimate>,
     stages: &mut Vec<StageReport>,
@@ -354,7 +384,22 @@ where
     F: Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
     let mut active: Vec<Param> = free.to_vec();
-    let mut undetermined: Vec<(Param, f64)> = Vec::new();
+    let mut undetermined: Vec<(Param, f64, f64, f64)> = Vec::new();
+    // (1σ used, white-noise 1σ) per coordinate of a fit.
+    let spread = |r: &LmResult, at: &PlaneModel| -> Result<(Vec<f64>, Vec<f64>), IdentifyError> {
+        if blocks.len() != r.m {
+            return Ok((r.std.clone(), r.std.clone()));
+        }
+        let robust = lm::block_robust_std(&r.jacobian, &r.residuals, blocks);
+        let mut used: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
+        for shift in systematic(at)?.iter().filter(|s| s.len() == r.m) {
+            let dx = lm::systematic_shift(&r.jacobian, shift);
+            for (u, d) in used.iter_mut().zip(dx) {
+                *u = u.hypot(d);
+            }
+        }
+        Ok((used, r.std.clone()))
+    };
     let mut iterations = 0;
     let mut evaluations = 0;
     let mut last: Option<LmResult> = None;
@@ -405,8 +450,9 @@ where
             }));
         };
         *model = apply(&r.x);
+        let (sd, white) = spread(&r, model)?;
         let bad: Vec<usize> = (0..active.len())
-            .filter(|&j| !active[j].determined(r.std[j]))
+            .filter(|&j| !active[j].determined(sd[j]))
             .collect();
         if bad.is_empty() {
             last = Some(r);
@@ -415,7 +461,7 @@ where
         for &j in bad.iter().rev() {
             let p = active.remove(j);
             let v = p.get(model);
-            undetermined.push((p, p.value_std(v, r.std[j])));
+            undetermined.push((p, v, p.value_std(v, sd[j]), p.value_std(v, white[j])));
             p.set(model, p.get(prior));
         }
         last = Some(r);
@@ -431,32 +477,75 @@ where
         starts: starts.len().max(1),
         best_start,
     });
+    let (sd, white) = spread(&r, model)?;
     for (j, p) in active.iter().enumerate() {
         let v = p.get(model);
+        let at = |s: &[f64]| p.value_std(v, s.get(j).copied().unwrap_or(f64::INFINITY));
         estimates.push(Estimate {
             param: *p,
             field: p.field().into(),
             unit: p.unit().into(),
             value: v,
+            fitted: v,
             prior: p.get(prior),
-            std: p.value_std(v, r.std.get(j).copied().unwrap_or(f64::INFINITY)),
+            std: at(&sd),
+            white_std: at(&white),
             identifiable: true,
             stage: name.into(),
         });
     }
-    for (p, sd) in undetermined {
+    for (p, fitted, sd, white) in undetermined {
         estimates.push(Estimate {
             param: p,
             field: p.field().into(),
             unit: p.unit().into(),
             value: p.get(model),
+            fitted,
             prior: p.get(prior),
             std: sd,
+            white_std: white,
             identifiable: false,
             stage: name.into(),
         });
     }
     Ok(())
+}
+
+/// Length of the log segments (s) over which the block-robust 1σ groups
+/// residuals (see `stage`): longer than the plan's transients (a pulse
+/// and its cooling, ≈ 5–10 s; a wire's lag lasts until the next pull) so
+/// that residuals correlated in time fall mostly in one segment, short
+/// enough for 45 segments in the fitted part of a 10-minute log.
+pub const UNCERTAINTY_BLOCK_S: f64 = 10.0;
+
+/// Fewest segments in the fitted part: a shorter log gets shorter
+/// segments (the compact 60 s plan: 2.25 s), since a sandwich over a few
+/// segments is itself too uncertain to judge by.
+pub const UNCERTAINTY_MIN_BLOCKS: usize = 20;
+
+/// Segment indices (from `first`) of one wire's rows by lag episode: a new
+/// segment starts once the wire has been pulled back from the deepest
+/// insertion of the present segment by more than 1.5 times the lag
+/// ceiling there plus the longest stick (so the lag, random sticks
+/// included, is gone in the recorded joint as in the model, even with
+/// ceilings 50 % off). `ideal_mm` is the geometric insertion per row.
+fn lag_episodes(ideal_mm: &[f64], wire: &WireSensorParams, first: usize) -> Vec<usize> {
+    let j = &wire.jam;
+    let rest = wire.geometry.insertion_at_rest_mm;
+    let mut id = first;
+    let mut deepest = f64::NEG_INFINITY;
+    ideal_mm
+        .iter()
+        .map(|&d| {
+            deepest = deepest.max(d);
+            let ceiling = j.max_lag_mm + j.max_lag_per_mm * (deepest - rest).max(0.0);
+            if deepest - d > 1.5 * ceiling + j.stick_max_mm {
+                id += 1;
+                deepest = d;
+            }
+            id
+        })
+        .collect()
 }
 
 /// Stress slopes of the mechanics stage's starting grid (K/MPa): from
@@ -621,6 +710,18 @@ pub fn identify_plane(
         )));
     }
     let fit_rows = ((log.len() as f64) * opts.fit_fraction).round() as usize;
+    // Log segments of the block-robust 1σ (see `stage`).
+    let block_s = UNCERTAINTY_BLOCK_S
+        .min(fit_rows as f64 * log.period_s / UNCERTAINTY_MIN_BLOCKS as f64)
+        .max(log.period_s);
+    let block_of = |t_s: f64| (t_s / block_s).floor().max(0.0) as usize;
+    // Residuals laid out as `series` series of the fitted rows, one after
+    // the other (thermal: per coil; wires: per sensor).
+    let row_blocks = |series: usize| -> Vec<usize> {
+        (0..series)
+            .flat_map(|_| (0..fit_rows).map(|k| block_of(k as f64 * log.period_s)))
+            .collect()
+    };
     let mut model = prior.clone();
     let mut estimates = Vec::new();
     let mut stages = Vec::new();
@@ -648,8 +749,10 @@ pub fn identify_plane(
                     field: p.field().into(),
                     unit: p.unit().into(),
                     value: v,
+                    fitted: v,
                     prior: p.get(&prior),
                     std: sd,
+                    white_std: sd,
                     identifiable: p.determined(coord_sd),
                     stage: "electrical".into(),
                 });
@@ -692,6 +795,8 @@ pub fn identify_plane(
                 ],
                 opts,
                 thermal,
+                &row_blocks(map.coils.len()),
+                &|_: &PlaneModel| Ok(Vec::new()),
                 &[],
                 &mut estimates,
                 &mut stages,
@@ -718,6 +823,16 @@ pub fn identify_plane(
         }
         Ok(out)
     };
+    // The mechanics residuals' layout: the fitted frames, then the
+    // resistances row by row (both coils). Were a frame to have no
+    // prediction, the lengths would differ and `stage` would fall back to
+    // the white-noise 1σ.
+    let mut mech_blocks: Vec<usize> = fit_frames.iter().map(|(t, _)| block_of(*t)).collect();
+    if log.resistance_ohm.is_some() {
+        for k in 0..fit_rows {
+            mech_blocks.extend([block_of(k as f64 * log.period_s); 2]);
+        }
+    }
     let mut free = vec![
         Param::Convection,
         Param::AusteniteStart,
@@ -753,6 +868,8 @@ pub fn identify_plane(
         &free,
         opts,
         mech,
+        &mech_blocks,
+        &|_: &PlaneModel| Ok(Vec::new()),
         &starts,
         &mut estimates,
         &mut stages,
@@ -761,17 +878,70 @@ pub fn identify_plane(
         st.evaluations += start_evaluations;
     }
 
-    // Stage 3: wire jamming from the wire readings.
+    // Stage 3: wire jamming from the wire readings. The jamming
+    // parameters do not move the link, so the wires' paths come from one
+    // replay of the stage-2 plane; each evaluation then averages the
+    // random sensor over stick events along them (`replay` module docs).
+    let paths = replay::replay_with_wire_paths(&model, log, map, fit_rows)?;
     let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
-        let pred = replay(m, log, map, fit_rows)?;
-        let mut out = Vec::new();
+        let expected =
+            replay::expected_wire_readings(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+        let mut out = Vec::with_capacity(map.sensors.len() * fit_rows);
         for (j, &s) in map.sensors.iter().enumerate() {
             out.extend(
-                pred.wire_mm[j]
+                expected[j]
                     .iter()
                     .enumerate()
                     .map(|(k, p)| (p - log.wire_mm[k][s]) / 0.01),
             );
+        }
+        Ok(out)
+    };
+    // The wire residuals' segments are lag episodes, not fixed times: a
+    // stick's extra lag lasts until the wire is pulled clear, so residuals
+    // are correlated over a whole push (`lag_episodes`).
+    let episodes = {
+        let n = paths.substeps_per_row;
+        let mut ids = Vec::with_capacity(map.sensors.len() * fit_rows);
+        for (path, w) in paths.wire_path_mm.iter().zip(&model.wires) {
+            let per_row: Vec<f64> = (0..fit_rows).map(|k| path[k * n]).collect();
+            let first = ids.iter().max().map_or(0, |b: &usize| b + 1);
+            ids.extend(lag_episodes(&per_row, w, first));
+        }
+        ids
+    };
+    // A coder reads whole counts, and a joint returns to nearly the same
+    // rest pose after each move, so the rounding there is nearly the same
+    // every time: an offset of the readings the fit cannot average out,
+    // uniform within ±½ count (1σ = count/√12), one per sensor.
+    // The mean over a finite number of stick realisations is itself
+    // noisy: realisation r's deviation from the mean, scaled by
+    // 1/√(K(K − 1)), is one more such change, so that their shifts add up
+    // to the variance of the mean's shift.
+    let systematic = |m: &PlaneModel| -> Result<Vec<Vec<f64>>, IdentifyError> {
+        let mut out: Vec<Vec<f64>> = m
+            .wires
+            .iter()
+            .enumerate()
+            .map(|(j, w)| {
+                let per = w.mm_per_count / 12f64.sqrt() / 0.01;
+                (0..map.sensors.len())
+                    .flat_map(|i| std::iter::repeat_n(if i == j { per } else { 0.0 }, fit_rows))
+                    .collect()
+            })
+            .collect();
+        let sensors =
+            replay::wire_realisations(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+        let k = sensors.first().map_or(0, |s| s.1.len());
+        if k > 1 {
+            let scale = 1.0 / (0.01 * ((k * (k - 1)) as f64).sqrt());
+            for r in 0..k {
+                let mut v = Vec::with_capacity(sensors.len() * fit_rows);
+                for (mean, runs) in &sensors {
+                    v.extend(runs[r].iter().zip(mean).map(|(x, m)| (x - m) * scale));
+                }
+                out.push(v);
+            }
         }
         Ok(out)
     };
@@ -782,6 +952,8 @@ pub fn identify_plane(
         &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
         opts,
         wire,
+        &episodes,
+        &systematic,
         &[],
         &mut estimates,
         &mut stages,

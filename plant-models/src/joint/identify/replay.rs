@@ -5,9 +5,21 @@
 //! second copy of the physics), built and settled exactly as `Joint2d` and
 //! `Joint3d` do (coils off for `settle_s`, the wire coders zeroed there),
 //! then driven with each row's mean input held over the row's interval in
-//! substeps of `substep_s`. Stick events are left out (they are random);
-//! the deterministic buckling lag is kept. Prediction stops at the first
-//! numerical instability with the plant's error.
+//! substeps of `substep_s`. Prediction stops at the first numerical
+//! instability with the plant's error.
+//!
+//! Wires: the replay records each wire's geometric insertion at every
+//! substep ([`Prediction::wire_path_mm`]); [`expected_wire_readings`]
+//! then runs the plant's own random sensor along that path
+//! a number of times ([`STICK_REALISATIONS`] by default), with stick
+//! events from fixed streams,
+//! and averages: the *expected* reading over the stick events, which the
+//! replay cannot know where the recorded wire stuck. Leaving the sticks
+//! out (as until this change) biased the buckling gain by −23 % to +49 %
+//! on the twins; drawing one realisation of them (as before that) by up
+//! to +186 %. The mean over fixed streams is smooth in the jamming
+//! parameters: where a wire sticks depends only on its path and the
+//! stick rate and sizes, not on κ or the ceilings.
 
 use rand_chacha::ChaCha8Rng;
 
@@ -74,8 +86,10 @@ pub struct Prediction {
     pub substeps_per_row: usize,
     /// Substep (s).
     pub substep_s: f64,
-    /// Wire insertions at each row start (mm), per plane sensor.
-    pub wire_mm: Vec<Vec<f64>>,
+    /// Each plane sensor's geometric insertion (mm) after every substep
+    /// (`substeps_per_row` per row), the coder zeroed at the settled pose;
+    /// empty unless asked for ([`replay_with_wire_paths`]).
+    pub wire_path_mm: Vec<Vec<f64>>,
     /// Coil resistances at each row start (Ω), [raising, lowering].
     pub resistance_ohm: Vec<[f64; 2]>,
     /// Peak coil temperature over the replay (°C).
@@ -112,6 +126,96 @@ pub fn replay(
     map: PlaneMap,
     rows: usize,
 ) -> Result<Prediction, IdentifyError> {
+    replay_inner(model, log, map, rows, false)
+}
+
+/// [`replay`] recording the wires' paths ([`Prediction::wire_path_mm`]).
+pub fn replay_with_wire_paths(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+) -> Result<Prediction, IdentifyError> {
+    replay_inner(model, log, map, rows, true)
+}
+
+/// Random realisations of the stick events averaged by
+/// [`expected_wire_readings`] by default (`IdentifyOptions::
+/// stick_realisations`); each costs a pass of the wire model (not the
+/// plane) over the log. See the joint README for what 64 changes.
+pub const STICK_REALISATIONS: usize = 32;
+
+/// The expected reading (mm) of each of `wires` at each of the first
+/// `rows` row starts along the paths of `pred` (from
+/// [`replay_with_wire_paths`]): the mean over `realisations` (at least
+/// one) runs of the plant's random sensor, realisation r of sensor j drawing
+/// its sticks from `rng::stream(r·8 + j, rng::IDENTIFY_STICKS)` (module
+/// docs). Unquantised: the mean of the counts would be a staircase in
+/// the parameters. Realisations run in parallel and are summed in order.
+pub fn expected_wire_readings(
+    wires: &[WireSensorParams],
+    pred: &Prediction,
+    rows: usize,
+    realisations: usize,
+) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    Ok(wire_realisations(wires, pred, rows, realisations)?
+        .into_iter()
+        .map(|(mean, _)| mean)
+        .collect())
+}
+
+/// [`expected_wire_readings`] with each realisation's readings too: per
+/// sensor, (the mean, the realisations), from which the mean's own noise
+/// can be judged.
+#[allow(clippy::type_complexity)] // (mean, runs) per sensor
+pub fn wire_realisations(
+    wires: &[WireSensorParams],
+    pred: &Prediction,
+    rows: usize,
+    realisations: usize,
+) -> Result<Vec<(Vec<f64>, Vec<Vec<f64>>)>, IdentifyError> {
+    let realisations = realisations.max(1);
+    use rayon::prelude::*;
+    let n = pred.substeps_per_row;
+    let mut out = Vec::with_capacity(wires.len());
+    for (j, (w, path)) in wires.iter().zip(&pred.wire_path_mm).enumerate() {
+        let rows = rows.min(path.len() / n.max(1));
+        let runs: Vec<Vec<f64>> = (0..realisations)
+            .into_par_iter()
+            .map(|r| {
+                let mut sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0)?;
+                let mut rng: ChaCha8Rng =
+                    crate::rng::stream((r * 8 + j) as u64, crate::rng::IDENTIFY_STICKS);
+                let mut read = Vec::with_capacity(rows);
+                for k in 0..rows {
+                    read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
+                    for &ideal in &path[k * n..(k + 1) * n] {
+                        sensor.advance_to_ideal(ideal, &mut rng);
+                    }
+                }
+                Ok(read)
+            })
+            .collect::<Result<_, IdentifyError>>()?;
+        let mut mean = vec![0.0; rows];
+        for run in &runs {
+            for (m, v) in mean.iter_mut().zip(run) {
+                *m += v;
+            }
+        }
+        let k = realisations as f64;
+        mean.iter_mut().for_each(|m| *m /= k);
+        out.push((mean, runs));
+    }
+    Ok(out)
+}
+
+fn replay_inner(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+    wire_paths: bool,
+) -> Result<Prediction, IdentifyError> {
     let rows = rows.min(log.len());
     let mut plane = PlanarJoint::new(model.plane.clone())?;
     let name = if map.plane == 0 { "alpha" } else { "beta" };
@@ -125,30 +229,23 @@ pub fn replay(
         }
     }
     let b = plane.base_m();
-    // The stick events are random: the replay leaves them out (rate 0),
-    // as the module docs say. With the model's own rate it drew another
-    // realisation of them than the log's, which made the wire residuals
-    // jump when a small parameter step moved a stick (finite-difference
-    // Jacobians of the jamming stage off).
-    let mut wires = model
-        .wires
-        .iter()
-        .map(|w| {
-            let mut w = w.clone();
-            w.jam.stick_per_mm = 0.0;
-            WireSensor::new(w, 1e3 * b[0], 1e3 * b[1], plane.angle_rad())
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    // Stick events need a stream; at rate 0 it is never drawn from, so any
-    // seed gives the same prediction.
-    let mut rng: ChaCha8Rng = crate::rng::stream(0, crate::rng::IDENTIFY_REPLAY);
+    // Zeroed at the settled pose; only their geometry is used here.
+    let wires = if wire_paths {
+        model
+            .wires
+            .iter()
+            .map(|w| WireSensor::new(w.clone(), 1e3 * b[0], 1e3 * b[1], plane.angle_rad()))
+            .collect::<Result<Vec<_>, _>>()?
+    } else {
+        Vec::new()
+    };
     let (n, h_s) = split(log.period_s, model.substep_s);
     let h = step_length(h_s)?;
     let mut out = Prediction {
         angle_deg: Vec::with_capacity(rows * n + 1),
         substeps_per_row: n,
         substep_s: h_s,
-        wire_mm: vec![Vec::with_capacity(rows); wires.len()],
+        wire_path_mm: vec![Vec::with_capacity(rows * n); wires.len()],
         resistance_ohm: Vec::with_capacity(rows),
         peak_temperature_c: f64::NEG_INFINITY,
     };
@@ -156,18 +253,17 @@ pub fn replay(
         let c = plane.coils();
         out.resistance_ohm
             .push([c[0].resistance_ohm(), c[1].resistance_ohm()]);
-        for (w, series) in wires.iter().zip(out.wire_mm.iter_mut()) {
-            series.push(w.ideal_insertion_mm() - w.lag_mm());
-        }
         let v = [log.volts[k][map.coils[0]], log.volts[k][map.coils[1]]];
         for _ in 0..n {
             out.angle_deg.push(plane.angle_rad().to_degrees());
             plane.substep(h, v);
             plane.check(name, limit_j)?;
-            let base = plane.base_m();
-            let (sn, cs) = plane.sin_cos();
-            for w in wires.iter_mut() {
-                w.update_sin_cos(1e3 * base[0], 1e3 * base[1], sn, cs, &mut rng);
+            if wire_paths {
+                let base = plane.base_m();
+                let (sn, cs) = plane.sin_cos();
+                for (w, path) in wires.iter().zip(out.wire_path_mm.iter_mut()) {
+                    path.push(w.ideal_insertion_at_mm(1e3 * base[0], 1e3 * base[1], sn, cs));
+                }
             }
         }
         for coil in plane.coils() {
