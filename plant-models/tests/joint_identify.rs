@@ -182,7 +182,7 @@ fn ten_minute_3d() -> &'static [(PlaneReport, PlaneModel)] {
 
 /// Tolerances as stated in plant-models/src/joint/README.md, every
 /// parameter but the jamming gain (see
-/// `ten_minute_twins_recover_the_jamming_gain`): the failures, one line
+/// `ten_minute_twins_recover_the_jamming_gain_or_name_it_not_identifiable`): the failures, one line
 /// each.
 fn standard_fails(r: &PlaneReport, t: &PlaneModel) -> Vec<String> {
     print_estimates(r, t);
@@ -289,7 +289,7 @@ fn ten_minute_twin_3d_recovers_both_planes() {
 /// named identifiable at −20 % ± 13 %, so both branches are live).
 #[test]
 #[ignore = "10-minute logs: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
-fn ten_minute_twins_recover_the_jamming_gain() {
+fn ten_minute_twins_recover_the_jamming_gain_or_name_it_not_identifiable() {
     let mut planes = vec![ten_minute_2d()];
     planes.extend(ten_minute_3d());
     let mut fails = Vec::new();
