@@ -560,20 +560,9 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             self.supervisor
                 .supervise_coils(input.now, input.dt, want, faults, &self.driver);
         // Planes under the controller: their commands with whatever the
-        // supervisor removed removed (the pair rule holds for them).
-        let mut out_commands = [PairCommand::Off; P];
-        if supervised.allowed {
-            for (((slot, cmd), d), got) in out_commands
-                .iter_mut()
-                .zip(commands.iter())
-                .zip(drive.iter())
-                .zip(supervised.coils.iter())
-            {
-                if d.is_none() {
-                    *slot = cmd.limited_to(*got);
-                }
-            }
-        }
+        // supervisor removed removed (the pair rule holds for them); a
+        // driven plane's command is `Off` and stays so.
+        let out_commands = supervised.limit(commands);
         if supervised.faults.intersects(Faults::LATCHING) || !self.supervisor.is_armed() {
             // While outputs are forced off, integrators must not keep state
             // that would kick the coils when control resumes.

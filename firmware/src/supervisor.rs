@@ -407,14 +407,8 @@ impl<const P: usize> Supervisor<P> {
             *w = c.coil_drive();
         }
         let s = self.supervise_coils(now, dt, want, faults, driver);
-        let mut out = [PairCommand::Off; P];
-        if s.allowed {
-            for ((slot, cmd), got) in out.iter_mut().zip(commands.iter()).zip(s.coils.iter()) {
-                *slot = cmd.limited_to(*got);
-            }
-        }
         Supervised {
-            commands: out,
+            commands: s.limit(commands),
             faults: s.faults,
         }
     }
@@ -507,6 +501,22 @@ pub struct SupervisedCoils<const P: usize> {
     pub faults: Faults,
     /// False when outputs were forced off (disarmed or a fault latched).
     pub allowed: bool,
+}
+
+impl<const P: usize> SupervisedCoils<P> {
+    /// `commands` with whatever the supervisor removed removed: all `Off`
+    /// when outputs were forced off, otherwise each coil the supervisor cut
+    /// inhibited ([`PairCommand::limited_to`]). A plane whose command is
+    /// `Off` (an open-loop driven one) stays `Off`.
+    pub fn limit(&self, commands: [PairCommand; P]) -> [PairCommand; P] {
+        let mut out = [PairCommand::Off; P];
+        if self.allowed {
+            for ((slot, cmd), got) in out.iter_mut().zip(commands.iter()).zip(self.coils.iter()) {
+                *slot = cmd.limited_to(*got);
+            }
+        }
+        out
+    }
 }
 
 #[cfg(test)]
