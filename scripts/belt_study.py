@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""How the fishbone belt's highest point depends on the discretisation and
-on the start (plant-models/src/dlo/README.md, "The belt's highest point").
+"""How the paper's Ritz form of the fishbone belt (`method = "ritz"`)
+depends on its discretisation and on the start (plant-models/src/dlo/
+README.md, "The belt's highest point"). The default segment solver and its
+independent reference are in scripts/belt_reference.py.
 
 Solves the paper's Fig. 10 belt (scenarios/dlo/belt.toml) with
 `softjoint dlo solve` for several Ritz bases, collocation counts and
@@ -32,6 +34,7 @@ BOWS = [0.1, 0.2, 0.3, 0.5]
 
 PROBLEM = """model = "belt"
 [problem]
+method = "ritz"
 length_m = 1.0
 width_m = 0.1
 flexural_rigidity_n_m2 = 1.0

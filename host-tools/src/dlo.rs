@@ -18,7 +18,7 @@ use host_tools::plot::{self, PanelStroke, ViewPanel};
 use host_tools::{out, outln};
 use plant_models::dlo::rope::script::{Frame, RopeScenario, RunResult};
 use plant_models::dlo::rope::V3;
-use plant_models::dlo::wire::belt::{belt_settings, BeltProblem, BeltShape};
+use plant_models::dlo::wire::belt::{belt_settings, curve_top, BeltMethod, BeltProblem, BeltShape};
 use plant_models::dlo::wire::linear::{end_distance_sequence, SequenceStep};
 use plant_models::dlo::wire::optimize::Settings;
 use plant_models::dlo::wire::{WireParams, WireProblem, WireShape};
@@ -415,6 +415,13 @@ fn solve_cmd(a: SolveArgs) -> Result<()> {
             let top = spine_top(&shape);
             JsonObject::new()
                 .field("model", "belt")?
+                .field(
+                    "method",
+                    match problem.method {
+                        BeltMethod::Segments => "segments",
+                        BeltMethod::Ritz => "ritz",
+                    },
+                )?
                 .field("energy_j", &shape.energy_j)?
                 .field(
                     "highest_surface_point_m",
@@ -510,18 +517,9 @@ fn solve_cmd(a: SolveArgs) -> Result<()> {
     Ok(())
 }
 
-/// The highest (largest x) spine point of a belt.
+/// The highest (largest x) spine point of a belt, refined between samples.
 fn spine_top(b: &BeltShape) -> V3 {
-    b.spine_m
-        .iter()
-        .copied()
-        .fold(V3::new(f64::NEG_INFINITY, 0.0, 0.0), |a, p| {
-            if p.x > a.x {
-                p
-            } else {
-                a
-            }
-        })
+    curve_top(&b.spine_m)
 }
 
 fn wire_csv(rows: &[(&str, Option<f64>, &WireShape)]) -> String {
@@ -606,7 +604,7 @@ fn belt_views(b: &BeltShape) -> plot::Svg {
         ("(b) front", ("y", "z"), |p| (p.y, p.z)),
         ("(c) side", ("z", "x"), |p| (p.z, p.x)),
     ];
-    let top = spine_top(b);
+    let top = b.highest_m;
     let panels: Vec<ViewPanel> = views
         .iter()
         .map(|(name, axes, proj)| {
@@ -635,14 +633,26 @@ fn belt_views(b: &BeltShape) -> plot::Svg {
                 });
             }
             ViewPanel {
-                title: format!("belt {name}"),
+                title: if name.starts_with("(a)") {
+                    format!("belt {name} · orange: paper's top")
+                } else {
+                    format!("belt {name}")
+                },
                 axes: (format!("{} (m)", axes.0), format!("{} (m)", axes.1)),
                 strokes,
-                markers: vec![(
-                    proj(&top),
-                    "#2ca02c".into(),
-                    format!("highest [{:.2}, {:.2}, {:.2}]", top.x, top.y, top.z),
-                )],
+                markers: vec![
+                    (
+                        proj(&top),
+                        "#2ca02c".into(),
+                        format!("highest [{:.3}, {:.3}, {:.3}]", top.x, top.y, top.z),
+                    ),
+                    // The paper's highest point (L1058), in units of L_u.
+                    (
+                        proj(&(V3::new(0.3, 0.4, -0.01) * b.u_m.last().copied().unwrap_or(1.0))),
+                        "#ff7f0e".into(),
+                        String::new(),
+                    ),
+                ],
             }
         })
         .collect();

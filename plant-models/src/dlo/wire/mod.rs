@@ -7,11 +7,14 @@
 //! - [`frame`]: Euler angles, the rotation A and the rates ω (Eq. 1–2);
 //! - [`optimize`]: the multiplier method with BFGS (L800, L809);
 //! - [`linear`]: the wire (Eq. 3–15, knots Eq. 21–24);
-//! - [`belt`]: the fishbone belt (Eq. 31–61).
+//! - [`belt`]: the fishbone belt (Eq. 31–61);
+//! - [`strip`]: the fishbone belt on straight segments, developable
+//!   everywhere (the default belt solver).
 pub mod basis;
 pub mod belt;
 pub mod frame;
 pub mod linear;
 pub mod optimize;
+pub mod strip;
 
 pub use linear::{Constraint, WireParams, WireProblem, WireShape};
