@@ -5,7 +5,7 @@
 //! φ, θ, ψ; its position is x(u) = ∫η du (Eq. 31). The rib lines, straight
 //! lines across the belt, make the angle α with the spine, β = tan α
 //! (Eq. 43–45, 54). Developability and inextensibility give ω_ξ = 0
-//! (Eq. 48), ω_η + ω_ζ β = 0 (Eq. 55) and |dβ/du| ≤ 2/V (Eq. 56), imposed at
+//! (Eq. 48), ω_η + ω_ζ β = 0 (Eq. 55) and |dβ/du| ≤ 2/V (Eq. 56), which the paper imposes at
 //! 16 points u = iL_u/15 as in the paper (L1049). The energy is Eq. 57,
 //! R_f/2 ∫ (ω_ζ² + ω_η²)²/ω_ζ² du, used in the form R_f/2 ∫ ω_ζ²(1 + β²)² du,
 //! which equals it wherever Eq. 55 holds and, unlike the printed form, is
@@ -17,16 +17,22 @@
 //! the solve starts from a slight bow towards +x, the side of the paper's
 //! highest point [0.3, 0.4, −0.01]L_u (L1058).
 //!
-//! **Basis size.** With the paper's 4 harmonics (10 functions per profile,
-//! 40 unknowns) the example has 43 independent equality conditions (4 of
-//! Eq. 59, 3 of Eq. 58, 3 of Eq. 60, 1 of Eq. 61, 32 of Eq. 48 and 55 at 16
-//! points): the multiplier method then ends with a violation of 0.03–0.5
-//! and no shape. 6 harmonics (56 unknowns) is the default; more than 7
-//! lets the profiles bend freely between the 16 collocation points (at 10
-//! harmonics the energy falls from ≈ 14 to ≈ 0.5 R_f/L_u while Eq. 48 and
-//! 55 hold only at the points), so the paper's 16 points bound the basis.
-//! The solution also depends on the start: bows of 0.2–0.5 rad put the
-//! highest spine point at y = 0.35–0.38 L_u (x = 0.31, z = 0.00 L_u).
+//! **Two discretisations.** The default, `method = "segments"`
+//! ([`super::strip`]), cuts the spine into straight segments on which
+//! Eq. 48 and 55 hold exactly, so the surface is developable everywhere.
+//! `method = "ritz"` is the paper's form: Euler angles and β in the Eq. 20
+//! basis, with Eq. 48, 55 and 56 at the collocation points only.
+//!
+//! **Ritz basis size.** With the paper's 4 harmonics (10 functions per
+//! profile, 40 unknowns), the example has 43 independent equality
+//! conditions:
+//! * 4 of Eq. 59, 3 of Eq. 58, 3 of Eq. 60 and 1 of Eq. 61;
+//! * 32 of Eq. 48 and 55 at the 16 points.
+//!
+//! The multiplier method then ends with a violation of 0.03–0.5 and no
+//! shape, so 6 harmonics (56 unknowns) is the Ritz default. Even so, the
+//! solved spine bends in its own plane between the points (rms ω_ξ ≈ 1.4 ×
+//! rms ω_ζ), and its top depends on the basis and on the start (README).
 //!
 //! Internally lengths are in units of L_u and energy in units of R_f/L_u:
 //! the shape cannot depend on a constant R_f (L1070–1072), and a test checks
@@ -56,11 +62,14 @@ pub struct BeltProblem {
     pub end_m: [f64; 3],
     /// Rotation of the far end about x, rad (Eq. 60: π/6).
     pub end_turn_rad: f64,
-    /// Points where Eq. 48, 55, 56 are imposed (L1049: 16).
+    /// Points where Eq. 48, 55, 56 are imposed, `method = "ritz"` only
+    /// (L1049: 16).
     pub collocation_points: usize,
-    /// Ritz harmonics (Eq. 20 has 4; the default is 6, see the module doc).
+    /// Ritz harmonics, `method = "ritz"` only (Eq. 20 has 4; the default is
+    /// 6, see the module doc).
     pub harmonics: usize,
-    /// Integration intervals.
+    /// Segments (`method = "segments"`; 120, from the convergence study in
+    /// the README) or integration intervals (`method = "ritz"`).
     pub intervals: usize,
     /// Initial bow of the spine towards +x (ψ amplitude, rad): picks the
     /// side of the mirror-symmetric pair of solutions.
