@@ -5,8 +5,8 @@
 //! φ, θ, ψ; its position is x(u) = ∫η du (Eq. 31). The rib lines, straight
 //! lines across the belt, make the angle α with the spine, β = tan α
 //! (Eq. 43–45, 54). Developability and inextensibility give ω_ξ = 0
-//! (Eq. 48), ω_η + ω_ζ β = 0 (Eq. 55) and |dβ/du| ≤ 2/V (Eq. 56), which the paper imposes at
-//! 16 points u = iL_u/15 as in the paper (L1049). The energy is Eq. 57,
+//! (Eq. 48), ω_η + ω_ζ β = 0 (Eq. 55) and |dβ/du| ≤ 2/V (Eq. 56), which
+//! the paper imposes at 16 points u = iL_u/15 (L1049). The energy is Eq. 57,
 //! R_f/2 ∫ (ω_ζ² + ω_η²)²/ω_ζ² du, used in the form R_f/2 ∫ ω_ζ²(1 + β²)² du,
 //! which equals it wherever Eq. 55 holds and, unlike the printed form, is
 //! defined on the flat belt (ω_ζ = 0) the solve starts from.
