@@ -41,7 +41,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use super::basis::{self, Basis};
-use super::frame::{omega_partials, omegas, rotation_and_partials};
+use super::frame::{euler_angles, omega_partials, omegas, rotation_and_partials};
 use super::optimize::{self, Kind, Problem, Settings, Solution};
 use super::strip::{CompiledStrip, END_ROWS};
 use crate::dlo::error::{check_positive, check_range, Result};
@@ -290,19 +290,6 @@ fn edges_from_frames(
     edges
 }
 
-/// ZYZ Euler angles (Eq. 1) of a frame; φ = 0 where θ = 0.
-fn euler_of(a: &nalgebra::Matrix3<f64>) -> [f64; 3] {
-    let theta = a[(2, 2)].clamp(-1.0, 1.0).acos();
-    if theta.sin() < 1e-12 {
-        return [0.0, theta, a[(1, 0)].atan2(a[(0, 0)])];
-    }
-    [
-        a[(1, 2)].atan2(a[(0, 2)]),
-        theta,
-        a[(2, 1)].atan2(-a[(2, 0)]),
-    ]
-}
-
 /// The segment solution as a shape in SI units, bowing towards +x. The
 /// problem is symmetric under the reflection x → −x and a solve may settle
 /// on either side; a shape on the −x side is reflected (points x → −x,
@@ -345,7 +332,7 @@ fn strip_shape(c: &CompiledStrip, sol: Solution) -> BeltShape {
     let n = c.segments;
     BeltShape {
         u_m: (0..=n).map(|i| i as f64 / n as f64 * l).collect(),
-        euler_rad: frames.iter().map(euler_of).collect(),
+        euler_rad: frames.iter().map(euler_angles).collect(),
         highest_m: surface_top(&spine, &edges),
         beta: ch.beta.clone(),
         spine_m: spine,

@@ -35,6 +35,22 @@ pub fn rotation_and_partials(phi: f64, theta: f64, psi: f64) -> [Matrix3<f64>; 4
     [a, d_phi, d_theta, d_psi]
 }
 
+/// The Euler angles (φ, θ, ψ) of Eq. 1 of a rotation, θ ∈ [0, π]. Where
+/// sin θ = 0 only φ ± ψ is defined; φ = 0 is taken there.
+pub fn euler_angles(a: &Matrix3<f64>) -> [f64; 3] {
+    let theta = a[(2, 2)].clamp(-1.0, 1.0).acos();
+    if theta.sin() < 1e-12 {
+        // A = Rz(ψ) at θ = 0 and Ry(π)Rz(ψ) at θ = π: the middle row is
+        // (sin ψ, cos ψ, 0) in both.
+        return [0.0, theta, a[(1, 0)].atan2(a[(1, 1)])];
+    }
+    [
+        a[(1, 2)].atan2(a[(0, 2)]),
+        theta,
+        a[(2, 1)].atan2(-a[(2, 0)]),
+    ]
+}
+
 /// (ω_ξ, ω_η, ω_ζ) of Eq. 2 from the angles and their rates.
 pub fn omegas(theta: f64, psi: f64, dphi: f64, dtheta: f64, dpsi: f64) -> Vector3<f64> {
     let (st, ct) = theta.sin_cos();
@@ -87,6 +103,25 @@ mod tests {
         assert!((num(&|e| rotation_and_partials(f + e, t, p)[0]) - df).norm() < 1e-8);
         assert!((num(&|e| rotation_and_partials(f, t + e, p)[0]) - dt).norm() < 1e-8);
         assert!((num(&|e| rotation_and_partials(f, t, p + e)[0]) - dp).norm() < 1e-8);
+    }
+
+    #[test]
+    fn euler_angles_invert_eq_1_including_both_poles() {
+        use std::f64::consts::PI;
+        for (f, t, p) in [
+            (0.3, 1.1, -0.7),
+            (-2.0, 0.4, 2.5),
+            (0.0, 0.0, 0.9),
+            (0.0, PI, -1.2),
+        ] {
+            let a = rotation_and_partials(f, t, p)[0];
+            let [f2, t2, p2] = euler_angles(&a);
+            assert!(
+                (rotation_and_partials(f2, t2, p2)[0] - a).norm() < 1e-12,
+                "{f} {t} {p}"
+            );
+            assert!((t2 - t).abs() < 1e-9);
+        }
     }
 
     #[test]
