@@ -55,20 +55,20 @@ cargo test --workspace --locked
 step "the plant's long checks, optimised (profile ci-opt): the knot tied and untied, the belt, the end-distance sequence, indentation at levels 7-9, the 60 s replays, the 10-minute identification twins"
 # Minutes unoptimised, seconds optimised. The flat-punch refinement study
 # is left out: it fails, as the tetmsd README says.
-cargo test --profile ci-opt -p plant-models --lib --locked -- --ignored \
+cargo test --profile ci-opt -p plant-dlo -p plant-tetmsd --lib --locked -- --ignored \
     --skip flat_punch_force_converges_with_refinement
 # Issue 20's 10-minute twins (identification within the README's
 # tolerances, the jamming gain recovered or named not identifiable, the
 # README twin's beta inertia named not identifiable): four
 # identifications, 4 min 44 s to 5 min 54 s optimised on the loaded
 # 2-core machine (load average 2.5-4).
-cargo test --profile ci-opt -p plant-models --test joint_identify --locked -- --ignored
+cargo test --profile ci-opt -p plant-joint --test it --locked -- --ignored identify::
 
 step "the firmware images under QEMU (mps2-an386, and the STM32F4 image on netduinoplus2) in lockstep with the simulated joint (needs the images built above)"
-cargo test -p integration-tests --test qemu_hil --locked -- --ignored
+cargo test -p integration-tests --test it --locked -- --ignored qemu_hil::
 step "issue 20's must-show under QEMU: the committed tuned gains beat the paper's on the hidden joint, the image in lockstep; integral action in lockstep"
-cargo test -p integration-tests --test qemu_tuned_gains --locked -- --ignored
+cargo test -p integration-tests --test it --locked -- --ignored qemu_tuned_gains::
 step "fault campaign of the lockstep link against the image under QEMU (short form; the pty-board form runs with the host tests)"
-cargo test -p integration-tests --test fault_campaign --locked -- --ignored fault_campaign_qemu
+cargo test -p integration-tests --test it --locked -- --ignored fault_campaign::fault_campaign_qemu
 step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images"
-cargo test -p host-tools --test hil_qemu_cli --locked -- --ignored --test-threads 1
+cargo test -p host-tools --test it --locked -- --ignored hil_qemu_cli:: --test-threads 1

@@ -1,7 +1,7 @@
 //! The one closed loop: plant ⇄ controller at a fixed control period, with
 //! a schedule of targets and disturbances, one [`Sample`] per period.
 
-use plant_models::joint::PlantError;
+use plant_joint::PlantError;
 
 use crate::plants::Plant;
 

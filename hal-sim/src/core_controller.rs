@@ -21,8 +21,8 @@ pub enum FeedbackSource {
 }
 
 /// ChaCha stream of wire sensor `k`'s dropout draws (see
-/// `plant_models::rng` for the registry of stream numbers).
-const DROPOUT_STREAM: u64 = plant_models::rng::HAL_SIM_SENSOR_BASE;
+/// `plant_common::rng` for the registry of stream numbers).
+const DROPOUT_STREAM: u64 = plant_common::rng::HAL_SIM_SENSOR_BASE;
 
 /// The firmware core in process, with `P` pairs and `S` wire sensors,
 /// stepped once per control period at the board's lockstep instants.
@@ -57,7 +57,7 @@ impl<const P: usize, const S: usize> CoreController<P, S> {
         let sensors = core::array::from_fn(|k| {
             SimWireSensor::new(
                 mm_per_count[k],
-                plant_models::rng::stream(seed, DROPOUT_STREAM + k as u64),
+                plant_common::rng::stream(seed, DROPOUT_STREAM + k as u64),
             )
         });
         joint.arm();

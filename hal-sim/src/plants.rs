@@ -1,6 +1,6 @@
 //! [`Plant`]: what the closed loop needs of a plant, and its
 //! implementations for the joint models of `plant-models`.
-use plant_models::joint::{Joint2d, Joint3d, LoadId, Plane, PlantError};
+use plant_joint::{Joint2d, Joint3d, LoadId, Plane, PlantError};
 
 /// Weights hung on and cut from a plant's link (the scenario
 /// disturbances).

@@ -1,11 +1,11 @@
-//! Writes the twin tests' hidden joint (`plant_models::joint::identify::
+//! Writes the twin tests' hidden joint (`plant_joint::identify::
 //! hidden`: the defaults moved 20–50 %, a Clausius–Clapeyron slope, more
 //! camera noise, jamming) as a plant file, so the whole pipeline can be run
 //! from the command line against a joint whose truth is known:
 //! `cargo run --release -p host-tools --example hidden_plant -- 3d hidden.toml [SEED]`
-use plant_models::joint::identify::hidden;
+use plant_joint::identify::hidden;
 
-use host_tools::plant_file::{PlantFile, PlantParams};
+use host_tools::files::plant::{PlantFile, PlantParams};
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -20,7 +20,7 @@ fn main() -> anyhow::Result<()> {
     };
     PlantFile::new(params, vec![]).save(
         std::path::Path::new(path),
-        "# The twin tests' hidden joint (plant_models::joint::identify::hidden).\n",
+        "# The twin tests' hidden joint (plant_joint::identify::hidden).\n",
     )?;
     println!("hidden {kind} joint written to {path}");
     Ok(())

@@ -11,7 +11,7 @@ use std::collections::HashSet;
 use std::fmt;
 
 use anyhow::anyhow;
-use plant_models::csv_input::excerpt;
+use plant_common::csv_input::excerpt;
 use serde::de::{self, DeserializeOwned, DeserializeSeed, MapAccess, SeqAccess, Visitor};
 
 /// 1-based line and column of byte `at` in `text`, and that line.
@@ -45,7 +45,7 @@ fn near(line: &str, column: usize) -> String {
 /// Parses TOML `text` of `file` into `T` (a leading byte-order mark, as
 /// Windows editors write it, is dropped).
 pub fn from_toml<T: DeserializeOwned>(text: &str, file: &str) -> anyhow::Result<T> {
-    let text = plant_models::strip_bom(text);
+    let text = plant_common::strip_bom(text);
     toml::from_str(text).map_err(|e| {
         let message = excerpt_lines(e.message());
         match e.span() {
@@ -82,7 +82,7 @@ fn excerpt_lines(message: &str) -> String {
 /// Parses JSON `text` of `file` into `T`, refusing duplicate keys in any
 /// object first (a leading byte-order mark is dropped).
 pub fn from_json<T: DeserializeOwned>(text: &str, file: &str) -> anyhow::Result<T> {
-    let text = plant_models::strip_bom(text);
+    let text = plant_common::strip_bom(text);
     let json_error = |e: serde_json::Error| {
         let full = e.to_string();
         let suffix = format!(" at line {} column {}", e.line(), e.column());

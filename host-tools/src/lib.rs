@@ -1,23 +1,18 @@
-//! The library behind the `softjoint` program: scenarios, the closed-loop
-//! simulation, wire-sensor calibration, reports, and the serial tools.
+//! The library behind the `softjoint` program: the file formats
+//! ([`files`]), one run of the joint ([`run`]), a board as the controller
+//! ([`board`]), the joint's calibration, excitation and tuning ([`joint`]),
+//! and what every command shares: checked output ([`output`]), pictures
+//! ([`plot`]), input parsing ([`input`]), progress bars ([`progress`]) and
+//! signals ([`stop`]).
 
 pub mod board;
-pub mod calibrate;
-pub mod excite;
-pub mod hil;
+pub mod files;
 pub mod input;
-pub mod link;
+pub mod joint;
 pub mod output;
-pub mod plant_file;
 pub mod plot;
 pub mod progress;
-pub mod pty_board;
-pub mod qemu;
-pub mod report;
-pub mod scenario;
-pub mod sim;
+pub mod run;
 pub mod stop;
 pub mod tetmsd_rt;
-pub mod trace;
-pub mod tune;
 pub mod visco_core;

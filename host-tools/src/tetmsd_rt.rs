@@ -1,6 +1,6 @@
 //! The real-time runtime of one tetmsd site (seed 000, Yamaguchi §5.2):
 //! four threads and a UDP socket around the pure session logic of
-//! `plant_models::tetmsd::session`.
+//! `plant_tetmsd::session`.
 //!
 //! * **Haptic, 1 kHz** (the seed's haptic thread, L2667): reads the
 //!   scripted stylus, decides the grip on the latest published shape
@@ -28,14 +28,14 @@
 //! Timing is whatever the machine gives: on a shared machine the haptic
 //! loop's lateness is measured and reported, never assumed.
 use anyhow::{anyhow, bail, Context, Result};
-use plant_models::tetmsd::link::{Arrival, Link, LinkStats};
-use plant_models::tetmsd::model::probe::{Manipulation, NodeReaction, Trajectory};
-use plant_models::tetmsd::model::voigt::TICK_S;
-use plant_models::tetmsd::model::V3;
-use plant_models::tetmsd::netem::{Emulator, NetemConfig, NetemStats};
-use plant_models::tetmsd::packet::{Message, Packet};
-use plant_models::tetmsd::pair::{Haptic, SessionConfig};
-use plant_models::tetmsd::replica::{ReplicaStats, Replicas};
+use plant_tetmsd::link::{Arrival, Link, LinkStats};
+use plant_tetmsd::model::probe::{Manipulation, NodeReaction, Trajectory};
+use plant_tetmsd::model::voigt::TICK_S;
+use plant_tetmsd::model::V3;
+use plant_tetmsd::netem::{Emulator, NetemConfig, NetemStats};
+use plant_tetmsd::packet::{Message, Packet};
+use plant_tetmsd::pair::{Haptic, SessionConfig};
+use plant_tetmsd::replica::{ReplicaStats, Replicas};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::net::{SocketAddr, UdpSocket};
@@ -715,7 +715,7 @@ fn network_thread(
     t0: Instant,
     from_haptic: Receiver<(u32, Manipulation)>,
     to_deform: SyncSender<(u64, Manipulation)>,
-    geometry: &plant_models::tetmsd::model::probe::ContactGeometry,
+    geometry: &plant_tetmsd::model::probe::ContactGeometry,
     nodes: usize,
 ) -> Result<NetOut> {
     let mut emulator = Emulator::new(setup.netem, setup.seed, setup.site)?;

@@ -1,6 +1,6 @@
 //! The firmware's real-time DGFM update (`firmware::viscoelastic`, what a
 //! haptic device would run) over a plant object, as a
-//! [`TractionModel`](plant_models::viscoelastic::TractionModel), so the same
+//! [`TractionModel`](plant_viscoelastic::TractionModel), so the same
 //! haptic loop can run it beside the plant's exact reference and the two can
 //! be compared.
 
@@ -9,9 +9,9 @@ use firmware::viscoelastic::{
     ColumnSlot, RayleighColumns, RayleighParams, TensorColumn, TensorColumns, TimeStep, ViscoDgfm,
     ViscoError,
 };
-use plant_models::viscoelastic::error::{Result, VeError};
-use plant_models::viscoelastic::object::DEFAULT_REST_THRESHOLD_M;
-use plant_models::viscoelastic::{ColumnParams, Dgfm, Mat3, TractionModel, Vec3};
+use plant_viscoelastic::error::{Result, VeError};
+use plant_viscoelastic::object::DEFAULT_REST_THRESHOLD_M;
+use plant_viscoelastic::{ColumnParams, Dgfm, Mat3, TractionModel, Vec3};
 
 type Slots = Vec<ColumnSlot<f64>>;
 type States = Vec<CoreVec3<f64>>;

@@ -1,5 +1,5 @@
 //! A fault injector for the lockstep link: a [`Port`] between the host's
-//! [`Link`](host_tools::link::Link) and the real port (a pty to QEMU or to
+//! [`Link`](host_tools::board::link::Link) and the real port (a pty to QEMU or to
 //! the pty board) that mangles whole frames in both directions at a seeded
 //! rate — dropped, duplicated, delayed (and so reordered), bit-flipped,
 //! truncated, garbage frames inserted, bursts of noise merged into a frame.
@@ -19,7 +19,7 @@ use std::io::{self, Read, Write};
 use std::time::{Duration, Instant};
 
 use firmware::protocol::{FrameDecoder, FrameError, LinkStats};
-use host_tools::link::Port;
+use host_tools::board::link::Port;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
@@ -193,10 +193,10 @@ pub struct FaultyPort<P: Port> {
 
 impl<P: Port> FaultyPort<P> {
     /// Wraps `inner`; faults drawn from `seed`'s streams
-    /// (`plant_models::rng::LINK_FAULTS_BASE` + direction). Starts disabled.
+    /// (`plant_common::rng::LINK_FAULTS_BASE` + direction). Starts disabled.
     pub fn new(inner: P, rates: FaultRates, seed: u64) -> Self {
         let lane = |dir: Direction| Lane {
-            rng: plant_models::rng::stream(seed, plant_models::rng::LINK_FAULTS_BASE + dir as u64),
+            rng: plant_common::rng::stream(seed, plant_common::rng::LINK_FAULTS_BASE + dir as u64),
             partial: Vec::new(),
             delayed: VecDeque::new(),
             faults: 0,
@@ -240,7 +240,7 @@ impl<P: Port> FaultyPort<P> {
                 // Reads leave the port's one timeout short; a write gets
                 // the link's.
                 self.inner
-                    .set_read_timeout(host_tools::link::WRITE_TIMEOUT)?;
+                    .set_read_timeout(host_tools::board::link::WRITE_TIMEOUT)?;
                 self.inner.write_all(bytes)
             }
             Direction::ToHost => {

@@ -1,11 +1,11 @@
 //! Shared helpers for the cross-crate integration tests in `tests/tests/`.
 
-pub use host_tools::pty_board::{BoardFaults, BoardState, PtyBoard};
+pub use host_tools::board::pty::{BoardFaults, BoardState, PtyBoard};
 
 use std::time::Duration;
 
 use firmware::protocol::{Arm, ClearFaults, HilStart, SetLinkTimeout, SetTarget};
-use host_tools::link::{Link, Port};
+use host_tools::board::link::{Link, Port};
 
 /// Puts a board into lockstep at 1 kHz, armed, with α's target set:
 /// handshake, optional link timeout, `HilStart`, `ClearFaults` (faults from
@@ -16,7 +16,7 @@ pub fn start_lockstep<P: Port>(
     alpha_target_deg: f32,
     timeout: Duration,
 ) {
-    host_tools::hil::handshake(link).expect("handshake");
+    host_tools::board::hil::handshake(link).expect("handshake");
     if let Some(timeout_ms) = link_timeout_ms {
         link.command(&SetLinkTimeout { timeout_ms }.into(), timeout, 5)
             .expect("link timeout");

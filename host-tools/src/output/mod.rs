@@ -29,7 +29,7 @@
 //!    with `?`.
 //!
 //! Streamed traces (`sim`/`hil --csv`, the console's telemetry CSV) are
-//! the exception to 2: they are written as the run goes (`crate::trace`)
+//! the exception to 2: they are written as the run goes (`crate::run::trace`)
 //! and say whether they are complete. They are not the exception to 1:
 //! each value is checked with [`check_number`] before it is formatted, and
 //! a missing angle estimate is an empty field ([`estimate_field`]).
@@ -181,7 +181,7 @@ pub fn check_text(target: &str, text: &str) -> Result<(), NonFinite> {
             return Err(NonFinite {
                 target: target.to_string(),
                 place: format!("line {}", i + 1),
-                value: plant_models::csv_input::excerpt(w),
+                value: plant_common::csv_input::excerpt(w),
             });
         }
     }

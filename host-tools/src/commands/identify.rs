@@ -1,0 +1,396 @@
+//! `softjoint identify joint|plan`: the joint's plant fitted to a user's
+//! recording, and the plans to record one.
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use clap::{Args, Subcommand, ValueEnum};
+use host_tools::files::plant::{PlantFile, PlantParams, Uncertainty};
+use host_tools::joint::excite;
+use host_tools::output;
+use host_tools::plot::{line_charts, Chart, Series};
+use plant_joint::identify::{
+    self, ExcitationPlan, IdentifyOptions, LmOptions, PlaneReport, NEVER_FITTED,
+};
+use plant_joint::{Joint2dParams, Joint3dParams};
+
+#[derive(Subcommand)]
+pub enum IdentifyCommand {
+    /// Fit the joint's plant to an excitation log (`sim --excite`, `hil
+    /// --excite`): thermal, driver, transformation temperatures and their
+    /// stress slope, sponge, link inertia, wire jamming; with uncertainties,
+    /// the parameters the log does not determine, and a held-out check.
+    Joint(JointArgs),
+    /// Print an excitation plan (TOML) to start from: the standard plan
+    /// (steps, pulses, ramps, co-contraction, optional holds), within the
+    /// firmware's thermal budget.
+    Plan(PlanArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum JointArg {
+    #[value(name = "2d")]
+    TwoD,
+    #[value(name = "3d")]
+    ThreeD,
+}
+
+#[derive(Args)]
+pub struct PlanArgs {
+    /// Which joint.
+    #[arg(long, value_enum, default_value = "3d")]
+    joint: JointArg,
+    /// Length (s).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 600.0)]
+    duration_s: f64,
+    /// Add holds at ±8° under the controller.
+    #[arg(long)]
+    holds: bool,
+}
+
+/// Where the angles that the mechanics stage fits come from.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AngleSource {
+    /// The log's camera columns (`sim`, `hil`, a lab's camera).
+    Camera,
+    /// The board's own wire-based estimates (columns `est_alpha_deg`,
+    /// `est_beta_deg` of a `console excite` log), one every 3rd row.
+    #[value(name = "board-estimate")]
+    BoardEstimate,
+}
+
+#[derive(Args)]
+pub struct JointArgs {
+    /// The log (CSV).
+    log: PathBuf,
+    /// A plant file to start from (and to keep the parameters not fitted
+    /// from) instead of the defaults.
+    #[arg(long)]
+    prior: Option<PathBuf>,
+    /// Write the identified plant file here.
+    #[arg(short, long, default_value = "plant.toml")]
+    output: PathBuf,
+    /// Share of the log (from its start) to fit; the rest is held out.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.75)]
+    fit_fraction: f64,
+    /// Minimiser iterations per stage at most.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    max_iterations: u32,
+    /// Write recorded vs predicted angles (SVG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Print a machine-readable report instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// The angles the mechanics stage fits: the camera's, or, for a log
+    /// recorded on a board without a camera (`console excite`), the
+    /// board's own estimates from its wires — which carry the estimation
+    /// law's error and the wires' jamming into the mechanics, and leave the
+    /// jamming stage fitting the wires against an angle read off the wires.
+    #[arg(long, value_enum, default_value = "camera")]
+    angles: AngleSource,
+}
+
+/// What `--angles board-estimate` tells the reader with every result.
+const BOARD_ESTIMATE_NOTE: &str = "angles: the board's wire-based estimates (est_*_deg), not a camera — the mechanics absorb the estimation law's error and the wires' jamming, and the jamming parameters are fitted against an angle read off the same wires (not independent)";
+
+/// Rows between two board estimates used as angle frames (every 3rd row
+/// of a 10 ms log: 33 frames/s, about the camera's 30, so the angle
+/// residuals keep the weight the camera's would have).
+const ESTIMATE_FRAME_ROWS: usize = 3;
+
+/// The log's camera columns replaced by the board's estimates (see
+/// [`AngleSource::BoardEstimate`]); errors name the file and column.
+fn angles_from_board_estimates(
+    log: &mut identify::ExcitationLog,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    if log.cam_capture_s.iter().any(|c| *c >= 0.0) {
+        bail!(
+            "{}: the log has camera frames; --angles board-estimate is for a log without a camera (`console excite`)",
+            path.display()
+        );
+    }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read log {}", path.display()))?;
+    let table = plant_common::csv_input::read_numeric(&text, &path.display().to_string())?;
+    let names = ["est_alpha_deg", "est_beta_deg"];
+    let mut cols = Vec::new();
+    for name in names.iter().take(log.planes) {
+        cols.push(table.values(table.column(name)?));
+    }
+    for (k, (cap, deg)) in log
+        .cam_capture_s
+        .iter_mut()
+        .zip(log.cam_deg.iter_mut())
+        .enumerate()
+    {
+        let frame = k - k % ESTIMATE_FRAME_ROWS;
+        *cap = log.t_s[frame];
+        for (d, col) in deg.iter_mut().zip(&cols) {
+            *d = col[frame];
+        }
+    }
+    Ok(())
+}
+
+pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
+    match cmd {
+        IdentifyCommand::Plan(a) => {
+            let planes = match a.joint {
+                JointArg::TwoD => 1,
+                JointArg::ThreeD => 2,
+            };
+            if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= 7200.0) {
+                bail!(
+                    "--duration-s must be in (0, 7200] s, got {}",
+                    plant_common::short_number(a.duration_s)
+                );
+            }
+            let plan = ExcitationPlan::standard(planes, a.duration_s, a.holds);
+            excite::check_budget(&plan)?;
+            output::print_toml("", &plan)?;
+            Ok(())
+        }
+        IdentifyCommand::Joint(a) => joint(a),
+    }
+}
+
+fn joint(a: JointArgs) -> anyhow::Result<()> {
+    if !(a.fit_fraction.is_finite() && (0.2..=1.0).contains(&a.fit_fraction)) {
+        bail!(
+            "--fit-fraction must be in 0.2..=1, got {}",
+            plant_common::short_number(a.fit_fraction)
+        );
+    }
+    let mut log = excite::read_log(&a.log)?;
+    match a.angles {
+        AngleSource::BoardEstimate => angles_from_board_estimates(&mut log, &a.log)?,
+        AngleSource::Camera => {
+            if !log.cam_capture_s.iter().any(|c| *c >= 0.0) && !log.has_electrical() {
+                bail!(
+                    "{}: the log has no camera frame and no coil resistances, so nothing measures the angle the mechanics are fitted to; for a log recorded on a board (`console excite`), --angles board-estimate fits them to the board's own estimates",
+                    a.log.display()
+                );
+            }
+        }
+    }
+    let prior = match &a.prior {
+        Some(p) => Some(PlantFile::load(p)?.params()?),
+        None => None,
+    };
+    let opts = IdentifyOptions {
+        fit_fraction: a.fit_fraction,
+        lm: LmOptions {
+            max_iterations: a.max_iterations as usize,
+            ..LmOptions::default()
+        },
+        ..IdentifyOptions::default()
+    };
+    let what = |e: identify::IdentifyError| anyhow::anyhow!("{}: {e}", a.log.display());
+    let (params, reports) = match (log.planes, prior) {
+        (1, None) => {
+            let (p, r) =
+                identify::identify_2d(&log, &Joint2dParams::default(), &opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (1, Some(PlantParams::TwoD(prior))) => {
+            let (p, r) = identify::identify_2d(&log, &prior, &opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (2, None) => {
+            let (p, r) =
+                identify::identify_3d(&log, &Joint3dParams::default(), &opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        (2, Some(PlantParams::ThreeD(prior))) => {
+            let (p, r) = identify::identify_3d(&log, &prior, &opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        _ => bail!(
+            "{}: a {} log, but --prior is a plant file for the other joint",
+            a.log.display(),
+            if log.planes == 1 { "2D" } else { "3D" }
+        ),
+    };
+    let uncertainty: Vec<Uncertainty> = reports
+        .iter()
+        .flat_map(|r| {
+            r.estimates
+                .iter()
+                .filter(|e| e.identifiable && e.std.is_finite())
+                .map(|e| Uncertainty {
+                    plane: r.plane.clone(),
+                    field: e.field.clone(),
+                    value: e.value,
+                    std: e.std,
+                })
+        })
+        .collect();
+    let header = format!(
+        "# Written by `softjoint identify joint {}`: the identified joint.\n# `[[uncertainty]]` lists each identified parameter's 1σ (softjoint tune samples them).\n",
+        a.log.display()
+    );
+    PlantFile::new(params, uncertainty).save(&a.output, &header)?;
+    if let Some(p) = &a.plot {
+        write_plot(p, &reports)?;
+    }
+    if a.json {
+        output::JsonObject::new()
+            .field("log", &a.log)?
+            .field("rows", &log.len())?
+            // A 1σ that is not finite (a parameter the log does not
+            // determine at all; `identifiable` is false) is written as
+            // null: JSON has no infinity, and the report must not fail.
+            .field(
+                "planes",
+                &serde_json::to_value(reports_without_frames(&reports))?,
+            )?
+            .field("never_fitted", &NEVER_FITTED)?
+            .field("plant_file", &a.output)?
+            .field(
+                "angles",
+                match a.angles {
+                    AngleSource::Camera => "camera",
+                    AngleSource::BoardEstimate => BOARD_ESTIMATE_NOTE,
+                },
+            )?
+            .print()?;
+    } else {
+        if a.angles == AngleSource::BoardEstimate {
+            host_tools::outln!("{BOARD_ESTIMATE_NOTE}");
+        }
+        host_tools::out!("{}", table(&reports));
+        host_tools::outln!("plant file written to {}", a.output.display());
+    }
+    Ok(())
+}
+
+fn reports_without_frames(r: &[PlaneReport]) -> Vec<PlaneReport> {
+    r.iter()
+        .map(|p| {
+            let mut p = p.clone();
+            p.validation.frames.clear();
+            p
+        })
+        .collect()
+}
+
+fn table(reports: &[PlaneReport]) -> String {
+    let mut s = String::new();
+    for r in reports {
+        let _ = writeln!(s, "plane {}", r.plane);
+        let _ = writeln!(
+            s,
+            "  {:32} {:>14} {:>12} {:>14}  {:11} unit",
+            "parameter", "value", "± 1σ", "prior", "stage"
+        );
+        let _ = writeln!(
+            s,
+            "  (1σ: the larger of the white-noise and the segment-robust one, with the wire coder's half count; JSON gives both)"
+        );
+        for e in &r.estimates {
+            let sd = if e.std.is_finite() {
+                format!("{:.3e}", e.std)
+            } else {
+                "∞".into()
+            };
+            let _ = writeln!(
+                s,
+                "  {:32} {:>14.6} {:>12} {:>14.6}  {:11} {}{}",
+                e.field,
+                e.value,
+                sd,
+                e.prior,
+                e.stage,
+                e.unit,
+                if e.identifiable {
+                    String::new()
+                } else {
+                    format!(
+                        "  NOT IDENTIFIABLE from this log (the fit found {:.4e}): kept at the prior",
+                        e.fitted
+                    )
+                }
+            );
+        }
+        let v = &r.validation;
+        let prior = v
+            .prior_heldout_rms_deg
+            .map(|p| format!("{p:.3}°"))
+            .unwrap_or_else(|| "unstable".into());
+        let _ = writeln!(
+            s,
+            "  angle error: fit rms {:.3}°; held-out (from {:.1} s) rms {:.3}°, max {:.3}° (prior plant: rms {prior})",
+            v.fit_rms_deg, v.heldout_from_s, v.heldout_rms_deg, v.heldout_max_deg
+        );
+        for st in &r.stages {
+            let _ = writeln!(
+                s,
+                "  stage {:12} {:>3} iterations{}, {:>4} replays, {:>7} residuals, rms {:.3}{}",
+                st.name,
+                st.iterations,
+                if st.starts > 1 {
+                    format!(" from {} starts", st.starts)
+                } else {
+                    String::new()
+                },
+                st.evaluations,
+                st.residuals,
+                st.rms_scaled,
+                if st.stopped_by_budget {
+                    "  STOPPED BY --max-iterations: not converged, the estimates may be off by more than their 1σ; raise it"
+                } else {
+                    ""
+                }
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "never fitted (kept from the prior): {}",
+        NEVER_FITTED.join("; ")
+    );
+    s
+}
+
+fn write_plot(path: &std::path::Path, reports: &[PlaneReport]) -> anyhow::Result<()> {
+    let mut charts = Vec::new();
+    for r in reports {
+        let f = &r.validation.frames;
+        let stride = (f.len() / 3000).max(1);
+        let pts: Vec<_> = f.iter().step_by(stride).collect();
+        let t: Vec<f64> = pts.iter().map(|x| x.t_s).collect();
+        let rec: Vec<f64> = pts.iter().map(|x| x.recorded_deg).collect();
+        let pred: Vec<f64> = pts.iter().map(|x| x.predicted_deg).collect();
+        let err: Vec<f64> = pts
+            .iter()
+            .map(|x| x.predicted_deg - x.recorded_deg)
+            .collect();
+        charts.push(Chart {
+            title: format!(
+                "{}: recorded vs predicted (held out from {:.0} s: rms {:.3}°)",
+                r.plane, r.validation.heldout_from_s, r.validation.heldout_rms_deg
+            ),
+            x_label: "time (s)".into(),
+            y_label: "angle (deg)".into(),
+            series: vec![
+                Series::over("camera".to_string(), "#1f77b4", false, &t, &rec),
+                Series::over("identified plant".to_string(), "#d62728", true, &t, &pred),
+            ],
+        });
+        charts.push(Chart {
+            title: format!("{}: prediction error", r.plane),
+            x_label: "time (s)".into(),
+            y_label: "error (deg)".into(),
+            series: vec![Series::over(
+                "predicted − recorded".to_string(),
+                "#2ca02c",
+                false,
+                &t,
+                &err,
+            )],
+        });
+    }
+    output::write_svg(path, &line_charts(&charts).finish())
+}

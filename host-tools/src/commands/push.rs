@@ -1,0 +1,1437 @@
+//! `softjoint push`: deformable blocks under robotic pushing (seed 001).
+//!
+//! * `simulate` — record a push of the ground-truth block (or read one from
+//!   CSV), run the mass-spring model on it and score every frame;
+//! * `calibrate` — Algorithm 5 on a training push, with a progress bar;
+//! * `classify` — which of several calibrated models predicts a push best.
+//!
+//! Every command writes CSV and SVG pictures into `--out` and prints either
+//! a short text report or, with `--json`, a machine-readable summary.
+use std::fmt::Write as _;
+use std::fs;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use host_tools::input::from_json;
+use host_tools::outln;
+use host_tools::output::{self, JsonObject};
+use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use plant_pushing::classify::{classify, MaterialModel, Tally};
+use plant_pushing::contour_score::{
+    classify_by_contour, score_contour_run, skill, still_block_contour_score, still_config,
+    track_video, ContourScore, ContourTarget, ReachZone, TrackingOptions,
+};
+use plant_pushing::error::PushError;
+use plant_pushing::evaluate::{
+    score_run, score_run_observed, simulate_frames, EvalSetup, PreparedVideo, RunScore,
+};
+use plant_pushing::evolution::{calibrate, CalibrationResult, EvolutionSettings, TABLE_III_RANGES};
+use plant_pushing::force_regression::{ForcePredictor, DEFAULT_ERROR_THRESHOLD};
+use plant_pushing::forces::MaterialParams;
+use plant_pushing::reference::{record_push, ReferenceConfig, ReferenceMaterial, Video};
+use plant_pushing::scenario::{PushScenario, PushSite};
+use plant_pushing::sim::{DrivingMode, Integrator, SimConfig};
+use plant_pushing::video_csv::{parse_video_csv, write_video_csv};
+use plant_pushing::V2;
+
+#[derive(Args)]
+pub struct PushArgs {
+    #[command(subcommand)]
+    command: PushCommand,
+}
+
+#[derive(Subcommand)]
+enum PushCommand {
+    /// Run the mass-spring model on one push and score it frame by frame.
+    Simulate(SimulateArgs),
+    /// Learn the model's parameters from a training push (Algorithm 5).
+    Calibrate(CalibrateArgs),
+    /// Decide which calibrated material model explains a push best.
+    Classify(ClassifyArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MaterialArg {
+    Sponge,
+    Plasticine,
+}
+
+impl MaterialArg {
+    fn label(self) -> &'static str {
+        match self {
+            MaterialArg::Sponge => "sponge",
+            MaterialArg::Plasticine => "plasticine",
+        }
+    }
+    fn reference(self) -> ReferenceMaterial {
+        match self {
+            MaterialArg::Sponge => ReferenceMaterial::SPONGE,
+            MaterialArg::Plasticine => ReferenceMaterial::PLASTICINE,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SiteArg {
+    /// Middle of the long side (the seed's training push).
+    MiddleLong,
+    /// Near the corner of the long side.
+    Corner,
+    /// Middle of the short side.
+    MiddleShort,
+}
+
+impl From<SiteArg> for PushSite {
+    fn from(s: SiteArg) -> Self {
+        match s {
+            SiteArg::MiddleLong => PushSite::MiddleLongSide,
+            SiteArg::Corner => PushSite::NearCorner,
+            SiteArg::MiddleShort => PushSite::MiddleShortSide,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum IntegratorArg {
+    /// The seed's first-order scheme, Eq. 15 as printed (all forces at p(t)).
+    Customised,
+    /// Explicit Euler on Newton's law.
+    Euler,
+    /// Position Verlet on Newton's law.
+    Verlet,
+    /// Eq. 15 spring by spring (Gauss–Seidel); the seed's Fig. 14
+    /// parameters are stable only under this one.
+    CustomisedSeq,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ModeArg {
+    /// Finger as an obstacle only.
+    Collision,
+    /// Sensed forces on the vertices under the finger only.
+    Forces,
+    /// Both (the default, as in the seed's calibration).
+    Both,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ScoreArg {
+    /// Pixel F-score over the whole block, μ(F) (the seed's, Eq. 16–19).
+    F,
+    /// Mean distance (px) between the model's outline and the tracked
+    /// contour (a periodic smoothing spline) within the finger's reach.
+    Contour,
+}
+
+impl ScoreArg {
+    fn name(self) -> &'static str {
+        match self {
+            ScoreArg::F => "f",
+            ScoreArg::Contour => "contour",
+        }
+    }
+}
+
+/// Spacing of the resampled contours the contour distance compares, px.
+const CONTOUR_SPACING_PX: f64 = 2.0;
+
+/// Which push to use.
+#[derive(Args, Clone)]
+struct VideoArgs {
+    /// Material of the block (chooses the generated ground truth and the
+    /// camera scale, §VIII-A).
+    #[arg(long, value_enum, default_value = "sponge")]
+    material: MaterialArg,
+    /// Where the finger pushes.
+    #[arg(long, value_enum, default_value = "middle-long")]
+    site: SiteArg,
+    /// Read the tracked contours and forces from this CSV
+    /// (`frame,force_n,x_px,y_px`) instead of generating them (the
+    /// generator's --ref-element-px and --noise-seed then have no use).
+    #[arg(long, value_name = "CSV", conflicts_with_all = ["ref_element_px", "noise_seed"])]
+    video: Option<PathBuf>,
+    /// Element size of the finite-element ground truth, px.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 8.0)]
+    ref_element_px: f64,
+    /// Seed of the ground truth's contour and force noise.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
+    noise_seed: u64,
+}
+
+/// How to run the mass-spring model.
+#[derive(Args, Clone)]
+struct ModelArgs {
+    #[arg(long, value_enum, default_value = "customised")]
+    integrator: IntegratorArg,
+    #[arg(long, value_enum, default_value = "both")]
+    mode: ModeArg,
+    /// Squares along the block's long side.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 20)]
+    nx: usize,
+    /// Squares along the block's short side.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
+    ny: usize,
+    /// Raster cell size for the F-score, px (1 = camera pixels).
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
+    cell_px: f64,
+    /// Turn off the repair of reversed and flat triangles (§VI-E).
+    #[arg(long)]
+    no_repair: bool,
+}
+
+#[derive(Args)]
+struct SimulateArgs {
+    #[command(flatten)]
+    video: VideoArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Model parameters: a JSON file with the eight parameters, or the
+    /// output of `calibrate`. Default: the seed's Fig. 14 (sponge) or
+    /// Fig. 15 (plasticine) values.
+    #[arg(long, value_name = "JSON")]
+    params: Option<PathBuf>,
+    /// Drive the model with the force predictor (§V) learned on this push
+    /// instead of the sensed forces.
+    #[arg(long)]
+    predicted_forces: bool,
+    /// Output directory.
+    #[arg(long, default_value = "push-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+    /// Write the results even when the model becomes unstable, from its
+    /// first frames or later (frames from the instability on score 0, a
+    /// warning on stderr); without it an unstable run exits 1, names the
+    /// frame and cause on stderr, and writes nothing.
+    #[arg(long)]
+    allow_unstable: bool,
+}
+
+#[derive(Args)]
+struct CalibrateArgs {
+    #[command(flatten)]
+    video: VideoArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Generations M (Table III: 30).
+    #[arg(allow_negative_numbers = true, long, default_value_t = 30)]
+    generations: usize,
+    /// Seed of the evolutionary search.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 7)]
+    seed: u64,
+    /// What the search maximises: μ(F), or minus the contour distance in
+    /// the finger's reach.
+    #[arg(long, value_enum, default_value = "f")]
+    score: ScoreArg,
+    /// Output directory.
+    #[arg(long, default_value = "push-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct ClassifyArgs {
+    #[command(flatten)]
+    video: VideoArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// A calibrated model as LABEL=PARAMS.json; give at least two.
+    #[arg(long = "model", value_name = "LABEL=JSON", required = true)]
+    models: Vec<String>,
+    /// Per-frame score that decides: F-score, or contour distance in the
+    /// finger's reach.
+    #[arg(long, value_enum, default_value = "f")]
+    score: ScoreArg,
+    /// Output directory.
+    #[arg(long, default_value = "push-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: PushArgs) -> Result<()> {
+    match args.command {
+        PushCommand::Simulate(a) => simulate_cmd(a),
+        PushCommand::Calibrate(a) => calibrate_cmd(a),
+        PushCommand::Classify(a) => classify_cmd(a),
+    }
+}
+
+fn sim_config(m: &ModelArgs) -> SimConfig {
+    SimConfig {
+        integrator: match m.integrator {
+            IntegratorArg::Customised => Integrator::Customised,
+            IntegratorArg::Euler => Integrator::Euler,
+            IntegratorArg::Verlet => Integrator::Verlet,
+            IntegratorArg::CustomisedSeq => Integrator::CustomisedSequential,
+        },
+        mode: match m.mode {
+            ModeArg::Collision => DrivingMode::CollisionOnly,
+            ModeArg::Forces => DrivingMode::ForcesOnVertices,
+            ModeArg::Both => DrivingMode::CollisionAndForces,
+        },
+        geometric_repair: !m.no_repair,
+        ..SimConfig::default()
+    }
+}
+
+/// The flag behind each library parameter name the pushing code reports.
+const FLAGS: [(&str, &str); 4] = [
+    ("element_size_px", "--ref-element-px"),
+    ("nx", "--nx"),
+    ("ny", "--ny"),
+    ("cell_px", "--cell-px"),
+];
+
+/// A pushing error in the words of the command line: a parameter the user
+/// set by a flag is called by that flag (`element_size_px` was shown for
+/// `--ref-element-px`).
+fn as_flag(e: PushError) -> anyhow::Error {
+    let flag = |name: &str| FLAGS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f);
+    let short = plant_common::short_number;
+    match e {
+        PushError::InvalidParameter {
+            name,
+            value,
+            reason,
+        } if flag(name).is_some() => {
+            anyhow::anyhow!("{} {}: {reason}", flag(name).unwrap_or(name), short(value))
+        }
+        PushError::OutOfRange {
+            name,
+            value,
+            min,
+            max,
+        } if flag(name).is_some() => anyhow::anyhow!(
+            "{} {}: must be within {}..={}",
+            flag(name).unwrap_or(name),
+            short(value),
+            short(min),
+            short(max)
+        ),
+        other => other.into(),
+    }
+}
+
+fn load_video(v: &VideoArgs, json: bool) -> Result<Video> {
+    let mat = v.material.reference();
+    let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
+    match &v.video {
+        Some(path) => {
+            let text =
+                fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            Ok(parse_video_csv(
+                &text,
+                &path.display().to_string(),
+                &scenario,
+                v.material.label(),
+            )?)
+        }
+        None => {
+            if v.ref_element_px.is_nan() || v.ref_element_px < MIN_REF_ELEMENT_PX {
+                bail!(
+                    "--ref-element-px {}: must be at least {MIN_REF_ELEMENT_PX} px (the finite-element ground truth's time grows about as the cube of 1/size: below 2 px it runs for minutes; the default is 8 px)",
+                    plant_common::short_number(v.ref_element_px)
+                );
+            }
+            let cfg = ReferenceConfig {
+                element_size_px: v.ref_element_px,
+                seed: v.noise_seed,
+                ..ReferenceConfig::default()
+            };
+            let spinner = host_tools::progress::spinner(
+                &format!(
+                    "recording the ground-truth push ({} px elements)",
+                    v.ref_element_px
+                ),
+                json,
+            );
+            let video = record_push(v.material.label(), mat, &scenario, &cfg);
+            spinner.finish_and_clear();
+            video.map_err(as_flag)
+        }
+    }
+}
+
+/// Smallest `--ref-element-px`: below ≈ 2 px the ground truth ran for
+/// minutes (issue 12); 8 px is the default.
+const MIN_REF_ELEMENT_PX: f64 = 2.0;
+
+fn prepare(v: &VideoArgs, m: &ModelArgs, json: bool) -> Result<PreparedVideo> {
+    let video = load_video(v, json)?;
+    PreparedVideo::new(
+        video,
+        &EvalSetup {
+            nx: m.nx,
+            ny: m.ny,
+            cell_px: m.cell_px,
+        },
+    )
+    .map_err(as_flag)
+}
+
+/// Reads parameters from a bare parameter object or from `calibrate`'s
+/// `params.json` (which holds them under `best_params`).
+fn load_params(path: &Path) -> Result<MaterialParams> {
+    let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let file = path.display().to_string();
+    let expected = "expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha), or `calibrate`'s params.json";
+    // Duplicate keys and syntax first (the form is chosen from a parsed
+    // value, which would keep only the last of two equal keys).
+    let value: serde_json::Value = from_json(&text, &file)?;
+    let p = if value.get("best_params").is_some() {
+        from_json::<CalibrationResult>(&text, &file)
+            .with_context(|| format!("{file}: {expected}"))?
+            .best_params
+    } else {
+        from_json::<MaterialParams>(&text, &file).with_context(|| format!("{file}: {expected}"))?
+    };
+    p.validate().with_context(|| format!("in {file}"))?;
+    Ok(p)
+}
+
+/// Creates the output directory.
+fn out_dir(dir: &Path) -> Result<()> {
+    host_tools::output::create_dir(dir)
+}
+
+/// Checks the output directory can be written, before the simulation
+/// rather than after it.
+fn check_out_dir(dir: &Path) -> Result<()> {
+    host_tools::output::check_dir(dir)
+}
+
+/// Writes a result file atomically (a failed write leaves the old file).
+fn write(path: &Path, text: &str) -> Result<()> {
+    if path.extension().is_some_and(|e| e == "svg") {
+        output::write_svg(path, text)
+    } else {
+        output::write_csv(path, text)
+    }
+}
+
+/// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
+const SNAPSHOT_FRAMES: [usize; 5] = [0, 25, 50, 75, 99];
+
+/// Mesh positions at the snapshot frames, with their frame index.
+type Snapshots = Vec<(usize, Vec<V2>)>;
+
+/// Whether frame `f` of `n` is shown in the snapshots.
+fn is_snapshot_frame(f: usize, n: usize) -> bool {
+    SNAPSHOT_FRAMES.iter().any(|&s| s.min(n - 1) == f)
+}
+
+/// Scores a run and keeps its snapshot positions in the same pass, with a
+/// progress bar over its frames (hidden unless a person watches).
+fn score_with_snapshots(
+    prep: &PreparedVideo,
+    forces: &[f64],
+    p: &MaterialParams,
+    sim: &SimConfig,
+    json: bool,
+) -> Result<(RunScore, Snapshots)> {
+    let n = prep.frame_count();
+    let bar = host_tools::progress::bar("frames", json);
+    bar.set_length(n as u64);
+    let mut shots = Vec::new();
+    let score = score_run_observed(prep, forces, p, sim, |f, pos| {
+        if is_snapshot_frame(f, n) {
+            shots.push((f, pos.to_vec()));
+        }
+        bar.set_position(f as u64 + 1);
+    })?;
+    bar.finish_and_clear();
+    Ok((score, shots))
+}
+
+/// Mesh positions of the model at the snapshot frames.
+fn snapshot_positions(
+    prep: &PreparedVideo,
+    forces: &[f64],
+    p: &MaterialParams,
+    sim: &SimConfig,
+) -> Result<Vec<(usize, Vec<V2>)>> {
+    let n = prep.frame_count();
+    let mut out = Vec::new();
+    simulate_frames(
+        &prep.mesh,
+        &prep.video.scenario,
+        forces,
+        p,
+        sim,
+        |f, pos, _| {
+            if is_snapshot_frame(f, n) {
+                out.push((f, pos.to_vec()));
+            }
+        },
+    )?;
+    Ok(out)
+}
+
+/// Most grid lines drawn per direction in a snapshot panel: a 2000 × 2000
+/// mesh drawn edge by edge made a 1.44 GB SVG no viewer opens.
+const MAX_DRAWN_GRID_LINES: usize = 50;
+
+/// The mesh of a snapshot as line segments: every edge of a mesh of at
+/// most [`MAX_DRAWN_GRID_LINES`] squares per side, else every k-th grid
+/// line of the `nx × ny` grid (through every k-th vertex along it), which
+/// still shows how the block deforms. Returns the segments and k.
+fn mesh_segments(
+    mesh: &plant_pushing::mesh::Mesh,
+    nx: usize,
+    ny: usize,
+    pos: &[V2],
+) -> (Vec<(V2, V2)>, usize) {
+    let k = nx.max(ny).div_ceil(MAX_DRAWN_GRID_LINES).max(1);
+    if k == 1 || pos.len() != (nx + 1) * (ny + 1) {
+        let all = mesh.edges.iter().map(|e| (pos[e[0]], pos[e[1]])).collect();
+        return (all, 1);
+    }
+    let at = |i: usize, j: usize| pos[j * (nx + 1) + i];
+    // Every k-th index, and the last one (the block's far sides).
+    let picks = |n: usize| -> Vec<usize> {
+        let mut v: Vec<usize> = (0..=n).step_by(k).collect();
+        if v.last() != Some(&n) {
+            v.push(n);
+        }
+        v
+    };
+    let (is, js) = (picks(nx), picks(ny));
+    let mut out = Vec::new();
+    for &j in &js {
+        out.extend(is.windows(2).map(|w| (at(w[0], j), at(w[1], j))));
+    }
+    for &i in &is {
+        out.extend(js.windows(2).map(|w| (at(i, w[0]), at(i, w[1]))));
+    }
+    (out, k)
+}
+
+/// Mesh snapshots over frames: ground-truth outline (grey fill), the model
+/// mesh (blue), the finger (red).
+fn snapshots_svg(
+    prep: &PreparedVideo,
+    (nx, ny): (usize, usize),
+    shots: &[(usize, Vec<V2>)],
+    score: &RunScore,
+    tracked: &Tracking,
+    title: &str,
+) -> String {
+    let sc = &prep.video.scenario;
+    let (lo, hi) = (
+        prep.grid.origin_px,
+        V2::new(
+            prep.grid.origin_px.x + prep.grid.nx as f64 * prep.grid.cell_px,
+            prep.grid.origin_px.y + prep.grid.ny as f64 * prep.grid.cell_px,
+        ),
+    );
+    let panel_w = 300.0;
+    let scale = panel_w / (hi.x - lo.x);
+    let panel_h = (hi.y - lo.y) * scale;
+    let top = 40.0;
+    let width = panel_w * shots.len() as f64 + 10.0 * (shots.len() as f64 + 1.0);
+    let height = panel_h + top + 40.0;
+    let mut svg = Svg::new(width, height);
+    svg.text(10.0, 20.0, 14.0, Anchor::Start, title);
+    for (k, (f, pos)) in shots.iter().enumerate() {
+        let ox = 10.0 + k as f64 * (panel_w + 10.0);
+        let tx = |p: V2| (ox + (p.x - lo.x) * scale, top + (hi.y - p.y) * scale);
+        svg.rect(
+            ox,
+            top,
+            panel_w,
+            panel_h,
+            "none",
+            Some(Stroke::solid("#ccc", 1.0)),
+        );
+        // The table.
+        let table = tx(V2::new(lo.x, 0.0));
+        svg.line(table, (ox + panel_w, table.1), Stroke::solid("#964", 2.0));
+        let contour: Vec<(f64, f64)> = prep.video.contours_px[*f].iter().map(|p| tx(*p)).collect();
+        svg.polygon(&contour, "#ddd", Stroke::solid("#777", 1.0));
+        let mut spline: Vec<(f64, f64)> = tracked.contours_px[*f].iter().map(|p| tx(*p)).collect();
+        if let Some(&first) = spline.first() {
+            spline.push(first);
+        }
+        svg.polyline(spline, Stroke::solid("#2a2", 1.2));
+        // The zone's outline, kept inside the panel.
+        let mut zone: Vec<(f64, f64)> = zone_outline(&tracked.zone)
+            .into_iter()
+            .map(|p| tx(V2::new(p.x.clamp(lo.x, hi.x), p.y.clamp(lo.y, hi.y))))
+            .collect();
+        if let Some(&first) = zone.first() {
+            zone.push(first);
+        }
+        svg.polyline(zone, Stroke::dashed("#e80", 1.0));
+        let (segments, every) = mesh_segments(&prep.mesh, nx, ny, pos);
+        svg.segments(
+            segments.into_iter().map(|(a, b)| (tx(a), tx(b))),
+            Stroke::solid("#1f5fbf", 0.7),
+        );
+        if every > 1 && k == 0 {
+            svg.text(
+                10.0,
+                34.0,
+                11.0,
+                Anchor::Start,
+                &format!("{nx} × {ny} mesh: one grid line in {every} drawn"),
+            );
+        }
+        let finger = sc.finger_at(sc.frame_time_s(*f));
+        svg.circle(
+            tx(finger.centre_px),
+            finger.radius_px * scale,
+            Stroke::solid("#d22", 1.5),
+        );
+        let fscore = score.f_per_frame.get(*f).copied().unwrap_or(f64::NAN);
+        let phase = if sc.is_push_frame(*f) {
+            "push"
+        } else {
+            "retrieval"
+        };
+        svg.text(
+            ox,
+            top + panel_h + 18.0,
+            12.0,
+            Anchor::Start,
+            &format!(
+                "frame {f} ({phase}), F = {fscore:.3}, d = {:.1} px",
+                score_d(tracked, *f)
+            ),
+        );
+    }
+    svg.text_styled(
+        10.0,
+        height - 6.0,
+        12.0,
+        Anchor::Start,
+        r##"fill="#555""##,
+        "grey: tracked contour points · green: their periodic smoothing spline · dashed orange: the finger's reach · blue: mass-spring mesh · red: finger · brown: table",
+    );
+    svg.finish()
+}
+
+/// The tracked contour as splines, its reach zone, and (when a model was
+/// run) the model's and the undeformed block's contour distances.
+struct Tracking {
+    contours_px: Vec<Vec<V2>>,
+    zone: ReachZone,
+    target: ContourTarget,
+    model: Option<ContourScore>,
+    still: ContourScore,
+}
+
+impl Tracking {
+    fn of(prep: &PreparedVideo) -> Result<Self> {
+        let tracked = track_video(&prep.video, &TrackingOptions::default())?;
+        let zone = ReachZone::default_of(&prep.video.scenario)?;
+        let target = ContourTarget::new(&tracked, zone, CONTOUR_SPACING_PX)?;
+        let still = still_block_contour_score(prep, &target);
+        Ok(Self {
+            contours_px: tracked.contours_px,
+            zone,
+            target,
+            model: None,
+            still,
+        })
+    }
+}
+
+/// The model's mean contour distance at frame `f` (NaN before a run).
+fn score_d(t: &Tracking, f: usize) -> f64 {
+    t.model
+        .as_ref()
+        .and_then(|m| m.mean_px_per_frame.get(f).copied())
+        .unwrap_or(f64::NAN)
+}
+
+/// The outline of the reach zone: the finger path's capsule.
+fn zone_outline(z: &ReachZone) -> Vec<V2> {
+    let d = z.path_end_px - z.path_start_px;
+    let u = if d.norm() > 0.0 {
+        d.normalize()
+    } else {
+        V2::new(0.0, -1.0)
+    };
+    let n = V2::new(-u.y, u.x);
+    let mut out = Vec::with_capacity(74);
+    for k in 0..=36 {
+        let a = std::f64::consts::PI * (k as f64 / 36.0 - 0.5);
+        out.push(z.path_end_px + (u * a.cos() + n * a.sin()) * z.radius_px);
+    }
+    for k in 0..=36 {
+        let a = std::f64::consts::PI * (k as f64 / 36.0 + 0.5);
+        out.push(z.path_start_px + (u * a.cos() + n * a.sin()) * z.radius_px);
+    }
+    out
+}
+
+fn frames_csv(
+    prep: &PreparedVideo,
+    forces_used: &[f64],
+    score: &RunScore,
+    tracking: &Tracking,
+) -> String {
+    let sc = &prep.video.scenario;
+    let mean = plant_pushing::raster::running_mean(&score.f_per_frame);
+    let mut s = String::from(
+        "frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f,contour_mean_px,contour_max_px,still_contour_mean_px,still_contour_max_px\n",
+    );
+    for f in 0..prep.frame_count() {
+        let t = sc.frame_time_s(f);
+        let (cm, cx) = tracking
+            .model
+            .as_ref()
+            .map(|m| (m.mean_px_per_frame[f], m.max_px_per_frame[f]))
+            .unwrap_or((f64::NAN, f64::NAN));
+        let _ = writeln!(
+            s,
+            "{f},{t:.3},{},{:.3},{:.4},{:.4},{:.5},{:.5},{cm:.3},{cx:.3},{:.3},{:.3}",
+            if sc.is_push_frame(f) {
+                "push"
+            } else {
+                "retrieval"
+            },
+            sc.finger_depth_px(t),
+            prep.video.forces_n[f],
+            forces_used[f],
+            score.f_per_frame[f],
+            mean[f],
+            tracking.still.mean_px_per_frame[f],
+            tracking.still.max_px_per_frame[f],
+        );
+    }
+    s
+}
+
+fn simulate_cmd(a: SimulateArgs) -> Result<()> {
+    // The output directory and the parameters first: an unwritable path
+    // or a bad file is refused before the ground truth (seconds of finite
+    // elements) is generated.
+    check_out_dir(&a.out)?;
+    let params = match &a.params {
+        Some(p) => load_params(p)?,
+        None => match a.video.material {
+            MaterialArg::Sponge => MaterialParams::SEED_FIG14_SPONGE,
+            MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
+        },
+    };
+    let prep = prepare(&a.video, &a.model, a.json)?;
+    let sim = sim_config(&a.model);
+    let forces = if a.predicted_forces {
+        ForcePredictor::fit(
+            &prep.video.scenario,
+            &prep.video.forces_n,
+            DEFAULT_ERROR_THRESHOLD,
+        )?
+        .predict_series(&prep.video.scenario)
+    } else {
+        prep.video.forces_n.clone()
+    };
+    let (score, shots) = score_with_snapshots(&prep, &forces, &params, &sim, a.json)?;
+    // An unstable model is a failed run — from its first frames (a stiff
+    // mesh at the seed's step: its pictures would only show the blow-up)
+    // or later — unless the user asked for its results anyway, with every
+    // frame from the instability on scored 0. Nothing non-finite is
+    // written either way.
+    let instability = score.unstable_from_frame.map(|f| {
+        let why = score
+            .instability
+            .map(|i| i.to_string())
+            .unwrap_or_else(|| "unknown cause".into());
+        format!(
+            "the mass-spring model ({} integrator) became unstable at frame {f} of {} ({why})",
+            sim.integrator.name(),
+            prep.frame_count()
+        )
+    });
+    if let Some(what) = &instability {
+        if !a.allow_unstable {
+            bail!(
+                "{what}; nothing was written: try smaller stiffnesses or another --integrator, or give --allow-unstable to write the results with every frame from there on scored 0"
+            );
+        }
+        let _ = writeln!(
+            std::io::stderr(),
+            "warning: {what}; frames from there on score 0 (--allow-unstable)"
+        );
+    }
+    let still_f = score_run(
+        &prep,
+        &vec![0.0; prep.frame_count()],
+        &params,
+        &still_config(&sim),
+    )?
+    .mean_f;
+    let mut tracking = Tracking::of(&prep)?;
+    let contour = score_contour_run(&prep, &tracking.target, &forces, &params, &sim)?;
+    let contour_skill = skill(contour.mean_px, tracking.still.mean_px);
+    tracking.model = Some(contour.clone());
+    out_dir(&a.out)?;
+    write(
+        &a.out.join("frames.csv"),
+        &frames_csv(&prep, &forces, &score, &tracking),
+    )?;
+    write(&a.out.join("video.csv"), &write_video_csv(&prep.video))?;
+    let title = format!(
+        "{} pushed at {}: μ(F) = {:.4}",
+        prep.video.material,
+        prep.video.scenario.site.name(),
+        score.mean_f
+    );
+    write(
+        &a.out.join("snapshots.svg"),
+        &snapshots_svg(
+            &prep,
+            (a.model.nx, a.model.ny),
+            &shots,
+            &score,
+            &tracking,
+            &title,
+        ),
+    )?;
+    let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
+    let chart = plot::line_charts(&[
+        Chart {
+            title: "F-score per frame".into(),
+            x_label: "frame".into(),
+            y_label: "F-score".into(),
+            series: vec![
+                Series::over("F", "#1f5fbf", false, &t, &score.f_per_frame),
+                Series::over(
+                    "μ(F)",
+                    "#d22",
+                    true,
+                    &t,
+                    &plant_pushing::raster::running_mean(&score.f_per_frame),
+                ),
+            ],
+        },
+        Chart {
+            title: "Contour distance within the finger's reach (tracked spline vs model outline)"
+                .into(),
+            x_label: "frame".into(),
+            y_label: "distance (px)".into(),
+            series: vec![
+                Series::over(
+                    "model, mean",
+                    "#1f5fbf",
+                    false,
+                    &t,
+                    &contour.mean_px_per_frame,
+                ),
+                Series::over("model, max", "#1f5fbf", true, &t, &contour.max_px_per_frame),
+                Series::over(
+                    "undeformed block, mean",
+                    "#555",
+                    false,
+                    &t,
+                    &tracking.still.mean_px_per_frame,
+                ),
+                Series::over(
+                    "undeformed block, max",
+                    "#555",
+                    true,
+                    &t,
+                    &tracking.still.max_px_per_frame,
+                ),
+            ],
+        },
+        Chart {
+            title: "Finger force".into(),
+            x_label: "frame".into(),
+            y_label: "force (N)".into(),
+            series: vec![
+                Series::over("sensed", "#555", false, &t, &prep.video.forces_n),
+                Series::over("driving the model", "#e80", true, &t, &forces),
+            ],
+        },
+    ]);
+    write(&a.out.join("f_per_frame.svg"), &chart.finish())?;
+    if a.json {
+        JsonObject::new()
+            .field("material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("integrator", sim.integrator.name())?
+            .field("mode", sim.mode.name())?
+            .field("params", &params)?
+            .field("mean_f", &score.mean_f)?
+            .field("still_mean_f", &still_f)?
+            .field("contour_mean_px", &contour.mean_px)?
+            .field("contour_max_px", &contour.max_px)?
+            .field("contour_worst_px", &contour.worst_px)?
+            .field("still_contour_mean_px", &tracking.still.mean_px)?
+            .field("still_contour_max_px", &tracking.still.max_px)?
+            .field("contour_skill", &contour_skill)?
+            .field("contour_mean_px_per_frame", &contour.mean_px_per_frame)?
+            .field("unstable_from_frame", &score.unstable_from_frame)?
+            .field("instability", &instability)?
+            .field("f_per_frame", &score.f_per_frame)?
+            .field("out", &a.out)?
+            .print()?;
+    } else {
+        outln!("{title} (undeformed block: {still_f:.4})");
+        outln!(
+            "contour distance in the finger's reach: {:.2} px mean, {:.2} px max (undeformed block {:.2} / {:.2} px): skill {:.2}",
+            contour.mean_px,
+            contour.max_px,
+            tracking.still.mean_px,
+            tracking.still.max_px,
+            contour_skill
+        );
+        if let Some(what) = &instability {
+            outln!("{what}: scored 0 from there");
+        }
+        outln!(
+            "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
+            a.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Most generations `calibrate` runs: the history of every generation is
+/// allocated up front, and at Table III's 30 simulations per generation this
+/// is already hours of work.
+const MAX_GENERATIONS: usize = 10_000;
+
+fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    if !(1..=MAX_GENERATIONS).contains(&a.generations) {
+        bail!(
+            "--generations must be 1..={MAX_GENERATIONS} (Table III: 30), got {}",
+            a.generations
+        );
+    }
+    check_out_dir(&a.out)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
+    let sim = sim_config(&a.model);
+    let mut tracking = Tracking::of(&prep)?;
+    let mut st = EvolutionSettings::table_iii(a.seed);
+    st.generations = a.generations;
+    let bar = indicatif::ProgressBar::new(a.generations as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} generations, {msg} ({elapsed})",
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .progress_chars("=> "),
+    );
+    bar.set_prefix("calibrating");
+    let result: CalibrationResult = calibrate(
+        &st,
+        &TABLE_III_RANGES,
+        |p| match a.score {
+            ScoreArg::F => score_run(&prep, &prep.video.forces_n, p, &sim)
+                .map(|s| s.mean_f)
+                .unwrap_or(f64::NAN),
+            ScoreArg::Contour => {
+                score_contour_run(&prep, &tracking.target, &prep.video.forces_n, p, &sim)
+                    .map(|s| -s.mean_px)
+                    .unwrap_or(f64::NAN)
+            }
+        },
+        |g| {
+            bar.set_message(match a.score {
+                ScoreArg::F => format!("best μ(F) {:.4}", g.best),
+                ScoreArg::Contour => format!("best contour distance {:.2} px", -g.best),
+            });
+            bar.inc(1);
+        },
+    )?;
+    bar.finish_and_clear();
+    out_dir(&a.out)?;
+    output::write_json(&a.out.join("params.json"), &result)?;
+    // Generation scores in the score's own terms: μ(F), or the contour
+    // distance in px (the search maximised its negative).
+    let sign = if a.score == ScoreArg::Contour {
+        -1.0
+    } else {
+        1.0
+    };
+    let mut csv = String::from(match a.score {
+        ScoreArg::F => "generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n",
+        ScoreArg::Contour => {
+            "generation,best_contour_px,population_mean_contour_px,worst_contour_px,sigma\n"
+        }
+    });
+    for g in &result.history {
+        let _ = writeln!(
+            csv,
+            "{},{:.6},{:.6},{:.6},{:.2}",
+            g.generation,
+            sign * g.best,
+            sign * g.mean,
+            sign * g.worst,
+            g.sigma
+        );
+    }
+    write(&a.out.join("generations.csv"), &csv)?;
+    let t: Vec<f64> = result.history.iter().map(|g| g.generation as f64).collect();
+    let best: Vec<f64> = result.history.iter().map(|g| sign * g.best).collect();
+    let mean: Vec<f64> = result.history.iter().map(|g| sign * g.mean).collect();
+    let what = match a.score {
+        ScoreArg::F => "μ(F)",
+        ScoreArg::Contour => "contour distance (px)",
+    };
+    let chart = plot::line_charts(&[Chart {
+        title: format!(
+            "{what} per generation, {} at {}",
+            prep.video.material,
+            prep.video.scenario.site.name()
+        ),
+        x_label: "generation".into(),
+        y_label: what.into(),
+        series: vec![
+            Series::over("best", "#1f5fbf", false, &t, &best),
+            Series::over("population mean", "#e80", true, &t, &mean),
+        ],
+    }]);
+    write(&a.out.join("mu_per_generation.svg"), &chart.finish())?;
+    let score = score_run(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
+    let contour = score_contour_run(
+        &prep,
+        &tracking.target,
+        &prep.video.forces_n,
+        &result.best_params,
+        &sim,
+    )?;
+    let still_f = score_run(
+        &prep,
+        &vec![0.0; prep.frame_count()],
+        &result.best_params,
+        &still_config(&sim),
+    )?
+    .mean_f;
+    let contour_skill = skill(contour.mean_px, tracking.still.mean_px);
+    tracking.model = Some(contour.clone());
+    let shots = snapshot_positions(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
+    let title = format!(
+        "{} model calibrated by {} on its training push: μ(F) = {:.4}, contour distance {:.2} px",
+        prep.video.material,
+        a.score.name(),
+        score.mean_f,
+        contour.mean_px
+    );
+    write(
+        &a.out.join("snapshots.svg"),
+        &snapshots_svg(
+            &prep,
+            (a.model.nx, a.model.ny),
+            &shots,
+            &score,
+            &tracking,
+            &title,
+        ),
+    )?;
+    if a.json {
+        JsonObject::new()
+            .field("material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("integrator", sim.integrator.name())?
+            .field("mode", sim.mode.name())?
+            .field("score", a.score.name())?
+            .field("best_params", &result.best_params)?
+            .field("best_mean_f", &score.mean_f)?
+            .field("still_mean_f", &still_f)?
+            .field("best_contour_mean_px", &contour.mean_px)?
+            .field("best_contour_max_px", &contour.max_px)?
+            .field("still_contour_mean_px", &tracking.still.mean_px)?
+            .field("contour_skill", &contour_skill)?
+            .field("evaluations", &result.evaluations)?
+            .field("best_per_generation", &best)?
+            .field("out", &a.out)?
+            .print()?;
+    } else {
+        outln!(
+            "calibrated by {}: μ(F) {:.4} (undeformed block {:.4}), contour distance {:.2} px (undeformed block {:.2} px, skill {:.2}) after {} generations ({} simulations)",
+            a.score.name(),
+            score.mean_f,
+            still_f,
+            contour.mean_px,
+            tracking.still.mean_px,
+            contour_skill,
+            result.history.len(),
+            result.evaluations
+        );
+        outln!("{}", result.best_params);
+        outln!(
+            "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
+            a.out.display()
+        );
+    }
+    Ok(())
+}
+
+fn parse_model(spec: &str) -> Result<MaterialModel> {
+    let Some((label, path)) = spec.split_once('=') else {
+        bail!("--model `{spec}`: expected LABEL=PARAMS.json");
+    };
+    if label.trim().is_empty() {
+        bail!("--model `{spec}`: the label is empty");
+    }
+    // The label becomes a CSV column name (`f_LABEL`) and a legend entry.
+    if label.contains([',', '"', '\n', '\r']) {
+        bail!("--model `{spec}`: the label may not contain a comma, a quote or a line break");
+    }
+    Ok(MaterialModel {
+        label: label.trim().to_string(),
+        params: load_params(Path::new(path.trim()))?,
+    })
+}
+
+fn classify_cmd(a: ClassifyArgs) -> Result<()> {
+    let models: Vec<MaterialModel> = a
+        .models
+        .iter()
+        .map(|s| parse_model(s))
+        .collect::<Result<_>>()?;
+    if models.len() < 2 {
+        bail!("classification needs at least two --model LABEL=PARAMS.json");
+    }
+    for (k, m) in models.iter().enumerate() {
+        if models[..k].iter().any(|o| o.label == m.label) {
+            bail!(
+                "--model: the label `{}` is given twice; the results could not be told apart",
+                m.label
+            );
+        }
+    }
+    check_out_dir(&a.out)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
+    let sim = sim_config(&a.model);
+    // Per-frame values (F, or contour distance in px) and the tally.
+    let (per_frame, tally, labels) = match a.score {
+        ScoreArg::F => {
+            let c = classify(&prep, &prep.video.forces_n, &models, &sim)?;
+            let tally = Tally {
+                frame_winner: c.frame_winner,
+                frames_won: c.frames_won,
+                vote: c.vote,
+                winner: c.winner,
+                leaders: c.leaders,
+            };
+            (c.f_per_frame, tally, c.labels)
+        }
+        ScoreArg::Contour => {
+            let tracking = Tracking::of(&prep)?;
+            let c =
+                classify_by_contour(&prep, &tracking.target, &prep.video.forces_n, &models, &sim)?;
+            (c.mean_px_per_frame, c.tally, c.labels)
+        }
+    };
+    let winner = tally.winner.map(|k| labels[k].as_str());
+    let verdict = tally.verdict(&labels);
+    let (prefix, y_label, digits) = match a.score {
+        ScoreArg::F => ("f", "F-score", 5),
+        ScoreArg::Contour => (
+            "d_px",
+            "mean contour distance in the finger's reach (px)",
+            3,
+        ),
+    };
+    out_dir(&a.out)?;
+    let mut csv = String::from("frame");
+    for m in &models {
+        let _ = write!(csv, ",{prefix}_{}", m.label);
+    }
+    csv.push_str(",winner\n");
+    for f in 0..prep.frame_count() {
+        let _ = write!(csv, "{f}");
+        for values in &per_frame {
+            let _ = write!(csv, ",{:.digits$}", values[f]);
+        }
+        let _ = writeln!(
+            csv,
+            ",{}",
+            tally.frame_winner[f]
+                .map(|k| labels[k].as_str())
+                .unwrap_or("tie")
+        );
+    }
+    write(&a.out.join("classification.csv"), &csv)?;
+    const COLOURS: [&str; 6] = ["#1f5fbf", "#d22", "#2a2", "#e80", "#808", "#555"];
+    let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
+    let chart = plot::line_charts(&[Chart {
+        title: format!("{y_label} per frame of each model — global vote: {verdict}"),
+        x_label: "frame".into(),
+        y_label: y_label.into(),
+        series: models
+            .iter()
+            .enumerate()
+            .map(|(k, m)| {
+                Series::over(
+                    m.label.clone(),
+                    COLOURS[k % COLOURS.len()],
+                    k % 2 == 1,
+                    &t,
+                    &per_frame[k],
+                )
+            })
+            .collect(),
+    }]);
+    write(&a.out.join("classification.svg"), &chart.finish())?;
+    if a.json {
+        JsonObject::new()
+            .field("video_material", &prep.video.material)?
+            .field("site", prep.video.scenario.site.name())?
+            .field("score", a.score.name())?
+            .field("winner", &winner)?
+            .field("tie", &winner.is_none())?
+            .field(
+                "leaders",
+                &tally
+                    .leaders
+                    .iter()
+                    .map(|&k| &labels[k])
+                    .collect::<Vec<_>>(),
+            )?
+            .field("labels", &labels)?
+            .field("frames_won", &tally.frames_won)?
+            .field("vote", &tally.vote)?
+            .field("out", &a.out)?
+            .print()?;
+    } else {
+        outln!("global vote by {}: {verdict}", a.score.name());
+        for (k, l) in labels.iter().enumerate() {
+            outln!(
+                "  {l:>12}: {} frames won, weighted vote {:+.4}{}",
+                tally.frames_won[k],
+                tally.vote[k],
+                if a.score == ScoreArg::Contour {
+                    " px"
+                } else {
+                    ""
+                }
+            );
+        }
+        outln!(
+            "wrote classification.csv, classification.svg to {}",
+            a.out.display()
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scratch directory deleted when the test ends.
+    fn tmp(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("softjoint-push-{name}-"))
+            .tempdir()
+            .unwrap()
+    }
+
+    fn small_video(material: MaterialArg) -> VideoArgs {
+        VideoArgs {
+            material,
+            site: SiteArg::MiddleLong,
+            video: None,
+            ref_element_px: 30.0,
+            noise_seed: 1,
+        }
+    }
+
+    fn small_model() -> ModelArgs {
+        ModelArgs {
+            integrator: IntegratorArg::Customised,
+            mode: ModeArg::Both,
+            nx: 3,
+            ny: 2,
+            cell_px: 8.0,
+            no_repair: false,
+        }
+    }
+
+    #[test]
+    fn snapshots_of_large_meshes_draw_a_bounded_number_of_lines() {
+        use plant_pushing::mesh::Mesh;
+        let small = Mesh::grid(V2::new(0.0, 0.0), 100.0, 50.0, 20, 10).unwrap();
+        let (all, k) = mesh_segments(&small, 20, 10, &small.rest_positions_px);
+        assert_eq!((all.len(), k), (small.edges.len(), 1));
+        // 2000 × 2000 squares (the CLI's largest): 12 million edges drawn
+        // one by one were a 1.44 GB SVG. Rest positions of the grid stand in
+        // for a deformed mesh (only the positions are read).
+        let (nx, ny) = (2000, 2000);
+        let pos: Vec<V2> = (0..=ny)
+            .flat_map(|j| (0..=nx).map(move |i| V2::new(i as f64, j as f64)))
+            .collect();
+        let (drawn, k) = mesh_segments(&small, nx, ny, &pos);
+        assert_eq!(k, 40);
+        // 51 lines each way, 50 segments each.
+        assert_eq!(drawn.len(), 2 * 51 * 50);
+        // The outline is complete: the four corners are on drawn lines.
+        for corner in [(0.0, 0.0), (2000.0, 0.0), (0.0, 2000.0), (2000.0, 2000.0)] {
+            assert!(drawn
+                .iter()
+                .any(|(a, b)| (a.x, a.y) == corner || (b.x, b.y) == corner));
+        }
+    }
+
+    #[test]
+    fn every_integrator_name_on_the_command_line_reaches_the_simulator() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            model: ModelArgs,
+        }
+        for integ in Integrator::WITH_VARIANTS {
+            let cli = Cli::try_parse_from(["t", "--integrator", integ.name()]).unwrap();
+            assert_eq!(sim_config(&cli.model).integrator, integ);
+        }
+        assert!(Cli::try_parse_from(["t", "--integrator", "rk4"]).is_err());
+    }
+
+    #[test]
+    fn bad_model_specs_and_parameter_files_are_refused_clearly() {
+        let scratch = tmp("bad");
+        let dir = scratch.path();
+        assert!(parse_model("sponge")
+            .unwrap_err()
+            .to_string()
+            .contains("expected LABEL=PARAMS.json"));
+        assert!(parse_model(" =x.json")
+            .unwrap_err()
+            .to_string()
+            .contains("label is empty"));
+        assert!(
+            format!("{:#}", parse_model("a=/nonexistent/p.json").unwrap_err())
+                .contains("reading /nonexistent/p.json")
+        );
+        let p = dir.join("notjson.json");
+        fs::write(&p, "k_length = 3").unwrap();
+        let e = format!("{:#}", load_params(&p).unwrap_err());
+        assert!(
+            e.contains("notjson.json:1:1") && e.contains("expected value"),
+            "{e}"
+        );
+        let p = dir.join("missing.json");
+        fs::write(&p, r#"{"k_length": 1.0}"#).unwrap();
+        assert!(format!("{:#}", load_params(&p).unwrap_err())
+            .contains("expected the eight model parameters"));
+        let p = dir.join("negative.json");
+        let mut bad = serde_json::to_value(MaterialParams::SEED_FIG14_SPONGE).unwrap();
+        bad["k_area"] = serde_json::json!(-1.0);
+        fs::write(&p, bad.to_string()).unwrap();
+        assert!(format!("{:#}", load_params(&p).unwrap_err()).contains("k_area"));
+    }
+
+    #[test]
+    fn simulate_calibrate_and_classify_write_their_files() {
+        let scratch = tmp("run");
+        let dir = scratch.path();
+        let sim_out = dir.join("sim");
+        simulate_cmd(SimulateArgs {
+            video: small_video(MaterialArg::Sponge),
+            model: small_model(),
+            params: None,
+            predicted_forces: true,
+            out: sim_out.clone(),
+            json: true,
+            allow_unstable: false,
+        })
+        .unwrap();
+        let frames = fs::read_to_string(sim_out.join("frames.csv")).unwrap();
+        assert_eq!(frames.lines().count(), 101);
+        assert!(frames.lines().next().unwrap().ends_with(
+            "contour_mean_px,contour_max_px,still_contour_mean_px,still_contour_max_px"
+        ));
+        assert!(!frames.contains("NaN"));
+        assert!(fs::read_to_string(sim_out.join("snapshots.svg"))
+            .unwrap()
+            .starts_with("<svg"));
+        // The written video reads back through --video.
+        let mut v = small_video(MaterialArg::Sponge);
+        v.video = Some(sim_out.join("video.csv"));
+        let again = load_video(&v, true).unwrap();
+        assert_eq!(again.contours_px.len(), 100);
+
+        for (mat, name) in [(MaterialArg::Sponge, "s"), (MaterialArg::Plasticine, "p")] {
+            calibrate_cmd(CalibrateArgs {
+                video: small_video(mat),
+                model: small_model(),
+                generations: 2,
+                seed: 3,
+                score: if name == "s" {
+                    ScoreArg::F
+                } else {
+                    ScoreArg::Contour
+                },
+                out: dir.join(name),
+                json: true,
+            })
+            .unwrap();
+            let p = load_params(&dir.join(name).join("params.json")).unwrap();
+            p.validate().unwrap();
+            assert_eq!(
+                fs::read_to_string(dir.join(name).join("generations.csv"))
+                    .unwrap()
+                    .lines()
+                    .count(),
+                3
+            );
+        }
+        let models = vec![
+            format!("sponge={}", dir.join("s/params.json").display()),
+            format!("plasticine={}", dir.join("p/params.json").display()),
+        ];
+        classify_cmd(ClassifyArgs {
+            video: small_video(MaterialArg::Plasticine),
+            model: small_model(),
+            models: models.clone(),
+            score: ScoreArg::F,
+            out: dir.join("c"),
+            json: true,
+        })
+        .unwrap();
+        assert_eq!(
+            fs::read_to_string(dir.join("c/classification.csv"))
+                .unwrap()
+                .lines()
+                .count(),
+            101
+        );
+        // By contour distance: the CSV holds distances per model.
+        classify_cmd(ClassifyArgs {
+            video: small_video(MaterialArg::Plasticine),
+            model: small_model(),
+            models,
+            score: ScoreArg::Contour,
+            out: dir.join("cc"),
+            json: true,
+        })
+        .unwrap();
+        let cc = fs::read_to_string(dir.join("cc/classification.csv")).unwrap();
+        assert!(cc.starts_with("frame,d_px_sponge,d_px_plasticine,winner"));
+        assert_eq!(cc.lines().count(), 101);
+        let one = vec![format!("sponge={}", dir.join("s/params.json").display())];
+        assert!(classify_cmd(ClassifyArgs {
+            video: small_video(MaterialArg::Plasticine),
+            model: small_model(),
+            models: one,
+            score: ScoreArg::F,
+            out: dir.join("c"),
+            json: true
+        })
+        .is_err());
+        assert!(calibrate_cmd(CalibrateArgs {
+            video: small_video(MaterialArg::Sponge),
+            model: small_model(),
+            generations: 0,
+            seed: 3,
+            score: ScoreArg::F,
+            out: dir.join("z"),
+            json: true
+        })
+        .is_err());
+    }
+}

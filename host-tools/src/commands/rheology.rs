@@ -1,0 +1,1067 @@
+//! `softjoint rheology`: the rheology lattice of seed 000 (Noborio).
+//!
+//! * `simulate` — push the lattice (or the reference block that stands in
+//!   for the paper's recordings) as a scenario file says; write forces,
+//!   surface points, cross-sections and force charts, and score S against
+//!   a measured push if one is given;
+//! * `calibrate` — learn the lattice's parameters from a measured push (a
+//!   directory of CSV files, or a push of the reference block generated on
+//!   the spot) by the paper's GA or RA, with a progress bar, and check the
+//!   result on a push the calibration did not see.
+//!
+//! The physics lives in `plant_rheology`; this is argument
+//! handling, files, pictures and reports.
+use std::fmt::Write as _;
+use std::fs;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use host_tools::output::{self, JsonObject};
+use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use host_tools::{out, outln};
+use plant_rheology::contact::ContactParams;
+use plant_rheology::identify::calibrate::{calibrate, CalibrationSettings, Problem};
+use plant_rheology::identify::ga::GaSettings;
+use plant_rheology::identify::measurement::Measurement;
+use plant_rheology::identify::objective::{score, Score};
+use plant_rheology::identify::ra::RaSettings;
+use plant_rheology::identify::reference::{record_push, ReferenceConfig};
+use plant_rheology::identify::search::{Budget, Method, Progress};
+use plant_rheology::lattice::{mid_section, surface_nodes, V3};
+use plant_rheology::params::{LatticeParams, ParamSet};
+use plant_rheology::scenario::{
+    lattice_sim, push_schedule_mm, BlockSpec, Frame, MeasureSpec, ModelSpec, Objective, ParamsSpec,
+    PlateSpec, Run, Scenario,
+};
+use serde::{Deserialize, Serialize};
+
+/// Arguments of `softjoint rheology`.
+#[derive(Args)]
+pub struct RheologyArgs {
+    #[command(subcommand)]
+    command: RheologyCommand,
+}
+
+#[derive(Subcommand)]
+enum RheologyCommand {
+    /// Push the lattice (or the reference block) as the scenario says.
+    Simulate(SimulateArgs),
+    /// Learn the lattice's parameters from a measured push (GA or RA).
+    Calibrate(CalibrateArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ModelArg {
+    /// The rheology lattice (the model being calibrated).
+    Lattice,
+    /// The continuum reference block (the ground truth); writes a
+    /// measured push that `calibrate --measured` reads.
+    Reference,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MethodArg {
+    /// The paper's genetic algorithm.
+    Ga,
+    /// The paper's randomized algorithm (descent and random walks).
+    Ra,
+    /// Uniform random sampling (a baseline).
+    Uniform,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Ga => Method::Ga,
+            MethodArg::Ra => Method::Ra,
+            MethodArg::Uniform => Method::Uniform,
+        }
+    }
+}
+
+#[derive(Args)]
+struct SimulateArgs {
+    /// Scenario file (TOML); without it the paper's push of the default
+    /// block runs. `--print-default` shows the format.
+    scenario: Option<PathBuf>,
+    /// What to push.
+    #[arg(long, value_enum, default_value = "lattice")]
+    model: ModelArg,
+    /// Element parameters (TOML with `all`, `surface_on`, `surface_in`,
+    /// `core_on`, `core_in` tables, as `calibrate` writes them); they
+    /// replace the scenario's `[model.params]`.
+    #[arg(long, value_name = "PARAMS.toml")]
+    params: Option<PathBuf>,
+    /// A measured push to score the lattice against (a directory with
+    /// `surface_points.csv` and `forces.csv`).
+    #[arg(long, value_name = "DIR")]
+    measured: Option<PathBuf>,
+    /// Times of the cross-sections (s), comma-separated. Default: 0, the
+    /// scenario's frame times.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    section_times: Option<Vec<f64>>,
+    /// Output directory.
+    #[arg(long, default_value = "rheology-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary.
+    #[arg(long)]
+    json: bool,
+    /// Print the built-in default scenario as TOML and exit.
+    #[arg(long)]
+    print_default: bool,
+}
+
+#[derive(Args)]
+struct CalibrateArgs {
+    /// Scenario file (TOML): lattice, push, objective, reference block and
+    /// search settings. Default: the paper's push of the default block.
+    scenario: Option<PathBuf>,
+    /// The measured push (a directory with `surface_points.csv` and
+    /// `forces.csv`); without it the reference block is pushed as the
+    /// scenario says and its recording is used.
+    #[arg(long, value_name = "DIR")]
+    measured: Option<PathBuf>,
+    /// The search.
+    #[arg(long, value_enum, default_value = "ga")]
+    method: MethodArg,
+    /// Parameters to calibrate: 4 (all elements), 8 (surface/core) or 16
+    /// (surface/core × in/on voxel).
+    #[arg(long, default_value_t = 4, allow_negative_numbers = true)]
+    params: usize,
+    /// Budget in simulations (default 1000 when no --seconds is given).
+    #[arg(long, allow_negative_numbers = true)]
+    evaluations: Option<usize>,
+    /// Budget in wall-clock seconds (the paper ran 168 h).
+    #[arg(long, allow_negative_numbers = true)]
+    seconds: Option<f64>,
+    /// Seed of the search.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    seed: u64,
+    /// Check the result on a generated push to this depth (mm) that the
+    /// calibration did not see.
+    #[arg(long, allow_negative_numbers = true)]
+    validate_depth_mm: Option<f64>,
+    /// … pushed over this time (s) instead of the scenario's 1 s.
+    #[arg(long, allow_negative_numbers = true)]
+    validate_push_s: Option<f64>,
+    /// Output directory.
+    #[arg(long, default_value = "rheology-out")]
+    out: PathBuf,
+    /// Print a machine-readable summary (and no progress bar).
+    #[arg(long)]
+    json: bool,
+}
+
+/// The scenario file: the lattice's scenario, the reference block that
+/// stands in for measurements, and the search settings.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+struct ScenarioFile {
+    block: BlockSpec,
+    model: ModelSpec,
+    contact: ContactParams,
+    plate: PlateSpec,
+    measure: MeasureSpec,
+    objective: Objective,
+    reference: ReferenceConfig,
+    ga: GaSettings,
+    ra: RaSettings,
+}
+
+impl ScenarioFile {
+    fn scenario(&self) -> Scenario {
+        Scenario {
+            block: self.block.clone(),
+            model: self.model.clone(),
+            contact: self.contact,
+            plate: self.plate.clone(),
+            measure: self.measure.clone(),
+            objective: self.objective,
+        }
+    }
+
+    fn load(path: Option<&Path>) -> Result<Self> {
+        let Some(path) = path else {
+            return Ok(Self::default());
+        };
+        let text = fs::read_to_string(path)
+            .with_context(|| format!("cannot read scenario {}", path.display()))?;
+        let file: ScenarioFile = toml::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        file.scenario()
+            .validate()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        file.reference
+            .validate()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        file.ga
+            .validate()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        file.ra
+            .validate()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Ok(file)
+    }
+}
+
+pub fn run(args: RheologyArgs) -> Result<()> {
+    match args.command {
+        RheologyCommand::Simulate(a) => simulate_cmd(a),
+        RheologyCommand::Calibrate(a) => calibrate_cmd(a),
+    }
+}
+
+/// Writes a CSV or SVG result through the checked writer (no non-finite
+/// number, atomic).
+fn write(path: &Path, text: &str) -> Result<()> {
+    if path.extension().is_some_and(|e| e == "csv") {
+        output::write_csv(path, text)
+    } else {
+        output::write_svg(path, text)
+    }
+}
+
+fn load_params(path: &Path) -> Result<LatticeParams> {
+    let text =
+        fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let spec: ParamsSpec = toml::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+    spec.resolve()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+fn params_spec(p: &LatticeParams) -> ParamsSpec {
+    ParamsSpec {
+        all: None,
+        surface_on: Some(p.surface_on),
+        surface_in: Some(p.surface_in),
+        core_on: Some(p.core_on),
+        core_in: Some(p.core_in),
+    }
+}
+
+fn load_measurement(dir: &Path) -> Result<Measurement> {
+    let (p, f) = (dir.join("surface_points.csv"), dir.join("forces.csv"));
+    let pt = fs::read_to_string(&p).with_context(|| format!("cannot read {}", p.display()))?;
+    let ft = fs::read_to_string(&f).with_context(|| format!("cannot read {}", f.display()))?;
+    Ok(Measurement::from_csv(
+        &pt,
+        &p.display().to_string(),
+        &ft,
+        &f.display().to_string(),
+    )?)
+}
+
+fn check_times(name: &str, times: &[f64], end_s: f64) -> Result<()> {
+    for t in times {
+        if !(t.is_finite() && *t >= 0.0 && *t <= end_s) {
+            bail!("{name}: {t} s is outside the run (0–{end_s} s)");
+        }
+    }
+    Ok(())
+}
+
+/// Sorted, distinct times.
+fn merge_times(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut t: Vec<f64> = a.iter().chain(b).copied().collect();
+    t.sort_by(f64::total_cmp);
+    t.dedup();
+    t
+}
+
+/// `forces.csv`: one row per step.
+fn forces_csv(t: &[f64], depth_m: &[f64], force_n: &[f64], volume_m3: &[f64]) -> String {
+    let mut s = String::from("time_s,depth_mm,force_n,volume_cm3\n");
+    for k in 0..t.len() {
+        let _ = writeln!(
+            s,
+            "{:.6},{:.4},{:.4},{:.4}",
+            t[k],
+            depth_m[k] * 1e3,
+            force_n[k],
+            volume_m3[k] * 1e6
+        );
+    }
+    s
+}
+
+fn simulate_cmd(a: SimulateArgs) -> Result<()> {
+    if a.print_default {
+        let mut d = ScenarioFile::default();
+        d.plate.depth_mm = Some(push_schedule_mm(15.0, 1.0));
+        d.model.params.all = Some(plant_rheology::params::ElementParams::PAPER_DEFAULT);
+        out!("{}", toml::to_string(&d)?);
+        return Ok(());
+    }
+    let mut file = ScenarioFile::load(a.scenario.as_deref())?;
+    if let Some(p) = &a.params {
+        let params = load_params(p)?;
+        file.model.params = ParamsSpec {
+            all: None,
+            surface_on: Some(params.surface_on),
+            surface_in: Some(params.surface_in),
+            core_on: Some(params.core_on),
+            core_in: Some(params.core_in),
+        };
+    }
+    let sc = file.scenario();
+    sc.validate()?;
+    let sections = a.section_times.clone().unwrap_or_else(|| {
+        let mut t = vec![0.0];
+        t.extend(&sc.measure.frame_times_s);
+        t
+    });
+    check_times("--section-times", &sections, sc.plate.end_s)?;
+    if sections.is_empty() || sections.len() > 12 {
+        bail!("--section-times: give 1 to 12 times");
+    }
+    output::create_dir(&a.out)?;
+    match a.model {
+        ModelArg::Reference => {
+            if a.measured.is_some() || a.params.is_some() {
+                bail!("--measured and --params apply to the lattice, not to --model reference");
+            }
+            simulate_reference(&a, &sc, &file.reference, &sections)
+        }
+        ModelArg::Lattice => simulate_lattice(&a, &sc, &sections),
+    }
+}
+
+fn simulate_reference(
+    a: &SimulateArgs,
+    sc: &Scenario,
+    cfg: &ReferenceConfig,
+    sections: &[f64],
+) -> Result<()> {
+    let mut sc2 = sc.clone();
+    sc2.measure.frame_times_s = merge_times(&sc.measure.frame_times_s, sections);
+    let r = record_push(&sc2, cfg)?;
+    // The measurement keeps only the scenario's frames.
+    let mut m = r.measurement.clone();
+    m.frames
+        .retain(|f| sc.measure.frame_times_s.contains(&f.t_s));
+    let top = sc.size_m()[1];
+    let plate = sc.plate()?;
+    let depth: Vec<f64> = r
+        .t_s
+        .iter()
+        .map(|&t| plate.face_y_m(t).map(|f| top - f).unwrap_or(0.0))
+        .collect();
+    let measured_force: Vec<f64> = m.forces.iter().map(|f| f.force_n).collect();
+    write(
+        &a.out.join("forces.csv"),
+        &forces_csv(&r.t_s, &depth, &measured_force, &r.volume_m3),
+    )?;
+    write(&a.out.join("surface_points.csv"), &m.points_csv())?;
+    let shots = section_shots(&r.frames, r.nodes, Some(sections));
+    let all_points = r.measurement.clone();
+    let svg = sections_svg(
+        sc,
+        r.nodes,
+        &shots,
+        Some(&all_points),
+        "reference block (continuum FEM, hidden material)",
+    );
+    write(&a.out.join("sections.svg"), &svg)?;
+    let chart = force_chart(
+        "Reference block: plate force (as measured, with sensor noise)",
+        &[(
+            "reference, measured",
+            "#555",
+            false,
+            &r.t_s,
+            &measured_force,
+        )],
+        &[(
+            "reference",
+            "#555",
+            &r.t_s,
+            &r.volume_m3
+                .iter()
+                .map(|v| v / r.volume0_m3)
+                .collect::<Vec<_>>(),
+        )],
+    );
+    write(&a.out.join("force.svg"), &chart)?;
+    let peak = measured_force
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    if a.json {
+        let frames: Vec<FrameJson> = m
+            .frames
+            .iter()
+            .map(|f| FrameJson {
+                time_s: f.t_s,
+                points: f.points_m.len(),
+            })
+            .collect();
+        JsonObject::new()
+            .field("model", "reference")?
+            .field("cells", &cfg.cells)?
+            .field("steps", &r.t_s.len())?
+            .field("peak_force_n", &peak)?
+            .field(
+                "final_volume_ratio",
+                &r.volume_m3.last().map(|v| v / r.volume0_m3),
+            )?
+            .field("frames", &frames)?
+            .field("out", &a.out)?
+            .print()?;
+    } else {
+        outln!(
+            "reference block {}×{}×{} cubes: {} steps, peak force {:.1} N, {} surface points in {} frames",
+            cfg.cells[0],
+            cfg.cells[1],
+            cfg.cells[2],
+            r.t_s.len(),
+            peak,
+            m.point_count(),
+            m.frames.len()
+        );
+        outln!(
+            "wrote forces.csv, surface_points.csv (a measured push for `calibrate --measured`), sections.svg, force.svg to {}",
+            a.out.display()
+        );
+    }
+    Ok(())
+}
+
+fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result<()> {
+    let measured = a.measured.as_deref().map(load_measurement).transpose()?;
+    let lattice = sc.lattice()?;
+    let params = sc.model.params.resolve()?;
+    let mut frame_times = merge_times(&sc.measure.frame_times_s, sections);
+    if let Some(m) = &measured {
+        check_times("measured frame", &m.frame_times_s(), sc.plate.end_s)?;
+        frame_times = merge_times(&frame_times, &m.frame_times_s());
+    }
+    let mut sim = lattice_sim(sc, &lattice, &params)?;
+    let started = std::time::Instant::now();
+    let r = plant_rheology::scenario::run(&mut sim, sc.plate.end_s, &frame_times);
+    let wall_s = started.elapsed().as_secs_f64();
+    write(
+        &a.out.join("forces.csv"),
+        &forces_csv(&r.t_s, &r.plate_depth_m, &r.plate_force_n, &r.volume_m3),
+    )?;
+    // The lattice's own surface masses at the scenario's frames, in the
+    // measurement format (a twin experiment can calibrate against them).
+    let nodes = surface_nodes(&lattice.surface);
+    let mut pts = String::from("frame,time_s,x_cm,y_cm,z_cm\n");
+    let mut k = 0;
+    for f in &r.frames {
+        if sc.measure.frame_times_s.contains(&f.t_s) {
+            for &n in &nodes {
+                let p = f.positions_m[n] * 100.0;
+                let _ = writeln!(pts, "{k},{},{:.5},{:.5},{:.5}", f.t_s, p.x, p.y, p.z);
+            }
+            k += 1;
+        }
+    }
+    write(&a.out.join("surface_points.csv"), &pts)?;
+    let shots = section_shots(&r.frames, lattice.nodes, Some(sections));
+    let title = format!(
+        "lattice {}×{}×{}, model {} ({} volume condition)",
+        lattice.nodes[0],
+        lattice.nodes[1],
+        lattice.nodes[2],
+        sc.model.volume.model_number(),
+        sc.model.volume.name()
+    );
+    write(
+        &a.out.join("sections.svg"),
+        &sections_svg(sc, lattice.nodes, &shots, measured.as_ref(), &title),
+    )?;
+    let mt: Vec<f64>;
+    let mf: Vec<f64>;
+    let mut series: Vec<ForceSeries> =
+        vec![("lattice", "#1f5fbf", false, &r.t_s, &r.plate_force_n)];
+    if let Some(m) = &measured {
+        mt = m.forces.iter().map(|f| f.t_s).collect();
+        mf = m.forces.iter().map(|f| f.force_n).collect();
+        series.insert(0, ("measured", "#555", false, &mt, &mf));
+    }
+    let vol: Vec<f64> = r.volume_m3.iter().map(|v| v / r.volume0_m3).collect();
+    write(
+        &a.out.join("force.svg"),
+        &force_chart(
+            &format!("Plate force: {title}"),
+            &series,
+            &[("lattice", "#1f5fbf", &r.t_s, &vol)],
+        ),
+    )?;
+    let s = measured.as_ref().map(|m| {
+        score(
+            &lattice.surface,
+            &r,
+            m,
+            &sc.objective,
+            sc.measure.force_window_s,
+        )
+    });
+    let peak = r
+        .plate_force_n
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let instability = r.instability.as_ref().map(|e| e.to_string());
+    if a.json {
+        JsonObject::new()
+            .field("model", "lattice")?
+            .field("grid", &lattice.nodes)?
+            .field("masses", &lattice.masses())?
+            .field("elements", &lattice.elements.len())?
+            .field("volume_condition", sc.model.volume.name())?
+            .field("integrator", sc.model.integrator.name())?
+            .field("dt_ms", &sc.model.dt_ms)?
+            .field("steps", &r.t_s.len())?
+            .field("solver_iterations", &r.iterations)?
+            .field("wall_s", &wall_s)?
+            .field("peak_force_n", &finite(peak))?
+            .field("final_volume_ratio", &vol.last().copied().and_then(finite))?
+            .field("instability", &instability)?
+            .field("score", &s.map(score_json))?
+            .field("out", &a.out)?
+            .print()?;
+    } else {
+        outln!("{title}: {} steps in {:.2} s", r.t_s.len(), wall_s);
+        if let Some(e) = &instability {
+            outln!("UNSTABLE: {e}; the files stop there");
+        }
+        outln!(
+            "peak force {:.1} N, volume at the end {:.2} % of rest",
+            peak,
+            100.0 * vol.last().copied().unwrap_or(f64::NAN)
+        );
+        if let Some(s) = s {
+            outln!("{}", score_text(&s));
+        }
+        outln!(
+            "wrote forces.csv, surface_points.csv, sections.svg, force.svg to {}",
+            a.out.display()
+        );
+    }
+    if let Some(e) = r.instability {
+        return Err(anyhow::anyhow!("the lattice became {e}"));
+    }
+    Ok(())
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+/// A frame of a measured push in `--json`.
+#[derive(Serialize)]
+struct FrameJson {
+    time_s: f64,
+    points: usize,
+}
+
+/// S and its parts in `--json` (S null when the run was unstable).
+#[derive(Serialize)]
+struct ScoreJson {
+    s: Option<f64>,
+    shape_cm: f64,
+    force_n: f64,
+    points: usize,
+    force_samples: usize,
+    mean_distance_mm: f64,
+    mean_force_error_n: f64,
+}
+
+fn score_json(s: Score) -> ScoreJson {
+    ScoreJson {
+        s: finite(s.s),
+        shape_cm: s.shape_cm,
+        force_n: s.force_n,
+        points: s.points,
+        force_samples: s.samples,
+        mean_distance_mm: s.mean_distance_mm(),
+        mean_force_error_n: s.mean_force_error_n(),
+    }
+}
+
+/// The check on a push the calibration did not see, in `--json`.
+#[derive(Serialize)]
+struct ValidationJson {
+    depth_mm: f64,
+    push_s: f64,
+    default: ScoreJson,
+    calibrated: ScoreJson,
+}
+
+fn score_text(s: &Score) -> String {
+    if !s.s.is_finite() {
+        return "S = ∞ (the run was unstable)".into();
+    }
+    let mut t = format!("S = {:.2}", s.s);
+    if s.points > 0 {
+        let _ = write!(
+            t,
+            "; shape: {:.2} cm over {} points ({:.3} mm each)",
+            s.shape_cm,
+            s.points,
+            s.mean_distance_mm()
+        );
+    }
+    if s.samples > 0 {
+        let _ = write!(
+            t,
+            "; force: {:.1} N over {} samples ({:.2} N each)",
+            s.force_n,
+            s.samples,
+            s.mean_force_error_n()
+        );
+    }
+    t
+}
+
+/// Force (and volume) against time.
+#[allow(clippy::type_complexity)]
+/// A force curve: label, colour, dashed, times (s), forces (N).
+type ForceSeries<'a> = (&'a str, &'static str, bool, &'a [f64], &'a [f64]);
+
+fn force_chart(
+    title: &str,
+    force: &[ForceSeries],
+    volume: &[(&str, &'static str, &[f64], &[f64])],
+) -> String {
+    plot::line_charts(&[
+        Chart {
+            title: title.into(),
+            x_label: "time (s)".into(),
+            y_label: "plate force (N)".into(),
+            series: force
+                .iter()
+                .map(|(l, c, d, t, f)| Series::over(*l, c, *d, t, f))
+                .collect(),
+        },
+        Chart {
+            title: "Volume (enclosed by the surface)".into(),
+            x_label: "time (s)".into(),
+            y_label: "V / V0".into(),
+            series: volume
+                .iter()
+                .map(|(l, c, t, v)| Series::over(*l, c, false, t, v))
+                .collect(),
+        },
+    ])
+    .finish()
+}
+
+/// The mid-depth section of the block at every recorded frame, or at each
+/// of `times` in their order (a time without a recorded frame is left
+/// out).
+fn section_shots(
+    frames: &[Frame],
+    nodes: [usize; 3],
+    times: Option<&[f64]>,
+) -> Vec<(f64, Vec<V3>)> {
+    let shot = |f: &Frame| (f.t_s, mid_section(nodes, &f.positions_m));
+    match times {
+        Some(ts) => ts
+            .iter()
+            .filter_map(|&t| frames.iter().find(|f| f.t_s == t).map(shot))
+            .collect(),
+        None => frames.iter().map(shot).collect(),
+    }
+}
+
+/// Cross-sections through the middle of the block (x–y plane at mid z):
+/// the grid of the section (blue), the rest outline (dashed), measured
+/// points within 5 mm of the plane (dots), the plate (red), the table.
+fn sections_svg(
+    sc: &Scenario,
+    nodes: [usize; 3],
+    shots: &[(f64, Vec<V3>)],
+    measured: Option<&Measurement>,
+    title: &str,
+) -> String {
+    let size = sc.size_m();
+    let (nx, ny) = (nodes[0], nodes[1]);
+    let panel_w = 260.0;
+    let margin_m = 0.2 * size[0];
+    let scale = panel_w / (size[0] + 2.0 * margin_m);
+    let panel_h = (size[1] * 1.35 + margin_m) * scale;
+    let top = 44.0;
+    let cols = shots.len().clamp(1, 4);
+    let rows = shots.len().div_ceil(cols).max(1);
+    let width = cols as f64 * (panel_w + 12.0) + 12.0;
+    let height = top + rows as f64 * (panel_h + 34.0) + 24.0;
+    let mut svg = Svg::new(width, height);
+    svg.text_styled(
+        12.0,
+        20.0,
+        14.0,
+        Anchor::Start,
+        r#"font-weight="bold""#,
+        &format!("Cross-sections at mid-depth: {title}"),
+    );
+    let plate = sc.plate().ok();
+    let zmid = size[2] / 2.0;
+    for (k, (t, sec)) in shots.iter().enumerate() {
+        let ox = 12.0 + (k % cols) as f64 * (panel_w + 12.0);
+        let oy = top + (k / cols) as f64 * (panel_h + 34.0);
+        let floor = oy + panel_h - 6.0;
+        let tx = |p: V3| (ox + (p.x + margin_m) * scale, floor - p.y * scale);
+        svg.rect(
+            ox,
+            oy,
+            panel_w,
+            panel_h,
+            "none",
+            Some(Stroke::solid("#ddd", 1.0)),
+        );
+        svg.line(
+            (ox, floor),
+            (ox + panel_w, floor),
+            Stroke::solid("#964", 2.0),
+        );
+        // Rest outline.
+        let rest = [
+            V3::new(0.0, 0.0, 0.0),
+            V3::new(size[0], 0.0, 0.0),
+            V3::new(size[0], size[1], 0.0),
+            V3::new(0.0, size[1], 0.0),
+            V3::new(0.0, 0.0, 0.0),
+        ];
+        svg.polyline(rest.iter().map(|p| tx(*p)), Stroke::dashed("#999", 1.0));
+        // The section's grid lines.
+        let at = |i: usize, j: usize| tx(sec[i + nx * j]);
+        let mut segs = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                if i + 1 < nx {
+                    segs.push((at(i, j), at(i + 1, j)));
+                }
+                if j + 1 < ny {
+                    segs.push((at(i, j), at(i, j + 1)));
+                }
+            }
+        }
+        svg.segments(segs, Stroke::solid("#1f5fbf", 1.0));
+        // Measured points near the plane at this time.
+        if let Some(m) = measured {
+            if let Some(f) = m.frames.iter().find(|f| (f.t_s - t).abs() < 1e-9) {
+                for p in f.points_m.iter().filter(|p| (p.z - zmid).abs() < 0.005) {
+                    let (x, y) = tx(*p);
+                    svg.rect(x - 1.5, y - 1.5, 3.0, 3.0, "#222", None);
+                }
+            }
+        }
+        // The plate.
+        if let Some(pl) = &plate {
+            if let Some(face) = pl.face_y_m(*t) {
+                let (x0, y0) = tx(V3::new(
+                    pl.centre_xz_m[0] - pl.footprint_m[0] / 2.0,
+                    face,
+                    0.0,
+                ));
+                let (x1, _) = tx(V3::new(
+                    pl.centre_xz_m[0] + pl.footprint_m[0] / 2.0,
+                    face,
+                    0.0,
+                ));
+                let (x0, x1) = (x0.max(ox), x1.min(ox + panel_w));
+                svg.rect(
+                    x0,
+                    (y0 - 14.0).max(oy),
+                    x1 - x0,
+                    (y0 - oy).clamp(0.0, 14.0),
+                    "#f3c6c6",
+                    Some(Stroke::solid("#d22", 1.5)),
+                );
+            }
+        }
+        svg.text(
+            ox + 4.0,
+            oy + panel_h + 16.0,
+            12.0,
+            Anchor::Start,
+            &format!("t = {t} s"),
+        );
+    }
+    svg.text_styled(
+        12.0,
+        height - 8.0,
+        11.0,
+        Anchor::Start,
+        r##"fill="#555""##,
+        "blue: section of the block · dashed: at rest · dots: measured points within 5 mm of the plane · red: plate · brown: table",
+    );
+    svg.finish()
+}
+
+fn s_chart(rows: &[plant_rheology::identify::search::HistoryRow], title: &str) -> String {
+    let e: Vec<f64> = rows.iter().map(|h| h.evaluations as f64).collect();
+    let best: Vec<f64> = rows.iter().map(|h| h.best_s).collect();
+    let batch: Vec<f64> = rows.iter().map(|h| h.batch_mean_s).collect();
+    plot::line_charts(&[Chart {
+        title: title.into(),
+        x_label: "simulations run".into(),
+        y_label: "S (cm)".into(),
+        series: vec![
+            Series::over("best so far", "#1f5fbf", false, &e, &best),
+            Series::over("batch mean", "#e80", true, &e, &batch),
+        ],
+    }])
+    .finish()
+}
+
+fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    let file = ScenarioFile::load(a.scenario.as_deref())?;
+    let sc = file.scenario();
+    let set = ParamSet::from_count(a.params).map_err(|e| anyhow::anyhow!("--params: {e}"))?;
+    if let Some(n) = a.evaluations {
+        if n == 0 || n > 10_000_000 {
+            bail!("--evaluations must be 1..=10000000, got {n}");
+        }
+    }
+    if let Some(s) = a.seconds {
+        if !(s.is_finite() && s > 0.0) {
+            bail!("--seconds must be a number of seconds > 0, got {s}");
+        }
+    }
+    let budget = Budget {
+        max_evaluations: a.evaluations.or(if a.seconds.is_none() {
+            Some(1000)
+        } else {
+            None
+        }),
+        max_seconds: a.seconds,
+    };
+    if a.measured.is_some() && (a.validate_depth_mm.is_some() || a.validate_push_s.is_some()) {
+        bail!("--validate-depth-mm/--validate-push-s push the reference block; they need a generated measurement (no --measured)");
+    }
+    let validation = match (a.validate_depth_mm, a.validate_push_s) {
+        (None, None) => None,
+        (d, p) => {
+            let depth = d.unwrap_or(15.0);
+            let push = p.unwrap_or(1.0);
+            if !(depth > 0.0 && depth < sc.block.size_cm[1] * 10.0) {
+                bail!("--validate-depth-mm must be between 0 and the block's height, got {depth}");
+            }
+            if !(push > 0.0 && 4.0 * push <= sc.plate.end_s) {
+                bail!(
+                    "--validate-push-s must be > 0 with the push, hold and release (4× it) inside plate.end_s = {} s, got {push}",
+                    sc.plate.end_s
+                );
+            }
+            Some((depth, push))
+        }
+    };
+    let quiet = a.json || !std::io::stderr().is_terminal();
+    let note = |msg: &str| {
+        if !quiet {
+            eprintln!("{msg}");
+        }
+    };
+    let measurement = match &a.measured {
+        Some(dir) => load_measurement(dir)?,
+        None => {
+            note("pushing the reference block for the measurement…");
+            record_push(&sc, &file.reference)?.measurement
+        }
+    };
+    let problem = Problem::new(sc.clone(), set, measurement)?;
+    let defaults = sc.model.params.resolve()?;
+    let (default_score, default_run) = problem.score(&defaults)?;
+    let mut settings = CalibrationSettings::new(a.method.into(), budget, a.seed);
+    settings.ga = file.ga;
+    settings.ra = file.ra;
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        match budget.max_evaluations {
+            Some(n) => indicatif::ProgressBar::new(n as u64),
+            None => indicatif::ProgressBar::new_spinner(),
+        }
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} simulations, {msg} ({elapsed})",
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(format!("{} ({} params)", settings.method.name(), set.len()));
+    let mut progress = |p: &Progress| {
+        bar.set_position(p.evaluations as u64);
+        bar.set_message(format!("best S {:.2}", p.best_s));
+    };
+    let cal = calibrate(&problem, &settings, &mut progress)?;
+    bar.finish_and_clear();
+    let (best_score, best_run) = problem.score(&cal.best_params)?;
+    output::create_dir(&a.out)?;
+    output::write_toml(
+        &a.out.join("params.toml"),
+        "# Calibrated rheology parameters (softjoint rheology calibrate); `simulate --params` reads them.\n",
+        &params_spec(&cal.best_params),
+    )?;
+    let mut csv =
+        String::from("generation,evaluations,best_s,batch_best_s,batch_mean_s,elapsed_s\n");
+    for h in &cal.search.history {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{:.3}",
+            h.generation,
+            h.evaluations,
+            csv_number(h.best_s),
+            csv_number(h.batch_best_s),
+            csv_number(h.batch_mean_s),
+            h.elapsed_s
+        );
+    }
+    write(&a.out.join("generations.csv"), &csv)?;
+    write(
+        &a.out.join("s_per_generation.svg"),
+        &s_chart(
+            &cal.search.history,
+            &format!(
+                "S per generation: {} on {} parameters ({} simulations)",
+                settings.method.name(),
+                set.len(),
+                cal.search.evaluations
+            ),
+        ),
+    )?;
+    let mt: Vec<f64> = problem.measurement.forces.iter().map(|f| f.t_s).collect();
+    let mf: Vec<f64> = problem
+        .measurement
+        .forces
+        .iter()
+        .map(|f| f.force_n)
+        .collect();
+    let vol = |r: &Run| -> Vec<f64> { r.volume_m3.iter().map(|v| v / r.volume0_m3).collect() };
+    let (vd, vb) = (vol(&default_run), vol(&best_run));
+    write(
+        &a.out.join("force.svg"),
+        &force_chart(
+            "Plate force: measured, lattice with the defaults, calibrated lattice",
+            &[
+                ("measured", "#555", false, &mt, &mf),
+                (
+                    "defaults",
+                    "#e80",
+                    true,
+                    &default_run.t_s,
+                    &default_run.plate_force_n,
+                ),
+                (
+                    "calibrated",
+                    "#1f5fbf",
+                    false,
+                    &best_run.t_s,
+                    &best_run.plate_force_n,
+                ),
+            ],
+            &[
+                ("defaults", "#e80", &default_run.t_s, &vd),
+                ("calibrated", "#1f5fbf", &best_run.t_s, &vb),
+            ],
+        ),
+    )?;
+    let shots = section_shots(&best_run.frames, problem.lattice().nodes, None);
+    write(
+        &a.out.join("sections.svg"),
+        &sections_svg(
+            &sc,
+            problem.lattice().nodes,
+            &shots,
+            Some(&problem.measurement),
+            "calibrated lattice and the measured points",
+        ),
+    )?;
+    let validation = match validation {
+        None => None,
+        Some((depth, push)) => {
+            note("pushing the reference block for the validation push…");
+            let mut vs = sc.clone();
+            vs.plate.depth_mm = Some(push_schedule_mm(depth, push));
+            vs.plate.force_n = None;
+            let mut vcfg = file.reference.clone();
+            vcfg.seed = vcfg.seed.wrapping_add(1);
+            let vm = record_push(&vs, &vcfg)?.measurement;
+            let vp = Problem::new(vs, set, vm)?;
+            let (d, _) = vp.score(&defaults)?;
+            let (c, _) = vp.score(&cal.best_params)?;
+            Some((depth, push, d, c))
+        }
+    };
+    if a.json {
+        let best_genes: std::collections::BTreeMap<_, _> = set
+            .ranges()
+            .iter()
+            .zip(&cal.search.best_genes)
+            .map(|(r, g)| (r.name.clone(), *g))
+            .collect();
+        let best_s_per_generation: Vec<Option<f64>> = cal
+            .search
+            .history
+            .iter()
+            .map(|h| finite(h.best_s))
+            .collect();
+        JsonObject::new()
+            .field("method", settings.method.name())?
+            .field("params", &set.len())?
+            .field("seed", &a.seed)?
+            .field("evaluations", &cal.search.evaluations)?
+            .field("unstable", &cal.search.unstable)?
+            .field("stopped_by", cal.search.stopped_by)?
+            .field("elapsed_s", &cal.search.elapsed_s)?
+            .field("default", &score_json(default_score))?
+            .field("calibrated", &score_json(best_score))?
+            .field("best_params", &cal.best_params)?
+            .field("best_genes", &best_genes)?
+            .field("best_s_per_generation", &best_s_per_generation)?
+            .field(
+                "validation",
+                &validation.map(|(depth_mm, push_s, d, c)| ValidationJson {
+                    depth_mm,
+                    push_s,
+                    default: score_json(d),
+                    calibrated: score_json(c),
+                }),
+            )?
+            .field("out", &a.out)?
+            .print()?;
+    } else {
+        outln!(
+            "{} on {} parameters: {} simulations in {:.1} s ({} unstable), stopped by {}",
+            settings.method.name(),
+            set.len(),
+            cal.search.evaluations,
+            cal.search.elapsed_s,
+            cal.search.unstable,
+            cal.search.stopped_by
+        );
+        outln!("defaults:   {}", score_text(&default_score));
+        outln!("calibrated: {}", score_text(&best_score));
+        for (r, g) in set.ranges().iter().zip(&cal.search.best_genes) {
+            outln!("  {:<28} {:>12.4}   (range {}–{})", r.name, g, r.min, r.max);
+        }
+        if let Some((depth, push, d, c)) = validation {
+            outln!("unseen push ({depth} mm over {push} s):");
+            outln!("  defaults:   {}", score_text(&d));
+            outln!("  calibrated: {}", score_text(&c));
+        }
+        outln!(
+            "wrote params.toml, generations.csv, s_per_generation.svg, force.svg, sections.svg to {}",
+            a.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// A number for a CSV cell; empty when not finite (no candidate of the
+/// batch was stable).
+fn csv_number(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.4}")
+    } else {
+        String::new()
+    }
+}

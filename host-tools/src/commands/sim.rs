@@ -1,0 +1,130 @@
+//! `softjoint sim`: the joint under the firmware core in process, an
+//! excitation session on it, or a calibration sweep of it.
+use std::path::PathBuf;
+
+use clap::Args;
+use host_tools::files::scenario::Scenario;
+use host_tools::joint::calibrate;
+use host_tools::run::{report, sim};
+use host_tools::{out, outln, output};
+
+#[derive(Args)]
+pub struct SimArgs {
+    /// Scenario file (TOML); without it the built-in default runs.
+    scenario: Option<PathBuf>,
+    #[command(flatten)]
+    output: report::OutputArgs,
+    /// Instead of a control run, write a calibration sweep of the simulated
+    /// joint (slow ±20° sweep, camera reference) to this CSV. There is no
+    /// control run, so --csv, --plot and --json cannot go with it.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["csv", "plot", "json", "excite"])]
+    calibration_sweep: Option<PathBuf>,
+    /// Print the built-in default scenario as TOML and exit (nothing else
+    /// runs, so it takes no other argument).
+    #[arg(long, conflicts_with_all = ["scenario", "csv", "plot", "json", "calibration_sweep", "excite"])]
+    print_default: bool,
+    #[command(flatten)]
+    excite: ExciteArgs,
+}
+
+/// An excitation session instead of the scenario's targets (`sim`, `hil`).
+#[derive(Args)]
+pub struct ExciteArgs {
+    /// Run this excitation plan (TOML; `softjoint identify plan` prints
+    /// one) on the scenario's joint and write its log to --log. There is
+    /// no control run, so --csv, --plot and --json cannot go with it.
+    #[arg(long, value_name = "PLAN", requires = "log", conflicts_with_all = ["csv", "plot", "json"])]
+    pub excite: Option<PathBuf>,
+    /// Where --excite writes its log (CSV), for `softjoint identify joint`.
+    #[arg(long, value_name = "PATH", requires = "excite")]
+    pub log: Option<PathBuf>,
+    /// Log no coil currents and resistances (a lab without a current
+    /// sense): identification then fits the thermal parameters from the
+    /// angle alone.
+    #[arg(long, requires = "excite")]
+    pub no_electrical: bool,
+}
+
+impl ExciteArgs {
+    /// Loads the plan for a scenario's joint.
+    pub fn plan(
+        &self,
+        scenario: &Scenario,
+    ) -> anyhow::Result<Option<plant_joint::identify::ExcitationPlan>> {
+        self.excite
+            .as_ref()
+            .map(|p| host_tools::joint::excite::load_plan(p, scenario.planes()))
+            .transpose()
+    }
+
+    /// Writes the log and prints what the session saw.
+    pub fn finish(
+        &self,
+        log: &plant_joint::identify::ExcitationLog,
+        summary: &host_tools::joint::excite::SessionSummary,
+    ) -> anyhow::Result<()> {
+        let path = self
+            .log
+            .as_ref()
+            .ok_or_else(|| anyhow::anyhow!("--excite needs --log"))?;
+        host_tools::joint::excite::write_log(path, log)?;
+        outln!(
+            "{}: {} rows ({} s) written to {}; peak coil {:.1} °C, budget peak rise {:.0} K, faults seen: [{}]",
+            summary.plan,
+            summary.rows,
+            summary.duration_s,
+            path.display(),
+            summary.peak_coil_temperature_c,
+            summary.budget_peak_rise_k,
+            summary.faults_seen.join(",")
+        );
+        Ok(())
+    }
+}
+
+/// Runs `sim`.
+pub fn run(args: SimArgs) -> anyhow::Result<()> {
+    let scenario = match &args.scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::default(),
+    };
+    if args.print_default {
+        output::print_toml("", &Scenario::default())?;
+        return Ok(());
+    }
+    if let Some(plan) = args.excite.plan(&scenario)? {
+        let (log, summary) =
+            host_tools::joint::excite::run_sim(&plan, &scenario, !args.excite.no_electrical)?;
+        return args.excite.finish(&log, &summary);
+    }
+    if let Some(path) = &args.calibration_sweep {
+        let pending = host_tools::output::AtomicFile::create(path)?;
+        let rows = sim::calibration_sweep(&scenario)?;
+        drop(pending);
+        calibrate::write_sweep(path, &rows)?;
+        outln!("{} sweep rows written to {}", rows.len(), path.display());
+        return Ok(());
+    }
+    let stop = host_tools::stop::Stop::on_signals()?;
+    // Output paths are checked (the CSV created) before the run.
+    let mut files = args.output.open_trace(&sim::angle_names(&scenario))?;
+    let progress = args.output.progress("steps");
+    let mut summary = sim::run_into(&scenario, &mut files, &stop, &progress).map_err(|e| {
+        match &args.scenario {
+            Some(p) => e.context(format!("scenario {}", p.display())),
+            None => e,
+        }
+    })?;
+    progress.finish_and_clear();
+    args.output
+        .finish_trace(files, &scenario.name, &mut summary)?;
+    if args.output.json {
+        output::print_json(&summary)?;
+    } else {
+        out!("{}", report::table(&summary));
+    }
+    match summary.cut_short {
+        Some(cut) => Err(sim::RunCutShort(cut).into()),
+        None => Ok(()),
+    }
+}

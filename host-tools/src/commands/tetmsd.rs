@@ -1,0 +1,1049 @@
+//! `softjoint tetmsd`: Yamaguchi's haptic communication (seed 000 L2523–
+//! 2846) — a tetrahedral Voigt cube that two users deform at two sites.
+//!
+//! * `simulate` — both users' scripted styluses on one local model (no
+//!   network): force traces, the deformed mesh, the deformation rate;
+//! * `pair` — two sites against each other through the network emulator:
+//!   two processes over UDP on loopback (default), two threads in one
+//!   process (`--in-process`), or virtual time (`--virtual`, deterministic);
+//!   reports missed haptic ticks, packet statistics, replica divergence
+//!   and whether the final replicas are bit-identical;
+//! * `site` (hidden) — one site, the child process `pair` starts.
+//!
+//! The physics and the session logic live in `plant_tetmsd`, the
+//! real-time threads in `host_tools::tetmsd_rt`; this is argument
+//! handling, file I/O, reports and pictures.
+use std::fmt::Write as _;
+use std::io::{BufRead, BufReader, Write as _};
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, Subcommand};
+use host_tools::output::{self, JsonObject};
+use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use host_tools::tetmsd_rt::{
+    run_site, ForceRow, LinkSummary, NetemSummary, ReplicaSummary, SiteReport, SiteSetup,
+};
+use host_tools::{out, outln};
+use plant_tetmsd::mesh::CubeMesh;
+use plant_tetmsd::model::voigt::{Hold, TICK_S};
+use plant_tetmsd::model::V3;
+use plant_tetmsd::pair::{run_virtual, Haptic};
+use plant_tetmsd::scenario::Scenario;
+use serde::Serialize;
+use serde_json::Value;
+
+/// Arguments of `softjoint tetmsd`.
+#[derive(Args)]
+pub struct TetArgs {
+    #[command(subcommand)]
+    command: TetCommand,
+}
+
+#[derive(Subcommand)]
+enum TetCommand {
+    /// Both users' styluses on one local model, no network: force traces,
+    /// the deformed cube and the deformation update rate.
+    Simulate(SimulateArgs),
+    /// Two sites against each other through the network emulator.
+    Pair(PairArgs),
+    /// One site of a pair (started by `pair`; reads `peer PORT` on stdin).
+    #[command(hide = true)]
+    Site(SiteArgs),
+}
+
+/// The scenario and what the command line changes in it.
+#[derive(Args, Clone)]
+struct ScenarioArgs {
+    /// Scenario file (TOML); without it the built-in default
+    /// (`--print-default` shows it).
+    scenario: Option<PathBuf>,
+    /// Print the built-in default scenario as TOML and exit.
+    #[arg(long)]
+    print_default: bool,
+    /// Refinement level of the cube (the seed's are 3–9).
+    #[arg(long, allow_negative_numbers = true)]
+    level: Option<i64>,
+    /// Simulated time (s).
+    #[arg(long, allow_negative_numbers = true)]
+    duration_s: Option<f64>,
+    /// Seed of the network's delays, loss and reordering.
+    #[arg(long, allow_negative_numbers = true)]
+    seed: Option<u64>,
+    /// Round-trip profile: none, table2, table3, table4, table5 (the seed's
+    /// Tables 2–5) or rtt-MS (a fixed round trip of MS ms).
+    #[arg(long)]
+    profile: Option<String>,
+    /// Probability a packet is lost (0–0.5).
+    #[arg(long, allow_negative_numbers = true)]
+    loss: Option<f64>,
+    /// Probability a packet is held 1–3 ms extra (0–1).
+    #[arg(long, allow_negative_numbers = true)]
+    reorder: Option<f64>,
+    /// Least ticks between rebases of the speculative replica.
+    #[arg(long, allow_negative_numbers = true)]
+    rebase_every_ticks: Option<i64>,
+}
+
+/// Output flags.
+#[derive(Args, Clone)]
+struct OutArgs {
+    /// Write CSV traces and SVG pictures into this directory (created).
+    #[arg(long, value_name = "DIR")]
+    out_dir: Option<PathBuf>,
+    /// Print a machine-readable summary instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct SimulateArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    #[command(flatten)]
+    out: OutArgs,
+}
+
+#[derive(Args)]
+struct PairArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    #[command(flatten)]
+    out: OutArgs,
+    /// Run in virtual time (deterministic, no sockets, no threads).
+    #[arg(long, conflicts_with = "in_process")]
+    r#virtual: bool,
+    /// Run both sites as threads of this process (UDP on loopback still).
+    #[arg(long)]
+    in_process: bool,
+    /// Busy-wait this long before each haptic deadline instead of sleeping
+    /// (µs; 0 sleeps only). Spinning steadies the 1 kHz loop but burns a
+    /// core per site.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    spin_us: i64,
+    /// Run each site's haptic thread at this real-time (SCHED_FIFO)
+    /// priority, 1–99, and its network thread one below (0: the normal
+    /// scheduler). Needs CAP_SYS_NICE; a refusal is reported, not fatal.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    rt_priority: i64,
+}
+
+#[derive(Args)]
+struct SiteArgs {
+    /// Which site (0 or 1).
+    #[arg(long, allow_negative_numbers = true)]
+    site: u8,
+    /// The scenario, as `pair` wrote it.
+    #[arg(long)]
+    scenario: PathBuf,
+    /// Busy-wait before each haptic deadline (µs).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    spin_us: u64,
+    /// SCHED_FIFO priority of the haptic thread (0: normal).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    rt_priority: u8,
+}
+
+/// Runs a `softjoint tetmsd` subcommand.
+pub fn run(args: TetArgs) -> Result<()> {
+    match args.command {
+        TetCommand::Simulate(a) => simulate(&a),
+        TetCommand::Pair(a) => pair(&a),
+        TetCommand::Site(a) => site(&a),
+    }
+}
+
+/// The scenario with the command line's changes, and its label.
+fn load(args: &ScenarioArgs) -> Result<(Scenario, String)> {
+    let (mut s, name) = match &args.scenario {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            let name = p.display().to_string();
+            let s: Scenario = host_tools::input::from_toml(&text, &name)?;
+            (s, name)
+        }
+        None => (Scenario::default(), "the default scenario".to_string()),
+    };
+    if let Some(l) = args.level {
+        s.level = u32::try_from(l).map_err(|_| {
+            anyhow!("--level must be 0 to 12 (the seed's levels are 3 to 9), got {l}")
+        })?;
+    }
+    if let Some(d) = args.duration_s {
+        s.duration_s = d;
+    }
+    if let Some(seed) = args.seed {
+        s.seed = seed;
+    }
+    if let Some(p) = &args.profile {
+        s.network.profile = p.clone();
+    }
+    if let Some(l) = args.loss {
+        s.network.loss = l;
+    }
+    if let Some(r) = args.reorder {
+        s.network.reorder = r;
+    }
+    if let Some(r) = args.rebase_every_ticks {
+        s.rebase_every_ticks = u32::try_from(r)
+            .map_err(|_| anyhow!("--rebase-every-ticks must be 1 to 10000, got {r}"))?;
+    }
+    // Check everything once, naming the source and the flag or field.
+    let label = if args.scenario.is_some() {
+        name.clone()
+    } else {
+        "command line".to_string()
+    };
+    s.pair_config(&label).map_err(|e| anyhow!("{e}"))?;
+    Ok((s, name))
+}
+
+fn print_default() -> Result<()> {
+    output::print_toml(
+        "# softjoint tetmsd scenario (all tables refuse unknown fields)\n",
+        &Scenario::default(),
+    )
+}
+
+/// Refuses an unwritable `--out-dir` before the run rather than after it.
+fn check_out_dir(out: &OutArgs) -> Result<()> {
+    match &out.out_dir {
+        Some(d) => output::check_dir(d),
+        None => Ok(()),
+    }
+}
+
+/// Creates `--out-dir` when the results are written.
+fn out_dir(out: &OutArgs) -> Result<Option<PathBuf>> {
+    if let Some(d) = &out.out_dir {
+        output::create_dir(d)?;
+    }
+    Ok(out.out_dir.clone())
+}
+
+fn arr(v: V3) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+// ---------------------------------------------------------------- simulate
+
+fn simulate(args: &SimulateArgs) -> Result<()> {
+    if args.scenario.print_default {
+        return print_default();
+    }
+    let (scenario, name) = load(&args.scenario)?;
+    check_out_dir(&args.out)?;
+    let cfg = scenario.pair_config(&name).map_err(|e| anyhow!("{e}"))?;
+    let model = cfg.session.model()?;
+    let mut haptics = [Haptic::new(&model), Haptic::new(&model)];
+    let mut state = model.rest_state();
+    let mut scratch = Vec::new();
+    let every = cfg.trace_every_ticks;
+    let mut traces: [Vec<ForceRow>; 2] = [Vec::new(), Vec::new()];
+    let mut max_force = [0.0f64; 2];
+    let mut contact = [0u64; 2];
+    let mut peak = (-1.0, state.x_m.clone());
+    let mut compute_s = 0.0;
+    let mut grips: [Option<u16>; 2] = [None; 2];
+    for k in 0..cfg.duration_ticks {
+        let mut holds = Vec::with_capacity(2);
+        let mut push = 0.0;
+        for s in 0..2 {
+            let tip = cfg.trajectories[s].at(k as f64 * TICK_S);
+            let m = haptics[s].manipulate(tip, &state.x_m, grips[1 - s]);
+            grips[s] = m.grip.map(|g| g.node);
+            let force = match m.grip {
+                Some(g) => {
+                    plant_tetmsd::probe::NodeReaction::of(&model, &state.x_m, &state.v_m_s, g.node)
+                        .force_at(g.node_m)
+                }
+                None => V3::zeros(),
+            };
+            if let Some(g) = m.grip {
+                holds.push(Hold {
+                    node: u32::from(g.node),
+                    target_m: g.node_m,
+                });
+                contact[s] += 1;
+            }
+            max_force[s] = max_force[s].max(force.norm());
+            push += force.norm();
+            if k % every == 0 {
+                traces[s].push(ForceRow {
+                    tick: k,
+                    tip_m: arr(tip),
+                    force_n: arr(force),
+                    contact: m.grip.is_some(),
+                });
+            }
+        }
+        if push > peak.0 {
+            peak = (push, state.x_m.clone());
+        }
+        let t = Instant::now();
+        model
+            .step(&mut state, &holds, &mut scratch)
+            .map_err(|e| anyhow!("{name}: {e}"))?;
+        compute_s += t.elapsed().as_secs_f64();
+    }
+    let mesh = model.mesh();
+    let energy = model.energy(&state);
+    let rate = cfg.duration_ticks as f64 / compute_s.max(1e-12);
+    let summary = JsonObject::new()
+        .field("scenario", &name)?
+        .field("level", &scenario.level)?
+        .field("nodes", &mesh.node_count())?
+        .field("tetrahedra", &mesh.tets.len())?
+        .field("elements", &mesh.edges.len())?
+        .field("substeps_per_tick", &model.substeps())?
+        .field("ticks", &cfg.duration_ticks)?
+        .field("compute_s", &compute_s)?
+        .field("deformation_rate_hz", &rate)?
+        .field("max_force_n", &max_force)?
+        .field("contact_ticks", &contact)?
+        .field("final_kinetic_j", &energy.kinetic_j)?
+        .field("final_elastic_j", &energy.elastic_j)?;
+    if let Some(dir) = out_dir(&args.out)? {
+        write_forces_csv(&dir.join("forces.csv"), &traces)?;
+        output::write_svg(
+            &dir.join("forces.svg"),
+            &forces_svg(
+                &format!(
+                    "{name}: level {} ({} nodes), no network",
+                    scenario.level,
+                    mesh.node_count()
+                ),
+                &traces,
+                &[None, None],
+            ),
+        )?;
+        let x: Vec<[f64; 3]> = peak.1.iter().map(|p| arr(*p)).collect();
+        output::write_svg(
+            &dir.join("mesh.svg"),
+            &mesh_svg(
+                mesh,
+                &x,
+                &format!("level {} cube where the users push hardest", scenario.level),
+            ),
+        )?;
+    }
+    if args.out.json {
+        summary.print()?;
+    } else {
+        outln!("scenario   {name}");
+        outln!(
+            "mesh       level {}: {} nodes, {} tetrahedra, {} Voigt elements, {} substeps per 1 ms tick",
+            scenario.level,
+            mesh.node_count(),
+            mesh.tets.len(),
+            mesh.edges.len(),
+            model.substeps()
+        );
+        outln!(
+            "run        {} ticks in {:.3} s of computation: {:.0} deformation updates/s (the seed: 1000 Hz at level 3 to 50 Hz at 729 nodes)",
+            cfg.duration_ticks, compute_s, rate
+        );
+        for s in 0..2 {
+            outln!(
+                "user {s}     in contact {:.2} s, largest force {:.3} N",
+                contact[s] as f64 * TICK_S,
+                max_force[s]
+            );
+        }
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------- pair
+
+/// A pair run's outcome in one shape for every mode.
+struct PairOutcome {
+    mode: &'static str,
+    sites: [SiteReport; 2],
+    /// Largest gap between the two displays (virtual runs only).
+    display_gap_max_mm: Option<f64>,
+    wall_s: f64,
+}
+
+fn site_setup(scenario: &Scenario, site: u8, spin_us: u64, rt_priority: u8) -> Result<SiteSetup> {
+    let cfg = scenario
+        .pair_config("scenario")
+        .map_err(|e| anyhow!("{e}"))?;
+    let [t0, t1] = cfg.trajectories;
+    Ok(SiteSetup {
+        site,
+        session: cfg.session,
+        netem: cfg.netem,
+        seed: cfg.seed,
+        duration_ticks: cfg.duration_ticks,
+        trajectory: if site == 0 { t0 } else { t1 },
+        spin_us,
+        trace_every_ticks: cfg.trace_every_ticks,
+        rt_priority,
+    })
+}
+
+fn pair(args: &PairArgs) -> Result<()> {
+    if args.scenario.print_default {
+        return print_default();
+    }
+    if args.spin_us < 0 || args.spin_us > 1000 {
+        bail!("--spin-us must be 0 to 1000 µs, got {}", args.spin_us);
+    }
+    let spin = args.spin_us as u64;
+    if args.rt_priority < 0 || args.rt_priority > 99 {
+        bail!("--rt-priority must be 0 to 99, got {}", args.rt_priority);
+    }
+    let rt = args.rt_priority as u8;
+    let (scenario, name) = load(&args.scenario)?;
+    check_out_dir(&args.out)?;
+    let started = Instant::now();
+    let outcome = if args.r#virtual {
+        virtual_pair(&scenario, &name)?
+    } else if args.in_process {
+        let sockets = [bind()?, bind()?];
+        let addrs = [sockets[0].local_addr()?, sockets[1].local_addr()?];
+        let setups = [
+            site_setup(&scenario, 0, spin, rt)?,
+            site_setup(&scenario, 1, spin, rt)?,
+        ];
+        let [s0, s1] = sockets;
+        let [u0, u1] = setups;
+        let (r0, r1) = std::thread::scope(|s| {
+            let a = s.spawn(move || run_site(u0, s0, addrs[1]));
+            let b = s.spawn(move || run_site(u1, s1, addrs[0]));
+            (a.join(), b.join())
+        });
+        let r0 = r0
+            .map_err(|_| anyhow!("site 0 panicked"))?
+            .context("site 0")?;
+        let r1 = r1
+            .map_err(|_| anyhow!("site 1 panicked"))?
+            .context("site 1")?;
+        PairOutcome {
+            mode: "in-process",
+            sites: [r0, r1],
+            display_gap_max_mm: None,
+            wall_s: 0.0,
+        }
+    } else {
+        processes(&scenario, spin, rt)?
+    };
+    let outcome = PairOutcome {
+        wall_s: started.elapsed().as_secs_f64(),
+        ..outcome
+    };
+    report_pair(&scenario, &name, &outcome, &args.out)
+}
+
+fn bind() -> Result<UdpSocket> {
+    UdpSocket::bind("127.0.0.1:0").context("cannot bind a UDP socket on 127.0.0.1")
+}
+
+fn virtual_pair(scenario: &Scenario, name: &str) -> Result<PairOutcome> {
+    let cfg = scenario.pair_config(name).map_err(|e| anyhow!("{e}"))?;
+    let r = run_virtual(&cfg).map_err(|e| anyhow!("{name}: {e}"))?;
+    let final_x: Vec<[f64; 3]> = r.final_state.x_m.iter().map(|p| arr(*p)).collect();
+    let peak_x: Vec<[f64; 3]> = r.peak_state.x_m.iter().map(|p| arr(*p)).collect();
+    let site = |s: usize| {
+        let sm = &r.sites[s];
+        SiteReport {
+            site: s as u8,
+            haptic: None,
+            deformation: None,
+            display: None,
+            link: LinkSummary::from(&sm.link),
+            netem: NetemSummary::from(&sm.netem),
+            replica: ReplicaSummary::from(&sm.replica),
+            committed_tick: cfg.duration_ticks,
+            final_hash: sm.final_hash,
+            // The virtual run compares the two replicas itself: both final
+            // states are site 0's when they are identical.
+            final_x_m: final_x.clone(),
+            peak_x_m: peak_x.clone(),
+            trace: r
+                .trace
+                .iter()
+                .map(|row| ForceRow {
+                    tick: row.tick,
+                    tip_m: arr(row.tip_m[s]),
+                    force_n: arr(row.force_n[s]),
+                    contact: row.contact[s],
+                })
+                .collect(),
+            contact_ticks: sm.contact_ticks,
+            max_force_n: sm.max_force_n,
+        }
+    };
+    if !r.identical {
+        bail!(
+            "the final replicas differ (largest node distance {} m): this is a defect",
+            r.final_distance_m
+        );
+    }
+    Ok(PairOutcome {
+        mode: "virtual",
+        sites: [site(0), site(1)],
+        display_gap_max_mm: Some(r.max_display_gap_m * 1e3),
+        wall_s: 0.0,
+    })
+}
+
+/// Two child processes `softjoint tetmsd site`, over UDP on loopback.
+fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairOutcome> {
+    let exe = std::env::current_exe().context("cannot find the softjoint binary")?;
+    let file = std::env::temp_dir().join(format!("softjoint-tetmsd-{}.toml", std::process::id()));
+    output::write_toml(&file, "", scenario)?;
+    let result = (|| {
+        let mut children = Vec::new();
+        for s in 0..2 {
+            let child = Command::new(&exe)
+                .args([
+                    "tetmsd",
+                    "site",
+                    "--site",
+                    &s.to_string(),
+                    "--spin-us",
+                    &spin_us.to_string(),
+                    "--rt-priority",
+                    &rt_priority.to_string(),
+                ])
+                .arg("--scenario")
+                .arg(&file)
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .context("cannot start a site process")?;
+            children.push(child);
+        }
+        let mut readers = Vec::new();
+        let mut ports = Vec::new();
+        for c in children.iter_mut() {
+            let out = c.stdout.take().ok_or_else(|| anyhow!("site stdout"))?;
+            let mut r = BufReader::new(out);
+            let mut line = String::new();
+            r.read_line(&mut line)?;
+            let port = line
+                .trim()
+                .strip_prefix("port ")
+                .and_then(|p| p.parse::<u16>().ok())
+                .ok_or_else(|| anyhow!("a site process did not report its port (said {line:?})"))?;
+            ports.push(port);
+            readers.push(r);
+        }
+        for (k, c) in children.iter_mut().enumerate() {
+            let mut stdin = c.stdin.take().ok_or_else(|| anyhow!("site stdin"))?;
+            writeln!(stdin, "peer {}", ports[1 - k])?;
+        }
+        let mut reports = Vec::new();
+        for (k, (mut c, mut r)) in children.into_iter().zip(readers).enumerate() {
+            let mut text = String::new();
+            std::io::Read::read_to_string(&mut r, &mut text)?;
+            let status = c.wait()?;
+            let mut err = String::new();
+            if let Some(mut e) = c.stderr.take() {
+                std::io::Read::read_to_string(&mut e, &mut err).ok();
+            }
+            if !status.success() {
+                bail!("site {k} failed: {}", err.trim());
+            }
+            let rep: SiteReport = serde_json::from_str(text.trim())
+                .with_context(|| format!("site {k} wrote no report"))?;
+            reports.push(rep);
+        }
+        let r1 = reports.pop().ok_or_else(|| anyhow!("no report"))?;
+        let r0 = reports.pop().ok_or_else(|| anyhow!("no report"))?;
+        Ok(PairOutcome {
+            mode: "processes",
+            sites: [r0, r1],
+            display_gap_max_mm: None,
+            wall_s: 0.0,
+        })
+    })();
+    std::fs::remove_file(&file).ok();
+    result
+}
+
+fn site(args: &SiteArgs) -> Result<()> {
+    if args.site > 1 {
+        bail!("--site must be 0 or 1, got {}", args.site);
+    }
+    let text = std::fs::read_to_string(&args.scenario)
+        .with_context(|| format!("cannot read {}", args.scenario.display()))?;
+    let scenario: Scenario =
+        host_tools::input::from_toml(&text, &args.scenario.display().to_string())?;
+    let setup = site_setup(&scenario, args.site, args.spin_us, args.rt_priority)?;
+    let socket = bind()?;
+    outln!("port {}", socket.local_addr()?.port());
+    output::flush_stdout()?;
+    let mut line = String::new();
+    std::io::stdin().read_line(&mut line)?;
+    let port: u16 = line
+        .trim()
+        .strip_prefix("peer ")
+        .and_then(|p| p.parse().ok())
+        .ok_or_else(|| anyhow!("expected `peer PORT` on standard input, got {line:?}"))?;
+    let peer = SocketAddr::from(([127, 0, 0, 1], port));
+    let report = run_site(setup, socket, peer)?;
+    output::print_json(&report)?;
+    Ok(())
+}
+
+/// Whether the two sites' final committed replicas agree bit for bit, and
+/// their largest node distance (m).
+fn compare_finals(a: &SiteReport, b: &SiteReport) -> (bool, f64) {
+    let same = a.final_hash == b.final_hash
+        && a.final_x_m.len() == b.final_x_m.len()
+        && a.final_x_m
+            .iter()
+            .zip(&b.final_x_m)
+            .all(|(p, q)| (0..3).all(|i| p[i].to_bits() == q[i].to_bits()));
+    let dist = a
+        .final_x_m
+        .iter()
+        .zip(&b.final_x_m)
+        .map(|(p, q)| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max);
+    (same, dist)
+}
+
+/// A site report without its long arrays, for `--json`.
+fn site_json(r: &SiteReport) -> Result<Value> {
+    let mut v = serde_json::to_value(r)?;
+    if let Some(o) = v.as_object_mut() {
+        for k in ["final_x_m", "peak_x_m", "trace"] {
+            o.remove(k);
+        }
+        if let Some(rep) = o.get_mut("replica").and_then(Value::as_object_mut) {
+            rep.remove("divergence_series");
+        }
+    }
+    Ok(v)
+}
+
+#[derive(Serialize)]
+struct PairSummary<'a> {
+    scenario: &'a str,
+    mode: &'a str,
+    level: u32,
+    nodes: usize,
+    profile: &'a str,
+    loss: f64,
+    reorder: f64,
+    duration_s: f64,
+    seed: u64,
+    wall_s: f64,
+    replicas_identical: bool,
+    final_max_distance_m: f64,
+    /// Bound on the gap between the two users' displays: the sum of the
+    /// two sites' largest divergences from the common committed replica.
+    display_gap_bound_mm: f64,
+    display_gap_max_mm: Option<f64>,
+    sites: Vec<Value>,
+}
+
+fn report_pair(scenario: &Scenario, name: &str, o: &PairOutcome, out: &OutArgs) -> Result<()> {
+    let (identical, dist) = compare_finals(&o.sites[0], &o.sites[1]);
+    let nodes = CubeMesh::new(scenario.level, scenario.side_mm * 1e-3)?.node_count();
+    let bound = o.sites[0].replica.divergence_max_mm + o.sites[1].replica.divergence_max_mm;
+    if let Some(dir) = out_dir(out)? {
+        let traces = [o.sites[0].trace.clone(), o.sites[1].trace.clone()];
+        write_forces_csv(&dir.join("forces.csv"), &traces)?;
+        write_divergence_csv(&dir.join("divergence.csv"), &o.sites)?;
+        let title = format!(
+            "{name}: level {} ({nodes} nodes), profile {}, loss {}, {} run",
+            scenario.level, scenario.network.profile, scenario.network.loss, o.mode
+        );
+        let series = [
+            Some(&o.sites[0].replica.divergence_series),
+            Some(&o.sites[1].replica.divergence_series),
+        ];
+        output::write_svg(
+            &dir.join("forces.svg"),
+            &forces_svg(&title, &traces, &series),
+        )?;
+        let mesh = CubeMesh::new(scenario.level, scenario.side_mm * 1e-3)?;
+        output::write_svg(
+            &dir.join("mesh.svg"),
+            &mesh_svg(
+                &mesh,
+                &o.sites[0].peak_x_m,
+                &format!(
+                    "site 0's display where its user pushed hardest (level {})",
+                    scenario.level
+                ),
+            ),
+        )?;
+    }
+    let summary = PairSummary {
+        scenario: name,
+        mode: o.mode,
+        level: scenario.level,
+        nodes,
+        profile: &scenario.network.profile,
+        loss: scenario.network.loss,
+        reorder: scenario.network.reorder,
+        duration_s: scenario.duration_s,
+        seed: scenario.seed,
+        wall_s: o.wall_s,
+        replicas_identical: identical,
+        final_max_distance_m: dist,
+        display_gap_bound_mm: bound,
+        display_gap_max_mm: o.display_gap_max_mm,
+        sites: vec![site_json(&o.sites[0])?, site_json(&o.sites[1])?],
+    };
+    if out.json {
+        output::print_json(&summary)?;
+    } else {
+        out!("{}", pair_table(&summary, o));
+    }
+    if !identical {
+        bail!("the final replicas differ (largest node distance {dist} m): this is a defect");
+    }
+    Ok(())
+}
+
+fn pair_table(s: &PairSummary<'_>, o: &PairOutcome) -> String {
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "scenario   {} ({} run, {:.1} s wall)",
+        s.scenario, s.mode, s.wall_s
+    );
+    let _ = writeln!(
+        t,
+        "session    level {} ({} nodes), profile {}, loss {}, reorder {}, {} s",
+        s.level, s.nodes, s.profile, s.loss, s.reorder, s.duration_s
+    );
+    let _ = writeln!(
+        t,
+        "replicas   {} at the end (largest node distance {} m)",
+        if s.replicas_identical {
+            "bit-identical"
+        } else {
+            "DIFFERENT"
+        },
+        s.final_max_distance_m
+    );
+    let gap = match s.display_gap_max_mm {
+        Some(g) => format!("{g:.3} mm measured, "),
+        None => String::new(),
+    };
+    let _ = writeln!(
+        t,
+        "displays   gap {gap}at most {:.3} mm (sum of the divergences)",
+        s.display_gap_bound_mm
+    );
+    let _ = writeln!(t);
+    for r in &o.sites {
+        let _ = writeln!(t, "site {}", r.site);
+        if let Some(h) = &r.haptic {
+            let _ = writeln!(
+                t,
+                "  haptic 1 kHz   {} ticks, {} missed; lateness p50 {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs, max {:.0} µs; work {:.1} µs mean; {}",
+                h.ticks, h.missed_ticks, h.late_p50_us, h.late_p99_us, h.late_p999_us, h.late_max_us, h.work_mean_us, h.scheduling
+            );
+        }
+        if let Some(d) = &r.deformation {
+            let _ = writeln!(
+                t,
+                "  deformation    {:.0} updates/s, {:.0} replica ticks per busy second, busy {:.0} %",
+                d.updates_per_s,
+                d.ticks_per_busy_s,
+                100.0 * d.busy_fraction
+            );
+        }
+        if let Some(d) = &r.display {
+            let _ = writeln!(
+                t,
+                "  display 30 Hz  {} frames, shape {:.1} ms old on average ({:.0} ms at most)",
+                d.frames, d.age_mean_ms, d.age_max_ms
+            );
+        }
+        let l = &r.link;
+        let _ = writeln!(
+            t,
+            "  packets        {} sent, {} resent, {} acks; {} received, {} duplicates, {} gaps seen / {} filled, {} refused; rtt {}/{:.0}/{} µs",
+            l.inputs_sent, l.retransmissions, l.acks_sent, l.inputs_received, l.duplicates, l.gaps_seen, l.gaps_filled, l.malformed, l.rtt_min_us, l.rtt_mean_us, l.rtt_max_us
+        );
+        let n = &r.netem;
+        let _ = writeln!(
+            t,
+            "  emulator       {} offered, {} lost, {} held extra, {} overflowed, longest one-way {:.1} ms",
+            n.offered, n.lost, n.held_extra, n.overflowed, n.max_delay_us as f64 / 1000.0
+        );
+        let p = &r.replica;
+        let _ = writeln!(
+            t,
+            "  divergence     max {:.3} mm, p99 {:.3} mm, mean {:.3} mm over {} frames ({} unchecked); {} rebases, lag ≤ {} ticks",
+            p.divergence_max_mm, p.divergence_p99_mm, p.divergence_mean_mm, p.frames_checked, p.frames_unchecked, p.rebases, p.lag_max_ticks
+        );
+        let _ = writeln!(
+            t,
+            "  user           in contact {:.2} s, largest force {:.3} N",
+            r.contact_ticks as f64 * TICK_S,
+            r.max_force_n
+        );
+    }
+    t
+}
+
+// ---------------------------------------------------------------- files
+
+fn write_forces_csv(path: &Path, traces: &[Vec<ForceRow>; 2]) -> Result<()> {
+    let mut s = String::from(
+        "t_s,tip0_x_mm,tip0_y_mm,tip0_z_mm,force0_x_n,force0_y_n,force0_z_n,contact0,tip1_x_mm,tip1_y_mm,tip1_z_mm,force1_x_n,force1_y_n,force1_z_n,contact1\n",
+    );
+    for (a, b) in traces[0].iter().zip(&traces[1]) {
+        let _ = write!(s, "{}", a.tick as f64 * TICK_S);
+        for r in [a, b] {
+            let _ = write!(
+                s,
+                ",{},{},{},{},{},{},{}",
+                r.tip_m[0] * 1e3,
+                r.tip_m[1] * 1e3,
+                r.tip_m[2] * 1e3,
+                r.force_n[0],
+                r.force_n[1],
+                r.force_n[2],
+                u8::from(r.contact)
+            );
+        }
+        s.push('\n');
+    }
+    output::write_csv(path, &s)
+}
+
+fn write_divergence_csv(path: &Path, sites: &[SiteReport; 2]) -> Result<()> {
+    let mut s = String::from("site,t_s,divergence_mm\n");
+    for r in sites {
+        for (tick, d) in &r.replica.divergence_series {
+            let _ = writeln!(s, "{},{},{}", r.site, *tick as f64 * TICK_S, d);
+        }
+    }
+    output::write_csv(path, &s)
+}
+
+/// Force, stylus depth and (for pairs) divergence against time.
+fn forces_svg(
+    title: &str,
+    traces: &[Vec<ForceRow>; 2],
+    divergence: &[Option<&Vec<(u64, f64)>>; 2],
+) -> String {
+    const COLOURS: [&str; 2] = ["#1f5fbf", "#d2462d"];
+    let t: Vec<Vec<f64>> = traces
+        .iter()
+        .map(|tr| tr.iter().map(|r| r.tick as f64 * TICK_S).collect())
+        .collect();
+    let mut force = Vec::new();
+    let mut depth = Vec::new();
+    for s in 0..2 {
+        let fz: Vec<f64> = traces[s].iter().map(|r| r.force_n[2]).collect();
+        let fm: Vec<f64> = traces[s]
+            .iter()
+            .map(|r| (r.force_n[0].powi(2) + r.force_n[1].powi(2) + r.force_n[2].powi(2)).sqrt())
+            .collect();
+        let z: Vec<f64> = traces[s].iter().map(|r| r.tip_m[2] * 1e3).collect();
+        force.push(Series::over(
+            format!("user {s} |F|"),
+            COLOURS[s],
+            false,
+            &t[s],
+            &fm,
+        ));
+        force.push(Series::over(
+            format!("user {s} Fz"),
+            COLOURS[s],
+            true,
+            &t[s],
+            &fz,
+        ));
+        depth.push(Series::over(
+            format!("user {s} stylus z"),
+            COLOURS[s],
+            false,
+            &t[s],
+            &z,
+        ));
+    }
+    let mut charts = vec![
+        Chart {
+            title: format!("{title}: felt force"),
+            x_label: "time (s)".into(),
+            y_label: "force (N)".into(),
+            series: force,
+        },
+        Chart {
+            title: "stylus height (the cube's top face is at the side length)".into(),
+            x_label: "time (s)".into(),
+            y_label: "stylus z (mm)".into(),
+            series: depth,
+        },
+    ];
+    if divergence.iter().any(|d| d.is_some_and(|v| !v.is_empty())) {
+        let series = (0..2)
+            .filter_map(|s| {
+                divergence[s].map(|v| {
+                    let x: Vec<f64> = v.iter().map(|(k, _)| *k as f64 * TICK_S).collect();
+                    let y: Vec<f64> = v.iter().map(|(_, d)| *d).collect();
+                    Series::over(format!("site {s}"), COLOURS[s], false, &x, &y)
+                })
+            })
+            .collect();
+        charts.push(Chart {
+            title: "displayed shape vs committed replica (largest node distance per 30 Hz frame)"
+                .into(),
+            x_label: "time (s)".into(),
+            y_label: "divergence (mm)".into(),
+            series,
+        });
+    }
+    plot::line_charts(&charts).finish()
+}
+
+/// The cube's surface in an oblique view, coloured by displacement, over
+/// the outline of the rest shape.
+fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
+    let (w, h) = (760.0, 640.0);
+    let mut svg = Svg::new(w, h);
+    svg.text_styled(
+        20.0,
+        28.0,
+        15.0,
+        Anchor::Start,
+        r#"font-weight="bold""#,
+        title,
+    );
+    let x: Vec<V3> = if x_m.len() == mesh.node_count() {
+        x_m.iter().map(|p| V3::new(p[0], p[1], p[2])).collect()
+    } else {
+        mesh.nodes_m.clone()
+    };
+    // View from the front right, above: turn by −35° about z, tilt 28°.
+    let (az, el) = ((-35f64).to_radians(), 28f64.to_radians());
+    let view = |p: V3| {
+        let c = p - V3::repeat(mesh.side_m / 2.0);
+        let (xr, yr) = (
+            c.x * az.cos() - c.y * az.sin(),
+            c.x * az.sin() + c.y * az.cos(),
+        );
+        // Camera looking along +yr, tilted down by el: screen up is
+        // (yr sin el + z cos el), depth (yr cos el − z sin el), far = large.
+        (
+            xr,
+            yr * el.sin() + c.z * el.cos(),
+            yr * el.cos() - c.z * el.sin(),
+        )
+    };
+    let scale = 0.46 * w / mesh.side_m;
+    let (cx, cy) = (w / 2.0 - 50.0, h / 2.0 + 30.0);
+    let screen = |p: V3| {
+        let (sx, sy, _) = view(p);
+        (cx + sx * scale, cy - sy * scale)
+    };
+    // The viewing direction in the model frame (a face is seen when its
+    // outward normal points against it).
+    let forward = V3::new(az.sin() * el.cos(), az.cos() * el.cos(), -el.sin());
+    let disp: Vec<f64> = x
+        .iter()
+        .zip(&mesh.nodes_m)
+        .map(|(a, b)| (a - b).norm())
+        .collect();
+    let max_disp = disp.iter().copied().fold(0.0, f64::max).max(1e-12);
+    let mut faces: Vec<(f64, [usize; 3])> = mesh
+        .boundary_faces
+        .iter()
+        .map(|f| {
+            let idx = f.map(|i| i as usize);
+            let c = (x[idx[0]] + x[idx[1]] + x[idx[2]]) / 3.0;
+            (view(c).2, idx)
+        })
+        .collect();
+    faces.sort_by(|a, b| b.0.total_cmp(&a.0));
+    // The rest cube's hidden edges first (dashed), under the surface.
+    let corner = |i: usize| {
+        V3::new(
+            (i & 1) as f64 * mesh.side_m,
+            ((i >> 1) & 1) as f64 * mesh.side_m,
+            ((i >> 2) & 1) as f64 * mesh.side_m,
+        )
+    };
+    let edges = [
+        (0, 1),
+        (2, 3),
+        (4, 5),
+        (6, 7),
+        (0, 2),
+        (1, 3),
+        (4, 6),
+        (5, 7),
+        (0, 4),
+        (1, 5),
+        (2, 6),
+        (3, 7),
+    ];
+    for (a, b) in edges {
+        svg.line(
+            screen(corner(a)),
+            screen(corner(b)),
+            Stroke::dashed("#999", 1.0),
+        );
+    }
+    for (_, f) in &faces {
+        let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]]));
+        if n.dot(&forward) >= 0.0 {
+            continue;
+        }
+        let t = (disp[f[0]] + disp[f[1]] + disp[f[2]]) / 3.0 / max_disp;
+        let (r, g, b) = plot::false_colour(t);
+        let pts: Vec<(f64, f64)> = f.iter().map(|&i| screen(x[i])).collect();
+        svg.polygon(
+            &pts,
+            &format!("rgb({r},{g},{b})"),
+            Stroke::solid("#333", 0.6),
+        );
+    }
+    // Colour bar.
+    let (bx, by, bh) = (w - 70.0, 80.0, 300.0);
+    for k in 0..60 {
+        let t = 1.0 - k as f64 / 59.0;
+        let (r, g, b) = plot::false_colour(t);
+        svg.rect(
+            bx,
+            by + k as f64 * bh / 60.0,
+            18.0,
+            bh / 60.0 + 0.5,
+            &format!("rgb({r},{g},{b})"),
+            None,
+        );
+    }
+    svg.text(bx + 9.0, by - 10.0, 12.0, Anchor::Middle, "displacement");
+    svg.text(
+        bx - 4.0,
+        by + 8.0,
+        12.0,
+        Anchor::End,
+        &format!("{:.2} mm", max_disp * 1e3),
+    );
+    svg.text(bx - 4.0, by + bh, 12.0, Anchor::End, "0 mm");
+    svg.text(
+        20.0,
+        h - 16.0,
+        12.0,
+        Anchor::Start,
+        &format!(
+            "{} nodes, {} tetrahedra; dashed: the rest cube ({} mm); z up, viewed from the front right",
+            mesh.node_count(),
+            mesh.tets.len(),
+            mesh.side_m * 1e3
+        ),
+    );
+    svg.finish()
+}

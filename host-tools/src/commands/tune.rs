@@ -1,0 +1,122 @@
+//! `softjoint tune`: controller gains searched on an identified plant,
+//! robust over its uncertainty.
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+use host_tools::files::plant::{PlantFile, PlantParams};
+use host_tools::files::scenario::JointKind;
+use host_tools::joint::tune::{self, GainsFile, Tuning};
+use host_tools::output;
+
+/// The arguments of `tune`.
+#[derive(Args)]
+pub struct TuneArgs {
+    /// The plant file (`softjoint identify joint` writes one).
+    plant: PathBuf,
+    /// Candidate gain sets (the first is the paper's).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    candidates: u64,
+    /// Plants per candidate: the identified one and draws from its
+    /// uncertainty.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    plants: u64,
+    /// Seed of the candidates and the plant draws.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u64).range(1..=1024))]
+    threads: Option<u64>,
+    /// Write the gains file here.
+    #[arg(short, long, default_value = "gains.toml")]
+    output: PathBuf,
+    /// Search v_offset too (uniform in 1.2–2.2 V, the paper's 1.7 V ±
+    /// 0.5 V); without it every candidate keeps 1.7 V.
+    #[arg(long)]
+    search_v_offset: bool,
+    /// Print a machine-readable result.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `tune`.
+pub fn run(a: TuneArgs) -> anyhow::Result<()> {
+    let file = PlantFile::load(&a.plant)?;
+    let joint = match file.params()? {
+        PlantParams::TwoD(_) => JointKind::TwoD,
+        PlantParams::ThreeD(_) => JointKind::ThreeD,
+    };
+    let go = || {
+        tune::tune(
+            &file,
+            a.candidates as usize,
+            a.plants as usize,
+            a.seed,
+            a.search_v_offset,
+            !a.json,
+        )
+    };
+    let started = std::time::Instant::now();
+    let r = match a.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build()
+            .context("worker threads")?
+            .install(go),
+        None => go(),
+    }
+    .map_err(|e| e.context(format!("tuning on {}", a.plant.display())))?;
+    let wall = started.elapsed().as_secs_f64();
+    let g = GainsFile {
+        joint,
+        controller: r.best.clone(),
+        tuning: Some(Tuning {
+            plant_file: a.plant.display().to_string(),
+            candidates: a.candidates as usize,
+            plants: a.plants as usize,
+            seed: a.seed,
+            score: r.score.clone(),
+            paper: r.paper.clone(),
+            v_offset_searched: a.search_v_offset,
+        }),
+    };
+    output::write_toml(
+        &a.output,
+        "# Written by `softjoint tune`: gains for the console (`gains load FILE`)\n# and scenarios (`controller.gains_file`).\n",
+        &g,
+    )?;
+    if a.json {
+        output::JsonObject::new()
+            .field("gains", &g)?
+            .field("failed_candidates", &r.failed)?
+            .field("wall_seconds", &wall)?
+            .print()?;
+    } else {
+        let c = &r.best;
+        host_tools::outln!(
+            "best of {} candidates × {} plants ({:.1} s): K_P {:?} V/°, K_I {:.3} V/(°·s), limit {:.2} V, v_offset {:.3} V",
+            a.candidates,
+            a.plants,
+            wall,
+            c.kp_v_per_deg.iter().map(|k| (k * 1000.0).round() / 1000.0).collect::<Vec<_>>(),
+            c.ki_v_per_deg_s,
+            c.integral_limit_v,
+            c.v_offset_v
+        );
+        for (name, s) in [("tuned", &r.score), ("paper", &r.paper)] {
+            let n = &s.nominal;
+            host_tools::outln!(
+                "{name:>6}: robust cost {:.3} (mean {:.3} + sd {:.3}); identified plant: settling {:.2} s, overshoot {:.2}°, ss error {:.3}°, peak coil {:.1} °C, budget margin {:.1} K, fault {}",
+                s.robust, s.mean, s.std, n.settling_s, n.overshoot_deg, n.steady_state_error_deg, n.peak_coil_c, n.budget_margin_k, n.fault
+            );
+        }
+        if r.failed > 0 {
+            host_tools::outln!(
+                "{} candidate(s) made a plant unstable and were dropped",
+                r.failed
+            );
+        }
+        host_tools::outln!("gains written to {}", a.output.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,680 @@
+//! Excitation sessions: an [`ExcitationPlan`] run on the joint through the
+//! one closed loop — the simulated joint under the core in process (`sim
+//! --excite`) or a board in lockstep (`hil --excite`) — recording the log
+//! that `softjoint identify joint` reads.
+//!
+//! Open-loop drives are forced onto the plant's coils (the loop's coil
+//! overrides, the mechanism of the scenarios' `coil_voltage`
+//! disturbances); holds hand the plane to the controller with the hold's
+//! target. Before anything runs, every drive is checked against the
+//! firmware's default thermal budget (its own coil model and trip rise),
+//! so a plan that would trip the board's supervisor is refused by name.
+
+use std::path::Path;
+
+use anyhow::{bail, Context};
+use firmware::control::DriverConfig;
+use firmware::supervisor::ThermalConfig;
+use hal_sim::{ClosedLoop, Controller, Plant, Schedule};
+use plant_joint::identify::{
+    log::columns, ElectricalNoise, ExcitationLog, ExcitationPlan, LogRecorder, Observation,
+};
+use plant_joint::{Joint2d, Joint3d, PlantError};
+use serde::Serialize;
+
+use crate::files::scenario::{JointKind, Scenario};
+use crate::run::sim;
+
+/// What the plant shows the recorder (the sensors a lab logs).
+pub trait Recorded {
+    /// Camera, wires and coil resistances now.
+    fn observation(&self) -> Observation;
+    /// Coil currents of the last step, paper numbering (A).
+    fn currents_a(&self) -> [f64; 4];
+}
+
+impl Recorded for Joint2d {
+    fn observation(&self) -> Observation {
+        let c = self.plane().coils();
+        Observation {
+            camera: self
+                .camera_latest()
+                .and_then(|f| f.angles_deg.map(|a| (f.capture_time_s, a))),
+            wire_mm: [self.wire_insertion_mm(), 0.0, 0.0, 0.0],
+            resistance_ohm: [c[0].resistance_ohm(), c[1].resistance_ohm(), 0.0, 0.0],
+        }
+    }
+    fn currents_a(&self) -> [f64; 4] {
+        let c = self.plane().coils();
+        [c[0].current_a(), c[1].current_a(), 0.0, 0.0]
+    }
+}
+
+impl Recorded for Joint3d {
+    fn observation(&self) -> Observation {
+        Observation {
+            camera: self
+                .camera_latest()
+                .and_then(|f| f.angles_deg.map(|a| (f.capture_time_s, a))),
+            wire_mm: self.wire_insertions_mm(),
+            resistance_ohm: plant_joint::identify::twin::resistances_3d(self),
+        }
+    }
+    fn currents_a(&self) -> [f64; 4] {
+        self.coil_currents_a()
+    }
+}
+
+/// Reads a plan (TOML) and checks it for a joint with `planes` angles and
+/// against the thermal budget; errors name the file and the entry.
+pub fn load_plan(path: &Path, planes: usize) -> anyhow::Result<ExcitationPlan> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read excitation plan {}", path.display()))?;
+    let plan: ExcitationPlan = crate::input::from_toml(&text, &path.display().to_string())?;
+    plan.validate(planes)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    check_budget(&plan).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(plan)
+}
+
+/// The largest modelled coil rise the plan's drives reach (K), by the
+/// firmware's default thermal model; an error names the drive that would
+/// trip the supervisor (rise ≥ trip rise).
+pub fn check_budget(plan: &ExcitationPlan) -> anyhow::Result<f64> {
+    let cfg = ThermalConfig::default();
+    let driver = DriverConfig::default();
+    let coils = plan.drive.iter().map(|d| d.coil).max().unwrap_or(0);
+    let dt = 0.01;
+    let steps = (plan.duration_s / dt).ceil() as usize;
+    let mut peak = 0.0f64;
+    for coil in 1..=coils {
+        let mut rise = 0.0f64;
+        for k in 0..steps {
+            let t = (k as f64 + 0.5) * dt;
+            let Some((i, d)) = plan
+                .drive
+                .iter()
+                .enumerate()
+                .find(|(_, d)| d.coil == coil && t >= d.from_s && t < d.to_s)
+            else {
+                rise *= (-dt / f64::from(cfg.time_constant_s)).exp();
+                continue;
+            };
+            let amps = f64::from(cfg.current_a(driver.clamp(d.volts_at(t) as f32), &driver));
+            let p = amps * amps * f64::from(cfg.coil_resistance_ohm);
+            let steady = p * f64::from(cfg.time_constant_s) / f64::from(cfg.heat_capacity_j_per_k);
+            rise = steady + (rise - steady) * (-dt / f64::from(cfg.time_constant_s)).exp();
+            peak = peak.max(rise);
+            if rise >= f64::from(cfg.trip_rise_k) {
+                bail!(
+                    "`drive[{i}]` (coil {coil}, {} V) would trip the board's thermal budget at t = {:.1} s: modelled rise {:.0} K ≥ trip {:.0} K; shorten it or lower its input",
+                    plant_common::short_number(d.peak_v()),
+                    t,
+                    rise,
+                    cfg.trip_rise_k
+                );
+            }
+        }
+    }
+    Ok(peak)
+}
+
+/// Drives and holds of a plan as the loop's schedule.
+struct PlanSchedule<'a, const P: usize> {
+    plan: &'a ExcitationPlan,
+    period_s: f64,
+    last: Option<[f32; P]>,
+}
+
+impl<Pl, const P: usize, const C: usize> Schedule<Pl, P, C> for PlanSchedule<'_, P> {
+    fn targets(&mut self, t_s: f64) -> Option<[f32; P]> {
+        let mut t = [0.0f32; P];
+        for (p, v) in t.iter_mut().enumerate() {
+            *v = self.plan.held(p, t_s).unwrap_or(0.0) as f32;
+        }
+        if self.last == Some(t) {
+            return None;
+        }
+        self.last = Some(t);
+        Some(t)
+    }
+    fn disturb(
+        &mut self,
+        t_s: f64,
+        _plant: &mut Pl,
+        overrides: &mut [Option<f64>; C],
+    ) -> Result<(), PlantError> {
+        // A ramp's mean over the period is its midpoint value.
+        let v = self.plan.volts_at(P, t_s + 0.5 * self.period_s);
+        overrides.copy_from_slice(&v[..C]);
+        Ok(())
+    }
+}
+
+/// What a session saw beyond its log.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SessionSummary {
+    /// The plan's name.
+    pub plan: String,
+    /// Log rows.
+    pub rows: usize,
+    /// Simulated seconds.
+    pub duration_s: f64,
+    /// Supervisor faults seen (the board's own; drives bypass its outputs).
+    pub faults_seen: Vec<String>,
+    /// Peak coil temperature of the simulated joint (°C).
+    pub peak_coil_temperature_c: f64,
+    /// Largest modelled rise of the firmware's budget over the drives (K).
+    pub budget_peak_rise_k: f64,
+}
+
+/// Runs `plan` through `cl` and records the log.
+pub fn run_loop<Pl, Ctl, const P: usize, const S: usize, const C: usize>(
+    plan: &ExcitationPlan,
+    cl: &mut ClosedLoop<Pl, Ctl, P, S, C>,
+    electrical: bool,
+    seed: u64,
+) -> anyhow::Result<(ExcitationLog, SessionSummary)>
+where
+    Pl: Plant<P, S, C> + Recorded,
+    Ctl: Controller<P, S>,
+{
+    let budget = check_budget(plan)?;
+    let period_s = cl.period_s();
+    let per_row = ((f64::from(plan.log_interval_ms) * 1e-3 / period_s).round() as usize).max(1);
+    let rng = plant_common::rng::stream(seed, plant_common::rng::IDENTIFY_NOISE);
+    let mut rec = LogRecorder::new(
+        P,
+        period_s,
+        per_row,
+        electrical,
+        ElectricalNoise::default(),
+        rng,
+    );
+    let mut schedule = PlanSchedule::<P> {
+        plan,
+        period_s,
+        last: None,
+    };
+    let steps = (plan.duration_s / period_s).round() as u64;
+    let mut faults = 0u16;
+    let mut peak = f64::NEG_INFINITY;
+    for _ in 0..steps {
+        let obs = cl.plant.observation();
+        let mut sample = None;
+        cl.run(1, &mut schedule, |x| -> anyhow::Result<()> {
+            sample = Some(*x);
+            Ok(())
+        })?;
+        let x = sample.context("the loop ran no period")?;
+        faults |= x.faults;
+        for t in x.coil_temperatures_c {
+            peak = peak.max(t);
+        }
+        rec.push(&obs, &x.coil_volts, &cl.plant.currents_a()[..C]);
+    }
+    let log = rec.finish();
+    let summary = SessionSummary {
+        plan: plan.name.clone(),
+        rows: log.len(),
+        duration_s: plan.duration_s,
+        faults_seen: sim::fault_names(faults),
+        peak_coil_temperature_c: peak,
+        budget_peak_rise_k: budget,
+    };
+    Ok((log, summary))
+}
+
+/// Runs `plan` on the simulated joint of scenario `s` (its joint kind,
+/// seed, plant file and gains) under the core in process.
+pub fn run_sim(
+    plan: &ExcitationPlan,
+    s: &Scenario,
+    electrical: bool,
+) -> anyhow::Result<(ExcitationLog, SessionSummary)> {
+    s.validate()?;
+    let (laws, _) = sim::laws_for(s)?;
+    match s.joint {
+        JointKind::ThreeD => run_loop(
+            plan,
+            &mut sim::core_loop_3d(s, laws.as_deref())?,
+            electrical,
+            s.seed,
+        ),
+        JointKind::TwoD => run_loop(
+            plan,
+            &mut sim::core_loop_2d(s, laws.as_deref())?,
+            electrical,
+            s.seed,
+        ),
+    }
+}
+
+/// The log as CSV text (fixed decimals: ms times, 0.1 mV, 0.1 m°, µm,
+/// 10 µA, 0.1 mΩ).
+pub fn log_csv(log: &ExcitationLog) -> String {
+    let (cols, rows) = log.to_rows();
+    let mut out = cols.join(",");
+    out.push('\n');
+    let decimals = |name: &str| -> usize {
+        if name == "t_s" || name == "cam_capture_s" || name.starts_with('d') {
+            3
+        } else if name.starts_with('i') {
+            5
+        } else {
+            4
+        }
+    };
+    let places: Vec<usize> = cols.iter().map(|c| decimals(c)).collect();
+    for r in rows {
+        let line: Vec<String> = r
+            .iter()
+            .zip(&places)
+            .map(|(v, d)| format!("{v:.d$}", d = *d))
+            .collect();
+        out.push_str(&line.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// A board session's log as CSV: the columns of [`log_csv`] (what
+/// `identify joint` reads) and the board's estimates and fault byte
+/// (`est_alpha_deg`, `est_beta_deg`, `faults`; an estimate is empty where
+/// the board had none).
+pub fn board_log_csv(log: &ExcitationLog, extras: &BoardExtras) -> String {
+    let base = log_csv(log);
+    let mut out = String::with_capacity(base.len() * 5 / 4);
+    for (k, line) in base.lines().enumerate() {
+        out.push_str(line);
+        match k.checked_sub(1) {
+            None => out.push_str(",est_alpha_deg,est_beta_deg,faults"),
+            Some(r) => {
+                let e = extras.estimate_deg.get(r).copied().unwrap_or([f64::NAN; 2]);
+                out.push_str(&format!(
+                    ",{},{},{}",
+                    crate::output::estimate_field(e[0], 3),
+                    crate::output::estimate_field(e[1], 3),
+                    extras.faults.get(r).copied().unwrap_or(0)
+                ));
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// Writes the log (checked writer).
+pub fn write_log(path: &Path, log: &ExcitationLog) -> anyhow::Result<()> {
+    crate::output::write_csv(path, &log_csv(log))
+}
+
+/// Reads a log; errors name the file, line and column.
+pub fn read_log(path: &Path) -> anyhow::Result<ExcitationLog> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read log {}", path.display()))?;
+    let table = plant_common::csv_input::read_numeric(&text, &path.display().to_string())?;
+    Ok(ExcitationLog::from_table(&table)?)
+}
+
+/// Column names of a log (for help texts).
+pub fn log_columns(planes: usize) -> String {
+    columns(planes, true).join(",")
+}
+
+/// Runs `plan` in lockstep with the board on `link` (the 3D joint of
+/// scenario `s`, wire feedback): the board's controller holds, the host
+/// forces the drives onto the simulated coils.
+pub fn run_hil<Po: crate::board::link::Port>(
+    plan: &ExcitationPlan,
+    s: &Scenario,
+    link: &mut crate::board::link::Link<Po>,
+    opts: crate::board::hil::HilOptions,
+    electrical: bool,
+) -> anyhow::Result<(ExcitationLog, SessionSummary)> {
+    let (setup, _) = crate::board::hil::lockstep_setup(s, &opts)?;
+    let plant = sim::plant_3d(s)?;
+    let board = crate::board::controller::BoardController::start(link, setup)?;
+    let mut cl = ClosedLoop::new(plant, board, s.control_period_us)?;
+    let out = run_loop(plan, &mut cl, electrical, s.seed)?;
+    cl.controller.finish()?;
+    Ok(out)
+}
+
+/// How long one `Drive` of a board session holds (ms of the board's
+/// clock): a session refreshes every log interval, so this is the longest
+/// a coil stays heated after the host stops talking (a crash, an unplugged
+/// cable) before the board unpowers it.
+pub const BOARD_DRIVE_HOLD_MS: u16 = 250;
+
+/// What a board session recorded besides the log: the board's own angle
+/// estimates and fault flags per row.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BoardExtras {
+    /// The board's estimates (α, β) per row (deg).
+    pub estimate_deg: Vec<[f64; 2]>,
+    /// The board's fault byte per row.
+    pub faults: Vec<u8>,
+}
+
+/// A summary of a session recorded on a board.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BoardSessionSummary {
+    /// The plan's name.
+    pub plan: String,
+    /// Log rows written.
+    pub rows: usize,
+    /// Seconds of the plan the rows cover.
+    pub recorded_s: f64,
+    /// Seconds the plan asked for.
+    pub planned_s: f64,
+    /// Rows whose telemetry frame did not arrive (filled with the previous
+    /// row's values).
+    pub rows_filled: usize,
+    /// Fault flags the board reported during the session.
+    pub faults_seen: Vec<String>,
+    /// Highest input of each coil the board reported (mV, coils 1–4).
+    pub peak_coil_mv: [u16; 4],
+    /// Why the session ended before the plan did, if it did.
+    pub ended_early: Option<String>,
+}
+
+/// The result of a board session: what was recorded (always, up to where
+/// it stopped) and how it ended.
+pub struct BoardRun {
+    /// The log rows recorded.
+    pub log: ExcitationLog,
+    /// The board's estimates and faults per row.
+    pub extras: BoardExtras,
+    /// The summary.
+    pub summary: BoardSessionSummary,
+    /// Why the session failed or was stopped (`None`: the plan ran to its
+    /// end and the board was disarmed).
+    pub error: Option<anyhow::Error>,
+}
+
+/// Builds the log from telemetry frames. Row k is at `k·Δ` of the board's
+/// clock from the first frame; its wires and estimates are frame k's, its
+/// driver inputs frame k+1's: the board reports the inputs it has set, and
+/// those of frame k+1 are the ones the host's commands for interval k set
+/// (sent on frame k's arrival), so they held over `[t_k, t_(k+1))` up to
+/// the link's latency.
+struct BoardRecorder {
+    interval_ms: u32,
+    max_rows: usize,
+    t0_ms: Option<u32>,
+    frames: Vec<firmware::protocol::Telemetry>,
+    filled: usize,
+    coder: firmware::estimate::PulseCoder,
+}
+
+impl BoardRecorder {
+    /// Takes a frame; returns its row index, or `None` for a frame that
+    /// repeats a row already taken. An error names a frame without a
+    /// sensor reading.
+    fn push(&mut self, t: &firmware::protocol::Telemetry) -> anyhow::Result<Option<usize>> {
+        let t0 = *self.t0_ms.get_or_insert(t.time_ms);
+        let rel = t.time_ms.wrapping_sub(t0);
+        let k = ((rel + self.interval_ms / 2) / self.interval_ms) as usize;
+        if k < self.frames.len() {
+            return Ok(None);
+        }
+        if let Some(s) = t.counts.iter().position(|c| *c == i32::MIN) {
+            bail!(
+                "wire sensor {} gave no reading at board time {} ms: a log needs every wire",
+                s + 1,
+                t.time_ms
+            );
+        }
+        while self.frames.len() < k {
+            // A frame that did not arrive: hold the previous one.
+            let last = *self.frames.last().context("no first frame")?;
+            self.frames.push(last);
+            self.filled += 1;
+        }
+        self.frames.push(*t);
+        Ok(Some(k))
+    }
+
+    fn done(&self) -> bool {
+        self.frames.len() > self.max_rows
+    }
+
+    /// The log of the rows whose inputs are known (every frame but the
+    /// last).
+    fn finish(&self) -> (ExcitationLog, BoardExtras, usize) {
+        let rows = self.frames.len().saturating_sub(1).min(self.max_rows);
+        let dt = f64::from(self.interval_ms) * 1e-3;
+        let mut log = ExcitationLog {
+            planes: 2,
+            period_s: dt,
+            ..Default::default()
+        };
+        let mut extras = BoardExtras::default();
+        for (k, pair) in self.frames.windows(2).take(rows).enumerate() {
+            let (now, next) = (&pair[0], &pair[1]);
+            log.t_s.push(k as f64 * dt);
+            log.volts
+                .push(next.coil_mv.map(firmware::protocol::millivolts_to_volts));
+            log.cam_capture_s.push(-1.0);
+            log.cam_deg.push([0.0; 2]);
+            log.wire_mm
+                .push(now.counts.map(|c| f64::from(self.coder.insertion_mm(c))));
+            extras.estimate_deg.push(now.estimate_deg.map(f64::from));
+            extras.faults.push(now.faults);
+        }
+        (log, extras, rows)
+    }
+}
+
+/// Runs `plan` on a board in free-running mode over `link`: open-loop
+/// drives with `Drive` (refreshed every log interval, each holding
+/// [`BOARD_DRIVE_HOLD_MS`]), holds with `SetTarget`, paced by the board's
+/// telemetry (one frame per log interval: the host answers each frame
+/// with the commands for the interval it starts). The board's supervisor
+/// has the last word: a refused command (a coil over its thermal budget,
+/// a latched fault) ends the session by name. The board is disarmed at the
+/// end, on an error and when `stop` is asked; what was recorded up to
+/// there is returned either way.
+pub fn run_board<Po: crate::board::link::Port>(
+    plan: &ExcitationPlan,
+    link: &mut crate::board::link::Link<Po>,
+    stop: &crate::stop::Stop,
+) -> BoardRun {
+    let max_rows = (plan.duration_s * 1e3 / f64::from(plan.log_interval_ms)).round() as usize;
+    let mut rec = BoardRecorder {
+        interval_ms: plan.log_interval_ms,
+        max_rows,
+        t0_ms: None,
+        frames: Vec::new(),
+        filled: 0,
+        coder: firmware::estimate::PulseCoder::default(),
+    };
+    let result = drive_board(plan, link, stop, &mut rec);
+    // Outputs off whatever happened; a failure here is reported too.
+    let off = link
+        .command(
+            &firmware::protocol::Disarm {}.into(),
+            crate::board::controller::CMD_TIMEOUT,
+            crate::board::controller::CMD_ATTEMPTS,
+        )
+        .and_then(|()| {
+            link.command(
+                &firmware::protocol::SetTelemetry { rate_hz: 0 }.into(),
+                crate::board::controller::CMD_TIMEOUT,
+                crate::board::controller::CMD_ATTEMPTS,
+            )
+        });
+    let error = match (result, off) {
+        (Ok(()), Ok(())) => None,
+        (Err(e), _) => Some(e),
+        (Ok(()), Err(e)) => Some(anyhow::Error::new(e).context("disarming the board at the end")),
+    };
+    let (log, extras, rows) = rec.finish();
+    let mut faults = 0u16;
+    let mut peak = [0u16; 4];
+    for f in rec.frames.iter().take(rows + 1) {
+        faults |= u16::from(f.faults);
+        for (p, v) in peak.iter_mut().zip(f.coil_mv) {
+            *p = (*p).max(v);
+        }
+    }
+    let dt = f64::from(plan.log_interval_ms) * 1e-3;
+    let summary = BoardSessionSummary {
+        plan: plan.name.clone(),
+        rows,
+        recorded_s: rows as f64 * dt,
+        planned_s: plan.duration_s,
+        rows_filled: rec.filled,
+        faults_seen: sim::fault_names(faults),
+        peak_coil_mv: peak,
+        ended_early: error.as_ref().map(|e| format!("{e:#}")),
+    };
+    BoardRun {
+        log,
+        extras,
+        summary,
+        error,
+    }
+}
+
+/// The commands of interval `[t, t + Δ)`: a `Drive` for the planes not
+/// held, a `SetTarget` for a plane whose hold begins or changes.
+fn send_interval<Po: crate::board::link::Port>(
+    plan: &ExcitationPlan,
+    link: &mut crate::board::link::Link<Po>,
+    t_s: f64,
+    targets: &mut [Option<f64>; 2],
+) -> anyhow::Result<()> {
+    use crate::board::controller::{CMD_ATTEMPTS, CMD_TIMEOUT};
+    use firmware::protocol::{Drive, SetTarget};
+    let dt = f64::from(plan.log_interval_ms) * 1e-3;
+    // A ramp's mean over the interval is its midpoint value.
+    let volts = plan.volts_at(2, t_s + 0.5 * dt);
+    let driver = DriverConfig::default();
+    let mut planes = 0u8;
+    let mut coil_mv = [0u16; 4];
+    for (p, target) in targets.iter_mut().enumerate() {
+        match plan.held(p, t_s) {
+            Some(deg) => {
+                if *target != Some(deg) {
+                    link.command(
+                        &SetTarget {
+                            plane: p as u8,
+                            target_deg: deg as f32,
+                        }
+                        .into(),
+                        CMD_TIMEOUT,
+                        CMD_ATTEMPTS,
+                    )
+                    .with_context(|| format!("holding plane {p} at {deg}° from t = {t_s:.2} s"))?;
+                    *target = Some(deg);
+                }
+            }
+            None => {
+                *target = None;
+                planes |= 1 << p;
+                for c in [p, p + 2] {
+                    let v = volts[c].unwrap_or(0.0) as f32;
+                    coil_mv[c] = firmware::protocol::coil_to_mv(driver.clamp(v), &driver);
+                }
+            }
+        }
+    }
+    if planes != 0 {
+        link.command(
+            &Drive {
+                planes,
+                coil_mv,
+                hold_ms: BOARD_DRIVE_HOLD_MS,
+            }
+            .into(),
+            CMD_TIMEOUT,
+            CMD_ATTEMPTS,
+        )
+        .with_context(|| {
+            format!(
+                "driving coils 1–4 at {} mV from t = {t_s:.2} s",
+                coil_mv.map(|m| m.to_string()).join("/")
+            )
+        })?;
+    }
+    Ok(())
+}
+
+fn drive_board<Po: crate::board::link::Port>(
+    plan: &ExcitationPlan,
+    link: &mut crate::board::link::Link<Po>,
+    stop: &crate::stop::Stop,
+    rec: &mut BoardRecorder,
+) -> anyhow::Result<()> {
+    use crate::board::controller::{CMD_ATTEMPTS, CMD_TIMEOUT};
+    use firmware::protocol::{Arm, ClearFaults, HilStop, Message, SetTelemetry};
+    if 1000 % plan.log_interval_ms != 0 {
+        bail!(
+            "`log_interval_ms` = {} does not divide 1000: the board streams telemetry at a whole rate in Hz, one frame per row",
+            plan.log_interval_ms
+        );
+    }
+    crate::board::controller::handshake(link)?;
+    let cmd = |link: &mut crate::board::link::Link<Po>, m: Message| {
+        link.command(&m, CMD_TIMEOUT, CMD_ATTEMPTS)
+    };
+    if crate::board::controller::status(link)?.mode != 0 {
+        cmd(link, HilStop {}.into()).context("leaving lockstep mode")?;
+    }
+    cmd(link, ClearFaults {}.into()).context("clearing the board's faults before the session")?;
+    cmd(link, Arm {}.into())?;
+    let mut targets = [None; 2];
+    send_interval(plan, link, 0.0, &mut targets)?;
+    let start_ms = crate::board::controller::status(link)?.time_ms;
+    cmd(
+        link,
+        SetTelemetry {
+            rate_hz: (1000 / plan.log_interval_ms) as u16,
+        }
+        .into(),
+    )?;
+    let dt = f64::from(plan.log_interval_ms) * 1e-3;
+    let quiet = std::time::Duration::from_millis(u64::from(plan.log_interval_ms) * 20 + 500);
+    let mut last_row = None;
+    while !rec.done() {
+        if let Some(signal) = stop.requested() {
+            // Exits as the signal would (130 for SIGINT), after the log.
+            let at_t_s = rec.frames.len().saturating_sub(1) as f64 * dt;
+            return Err(sim::RunCutShort(sim::CutShort {
+                at_step: rec.frames.len().saturating_sub(1) as u64,
+                at_t_s,
+                cause: sim::CutCause::Signal,
+                reason: format!(
+                    "stopped by {} at t = {at_t_s:.2} s of the plan",
+                    signal.name()
+                ),
+                signal: Some(signal),
+            })
+            .into());
+        }
+        let deadline = crate::board::link::deadline_after(quiet);
+        let Some(m) = link.recv_until(deadline)? else {
+            bail!(
+                "the board's telemetry stopped at t = {:.2} s of the plan (nothing for {} ms)",
+                rec.frames.len() as f64 * dt,
+                quiet.as_millis()
+            );
+        };
+        let Message::Telemetry(t) = m else { continue };
+        if (t.time_ms.wrapping_sub(start_ms) as i32) < 0 {
+            // A frame of an earlier stream, still on the line.
+            continue;
+        }
+        let Some(k) = rec.push(&t)? else { continue };
+        if last_row == Some(k) {
+            continue;
+        }
+        last_row = Some(k);
+        if !rec.done() {
+            send_interval(plan, link, k as f64 * dt, &mut targets)?;
+        }
+    }
+    Ok(())
+}

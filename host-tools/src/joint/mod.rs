@@ -1,0 +1,6 @@
+//! What the program does for the joint besides running it: the wire
+//! sensors' calibration fits, excitation sessions for identification, and
+//! the gains search.
+pub mod calibrate;
+pub mod excite;
+pub mod tune;

@@ -1,0 +1,389 @@
+//! `softjoint identify`, `tune`, `sim --excite` and the files between
+//! them: the pipeline end to end in short form, the committed tuned gains
+//! against the paper's on the hidden plant, and bad input.
+use crate::common;
+
+use common::{ok, s, scratch, softjoint, stderr, stdout};
+use host_tools::files::plant::{PlantFile, PlantParams};
+use host_tools::files::scenario::JointKind;
+use host_tools::joint::tune::{self, Gains, GainsFile};
+use plant_joint::identify::{hidden, ExcitationPlan};
+
+fn write(path: &std::path::Path, text: &str) {
+    std::fs::write(path, text).unwrap();
+}
+
+fn hidden_2d_file(dir: &std::path::Path) -> std::path::PathBuf {
+    let p = dir.join("hidden.toml");
+    PlantFile::new(PlantParams::TwoD(hidden::joint_2d(5)), vec![])
+        .save(&p, "# hidden\n")
+        .unwrap();
+    p
+}
+
+/// Record → identify → tune → load the gains, on the 2D joint, in short
+/// form (a 24 s plan, 3 iterations per stage, 3 candidates × 2 plants):
+/// the plumbing and the file formats, not the accuracy (that is
+/// plant-models' `joint_identify`).
+#[test]
+fn record_identify_tune_and_load_the_gains() {
+    let dir = scratch("identify-pipeline");
+    hidden_2d_file(&dir);
+    write(
+        &dir.join("hidden.scenario.toml"),
+        "name = \"hidden 2D\"\njoint = \"2d\"\nseed = 5\ntargets = [{ t_s = 0, deg = [0] }]\n[estimator]\nmethod = \"paper\"\n[plant]\nfile = \"hidden.toml\"\n",
+    );
+    let mut plan = ExcitationPlan::compact(1);
+    plan.duration_s = 24.0;
+    plan.drive.retain(|d| d.to_s <= 24.0);
+    plan.hold.push(plant_joint::identify::plan::Hold {
+        plane: 0,
+        deg: 5.0,
+        from_s: 12.0,
+        to_s: 19.5,
+    });
+    write(
+        &dir.join("plan.toml"),
+        &toml::to_string_pretty(&plan).unwrap(),
+    );
+    let log = dir.join("log.csv");
+    let o = softjoint(&[
+        "sim",
+        s(&dir.join("hidden.scenario.toml")),
+        "--excite",
+        s(&dir.join("plan.toml")),
+        "--log",
+        s(&log),
+    ]);
+    ok(&o);
+    assert!(stdout(&o).contains("2400 rows"), "{}", stdout(&o));
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(text
+        .starts_with("t_s,v1_v,v2_v,cam_capture_s,cam_theta_deg,d1_mm,i1_a,i2_a,r1_ohm,r2_ohm\n"));
+    // The hold put the joint under the controller at 5°: the log shows
+    // it moving there from ≈ 0° (the controller's own thermal budget, run
+    // on its 5 V saturated outputs, may cut it short of the target).
+    let angles: Vec<(f64, f64)> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (f[0], f[4])
+        })
+        .collect();
+    let mean = |a: f64, b: f64| {
+        let v: Vec<f64> = angles
+            .iter()
+            .filter(|x| (a..b).contains(&x.0))
+            .map(|x| x.1)
+            .collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let (before, during) = (mean(11.0, 12.0), mean(16.0, 19.5));
+    assert!(
+        during > 2.5 && during - before > 3.0,
+        "before the hold {before}°, during {during}°"
+    );
+    let plant = dir.join("plant.toml");
+    let o = softjoint(&[
+        "identify",
+        "joint",
+        s(&log),
+        "-o",
+        s(&plant),
+        "--max-iterations",
+        "3",
+        "--plot",
+        s(&dir.join("fit.svg")),
+    ]);
+    ok(&o);
+    let out = stdout(&o);
+    assert!(
+        out.contains("link.inertia_kg_m2") && out.contains("held-out"),
+        "{out}"
+    );
+    assert!(std::fs::read_to_string(dir.join("fit.svg"))
+        .unwrap()
+        .contains("<svg"));
+    let file = PlantFile::load(&plant).unwrap();
+    assert!(matches!(file.params().unwrap(), PlantParams::TwoD(_)));
+    assert!(!file.uncertainty.is_empty());
+    // The JSON form carries the same estimates.
+    let o = softjoint(&[
+        "identify",
+        "joint",
+        s(&log),
+        "-o",
+        s(&plant),
+        "--max-iterations",
+        "2",
+        "--json",
+    ]);
+    ok(&o);
+    let j: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(j["planes"][0]["estimates"].as_array().unwrap().len() >= 10);
+
+    let gains = dir.join("gains.toml");
+    let o = softjoint(&[
+        "tune",
+        s(&plant),
+        "--candidates",
+        "3",
+        "--plants",
+        "2",
+        "--search-v-offset",
+        "--json",
+        "-o",
+        s(&gains),
+    ]);
+    ok(&o);
+    let g = GainsFile::load(&gains).unwrap();
+    assert_eq!(g.joint, JointKind::TwoD);
+    assert_eq!(g.controller.kp_v_per_deg.len(), 2);
+    // v_offset searched, in its range (the scenario below runs with it).
+    assert!(g.tuning.as_ref().is_some_and(|t| t.v_offset_searched));
+    let (lo, hi) = host_tools::joint::tune::V_OFFSET_SEARCH_V;
+    assert!((lo..=hi).contains(&g.controller.v_offset_v), "{g:?}");
+    // A scenario runs with the tuned gains on the identified plant.
+    write(
+        &dir.join("tuned.scenario.toml"),
+        "name = \"tuned\"\njoint = \"2d\"\nduration_s = 2.0\ntargets = [{ t_s = 0, deg = [3] }]\n[estimator]\nmethod = \"paper\"\n[plant]\nfile = \"plant.toml\"\n[controller]\ngains_file = \"gains.toml\"\n",
+    );
+    ok(&softjoint(&["sim", s(&dir.join("tuned.scenario.toml"))]));
+}
+
+/// The must-show in `sim`: the gains `softjoint tune` found on the plant
+/// identified from the hidden 3D joint's 10-minute log (the committed
+/// scenarios/identify files, made by the commands of the joint README)
+/// beat the paper's gains on the hidden joint itself, without a fault.
+///
+/// The committed gains (tuned on the plant identified after the replay
+/// stopped drawing its own stick events) cost 2.85 on the hidden joint
+/// against the paper's 3.13. The gains tuned on the earlier plant, whose
+/// jamming gain was 2.5–2.9 times the truth, lost (3.26 against 3.13):
+/// joint README, "Tuned gains on the hidden joint".
+#[test]
+fn committed_tuned_gains_beat_the_paper_on_the_hidden_plant_in_sim() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let g = GainsFile::load(&root.join("scenarios/identify/gains.toml")).unwrap();
+    let hidden = PlantParams::ThreeD(hidden::joint_3d(7));
+    let tuned = tune::evaluate(&tune::test_scenario(
+        JointKind::ThreeD,
+        &g.controller,
+        hidden.clone(),
+        1,
+    ))
+    .unwrap();
+    let paper = tune::evaluate(&tune::test_scenario(
+        JointKind::ThreeD,
+        &Gains::paper(4),
+        hidden,
+        1,
+    ))
+    .unwrap();
+    eprintln!("on the hidden joint: tuned {tuned:?}\npaper {paper:?}");
+    assert!(!tuned.fault, "{tuned:?}");
+    assert!(tuned.cost < paper.cost, "tuned {tuned:?}\npaper {paper:?}");
+}
+
+#[test]
+fn bad_plans_logs_and_files_are_named() {
+    let dir = scratch("identify-bad");
+    let plan = dir.join("plan.toml");
+    let scen = dir.join("s.toml");
+    write(
+        &scen,
+        "joint = \"2d\"\ntargets = [{ t_s = 0, deg = [0] }]\n[estimator]\nmethod = \"paper\"\n",
+    );
+    let log = dir.join("log.csv");
+    let run = |p: &str| {
+        write(&plan, p);
+        softjoint(&["sim", s(&scen), "--excite", s(&plan), "--log", s(&log)])
+    };
+    let o = run("name = \"x\"\nduration_s = 10\n[[drive]]\ncoil = 1\nfrom_s = 0\nto_s = 5\nvolts = 1.9\n[[drive]]\ncoil = 1\nfrom_s = 4\nto_s = 6\nvolts = 1.9\n");
+    assert!(
+        !o.status.success() && stderr(&o).contains("`drive[1]`: overlaps `drive[0]`"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(
+        "name = \"x\"\nduration_s = 10\n[[drive]]\ncoil = 1\nfrom_s = 0\nto_s = 9\nvolts = 4.5\n",
+    );
+    assert!(
+        stderr(&o).contains("would trip the board's thermal budget"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(
+        "name = \"x\"\nduration_s = 10\n[[drive]]\ncoil = 3\nfrom_s = 0\nto_s = 9\nvolts = 1.8\n",
+    );
+    assert!(
+        stderr(&o).contains("`drive[0]`.coil: must be 1..=2"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run("name = \"x\"\nduration_s = 10\nspeed = 3\n");
+    assert!(
+        stderr(&o).contains("plan.toml:3:1") && stderr(&o).contains("speed"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!log.exists());
+    // --excite needs --log (and --log needs --excite).
+    let o = softjoint(&["sim", "--excite", s(&plan)]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("--log"),
+        "{}",
+        stderr(&o)
+    );
+
+    write(&log, "t_s,v1_v,v2_v,cam_capture_s,d1_mm\n0,0,0,0,0\n");
+    let o = softjoint(&["identify", "joint", s(&log)]);
+    assert!(
+        stderr(&o).contains("log.csv:1:")
+            && stderr(&o).contains("missing column `cam_theta_deg` (a 2D log) or `cam_alpha_deg`"),
+        "{}",
+        stderr(&o)
+    );
+    let o = softjoint(&["identify", "joint", s(&log), "--fit-fraction", "0.1"]);
+    assert!(
+        stderr(&o).contains("--fit-fraction must be in 0.2..=1"),
+        "{}",
+        stderr(&o)
+    );
+
+    let plant = dir.join("plant.toml");
+    write(&plant, "[joint2d]\nplane.coil.austenite_finish_c = 60.0\n");
+    write(&scen, "joint = \"2d\"\ntargets = [{ t_s = 0, deg = [0] }]\n[estimator]\nmethod = \"paper\"\n[plant]\nfile = \"plant.toml\"\n");
+    let o = softjoint(&["sim", s(&scen)]);
+    assert!(
+        stderr(&o).contains("plant.toml") && stderr(&o).contains("austenite_finish_c"),
+        "{}",
+        stderr(&o)
+    );
+    hidden_2d_file(&dir);
+    write(&scen, "joint = \"3d\"\n[plant]\nfile = \"hidden.toml\"\n");
+    let o = softjoint(&["sim", s(&scen)]);
+    assert!(
+        stderr(&o).contains("a 2D plant ([joint2d]) for `joint = \"3d\"`"),
+        "{}",
+        stderr(&o)
+    );
+
+    let gains = dir.join("gains.toml");
+    write(&gains, "joint = \"3d\"\n[controller]\nkp_v_per_deg = [1, 2]\nki_v_per_deg_s = 0\nintegral_limit_v = 1\n");
+    let o = softjoint(&["tune", s(&plant)]);
+    assert!(!o.status.success(), "{}", stdout(&o));
+    write(&scen, "[controller]\ngains_file = \"gains.toml\"\n");
+    let o = softjoint(&["sim", s(&scen)]);
+    assert!(
+        stderr(&o).contains("kp_v_per_deg` needs 4 values"),
+        "{}",
+        stderr(&o)
+    );
+    // A v_offset at the supply is no law the board can run.
+    write(&gains, "joint = \"3d\"\n[controller]\nkp_v_per_deg = [1, 2, 1, 2]\nki_v_per_deg_s = 0\nintegral_limit_v = 1\nv_offset_v = 5.0\n");
+    let o = softjoint(&["sim", s(&scen)]);
+    assert!(
+        stderr(&o).contains("gains.toml")
+            && stderr(&o).contains("`controller.v_offset_v` must be in 0..5 V"),
+        "{}",
+        stderr(&o)
+    );
+    write(&scen, "[controller]\nv_offset_v = -0.5\n");
+    let o = softjoint(&["sim", s(&scen)]);
+    assert!(
+        stderr(&o).contains("field `controller.v_offset_v`: must be in 0..5 V"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn standard_and_compact_plans_stay_within_the_thermal_budget() {
+    for (joint, holds) in [("2d", false), ("3d", true)] {
+        let mut args = vec!["identify", "plan", "--joint", joint, "--duration-s", "600"];
+        if holds {
+            args.push("--holds");
+        }
+        let o = softjoint(&args);
+        ok(&o);
+        let plan: ExcitationPlan = toml::from_str(&stdout(&o)).unwrap();
+        let planes = if joint == "2d" { 1 } else { 2 };
+        plan.validate(planes).unwrap();
+        let peak = host_tools::joint::excite::check_budget(&plan).unwrap();
+        assert!(peak > 40.0 && peak < 95.0, "{joint}: peak rise {peak} K");
+    }
+    // The compact plan of the CI twin test too.
+    for planes in [1, 2] {
+        let plan = ExcitationPlan::compact(planes);
+        plan.validate(planes).unwrap();
+        let peak = host_tools::joint::excite::check_budget(&plan).unwrap();
+        assert!(
+            peak > 40.0 && peak < 95.0,
+            "compact, {planes} planes: peak rise {peak} K"
+        );
+    }
+}
+
+/// The same plan through `hil` (the firmware's board application on a
+/// pty, in lockstep) records the log `sim` records: the drives bypass the
+/// board's outputs, and during the hold the board's own controller moves
+/// the joint exactly as the in-process core does. A 3 s plan: a pulse on
+/// α's agonist, then a hold of α at 4° under the board's controller.
+#[test]
+fn the_plan_through_hil_logs_what_sim_logs() {
+    use host_tools::board::hil::HilOptions;
+    use host_tools::board::link::Link;
+    use host_tools::board::pty::PtyBoard;
+    use host_tools::files::scenario::Scenario;
+    use plant_joint::identify::plan::{Drive, Hold};
+
+    let plan = ExcitationPlan {
+        name: "pulse and hold".into(),
+        duration_s: 3.0,
+        log_interval_ms: 10,
+        drive: vec![Drive {
+            coil: 1,
+            from_s: 0.0,
+            to_s: 1.0,
+            volts: Some(3.0),
+            from_v: None,
+            to_v: None,
+        }],
+        hold: vec![Hold {
+            plane: 0,
+            deg: 4.0,
+            from_s: 1.5,
+            to_s: 3.0,
+        }],
+    };
+    let s = Scenario {
+        seed: 3,
+        ..Scenario::default()
+    };
+    let (sim_log, sim_summary) = host_tools::joint::excite::run_sim(&plan, &s, true).unwrap();
+    let (board, host_end) = PtyBoard::start().expect("pty pair");
+    let mut link = Link::new(host_end);
+    // The pty board's clock is the host's: a loaded host needs a link
+    // timeout with slack (the board's own 50 ms saw a link loss).
+    let opts = HilOptions {
+        link_timeout_ms: Some(2000),
+        ..HilOptions::default()
+    };
+    let (hil_log, hil_summary) =
+        host_tools::joint::excite::run_hil(&plan, &s, &mut link, opts, true).unwrap();
+    drop(board);
+    assert_eq!(hil_log.len(), 300);
+    assert_eq!(hil_summary.faults_seen, sim_summary.faults_seen);
+    // The hold moved α from the pulse's decay towards 4° (not only the
+    // drives shaped the log), and the two logs agree row for row.
+    let alpha_at = |t: f64| hil_log.cam_deg[(t * 100.0) as usize][0];
+    assert!(
+        (alpha_at(2.95) - 4.0).abs() < (alpha_at(1.5) - 4.0).abs(),
+        "α {}° at 1.5 s, {}° at 2.95 s",
+        alpha_at(1.5),
+        alpha_at(2.95)
+    );
+    assert!(hil_log == sim_log, "hil and sim logs differ");
+}

@@ -1,0 +1,241 @@
+//! Spline curves: a scalar spline `x(s)` on one axis (a contour's signature
+//! r(θ) when the axis is periodic, a centroid coordinate over time when it
+//! is not), and a closed parametric curve `(x(t), y(t))` with its area.
+//!
+//! Fitting (the one-variable Eq. 8, `λ∫x″² + Σ w (x − d)²`) goes through
+//! [`Fitter`](crate::model::fit::Fitter); λ may be chosen by
+//! generalised cross-validation ([`crate::identify::gcv`]).
+use crate::error::{ContourError, Result};
+use crate::model::basis::Axis;
+use crate::model::fit::{FitProblem, Fitter, Solver};
+use crate::model::gramian::{gauss4, gramian};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// `x(s) = Σ τ_i B₃(α(s − s_i))` on one axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SplineCurve {
+    /// The knot axis.
+    pub axis: Axis,
+    /// `τ_{−3} … τ_{m−1}` (M values).
+    pub coef: Vec<f64>,
+}
+
+impl SplineCurve {
+    /// A curve from its coefficients (checked against the axis).
+    pub fn new(axis: Axis, coef: Vec<f64>) -> Result<Self> {
+        axis.validate()?;
+        if coef.len() != axis.coefficients() {
+            return Err(ContourError::LengthMismatch {
+                what: "coefficients",
+                got: coef.len(),
+                expected: axis.coefficients(),
+            });
+        }
+        Ok(Self { axis, coef })
+    }
+
+    /// The `order`-th derivative of x at s (0 = the value).
+    pub fn derivative(&self, s: f64, order: usize) -> f64 {
+        let (first, b) = self.axis.basis(s, order);
+        b.iter()
+            .zip(&self.coef[first..first + 4])
+            .map(|(b, c)| b * c)
+            .sum()
+    }
+
+    /// x(s).
+    pub fn value(&self, s: f64) -> f64 {
+        self.derivative(s, 0)
+    }
+
+    /// `∫ x(s)² ds` over the domain (`τᵀ Q⁽⁰⁰⁾ τ`).
+    pub fn integral_of_square(&self) -> f64 {
+        quadratic_form(&gramian(&self.axis, 0, 0), &self.coef)
+    }
+
+    /// `∫ x″(s)² ds` over the domain (`τᵀ Q⁽²²⁾ τ`), the roughness the fit
+    /// penalises.
+    pub fn roughness(&self) -> f64 {
+        quadratic_form(&gramian(&self.axis, 2, 2), &self.coef)
+    }
+
+    /// Area enclosed by the curve read as a signature r(θ) with θ running
+    /// once round over the periodic domain: `½∫r² dθ = (π/L)∫x² ds`
+    /// (Eq. 40 for one frame).
+    pub fn signature_area(&self) -> f64 {
+        std::f64::consts::PI / self.axis.length() * self.integral_of_square()
+    }
+
+    /// `n` values at equally spaced s over the domain (the end excluded on
+    /// a periodic axis, included otherwise).
+    pub fn sample(&self, n: usize) -> Vec<(f64, f64)> {
+        sample_sites(&self.axis, n)
+            .into_iter()
+            .map(|s| (s, self.value(s)))
+            .collect()
+    }
+}
+
+/// `τᵀ Q τ` for a band matrix.
+pub(crate) fn quadratic_form(q: &crate::model::gramian::Band7, tau: &[f64]) -> f64 {
+    q.entries().map(|(p, r, v)| tau[p] * v * tau[r]).sum()
+}
+
+/// `n` equally spaced sites over the axis's domain (end excluded when
+/// periodic).
+pub fn sample_sites(axis: &Axis, n: usize) -> Vec<f64> {
+    let l = axis.length();
+    let den = if axis.periodic {
+        n.max(1) as f64
+    } else {
+        (n.max(2) - 1) as f64
+    };
+    (0..n).map(|k| axis.start + l * k as f64 / den).collect()
+}
+
+/// A closed parametric curve `(x(t), y(t))`: two periodic splines on one
+/// axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClosedCurve {
+    /// x(t).
+    pub x: SplineCurve,
+    /// y(t).
+    pub y: SplineCurve,
+}
+
+impl ClosedCurve {
+    /// The point at parameter t.
+    pub fn point(&self, t: f64) -> (f64, f64) {
+        (self.x.value(t), self.y.value(t))
+    }
+
+    /// The `order`-th derivative at t.
+    pub fn derivative(&self, t: f64, order: usize) -> (f64, f64) {
+        (self.x.derivative(t, order), self.y.derivative(t, order))
+    }
+
+    /// Signed enclosed area by Green's theorem, `½∮(x y′ − y x′) dt`
+    /// (positive counter-clockwise), integrated exactly (4-point Gauss per
+    /// knot interval; the integrand is a degree-5 polynomial there).
+    pub fn signed_area(&self) -> f64 {
+        let axis = &self.x.axis;
+        let h = 1.0 / axis.alpha;
+        let mut a = 0.0;
+        for j in 0..axis.intervals {
+            for &(x, w) in gauss4() {
+                let t = axis.knot(j as i64) + x * h;
+                let (px, py) = self.point(t);
+                let (dx, dy) = self.derivative(t, 1);
+                a += w * h * (px * dy - py * dx);
+            }
+        }
+        0.5 * a
+    }
+
+    /// Length of the curve (Gauss quadrature, 4 points per knot interval
+    /// and `sub` sub-intervals; the speed is not a polynomial).
+    pub fn length(&self, sub: usize) -> f64 {
+        let axis = &self.x.axis;
+        let sub = sub.max(1);
+        let h = 1.0 / (axis.alpha * sub as f64);
+        let mut l = 0.0;
+        for j in 0..axis.intervals * sub {
+            for &(x, w) in gauss4() {
+                let t = axis.start + (j as f64 + x) * h;
+                let (dx, dy) = self.derivative(t, 1);
+                l += w * h * dx.hypot(dy);
+            }
+        }
+        l
+    }
+
+    /// `n` points at equally spaced parameters (the closing point not
+    /// repeated).
+    pub fn sample(&self, n: usize) -> Vec<(f64, f64)> {
+        sample_sites(&self.x.axis, n)
+            .into_iter()
+            .map(|t| self.point(t))
+            .collect()
+    }
+}
+
+/// Fits a scalar spline on `axis` to `(sites, d)` with weights (default
+/// 1/N, the paper's Eq. 29) for a fixed λ.
+pub fn fit_curve(
+    axis: &Axis,
+    sites: &[f64],
+    d: &[f64],
+    weights: Option<&[f64]>,
+    lambda: f64,
+    solver: Solver,
+) -> Result<(SplineCurve, Fitter)> {
+    let fitter = curve_problem(axis, sites, weights)?.fitter(lambda, solver)?;
+    let tau = fitter.solve(d)?;
+    Ok((SplineCurve::new(*axis, tau)?, fitter))
+}
+
+/// The smoothing problem of a curve on `axis` observed at `sites`, with
+/// weights (default 1/N); checked: finite sites inside the domain, one
+/// finite weight ≥ 0 per site.
+pub fn curve_problem(
+    axis: &Axis,
+    sites: &[f64],
+    weights: Option<&[f64]>,
+) -> Result<Arc<FitProblem>> {
+    axis.validate()?;
+    let w = checked_weights(weights, sites.len())?;
+    for (k, &s) in sites.iter().enumerate() {
+        if !s.is_finite() {
+            return Err(ContourError::NonFinite {
+                location: format!("sample {k}"),
+                what: "site",
+                value: s,
+            });
+        }
+        if !axis.contains(s) {
+            return Err(ContourError::OutsideDomain {
+                location: format!("sample {k}"),
+                axis: "s",
+                value: s,
+                start: axis.start,
+                end: axis.end(),
+            });
+        }
+    }
+    Ok(Arc::new(FitProblem::curve(axis, sites, &w)))
+}
+
+/// The weights: given ones checked (finite, ≥ 0, one per sample, not all
+/// zero), or 1/N each.
+pub(crate) fn checked_weights(weights: Option<&[f64]>, n: usize) -> Result<Vec<f64>> {
+    match weights {
+        None => Ok(vec![1.0 / n.max(1) as f64; n]),
+        Some(w) => {
+            if w.len() != n {
+                return Err(ContourError::LengthMismatch {
+                    what: "weights",
+                    got: w.len(),
+                    expected: n,
+                });
+            }
+            if let Some(k) = w.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(ContourError::InvalidParameter {
+                    name: "weight",
+                    value: w[k],
+                    reason: "weights must be finite and ≥ 0",
+                });
+            }
+            if w.iter().all(|v| *v == 0.0) {
+                return Err(ContourError::InvalidParameter {
+                    name: "weight",
+                    value: 0.0,
+                    reason: "at least one weight must be > 0",
+                });
+            }
+            Ok(w.to_vec())
+        }
+    }
+}

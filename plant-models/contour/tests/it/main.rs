@@ -1,0 +1,4 @@
+//! The integration tests of `plant-contour`, one binary (each file under tests/
+//! would otherwise be a binary of its own to link).
+mod model;
+mod paper;

@@ -1,0 +1,546 @@
+//! Scripted hands and rope scenarios: instead of the paper's two PHANTOM
+//! Omni devices (L1434, L1520), each hand follows key positions in time,
+//! grasping and releasing at keys; the virtual coupling (Fig. 7) joins the
+//! hand to the point it holds. A scenario also fixes the rope's layout,
+//! pins, desk and when to record frames and check the topology.
+//!
+//! Between two keys a hand moves on a straight line with smoothstep timing
+//! (3u² − 2u³), so it starts and stops at rest. At a key's time its
+//! action runs: `grasp` takes the named node, or the node nearest the hand
+//! within `reach_m` (the paper intersects the gripper with the tree,
+//! L1336; a reach is the scripted stand-in); `release` lets go.
+use serde::{Deserialize, Serialize};
+
+use super::forces::V3;
+use super::params::RopeParams;
+use super::sim::{Desk, Rope, Tool};
+use crate::error::{check_non_negative, check_positive, DloError, Result};
+use crate::topology::{crossings, knot_determinant, View};
+
+/// What a hand does when it reaches a key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Action {
+    Grasp,
+    Release,
+}
+
+/// One key of a hand: where it is at `t_s`, and what it does there.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Key {
+    /// Time, s.
+    pub t_s: f64,
+    /// Hand position, m; with `at_node`, an offset from that node.
+    pub at_m: [f64; 3],
+    /// Aim at a rope node: while the hand moves towards this key, the
+    /// key's position follows the node (its position plus `at_m`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub at_node: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub action: Option<Action>,
+    /// Node to grasp (default: the nearest within the hand's reach).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node: Option<usize>,
+}
+
+/// A scripted hand.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandScript {
+    pub name: String,
+    /// How far from the hand a point may be to be grasped, m.
+    #[serde(default = "default_reach")]
+    pub reach_m: f64,
+    pub keys: Vec<Key>,
+}
+
+fn v3(a: [f64; 3]) -> V3 {
+    V3::new(a[0], a[1], a[2])
+}
+
+fn default_reach() -> f64 {
+    0.3
+}
+
+impl HandScript {
+    /// Hand position and velocity at `t_s`, with the keys' positions
+    /// `resolved` (m; see [`Key::at_node`]).
+    pub fn motion_resolved(&self, t_s: f64, resolved: &[V3]) -> (V3, V3) {
+        let keys = &self.keys;
+        let Some(first) = keys.first() else {
+            return (V3::zeros(), V3::zeros());
+        };
+        if t_s <= first.t_s {
+            return (resolved[0], V3::zeros());
+        }
+        for (k, w) in keys.windows(2).enumerate() {
+            let (a, b) = (&w[0], &w[1]);
+            if t_s < b.t_s {
+                let span = b.t_s - a.t_s;
+                let u = (t_s - a.t_s) / span;
+                let s = u * u * (3.0 - 2.0 * u);
+                let ds = 6.0 * u * (1.0 - u) / span;
+                let (pa, pb) = (resolved[k], resolved[k + 1]);
+                return (pa + (pb - pa) * s, (pb - pa) * ds);
+            }
+        }
+        (resolved[keys.len() - 1], V3::zeros())
+    }
+
+    /// Hand position and velocity at `t_s` for keys given in space (an
+    /// `at_node` key counts as its bare offset).
+    pub fn motion(&self, t_s: f64) -> (V3, V3) {
+        let fixed: Vec<V3> = self.keys.iter().map(|k| v3(k.at_m)).collect();
+        self.motion_resolved(t_s, &fixed)
+    }
+
+    fn validate(&self, nodes: usize) -> Result<()> {
+        let bad = |why: String| DloError::InvalidScenario(format!("hand `{}`: {why}", self.name));
+        check_positive(&format!("hands.{}.reach_m", self.name), self.reach_m)?;
+        if self.keys.is_empty() {
+            return Err(bad("has no keys".into()));
+        }
+        let mut last = f64::NEG_INFINITY;
+        for (k, key) in self.keys.iter().enumerate() {
+            check_non_negative(&format!("hands.{}.keys[{k}].t_s", self.name), key.t_s)?;
+            if key.t_s <= last {
+                return Err(bad(format!(
+                    "key {k}: t_s = {} is not after the previous key's {}",
+                    key.t_s, last
+                )));
+            }
+            last = key.t_s;
+            if key.at_m.iter().any(|c| !c.is_finite()) {
+                return Err(bad(format!("key {k}: at_m must be finite")));
+            }
+            if let Some(node) = key.at_node {
+                if node >= nodes {
+                    return Err(bad(format!(
+                        "key {k}: at_node {node} does not exist (rope has {nodes})"
+                    )));
+                }
+                if k == 0 {
+                    return Err(bad("the first key cannot aim at a node".into()));
+                }
+            }
+            if let Some(node) = key.node {
+                if node >= nodes {
+                    return Err(bad(format!(
+                        "key {k}: node {node} does not exist (rope has {nodes})"
+                    )));
+                }
+                if key.action != Some(Action::Grasp) {
+                    return Err(bad(format!("key {k}: `node` needs action = \"grasp\"")));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// When to look at the rope's topology, and under which name.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TopologyCheck {
+    pub label: String,
+    pub at_s: f64,
+}
+
+/// A rope scenario: rope, layout, pins, desk, hands, duration, outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RopeScenario {
+    pub name: String,
+    #[serde(default)]
+    pub rope: RopeParams,
+    /// First point of the straight initial rope, m.
+    pub start_m: [f64; 3],
+    /// Direction of the straight initial rope.
+    pub direction: [f64; 3],
+    /// Points fixed in space.
+    #[serde(default)]
+    pub pins: Vec<usize>,
+    /// Height of the desk, m (none: no desk).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub desk_height_m: Option<f64>,
+    #[serde(default)]
+    pub hands: Vec<HandScript>,
+    pub duration_s: f64,
+    /// Record a frame every this many seconds.
+    #[serde(default = "default_frame_interval")]
+    pub frame_interval_s: f64,
+    #[serde(default)]
+    pub checks: Vec<TopologyCheck>,
+}
+
+fn default_frame_interval() -> f64 {
+    0.05
+}
+
+/// A recorded state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    pub time_s: f64,
+    pub x: Vec<V3>,
+    /// Hand positions, m.
+    pub hands_m: Vec<V3>,
+    /// Which node each hand holds.
+    pub held: Vec<Option<usize>>,
+}
+
+/// The topology at a check.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TopologyResult {
+    pub label: String,
+    pub time_s: f64,
+    /// Crossings of the open rope seen from above.
+    pub crossings: usize,
+    /// Knot determinant of the closed rope (1 unknot, 3 trefoil/overhand).
+    pub determinant: Option<u128>,
+}
+
+/// Per-hand figures of a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HandSummary {
+    pub name: String,
+    /// Largest device force −s·f, N (PHANTOM Omni: 3.3 N at most, L1399).
+    pub max_output_force_n: f64,
+    /// Largest coupling force on the rope, N.
+    pub max_coupling_force_n: f64,
+    /// Grasps that found no point within reach (key times).
+    pub missed_grasps_s: Vec<f64>,
+}
+
+/// What a run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunResult {
+    pub frames: Vec<Frame>,
+    pub checks: Vec<TopologyResult>,
+    pub hands: Vec<HandSummary>,
+    pub steps: usize,
+    /// Largest overlap 2r − s of non-neighbouring segments after any
+    /// step's collision handling, m.
+    pub max_penetration_m: f64,
+    /// When that overlap happened, s.
+    pub max_penetration_time_s: f64,
+    /// Steps with at least one self-contact.
+    pub contact_steps: usize,
+    /// Segments clamped by force propagation, summed over steps.
+    pub clamped_segments: usize,
+    /// Largest |Σ internal forces| over the run, N (0 up to rounding).
+    pub max_internal_force_sum_n: f64,
+    /// Wall time of the stepping alone, s.
+    pub wall_s: f64,
+}
+
+impl RopeScenario {
+    /// Checks every field; the error names the bad one.
+    pub fn validate(&self) -> Result<()> {
+        self.rope.validate()?;
+        check_positive("duration_s", self.duration_s)?;
+        if self.duration_s > 600.0 {
+            return Err(DloError::InvalidParameter {
+                name: "duration_s".into(),
+                value: self.duration_s,
+                reason: "at most 600 s",
+            });
+        }
+        check_positive("frame_interval_s", self.frame_interval_s)?;
+        if self
+            .start_m
+            .iter()
+            .chain(&self.direction)
+            .any(|c| !c.is_finite())
+            || self.direction.iter().all(|&c| c == 0.0)
+        {
+            return Err(DloError::InvalidScenario(
+                "start_m must be finite and direction finite and non-zero".into(),
+            ));
+        }
+        for &p in &self.pins {
+            if p >= self.rope.nodes {
+                return Err(DloError::InvalidScenario(format!(
+                    "pins: node {p} does not exist (rope has {})",
+                    self.rope.nodes
+                )));
+            }
+        }
+        if let Some(h) = self.desk_height_m {
+            if !h.is_finite() {
+                return Err(DloError::InvalidParameter {
+                    name: "desk_height_m".into(),
+                    value: h,
+                    reason: "must be finite",
+                });
+            }
+        }
+        for h in &self.hands {
+            h.validate(self.rope.nodes)?;
+        }
+        for c in &self.checks {
+            check_non_negative(&format!("checks.{}.at_s", c.label), c.at_s)?;
+        }
+        Ok(())
+    }
+
+    /// The rope at t = 0.
+    pub fn initial_rope(&self) -> Result<Rope> {
+        self.validate()?;
+        let mut rope = Rope::straight(self.rope.clone(), v3(self.start_m), v3(self.direction))?;
+        for &p in &self.pins {
+            rope.pin(p)?;
+        }
+        rope.desk = self.desk_height_m.map(|height_m| Desk { height_m });
+        for h in &self.hands {
+            rope.tools.push(Tool::at(h.motion(0.0).0));
+        }
+        Ok(rope)
+    }
+
+    /// Runs the scenario; `on_frame` sees every recorded frame as it comes
+    /// (a progress bar, a streaming writer).
+    pub fn run(&self, mut on_frame: impl FnMut(&Frame)) -> Result<RunResult> {
+        let mut rope = self.initial_rope()?;
+        let dt = rope.params.dt_s;
+        let steps = (self.duration_s / dt).round() as usize;
+        let frame_every = ((self.frame_interval_s / dt).round() as usize).max(1);
+        let mut hands: Vec<HandSummary> = self
+            .hands
+            .iter()
+            .map(|h| HandSummary {
+                name: h.name.clone(),
+                max_output_force_n: 0.0,
+                max_coupling_force_n: 0.0,
+                missed_grasps_s: Vec::new(),
+            })
+            .collect();
+        // Key actions in time order, as step indices.
+        let mut next_key = vec![0usize; self.hands.len()];
+        let mut checks: Vec<(usize, &TopologyCheck)> = self
+            .checks
+            .iter()
+            .map(|c| (((c.at_s / dt).round() as usize).min(steps), c))
+            .collect();
+        checks.sort_by_key(|c| c.0);
+        let mut out = RunResult {
+            frames: Vec::new(),
+            checks: Vec::new(),
+            hands: Vec::new(),
+            steps,
+            max_penetration_m: 0.0,
+            max_penetration_time_s: 0.0,
+            contact_steps: 0,
+            clamped_segments: 0,
+            max_internal_force_sum_n: 0.0,
+            wall_s: 0.0,
+        };
+        let frame = |rope: &Rope| Frame {
+            time_s: rope.time_s,
+            x: rope.x.clone(),
+            hands_m: rope.tools.iter().map(|t| t.position_m).collect(),
+            held: rope.tools.iter().map(|t| t.grasped).collect(),
+        };
+        // Key positions, resolved for `at_node` keys when the hand sets off.
+        let mut resolved: Vec<Vec<V3>> = self
+            .hands
+            .iter()
+            .map(|h| h.keys.iter().map(|k| v3(k.at_m)).collect())
+            .collect();
+        let mut check_i = 0;
+        let mut internal = vec![V3::zeros(); rope.len()];
+        let started = std::time::Instant::now();
+        for k in 0..=steps {
+            let t = k as f64 * dt;
+            for (h, script) in self.hands.iter().enumerate() {
+                // A key aimed at a node follows it until the hand gets there.
+                if let Some(next) = script.keys.get(next_key[h]) {
+                    if let Some(node) = next.at_node {
+                        resolved[h][next_key[h]] = rope.x[node] + v3(next.at_m);
+                    }
+                }
+                let (pos, vel) = script.motion_resolved(t, &resolved[h]);
+                rope.tools[h].position_m = pos;
+                rope.tools[h].velocity_m_s = vel;
+                while let Some(key) = script.keys.get(next_key[h]) {
+                    if ((key.t_s / dt).round() as usize) > k {
+                        break;
+                    }
+                    next_key[h] += 1;
+                    match key.action {
+                        Some(Action::Grasp) => {
+                            // A named node must be within reach too: a
+                            // hand does not pull a point from afar.
+                            let node = match key.node {
+                                Some(n) => {
+                                    ((rope.x[n] - pos).norm() <= script.reach_m).then_some(n)
+                                }
+                                None => rope.nearest_node(pos, script.reach_m),
+                            };
+                            match node {
+                                Some(n) => rope.grasp(h, n)?,
+                                None => hands[h].missed_grasps_s.push(key.t_s),
+                            }
+                        }
+                        Some(Action::Release) => rope.tools[h].grasped = None,
+                        None => {}
+                    }
+                }
+            }
+            while let Some(&(at, c)) = checks.get(check_i) {
+                if at != k {
+                    break;
+                }
+                check_i += 1;
+                out.checks.push(TopologyResult {
+                    label: c.label.clone(),
+                    time_s: rope.time_s,
+                    crossings: crossings(&rope.x, View::default()).len(),
+                    determinant: knot_determinant(&rope.x, View::default()),
+                });
+            }
+            if k % frame_every == 0 {
+                let f = frame(&rope);
+                on_frame(&f);
+                out.frames.push(f);
+            }
+            if k == steps {
+                break;
+            }
+            rope.step()?;
+            if k % 100 == 0 {
+                for f in internal.iter_mut() {
+                    *f = V3::zeros();
+                }
+                super::forces::add_internal_forces(&rope.params, &rope.x, &rope.v, &mut internal);
+                let sum: V3 = internal.iter().sum();
+                out.max_internal_force_sum_n = out.max_internal_force_sum_n.max(sum.norm());
+            }
+            if rope.stats.max_penetration_m > out.max_penetration_m {
+                out.max_penetration_m = rope.stats.max_penetration_m;
+                out.max_penetration_time_s = rope.time_s;
+            }
+            out.contact_steps += usize::from(rope.stats.contacts > 0);
+            out.clamped_segments += rope.stats.clamped_segments;
+            for (h, tool) in rope.tools.iter().enumerate() {
+                let f = tool.coupling_force_n.norm();
+                hands[h].max_coupling_force_n = hands[h].max_coupling_force_n.max(f);
+                hands[h].max_output_force_n = hands[h]
+                    .max_output_force_n
+                    .max(tool.output_force_n(&rope.params).norm());
+            }
+        }
+        out.wall_s = started.elapsed().as_secs_f64();
+        out.hands = hands;
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shipped scenario (`softjoint dlo rope` runs it by default).
+    const OVERHAND: &str = include_str!("../../../../scenarios/dlo/overhand.toml");
+
+    /// 42 s of simulated time: about 1 s in a release build, minutes in a
+    /// debug one, so CI runs `dropped_coil_keeps_its_topology` instead.
+    /// `cargo test --release -p plant-models --lib scripted_hands -- --ignored`
+    #[test]
+    #[ignore = "long: run with --release (README)"]
+    fn scripted_hands_tie_an_overhand_knot_and_untie_it() {
+        let s: RopeScenario = toml::from_str(OVERHAND).unwrap();
+        let r = s.run(|_| {}).unwrap();
+        let check = |label: &str| {
+            r.checks
+                .iter()
+                .find(|c| c.label == label)
+                .unwrap_or_else(|| panic!("no check {label}"))
+                .clone()
+        };
+        // Before the tuck: a loop, one crossing, no knot.
+        assert_eq!(check("loop").determinant, Some(1));
+        assert_eq!(check("loop").crossings, 1);
+        // The tuck made a trefoil (knot determinant 3), still there when
+        // pulled tight and when loosened.
+        for label in ["knotted", "tight", "loosened"] {
+            assert_eq!(check(label).determinant, Some(3), "{label}");
+        }
+        // Pulling the loop away draws the tail out: unknotted, and laid
+        // straight, no crossing at all seen from above.
+        assert_eq!(check("pulled out").determinant, Some(1));
+        assert_eq!(check("untied").determinant, Some(1));
+        assert_eq!(check("untied").crossings, 0);
+        // Segments never overlap by more than 0.3 r (measured 12.6 mm at
+        // the sudden release at 36 s; passing through would need 2r).
+        assert!(
+            r.max_penetration_m <= 0.3 * s.rope.radius_m,
+            "overlap {} m at {} s",
+            r.max_penetration_m,
+            r.max_penetration_time_s
+        );
+        assert!(r.hands.iter().all(|h| h.missed_grasps_s.is_empty()));
+        // Internal forces sum to zero along the whole run.
+        assert!(
+            r.max_internal_force_sum_n < 1e-9,
+            "{}",
+            r.max_internal_force_sum_n
+        );
+        // The device force stays within a PHANTOM Omni's 3.3 N (L1399).
+        for h in &r.hands {
+            assert!(h.max_output_force_n < super::super::params::OMNI_MAX_FORCE_N);
+        }
+    }
+}
+
+#[cfg(test)]
+mod short_tests {
+    use super::*;
+    use crate::rope::sim::{Desk, Rope};
+
+    #[test]
+    fn dropped_coil_keeps_its_topology() {
+        // A flat spiral of rope (three turns, 0.12 m apart: closer than
+        // the 2r = 0.1 m contact distance plus its sag) dropped onto a desk
+        // from 0.3 m with a twist: many self-contacts. The rope must never
+        // pass through itself: the overlap stays under 0.3 r and the knot
+        // determinant and the crossings seen from above do not change.
+        let p = RopeParams {
+            nodes: 40,
+            length_m: 4.0,
+            ..RopeParams::default()
+        };
+        let l_r = p.rest_length_m();
+        let mut x = Vec::new();
+        let (mut a, mut rad) = (0.0f64, 0.25f64);
+        for i in 0..40 {
+            x.push(V3::new(
+                rad * a.cos(),
+                rad * a.sin(),
+                0.3 + 0.04 * (i % 2) as f64,
+            ));
+            a += l_r / rad;
+            rad += 0.12 * l_r / (2.0 * std::f64::consts::PI * rad);
+        }
+        // Respace to rest length along the spiral.
+        let mut rope = Rope::from_points(p.clone(), x).unwrap();
+        rope.desk = Some(Desk { height_m: 0.0 });
+        for (i, v) in rope.v.iter_mut().enumerate() {
+            *v = V3::new(0.0, 0.0, -1.0) + V3::new(0.0, 0.3, 0.0) * (i as f64 / 40.0);
+        }
+        let view = View::default();
+        let det0 = knot_determinant(&rope.x, view);
+        let cross0 = crossings(&rope.x, view).len();
+        let mut worst: f64 = 0.0;
+        let mut contacts = 0;
+        for _ in 0..1500 {
+            rope.step().unwrap();
+            worst = worst.max(rope.stats.max_penetration_m);
+            contacts += rope.stats.contacts;
+        }
+        assert!(contacts > 100, "only {contacts} contacts");
+        assert!(worst <= 0.3 * p.radius_m, "overlap {worst} m");
+        assert_eq!(knot_determinant(&rope.x, view), det0);
+        assert_eq!(crossings(&rope.x, view).len(), cross0);
+    }
+}

@@ -1,0 +1,305 @@
+//! The cartilage: an off-the-shelf sponge (paper: 10 mm thick, Young's
+//! modulus about 20 kPa) glued between the socket and the link base,
+//! modelled as `N` columns spread evenly across the base width. Each column
+//! carries two 3-element viscoelastic models (seed 002 Eq. 3, the plant's
+//! exact [`Element`]): one normal (compression / tension, glued) and one
+//! tangential (shear). A column's displacement is the motion of its glued
+//! point on the link base from where it was at rest, in the socket frame;
+//! over a substep it is taken as moving linearly, and the dashpot's state is
+//! advanced exactly for that motion.
+//!
+//! Because every column pushes back on its own point, a coil pulling one
+//! side down compresses that side more: the link tilts about a point inside
+//! the sponge that moves with the load — the shifting centre of rotation of
+//! the paper's Fig. 3 — without any pivot in the model.
+//!
+//! Column stiffness from the continuum (relaxed, i.e. long-term):
+//! `k_n = E·(w/N)·D/t` normal and `k_t = G·(w/N)·D/t` shear, `w` the base
+//! width, `D` the depth, `t` the thickness. The instantaneous stiffness is
+//! `(1 + r)` times that (seed 002 Eq. 9–10, stiffness ratio `r`) and the
+//! dashpot is Rayleigh, `b = b_R·k` (Eq. 11).
+//!
+//! Left out: coupling between neighbouring columns (no Poisson bulging,
+//! no bending of the sponge as a plate), large-strain stiffening of the foam
+//! and contact/lift-off (the sponge is glued, as in the paper).
+
+use serde::{Deserialize, Serialize};
+
+use plant_common::three_element::{Element, ExactPair, StepLength};
+
+use super::{check_positive, PlantError};
+
+/// Sponge parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CartilageParams {
+    /// Young's modulus (Pa). Paper: "about 20 kPa".
+    pub youngs_modulus_pa: f64,
+    /// Shear modulus as a fraction of E. Estimate: 0.38 = 1/(2(1+ν)) for an
+    /// open-cell foam with ν ≈ 0.3.
+    pub shear_fraction: f64,
+    /// Thickness (m). Paper: 10 mm.
+    pub thickness_m: f64,
+    /// Width of the glued base in the plane of motion (m). Estimate, tuned
+    /// with the coil lever so the 50 g compliance test gives ≈ 12° unpowered
+    /// and ≈ 7.5° at 3 V / 2 V (README.md): 22 mm, a fingertip-sized socket.
+    pub width_m: f64,
+    /// Depth out of the plane (m). Estimate: square pad, 22 mm.
+    pub depth_m: f64,
+    /// Number of columns across the width. 8 resolves the pressure
+    /// distribution well enough for a shifting centre; more costs time.
+    pub columns: usize,
+    /// Stiffness ratio r = k2/k1 (instantaneous over delayed spring).
+    /// Estimate: 3 — foams are several times stiffer at impact than relaxed.
+    pub stiffness_ratio: f64,
+    /// Rayleigh damping coefficient b_R (s): dashpot = b_R × relaxed
+    /// stiffness. Estimate, tuned so the return after cutting the weight is
+    /// damped (paper Fig. 5) — see the compliance tests.
+    pub rayleigh_damping_s: f64,
+}
+
+impl Default for CartilageParams {
+    fn default() -> Self {
+        Self {
+            youngs_modulus_pa: 20e3,
+            shear_fraction: 0.38,
+            thickness_m: 10e-3,
+            width_m: 22e-3,
+            depth_m: 22e-3,
+            columns: 8,
+            stiffness_ratio: 3.0,
+            rayleigh_damping_s: 0.05,
+        }
+    }
+}
+
+impl CartilageParams {
+    /// Rejects bad values, naming the field.
+    pub fn validate(&self, prefix: &str) -> Result<(), PlantError> {
+        let p = |f: &str| format!("{prefix}{f}");
+        check_positive(&p("youngs_modulus_pa"), self.youngs_modulus_pa)?;
+        check_positive(&p("shear_fraction"), self.shear_fraction)?;
+        check_positive(&p("thickness_m"), self.thickness_m)?;
+        check_positive(&p("width_m"), self.width_m)?;
+        check_positive(&p("depth_m"), self.depth_m)?;
+        if !(2..=64).contains(&self.columns) {
+            return Err(PlantError::param(&p("columns"), "must be in 2..=64"));
+        }
+        check_positive(&p("stiffness_ratio"), self.stiffness_ratio)?;
+        super::check_finite(&p("rayleigh_damping_s"), self.rayleigh_damping_s)?;
+        if self.rayleigh_damping_s < 0.0 {
+            return Err(PlantError::param(&p("rayleigh_damping_s"), "must be ≥ 0"));
+        }
+        Ok(())
+    }
+
+    /// Relaxed rotational stiffness of the pad about its centre (N·m/rad),
+    /// E·D·w³/(12 t) — for documentation and tests.
+    pub fn relaxed_rotational_stiffness(&self) -> f64 {
+        self.youngs_modulus_pa * self.depth_m * self.width_m.powi(3) / (12.0 * self.thickness_m)
+    }
+}
+
+/// The sponge's state: its columns. Every column has the same normal and
+/// shear models (equal widths), so they are stored once; the columns keep
+/// only their position, their two dashpot states and where they were at
+/// the end of the last substep.
+#[derive(Clone, Debug)]
+pub struct Cartilage {
+    params: CartilageParams,
+    /// [shear, normal].
+    models: [Element; 2],
+    /// Lateral position of each column on the link base (m), link frame.
+    s_m: Vec<f64>,
+    /// Dashpot displacement of each column, [shear, normal] (m).
+    x: Vec<[f64; 2]>,
+    /// Column displacement at the end of the last substep, [shear, normal]
+    /// (m): the start of the next substep's linear motion.
+    u: Vec<[f64; 2]>,
+    /// The exact steps ([shear, normal]) for the last step length.
+    steps: Option<(StepLength, ExactPair)>,
+}
+
+/// Force (N) and clockwise torque about the link-base origin (N·m) on the
+/// link.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Wrench {
+    /// Force along x (N).
+    pub fx_n: f64,
+    /// Force along y (N).
+    pub fy_n: f64,
+    /// Clockwise torque about the link-base origin (N·m).
+    pub torque_cw_nm: f64,
+}
+
+impl Cartilage {
+    /// Builds the columns (allocates once).
+    pub fn new(params: CartilageParams) -> Result<Self, PlantError> {
+        params.validate("cartilage.")?;
+        let n = params.columns;
+        let area = params.width_m / n as f64 * params.depth_m;
+        let kn = params.youngs_modulus_pa * area / params.thickness_m;
+        let kt = kn * params.shear_fraction;
+        let mk = |k: f64| {
+            Element::from_ratio(k, params.stiffness_ratio, params.rayleigh_damping_s)
+                .map_err(|e| PlantError::param("cartilage", &e.to_string()))
+        };
+        let s_m = (0..n)
+            .map(|i| -0.5 * params.width_m + (i as f64 + 0.5) * params.width_m / n as f64)
+            .collect();
+        Ok(Self {
+            models: [mk(kt)?, mk(kn)?],
+            s_m,
+            x: vec![[0.0; 2]; n],
+            u: vec![[0.0; 2]; n],
+            steps: None,
+            params,
+        })
+    }
+
+    /// Parameters.
+    pub fn params(&self) -> &CartilageParams {
+        &self.params
+    }
+
+    /// Advances every column by `h` with the link base moving to (`x`,
+    /// `y`) m and angle `theta` (clockwise positive), and returns the
+    /// sponge's wrench on the link. The columns' dashpots are integrated
+    /// exactly for motion linear over the substep, so this part is
+    /// unconditionally stable.
+    #[inline]
+    pub fn step(&mut self, h: StepLength, x: f64, y: f64, sin_t: f64, cos_t: f64) -> Wrench {
+        let steps = match self.steps {
+            Some((cached, steps)) if cached == h => steps,
+            _ => {
+                let steps = ExactPair::from(self.models.map(|m| m.relaxation_step(h)));
+                self.steps = Some((h, steps));
+                steps
+            }
+        };
+        let mut w = Wrench::default();
+        for ((&s_m, state), start) in self.s_m.iter().zip(&mut self.x).zip(&mut self.u) {
+            // Glued point (s, 0) in the link frame → world offset r from p.
+            let rx = s_m * cos_t;
+            let ry = -s_m * sin_t;
+            let end = [x + rx - s_m, y + ry];
+            let [ft, fnn] = steps.force(state, *start, end).map(|f| -f);
+            *start = end;
+            w.fx_n += ft;
+            w.fy_n += fnn;
+            w.torque_cw_nm += ry * ft - rx * fnn;
+        }
+        w
+    }
+
+    /// Resets the viscous states (unloaded sponge at its glued rest).
+    pub fn reset(&mut self) {
+        self.x.fill([0.0; 2]);
+        self.u.fill([0.0; 2]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn static_stiffness_matches_continuum() {
+        let p = CartilageParams::default();
+        let mut c = Cartilage::new(p.clone()).unwrap();
+        let h = StepLength::new(1e-3).unwrap();
+        // Hold a sink of 0.1 mm for long enough to relax: F = E A u / t.
+        let mut w = Wrench::default();
+        for _ in 0..20_000 {
+            w = c.step(h, 0.0, -1e-4, 0.0, 1.0);
+        }
+        let expect = p.youngs_modulus_pa * p.width_m * p.depth_m / p.thickness_m * 1e-4;
+        assert!(
+            (w.fy_n - expect).abs() < 1e-6 * expect.max(1.0) + 1e-9,
+            "{} vs {expect}",
+            w.fy_n
+        );
+        assert!(w.torque_cw_nm.abs() < 1e-12);
+        // Small rotation: torque → −E D w³/(12 t) θ · (1 − 1/N²) for N
+        // discrete columns (sum of s_i² vs the integral).
+        c.reset();
+        let th: f64 = 1e-3;
+        for _ in 0..20_000 {
+            w = c.step(h, 0.0, 0.0, th.sin(), th.cos());
+        }
+        let n = p.columns as f64;
+        let expect = -p.relaxed_rotational_stiffness() * (1.0 - 1.0 / (n * n)) * th;
+        assert!(
+            (w.torque_cw_nm - expect).abs() < 1e-3 * expect.abs(),
+            "{} vs {expect}",
+            w.torque_cw_nm
+        );
+    }
+
+    #[test]
+    fn cached_steps_follow_step_changes() {
+        // The columns against an independent loop over the same elements
+        // with the exact step built afresh every time.
+        let p = CartilageParams::default();
+        let mut c = Cartilage::new(p.clone()).unwrap();
+        let n = p.columns;
+        let area = p.width_m / n as f64 * p.depth_m;
+        let kn = p.youngs_modulus_pa * area / p.thickness_m;
+        let mk = |k: f64| Element::from_ratio(k, p.stiffness_ratio, p.rayleigh_damping_s);
+        let (normal, shear) = (mk(kn).unwrap(), mk(kn * p.shear_fraction).unwrap());
+        let (mut xn, mut xt) = (vec![0.0; n], vec![0.0; n]);
+        let (mut un, mut ut) = (vec![0.0; n], vec![0.0; n]);
+        for k in 0..500 {
+            // The step changes now and then (the cache must follow it).
+            let h = StepLength::new(if k % 100 < 50 { 1e-3 } else { 0.25e-3 }).unwrap();
+            let t = k as f64 * 1e-3;
+            let (x, y, th) = (1e-4 * t.sin(), -2e-4 * t, 0.2 * (3.0 * t).sin());
+            let (sn, cs) = th.sin_cos();
+            let got = c.step(h, x, y, sn, cs);
+            let mut want = Wrench::default();
+            for i in 0..n {
+                let s_m = c.s_m[i];
+                let (rx, ry) = (s_m * cs, -s_m * sn);
+                let (end_t, end_n) = (x + rx - s_m, y + ry);
+                let ft = -shear.relaxation_step(h).force(&mut xt[i], ut[i], end_t);
+                let fnn = -normal.relaxation_step(h).force(&mut xn[i], un[i], end_n);
+                (ut[i], un[i]) = (end_t, end_n);
+                want.fx_n += ft;
+                want.fy_n += fnn;
+                want.torque_cw_nm += ry * ft - rx * fnn;
+            }
+            assert_eq!(got, want, "step {k}");
+        }
+    }
+
+    #[test]
+    fn instantaneous_response_is_stiffer_by_one_plus_r() {
+        let p = CartilageParams::default();
+        let mut c = Cartilage::new(p.clone()).unwrap();
+        let h = StepLength::new(1e-6).unwrap();
+        let w = c.step(h, 0.0, -1e-4, 0.0, 1.0);
+        let relaxed = p.youngs_modulus_pa * p.width_m * p.depth_m / p.thickness_m * 1e-4;
+        let ratio = w.fy_n / relaxed;
+        assert!((ratio - (1.0 + p.stiffness_ratio)).abs() < 0.01, "{ratio}");
+    }
+
+    #[test]
+    fn bad_parameters_name_the_field() {
+        let p = CartilageParams {
+            width_m: -1.0,
+            ..CartilageParams::default()
+        };
+        assert!(Cartilage::new(p)
+            .unwrap_err()
+            .to_string()
+            .contains("cartilage.width_m"));
+        let p = CartilageParams {
+            columns: 1,
+            ..CartilageParams::default()
+        };
+        assert!(Cartilage::new(p)
+            .unwrap_err()
+            .to_string()
+            .contains("cartilage.columns"));
+    }
+}

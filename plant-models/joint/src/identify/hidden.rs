@@ -1,0 +1,88 @@
+//! The hidden plants of the twin tests: the defaults with every parameter
+//! identification fits moved by 20–50 %, more sensor noise, and jamming on.
+//! What identification must find without being told.
+
+use crate::{Joint2dParams, Joint3dParams, PlaneParams, SupportParams, WireSensorParams};
+
+/// The factors (hidden / default) of the twin tests, with the slope set
+/// absolutely (its default is 0). Temperatures move as `ambient + f·(T −
+/// ambient)`.
+pub const FACTORS: &[(&str, f64)] = &[
+    ("driver.transconductance_a_v", 0.75),
+    ("coil.convection_w_m2_k", 1.3),
+    ("coil temperatures above ambient", 0.8),
+    ("support.youngs_modulus_pa", 1.4),
+    ("support.rayleigh_damping_s", 0.7),
+    ("link.inertia_kg_m2", 1.5),
+    ("wires.jam.buckling_gain", 1.4),
+    ("wires.jam.max_lag_mm", 0.7),
+    ("wires.jam.max_lag_per_mm", 1.33),
+];
+
+/// Hidden Clausius–Clapeyron slope (K/MPa): inside the 0.07–0.14 NiTi range.
+pub const HIDDEN_STRESS_SHIFT_K_PER_MPA: f64 = 0.08;
+
+/// Camera angle noise of the hidden plant (deg; the default is 0.03).
+pub const HIDDEN_CAMERA_NOISE_DEG: f64 = 0.1;
+
+fn factor(name: &str) -> f64 {
+    FACTORS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|f| f.1)
+        .unwrap_or(1.0)
+}
+
+/// One plane of the hidden plant; `scale` multiplies every perturbation
+/// (1 for α, another value for β so the planes differ).
+pub fn plane(mut p: PlaneParams, scale: f64) -> PlaneParams {
+    let f = |name: &str| 1.0 + scale * (factor(name) - 1.0);
+    p.driver.transconductance_a_v *= f("driver.transconductance_a_v");
+    p.coil.convection_w_m2_k *= f("coil.convection_w_m2_k");
+    let amb = p.coil.ambient_c;
+    let ft = f("coil temperatures above ambient");
+    for t in [
+        &mut p.coil.austenite_start_c,
+        &mut p.coil.austenite_finish_c,
+        &mut p.coil.martensite_start_c,
+        &mut p.coil.martensite_finish_c,
+    ] {
+        *t = amb + ft * (*t - amb);
+    }
+    p.coil.stress_shift_k_per_mpa = HIDDEN_STRESS_SHIFT_K_PER_MPA;
+    if let SupportParams::Cartilage(c) = &mut p.support {
+        c.youngs_modulus_pa *= f("support.youngs_modulus_pa");
+        c.rayleigh_damping_s *= f("support.rayleigh_damping_s");
+    }
+    p.link.inertia_kg_m2 *= f("link.inertia_kg_m2");
+    p
+}
+
+fn wire(mut w: WireSensorParams) -> WireSensorParams {
+    w.jam.buckling_gain *= factor("wires.jam.buckling_gain");
+    w.jam.max_lag_mm *= factor("wires.jam.max_lag_mm");
+    w.jam.max_lag_per_mm *= factor("wires.jam.max_lag_per_mm");
+    w
+}
+
+/// The hidden 2D joint, seeded.
+pub fn joint_2d(seed: u64) -> Joint2dParams {
+    let mut p = Joint2dParams::default();
+    p.plane = plane(p.plane, 1.0);
+    p.wire = wire(p.wire);
+    p.camera.angle_noise_deg = HIDDEN_CAMERA_NOISE_DEG;
+    p.sim.seed = seed;
+    p
+}
+
+/// The hidden 3D joint, seeded: α as the 2D one, β with the perturbations
+/// scaled by 0.6 (so it differs from α).
+pub fn joint_3d(seed: u64) -> Joint3dParams {
+    let mut p = Joint3dParams::default();
+    p.alpha = plane(p.alpha, 1.0);
+    p.beta = plane(p.beta, 0.6);
+    p.wires = p.wires.map(wire);
+    p.camera.angle_noise_deg = HIDDEN_CAMERA_NOISE_DEG;
+    p.sim.seed = seed;
+    p
+}

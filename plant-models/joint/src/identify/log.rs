@@ -1,0 +1,398 @@
+//! The excitation log: what a recording of the joint holds for
+//! identification, how it is recorded (one [`LogRecorder`] for the twin,
+//! `softjoint sim`, `hil` and `console`), and how it is read back from CSV.
+//!
+//! One row per log interval (default 10 ms) at `t_s = k·Δ`:
+//! - `v1_v..`: the **mean** driver input of each coil over `[t, t + Δ)`
+//!   (the replay holds it over the interval: exact for steps on interval
+//!   boundaries, the midpoint of a ramp's 10 ms piece otherwise);
+//! - `cam_capture_s`, `cam_*_deg`: the newest camera frame available at
+//!   `t` and when it was captured (−1 before the first frame; an occluded
+//!   frame leaves the previous one in place, so readers keep a frame once,
+//!   by its capture time);
+//! - `d1_mm..`: wire insertions at `t`;
+//! - optional `i1_a..` (mean coil current over the interval) and
+//!   `r1_ohm..` (coil resistance at `t`), where the lab has a current
+//!   sense resistor and a coil-voltage tap. The thermal stage of the
+//!   identification needs them; without them it fits the thermal
+//!   parameters from the angle alone.
+
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use super::IdentifyError;
+use plant_common::csv_input::Table;
+
+/// Column names of a log with `planes` angles (1: θ; 2: α, β), in order.
+pub fn columns(planes: usize, electrical: bool) -> Vec<String> {
+    let coils = 2 * planes;
+    let sensors = if planes == 1 { 1 } else { 4 };
+    let mut c = vec!["t_s".to_string()];
+    c.extend((1..=coils).map(|k| format!("v{k}_v")));
+    c.push("cam_capture_s".into());
+    if planes == 1 {
+        c.push("cam_theta_deg".into());
+    } else {
+        c.push("cam_alpha_deg".into());
+        c.push("cam_beta_deg".into());
+    }
+    c.extend((1..=sensors).map(|k| format!("d{k}_mm")));
+    if electrical {
+        c.extend((1..=coils).map(|k| format!("i{k}_a")));
+        c.extend((1..=coils).map(|k| format!("r{k}_ohm")));
+    }
+    c
+}
+
+/// A recorded excitation session (see the module docs).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExcitationLog {
+    /// Angles: 1 (2D) or 2 (3D).
+    pub planes: usize,
+    /// Row interval Δ (s).
+    pub period_s: f64,
+    /// Row times (s), `k·Δ`.
+    pub t_s: Vec<f64>,
+    /// Mean driver input per coil over each row's interval (V), paper
+    /// numbering (2D: coils 1, 2 in slots 0, 1).
+    pub volts: Vec<[f64; 4]>,
+    /// Capture time of the newest available camera frame (s; −1 = none).
+    pub cam_capture_s: Vec<f64>,
+    /// Its angles (deg).
+    pub cam_deg: Vec<[f64; 2]>,
+    /// Wire insertions (mm), sensors in paper numbering (2D: slot 0).
+    pub wire_mm: Vec<[f64; 4]>,
+    /// Mean coil current over each interval (A), when logged.
+    pub current_a: Option<Vec<[f64; 4]>>,
+    /// Coil resistance at each row (Ω), when logged.
+    pub resistance_ohm: Option<Vec<[f64; 4]>>,
+}
+
+impl ExcitationLog {
+    /// Rows.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True when there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+
+    /// Coils: 2 per angle.
+    pub fn coils(&self) -> usize {
+        2 * self.planes
+    }
+
+    /// Wire sensors: 1 (2D) or 4 (3D).
+    pub fn sensors(&self) -> usize {
+        if self.planes == 1 {
+            1
+        } else {
+            4
+        }
+    }
+
+    /// Whether current and resistance were logged.
+    pub fn has_electrical(&self) -> bool {
+        self.current_a.is_some() && self.resistance_ohm.is_some()
+    }
+
+    /// The header and rows as CSV fields (every value finite: the
+    /// recorder only stores finite numbers, and `from_table` only reads
+    /// them).
+    pub fn to_rows(&self) -> (Vec<String>, Vec<Vec<f64>>) {
+        let cols = columns(self.planes, self.has_electrical());
+        let (c, s) = (self.coils(), self.sensors());
+        let rows = (0..self.len())
+            .map(|k| {
+                let mut r = vec![self.t_s[k]];
+                r.extend_from_slice(&self.volts[k][..c]);
+                r.push(self.cam_capture_s[k]);
+                r.extend_from_slice(&self.cam_deg[k][..self.planes]);
+                r.extend_from_slice(&self.wire_mm[k][..s]);
+                if let (Some(i), Some(rr)) = (&self.current_a, &self.resistance_ohm) {
+                    r.extend_from_slice(&i[k][..c]);
+                    r.extend_from_slice(&rr[k][..c]);
+                }
+                r
+            })
+            .collect();
+        (cols, rows)
+    }
+
+    /// Reads a log from a CSV table (read with `csv_input::read_numeric`):
+    /// 2D or 3D from the camera columns, the electrical columns if all are
+    /// there. Rows must be evenly spaced from 0; errors name the file, line
+    /// and column.
+    pub fn from_table(t: &Table) -> Result<Self, IdentifyError> {
+        let planes = if t.has("cam_theta_deg") {
+            1
+        } else if t.has("cam_alpha_deg") {
+            2
+        } else {
+            return Err(t
+                .error(
+                    t.header_line,
+                    None,
+                    format!(
+                        "missing column `cam_theta_deg` (a 2D log) or `cam_alpha_deg` (3D); the header has: {}",
+                        plant_common::csv_input::excerpt(&t.columns.join(", "))
+                    ),
+                )
+                .into());
+        };
+        let electrical = t.has("i1_a") || t.has("r1_ohm");
+        let want = columns(planes, electrical);
+        let idx: Vec<usize> = want.iter().map(|c| t.column(c)).collect::<Result<_, _>>()?;
+        t.require_rows(10, "(a log of at least 10 intervals)")?;
+        let (c, s) = (2 * planes, if planes == 1 { 1 } else { 4 });
+        let mut log = ExcitationLog {
+            planes,
+            current_a: electrical.then(Vec::new),
+            resistance_ohm: electrical.then(Vec::new),
+            ..Default::default()
+        };
+        for row in &t.rows {
+            let v = |j: usize| row.values[idx[j]];
+            let mut j = 0;
+            let mut take = |n: usize| {
+                let mut out = [0.0; 4];
+                for o in out.iter_mut().take(n) {
+                    *o = v(j);
+                    j += 1;
+                }
+                out
+            };
+            let time = take(1)[0];
+            let volts = take(c);
+            let cap = take(1)[0];
+            let cam = take(planes);
+            let wire = take(s);
+            log.t_s.push(time);
+            log.volts.push(volts);
+            log.cam_capture_s.push(cap);
+            log.cam_deg.push([cam[0], cam[1]]);
+            log.wire_mm.push(wire);
+            if electrical {
+                let i = take(c);
+                let r = take(c);
+                if let Some(x) = log.current_a.as_mut() {
+                    x.push(i);
+                }
+                if let Some(x) = log.resistance_ohm.as_mut() {
+                    x.push(r);
+                }
+            }
+        }
+        let dt = log.t_s[1] - log.t_s[0];
+        log.period_s = dt;
+        let col_t = &t.columns[idx[0]];
+        if !(1e-3 - 1e-9..=0.1 + 1e-9).contains(&dt) {
+            return Err(t
+                .error(
+                    t.rows[1].line,
+                    Some(col_t),
+                    format!(
+                        "rows must be 1..100 ms apart, got {} s",
+                        plant_common::short_number(dt)
+                    ),
+                )
+                .into());
+        }
+        for (k, row) in t.rows.iter().enumerate() {
+            let expect = k as f64 * dt;
+            if (log.t_s[k] - expect).abs() > 1e-6 + 1e-9 * expect {
+                return Err(t
+                    .error(
+                        row.line,
+                        Some(col_t),
+                        format!(
+                            "rows must be evenly spaced from 0 ({} s apart): expected {}, got {}",
+                            plant_common::short_number(dt),
+                            plant_common::short_number(expect),
+                            plant_common::short_number(log.t_s[k])
+                        ),
+                    )
+                    .into());
+            }
+            for (j, v) in log.volts[k][..c].iter().enumerate() {
+                if !(0.0..=30.0).contains(v) {
+                    return Err(t
+                        .error(
+                            row.line,
+                            Some(&format!("v{}_v", j + 1)),
+                            format!(
+                                "driver input must be 0..=30 V, got {}",
+                                plant_common::short_number(*v)
+                            ),
+                        )
+                        .into());
+                }
+            }
+            if let Some(r) = &log.resistance_ohm {
+                for (j, v) in r[k][..c].iter().enumerate() {
+                    if *v <= 0.0 {
+                        return Err(t
+                            .error(
+                                row.line,
+                                Some(&format!("r{}_ohm", j + 1)),
+                                "a coil resistance must be > 0",
+                            )
+                            .into());
+                    }
+                }
+            }
+        }
+        Ok(log)
+    }
+
+    /// The rows `from..to` as a log of their own whose time starts at the
+    /// original times (used to cut the held-out part).
+    pub fn slice_rows(&self, to: usize) -> Self {
+        let to = to.min(self.len());
+        ExcitationLog {
+            planes: self.planes,
+            period_s: self.period_s,
+            t_s: self.t_s[..to].to_vec(),
+            volts: self.volts[..to].to_vec(),
+            cam_capture_s: self.cam_capture_s[..to].to_vec(),
+            cam_deg: self.cam_deg[..to].to_vec(),
+            wire_mm: self.wire_mm[..to].to_vec(),
+            current_a: self.current_a.as_ref().map(|v| v[..to].to_vec()),
+            resistance_ohm: self.resistance_ohm.as_ref().map(|v| v[..to].to_vec()),
+        }
+    }
+}
+
+/// Measurement noise a recorder adds to the electrical columns (a lab's
+/// current sense and coil-voltage tap). The twin tests use it; `sim`
+/// records the plant's values as they are.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ElectricalNoise {
+    /// Standard deviation of each current reading (A).
+    pub current_a: f64,
+    /// Standard deviation of each resistance reading (Ω).
+    pub resistance_ohm: f64,
+}
+
+/// What the plant shows at the start of a control period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Observation {
+    /// Newest available camera frame: capture time (s) and angles (deg).
+    pub camera: Option<(f64, [f64; 2])>,
+    /// Wire insertions (mm).
+    pub wire_mm: [f64; 4],
+    /// Coil resistances (Ω).
+    pub resistance_ohm: [f64; 4],
+}
+
+/// Builds an [`ExcitationLog`] one control period at a time.
+#[derive(Clone, Debug)]
+pub struct LogRecorder {
+    log: ExcitationLog,
+    periods_per_row: usize,
+    in_row: usize,
+    volt_sum: [f64; 4],
+    current_sum: [f64; 4],
+    last_camera: (f64, [f64; 2]),
+    noise: ElectricalNoise,
+    rng: ChaCha8Rng,
+}
+
+impl LogRecorder {
+    /// A recorder for `planes` angles, one row every `periods_per_row`
+    /// control periods of `control_period_s`; `electrical` logs currents and
+    /// resistances with `noise` (drawn from `rng`).
+    pub fn new(
+        planes: usize,
+        control_period_s: f64,
+        periods_per_row: usize,
+        electrical: bool,
+        noise: ElectricalNoise,
+        rng: ChaCha8Rng,
+    ) -> Self {
+        Self {
+            log: ExcitationLog {
+                planes,
+                period_s: control_period_s * periods_per_row.max(1) as f64,
+                current_a: electrical.then(Vec::new),
+                resistance_ohm: electrical.then(Vec::new),
+                ..Default::default()
+            },
+            periods_per_row: periods_per_row.max(1),
+            in_row: 0,
+            volt_sum: [0.0; 4],
+            current_sum: [0.0; 4],
+            last_camera: (-1.0, [0.0; 2]),
+            noise,
+            rng,
+        }
+    }
+
+    /// One control period: `obs` at its start, the driver inputs applied
+    /// during it, the coil currents that flowed.
+    pub fn push(&mut self, obs: &Observation, volts: &[f64], currents_a: &[f64]) {
+        if let Some(c) = obs.camera {
+            self.last_camera = c;
+        }
+        if self.in_row == 0 {
+            let k = self.log.t_s.len();
+            self.log.t_s.push(k as f64 * self.log.period_s);
+            self.log.cam_capture_s.push(self.last_camera.0);
+            self.log.cam_deg.push(self.last_camera.1);
+            self.log.wire_mm.push(obs.wire_mm);
+            if let Some(r) = self.log.resistance_ohm.as_mut() {
+                let mut v = obs.resistance_ohm;
+                if let Ok(n) = Normal::new(0.0, self.noise.resistance_ohm) {
+                    for x in v.iter_mut() {
+                        *x = (*x + n.sample(&mut self.rng)).max(1e-3);
+                    }
+                }
+                r.push(v);
+            }
+        }
+        for (s, v) in self.volt_sum.iter_mut().zip(volts) {
+            *s += v;
+        }
+        for (s, i) in self.current_sum.iter_mut().zip(currents_a) {
+            *s += i;
+        }
+        self.in_row += 1;
+        if self.in_row == self.periods_per_row {
+            self.close_row();
+        }
+    }
+
+    fn close_row(&mut self) {
+        let n = self.in_row.max(1) as f64;
+        self.log.volts.push(self.volt_sum.map(|s| s / n));
+        if let Some(c) = self.log.current_a.as_mut() {
+            let mut v = self.current_sum.map(|s| s / n);
+            if let Ok(noise) = Normal::new(0.0, self.noise.current_a) {
+                for x in v.iter_mut() {
+                    *x += noise.sample(&mut self.rng);
+                }
+            }
+            c.push(v);
+        }
+        self.volt_sum = [0.0; 4];
+        self.current_sum = [0.0; 4];
+        self.in_row = 0;
+    }
+
+    /// The log; a partial last row is dropped.
+    pub fn finish(mut self) -> ExcitationLog {
+        if self.in_row > 0 {
+            let k = self.log.volts.len();
+            self.log.t_s.truncate(k);
+            self.log.cam_capture_s.truncate(k);
+            self.log.cam_deg.truncate(k);
+            self.log.wire_mm.truncate(k);
+            if let Some(r) = self.log.resistance_ohm.as_mut() {
+                r.truncate(k);
+            }
+        }
+        self.log
+    }
+}

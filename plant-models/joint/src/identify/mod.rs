@@ -1,0 +1,1064 @@
+//! Identification of the joint's plant from a user's own excitation log
+//! (issue 20): the parameters a lab cannot read off a datasheet, staged so
+//! each stage is well posed, with uncertainties, the parameters the log
+//! does not determine named, and a held-out validation.
+//!
+//! Stages, per plane (the 3D joint's planes are independent in the model,
+//! so α and β are identified apart):
+//! 1. **Electrical and thermal** (only where the log has coil currents
+//!    and resistances): the driver's transconductance g and turn-on
+//!    voltage by linear least squares of the current on the input over the
+//!    unsaturated intervals; then the convection coefficient h (the thermal
+//!    time constant) and the four transformation temperatures by fitting
+//!    the coil's own thermal and phase model, heated by the *measured*
+//!    current, to the measured resistance (the resistance is the phase:
+//!    R = ξR_M + (1 − ξ)R_A). Mechanics plays no part, so this is cheap and
+//!    cannot be confused by the sponge.
+//! 2. **Mechanics and stress**: the whole plane replayed from the logged
+//!    driver inputs ([`replay`]), fitted to the camera angles (and the
+//!    resistances where logged): the four temperatures again together with
+//!    the Clausius–Clapeyron slope (the coil stress comes from the
+//!    mechanics, so the slope can only be seen here), h (stage 1 saw the
+//!    temperatures without the stress shift, which biases h by ≈ 20 % when
+//!    the slope is 0.08 K/MPa), the sponge's modulus and damping and the
+//!    link inertia; g stays at stage 1's value, or
+//!    joins this stage when stage 1 could not fit it (no electrical
+//!    columns, or no spread of unsaturated inputs in the fitted part).
+//!    It runs from two starting points picked on a coarse (h, slope) grid
+//!    after a pre-fit of the sponge, and keeps the better fit
+//!    (`mechanics_starts`): from stage 1's values alone it can settle
+//!    in a wrong basin.
+//! 3. **Wire jamming**: the buckling gain and the two lag ceilings, fitted
+//!    to the wire readings with the stage-2 plant moving the link; the
+//!    model side is the expected reading over the random stick events
+//!    ([`replay::expected_wire_readings`]).
+//!
+//! Each stage is Levenberg–Marquardt ([`lm`]). A parameter's 1σ is the
+//! larger of the Gauss–Newton one and the block-robust one over log
+//! segments ([`lm::block_robust_std`]: 10 s segments, lag episodes for
+//! the wires), for the wires with a reading offset of ±½ coder count
+//! added ([`lm::systematic_shift`]); see `stage`. A parameter whose 1σ exceeds its threshold
+//! ([`params::Param::scale`]) is **not identifiable from this log**: it is
+//! reported as such, put back to its prior value and the stage is fitted
+//! again without it. The fit uses the first `fit_fraction` of the log; the
+//! rest is held out, and the identified plane predicts it from the logged
+//! inputs alone (the replay runs the whole log from t = 0): predicted vs
+//! recorded camera angle, rms and max error in degrees.
+//!
+//! Never fitted (fixed at the prior, i.e. the plant file given or the
+//! defaults): coil spring rates and rest lengths, resistivities, geometry,
+//! link mass, ambient temperature, latent heat, the sponge's stiffness ratio
+//! and shear fraction, the wires' geometry and the *random* stick events'
+//! rate and sizes (the wire stage averages over sticks at the prior's).
+//! Left out: the 3D joint's coupling between planes (the model has none);
+//! the weighting between the angle and resistance residuals is a priori
+//! (0.1° and 0.02 Ω), not estimated.
+
+pub mod hidden;
+pub mod lm;
+pub mod log;
+pub mod params;
+pub mod plan;
+pub mod replay;
+pub mod twin;
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::{Joint2dParams, Joint3dParams, PlaneParams, PlantError, WireSensorParams};
+pub use lm::{LmOptions, LmResult};
+pub use log::{ElectricalNoise, ExcitationLog, LogRecorder, Observation};
+pub use params::{Param, Scale};
+pub use plan::ExcitationPlan;
+use plant_common::csv_input::CsvError;
+pub use replay::{replay, PlaneMap, PlaneModel, Prediction};
+
+/// Why identification failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum IdentifyError {
+    /// The log file.
+    #[error(transparent)]
+    Csv(#[from] CsvError),
+    /// The log's content.
+    #[error("log: {0}")]
+    Log(String),
+    /// A parameter set the plant refuses (prior or fitted).
+    #[error("plant: {0}")]
+    Plant(PlantError),
+    /// A replay went unstable.
+    #[error("replay unstable: {0} is not finite")]
+    Unstable(String),
+    /// Fewer residuals than parameters.
+    #[error(
+        "{residuals} data points cannot determine {parameters} parameters: record a longer log"
+    )]
+    TooFewData {
+        /// Residuals.
+        residuals: usize,
+        /// Parameters.
+        parameters: usize,
+    },
+}
+
+impl From<PlantError> for IdentifyError {
+    fn from(e: PlantError) -> Self {
+        IdentifyError::Plant(e)
+    }
+}
+
+/// Settings of an identification.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IdentifyOptions {
+    /// Share of the log (from its start) the fit uses; the rest validates.
+    pub fit_fraction: f64,
+    /// Substep of the replays (s).
+    pub substep_s: f64,
+    /// Minimiser settings.
+    pub lm: LmOptions,
+    /// A priori noise of a camera angle (deg), the angle residuals' scale.
+    pub angle_sigma_deg: f64,
+    /// A priori noise of a resistance reading (Ω).
+    pub resistance_sigma_ohm: f64,
+    /// Random realisations of the stick events the wire stage averages
+    /// over ([`replay::expected_wire_readings`]); each costs a pass of the
+    /// wire model (not the plane) over the log per evaluation.
+    pub stick_realisations: usize,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        Self {
+            fit_fraction: 0.75,
+            substep_s: 1e-3,
+            lm: LmOptions::default(),
+            angle_sigma_deg: 0.1,
+            resistance_sigma_ohm: 0.02,
+            stick_realisations: replay::STICK_REALISATIONS,
+        }
+    }
+}
+
+/// One identified parameter.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Estimate {
+    /// Which.
+    pub param: Param,
+    /// Its field in the plane's parameters.
+    pub field: String,
+    /// Unit.
+    pub unit: String,
+    /// The value written to the plant file (the prior where not
+    /// identifiable).
+    pub value: f64,
+    /// The fit's own value: `value` where identifiable; for a parameter
+    /// not identifiable, what the fit found before it was put back.
+    pub fitted: f64,
+    /// The prior (plant file given, or default).
+    pub prior: f64,
+    /// 1σ (same unit; +∞ where the log does not determine it): the larger
+    /// of the white-noise and the block-robust one (module docs).
+    pub std: f64,
+    /// The white-noise (Gauss–Newton) 1σ alone, for comparison: it assumes
+    /// independent residuals and a right model.
+    pub white_std: f64,
+    /// Whether the log determines it (1σ within the parameter's threshold).
+    pub identifiable: bool,
+    /// The stage that fitted it.
+    pub stage: String,
+}
+
+/// One stage's fit.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StageReport {
+    /// Name.
+    pub name: String,
+    /// Minimiser iterations (both passes).
+    pub iterations: usize,
+    /// Replays.
+    pub evaluations: usize,
+    /// Residuals.
+    pub residuals: usize,
+    /// rms of the scaled residuals at the optimum.
+    pub rms_scaled: f64,
+    /// The minimiser's last pass ran out of iterations: the estimates may
+    /// not be the optimum (raise `LmOptions::max_iterations`).
+    pub stopped_by_budget: bool,
+    /// Starting points of the first fit (the best result was kept).
+    pub starts: usize,
+    /// Which of them (0-based, best-ranked first) the kept fit ran from.
+    pub best_start: usize,
+}
+
+/// A held-out camera frame: recorded and predicted angle.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Frame {
+    /// Capture time (s).
+    pub t_s: f64,
+    /// Camera angle (deg).
+    pub recorded_deg: f64,
+    /// The identified plane's prediction (deg).
+    pub predicted_deg: f64,
+}
+
+/// Prediction error of the identified plane.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Validation {
+    /// rms angle error over the fitted part (deg).
+    pub fit_rms_deg: f64,
+    /// rms angle error over the held-out part (deg).
+    pub heldout_rms_deg: f64,
+    /// Largest held-out angle error (deg).
+    pub heldout_max_deg: f64,
+    /// Where the held-out part starts (s).
+    pub heldout_from_s: f64,
+    /// rms over the held-out part of the prior model (before
+    /// identification), for comparison (deg); none when the prior's replay
+    /// went unstable.
+    pub prior_heldout_rms_deg: Option<f64>,
+    /// Every frame of the log with its prediction.
+    pub frames: Vec<Frame>,
+}
+
+/// What identification found for one plane.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlaneReport {
+    /// "theta", "alpha" or "beta".
+    pub plane: String,
+    /// The parameters, in stage order.
+    pub estimates: Vec<Estimate>,
+    /// The stages run.
+    pub stages: Vec<StageReport>,
+    /// Held-out validation.
+    pub validation: Validation,
+}
+
+impl PlaneReport {
+    /// The estimate of `p`, if fitted.
+    pub fn estimate(&self, p: Param) -> Option<&Estimate> {
+        self.estimates.iter().find(|e| e.param == p)
+    }
+}
+
+/// Parameters never fitted (see the module docs), for reports.
+pub const NEVER_FITTED: &[&str] = &[
+    "coil spring rates and rest lengths",
+    "resistivities (R_M, R_A), wire diameter and length",
+    "coil and wire geometry",
+    "link mass and centre of mass",
+    "ambient temperature and latent heat",
+    "sponge stiffness ratio and shear fraction",
+    "wire stick-event rate and sizes (random; the wire stage averages over them at the prior's rate and sizes)",
+];
+
+/// Identifies the 2D joint from `log`, starting from `prior`.
+pub fn identify_2d(
+    log: &ExcitationLog,
+    prior: &Joint2dParams,
+    opts: &IdentifyOptions,
+) -> Result<(Joint2dParams, Vec<PlaneReport>), IdentifyError> {
+    if log.planes != 1 {
+        return Err(IdentifyError::Log(
+            "a 3D log (α and β columns) given for the 2D joint".into(),
+        ));
+    }
+    let model = PlaneModel {
+        plane: prior.plane.clone(),
+        wires: vec![prior.wire.clone()],
+        settle_s: prior.sim.settle_s,
+        substep_s: opts.substep_s,
+    };
+    let (m, report) = identify_plane(log, PlaneMap::of(1, 0), model, "theta", opts)?;
+    let mut out = prior.clone();
+    out.plane = m.plane;
+    out.wire = m.wires[0].clone();
+    out.validate()?;
+    Ok((out, vec![report]))
+}
+
+/// Identifies the 3D joint from `log` (α and β apart, in parallel).
+pub fn identify_3d(
+    log: &ExcitationLog,
+    prior: &Joint3dParams,
+    opts: &IdentifyOptions,
+) -> Result<(Joint3dParams, Vec<PlaneReport>), IdentifyError> {
+    if log.planes != 2 {
+        return Err(IdentifyError::Log(
+            "a 2D log (θ columns) given for the 3D joint".into(),
+        ));
+    }
+    let planes: Vec<(PlaneParams, &str)> =
+        vec![(prior.alpha.clone(), "alpha"), (prior.beta.clone(), "beta")];
+    let results: Vec<Result<(PlaneModel, PlaneReport), IdentifyError>> = planes
+        .into_par_iter()
+        .enumerate()
+        .map(|(p, (plane, name))| {
+            let map = PlaneMap::of(2, p);
+            let wires: Vec<WireSensorParams> = map
+                .sensors
+                .iter()
+                .map(|&s| prior.wires[s].clone())
+                .collect();
+            let model = PlaneModel {
+                plane,
+                wires,
+                settle_s: prior.sim.settle_s,
+                substep_s: opts.substep_s,
+            };
+            identify_plane(log, map, model, name, opts)
+        })
+        .collect();
+    let mut out = prior.clone();
+    let mut reports = Vec::new();
+    for (p, r) in results.into_iter().enumerate() {
+        let (m, rep) = r?;
+        let map = PlaneMap::of(2, p);
+        for (slot, w) in map.sensors.iter().zip(m.wires) {
+            out.wires[*slot] = w;
+        }
+        if p == 0 {
+            out.alpha = m.plane;
+        } else {
+            out.beta = m.plane;
+        }
+        reports.push(rep);
+    }
+    out.validate()?;
+    Ok((out, reports))
+}
+
+/// Camera frames of rows `0..rows`, once each: (capture time, angle).
+fn frames(log: &ExcitationLog, plane: usize, rows: usize) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    let mut last = f64::NEG_INFINITY;
+    for k in 0..rows.min(log.len()) {
+        let c = log.cam_capture_s[k];
+        if c >= 0.0 && c > last {
+            out.push((c, log.cam_deg[k][plane]));
+            last = c;
+        }
+    }
+    out
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+/// Errors a stage's data cannot average out, for the model at the fit:
+/// one change of every residual per 1σ of each (see `stage`).
+type Systematic<'a> = dyn Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a;
+
+/// A stage: fits `free` (coordinates from `model`) with `residuals`,
+/// drops the undetermined ones back to `prior` and fits again. A
+/// coordinate's 1σ is the larger of the white-noise one and the
+/// block-robust one over the log segments `blocks` (one index per
+/// residual; [`lm::block_robust_std`]), so residuals correlated in time
+/// or a segment the model fits badly widen it, combined in quadrature
+/// with the shift each of `systematic(model at the fit)` would cause (one
+/// change of every residual per 1σ of an error the data cannot average
+/// out; [`lm::systematic_shift`]). With
+/// `starts` (models that differ from `model` only in `free`), the first
+/// fit runs from each of them instead and keeps the lowest cost (the
+/// first on a tie), so the result does not depend on the thread count.
+#[allow(clippy::too_many_arguments)] // one call site per stage; a struct would only rename them
+fn stage<F>(
+    name: &str,
+    model: &mut PlaneModel,
+    prior: &PlaneModel,
+    free: &[Param],
+    opts: &IdentifyOptions,
+    residuals: F,
+    blocks: &[usize],
+    systematic: &Systematic,
+    starts: &[PlaneModel],
+    estimates: &mut Vec<Estimate>,
+    stages: &mut Vec<StageReport>,
+) -> Result<(), IdentifyError>
+where
+    F: Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
+    let mut active: Vec<Param> = free.to_vec();
+    let mut undetermined: Vec<(Param, f64, f64, f64)> = Vec::new();
+    // (1σ used, white-noise 1σ) per coordinate of a fit.
+    let spread = |r: &LmResult, at: &PlaneModel| -> Result<(Vec<f64>, Vec<f64>), IdentifyError> {
+        if blocks.len() != r.m {
+            return Ok((r.std.clone(), r.std.clone()));
+        }
+        let robust = lm::block_robust_std(&r.jacobian, &r.residuals, blocks);
+        let mut used: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
+        for shift in systematic(at)?.iter().filter(|s| s.len() == r.m) {
+            let dx = lm::systematic_shift(&r.jacobian, shift);
+            for (u, d) in used.iter_mut().zip(dx) {
+                *u = u.hypot(d);
+            }
+        }
+        Ok((used, r.std.clone()))
+    };
+    let mut iterations = 0;
+    let mut evaluations = 0;
+    let mut last: Option<LmResult> = None;
+    let mut best_start = 0;
+    for pass in 0..3 {
+        if active.is_empty() {
+            break;
+        }
+        let base = model.clone();
+        let act = active.clone();
+        let apply = |x: &[f64]| {
+            let mut m = base.clone();
+            for (p, v) in act.iter().zip(x) {
+                p.set(&mut m, p.from_coord(*v));
+            }
+            m
+        };
+        let x0_of =
+            |m: &PlaneModel| -> Vec<f64> { active.iter().map(|p| p.to_coord(p.get(m))).collect() };
+        let f = |x: &[f64]| residuals(&apply(x));
+        let x0s: Vec<Vec<f64>> = if pass == 0 && !starts.is_empty() {
+            starts.iter().map(x0_of).collect()
+        } else {
+            vec![x0_of(model)]
+        };
+        let mut best: Option<LmResult> = None;
+        let mut first_error = None;
+        for (k, x0) in x0s.iter().enumerate() {
+            match lm::levenberg_marquardt(f, x0, opts.lm) {
+                Ok(r) => {
+                    iterations += r.iterations;
+                    evaluations += r.evaluations;
+                    if best.as_ref().is_none_or(|b| r.cost < b.cost) {
+                        best = Some(r);
+                        if pass == 0 {
+                            best_start = k;
+                        }
+                    }
+                }
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        let Some(r) = best else {
+            return Err(first_error.unwrap_or_else(|| {
+                IdentifyError::Log(format!("stage {name}: no starting point"))
+            }));
+        };
+        *model = apply(&r.x);
+        let (sd, white) = spread(&r, model)?;
+        let bad: Vec<usize> = (0..active.len())
+            .filter(|&j| !active[j].determined(sd[j]))
+            .collect();
+        if bad.is_empty() {
+            last = Some(r);
+            break;
+        }
+        for &j in bad.iter().rev() {
+            let p = active.remove(j);
+            let v = p.get(model);
+            undetermined.push((p, v, p.value_std(v, sd[j]), p.value_std(v, white[j])));
+            p.set(model, p.get(prior));
+        }
+        last = Some(r);
+    }
+    let r = last.ok_or_else(|| IdentifyError::Log(format!("stage {name}: nothing to fit")))?;
+    stages.push(StageReport {
+        name: name.into(),
+        iterations,
+        evaluations,
+        residuals: r.m,
+        rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
+        stopped_by_budget: r.stopped_by_budget,
+        starts: starts.len().max(1),
+        best_start,
+    });
+    let (sd, white) = spread(&r, model)?;
+    for (j, p) in active.iter().enumerate() {
+        let v = p.get(model);
+        let at = |s: &[f64]| p.value_std(v, s.get(j).copied().unwrap_or(f64::INFINITY));
+        estimates.push(Estimate {
+            param: *p,
+            field: p.field().into(),
+            unit: p.unit().into(),
+            value: v,
+            fitted: v,
+            prior: p.get(prior),
+            std: at(&sd),
+            white_std: at(&white),
+            identifiable: true,
+            stage: name.into(),
+        });
+    }
+    for (p, fitted, sd, white) in undetermined {
+        estimates.push(Estimate {
+            param: p,
+            field: p.field().into(),
+            unit: p.unit().into(),
+            value: p.get(model),
+            fitted,
+            prior: p.get(prior),
+            std: sd,
+            white_std: white,
+            identifiable: false,
+            stage: name.into(),
+        });
+    }
+    Ok(())
+}
+
+/// Length of the log segments (s) over which the block-robust 1σ groups
+/// residuals (see `stage`): longer than the plan's transients (a pulse
+/// and its cooling, ≈ 5–10 s; a wire's lag lasts until the next pull) so
+/// that residuals correlated in time fall mostly in one segment, short
+/// enough for 45 segments in the fitted part of a 10-minute log.
+pub const UNCERTAINTY_BLOCK_S: f64 = 10.0;
+
+/// Fewest segments in the fitted part: a shorter log gets shorter
+/// segments (the compact 60 s plan: 2.25 s), since a sandwich over a few
+/// segments is itself too uncertain to judge by.
+pub const UNCERTAINTY_MIN_BLOCKS: usize = 20;
+
+/// Segment indices (from `first`) of one wire's rows by lag episode: a new
+/// segment starts once the wire has been pulled back from the deepest
+/// insertion of the present segment by more than 1.5 times the lag
+/// ceiling there plus the longest stick (so the lag, random sticks
+/// included, is gone in the recorded joint as in the model, even with
+/// ceilings 50 % off). `ideal_mm` is the geometric insertion per row.
+fn lag_episodes(ideal_mm: &[f64], wire: &WireSensorParams, first: usize) -> Vec<usize> {
+    let j = &wire.jam;
+    let rest = wire.geometry.insertion_at_rest_mm;
+    let mut id = first;
+    let mut deepest = f64::NEG_INFINITY;
+    ideal_mm
+        .iter()
+        .map(|&d| {
+            deepest = deepest.max(d);
+            let ceiling = j.max_lag_mm + j.max_lag_per_mm * (deepest - rest).max(0.0);
+            if deepest - d > 1.5 * ceiling + j.stick_max_mm {
+                id += 1;
+                deepest = d;
+            }
+            id
+        })
+        .collect()
+}
+
+/// Stress slopes of the mechanics stage's starting grid (K/MPa): from
+/// near "off" across NiTi's 0.07–0.14 K/MPa (README, parameter table).
+/// A choice, not fitted to the twin: the grid does not contain the hidden
+/// plant's slope.
+pub const START_SLOPES_K_PER_MPA: [f64; 6] = [0.02, 0.045, 0.07, 0.095, 0.12, 0.145];
+
+/// Factors on stage 1's convection coefficient in the same grid. Stage 1
+/// sees the temperatures without the stress shift, which biases its h
+/// upwards (by 37 % on the 10-minute 2D twin, slope 0.08 K/MPa), hence
+/// the grid leans low.
+pub const START_CONVECTION_FACTORS: [f64; 4] = [0.65, 0.8, 1.0, 1.2];
+
+/// Starting points kept from the grid (a Levenberg–Marquardt fit runs
+/// from each; the lowest cost wins).
+pub const MECHANICS_STARTS: usize = 2;
+
+/// Iterations of the sponge's pre-fit before the grid.
+const SPONGE_PREFIT_ITERATIONS: usize = 10;
+
+/// The mechanics stage's starting points, and the replays spent finding
+/// them. From stage 1's values alone, Levenberg–Marquardt can settle in a
+/// basin with h far high and the slope far low (on the 10-minute 2D twin:
+/// h +38 %, slope −46 %, sponge modulus −27 %, at 2.6 times the truth's
+/// cost), because h and the slope trade along a long curved valley. So:
+/// 1. the sponge's modulus and damping are fitted alone first (at most
+///    [`SPONGE_PREFIT_ITERATIONS`]), the rest at `model`: a sponge 40 %
+///    off misranks the grid (the angles' scale is wrong everywhere);
+/// 2. the cost of every point of the (h, slope) grid
+///    ([`START_CONVECTION_FACTORS`] × h of `model`,
+///    [`START_SLOPES_K_PER_MPA`]) and of `model` itself, in parallel;
+/// 3. the [`MECHANICS_STARTS`] cheapest with distinct slopes, best first
+///    (ties in grid order). A point whose replay fails is left out.
+///
+/// The grid keeps stage 1's temperatures, which include the mean stress
+/// shift, so its costs favour low slopes; the fits from each start, not
+/// the grid's ranking, decide.
+fn mechanics_starts<F>(model: &PlaneModel, residuals: &F) -> (Vec<PlaneModel>, usize)
+where
+    F: Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
+    let mut model = model.clone();
+    let mut evaluations = 0;
+    let sponge = [Param::SpongeModulus, Param::SpongeDamping];
+    if sponge.iter().all(|p| p.get(&model).is_finite()) {
+        let base = model.clone();
+        let apply = |x: &[f64]| {
+            let mut m = base.clone();
+            for (p, v) in sponge.iter().zip(x) {
+                p.set(&mut m, p.from_coord(*v));
+            }
+            m
+        };
+        let x0: Vec<f64> = sponge.iter().map(|p| p.to_coord(p.get(&base))).collect();
+        let opts = LmOptions {
+            max_iterations: SPONGE_PREFIT_ITERATIONS,
+            ..LmOptions::default()
+        };
+        // A pre-fit that fails leaves the sponge as it was: the stage's
+        // own fits report any real failure.
+        if let Ok(r) = lm::levenberg_marquardt(|x: &[f64]| residuals(&apply(x)), &x0, opts) {
+            evaluations += r.evaluations;
+            model = apply(&r.x);
+        }
+    }
+    let h0 = Param::Convection.get(&model);
+    let mut grid = vec![model.clone()];
+    for f in START_CONVECTION_FACTORS {
+        for s in START_SLOPES_K_PER_MPA {
+            let mut m = model.clone();
+            Param::Convection.set(&mut m, f * h0);
+            Param::StressShift.set(&mut m, s);
+            grid.push(m);
+        }
+    }
+    let costs: Vec<Option<f64>> = grid
+        .par_iter()
+        .map(|m| {
+            residuals(m)
+                .ok()
+                .map(|r| r.iter().map(|x| x * x).sum::<f64>())
+                .filter(|c| c.is_finite())
+        })
+        .collect();
+    evaluations += grid.len();
+    let mut order: Vec<usize> = (0..grid.len()).filter(|&k| costs[k].is_some()).collect();
+    order.sort_by(|&a, &b| {
+        costs[a]
+            .partial_cmp(&costs[b])
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let mut out: Vec<PlaneModel> = Vec::new();
+    for k in order {
+        let s = Param::StressShift.get(&grid[k]);
+        if out.iter().all(|m| Param::StressShift.get(m) != s) {
+            out.push(grid[k].clone());
+        }
+        if out.len() == MECHANICS_STARTS {
+            break;
+        }
+    }
+    (out, evaluations)
+}
+
+/// Linear least squares i = g·(v − v_on) over one plane's unsaturated
+/// intervals; the estimates with their 1σ.
+fn driver_regression(
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+    max_current_a: f64,
+) -> Option<[(f64, f64); 2]> {
+    let cur = log.current_a.as_ref()?;
+    let mut pts = Vec::new();
+    for (volts, amps) in log.volts.iter().zip(cur).take(rows) {
+        for &c in &map.coils {
+            let (v, i) = (volts[c], amps[c]);
+            // Conducting and clear of the channel limit (and of the supply
+            // saturation, which sits above 0.6 A for the defaults).
+            if i > 0.02 && i < 0.85 * max_current_a {
+                pts.push((v, i));
+            }
+        }
+    }
+    if pts.len() < 10 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (mv, mi) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mv).powi(2)).sum();
+    if sxx <= 1e-12 {
+        return None;
+    }
+    let g = pts.iter().map(|p| (p.0 - mv) * (p.1 - mi)).sum::<f64>() / sxx;
+    let b = mi - g * mv;
+    let s2 = pts.iter().map(|p| (p.1 - b - g * p.0).powi(2)).sum::<f64>() / (n - 2.0);
+    let sd_g = (s2 / sxx).sqrt();
+    let sd_b = (s2 * (1.0 / n + mv * mv / sxx)).sqrt();
+    let v_on = -b / g;
+    // v_on = −b/g: first-order propagation (b and g correlated through mv;
+    // the dominant term is sd_b/g for inputs far from 0).
+    let sd_von = ((sd_b / g).powi(2) + (b * sd_g / (g * g)).powi(2)).sqrt();
+    Some([(g, sd_g), (v_on, sd_von)])
+}
+
+/// The staged identification of one plane (see the module docs).
+pub fn identify_plane(
+    log: &ExcitationLog,
+    map: PlaneMap,
+    prior: PlaneModel,
+    name: &str,
+    opts: &IdentifyOptions,
+) -> Result<(PlaneModel, PlaneReport), IdentifyError> {
+    if !(0.2..=1.0).contains(&opts.fit_fraction) {
+        return Err(IdentifyError::Log(format!(
+            "fit fraction must be 0.2..=1, got {}",
+            plant_common::short_number(opts.fit_fraction)
+        )));
+    }
+    let fit_rows = ((log.len() as f64) * opts.fit_fraction).round() as usize;
+    // Log segments of the block-robust 1σ (see `stage`).
+    let block_s = UNCERTAINTY_BLOCK_S
+        .min(fit_rows as f64 * log.period_s / UNCERTAINTY_MIN_BLOCKS as f64)
+        .max(log.period_s);
+    let block_of = |t_s: f64| (t_s / block_s).floor().max(0.0) as usize;
+    // Residuals laid out as `series` series of the fitted rows, one after
+    // the other (thermal: per coil; wires: per sensor).
+    let row_blocks = |series: usize| -> Vec<usize> {
+        (0..series)
+            .flat_map(|_| (0..fit_rows).map(|k| block_of(k as f64 * log.period_s)))
+            .collect()
+    };
+    let mut model = prior.clone();
+    let mut estimates = Vec::new();
+    let mut stages = Vec::new();
+    let electrical = log.has_electrical();
+
+    // Stage 1: electrical and thermal, from current and resistance.
+    let mut driver_fitted = false;
+    if electrical {
+        if let Some([(g, sd_g), (v_on, sd_v)]) =
+            driver_regression(log, map, fit_rows, prior.plane.driver.max_current_a)
+        {
+            driver_fitted = true;
+            Param::Transconductance.set(&mut model, g);
+            Param::TurnOn.set(&mut model, v_on);
+            for (p, v, sd) in [
+                (Param::Transconductance, g, sd_g),
+                (Param::TurnOn, v_on, sd_v),
+            ] {
+                let coord_sd = match p.scale() {
+                    Scale::Log { .. } => sd / v,
+                    Scale::Linear { .. } => sd,
+                };
+                estimates.push(Estimate {
+                    param: p,
+                    field: p.field().into(),
+                    unit: p.unit().into(),
+                    value: v,
+                    fitted: v,
+                    prior: p.get(&prior),
+                    std: sd,
+                    white_std: sd,
+                    identifiable: p.determined(coord_sd),
+                    stage: "electrical".into(),
+                });
+            }
+            stages.push(StageReport {
+                name: "electrical".into(),
+                iterations: 1,
+                evaluations: 0,
+                residuals: 0,
+                rms_scaled: 0.0,
+                stopped_by_budget: false,
+                starts: 1,
+                best_start: 0,
+            });
+        }
+        let cur = log.current_a.as_ref().map(|c| c[..fit_rows].to_vec());
+        let res = log.resistance_ohm.as_ref().map(|c| c[..fit_rows].to_vec());
+        if let (Some(cur), Some(res)) = (cur, res) {
+            let sigma = opts.resistance_sigma_ohm;
+            let thermal = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+                let mut out = Vec::with_capacity(2 * cur.len());
+                for &c in &map.coils {
+                    let i: Vec<f64> = cur.iter().map(|r| r[c]).collect();
+                    let pred =
+                        replay::replay_thermal(&m.plane.coil, &i, log.period_s, m.substep_s)?;
+                    out.extend(pred.iter().zip(&res).map(|(p, r)| (p - r[c]) / sigma));
+                }
+                Ok(out)
+            };
+            stage(
+                "thermal",
+                &mut model,
+                &prior,
+                &[
+                    Param::Convection,
+                    Param::AusteniteStart,
+                    Param::AusteniteFinish,
+                    Param::MartensiteStart,
+                    Param::MartensiteFinish,
+                ],
+                opts,
+                thermal,
+                &row_blocks(map.coils.len()),
+                &|_: &PlaneModel| Ok(Vec::new()),
+                &[],
+                &mut estimates,
+                &mut stages,
+            )?;
+        }
+    }
+
+    // Stage 2: mechanics (and the stress slope) from the camera angles.
+    let fit_frames = frames(log, map.plane, fit_rows);
+    let sig_a = opts.angle_sigma_deg;
+    let sig_r = opts.resistance_sigma_ohm;
+    let mech = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+        let pred = replay(m, log, map, fit_rows)?;
+        let mut out: Vec<f64> = fit_frames
+            .iter()
+            .filter_map(|(t, a)| pred.angle_at(*t).map(|p| (p - a) / sig_a))
+            .collect();
+        if let Some(res) = &log.resistance_ohm {
+            for (k, r) in pred.resistance_ohm.iter().enumerate() {
+                for (j, &c) in map.coils.iter().enumerate() {
+                    out.push((r[j] - res[k][c]) / sig_r);
+                }
+            }
+        }
+        Ok(out)
+    };
+    // The mechanics residuals' layout: the fitted frames, then the
+    // resistances row by row (both coils). Were a frame to have no
+    // prediction, the lengths would differ and `stage` would fall back to
+    // the white-noise 1σ.
+    let mut mech_blocks: Vec<usize> = fit_frames.iter().map(|(t, _)| block_of(*t)).collect();
+    if log.resistance_ohm.is_some() {
+        for k in 0..fit_rows {
+            mech_blocks.extend([block_of(k as f64 * log.period_s); 2]);
+        }
+    }
+    let mut free = vec![
+        Param::Convection,
+        Param::AusteniteStart,
+        Param::AusteniteFinish,
+        Param::MartensiteStart,
+        Param::MartensiteFinish,
+        Param::StressShift,
+        Param::SpongeModulus,
+        Param::SpongeDamping,
+        Param::LinkInertia,
+    ];
+    // Without a driver regression (no current column, or no spread of
+    // unsaturated inputs in the fitted part) g is fitted here, from the
+    // angles and resistances, as for a log without electrical columns;
+    // the turn-on voltage then stays at its prior, unreported.
+    if !driver_fitted {
+        free.insert(0, Param::Transconductance);
+    }
+    // Stage 1's h and temperatures were fitted without the stress (which
+    // needs the mechanics); they start stage 2, whose estimates replace
+    // them.
+    estimates.retain(|e| !free.contains(&e.param));
+    // The slope starts inside its range so the first Jacobian sees both
+    // signs of change.
+    if Param::StressShift.get(&model) <= 0.0 {
+        Param::StressShift.set(&mut model, 0.02);
+    }
+    let (starts, start_evaluations) = mechanics_starts(&model, &mech);
+    stage(
+        "mechanics",
+        &mut model,
+        &prior,
+        &free,
+        opts,
+        mech,
+        &mech_blocks,
+        &|_: &PlaneModel| Ok(Vec::new()),
+        &starts,
+        &mut estimates,
+        &mut stages,
+    )?;
+    if let Some(st) = stages.last_mut() {
+        st.evaluations += start_evaluations;
+    }
+
+    // Stage 3: wire jamming from the wire readings. The jamming
+    // parameters do not move the link, so the wires' paths come from one
+    // replay of the stage-2 plane; each evaluation then averages the
+    // random sensor over stick events along them (`replay` module docs).
+    let paths = replay::replay_with_wire_paths(&model, log, map, fit_rows)?;
+    let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+        let expected =
+            replay::expected_wire_readings(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+        let mut out = Vec::with_capacity(map.sensors.len() * fit_rows);
+        for (j, &s) in map.sensors.iter().enumerate() {
+            out.extend(
+                expected[j]
+                    .iter()
+                    .enumerate()
+                    .map(|(k, p)| (p - log.wire_mm[k][s]) / 0.01),
+            );
+        }
+        Ok(out)
+    };
+    // The wire residuals' segments are lag episodes, not fixed times: a
+    // stick's extra lag lasts until the wire is pulled clear, so residuals
+    // are correlated over a whole push (`lag_episodes`).
+    let episodes = {
+        let n = paths.substeps_per_row;
+        let mut ids = Vec::with_capacity(map.sensors.len() * fit_rows);
+        for (path, w) in paths.wire_path_mm.iter().zip(&model.wires) {
+            let per_row: Vec<f64> = (0..fit_rows).map(|k| path[k * n]).collect();
+            let first = ids.iter().max().map_or(0, |b: &usize| b + 1);
+            ids.extend(lag_episodes(&per_row, w, first));
+        }
+        ids
+    };
+    // A coder reads whole counts, and a joint returns to nearly the same
+    // rest pose after each move, so the rounding there is nearly the same
+    // every time: an offset of the readings the fit cannot average out,
+    // uniform within ±½ count (1σ = count/√12), one per sensor.
+    // The mean over a finite number of stick realisations is itself
+    // noisy: realisation r's deviation from the mean, scaled by
+    // 1/√(K(K − 1)), is one more such change, so that their shifts add up
+    // to the variance of the mean's shift.
+    let systematic = |m: &PlaneModel| -> Result<Vec<Vec<f64>>, IdentifyError> {
+        let mut out: Vec<Vec<f64>> = m
+            .wires
+            .iter()
+            .enumerate()
+            .map(|(j, w)| {
+                let per = w.mm_per_count / 12f64.sqrt() / 0.01;
+                (0..map.sensors.len())
+                    .flat_map(|i| std::iter::repeat_n(if i == j { per } else { 0.0 }, fit_rows))
+                    .collect()
+            })
+            .collect();
+        let sensors =
+            replay::wire_realisations(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+        let k = sensors.first().map_or(0, |s| s.1.len());
+        if k > 1 {
+            let scale = 1.0 / (0.01 * ((k * (k - 1)) as f64).sqrt());
+            for r in 0..k {
+                let mut v = Vec::with_capacity(sensors.len() * fit_rows);
+                for (mean, runs) in &sensors {
+                    v.extend(runs[r].iter().zip(mean).map(|(x, m)| (x - m) * scale));
+                }
+                out.push(v);
+            }
+        }
+        Ok(out)
+    };
+    stage(
+        "wire jamming",
+        &mut model,
+        &prior,
+        &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
+        opts,
+        wire,
+        &episodes,
+        &systematic,
+        &[],
+        &mut estimates,
+        &mut stages,
+    )?;
+
+    // Validation: the whole log replayed from t = 0.
+    let all = frames(log, map.plane, log.len());
+    let heldout_from_s = fit_rows as f64 * log.period_s;
+    let pred = replay(&model, log, map, log.len())?;
+    let prior_pred = replay(&prior, log, map, log.len()).ok();
+    let mut out_frames = Vec::with_capacity(all.len());
+    for (t, a) in &all {
+        if let Some(p) = pred.angle_at(*t) {
+            out_frames.push(Frame {
+                t_s: *t,
+                recorded_deg: *a,
+                predicted_deg: p,
+            });
+        }
+    }
+    let held = || out_frames.iter().filter(|f| f.t_s >= heldout_from_s);
+    let validation = Validation {
+        fit_rms_deg: rms(out_frames
+            .iter()
+            .filter(|f| f.t_s < heldout_from_s)
+            .map(|f| f.predicted_deg - f.recorded_deg)),
+        heldout_rms_deg: rms(held().map(|f| f.predicted_deg - f.recorded_deg)),
+        heldout_max_deg: held()
+            .map(|f| (f.predicted_deg - f.recorded_deg).abs())
+            .fold(0.0, f64::max),
+        heldout_from_s,
+        prior_heldout_rms_deg: prior_pred.map(|p| {
+            rms(all
+                .iter()
+                .filter(|(t, _)| *t >= heldout_from_s)
+                .filter_map(|(t, a)| p.angle_at(*t).map(|x| x - a)))
+        }),
+        frames: out_frames,
+    };
+    Ok((
+        model,
+        PlaneReport {
+            plane: name.into(),
+            estimates,
+            stages,
+            validation,
+        },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 2D log whose coil 1 sees `volts` row by row, with the current of
+    /// a driver g·(v − v_on) clamped at 0.5 A and a deterministic ±1 mA
+    /// ripple standing in for noise.
+    fn log_of(volts: &[f64], g: f64, v_on: f64) -> ExcitationLog {
+        let n = volts.len();
+        let amps = |k: usize, v: f64| {
+            let ripple = if k % 2 == 0 { 1e-3 } else { -1e-3 };
+            (g * (v - v_on)).clamp(0.0, 0.5) + ripple
+        };
+        ExcitationLog {
+            planes: 1,
+            period_s: 0.01,
+            t_s: (0..n).map(|k| k as f64 * 0.01).collect(),
+            volts: volts.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect(),
+            cam_capture_s: vec![-1.0; n],
+            cam_deg: vec![[0.0; 2]; n],
+            wire_mm: vec![[0.0; 4]; n],
+            current_a: Some(
+                volts
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &v)| [amps(k, v), 0.0, 0.0, 0.0])
+                    .collect(),
+            ),
+            resistance_ohm: Some(vec![[5.0; 4]; n]),
+        }
+    }
+
+    /// One unsaturated level (the rest saturated pulses) cannot separate g
+    /// from the turn-on voltage: the regression declines, and
+    /// `identify_plane` then fits g with the mechanics. A ramp's spread
+    /// determines both.
+    #[test]
+    fn driver_regression_needs_a_spread_of_unsaturated_inputs() {
+        let map = PlaneMap::of(1, 0);
+        let (g, v_on) = (0.9, 1.7);
+        let mut one_level = vec![3.0; 200];
+        one_level.extend(vec![1.9; 500]);
+        assert!(driver_regression(&log_of(&one_level, g, v_on), map, 700, 0.5).is_none());
+
+        let mut ramp = one_level.clone();
+        ramp.extend((0..700).map(|k| 1.7 + 0.2 * k as f64 / 699.0));
+        let [(g_fit, sd_g), (v_fit, sd_v)] =
+            driver_regression(&log_of(&ramp, g, v_on), map, ramp.len(), 0.5).unwrap();
+        assert!(
+            (g_fit - g).abs() < 0.01 * g && sd_g < 0.005 * g,
+            "{g_fit} ± {sd_g}"
+        );
+        assert!(
+            (v_fit - v_on).abs() < 0.01 && sd_v < 0.005,
+            "{v_fit} ± {sd_v}"
+        );
+    }
+}

@@ -1,0 +1,302 @@
+//! Replays a log's driver inputs through one plane of the plant with
+//! candidate parameters: the model side of every identification stage.
+//!
+//! The plane is the plant's own [`PlanarJoint`] and [`WireSensor`] (no
+//! second copy of the physics), built and settled exactly as `Joint2d` and
+//! `Joint3d` do (coils off for `settle_s`, the wire coders zeroed there),
+//! then driven with each row's mean input held over the row's interval in
+//! substeps of `substep_s`. Prediction stops at the first numerical
+//! instability with the plant's error.
+//!
+//! Wires: the replay records each wire's geometric insertion at every
+//! substep ([`Prediction::wire_path_mm`]); [`expected_wire_readings`]
+//! then runs the plant's own random sensor along that path
+//! a number of times ([`STICK_REALISATIONS`] by default), with stick
+//! events from fixed streams,
+//! and averages: the *expected* reading over the stick events, which the
+//! replay cannot know where the recorded wire stuck. Leaving the sticks
+//! out (as until this change) biased the buckling gain by −23 % to +49 %
+//! on the twins; drawing one realisation of them (as before that) by up
+//! to +186 %. The mean over fixed streams is smooth in the jamming
+//! parameters: where a wire sticks depends only on its path and the
+//! stick rate and sizes, not on κ or the ceilings.
+
+use rand_chacha::ChaCha8Rng;
+
+use super::log::ExcitationLog;
+use super::IdentifyError;
+use crate::{PlanarJoint, PlaneParams, SmaCoil, SmaParams, WireSensor, WireSensorParams};
+use plant_common::three_element::StepLength;
+
+/// Which coils and sensors of a log belong to one plane.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlaneMap {
+    /// 0 (θ or α) or 1 (β).
+    pub plane: usize,
+    /// Coil slots of the log: [raising, lowering].
+    pub coils: [usize; 2],
+    /// Sensor slots of the log (one for 2D, two for 3D).
+    pub sensors: &'static [usize],
+}
+
+impl PlaneMap {
+    /// The plane `plane` of a log with `planes` angles (paper numbering:
+    /// 3D coils 1/3 and sensors 1/3 are α's, 2/4 β's).
+    pub fn of(planes: usize, plane: usize) -> Self {
+        match (planes, plane) {
+            (1, _) => PlaneMap {
+                plane: 0,
+                coils: [0, 1],
+                sensors: &[0],
+            },
+            (_, 0) => PlaneMap {
+                plane: 0,
+                coils: [0, 2],
+                sensors: &[0, 2],
+            },
+            _ => PlaneMap {
+                plane: 1,
+                coils: [1, 3],
+                sensors: &[1, 3],
+            },
+        }
+    }
+}
+
+/// A plane's model for replay.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlaneModel {
+    /// The plane.
+    pub plane: PlaneParams,
+    /// Its wire sensors, in the order of [`PlaneMap::sensors`].
+    pub wires: Vec<WireSensorParams>,
+    /// Settling time before the log starts (s), as `SimParams::settle_s`.
+    pub settle_s: f64,
+    /// Substep (s).
+    pub substep_s: f64,
+}
+
+/// What the model predicts for a log.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Prediction {
+    /// Angle at every substep boundary from t = 0 (deg), `substeps_per_row`
+    /// per row.
+    pub angle_deg: Vec<f64>,
+    /// Substeps per row.
+    pub substeps_per_row: usize,
+    /// Substep (s).
+    pub substep_s: f64,
+    /// Each plane sensor's geometric insertion (mm) after every substep
+    /// (`substeps_per_row` per row), the coder zeroed at the settled pose;
+    /// empty unless asked for ([`replay_with_wire_paths`]).
+    pub wire_path_mm: Vec<Vec<f64>>,
+    /// Coil resistances at each row start (Ω), [raising, lowering].
+    pub resistance_ohm: Vec<[f64; 2]>,
+    /// Peak coil temperature over the replay (°C).
+    pub peak_temperature_c: f64,
+}
+
+impl Prediction {
+    /// The predicted angle at time `t_s`: at the first substep boundary at
+    /// or after it, where the plant's camera takes a frame due at `t_s`.
+    pub fn angle_at(&self, t_s: f64) -> Option<f64> {
+        let k = (t_s / self.substep_s - 1e-6).ceil();
+        if k < 0.0 {
+            return None;
+        }
+        self.angle_deg.get(k as usize).copied()
+    }
+}
+
+fn step_length(h: f64) -> Result<StepLength, IdentifyError> {
+    StepLength::new(h).map_err(|_| IdentifyError::Log(format!("bad substep {h} s")))
+}
+
+/// Substeps per row and their length for a log interval `period_s` and a
+/// largest substep `substep_s`.
+pub fn split(period_s: f64, substep_s: f64) -> (usize, f64) {
+    let n = ((period_s / substep_s) - 1e-9).ceil().max(1.0) as usize;
+    (n, period_s / n as f64)
+}
+
+/// Replays rows `0..rows` of `log` through `model` for plane `map`.
+pub fn replay(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+) -> Result<Prediction, IdentifyError> {
+    replay_inner(model, log, map, rows, false)
+}
+
+/// [`replay`] recording the wires' paths ([`Prediction::wire_path_mm`]).
+pub fn replay_with_wire_paths(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+) -> Result<Prediction, IdentifyError> {
+    replay_inner(model, log, map, rows, true)
+}
+
+/// Random realisations of the stick events averaged by
+/// [`expected_wire_readings`] by default (`IdentifyOptions::
+/// stick_realisations`); each costs a pass of the wire model (not the
+/// plane) over the log. See the joint README for what 64 changes.
+pub const STICK_REALISATIONS: usize = 32;
+
+/// The expected reading (mm) of each of `wires` at each of the first
+/// `rows` row starts along the paths of `pred` (from
+/// [`replay_with_wire_paths`]): the mean over `realisations` (at least
+/// one) runs of the plant's random sensor, realisation r of sensor j drawing
+/// its sticks from `rng::stream(r·8 + j, rng::IDENTIFY_STICKS)` (module
+/// docs). Unquantised: the mean of the counts would be a staircase in
+/// the parameters. Realisations run in parallel and are summed in order.
+pub fn expected_wire_readings(
+    wires: &[WireSensorParams],
+    pred: &Prediction,
+    rows: usize,
+    realisations: usize,
+) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    Ok(wire_realisations(wires, pred, rows, realisations)?
+        .into_iter()
+        .map(|(mean, _)| mean)
+        .collect())
+}
+
+/// [`expected_wire_readings`] with each realisation's readings too: per
+/// sensor, (the mean, the realisations), from which the mean's own noise
+/// can be judged.
+#[allow(clippy::type_complexity)] // (mean, runs) per sensor
+pub fn wire_realisations(
+    wires: &[WireSensorParams],
+    pred: &Prediction,
+    rows: usize,
+    realisations: usize,
+) -> Result<Vec<(Vec<f64>, Vec<Vec<f64>>)>, IdentifyError> {
+    let realisations = realisations.max(1);
+    use rayon::prelude::*;
+    let n = pred.substeps_per_row;
+    let mut out = Vec::with_capacity(wires.len());
+    for (j, (w, path)) in wires.iter().zip(&pred.wire_path_mm).enumerate() {
+        let rows = rows.min(path.len() / n.max(1));
+        let runs: Vec<Vec<f64>> = (0..realisations)
+            .into_par_iter()
+            .map(|r| {
+                let mut sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0)?;
+                let mut rng: ChaCha8Rng = plant_common::rng::stream(
+                    (r * 8 + j) as u64,
+                    plant_common::rng::IDENTIFY_STICKS,
+                );
+                let mut read = Vec::with_capacity(rows);
+                for k in 0..rows {
+                    read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
+                    for &ideal in &path[k * n..(k + 1) * n] {
+                        sensor.advance_to_ideal(ideal, &mut rng);
+                    }
+                }
+                Ok(read)
+            })
+            .collect::<Result<_, IdentifyError>>()?;
+        let mut mean = vec![0.0; rows];
+        for run in &runs {
+            for (m, v) in mean.iter_mut().zip(run) {
+                *m += v;
+            }
+        }
+        let k = realisations as f64;
+        mean.iter_mut().for_each(|m| *m /= k);
+        out.push((mean, runs));
+    }
+    Ok(out)
+}
+
+fn replay_inner(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+    wire_paths: bool,
+) -> Result<Prediction, IdentifyError> {
+    let rows = rows.min(log.len());
+    let mut plane = PlanarJoint::new(model.plane.clone())?;
+    let name = if map.plane == 0 { "alpha" } else { "beta" };
+    let limit_j = 0.5;
+    if model.settle_s > 0.0 {
+        let (n, h) = split(model.settle_s, model.substep_s);
+        let h = step_length(h)?;
+        for _ in 0..n {
+            plane.substep(h, [0.0; 2]);
+            plane.check(name, limit_j)?;
+        }
+    }
+    let b = plane.base_m();
+    // Zeroed at the settled pose; only their geometry is used here.
+    let wires = if wire_paths {
+        model
+            .wires
+            .iter()
+            .map(|w| WireSensor::new(w.clone(), 1e3 * b[0], 1e3 * b[1], plane.angle_rad()))
+            .collect::<Result<Vec<_>, _>>()?
+    } else {
+        Vec::new()
+    };
+    let (n, h_s) = split(log.period_s, model.substep_s);
+    let h = step_length(h_s)?;
+    let mut out = Prediction {
+        angle_deg: Vec::with_capacity(rows * n + 1),
+        substeps_per_row: n,
+        substep_s: h_s,
+        wire_path_mm: vec![Vec::with_capacity(rows * n); wires.len()],
+        resistance_ohm: Vec::with_capacity(rows),
+        peak_temperature_c: f64::NEG_INFINITY,
+    };
+    for k in 0..rows {
+        let c = plane.coils();
+        out.resistance_ohm
+            .push([c[0].resistance_ohm(), c[1].resistance_ohm()]);
+        let v = [log.volts[k][map.coils[0]], log.volts[k][map.coils[1]]];
+        for _ in 0..n {
+            out.angle_deg.push(plane.angle_rad().to_degrees());
+            plane.substep(h, v);
+            plane.check(name, limit_j)?;
+            if wire_paths {
+                let base = plane.base_m();
+                let (sn, cs) = plane.sin_cos();
+                for (w, path) in wires.iter().zip(out.wire_path_mm.iter_mut()) {
+                    path.push(w.ideal_insertion_at_mm(1e3 * base[0], 1e3 * base[1], sn, cs));
+                }
+            }
+        }
+        for coil in plane.coils() {
+            out.peak_temperature_c = out.peak_temperature_c.max(coil.temperature_c());
+        }
+    }
+    out.angle_deg.push(plane.angle_rad().to_degrees());
+    Ok(out)
+}
+
+/// The thermal stage's model: one coil heated by the log's measured
+/// current (held over each interval), no mechanics and no stress. Returns
+/// its resistance at each row start.
+pub fn replay_thermal(
+    coil: &SmaParams,
+    current_a: &[f64],
+    period_s: f64,
+    substep_s: f64,
+) -> Result<Vec<f64>, IdentifyError> {
+    let mut c = SmaCoil::new(coil.clone())?;
+    let (n, h) = split(period_s, substep_s);
+    let mut out = Vec::with_capacity(current_a.len());
+    for &i in current_a {
+        out.push(c.resistance_ohm());
+        let i = i.max(0.0);
+        for _ in 0..n {
+            c.step(h, i, false);
+        }
+        if !c.temperature_c().is_finite() {
+            return Err(IdentifyError::Unstable("coil temperature".into()));
+        }
+    }
+    Ok(out)
+}

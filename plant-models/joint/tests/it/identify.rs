@@ -1,0 +1,358 @@
+//! Twin tests of the joint's identification (issue 20): a hidden plant
+//! (`identify::hidden`: the defaults moved 20–50 %, a Clausius–Clapeyron
+//! slope of 0.08 K/MPa, camera noise 0.1°, jamming with stick events,
+//! noisy current and resistance readings) records an excitation plan;
+//! identification starts from the defaults and is not told the truth.
+//!
+//! The debug `cargo test` runs the 60 s compact plan; the 10-minute
+//! standard plan with the tolerances of the README is `#[ignore]`d there
+//! and run optimised by `scripts/test-all.sh` (profile ci-opt), or:
+//! `cargo test --release -p plant-models --test joint_identify -- --ignored`
+//! (`--nocapture` prints every estimate against the truth).
+
+use plant_joint::identify::{
+    self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, LmOptions, Param,
+    PlaneModel, PlaneReport,
+};
+use plant_joint::{Joint2dParams, Joint3dParams, PlaneParams, WireSensorParams};
+use std::sync::OnceLock;
+
+const NOISE: ElectricalNoise = ElectricalNoise {
+    current_a: 0.002,
+    resistance_ohm: 0.02,
+};
+
+fn truth(plane: &PlaneParams, wire: &WireSensorParams) -> PlaneModel {
+    PlaneModel {
+        plane: plane.clone(),
+        wires: vec![wire.clone()],
+        settle_s: 1.0,
+        substep_s: 1e-3,
+    }
+}
+
+/// Checks `p` against the truth: relative tolerance for scales, absolute
+/// for temperatures and the slope. Returns a line for the failure report.
+fn check(
+    r: &PlaneReport,
+    t: &PlaneModel,
+    p: Param,
+    rel: Option<f64>,
+    abs: Option<f64>,
+) -> Option<String> {
+    let e = r
+        .estimate(p)
+        .unwrap_or_else(|| panic!("{p:?} not estimated: {:#?}", r.estimates));
+    let tv = p.get(t);
+    let ok = e.identifiable
+        && match (rel, abs) {
+            (Some(rel), _) => ((e.value - tv) / tv).abs() <= rel,
+            (_, Some(abs)) => (e.value - tv).abs() <= abs,
+            _ => true,
+        };
+    (!ok).then(|| {
+        format!(
+            "{}: {} ± {} (identifiable {}), true {tv}, prior {}",
+            e.field, e.value, e.std, e.identifiable, e.prior
+        )
+    })
+}
+
+/// Prints the estimates against the truth (`--nocapture` shows them).
+fn print_estimates(r: &PlaneReport, t: &PlaneModel) {
+    for e in &r.estimates {
+        let tv = e.param.get(t);
+        eprintln!(
+            "{} {}: {:.5} (fitted {:.5}) ± {:.2e} (white {:.2e}; identifiable {}), true {tv:.5}, error {:+.1} % = {:+.1} σ",
+            r.plane,
+            e.field,
+            e.value,
+            e.fitted,
+            e.std,
+            e.white_std,
+            e.identifiable,
+            100.0 * (e.fitted - tv) / tv,
+            (e.fitted - tv) / e.std
+        );
+    }
+    for st in &r.stages {
+        eprintln!(
+            "{} stage {}: {} iterations, {} replays, rms {:.3}, best of {} starts: #{}",
+            r.plane,
+            st.name,
+            st.iterations,
+            st.evaluations,
+            st.rms_scaled,
+            st.starts,
+            st.best_start
+        );
+    }
+    let v = &r.validation;
+    eprintln!(
+        "{}: held-out rms {:.3}°, max {:.3}°, prior held-out rms {:?}°",
+        r.plane, v.heldout_rms_deg, v.heldout_max_deg, v.prior_heldout_rms_deg
+    );
+}
+
+/// The CI form (≈ 15–30 s in a debug build).
+#[test]
+fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
+    let hidden = hidden::joint_2d(3);
+    let plan = ExcitationPlan::compact(1);
+    let log = twin::record_2d(&hidden, &plan, true, NOISE).unwrap();
+    let opts = IdentifyOptions {
+        lm: LmOptions {
+            max_iterations: 8,
+            ..LmOptions::default()
+        },
+        ..IdentifyOptions::default()
+    };
+    let (_, reports) = identify::identify_2d(&log, &Joint2dParams::default(), &opts).unwrap();
+    let r = &reports[0];
+    let t = truth(&hidden.plane, &hidden.wire);
+    print_estimates(r, &t);
+    let fails: Vec<String> = [
+        check(r, &t, Param::Transconductance, Some(0.02), None),
+        check(r, &t, Param::AusteniteStart, None, Some(2.0)),
+        check(r, &t, Param::SpongeModulus, Some(0.10), None),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    assert!(fails.is_empty(), "{fails:#?}");
+    // The link inertia is not seen by a 30 frames/s camera: named, and
+    // left at its prior.
+    let inertia = r.estimate(Param::LinkInertia).unwrap();
+    assert!(!inertia.identifiable, "{inertia:?}");
+    assert_eq!(inertia.value, inertia.prior);
+    // The prior mispredicts the held-out quarter by degrees; the
+    // identified plant by little more than the camera noise.
+    let v = &r.validation;
+    assert!(
+        v.prior_heldout_rms_deg.unwrap() > 2.0,
+        "prior held-out rms {:?}, identified {}",
+        v.prior_heldout_rms_deg,
+        v.heldout_rms_deg
+    );
+    assert!(
+        v.heldout_rms_deg < 0.3,
+        "held-out rms {}",
+        v.heldout_rms_deg
+    );
+}
+
+/// The 10-minute standard plan on the hidden 2D joint, electrical columns
+/// logged: the plane's report and its truth. Identified once per test
+/// process (the ignored tests share it).
+fn ten_minute_2d() -> &'static (PlaneReport, PlaneModel) {
+    static TWIN: OnceLock<(PlaneReport, PlaneModel)> = OnceLock::new();
+    TWIN.get_or_init(|| {
+        let hidden = hidden::joint_2d(7);
+        let plan = ExcitationPlan::standard(1, 600.0, false);
+        let log = twin::record_2d(&hidden, &plan, true, NOISE).unwrap();
+        let (_, mut reports) =
+            identify::identify_2d(&log, &Joint2dParams::default(), &IdentifyOptions::default())
+                .unwrap();
+        (reports.remove(0), truth(&hidden.plane, &hidden.wire))
+    })
+}
+
+/// The same on the hidden 3D joint of `seed`, whose planes are hidden
+/// differently: α's and β's reports with their truths.
+fn identify_3d_twin(seed: u64, noise: ElectricalNoise) -> Vec<(PlaneReport, PlaneModel)> {
+    let hidden = hidden::joint_3d(seed);
+    let plan = ExcitationPlan::standard(2, 600.0, false);
+    let log = twin::record_3d(&hidden, &plan, true, noise).unwrap();
+    let (_, reports) =
+        identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
+            .unwrap();
+    let truths = [
+        truth(&hidden.alpha, &hidden.wires[0]),
+        truth(&hidden.beta, &hidden.wires[1]),
+    ];
+    reports.into_iter().zip(truths).collect()
+}
+
+/// The 3D twin of seed 11 with noisy electrical readings, once per test
+/// process.
+fn ten_minute_3d() -> &'static [(PlaneReport, PlaneModel)] {
+    static TWIN: OnceLock<Vec<(PlaneReport, PlaneModel)>> = OnceLock::new();
+    TWIN.get_or_init(|| identify_3d_twin(11, NOISE))
+}
+
+/// Tolerances as stated in plant-models/src/joint/README.md, every
+/// parameter but the jamming gain (see
+/// `ten_minute_twins_recover_the_jamming_gain_or_name_it_not_identifiable`): the failures, one line
+/// each.
+fn standard_fails(r: &PlaneReport, t: &PlaneModel) -> Vec<String> {
+    print_estimates(r, t);
+    let mut fails: Vec<String> = [
+        check(r, t, Param::Transconductance, Some(0.02), None),
+        check(r, t, Param::TurnOn, None, Some(0.02)),
+        check(r, t, Param::Convection, Some(0.10), None),
+        check(r, t, Param::AusteniteStart, None, Some(1.0)),
+        check(r, t, Param::AusteniteFinish, None, Some(2.0)),
+        check(r, t, Param::MartensiteStart, None, Some(2.0)),
+        check(r, t, Param::MartensiteFinish, None, Some(2.0)),
+        check(r, t, Param::StressShift, None, Some(0.02)),
+        check(r, t, Param::SpongeModulus, Some(0.05), None),
+        check(r, t, Param::SpongeDamping, Some(0.25), None),
+        check(r, t, Param::JamMaxLag, Some(0.15), None),
+        check(r, t, Param::JamLagPerMm, Some(0.60), None),
+    ]
+    .into_iter()
+    .flatten()
+    .map(|f| format!("{}: {f}", r.plane))
+    .collect();
+    if r.estimate(Param::LinkInertia).unwrap().identifiable {
+        fails.push(format!("{}: link inertia called identifiable", r.plane));
+    }
+    let v = &r.validation;
+    if v.heldout_rms_deg >= 0.15 {
+        fails.push(format!("{}: held-out rms {}", r.plane, v.heldout_rms_deg));
+    }
+    if v.heldout_max_deg >= 0.6 {
+        fails.push(format!("{}: held-out max {}", r.plane, v.heldout_max_deg));
+    }
+    fails
+}
+
+/// Whether the 1σ of `params` covers the error: |fitted − truth| ≤ `k`σ.
+/// For the parameters whose model is right (electrical, thermal, slope,
+/// sponge modulus) on the noisy twins; the failures, one line each.
+fn coverage_fails(r: &PlaneReport, t: &PlaneModel, params: &[Param], k: f64) -> Vec<String> {
+    params
+        .iter()
+        .filter_map(|&p| {
+            let e = r.estimate(p)?;
+            let err = e.fitted - p.get(t);
+            (err.abs() > k * e.std).then(|| {
+                format!(
+                    "{}: {} off by {err:.3e}, {:.1} times its 1σ {:.3e}",
+                    r.plane,
+                    e.field,
+                    err.abs() / e.std,
+                    e.std
+                )
+            })
+        })
+        .collect()
+}
+
+/// The parameters whose 1σ must cover the error within 3σ (the model is
+/// right for them; see the joint README for the damping and the lag
+/// ceilings): the first nine of `Param::ALL`, driver to sponge modulus.
+const COVERED: &[Param] = Param::ALL.split_at(9).0;
+
+#[test]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
+fn ten_minute_twin_2d_recovers_each_identifiable_parameter() {
+    let (r, t) = ten_minute_2d();
+    let mut fails = standard_fails(r, t);
+    fails.extend(coverage_fails(r, t, COVERED, 3.0));
+    assert!(fails.is_empty(), "{fails:#?}");
+}
+
+#[test]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
+fn ten_minute_twin_3d_recovers_both_planes() {
+    let fails: Vec<String> = ten_minute_3d()
+        .iter()
+        .flat_map(|(r, t)| {
+            let mut f = standard_fails(r, t);
+            f.extend(coverage_fails(r, t, COVERED, 3.0));
+            f
+        })
+        .collect();
+    assert!(fails.is_empty(), "{fails:#?}");
+}
+
+/// The jamming gain κ on both twins (three planes): where named
+/// identifiable, within 30 % of the truth, otherwise kept at the prior;
+/// either way the fit's value within 3σ of the truth, so the 1σ covers
+/// the error (and the lag ceiling at rest e₀ within 3σ too). The wire
+/// stage averages the random stick events over 32 realisations (module
+/// docs of `replay`); what it cannot remove is that the log's own sticks
+/// are one draw. Measured (joint README): κ −19.5 % ± 16 % (−1.3σ) on θ,
+/// +62 % ± 66 % on α, +2 % ± 34 % on β, each named not identifiable (θ
+/// by a hair: 1σ 0.055 against 0.05; with other stick streams it was
+/// named identifiable at −20 % ± 13 %, so both branches are live).
+#[test]
+#[ignore = "10-minute logs: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
+fn ten_minute_twins_recover_the_jamming_gain_or_name_it_not_identifiable() {
+    let mut planes = vec![ten_minute_2d()];
+    planes.extend(ten_minute_3d());
+    let mut fails = Vec::new();
+    for (r, t) in planes {
+        print_estimates(r, t);
+        let k = r.estimate(Param::JamGain).unwrap();
+        let truth = Param::JamGain.get(t);
+        if k.identifiable && ((k.fitted - truth) / truth).abs() > 0.30 {
+            fails.push(format!(
+                "{}: κ {} named identifiable, truth {truth}",
+                r.plane, k.fitted
+            ));
+        }
+        if !k.identifiable && k.value != k.prior {
+            fails.push(format!(
+                "{}: κ not identifiable but not at its prior",
+                r.plane
+            ));
+        }
+        fails.extend(coverage_fails(
+            r,
+            t,
+            &[Param::JamGain, Param::JamMaxLag],
+            2.0,
+        ));
+    }
+    assert!(fails.is_empty(), "{fails:#?}");
+}
+
+/// Without current and resistance the thermal parameters come from the
+/// angle alone: the driver's turn-on voltage is not fitted, and the
+/// prediction still holds.
+#[test]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
+fn ten_minute_twin_2d_without_electrical_columns() {
+    let hidden = hidden::joint_2d(7);
+    let plan = ExcitationPlan::standard(1, 600.0, false);
+    let log = twin::record_2d(&hidden, &plan, false, NOISE).unwrap();
+    let (_, reports) =
+        identify::identify_2d(&log, &Joint2dParams::default(), &IdentifyOptions::default())
+            .unwrap();
+    let r = &reports[0];
+    assert!(r.estimate(Param::TurnOn).is_none());
+    let v = &r.validation;
+    assert!(
+        v.heldout_rms_deg < 0.2,
+        "held-out rms {}",
+        v.heldout_rms_deg
+    );
+}
+
+/// The README's twin: the hidden 3D joint of seed 7 with the electrical
+/// readings as `softjoint sim --excite` logs them (no noise). β's link
+/// inertia comes out 18 times the truth there with a white-noise 1σ of
+/// 8.1 %, which passes the 15 % threshold (the call before the
+/// block-robust 1σ); the block-robust 1σ is 18.5 %. The README's twin,
+/// recorded by `sim`, is alike: 17 times, 8.5 % and 19 %.
+#[test]
+#[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
+fn ten_minute_twin_3d_seed_7_names_the_inertia_not_identifiable() {
+    let planes = identify_3d_twin(7, ElectricalNoise::default());
+    let (beta, beta_truth) = &planes[1];
+    let inertia = beta.estimate(Param::LinkInertia).unwrap();
+    eprintln!(
+        "beta inertia fitted {:.3e} (truth {:.3e}), 1σ {:.3e}, white {:.3e}",
+        inertia.fitted,
+        Param::LinkInertia.get(beta_truth),
+        inertia.std,
+        inertia.white_std
+    );
+    let fails: Vec<String> = planes
+        .iter()
+        .flat_map(|(r, t)| standard_fails(r, t))
+        .collect();
+    assert!(fails.is_empty(), "{fails:#?}");
+}

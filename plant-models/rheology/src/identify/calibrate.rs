@@ -1,0 +1,162 @@
+//! Calibration of a lattice from a measured push: the problem (a scenario
+//! that says which lattice and push, a parameter set, a measurement, the
+//! objective S) and the run of one of the searches on it.
+use serde::{Deserialize, Serialize};
+
+use crate::error::{bad_setting, Result};
+use crate::identify::ga::{self, GaSettings};
+use crate::identify::measurement::Measurement;
+use crate::identify::objective::{score, Score};
+use crate::identify::ra::{self, RaSettings};
+use crate::identify::search::{self, Budget, Method, Progress, SearchResult};
+use crate::model::lattice::Lattice;
+use crate::model::params::{LatticeParams, ParamSet};
+use crate::model::scenario::{lattice_sim, run, Run, Scenario};
+
+/// A lattice to calibrate against a measured push.
+#[derive(Clone, Debug)]
+pub struct Problem {
+    /// The lattice, model variant, rig and plate schedule of the push.
+    pub scenario: Scenario,
+    pub set: ParamSet,
+    pub measurement: Measurement,
+    lattice: Lattice,
+    frame_times: Vec<f64>,
+}
+
+impl Problem {
+    /// Checks that the measurement fits the scenario.
+    pub fn new(scenario: Scenario, set: ParamSet, measurement: Measurement) -> Result<Self> {
+        scenario.validate()?;
+        if measurement.frames.is_empty() && scenario.objective.force_per_n == 0.0 {
+            return Err(bad_setting(
+                "measurement",
+                "no surface-point frames to compare shapes with",
+            ));
+        }
+        let end = scenario.plate.end_s;
+        for (k, f) in measurement.frames.iter().enumerate() {
+            if !(0.0..=end).contains(&f.t_s) {
+                return Err(bad_setting(
+                    &format!("measurement frame {k}"),
+                    format!("time {} s lies outside the run (0–{end} s)", f.t_s),
+                ));
+            }
+        }
+        let lattice = scenario.lattice()?;
+        let frame_times = measurement.frame_times_s();
+        Ok(Self {
+            scenario,
+            set,
+            measurement,
+            lattice,
+            frame_times,
+        })
+    }
+
+    /// The lattice being calibrated.
+    pub fn lattice(&self) -> &Lattice {
+        &self.lattice
+    }
+
+    /// Runs the lattice with `params` through the push (frames at the
+    /// measured times).
+    pub fn run(&self, params: &LatticeParams) -> Result<Run> {
+        let mut sim = lattice_sim(&self.scenario, &self.lattice, params)?;
+        Ok(run(&mut sim, self.scenario.plate.end_s, &self.frame_times))
+    }
+
+    /// S of `params` and the run it came from.
+    pub fn score(&self, params: &LatticeParams) -> Result<(Score, Run)> {
+        let r = self.run(params)?;
+        let s = score(
+            &self.lattice.surface,
+            &r,
+            &self.measurement,
+            &self.scenario.objective,
+            self.scenario.measure.force_window_s,
+        );
+        Ok((s, r))
+    }
+
+    /// S of a gene vector (+∞ for parameters the model refuses or that
+    /// make it unstable).
+    pub fn s_of_genes(&self, genes: &[f64]) -> f64 {
+        self.set
+            .to_lattice(genes)
+            .and_then(|p| self.score(&p))
+            .map(|(s, _)| s.s)
+            .unwrap_or(f64::INFINITY)
+    }
+}
+
+/// Which search, how long, and its settings.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationSettings {
+    pub method: Method,
+    pub budget: Budget,
+    pub seed: u64,
+    pub ga: GaSettings,
+    pub ra: RaSettings,
+}
+
+impl CalibrationSettings {
+    /// The paper's settings of `method` with `budget` and `seed`.
+    pub fn new(method: Method, budget: Budget, seed: u64) -> Self {
+        Self {
+            method,
+            budget,
+            seed,
+            ga: GaSettings::default(),
+            ra: RaSettings::default(),
+        }
+    }
+}
+
+/// The outcome of a calibration.
+#[derive(Clone, Debug, Serialize)]
+pub struct Calibration {
+    pub search: SearchResult,
+    pub best_params: LatticeParams,
+}
+
+/// Runs the chosen search on `problem`.
+pub fn calibrate(
+    problem: &Problem,
+    settings: &CalibrationSettings,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<Calibration> {
+    let ranges = problem.set.ranges();
+    let f = |g: &[f64]| problem.s_of_genes(g);
+    let search = match settings.method {
+        Method::Ga => ga::run(
+            &f,
+            &ranges,
+            &settings.ga,
+            settings.budget,
+            settings.seed,
+            on_progress,
+        )?,
+        Method::Ra => ra::run(
+            &f,
+            &ranges,
+            &settings.ra,
+            settings.budget,
+            settings.seed,
+            on_progress,
+        )?,
+        Method::Uniform => search::uniform(
+            &f,
+            &ranges,
+            settings.budget,
+            settings.seed,
+            settings.ga.population,
+            on_progress,
+        )?,
+    };
+    let best_params = problem.set.to_lattice(&search.best_genes)?;
+    Ok(Calibration {
+        search,
+        best_params,
+    })
+}

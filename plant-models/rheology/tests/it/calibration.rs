@@ -1,0 +1,244 @@
+//! Calibration of the rheology lattice against the reference block (issue
+//! 14's identification must-shows).
+//!
+//! The ground truth is the continuum reference block (co-rotational Burgers
+//! tetrahedra, hidden material constants, point and force noise): not the
+//! lattice being calibrated. The test that runs in CI is a short form on a
+//! small block; the paper-sized experiments are `#[ignore]`d and print the
+//! figures the system README reports:
+//!
+//! ```sh
+//! CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
+//!   cargo test --release -p plant-models --test rheology_calibration -- \
+//!   --ignored --nocapture --test-threads 1
+//! ```
+use plant_rheology::identify::calibrate::{calibrate, CalibrationSettings, Problem};
+use plant_rheology::identify::measurement::Measurement;
+use plant_rheology::identify::reference::{record_push, ReferenceConfig};
+use plant_rheology::identify::search::{Budget, Method};
+use plant_rheology::lattice::VolumeMode;
+use plant_rheology::params::{LatticeParams, ParamSet};
+use plant_rheology::scenario::{push_schedule_mm, Scenario};
+
+/// A small, quick version of the paper's push on a 6 × 4 × 6 cm block:
+/// push `depth_mm` over `push_s`, hold to 3·push_s, withdraw by 4·push_s
+/// (the paper's 0–1 s push, 1–3 s hold, release, L2244–2246, scaled).
+fn small_scenario(grid: [usize; 3], depth_mm: f64, push_s: f64) -> Scenario {
+    let mut sc = Scenario::default();
+    sc.block.size_cm = [6.0, 4.0, 6.0];
+    sc.block.mass_g = 6.0 * 4.0 * 6.0 * 1.2;
+    sc.block.grid = grid;
+    sc.model.dt_ms = 20.0;
+    sc.plate.footprint_cm = [3.0, 3.0];
+    sc.plate.depth_mm = Some(push_schedule_mm(depth_mm, push_s));
+    sc.plate.end_s = 4.0 * push_s;
+    sc.measure.frame_times_s = vec![push_s, 2.0 * push_s, 3.0 * push_s, 4.0 * push_s];
+    sc.measure.force_window_s = [push_s, 3.0 * push_s];
+    sc
+}
+
+/// The reference block for the small scenario: 6 × 4 × 6 cubes (1 cm), not
+/// aligned with the lattice's nodes, with the default noise (0.5 mm per
+/// coordinate, 0.5 N), at the lattice's 20 ms step to keep the debug-build
+/// test short. (On 5 × 3 × 5 cubes the reference itself is too coarse under
+/// a 3 cm plate: the lattice's defaults and calibrated constants then
+/// differ by 2 % in shape.)
+fn small_reference(seed: u64) -> ReferenceConfig {
+    ReferenceConfig {
+        cells: [6, 4, 6],
+        dt_ms: 20.0,
+        points_per_frame: 150,
+        seed,
+        ..ReferenceConfig::default()
+    }
+}
+
+/// The same block without noise: what the block really did.
+fn noise_free(cfg: ReferenceConfig) -> ReferenceConfig {
+    ReferenceConfig {
+        point_noise_mm: 0.0,
+        force_noise_n: 0.0,
+        ..cfg
+    }
+}
+
+fn measured(sc: &Scenario, cfg: &ReferenceConfig) -> Measurement {
+    record_push(sc, cfg).unwrap().measurement
+}
+
+#[test]
+fn calibrated_parameters_predict_an_unseen_push_better_than_the_defaults() {
+    // Train on the shape (the paper's S, first deck) of a noisy 8 mm push
+    // over 0.5 s; test on a 5 mm push over 0.35 s (another depth and
+    // speed) that the calibration never saw, scored against the block's
+    // noise-free surface and force (with noise every model's S has a floor
+    // of ≈ 0.75 mm per point that hides the difference).
+    let train = small_scenario([4, 3, 4], 8.0, 0.5);
+    let mut test = small_scenario([4, 3, 4], 5.0, 0.35);
+    test.objective.force_per_n = 1.0;
+    let problem = Problem::new(
+        train.clone(),
+        ParamSet::Four,
+        measured(&train, &small_reference(1)),
+    )
+    .unwrap();
+    let cal = calibrate(
+        &problem,
+        &CalibrationSettings::new(Method::Ga, Budget::evaluations(100), 1),
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(cal.search.evaluations, 100);
+    let unseen = Problem::new(
+        test.clone(),
+        ParamSet::Four,
+        measured(&test, &noise_free(small_reference(2))),
+    )
+    .unwrap();
+    let defaults = LatticeParams::paper_default();
+    let (d_train, _) = problem.score(&defaults).unwrap();
+    let (d, _) = unseen.score(&defaults).unwrap();
+    let (c, _) = unseen.score(&cal.best_params).unwrap();
+    eprintln!(
+        "training S: defaults {:.2}, calibrated {:.2}; unseen push: defaults {:.3} mm/point, {:.1} N/sample; calibrated {:.3} mm/point, {:.1} N/sample",
+        d_train.s,
+        cal.search.best_s,
+        d.mean_distance_mm(),
+        d.mean_force_error_n(),
+        c.mean_distance_mm(),
+        c.mean_force_error_n(),
+    );
+    assert!(cal.search.best_s < d_train.s);
+    // Measured (seed 1): shape 0.455 vs 0.521 mm per point (−13 %), force
+    // 130 vs 755 N per sample (5.8× smaller). The shape margin is small
+    // because a 4 × 3 × 4 lattice cannot follow the dent of a continuum
+    // block whatever its constants; the force is where they matter.
+    assert!(
+        c.mean_distance_mm() < 0.9 * d.mean_distance_mm(),
+        "unseen push, shape: calibrated {} vs defaults {} mm/point",
+        c.mean_distance_mm(),
+        d.mean_distance_mm()
+    );
+    assert!(
+        c.mean_force_error_n() < 0.5 * d.mean_force_error_n(),
+        "unseen push, force: calibrated {} vs defaults {} N/sample",
+        c.mean_force_error_n(),
+        d.mean_force_error_n()
+    );
+}
+
+/// Evaluations of the `#[ignore]`d experiments (`RH_EVALS` overrides).
+fn experiment_evaluations(default: usize) -> usize {
+    std::env::var("RH_EVALS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// The paper's Table (L1901–1915): for 8 parameters the GA reached S 2350
+/// and RA 2442 after 168 h each. Here: equal evaluations, 5 seeds, the
+/// small push on a 5 × 4 × 5 lattice (the smallest with core voxels, so
+/// that surface and core constants both matter). The assertion holds at
+/// the default 500 evaluations and fails at `RH_EVALS=2000`, where RA's
+/// mean is lower: both methods end in one of two basins, which one
+/// depending on the seed (src/rheology/README.md, GA against RA).
+#[test]
+#[ignore = "experiment (≈ 3 min in release on 2 cores); figures in src/rheology/README.md"]
+fn ga_against_random_search_for_8_parameters_over_5_seeds() {
+    let sc = small_scenario([5, 4, 5], 8.0, 0.5);
+    let problem = Problem::new(
+        sc.clone(),
+        ParamSet::Eight,
+        measured(&sc, &small_reference(1)),
+    )
+    .unwrap();
+    let evaluations = experiment_evaluations(500);
+    let (d, _) = problem.score(&LatticeParams::paper_default()).unwrap();
+    eprintln!("defaults: S {:.2}", d.s);
+    let mut wins = 0;
+    let (mut ga_sum, mut ra_sum, mut seconds, mut total) = (0.0, 0.0, 0.0, 0);
+    for seed in 1..=5 {
+        let mut best = [0.0; 2];
+        for (k, method) in [Method::Ga, Method::Ra].into_iter().enumerate() {
+            let cal = calibrate(
+                &problem,
+                &CalibrationSettings::new(method, Budget::evaluations(evaluations), seed),
+                &mut |_| {},
+            )
+            .unwrap();
+            best[k] = cal.search.best_s;
+            seconds += cal.search.elapsed_s;
+            total += cal.search.evaluations;
+        }
+        eprintln!(
+            "seed {seed}: {evaluations} evaluations, GA S {:.2}, RA S {:.2}",
+            best[0], best[1]
+        );
+        wins += usize::from(best[0] < best[1]);
+        ga_sum += best[0];
+        ra_sum += best[1];
+    }
+    eprintln!(
+        "mean S: GA {:.2}, RA {:.2}; GA lower on {wins} of 5 seeds; {:.1} evaluations/s",
+        ga_sum / 5.0,
+        ra_sum / 5.0,
+        total as f64 / seconds
+    );
+    assert!(
+        ga_sum < ra_sum,
+        "GA mean S {ga_sum} ≥ RA mean S {ra_sum} (×5)"
+    );
+}
+
+/// The paper's dense-versus-sparse comparison for Model 2′ (local volume
+/// condition, 16 parameters; L1998–2001: S 1506 dense vs 1831 sparse): the
+/// paper's 10 × 6 × 10 cm block on 6 × 4 × 6 and 11 × 7 × 11 lattices,
+/// calibrated by the GA at equal evaluations against the same measured
+/// push (the paper's depth, scaled to 0.5 s of pushing to keep runs short)
+/// of the default 12 × 7 × 12-cube reference block.
+#[test]
+#[ignore = "experiment (≈ 12 min in release on 2 cores); figures in src/rheology/README.md"]
+fn the_dense_lattice_reaches_a_lower_s_than_the_sparse_one_for_model_2_prime() {
+    let evaluations = experiment_evaluations(300);
+    let make = |grid: [usize; 3]| {
+        let mut sc = Scenario::default();
+        sc.block.grid = grid;
+        sc.model.volume = VolumeMode::Local;
+        sc.model.dt_ms = 10.0;
+        sc.plate.depth_mm = Some(push_schedule_mm(15.0, 0.5));
+        sc.plate.end_s = 2.0;
+        sc.measure.frame_times_s = vec![0.5, 1.0, 1.5, 2.0];
+        sc.measure.force_window_s = [0.5, 1.5];
+        sc
+    };
+    let sparse = make([6, 4, 6]);
+    let dense = make([11, 7, 11]);
+    let reference = ReferenceConfig {
+        dt_ms: 10.0,
+        points_per_frame: 400,
+        ..ReferenceConfig::default()
+    };
+    let m = measured(&sparse, &reference);
+    let mut s = [0.0; 2];
+    for (k, sc) in [sparse, dense].into_iter().enumerate() {
+        let problem = Problem::new(sc.clone(), ParamSet::Sixteen, m.clone()).unwrap();
+        let (d, _) = problem.score(&LatticeParams::paper_default()).unwrap();
+        let cal = calibrate(
+            &problem,
+            &CalibrationSettings::new(Method::Ga, Budget::evaluations(evaluations), 1),
+            &mut |_| {},
+        )
+        .unwrap();
+        s[k] = cal.search.best_s;
+        eprintln!(
+            "{:?}: defaults S {:.2}, GA S {:.2} ({:.3} mm/point) after {} evaluations in {:.1} s",
+            sc.block.grid,
+            d.s,
+            cal.search.best_s,
+            10.0 * cal.search.best_s / d.points.max(1) as f64,
+            cal.search.evaluations,
+            cal.search.elapsed_s
+        );
+    }
+    assert!(s[1] < s[0], "dense S {} ≥ sparse S {}", s[1], s[0]);
+}

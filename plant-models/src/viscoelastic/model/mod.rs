@@ -1,7 +1,0 @@
-//! The viscoelastic object itself: geometry, FEM, DGFM and the 3-element
-//! evaluation (the plant).
-pub mod dgfm;
-pub mod fem;
-pub mod mesh;
-pub mod object;
-pub mod three_element;

@@ -1,0 +1,424 @@
+//! Static equilibrium of the Voigt network by Newton's method: the
+//! reference that the dynamic simulation must settle to (indentation
+//! tests), computed by a different path (assembled tangent stiffness and a
+//! direct solve instead of explicit time stepping).
+//!
+//! The unknowns are the nodes that are neither on the support nor held.
+//! Each iteration assembles the exact tangent `K = Σ_e k(eeᵀ + (1 −
+//! L/l)(I − eeᵀ))` of the springs (dampers do no work at rest), orders the
+//! unknowns by reverse Cuthill–McKee and factors `K` with the skyline
+//! Cholesky the project shares (`plant_common::linalg`, [`SkylineCholesky`]), then steps with
+//! backtracking until the largest force imbalance is below the tolerance.
+//!
+//! Left out: arc-length continuation; a tangent that is not positive
+//! definite (a buckled network under large compression) is reported, not
+//! followed.
+use super::voigt::{Hold, VoigtModel};
+use super::V3;
+use crate::error::{Result, TetError};
+use plant_common::linalg::{reverse_cuthill_mckee, SkylineCholesky};
+
+/// Newton iterations before giving up.
+const MAX_ITERATIONS: u32 = 60;
+
+/// A converged static state.
+#[derive(Clone, Debug)]
+pub struct StaticSolution {
+    /// Node positions (m).
+    pub x_m: Vec<V3>,
+    /// Newton iterations used.
+    pub iterations: u32,
+    /// Largest remaining force imbalance on a free node (N).
+    pub residual_n: f64,
+}
+
+/// The equilibrium of `model` with every node of `holds` at its target
+/// (support nodes at rest), starting from `start_m`, to a force imbalance
+/// below `tolerance_n` on every free node.
+pub fn equilibrium(
+    model: &VoigtModel,
+    holds: &[Hold],
+    start_m: &[V3],
+    tolerance_n: f64,
+) -> Result<StaticSolution> {
+    let mesh = model.mesh();
+    let n = mesh.node_count();
+    if start_m.len() != n {
+        return Err(TetError::InvalidParameter {
+            name: "start_m",
+            value: start_m.len() as f64,
+            reason: "needs one position per node",
+        });
+    }
+    let mut x = start_m.to_vec();
+    let mut unknown: Vec<bool> = (0..n).map(|i| !model.is_fixed(i)).collect();
+    for h in holds {
+        let i = h.node as usize;
+        if i >= n {
+            return Err(TetError::IndexOutOfRange {
+                what: "node",
+                index: i,
+                len: n,
+            });
+        }
+        if !model.is_fixed(i) {
+            x[i] = h.target_m;
+            unknown[i] = false;
+        }
+    }
+    for (i, p) in x.iter_mut().enumerate() {
+        if model.is_fixed(i) {
+            *p = mesh.nodes_m[i];
+        }
+    }
+    let mut adj = vec![Vec::new(); n];
+    for e in &mesh.edges {
+        let (a, b) = (e[0] as usize, e[1] as usize);
+        adj[a].push(b);
+        adj[b].push(a);
+    }
+    let order = reverse_cuthill_mckee(&adj, &unknown);
+    let mut base = vec![usize::MAX; n];
+    for (pos, &node) in order.iter().enumerate() {
+        base[node] = 3 * pos;
+    }
+    let neq = 3 * order.len();
+    // Every row reaches back to its node's first equation (the 3×3
+    // diagonal block), and further to its lowest-numbered neighbour.
+    let mut first: Vec<usize> = (0..neq).map(|i| i - i % 3).collect();
+    for e in &mesh.edges {
+        let (a, b) = (base[e[0] as usize], base[e[1] as usize]);
+        if a != usize::MAX && b != usize::MAX {
+            let lo = a.min(b);
+            for c in 0..3 {
+                first[a.max(b) + c] = first[a.max(b) + c].min(lo);
+            }
+        }
+    }
+    let zero_v = vec![V3::zeros(); n];
+    let mut forces = vec![V3::zeros(); n];
+    let imbalance = |x: &[V3], forces: &mut [V3]| -> Result<f64> {
+        if let Some(e) = model.internal_forces(x, &zero_v, forces) {
+            return Err(TetError::StaticSolve(format!(
+                "element {e} collapsed to zero length"
+            )));
+        }
+        Ok((0..n)
+            .filter(|&i| unknown[i])
+            .map(|i| forces[i].amax())
+            .fold(0.0, f64::max))
+    };
+    let mut residual = imbalance(&x, &mut forces)?;
+    for iteration in 0..=MAX_ITERATIONS {
+        if residual <= tolerance_n {
+            return Ok(StaticSolution {
+                x_m: x,
+                iterations: iteration,
+                residual_n: residual,
+            });
+        }
+        let mut k = SkylineCholesky::with_profile(first.clone());
+        for (e, edge) in mesh.edges.iter().enumerate() {
+            let t = model.element_tangent(e, &x);
+            let (a, b) = (base[edge[0] as usize], base[edge[1] as usize]);
+            for (p, q, sign) in [(a, a, 1.0), (b, b, 1.0), (a, b, -1.0)] {
+                if p == usize::MAX || q == usize::MAX {
+                    continue;
+                }
+                for r in 0..3 {
+                    for c in 0..3 {
+                        let (i, j) = (p + r, q + c);
+                        // The (a, b) block also stands for (b, a): add each
+                        // lower-triangle entry once.
+                        if p == q && j > i {
+                            continue;
+                        }
+                        k.add(i, j, sign * t[(r, c)]);
+                    }
+                }
+            }
+        }
+        k.factor().map_err(|e| {
+            TetError::StaticSolve(format!(
+                "the tangent stiffness is not positive definite ({e}); the network may have buckled"
+            ))
+        })?;
+        let mut step = vec![0.0; neq];
+        for &node in &order {
+            for c in 0..3 {
+                step[base[node] + c] = forces[node][c];
+            }
+        }
+        k.solve_in_place(&mut step);
+        // Backtracking: halve the step until the imbalance drops.
+        let mut alpha = 1.0;
+        loop {
+            let mut trial = x.clone();
+            for &node in &order {
+                for c in 0..3 {
+                    trial[node][c] += alpha * step[base[node] + c];
+                }
+            }
+            let r = imbalance(&trial, &mut forces);
+            if let Ok(r) = r {
+                if r < residual || alpha < 1e-3 {
+                    x = trial;
+                    residual = r;
+                    break;
+                }
+            }
+            alpha *= 0.5;
+            if alpha < 1e-4 {
+                return Err(TetError::StaticSolve(
+                    "no step reduces the force imbalance".into(),
+                ));
+            }
+        }
+    }
+    Err(TetError::StaticSolve(format!(
+        "no convergence in {MAX_ITERATIONS} Newton iterations (imbalance {} N)",
+        plant_common::short_number(residual)
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::mesh::CubeMesh;
+    use crate::model::voigt::{VoigtMaterial, TICK_S};
+
+    const SIDE_M: f64 = 0.06;
+
+    /// Settles the dynamic model with `holds` ramped in over `ramp` ticks,
+    /// then held until every speed is below 1e-9 m/s.
+    fn settle(model: &VoigtModel, holds: &[Hold], ramp: u32) -> Vec<V3> {
+        let mut s = model.rest_state();
+        let mut scratch = Vec::new();
+        let rest: Vec<V3> = holds.iter().map(|h| s.x_m[h.node as usize]).collect();
+        for k in 1..=ramp {
+            let f = f64::from(k) / f64::from(ramp);
+            let now: Vec<Hold> = holds
+                .iter()
+                .zip(&rest)
+                .map(|(h, r)| Hold {
+                    node: h.node,
+                    target_m: r + (h.target_m - r) * f,
+                })
+                .collect();
+            model.step(&mut s, &now, &mut scratch).unwrap();
+        }
+        for _ in 0..40_000 {
+            model.step(&mut s, holds, &mut scratch).unwrap();
+            let fastest = (0..s.x_m.len())
+                .filter(|&i| !holds.iter().any(|h| h.node as usize == i))
+                .map(|i| s.v_m_s[i].norm())
+                .fold(0.0, f64::max);
+            if fastest < 1e-9 {
+                return s.x_m;
+            }
+        }
+        panic!("did not settle in 40 s");
+    }
+
+    fn top_centre(model: &VoigtModel) -> u32 {
+        model
+            .mesh()
+            .nearest_node(V3::new(SIDE_M / 2.0, SIDE_M / 2.0, SIDE_M)) as u32
+    }
+
+    /// A probe holding the top-centre node `depth_m` down: the dynamic
+    /// model settles to the Newton equilibrium at every level.
+    fn indentation_matches_the_static_reference(level: u32) -> f64 {
+        let model = VoigtModel::new(
+            CubeMesh::new(level, SIDE_M).unwrap(),
+            VoigtMaterial::default(),
+        )
+        .unwrap();
+        let node = top_centre(&model);
+        let depth_m = 0.003;
+        let hold = [Hold {
+            node,
+            target_m: model.mesh().nodes_m[node as usize] - V3::z() * depth_m,
+        }];
+        let dynamic = settle(&model, &hold, 300);
+        let reference = equilibrium(&model, &hold, &model.mesh().nodes_m, 1e-11).unwrap();
+        assert!(
+            reference.iterations <= 10,
+            "{} iterations",
+            reference.iterations
+        );
+        let gap = dynamic
+            .iter()
+            .zip(&reference.x_m)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        // Settled to 1e-9 m/s: positions agree to ≪ 1 µm (1e-4 of the depth).
+        assert!(gap < 3e-7, "level {level}: dynamic vs static {gap} m");
+        let zero = vec![V3::zeros(); dynamic.len()];
+        let f_dyn = model.node_force(&dynamic, &zero, node as usize);
+        let f_ref = model.node_force(&reference.x_m, &zero, node as usize);
+        assert!(
+            (f_dyn - f_ref).norm() < 1e-4 * f_ref.norm(),
+            "level {level}: force {f_dyn} vs {f_ref}"
+        );
+        // The springs push the probe back out of the object, mostly upward.
+        assert!(
+            f_ref.z > 0.0 && f_ref.xy().norm() < f_ref.z,
+            "level {level}: {f_ref}"
+        );
+        f_ref.z
+    }
+
+    #[test]
+    fn indentation_settles_to_the_newton_reference_levels_3_to_6() {
+        for level in 3..=6 {
+            let f = indentation_matches_the_static_reference(level);
+            assert!(f > 0.0);
+        }
+    }
+
+    #[test]
+    #[ignore = "levels 7–9 in a debug build take about a minute; run with --ignored"]
+    fn indentation_settles_to_the_newton_reference_levels_7_to_9() {
+        for level in 7..=9 {
+            indentation_matches_the_static_reference(level);
+        }
+    }
+
+    /// Force (N) to push a flat square punch of half the cube's width
+    /// `depth_m` into the top face: every top node within 15 mm (x and y)
+    /// of the centre is held `depth_m` down; static equilibrium by Newton
+    /// in `load_steps` equal steps.
+    fn punch_force_n(level: u32, depth_m: f64, load_steps: u32) -> f64 {
+        let model = VoigtModel::new(
+            CubeMesh::new(level, SIDE_M).unwrap(),
+            VoigtMaterial::default(),
+        )
+        .unwrap();
+        let mesh = model.mesh();
+        let under: Vec<usize> = (0..mesh.node_count())
+            .filter(|&i| {
+                let p = mesh.nodes_m[i];
+                p.z == SIDE_M
+                    && (p.x - SIDE_M / 2.0).abs() <= 0.015 + 1e-12
+                    && (p.y - SIDE_M / 2.0).abs() <= 0.015 + 1e-12
+            })
+            .collect();
+        let holds_at = |depth_m: f64| -> Vec<Hold> {
+            under
+                .iter()
+                .map(|&i| Hold {
+                    node: i as u32,
+                    target_m: mesh.nodes_m[i] - V3::z() * depth_m,
+                })
+                .collect()
+        };
+        // In load steps: a whole 1.5 mm jump of the punch nodes at the
+        // finest level would start Newton from crushed edges whose tangent
+        // is not positive definite.
+        let mut x = mesh.nodes_m.clone();
+        for step in 1..=load_steps {
+            x = equilibrium(
+                &model,
+                &holds_at(depth_m * f64::from(step) / f64::from(load_steps)),
+                &x,
+                1e-10,
+            )
+            .unwrap()
+            .x_m;
+        }
+        let holds = holds_at(depth_m);
+        let s = StaticSolution {
+            x_m: x,
+            iterations: 0,
+            residual_n: 0.0,
+        };
+        let zero = vec![V3::zeros(); mesh.node_count()];
+        holds
+            .iter()
+            .map(|h| model.node_force(&s.x_m, &zero, h.node as usize).z)
+            .sum()
+    }
+
+    #[test]
+    #[ignore = "fails: the punch force does not settle between levels 9 and 12 (tetmsd README, Known gaps); 1 min with --release --ignored --nocapture"]
+    fn flat_punch_force_converges_with_refinement() {
+        // The regular levels 3, 6, 9, 12 (h = 30, 15, 7.5, 3.75 mm): the
+        // punch force settles as h shrinks (the network's elasticity does
+        // not depend on the level, see voigt.rs); the differences between
+        // successive regular levels must shrink from level 6 on (at level
+        // 3 the 30 mm punch covers the centre node only).
+        //
+        // A small-strain study: 0.1 mm deep, under 3 % of the finest
+        // spacing, so the elements at the punch's edge stay in the linear
+        // range at every level. At 1.5 mm (40 % of the level-12 spacing)
+        // the forces were 0.822, 1.745, 1.682, 1.532 N and the last
+        // difference grew (tetmsd README, Known gaps): the edge elements'
+        // large strains, not the discretisation, set the force there.
+        let f: Vec<f64> = [3, 6, 9, 12]
+            .iter()
+            .map(|&l| punch_force_n(l, 1e-4, 1))
+            .collect();
+        for (l, v) in [3, 6, 9, 12].iter().zip(&f) {
+            println!("level {l}: punch force {v:.6} N");
+        }
+        let d: Vec<f64> = f.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        println!(
+            "successive differences {d:?}, ratios {:?}",
+            [d[1] / d[0], d[2] / d[1]]
+        );
+        assert!(d[2] < d[1], "{f:?}");
+    }
+
+    #[test]
+    fn an_affine_boundary_gives_an_affine_interior_on_the_regular_levels() {
+        // Closed form: on the regular Kuhn grids (levels 3m) every interior
+        // node has its neighbours in ± pairs, so an affine map of the whole
+        // network leaves every interior node in equilibrium, nonlinear
+        // springs and all. Hold every surface node on a finite affine map
+        // (8 % strain with shear); the static solve and the settled
+        // dynamics must both return the affine interior.
+        let a = nalgebra::Matrix3::new(0.94, 0.03, 0.0, 0.02, 1.05, -0.04, 0.0, 0.05, 0.92);
+        let shift = V3::new(0.001, -0.002, 0.0005);
+        for level in [3, 6] {
+            let mesh = CubeMesh::new(level, SIDE_M).unwrap();
+            let n = mesh.node_count();
+            let model =
+                VoigtModel::with_fixed(mesh, VoigtMaterial::default(), vec![false; n]).unwrap();
+            let map = |p: V3| a * p + shift;
+            let holds: Vec<Hold> = (0..n)
+                .filter(|&i| model.mesh().on_boundary[i])
+                .map(|i| Hold {
+                    node: i as u32,
+                    target_m: map(model.mesh().nodes_m[i]),
+                })
+                .collect();
+            let s = equilibrium(&model, &holds, &model.mesh().nodes_m, 1e-12).unwrap();
+            for (i, p) in s.x_m.iter().enumerate() {
+                let want = map(model.mesh().nodes_m[i]);
+                assert!((p - want).norm() < 1e-12, "level {level} node {i}");
+            }
+            let dynamic = settle(&model, &holds, 200);
+            for (i, p) in dynamic.iter().enumerate() {
+                let want = map(model.mesh().nodes_m[i]);
+                assert!((p - want).norm() < 1e-7, "level {level} node {i}");
+            }
+        }
+        // Sanity of the settle helper's clock: TICK_S is the 1 kHz step.
+        assert_eq!(TICK_S, 1e-3);
+    }
+
+    #[test]
+    fn bad_inputs_are_named() {
+        let model =
+            VoigtModel::new(CubeMesh::new(3, SIDE_M).unwrap(), VoigtMaterial::default()).unwrap();
+        let hold = [Hold {
+            node: 1000,
+            target_m: V3::zeros(),
+        }];
+        let e = equilibrium(&model, &hold, &model.mesh().nodes_m, 1e-9).unwrap_err();
+        assert!(e.to_string().contains("node 1000"), "{e}");
+        let e = equilibrium(&model, &[], &[], 1e-9).unwrap_err();
+        assert!(e.to_string().contains("start_m"), "{e}");
+    }
+}

@@ -1,0 +1,526 @@
+//! A network emulator in the packets' path: the seed's measured round-trip
+//! profiles (Yamaguchi Tables 2–5, seed 000 L2724–2803), loss, extra
+//! reordering and a bounded queue.
+//!
+//! **Replaying a table.** The seed gives, per trial, only the minimum,
+//! average and maximum round trip over 10,000–25,000 frames (and a plot of
+//! the first trial, not in the text). A profile here is five trials of
+//! [`TRIAL_FRAMES`] frames (12 s at one frame per millisecond, inside the
+//! seed's frame counts), one round trip per frame, built so that each
+//! trial's minimum, mean and maximum are the table's to the microsecond:
+//! a body of exponential excess over the minimum (the seed: "the average
+//! times are almost same as the minimum times", L2764) scaled to the
+//! trial's mean, capped below the maximum, and one frame at the maximum
+//! (the rare outlier: up to 1,126,960 µs in Table 5). A 60 s run replays
+//! the five trials once; longer runs repeat them. The body's shape and the
+//! outlier's position are drawn from the seeded stream of the sending site
+//! (see [`plant_common::rng::TETMSD_DELAY_BASE`]); the seed does not say how its
+//! outliers cluster, so each is a single frame.
+//!
+//! **One way.** A packet sent at time t takes half the round trip of its
+//! frame (⌊t / 1 ms⌋): the seed measured round trips only, and its two
+//! directions are taken as equal. Each direction has its own series, so a
+//! round trip in the session is the sum of two independent halves.
+//!
+//! **Loss and reordering.** Each packet is lost with probability `loss`,
+//! and with probability `reorder` held 1–3 ms extra; delays that vary by
+//! more than the 1 ms between packets reorder them anyway (the tables'
+//! spread is milliseconds). The queue holds at most `capacity` packets; a
+//! packet that finds it full is dropped and counted. The seed used TCP and
+//! counted "only correct frames" (L2712), so it reports no loss rate: the
+//! loss here is a parameter (default 1 %, an estimate for a loaded WAN).
+use crate::error::{check_range, Result};
+use plant_common::rng;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Exp1};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+/// Frames per replayed trial: 12 s at one frame per millisecond.
+pub const TRIAL_FRAMES: usize = 12_000;
+
+/// One trial of a round-trip table (µs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Trial {
+    /// Minimum round trip.
+    pub min_us: u64,
+    /// Average round trip.
+    pub avg_us: u64,
+    /// Maximum round trip.
+    pub max_us: u64,
+}
+
+const fn trial(max_us: u64, min_us: u64, avg_us: u64) -> Trial {
+    Trial {
+        min_us,
+        avg_us,
+        max_us,
+    }
+}
+
+/// A round-trip table of the seed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PaperTable {
+    /// Short name (`table2` …).
+    pub name: &'static str,
+    /// What was measured and where the table is.
+    pub label: &'static str,
+    /// The five trials.
+    pub trials: [Trial; 5],
+}
+
+/// Table 2 (L2724–2726): RU-BKC ↔ Shiga Medical University, 2 km.
+pub const TABLE_2: PaperTable = PaperTable {
+    name: "table2",
+    label: "Table 2 (L2724): RU-BKC - SMU, 2 km WAN",
+    trials: [
+        trial(30_139, 9_044, 11_943),
+        trial(19_148, 9_798, 11_178),
+        trial(23_024, 9_008, 11_103),
+        trial(24_152, 8_964, 11_685),
+        trial(17_211, 9_025, 11_116),
+    ],
+};
+
+/// Table 3 (L2751–2753): RU-BKC ↔ Osaka University, Toyonaka, 52 km.
+pub const TABLE_3: PaperTable = PaperTable {
+    name: "table3",
+    label: "Table 3 (L2751): RU-BKC - OU-TC, 52 km WAN",
+    trials: [
+        trial(53_143, 10_893, 13_110),
+        trial(57_166, 10_891, 13_186),
+        trial(57_153, 10_889, 13_183),
+        trial(268_743, 11_020, 13_574),
+        trial(87_133, 10_893, 13_120),
+    ],
+};
+
+/// Table 4 (L2790–2796): three sites, OU-TC location A.
+pub const TABLE_4: PaperTable = PaperTable {
+    name: "table4",
+    label: "Table 4 (L2790): three sites, OU-TC location A",
+    trials: [
+        trial(77_266, 11_886, 13_448),
+        trial(684_837, 11_234, 16_191),
+        trial(998_508, 11_022, 14_667),
+        trial(36_133, 10_999, 13_978),
+        trial(164_391, 11_854, 14_398),
+    ],
+};
+
+/// Table 5 (L2799–2803): three sites, OU-TC location B.
+pub const TABLE_5: PaperTable = PaperTable {
+    name: "table5",
+    label: "Table 5 (L2799): three sites, OU-TC location B",
+    trials: [
+        trial(83_307, 10_987, 12_753),
+        trial(1_126_960, 11_016, 14_699),
+        trial(618_546, 10_988, 13_595),
+        trial(65_058, 10_880, 13_221),
+        trial(65_206, 10_857, 13_479),
+    ],
+};
+
+/// Every table, for `--profile` lookup.
+pub const TABLES: [&PaperTable; 4] = [&TABLE_2, &TABLE_3, &TABLE_4, &TABLE_5];
+
+/// Where the round trips come from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Profile {
+    /// No delay (packets arrive in the tick they are sent).
+    Zero,
+    /// A fixed round trip (µs).
+    Constant(u64),
+    /// A replayed table.
+    Paper(&'static PaperTable),
+    /// A fixed round trip with one slow millisecond: packets sent during
+    /// millisecond `at_ms` take `spike_rtt_us` (a single outlier frame, as
+    /// in the tables, at a known time; for tests and experiments).
+    Spike {
+        /// The usual round trip (µs).
+        rtt_us: u64,
+        /// The slow millisecond.
+        at_ms: u64,
+        /// Its round trip (µs).
+        spike_rtt_us: u64,
+    },
+}
+
+impl Profile {
+    /// By name: `none`, `table2` … `table5`, or `rtt-MS` (a fixed round
+    /// trip of MS milliseconds).
+    pub fn by_name(name: &str) -> Option<Profile> {
+        if name == "none" {
+            return Some(Profile::Zero);
+        }
+        if let Some(ms) = name.strip_prefix("rtt-") {
+            return ms
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 0.0 && *v <= 10_000.0)
+                .map(|v| Profile::Constant((v * 1000.0).round() as u64));
+        }
+        TABLES
+            .iter()
+            .find(|t| t.name == name)
+            .map(|t| Profile::Paper(t))
+    }
+
+    /// The name [`Profile::by_name`] reads.
+    pub fn name(&self) -> String {
+        match self {
+            Profile::Zero => "none".into(),
+            Profile::Constant(us) => format!("rtt-{}", *us as f64 / 1000.0),
+            Profile::Paper(t) => t.name.into(),
+            Profile::Spike {
+                rtt_us,
+                at_ms,
+                spike_rtt_us,
+            } => format!(
+                "rtt-{} with {} at {at_ms} ms",
+                *rtt_us as f64 / 1000.0,
+                *spike_rtt_us as f64 / 1000.0
+            ),
+        }
+    }
+}
+
+/// The round trips of one trial (µs, [`TRIAL_FRAMES`] of them) with the
+/// trial's exact minimum and maximum and its mean to rounding.
+pub fn trial_round_trips(t: &Trial, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let n = TRIAL_FRAMES;
+    let (min, avg, max) = (t.min_us as f64, t.avg_us as f64, t.max_us as f64);
+    let outlier = rng.gen_range(0..n);
+    let draws: Vec<f64> = (0..n - 1).map(|_| Exp1.sample(rng)).collect();
+    let lowest = draws.iter().copied().fold(f64::INFINITY, f64::min);
+    let mut excess: Vec<f64> = draws.iter().map(|d| d - lowest).collect();
+    // The body's excess over the minimum must sum to this.
+    let target = n as f64 * avg - max - (n - 1) as f64 * min;
+    // Cap the body at 90 % of the way to the maximum: scale, clamp the
+    // frames above the cap, rescale the rest, until nothing is above it.
+    let cap = 0.9 * (max - min);
+    let mut fixed = vec![false; excess.len()];
+    for _ in 0..50 {
+        let fixed_sum: f64 = excess
+            .iter()
+            .zip(&fixed)
+            .filter(|(_, f)| **f)
+            .map(|(e, _)| *e)
+            .sum();
+        let free_sum: f64 = excess
+            .iter()
+            .zip(&fixed)
+            .filter(|(_, f)| !**f)
+            .map(|(e, _)| *e)
+            .sum();
+        let scale = if free_sum > 0.0 {
+            (target - fixed_sum) / free_sum
+        } else {
+            1.0
+        };
+        let mut clamped = false;
+        for (e, f) in excess.iter_mut().zip(fixed.iter_mut()) {
+            if !*f {
+                *e *= scale;
+                if *e > cap {
+                    *e = cap;
+                    *f = true;
+                    clamped = true;
+                }
+            }
+        }
+        if !clamped {
+            break;
+        }
+    }
+    let mut out: Vec<f64> = excess.iter().map(|e| min + e).collect();
+    out.insert(outlier, max);
+    out
+}
+
+/// The round trips of a whole table: its five trials one after another
+/// (µs, one per millisecond of session time).
+pub fn table_round_trips(table: &PaperTable, seed: u64, site: u8) -> Vec<f64> {
+    let mut r = rng::stream(seed, rng::TETMSD_DELAY_BASE + u64::from(site & 1));
+    table
+        .trials
+        .iter()
+        .flat_map(|t| trial_round_trips(t, &mut r))
+        .collect()
+}
+
+/// Emulator settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NetemConfig {
+    /// Round trips.
+    pub profile: Profile,
+    /// Probability a packet is lost.
+    pub loss: f64,
+    /// Probability a packet is held 1–3 ms extra.
+    pub reorder: f64,
+    /// Packets the queue holds.
+    pub capacity: usize,
+}
+
+impl Default for NetemConfig {
+    fn default() -> Self {
+        NetemConfig {
+            profile: Profile::Zero,
+            loss: 0.01,
+            reorder: 0.01,
+            capacity: 4096,
+        }
+    }
+}
+
+impl NetemConfig {
+    /// Checks the probabilities and the capacity.
+    pub fn validate(&self) -> Result<()> {
+        check_range("loss", self.loss, 0.0, 0.5, "must be in [0, 0.5]")?;
+        check_range("reorder", self.reorder, 0.0, 1.0, "must be in [0, 1]")?;
+        check_range(
+            "capacity",
+            self.capacity as f64,
+            1.0,
+            1e6,
+            "must be 1 to 1,000,000 packets",
+        )?;
+        Ok(())
+    }
+}
+
+/// Counters of one direction.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NetemStats {
+    /// Packets given to the emulator.
+    pub offered: u64,
+    /// Dropped at random.
+    pub lost: u64,
+    /// Dropped because the queue was full.
+    pub overflowed: u64,
+    /// Held extra.
+    pub held_extra: u64,
+    /// Handed on.
+    pub delivered: u64,
+    /// Largest queue length.
+    pub max_queued: usize,
+    /// Largest one-way delay given (µs).
+    pub max_delay_us: u64,
+}
+
+/// One direction of the emulated network.
+#[derive(Clone, Debug)]
+pub struct Emulator {
+    config: NetemConfig,
+    /// One-way delay per millisecond of session time; a table repeats,
+    /// the other profiles keep their last entry.
+    one_way_us: Vec<u64>,
+    repeats: bool,
+    rng: ChaCha8Rng,
+    queue: BinaryHeap<Reverse<(u64, u64, [u8; 64])>>,
+    order: u64,
+    stats: NetemStats,
+}
+
+impl Emulator {
+    /// The emulator of the packets site `site` sends in a run with `seed`.
+    pub fn new(config: NetemConfig, seed: u64, site: u8) -> Result<Self> {
+        config.validate()?;
+        let one_way_us = match config.profile {
+            Profile::Paper(t) => table_round_trips(t, seed, site)
+                .iter()
+                .map(|rtt| (rtt / 2.0).round() as u64)
+                .collect(),
+            Profile::Constant(rtt) => vec![rtt / 2],
+            Profile::Zero => vec![0],
+            Profile::Spike {
+                rtt_us,
+                at_ms,
+                spike_rtt_us,
+            } => {
+                let mut v = vec![rtt_us / 2; at_ms as usize + 2];
+                v[at_ms as usize] = spike_rtt_us / 2;
+                v
+            }
+        };
+        let repeats = matches!(config.profile, Profile::Paper(_));
+        Ok(Emulator {
+            config,
+            one_way_us,
+            repeats,
+            rng: rng::stream(seed, rng::TETMSD_LOSS_BASE + u64::from(site & 1)),
+            queue: BinaryHeap::new(),
+            order: 0,
+            stats: NetemStats::default(),
+        })
+    }
+
+    /// The one-way delay of a packet sent at `now_us`.
+    pub fn delay_at_us(&self, now_us: u64) -> u64 {
+        let n = self.one_way_us.len();
+        let frame = (now_us / 1000) as usize;
+        let frame = if self.repeats {
+            frame % n
+        } else {
+            frame.min(n - 1)
+        };
+        self.one_way_us[frame]
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> &NetemStats {
+        &self.stats
+    }
+
+    /// Packets in flight.
+    pub fn queued(&self) -> usize {
+        self.queue.len()
+    }
+
+    /// Sends `packet` at `now_us`.
+    pub fn push(&mut self, now_us: u64, packet: [u8; 64]) {
+        self.stats.offered += 1;
+        // Draw both numbers for every packet so that one setting does not
+        // shift the other's stream.
+        let (lose, hold, extra) = (
+            self.rng.gen::<f64>(),
+            self.rng.gen::<f64>(),
+            self.rng.gen_range(1_000..=3_000u64),
+        );
+        if lose < self.config.loss {
+            self.stats.lost += 1;
+            return;
+        }
+        if self.queue.len() >= self.config.capacity {
+            self.stats.overflowed += 1;
+            return;
+        }
+        let mut delay = self.delay_at_us(now_us);
+        if hold < self.config.reorder {
+            delay += extra;
+            self.stats.held_extra += 1;
+        }
+        self.stats.max_delay_us = self.stats.max_delay_us.max(delay);
+        self.order += 1;
+        self.queue
+            .push(Reverse((now_us + delay, self.order, packet)));
+        self.stats.max_queued = self.stats.max_queued.max(self.queue.len());
+    }
+
+    /// The next packet due by `now_us`, earliest first.
+    pub fn pop_due(&mut self, now_us: u64) -> Option<[u8; 64]> {
+        match self.queue.peek() {
+            Some(Reverse((t, _, _))) if *t <= now_us => {
+                self.stats.delivered += 1;
+                self.queue.pop().map(|Reverse((_, _, p))| p)
+            }
+            _ => None,
+        }
+    }
+
+    /// When the next packet is due (µs), if any is in flight.
+    pub fn next_due_us(&self) -> Option<u64> {
+        self.queue.peek().map(|Reverse((t, _, _))| *t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_replayed_trial_has_the_tables_minimum_mean_and_maximum() {
+        for table in TABLES {
+            for site in 0..2 {
+                let rtt = table_round_trips(table, 7, site);
+                assert_eq!(rtt.len(), 5 * TRIAL_FRAMES);
+                for (k, t) in table.trials.iter().enumerate() {
+                    let s = &rtt[k * TRIAL_FRAMES..(k + 1) * TRIAL_FRAMES];
+                    let min = s.iter().copied().fold(f64::INFINITY, f64::min);
+                    let max = s.iter().copied().fold(0.0, f64::max);
+                    let mean = s.iter().sum::<f64>() / s.len() as f64;
+                    let tag = format!("{} trial {} site {site}", table.name, k + 1);
+                    assert_eq!(min, t.min_us as f64, "{tag}");
+                    assert_eq!(max, t.max_us as f64, "{tag}");
+                    assert!((mean - t.avg_us as f64).abs() < 1e-6, "{tag}: mean {mean}");
+                    // One outlier; the body stays below 90 % of the way up.
+                    let high = s
+                        .iter()
+                        .filter(|v| {
+                            **v > t.min_us as f64 + 0.9 * (t.max_us - t.min_us) as f64 + 1e-6
+                        })
+                        .count();
+                    assert_eq!(high, 1, "{tag}");
+                }
+            }
+        }
+        // The one-way delays of the emulator are the halves, to a µs.
+        let cfg = NetemConfig {
+            profile: Profile::Paper(&TABLE_4),
+            ..NetemConfig::default()
+        };
+        let e = Emulator::new(cfg, 7, 1).unwrap();
+        let rtt = table_round_trips(&TABLE_4, 7, 1);
+        let worst = (0..60_000u64)
+            .map(|k| e.delay_at_us(k * 1000))
+            .max()
+            .unwrap();
+        assert_eq!(worst, 499_254, "Table 4's worst round trip, halved");
+        for k in [0, 1234, 59_999] {
+            assert!((e.delay_at_us(k * 1000) as f64 - rtt[k as usize] / 2.0).abs() <= 0.5);
+        }
+    }
+
+    #[test]
+    fn loss_reordering_and_the_bounded_queue() {
+        let cfg = NetemConfig {
+            profile: Profile::Constant(10_000),
+            loss: 0.1,
+            reorder: 0.2,
+            capacity: 100,
+        };
+        let mut e = Emulator::new(cfg, 3, 0).unwrap();
+        let mut got = Vec::new();
+        for k in 0..20_000u64 {
+            let mut p = [0u8; 64];
+            p[..8].copy_from_slice(&k.to_le_bytes());
+            e.push(k * 1000, p);
+            while let Some(q) = e.pop_due(k * 1000) {
+                got.push(u64::from_le_bytes(q[..8].try_into().unwrap()));
+            }
+        }
+        let s = *e.stats();
+        assert!((s.lost as f64 / 20_000.0 - 0.1).abs() < 0.01, "{s:?}");
+        assert!(
+            (s.held_extra as f64 / s.offered as f64 - 0.18).abs() < 0.02,
+            "{s:?}"
+        );
+        let out_of_order = got.windows(2).filter(|w| w[1] < w[0]).count();
+        assert!(out_of_order > 1000, "{out_of_order}");
+        assert!(s.max_queued <= 100 && s.overflowed == 0);
+        // A tiny queue overflows, and says so.
+        let mut tiny = Emulator::new(
+            NetemConfig {
+                capacity: 2,
+                loss: 0.0,
+                ..cfg
+            },
+            3,
+            0,
+        )
+        .unwrap();
+        for k in 0..10 {
+            tiny.push(k, [0; 64]);
+        }
+        assert_eq!(tiny.stats().overflowed, 8);
+        assert!(Emulator::new(NetemConfig { loss: 0.9, ..cfg }, 3, 0).is_err());
+        assert_eq!(Profile::by_name("table4"), Some(Profile::Paper(&TABLE_4)));
+        assert_eq!(
+            Profile::by_name("rtt-12.5"),
+            Some(Profile::Constant(12_500))
+        );
+        assert_eq!(Profile::by_name("table9"), None);
+        assert_eq!(Profile::by_name("rtt-x"), None);
+    }
+}

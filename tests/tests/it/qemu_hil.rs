@@ -1,0 +1,331 @@
+//! The real thumbv7em firmware images under QEMU, in lockstep with the
+//! simulated joint over QEMU's serial socket: the mps2-an386 image (`softjoint-fw`)
+//! and the STM32F4 board image in its QEMU flavour on `netduinoplus2`
+//! (`softjoint-stm32f4-qemu`: the Nucleo-F446RE image without clock setup
+//! and timer I/O).
+//!
+//! These need QEMU and the images, so they are ignored in a plain
+//! `cargo test`; `scripts/test-all.sh` installs QEMU, builds the images and
+//! runs them with `--ignored`.
+use std::path::PathBuf;
+use std::time::Duration;
+
+use firmware::protocol::{HilSensor, Message};
+use firmware::supervisor::Faults;
+use host_tools::board::hil::{self, HilOptions};
+use host_tools::board::link::{Link, SerialDevice};
+use host_tools::board::qemu::{Qemu, QemuBoard};
+use host_tools::files::scenario::{Scenario, TargetStep};
+use host_tools::run::sim;
+
+fn image(board: QemuBoard) -> PathBuf {
+    // Tests run in the crate directory; the images are under the workspace.
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(board.default_image());
+    assert!(
+        p.exists(),
+        "{} missing: run `{}`",
+        p.display(),
+        board.build_command()
+    );
+    p
+}
+
+fn launch(board: QemuBoard, icount: bool) -> (Qemu, Link<SerialDevice>) {
+    let mut qemu = Qemu::launch(board, &image(board), icount).expect("qemu");
+    let link = Link::new(qemu.connect().expect("QEMU's serial socket"));
+    (qemu, link)
+}
+
+fn short_default() -> Scenario {
+    Scenario {
+        name: "short 3D default".into(),
+        duration_s: 6.0,
+        targets: vec![
+            TargetStep {
+                t_s: 0.0,
+                deg: vec![0.0, 0.0],
+            },
+            TargetStep {
+                t_s: 1.0,
+                deg: vec![5.0, 5.0],
+            },
+            TargetStep {
+                t_s: 3.5,
+                deg: vec![10.0, 10.0],
+            },
+        ],
+        ..Scenario::default()
+    }
+}
+
+/// Same control core, same inputs, same plant: the lockstep trace `got` is
+/// `expected` (the simulation's) step for step, trajectory, outputs and
+/// faults alike. Estimates travel in centidegrees (±0.005°), rounded in f32
+/// (≈ 1e-6 at 10°), hence 1e-5 of slack on top.
+fn assert_same_trajectory(got: &sim::Trace, expected: &sim::Trace) {
+    assert_eq!(got.rows.len(), expected.rows.len());
+    for (k, (h, e)) in got.rows.iter().zip(&expected.rows).enumerate() {
+        assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
+        assert_eq!(
+            h.coil_volts, e.coil_volts,
+            "coil voltages differ at step {k}"
+        );
+        assert_eq!(h.faults, e.faults, "faults differ at step {k}");
+        for p in 0..2 {
+            assert!(
+                (h.estimate_deg[p] - e.estimate_deg[p]).abs() <= 0.005 + 1e-5,
+                "estimate {p} at step {k}: {} vs {}",
+                h.estimate_deg[p],
+                e.estimate_deg[p]
+            );
+        }
+    }
+}
+
+/// The built-in default scenario in full (30 s, 30 000 lockstep steps)
+/// through `board`'s image gives the trajectory of `softjoint sim`.
+fn lockstep_reproduces_the_simulation(board: QemuBoard) {
+    let s = Scenario::default();
+    let expected = sim::run(&s).expect("sim");
+    let (mut qemu, mut link) = launch(board, true);
+    // What is compared is the control, not the link watchdog (the dead-link
+    // tests check that): a link timeout of 10 s of the board's clock keeps
+    // a host stalled on a loaded machine from latching link loss mid-run.
+    let opts = HilOptions {
+        link_timeout_ms: Some(10_000),
+        ..HilOptions::default()
+    };
+    let got = match hil::run(&s, &mut link, opts) {
+        Ok(got) => got,
+        Err(e) => panic!(
+            "hil run: {e:#}; QEMU still running: {}; it printed: {:?}",
+            qemu.is_running(),
+            qemu.output()
+        ),
+    };
+    assert_same_trajectory(&got.trace, &expected.trace);
+    // The run did something: the joint reached its targets.
+    assert!(
+        got.report
+            .summary
+            .steady_state_error_deg
+            .iter()
+            .all(|e| *e < 0.5),
+        "{:?}",
+        got.report.summary
+    );
+    println!(
+        "{board:?} lockstep: {:.0} steps/s, {:?}",
+        got.report.lockstep_steps_per_s, got.report.link
+    );
+    // Every frame answered (a reply slower than the timeout on a loaded host
+    // costs a harmless, idempotent retry); nothing corrupted.
+    let l = got.report.link;
+    assert_eq!(l.frames_received, l.frames_sent, "{l:?}");
+    assert_eq!(
+        (
+            got.report.board_crc_errors,
+            got.report.board_cobs_errors,
+            l.crc_errors
+        ),
+        (0, 0, 0)
+    );
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn image_in_lockstep_reproduces_the_simulation() {
+    lockstep_reproduces_the_simulation(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn stm32f4_image_in_lockstep_reproduces_the_simulation() {
+    lockstep_reproduces_the_simulation(QemuBoard::Stm32f4);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn lost_frames_are_retried_through_qemu() {
+    lost_frames_are_retried(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn lost_frames_are_retried_through_the_stm32f4_image() {
+    lost_frames_are_retried(QemuBoard::Stm32f4);
+}
+
+/// Lost sensor frames are re-sent with the same seq and answered once, and
+/// the run is the simulation's all the same.
+fn lost_frames_are_retried(board: QemuBoard) {
+    let s = Scenario {
+        duration_s: 1.5,
+        ..short_default()
+    };
+    let expected = sim::run(&s).expect("sim");
+    let (_qemu, mut link) = launch(board, true);
+    let opts = HilOptions {
+        lose_every: Some(100),
+        // Generous against a loaded host, as in the lockstep comparison:
+        // what is checked is the retry, not the link watchdog.
+        link_timeout_ms: Some(10_000),
+        timeout: Duration::from_millis(200),
+        ..HilOptions::default()
+    };
+    let got = hil::run(&s, &mut link, opts).expect("hil run with losses");
+    // Each of the 15 lost frames (1500 steps / 100) costs at least one
+    // retry; a loaded host can add a few more (a reply later than 200 ms).
+    let l = got.report.link;
+    assert!(l.retries >= 15, "{l:?}");
+    // 15 frames were never written; every written frame is answered once.
+    // A reply still in flight when the run ends can only belong to a
+    // retry beyond the 15 (a late reply re-requested).
+    let written = l.frames_sent - 15;
+    assert!(
+        l.frames_received <= written && l.frames_received + (l.retries - 15) >= written,
+        "{l:?}"
+    );
+    assert_eq!((l.crc_errors, got.report.board_crc_errors), (0, 0), "{l:?}");
+    assert!(
+        got.report.summary.faults_seen.is_empty(),
+        "{:?}",
+        got.report.summary.faults_seen
+    );
+    // A retried step is answered from the board's cache, not stepped again:
+    // the trajectory is the simulation's.
+    assert_same_trajectory(&got.trace, &expected.trace);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn dead_link_zeroes_the_image_outputs() {
+    dead_link_zeroes_the_outputs(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn dead_link_zeroes_the_stm32f4_image_outputs() {
+    dead_link_zeroes_the_outputs(QemuBoard::Stm32f4);
+}
+
+/// The board's own link watchdog: a host that stops talking in lockstep
+/// leaves the outputs at zero and link loss latched.
+fn dead_link_zeroes_the_outputs(board: QemuBoard) {
+    // Without -icount the guest clock follows the host's; a link timeout of
+    // 500 ms (not the board's 50 ms default) keeps a loaded host's pause
+    // between the steps below from being taken for a dead link.
+    const LINK_TIMEOUT_MS: u16 = 500;
+    let (_qemu, mut link) = launch(board, false);
+    let t = Duration::from_millis(300);
+    integration_tests::start_lockstep(&mut link, Some(LINK_TIMEOUT_MS), 10.0, t);
+    let mut last = None;
+    for seq in 0..10u16 {
+        let r = link
+            .request(
+                &HilSensor {
+                    seq,
+                    counts: [0, 0, -6, -2],
+                }
+                .into(),
+                t,
+                5,
+                |m| matches!(m, Message::HilActuator(_)),
+            )
+            .unwrap();
+        last = Some(r);
+    }
+    match last {
+        Some(Message::HilActuator(a)) => {
+            assert!(a.pair_mv[0] > 0, "driving before the link dies: {a:?}")
+        }
+        other => panic!("{other:?}"),
+    }
+    // The host goes silent. The board's clock, not the host's, is the
+    // judge: on a loaded host QEMU can run the guest's clock slower than
+    // wall time (timer ticks it was too late for are merged), so the test
+    // waits in rounds of 3 s and asks for the status (a frame, which feeds
+    // the watchdog again) after each. A round in which the board's own
+    // clock advanced by more than 4 × the link timeout without link loss
+    // latched is a failure; a shorter one (a starved QEMU) is waited out.
+    let mut before = hil::status(&mut link).unwrap().time_ms;
+    for _round in 0..8 {
+        std::thread::sleep(Duration::from_millis(3000));
+        let s = hil::status(&mut link).unwrap();
+        if Faults::from_bits(u16::from(s.latched)).contains(Faults::LINK_LOSS) {
+            assert_eq!(s.pair_mv, [0, 0], "outputs zero after link loss");
+            return;
+        }
+        let silent_ms = s.time_ms.wrapping_sub(before);
+        assert!(
+            silent_ms <= 4 * u32::from(LINK_TIMEOUT_MS),
+            "{silent_ms} ms of the board's clock without a frame and no link loss: {s:?}"
+        );
+        before = s.time_ms;
+    }
+    panic!("the board's clock did not advance by the link timeout in 8 rounds of 3 s");
+}
+
+/// The images take the open-loop `Drive` of protocol v3 and refuse it by
+/// name as the board application does: disarmed, with a fault latched
+/// (QEMU has no sensors: sensor-stale latches 50 ms after boot) and in
+/// lockstep.
+fn images_refuse_drive_by_name(board: QemuBoard) {
+    use firmware::protocol::{Arm, ClearFaults, Disarm, Drive, ErrorCode, HilStart, HilStop};
+    use host_tools::board::controller::{handshake, CMD_ATTEMPTS, CMD_TIMEOUT};
+    use host_tools::board::link::LinkError;
+    let (_qemu, mut link) = launch(board, true);
+    handshake(&mut link).expect("handshake");
+    let drive: Message = Drive {
+        planes: 1,
+        coil_mv: [3000, 0, 1900, 0],
+        hold_ms: 100,
+    }
+    .into();
+    let refused =
+        |link: &mut Link<SerialDevice>| match link.command(&drive, CMD_TIMEOUT, CMD_ATTEMPTS) {
+            Err(LinkError::Refused { code, .. }) => code,
+            other => panic!("{board:?}: Drive not refused: {other:?}"),
+        };
+    let cmd = |link: &mut Link<SerialDevice>, m: Message| {
+        link.command(&m, CMD_TIMEOUT, CMD_ATTEMPTS).unwrap()
+    };
+    cmd(&mut link, Disarm {}.into());
+    assert_eq!(refused(&mut link), ErrorCode::Disarmed, "{board:?}");
+    cmd(&mut link, Arm {}.into());
+    // Sensor-stale latches 50 ms of the *board's* clock after boot; under
+    // -icount on a loaded host that can take longer than 50 ms of wall
+    // time, so wait for the board to say so (at most 10 s).
+    let mut latched = false;
+    for _ in 0..100 {
+        if hil::status(&mut link).unwrap().latched != 0 {
+            latched = true;
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(
+        latched,
+        "{board:?}: no fault latched after 10 s without sensors"
+    );
+    assert_eq!(refused(&mut link), ErrorCode::Latched, "{board:?}");
+    cmd(&mut link, HilStart { period_us: 1000 }.into());
+    cmd(&mut link, ClearFaults {}.into());
+    assert_eq!(refused(&mut link), ErrorCode::WrongMode, "{board:?}");
+    cmd(&mut link, HilStop {}.into());
+    cmd(&mut link, Disarm {}.into());
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn the_image_refuses_drive_by_name() {
+    images_refuse_drive_by_name(QemuBoard::Mps2An386);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the STM32F4 image; run by scripts/test-all.sh"]
+fn the_stm32f4_image_refuses_drive_by_name() {
+    images_refuse_drive_by_name(QemuBoard::Stm32f4);
+}
