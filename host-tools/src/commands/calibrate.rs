@@ -28,7 +28,7 @@ pub fn run(cmd: CalibrateCommand) -> anyhow::Result<()> {
         output,
         json,
     } = cmd;
-    let rows = calibrate::read_sweep(&sweep)?;
+    let rows = host_tools::files::sweep::read_sweep(&sweep)?;
     // The output path is checked (its temporary file made) before
     // the fit; the file is replaced only once it is complete.
     let pending = host_tools::output::AtomicFile::create(&output)?;

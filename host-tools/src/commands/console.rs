@@ -12,7 +12,7 @@ use firmware::protocol::{
 use host_tools::board::controller::name_the_board;
 use host_tools::board::hil::{self};
 use host_tools::board::link::{open_port, Link, Port};
-use host_tools::joint::calibrate::{CalibrationFile, LawSpec};
+use host_tools::files::calibration::{CalibrationFile, LawSpec};
 use host_tools::outln;
 use host_tools::output;
 use host_tools::run::sim::fault_names;
@@ -238,7 +238,7 @@ fn run_console_command<P: Port>(
             )?
         }
         ["gains", "load", file] => {
-            let g = host_tools::joint::tune::GainsFile::load(Path::new(file))?;
+            let g = host_tools::files::gains::GainsFile::load(Path::new(file))?;
             for (plane, [kp_agonist, kp_antagonist]) in g.pair_gains().into_iter().enumerate() {
                 ack(
                     link,
@@ -275,7 +275,7 @@ fn run_console_command<P: Port>(
             if let Message::Calibration(Calibration { plane, law }) = r {
                 outln!(
                     "plane {plane}: {}",
-                    host_tools::joint::calibrate::describe(&LawSpec::from_law(&law))
+                    host_tools::files::calibration::describe(&LawSpec::from_law(&law))
                 );
             }
         }

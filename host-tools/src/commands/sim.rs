@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use clap::Args;
 use host_tools::files::scenario::Scenario;
-use host_tools::joint::calibrate;
 use host_tools::run::{report, sim};
 use host_tools::{out, outln, output};
 
@@ -101,7 +100,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         let pending = host_tools::output::AtomicFile::create(path)?;
         let rows = sim::calibration_sweep(&scenario)?;
         drop(pending);
-        calibrate::write_sweep(path, &rows)?;
+        host_tools::files::sweep::write_sweep(path, &rows)?;
         outln!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }

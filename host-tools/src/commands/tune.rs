@@ -4,9 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
+use host_tools::files::gains::{GainsFile, Tuning};
 use host_tools::files::plant::{PlantFile, PlantParams};
-use host_tools::files::scenario::JointKind;
-use host_tools::joint::tune::{self, GainsFile, Tuning};
+use host_tools::files::JointKind;
+use host_tools::joint::tune;
 use host_tools::output;
 
 /// The arguments of `tune`.

@@ -14,6 +14,8 @@ use plant_common::short_number as short;
 use plant_joint::{LoadId, PlantError};
 use serde::{Deserialize, Serialize};
 
+pub use crate::files::JointKind;
+
 /// Gains the control core can hold: it computes in f32, where a smaller
 /// positive gain rounds to zero (or a subnormal) and a larger one to infinity.
 const F32_GAIN_RANGE: std::ops::RangeInclusive<f64> =
@@ -24,17 +26,6 @@ const F32_GAIN_RANGE: std::ops::RangeInclusive<f64> =
 /// f64 time (exact step times) can hold. The old 3600 s cap existed only
 /// because the whole trace was kept in memory.
 pub const MAX_DURATION_S: f64 = 1e9;
-
-/// Which joint to simulate.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum JointKind {
-    /// One plane, one wire sensor (the paper's §III–V prototypes).
-    #[serde(rename = "2d")]
-    TwoD,
-    /// Two projection planes, four wire sensors (the paper's §VI).
-    #[serde(rename = "3d")]
-    ThreeD,
-}
 
 /// What the controller sees.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -311,7 +302,7 @@ impl Scenario {
             })?);
         }
         if let Some(g) = &s.controller.gains_file {
-            let gains = crate::joint::tune::GainsFile::load(g)?;
+            let gains = crate::files::gains::GainsFile::load(g)?;
             s.controller.kp_v_per_deg = gains.controller.kp_v_per_deg.clone();
             s.controller.ki_v_per_deg_s = gains.controller.ki_v_per_deg_s;
             s.controller.integral_limit_v = gains.controller.integral_limit_v;

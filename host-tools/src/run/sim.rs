@@ -12,11 +12,13 @@ use hal_sim::{ClosedLoop, Controller, CoreController, FeedbackSource, LoopError,
 use plant_joint::{Joint2d, Joint2dParams, Joint3d, Joint3dParams};
 use serde::Serialize;
 
+use crate::files::calibration::CalibrationFile;
 use crate::files::plant::PlantParams;
 use crate::files::scenario::{
     ControlMode, EstimatorMethod, FeedbackKind, JointKind, Scenario, ScenarioSchedule,
 };
-use crate::joint::calibrate::{self, CalibrationFile, SweepRow};
+use crate::files::sweep::SweepRow;
+use crate::joint::calibrate;
 use crate::run::trace::{NoRows, RowSink, TraceFileReport};
 use crate::stop::{Stop, StopSignal};
 

@@ -4,9 +4,10 @@
 use crate::common;
 
 use common::{ok, s, scratch, softjoint, stderr, stdout};
+use host_tools::files::gains::{Gains, GainsFile};
 use host_tools::files::plant::{PlantFile, PlantParams};
-use host_tools::files::scenario::JointKind;
-use host_tools::joint::tune::{self, Gains, GainsFile};
+use host_tools::files::JointKind;
+use host_tools::joint::tune;
 use plant_joint::identify::{hidden, ExcitationPlan};
 
 fn write(path: &std::path::Path, text: &str) {

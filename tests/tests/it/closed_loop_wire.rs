@@ -16,8 +16,9 @@ use firmware::control::PairGains;
 use firmware::estimate::{PlaneEstimator, PlaneLaw};
 use firmware::joint::{JointConfig, JointController};
 use hal_sim::{ClosedLoop, Controller, CoreController, FeedbackSource, Plant};
+use host_tools::files::calibration::CalibrationFile;
 use host_tools::files::scenario::{EstimatorMethod, EstimatorSpec, Scenario};
-use host_tools::joint::calibrate::{self, CalibrationFile};
+use host_tools::joint::calibrate;
 use host_tools::run::sim;
 use plant_joint::{Joint3d, Joint3dParams};
 
@@ -222,8 +223,8 @@ fn calibrate_from_simulated_sweep(seed: u64, dir: &std::path::Path) -> Calibrate
     };
     let rows = sim::calibration_sweep(&s).expect("sweep");
     let csv = dir.join(format!("sweep_{seed}.csv"));
-    calibrate::write_sweep(&csv, &rows).expect("write sweep");
-    let rows = calibrate::read_sweep(&csv).expect("read sweep");
+    host_tools::files::sweep::write_sweep(&csv, &rows).expect("write sweep");
+    let rows = host_tools::files::sweep::read_sweep(&csv).expect("read sweep");
     let fits = calibrate::fit(&rows).expect("fit");
     print!("calibration seed {seed}:\n{}", calibrate::table(&fits));
     let path = dir.join(format!("calibration_{seed}.toml"));

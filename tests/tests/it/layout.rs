@@ -463,7 +463,8 @@ fn crate_imports(code: &str, parent: &str) -> BTreeSet<String> {
     let mut out = BTreeSet::new();
     for (kw, base) in [("crate::", ""), ("super::", parent)] {
         for (at, _) in code.match_indices(kw) {
-            if at > 0 && code[..at].ends_with(|c: char| c.is_alphanumeric() || c == '_' || c == ':') {
+            if at > 0 && code[..at].ends_with(|c: char| c.is_alphanumeric() || c == '_' || c == ':')
+            {
                 continue;
             }
             for p in expand_path(&code[at + kw.len()..]) {

@@ -14,9 +14,10 @@ use std::path::PathBuf;
 use host_tools::board::hil::{self, HilOptions};
 use host_tools::board::link::Link;
 use host_tools::board::qemu::{Qemu, QemuBoard, DEFAULT_IMAGE};
+use host_tools::files::gains::{Gains, GainsFile, RunCost};
 use host_tools::files::plant::PlantParams;
-use host_tools::files::scenario::JointKind;
-use host_tools::joint::tune::{self, Gains, GainsFile, RunCost};
+use host_tools::files::JointKind;
+use host_tools::joint::tune;
 use host_tools::run::sim;
 use plant_joint::identify::hidden;
 
