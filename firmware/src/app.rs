@@ -183,8 +183,7 @@ impl App {
     /// rounding).
     pub fn coil_mv(&self) -> [u16; 4] {
         let d = self.joint.driver();
-        let [[c1, c3], [c2, c4]] = self.outputs;
-        [c1, c2, c3, c4].map(|v| coil_to_mv(v, d))
+        crate::joint::pairs_to_coils::<DriveVolts, 2, 4>(self.outputs).map(|v| coil_to_mv(v, d))
     }
 
     /// Planes in open-loop drive mode (driven, or released after a drive
@@ -468,9 +467,9 @@ impl App {
             return Err(ErrorCode::OutOfRange);
         }
         let driver = *self.joint.driver();
-        let [m1, m2, m3, m4] = d.coil_mv;
+        let pairs: [[u16; 2]; 2] = crate::joint::coils_to_pairs(d.coil_mv);
         let mut volts = [[DriveVolts::ZERO; 2]; 2];
-        for (p, (v, mv)) in volts.iter_mut().zip([[m1, m3], [m2, m4]]).enumerate() {
+        for (p, (v, mv)) in volts.iter_mut().zip(pairs).enumerate() {
             let driven = d.planes & (1 << p) != 0;
             for (slot, m) in v.iter_mut().zip(mv) {
                 if !driven && m != 0 {

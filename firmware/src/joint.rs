@@ -28,6 +28,47 @@ use crate::supervisor::{Faults, StillFaulted, Supervisor, SupervisorConfig};
 use crate::time::{Duration, Instant};
 use embedded_hal::pwm::SetDutyCycle;
 
+/// Coil index (0-based) of pair `pair`'s agonist or antagonist in a joint
+/// of `pairs` pairs, in the paper's numbering: for the 3D joint coils 1–4
+/// are (α agonist, β agonist, α antagonist, β antagonist), for the 2D joint
+/// (agonist, antagonist). The one place this numbering is written down: the
+/// protocol's coil fields, the simulator's coil arrays and the host's
+/// per-coil gains all follow it.
+pub const fn coil_index(pairs: usize, pair: usize, antagonist: bool) -> usize {
+    if antagonist {
+        pair + pairs
+    } else {
+        pair
+    }
+}
+
+/// Per-pair `[agonist, antagonist]` values laid out over the coils in paper
+/// numbering ([`coil_index`]); coils beyond `C` are dropped, missing ones
+/// are `T::default()`.
+pub fn pairs_to_coils<T: Copy + Default, const P: usize, const C: usize>(
+    pairs: [[T; 2]; P],
+) -> [T; C] {
+    let mut coils = [T::default(); C];
+    for (p, [agonist, antagonist]) in pairs.into_iter().enumerate() {
+        if let Some(slot) = coils.get_mut(coil_index(P, p, false)) {
+            *slot = agonist;
+        }
+        if let Some(slot) = coils.get_mut(coil_index(P, p, true)) {
+            *slot = antagonist;
+        }
+    }
+    coils
+}
+
+/// Coil values in paper numbering gathered per pair as `[agonist,
+/// antagonist]` (the inverse of [`pairs_to_coils`]).
+pub fn coils_to_pairs<T: Copy + Default, const P: usize, const C: usize>(
+    coils: [T; C],
+) -> [[T; 2]; P] {
+    let at = |i: usize| coils.get(i).copied().unwrap_or_default();
+    core::array::from_fn(|p| [at(coil_index(P, p, false)), at(coil_index(P, p, true))])
+}
+
 /// Why a joint configuration was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -577,5 +618,22 @@ impl<const P: usize, const S: usize> JointController<P, S> {
             faults: supervised.faults,
             coils: supervised.coils,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coils_are_numbered_as_the_paper_does() {
+        assert_eq!(
+            pairs_to_coils::<f64, 2, 4>([[1.0, 3.0], [2.0, 4.0]]),
+            [1.0, 2.0, 3.0, 4.0]
+        );
+        assert_eq!(pairs_to_coils::<f64, 1, 2>([[1.0, 2.0]]), [1.0, 2.0]);
+        assert_eq!(coils_to_pairs::<u16, 2, 4>([1, 2, 3, 4]), [[1, 3], [2, 4]]);
+        assert_eq!(coil_index(2, 1, true), 3);
+        assert_eq!(coil_index(1, 0, true), 1);
     }
 }

@@ -37,43 +37,6 @@ pub use core_controller::{CoreController, FeedbackSource};
 pub use devices::{CoilFault, PwmFailure, SensorFault, SimClock, SimDelay, SimPwm, SimWireSensor};
 pub use plants::{Loads, Plant};
 
-/// Coil index (paper numbering, 0-based) of pair `pair`'s agonist or
-/// antagonist in a joint with `P` pairs: for 3D coils 1..4 are (α agonist,
-/// β agonist, α antagonist, β antagonist); for 2D (agonist, antagonist).
-/// The one place this numbering is written down.
-pub const fn coil_index<const P: usize>(pair: usize, antagonist: bool) -> usize {
-    if antagonist {
-        pair + P
-    } else {
-        pair
-    }
-}
-
-/// Spreads per-pair `[agonist, antagonist]` values over the paper's coil
-/// numbering (see [`coil_index`]).
-pub fn pairs_to_coils<const P: usize, const C: usize>(pairs: [[f64; 2]; P]) -> [f64; C] {
-    let mut coils = [0.0; C];
-    for (p, [agonist, antagonist]) in pairs.into_iter().enumerate() {
-        if let Some(slot) = coils.get_mut(coil_index::<P>(p, false)) {
-            *slot = agonist;
-        }
-        if let Some(slot) = coils.get_mut(coil_index::<P>(p, true)) {
-            *slot = antagonist;
-        }
-    }
-    coils
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn coils_are_numbered_as_the_paper_does() {
-        assert_eq!(
-            pairs_to_coils::<2, 4>([[1.0, 3.0], [2.0, 4.0]]),
-            [1.0, 2.0, 3.0, 4.0]
-        );
-        assert_eq!(pairs_to_coils::<1, 2>([[1.0, 2.0]]), [1.0, 2.0]);
-    }
-}
+/// The coil numbering is the firmware's (it defines the protocol's coil
+/// order): the simulator's coil arrays follow it.
+pub use firmware::joint::{coil_index, pairs_to_coils};

@@ -28,7 +28,7 @@ fn main() -> ExitCode {
             let _ = writeln!(std::io::stderr(), "error: {e:#}");
             // A run cut short by a signal exits as the signal would (130
             // for SIGINT), after its trace and summary were written.
-            match e.downcast_ref::<host_tools::run::sim::RunCutShort>() {
+            match e.downcast_ref::<host_tools::run::summary::RunCutShort>() {
                 Some(cut) => ExitCode::from(cut.exit_code()),
                 None => ExitCode::FAILURE,
             }

@@ -1,6 +1,6 @@
 //! Hardware-in-the-loop in lockstep: the host owns time and the plant; the
 //! board (the firmware image under QEMU, or a real board) runs the control
-//! step. The run is `softjoint sim`'s own closed loop ([`sim::run_scenario`])
+//! step. The run is `softjoint sim`'s own closed loop ([`sim::run_loop`])
 //! with a [`BoardController`] in place of the core in process. See
 //! ARCHITECTURE.md.
 
@@ -13,8 +13,12 @@ use serde::Serialize;
 
 use crate::board::controller::{BoardController, LockstepSetup};
 use crate::board::link::{HostLinkStats, Link, Port};
-use crate::files::scenario::{FeedbackKind, JointKind, Scenario};
-use crate::run::sim::{self, Summary, Trace};
+use crate::files::scenario::FeedbackKind;
+use crate::files::JointKind;
+use crate::run::record::Trace;
+use crate::run::sim::{self, RunContext};
+use crate::run::spec::RunSpec;
+use crate::run::summary::{CutCause, RunCutShort, Summary};
 use crate::run::trace::RowSink;
 use crate::stop::Stop;
 
@@ -88,22 +92,22 @@ pub struct HilOutput {
     pub trace: Trace,
 }
 
-/// Runs a 3D wire-feedback scenario in lockstep with the board on `link`,
+/// Runs a 3D wire-feedback run in lockstep with the board on `link`,
 /// keeping the time series; a run that ends early is an error
-/// ([`sim::RunCutShort`]).
+/// ([`RunCutShort`]).
 pub fn run<P: Port>(
-    s: &Scenario,
+    spec: &RunSpec,
     link: &mut Link<P>,
     opts: HilOptions,
 ) -> anyhow::Result<HilOutput> {
     let mut rows = Vec::new();
-    let ctx = sim::RunContext {
+    let ctx = RunContext {
         stop: &Stop::never(),
         progress: &indicatif::ProgressBar::hidden(),
     };
-    let report = run_into(s, link, opts, &mut rows, &ctx)?;
+    let report = run_into(spec, link, opts, &mut rows, &ctx)?;
     if let Some(cut) = report.summary.cut_short.clone() {
-        return Err(sim::RunCutShort(cut).into());
+        return Err(RunCutShort(cut).into());
     }
     Ok(HilOutput {
         report,
@@ -111,24 +115,24 @@ pub fn run<P: Port>(
     })
 }
 
-/// Runs a 3D wire-feedback scenario in lockstep with the board on `link`,
+/// Runs a 3D wire-feedback run in lockstep with the board on `link`,
 /// every row to `sink`. Errors are what prevents the run from starting
-/// (the scenario, the board's setup); a run that ends early (the board,
+/// (the joint, the board's setup); a run that ends early (the board,
 /// its link, the plant, `ctx.stop`) returns its report with
 /// `summary.cut_short` set.
 pub fn run_into<P: Port>(
-    s: &Scenario,
+    spec: &RunSpec,
     link: &mut Link<P>,
     opts: HilOptions,
     sink: &mut impl RowSink,
-    ctx: &sim::RunContext,
+    ctx: &RunContext,
 ) -> anyhow::Result<HilReport> {
-    let (setup, estimator) = lockstep_setup(s, &opts)?;
-    let plant = sim::plant_3d(s)?;
+    let setup = lockstep_setup(spec, &opts)?;
+    let plant = spec.joint.plant_3d()?;
     let board = BoardController::start(link, setup)?;
-    let mut cl = ClosedLoop::new(plant, board, s.control_period_us)?;
+    let mut cl = ClosedLoop::new(plant, board, spec.period_us())?;
     let started = Instant::now();
-    let summary = sim::run_scenario(s, &mut cl, sink, ctx, estimator, &["alpha", "beta"]);
+    let summary = sim::run_loop(spec, &mut cl, sink, ctx);
     let wall = started.elapsed().as_secs_f64();
     let mut board = cl.controller;
     let stats = board.link().stats();
@@ -139,7 +143,7 @@ pub fn run_into<P: Port>(
     let link_failed = summary
         .cut_short
         .as_ref()
-        .is_some_and(|c| c.cause == sim::CutCause::Controller);
+        .is_some_and(|c| c.cause == CutCause::Controller);
     let status = if link_failed {
         None
     } else {
@@ -163,18 +167,21 @@ pub fn run_into<P: Port>(
     })
 }
 
-/// The board's lockstep setup for scenario `s` (3D, wire feedback): its
-/// gains and estimation laws, and the estimator's description.
-pub fn lockstep_setup(s: &Scenario, opts: &HilOptions) -> anyhow::Result<(LockstepSetup, String)> {
-    s.validate()?;
-    if s.joint != JointKind::ThreeD || s.feedback != FeedbackKind::Wire {
+/// The board's lockstep setup for the run `spec` (3D, wire feedback): its
+/// gains and estimation laws.
+pub fn lockstep_setup(spec: &RunSpec, opts: &HilOptions) -> anyhow::Result<LockstepSetup> {
+    if spec.joint.kind() != JointKind::ThreeD || spec.feedback != FeedbackKind::Wire {
         bail!("hardware-in-the-loop runs the 3D joint with wire-sensor feedback (the board's sensor frame carries wire counts)");
     }
-    let (laws, estimator) = sim::laws_for(s)?;
-    let laws = laws.unwrap_or_else(|| JointConfig::paper_3d().laws.to_vec());
+    let paper = JointConfig::paper_3d();
+    let laws = spec.controller.laws.as_deref().unwrap_or(&paper.laws);
+    let gains = spec.controller.gains.as_deref().unwrap_or(&paper.gains);
+    if laws.len() != 2 || gains.len() != 2 {
+        bail!("the 3D joint has two planes");
+    }
     let setup = LockstepSetup {
-        period_us: s.control_period_us,
-        gains: [sim::pair_gains(s, 0)?, sim::pair_gains(s, 1)?],
+        period_us: spec.period_us(),
+        gains: [gains[0], gains[1]],
         laws: [laws[0], laws[1]],
         link_timeout_ms: opts.link_timeout_ms,
         timeout: opts.timeout,
@@ -182,5 +189,5 @@ pub fn lockstep_setup(s: &Scenario, opts: &HilOptions) -> anyhow::Result<(Lockst
         lose_every: opts.lose_every,
         resume_after_restart: opts.resume_after_restart,
     };
-    Ok((setup, estimator))
+    Ok(setup)
 }

@@ -15,7 +15,7 @@ use host_tools::board::link::{open_port, Link, Port};
 use host_tools::files::calibration::{CalibrationFile, LawSpec};
 use host_tools::outln;
 use host_tools::output;
-use host_tools::run::sim::fault_names;
+use host_tools::run::summary::fault_names;
 use host_tools::stop::Stop;
 use plant_common::csv_input::excerpt;
 use plant_common::short_number;

@@ -10,7 +10,9 @@ use host_tools::board::link::{open_port, Link};
 use host_tools::board::qemu::{Qemu, QemuBoard};
 use host_tools::files::scenario::Scenario;
 use host_tools::output;
+use host_tools::run::joint::JointSpec;
 use host_tools::run::report;
+use host_tools::run::spec::RunSpec;
 use host_tools::stop::Stop;
 use host_tools::{out, outln};
 
@@ -105,7 +107,8 @@ pub fn run(args: HilArgs) -> anyhow::Result<()> {
     // Output paths are checked (the CSV created) before QEMU starts.
     let mut files = args
         .output
-        .open_trace(&host_tools::run::sim::angle_names(&scenario))?;
+        .open_trace(JointSpec::of(&scenario).angle_names())?;
+    let spec = RunSpec::resolve(&scenario)?;
     let mut qemu = None;
     let (port, label) = match &args.port {
         Some(p) => (open_port(p, args.baud)?, p.clone()),
@@ -126,7 +129,7 @@ pub fn run(args: HilArgs) -> anyhow::Result<()> {
     if let Some(plan) = args.excite.plan(&scenario)? {
         let (log, summary) = host_tools::joint::excite::run_hil(
             &plan,
-            &scenario,
+            &spec,
             &mut link,
             opts,
             !args.excite.no_electrical,
@@ -139,7 +142,7 @@ pub fn run(args: HilArgs) -> anyhow::Result<()> {
         stop: &stop,
         progress: &progress,
     };
-    let run = hil::run_into(&scenario, &mut link, opts, &mut files, &ctx);
+    let run = hil::run_into(&spec, &mut link, opts, &mut files, &ctx);
     progress.finish_and_clear();
     // A QEMU that ended is the reason the link failed: say how it ended
     // (its exit status or signal and its last words) rather than only
@@ -156,7 +159,7 @@ pub fn run(args: HilArgs) -> anyhow::Result<()> {
         },
     };
     if let Some(cut) = &mut report.summary.cut_short {
-        if cut.cause == host_tools::run::sim::CutCause::Controller {
+        if cut.cause == host_tools::run::summary::CutCause::Controller {
             cut.reason = match ended(&mut qemu) {
                 Some(how) => format!("the emulated board ended: {how}"),
                 // Which board, as for a failure before the run.
@@ -181,7 +184,7 @@ pub fn run(args: HilArgs) -> anyhow::Result<()> {
         outln!("lockstep: {:.0} steps/s", report.lockstep_steps_per_s);
     }
     match report.summary.cut_short {
-        Some(cut) => Err(host_tools::run::sim::RunCutShort(cut).into()),
+        Some(cut) => Err(host_tools::run::summary::RunCutShort(cut).into()),
         None => Ok(()),
     }
 }

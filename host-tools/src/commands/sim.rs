@@ -4,6 +4,10 @@ use std::path::PathBuf;
 
 use clap::Args;
 use host_tools::files::scenario::Scenario;
+use host_tools::run::joint::JointSpec;
+use host_tools::run::spec::RunSpec;
+use host_tools::run::summary::RunCutShort;
+use host_tools::run::sweep::calibration_sweep;
 use host_tools::run::{report, sim};
 use host_tools::{out, outln, output};
 
@@ -91,29 +95,32 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         output::print_toml("", &Scenario::default())?;
         return Ok(());
     }
+    let in_scenario = |e: anyhow::Error| match &args.scenario {
+        Some(p) => e.context(format!("scenario {}", p.display())),
+        None => e,
+    };
     if let Some(plan) = args.excite.plan(&scenario)? {
+        let spec = RunSpec::resolve(&scenario).map_err(in_scenario)?;
         let (log, summary) =
-            host_tools::joint::excite::run_sim(&plan, &scenario, !args.excite.no_electrical)?;
+            host_tools::joint::excite::run_sim(&plan, &spec, !args.excite.no_electrical)?;
         return args.excite.finish(&log, &summary);
     }
+    let joint = JointSpec::of(&scenario);
     if let Some(path) = &args.calibration_sweep {
         let pending = host_tools::output::AtomicFile::create(path)?;
-        let rows = sim::calibration_sweep(&scenario)?;
+        let rows = calibration_sweep(&joint)?;
         drop(pending);
         host_tools::files::sweep::write_sweep(path, &rows)?;
         outln!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }
     let stop = host_tools::stop::Stop::on_signals()?;
-    // Output paths are checked (the CSV created) before the run.
-    let mut files = args.output.open_trace(&sim::angle_names(&scenario))?;
+    // Output paths are checked (the CSV created) before the run and before
+    // any fitted law's sweep.
+    let mut files = args.output.open_trace(joint.angle_names())?;
+    let spec = RunSpec::resolve(&scenario).map_err(in_scenario)?;
     let progress = args.output.progress("steps");
-    let mut summary = sim::run_into(&scenario, &mut files, &stop, &progress).map_err(|e| {
-        match &args.scenario {
-            Some(p) => e.context(format!("scenario {}", p.display())),
-            None => e,
-        }
-    })?;
+    let mut summary = sim::run_into(&spec, &mut files, &stop, &progress).map_err(in_scenario)?;
     progress.finish_and_clear();
     args.output
         .finish_trace(files, &scenario.name, &mut summary)?;
@@ -123,7 +130,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         out!("{}", report::table(&summary));
     }
     match summary.cut_short {
-        Some(cut) => Err(sim::RunCutShort(cut).into()),
+        Some(cut) => Err(RunCutShort(cut).into()),
         None => Ok(()),
     }
 }

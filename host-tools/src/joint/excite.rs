@@ -17,53 +17,14 @@ use firmware::control::DriverConfig;
 use firmware::supervisor::ThermalConfig;
 use hal_sim::{ClosedLoop, Controller, Plant, Schedule};
 use plant_joint::identify::{
-    log::columns, ElectricalNoise, ExcitationLog, ExcitationPlan, LogRecorder, Observation,
+    log::columns, ElectricalNoise, ExcitationLog, ExcitationPlan, LogRecorder,
 };
-use plant_joint::{Joint2d, Joint3d, PlantError};
+use plant_joint::PlantError;
 use serde::Serialize;
 
-use crate::files::scenario::{JointKind, Scenario};
-use crate::run::sim;
-
-/// What the plant shows the recorder (the sensors a lab logs).
-pub trait Recorded {
-    /// Camera, wires and coil resistances now.
-    fn observation(&self) -> Observation;
-    /// Coil currents of the last step, paper numbering (A).
-    fn currents_a(&self) -> [f64; 4];
-}
-
-impl Recorded for Joint2d {
-    fn observation(&self) -> Observation {
-        let c = self.plane().coils();
-        Observation {
-            camera: self
-                .camera_latest()
-                .and_then(|f| f.angles_deg.map(|a| (f.capture_time_s, a))),
-            wire_mm: [self.wire_insertion_mm(), 0.0, 0.0, 0.0],
-            resistance_ohm: [c[0].resistance_ohm(), c[1].resistance_ohm(), 0.0, 0.0],
-        }
-    }
-    fn currents_a(&self) -> [f64; 4] {
-        let c = self.plane().coils();
-        [c[0].current_a(), c[1].current_a(), 0.0, 0.0]
-    }
-}
-
-impl Recorded for Joint3d {
-    fn observation(&self) -> Observation {
-        Observation {
-            camera: self
-                .camera_latest()
-                .and_then(|f| f.angles_deg.map(|a| (f.capture_time_s, a))),
-            wire_mm: self.wire_insertions_mm(),
-            resistance_ohm: plant_joint::identify::twin::resistances_3d(self),
-        }
-    }
-    fn currents_a(&self) -> [f64; 4] {
-        self.coil_currents_a()
-    }
-}
+use crate::run::joint::{CoreLoopTask, SimJoint};
+use crate::run::spec::RunSpec;
+use crate::run::summary::{fault_names, CutCause, CutShort, RunCutShort};
 
 /// Reads a plan (TOML) and checks it for a joint with `planes` angles and
 /// against the thermal budget; errors name the file and the entry.
@@ -176,7 +137,7 @@ pub fn run_loop<Pl, Ctl, const P: usize, const S: usize, const C: usize>(
     seed: u64,
 ) -> anyhow::Result<(ExcitationLog, SessionSummary)>
 where
-    Pl: Plant<P, S, C> + Recorded,
+    Pl: Plant<P, S, C> + SimJoint,
     Ctl: Controller<P, S>,
 {
     let budget = check_budget(plan)?;
@@ -218,35 +179,45 @@ where
         plan: plan.name.clone(),
         rows: log.len(),
         duration_s: plan.duration_s,
-        faults_seen: sim::fault_names(faults),
+        faults_seen: fault_names(faults),
         peak_coil_temperature_c: peak,
         budget_peak_rise_k: budget,
     };
     Ok((log, summary))
 }
 
-/// Runs `plan` on the simulated joint of scenario `s` (its joint kind,
+/// Runs `plan` on the simulated joint of the run `spec` (its joint kind,
 /// seed, plant file and gains) under the core in process.
 pub fn run_sim(
     plan: &ExcitationPlan,
-    s: &Scenario,
+    spec: &RunSpec,
     electrical: bool,
 ) -> anyhow::Result<(ExcitationLog, SessionSummary)> {
-    s.validate()?;
-    let (laws, _) = sim::laws_for(s)?;
-    match s.joint {
-        JointKind::ThreeD => run_loop(
-            plan,
-            &mut sim::core_loop_3d(s, laws.as_deref())?,
-            electrical,
-            s.seed,
-        ),
-        JointKind::TwoD => run_loop(
-            plan,
-            &mut sim::core_loop_2d(s, laws.as_deref())?,
-            electrical,
-            s.seed,
-        ),
+    spec.core_loop(Session {
+        plan,
+        electrical,
+        seed: spec.seed(),
+    })
+}
+
+/// [`run_loop`] on the core in process.
+struct Session<'a> {
+    plan: &'a ExcitationPlan,
+    electrical: bool,
+    seed: u64,
+}
+
+impl CoreLoopTask for Session<'_> {
+    type Output = (ExcitationLog, SessionSummary);
+
+    fn run<Pl, const P: usize, const S: usize, const C: usize>(
+        self,
+        cl: &mut ClosedLoop<Pl, hal_sim::CoreController<P, S>, P, S, C>,
+    ) -> anyhow::Result<Self::Output>
+    where
+        Pl: Plant<P, S, C> + SimJoint,
+    {
+        run_loop(self.plan, cl, self.electrical, self.seed)
     }
 }
 
@@ -323,20 +294,20 @@ pub fn log_columns(planes: usize) -> String {
 }
 
 /// Runs `plan` in lockstep with the board on `link` (the 3D joint of
-/// scenario `s`, wire feedback): the board's controller holds, the host
+/// the run `spec`, wire feedback): the board's controller holds, the host
 /// forces the drives onto the simulated coils.
 pub fn run_hil<Po: crate::board::link::Port>(
     plan: &ExcitationPlan,
-    s: &Scenario,
+    spec: &RunSpec,
     link: &mut crate::board::link::Link<Po>,
     opts: crate::board::hil::HilOptions,
     electrical: bool,
 ) -> anyhow::Result<(ExcitationLog, SessionSummary)> {
-    let (setup, _) = crate::board::hil::lockstep_setup(s, &opts)?;
-    let plant = sim::plant_3d(s)?;
+    let setup = crate::board::hil::lockstep_setup(spec, &opts)?;
+    let plant = spec.joint.plant_3d()?;
     let board = crate::board::controller::BoardController::start(link, setup)?;
-    let mut cl = ClosedLoop::new(plant, board, s.control_period_us)?;
-    let out = run_loop(plan, &mut cl, electrical, s.seed)?;
+    let mut cl = ClosedLoop::new(plant, board, spec.period_us())?;
+    let out = run_loop(plan, &mut cl, electrical, spec.seed())?;
     cl.controller.finish()?;
     Ok(out)
 }
@@ -526,7 +497,7 @@ pub fn run_board<Po: crate::board::link::Port>(
         recorded_s: rows as f64 * dt,
         planned_s: plan.duration_s,
         rows_filled: rec.filled,
-        faults_seen: sim::fault_names(faults),
+        faults_seen: fault_names(faults),
         peak_coil_mv: peak,
         ended_early: error.as_ref().map(|e| format!("{e:#}")),
     };
@@ -642,10 +613,10 @@ fn drive_board<Po: crate::board::link::Port>(
         if let Some(signal) = stop.requested() {
             // Exits as the signal would (130 for SIGINT), after the log.
             let at_t_s = rec.frames.len().saturating_sub(1) as f64 * dt;
-            return Err(sim::RunCutShort(sim::CutShort {
+            return Err(RunCutShort(CutShort {
                 at_step: rec.frames.len().saturating_sub(1) as u64,
                 at_t_s,
-                cause: sim::CutCause::Signal,
+                cause: CutCause::Signal,
                 reason: format!(
                     "stopped by {} at t = {at_t_s:.2} s of the plan",
                     signal.name()

@@ -38,10 +38,12 @@ use rayon::prelude::*;
 
 use crate::files::gains::{paper_v_offset, Gains, RunCost, Score};
 use crate::files::plant::{PlantFile, PlantParams, Uncertainty};
-use crate::files::scenario::{
-    EstimatorMethod, FeedbackKind, JointKind, Scenario, ScenarioSchedule, TargetStep,
-};
-use crate::run::sim;
+use crate::files::scenario::{EstimatorMethod, FeedbackKind, Scenario, TargetStep};
+use crate::files::JointKind;
+use crate::run::joint::{CoreLoopTask, SimJoint};
+use crate::run::record::Trace;
+use crate::run::schedule::RunSchedule;
+use crate::run::spec::RunSpec;
 
 /// The range `--search-v-offset` draws v_offset from (V): the paper's
 /// 1.7 V ± 0.5 V.
@@ -91,8 +93,8 @@ struct Meter {
 }
 
 impl Meter {
-    fn new(s: &Scenario, planes: usize) -> Self {
-        let targets: Vec<(f64, f64)> = s.targets.iter().map(|t| (t.t_s, t.deg[0])).collect();
+    fn new(spec: &RunSpec, planes: usize) -> Self {
+        let targets: Vec<(f64, f64)> = spec.targets.iter().map(|t| (t.t_s, t.deg[0])).collect();
         let n = targets.len();
         Self {
             planes,
@@ -186,60 +188,70 @@ impl Meter {
     }
 }
 
-fn meter_loop<Pl, const P: usize, const S: usize, const C: usize>(
-    s: &Scenario,
-    cl: &mut ClosedLoop<Pl, CoreController<P, S>, P, S, C>,
-) -> anyhow::Result<RunCost>
-where
-    Pl: Plant<P, S, C>,
-{
-    let mut meter = Meter::new(s, P);
-    let mut schedule = ScenarioSchedule::new(s);
-    let trip = cl
-        .controller
-        .joint()
-        .supervisor()
-        .config()
-        .thermal
-        .trip_rise_k;
-    let mut margin = f64::from(trip);
-    for _ in 0..s.steps() {
-        cl.run(1, &mut schedule, |x| -> anyhow::Result<()> {
-            meter.push_sample(x, s.duration_s);
-            Ok(())
-        })?;
-        let sup = cl.controller.joint().supervisor();
-        for pair in 0..P {
-            for coil in 0..2 {
-                if let Some(r) = sup.coil_rise_k(pair, coil) {
-                    margin = margin.min(f64::from(trip - r));
+/// Runs a test scenario's closed loop and meters it.
+struct Metered<'a> {
+    spec: &'a RunSpec,
+}
+
+impl CoreLoopTask for Metered<'_> {
+    type Output = RunCost;
+
+    fn run<Pl, const P: usize, const S: usize, const C: usize>(
+        self,
+        cl: &mut ClosedLoop<Pl, CoreController<P, S>, P, S, C>,
+    ) -> anyhow::Result<RunCost>
+    where
+        Pl: Plant<P, S, C> + SimJoint,
+    {
+        let spec = self.spec;
+        let mut meter = Meter::new(spec, P);
+        let mut schedule = RunSchedule::new(spec);
+        let trip = cl
+            .controller
+            .joint()
+            .supervisor()
+            .config()
+            .thermal
+            .trip_rise_k;
+        let mut margin = f64::from(trip);
+        for _ in 0..spec.steps() {
+            cl.run(1, &mut schedule, |x| -> anyhow::Result<()> {
+                meter.push_sample(x, spec.duration_s);
+                Ok(())
+            })?;
+            let sup = cl.controller.joint().supervisor();
+            for pair in 0..P {
+                for coil in 0..2 {
+                    if let Some(r) = sup.coil_rise_k(pair, coil) {
+                        margin = margin.min(f64::from(trip - r));
+                    }
                 }
             }
         }
+        Ok(meter.finish(spec.duration_s, margin))
     }
-    Ok(meter.finish(s.duration_s, margin))
 }
 
-/// The cost of a recorded run of the test scenario `s` (a `sim` or `hil`
-/// trace with its peak coil temperature); the thermal-budget margin is
-/// given (a board's own budget is not in its trace).
-pub fn cost_of_trace(s: &Scenario, trace: &sim::Trace, peak_coil_c: f64, margin_k: f64) -> RunCost {
-    let mut meter = Meter::new(s, trace.planes);
+/// The cost of a recorded run of a test scenario (a `sim` or `hil` trace
+/// of the run `spec`, with its peak coil temperature); the thermal-budget
+/// margin is given (a board's own budget is not in its trace).
+pub fn cost_of_trace(spec: &RunSpec, trace: &Trace, peak_coil_c: f64, margin_k: f64) -> RunCost {
+    let mut meter = Meter::new(spec, trace.planes);
     meter.peak_c = peak_coil_c;
     for r in &trace.rows {
-        meter.push(r.t_s, &r.true_deg[..trace.planes], r.faults, s.duration_s);
+        meter.push(
+            r.t_s,
+            &r.true_deg[..trace.planes],
+            r.faults,
+            spec.duration_s,
+        );
     }
-    meter.finish(s.duration_s, margin_k)
+    meter.finish(spec.duration_s, margin_k)
 }
 
-/// Runs the test scenario `s` (its plant in `s.plant.params`) and
-/// measures it.
-pub fn evaluate(s: &Scenario) -> anyhow::Result<RunCost> {
-    s.validate()?;
-    match s.joint {
-        JointKind::ThreeD => meter_loop(s, &mut sim::core_loop_3d(s, None)?),
-        JointKind::TwoD => meter_loop(s, &mut sim::core_loop_2d(s, None)?),
-    }
+/// Runs a test scenario (resolved into `spec`) and measures it.
+pub fn evaluate(spec: &RunSpec) -> anyhow::Result<RunCost> {
+    spec.core_loop(Metered { spec })
 }
 
 /// Draws a plane's identified parameters from their 1σ.
@@ -363,7 +375,14 @@ pub fn score(
 ) -> anyhow::Result<Score> {
     let runs = plants
         .iter()
-        .map(|p| evaluate(&test_scenario(joint, gains, p.clone(), seed)))
+        .map(|p| {
+            evaluate(&RunSpec::resolve(&test_scenario(
+                joint,
+                gains,
+                p.clone(),
+                seed,
+            ))?)
+        })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let n = runs.len() as f64;
     let mean = runs.iter().map(|r| r.cost).sum::<f64>() / n;

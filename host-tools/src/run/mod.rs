@@ -1,5 +1,16 @@
-//! One run of the joint: the closed loop in process or with a board, its
-//! summary, the streamed trace and what a run prints.
+//! One run of the joint: a scenario resolved once into a run
+//! specification ([`spec`]) of a [`joint`] with its estimation laws ([`laws`], fitted to a
+//! [`sweep`] when asked), run by the one closed loop ([`sim`]; `hil` runs
+//! the same loop with a board) on its [`schedule`], recorded row by row
+//! ([`record`]) into a [`summary`] and a streamed [`trace`], and reported
+//! ([`report`]).
+pub mod joint;
+pub mod laws;
+pub mod record;
 pub mod report;
+pub mod schedule;
 pub mod sim;
+pub mod spec;
+pub mod summary;
+pub mod sweep;
 pub mod trace;

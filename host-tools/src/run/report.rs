@@ -1,8 +1,9 @@
-//! What a run prints and writes: the output flags, the summary table and
-//! the SVG plot (the CSV time series streams through `crate::run::trace`).
+//! What a run prints: the output flags shared by `sim` and `hil` and the
+//! summary table (the CSV time series and the SVG plot are written by
+//! `crate::run::trace` as the run goes).
 use std::fmt::Write as _;
 
-use crate::run::sim::{Row, Summary};
+use crate::run::summary::Summary;
 
 /// The output flags shared by `sim` and `hil`.
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -22,8 +23,9 @@ impl OutputArgs {
     /// Opens the trace files asked for (the CSV with its header, the
     /// plot's temporary file) before the run, so an unwritable path is
     /// refused before any work.
-    pub fn open_trace(&self, angles: &[String]) -> anyhow::Result<crate::run::trace::TraceFiles> {
-        crate::run::trace::TraceFiles::open(self.csv.as_deref(), self.plot.as_deref(), angles)
+    pub fn open_trace(&self, angles: &[&str]) -> anyhow::Result<crate::run::trace::TraceFiles> {
+        let angles: Vec<String> = angles.iter().map(|a| a.to_string()).collect();
+        crate::run::trace::TraceFiles::open(self.csv.as_deref(), self.plot.as_deref(), &angles)
     }
 
     /// Writes what the trace files still wait for (the CSV's last rows,
@@ -49,7 +51,6 @@ impl OutputArgs {
         crate::progress::bar(what, self.json)
     }
 }
-use crate::plot::{line_charts, Chart, Series};
 
 /// The human-readable summary.
 pub fn table(s: &Summary) -> String {
@@ -141,62 +142,3 @@ pub fn table(s: &Summary) -> String {
     out
 }
 
-/// An SVG of angles (true, estimated, desired) and coil voltages against
-/// time, from `rows` (a decimated copy of the run: `trace::Decimated`).
-pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
-    let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
-    let colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
-    let column = |f: &dyn Fn(&crate::run::sim::Row) -> f64| rows.iter().map(f).collect::<Vec<_>>();
-    let mut angle_series = Vec::new();
-    for (p, a) in angles.iter().enumerate() {
-        let c = colours[p % colours.len()];
-        angle_series.push(Series::over(
-            format!("{a} true"),
-            c,
-            false,
-            &t,
-            &column(&|r| r.true_deg[p]),
-        ));
-        angle_series.push(Series::over(
-            format!("{a} estimate"),
-            c,
-            true,
-            &t,
-            &column(&|r| r.estimate_deg[p]),
-        ));
-        angle_series.push(Series::over(
-            format!("{a} desired"),
-            "#555555",
-            true,
-            &t,
-            &column(&|r| r.desired_deg[p]),
-        ));
-    }
-    let coils = 2 * angles.len();
-    let volt_series = (0..coils)
-        .map(|c| {
-            Series::over(
-                format!("v{}", c + 1),
-                colours[c % colours.len()],
-                false,
-                &t,
-                &column(&|r| r.coil_volts[c]),
-            )
-        })
-        .collect();
-    let charts = [
-        Chart {
-            title: format!("{title} — angles"),
-            x_label: "time (s)".into(),
-            y_label: "angle (deg)".into(),
-            series: angle_series,
-        },
-        Chart {
-            title: "driver input voltages".into(),
-            x_label: "time (s)".into(),
-            y_label: "voltage (V)".into(),
-            series: volt_series,
-        },
-    ];
-    line_charts(&charts).finish()
-}

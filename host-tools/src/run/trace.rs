@@ -27,7 +27,8 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::output::{check_number, estimate_field, AtomicFile, NonFinite};
-use crate::run::sim::Row;
+use crate::plot::{line_charts, Chart, Series};
+use crate::run::record::Row;
 
 /// Where each row of a run goes.
 pub trait RowSink {
@@ -308,7 +309,7 @@ impl TraceFiles {
             });
         }
         if let Some((file, rows)) = self.plot {
-            let svg = crate::run::report::plot_svg(title, angles, rows.rows());
+            let svg = plot_svg(title, angles, rows.rows());
             file.commit_svg(&svg)?;
         }
         Ok(report)
@@ -326,6 +327,66 @@ impl RowSink for TraceFiles {
         }
         Ok(())
     }
+}
+
+/// An SVG of angles (true, estimated, desired) and coil voltages against
+/// time, from `rows` (a decimated copy of the run: `trace::Decimated`).
+pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
+    let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
+    let colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
+    let column = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).collect::<Vec<_>>();
+    let mut angle_series = Vec::new();
+    for (p, a) in angles.iter().enumerate() {
+        let c = colours[p % colours.len()];
+        angle_series.push(Series::over(
+            format!("{a} true"),
+            c,
+            false,
+            &t,
+            &column(&|r| r.true_deg[p]),
+        ));
+        angle_series.push(Series::over(
+            format!("{a} estimate"),
+            c,
+            true,
+            &t,
+            &column(&|r| r.estimate_deg[p]),
+        ));
+        angle_series.push(Series::over(
+            format!("{a} desired"),
+            "#555555",
+            true,
+            &t,
+            &column(&|r| r.desired_deg[p]),
+        ));
+    }
+    let coils = 2 * angles.len();
+    let volt_series = (0..coils)
+        .map(|c| {
+            Series::over(
+                format!("v{}", c + 1),
+                colours[c % colours.len()],
+                false,
+                &t,
+                &column(&|r| r.coil_volts[c]),
+            )
+        })
+        .collect();
+    let charts = [
+        Chart {
+            title: format!("{title} — angles"),
+            x_label: "time (s)".into(),
+            y_label: "angle (deg)".into(),
+            series: angle_series,
+        },
+        Chart {
+            title: "driver input voltages".into(),
+            x_label: "time (s)".into(),
+            y_label: "voltage (V)".into(),
+            series: volt_series,
+        },
+    ];
+    line_charts(&charts).finish()
 }
 
 #[cfg(test)]

@@ -106,7 +106,9 @@ fn assert_rows_are_the_steps_of(csv: &Path, scenario_toml: &str, steps: u64) {
     let rows: Vec<&str> = text.lines().skip(1).collect();
     assert_eq!(rows.len() as u64, steps, "rows in the CSV vs steps run");
     let scenario: host_tools::files::scenario::Scenario = toml::from_str(scenario_toml).unwrap();
-    let sim = host_tools::run::sim::run(&scenario).unwrap();
+    let sim =
+        host_tools::run::sim::run(&host_tools::run::spec::RunSpec::resolve(&scenario).unwrap())
+            .unwrap();
     let angles = ["alpha".to_string(), "beta".to_string()];
     for (k, (got, want)) in rows.iter().zip(&sim.trace.rows).enumerate() {
         let mut line = String::new();

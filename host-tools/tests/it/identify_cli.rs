@@ -8,6 +8,7 @@ use host_tools::files::gains::{Gains, GainsFile};
 use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::files::JointKind;
 use host_tools::joint::tune;
+use host_tools::run::spec::RunSpec;
 use plant_joint::identify::{hidden, ExcitationPlan};
 
 fn write(path: &std::path::Path, text: &str) {
@@ -168,19 +169,25 @@ fn committed_tuned_gains_beat_the_paper_on_the_hidden_plant_in_sim() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let g = GainsFile::load(&root.join("scenarios/identify/gains.toml")).unwrap();
     let hidden = PlantParams::ThreeD(hidden::joint_3d(7));
-    let tuned = tune::evaluate(&tune::test_scenario(
-        JointKind::ThreeD,
-        &g.controller,
-        hidden.clone(),
-        1,
-    ))
+    let tuned = tune::evaluate(
+        &RunSpec::resolve(&tune::test_scenario(
+            JointKind::ThreeD,
+            &g.controller,
+            hidden.clone(),
+            1,
+        ))
+        .unwrap(),
+    )
     .unwrap();
-    let paper = tune::evaluate(&tune::test_scenario(
-        JointKind::ThreeD,
-        &Gains::paper(4),
-        hidden,
-        1,
-    ))
+    let paper = tune::evaluate(
+        &RunSpec::resolve(&tune::test_scenario(
+            JointKind::ThreeD,
+            &Gains::paper(4),
+            hidden,
+            1,
+        ))
+        .unwrap(),
+    )
     .unwrap();
     eprintln!("on the hidden joint: tuned {tuned:?}\npaper {paper:?}");
     assert!(!tuned.fault, "{tuned:?}");
@@ -363,7 +370,8 @@ fn the_plan_through_hil_logs_what_sim_logs() {
         seed: 3,
         ..Scenario::default()
     };
-    let (sim_log, sim_summary) = host_tools::joint::excite::run_sim(&plan, &s, true).unwrap();
+    let spec = RunSpec::resolve(&s).unwrap();
+    let (sim_log, sim_summary) = host_tools::joint::excite::run_sim(&plan, &spec, true).unwrap();
     let (board, host_end) = PtyBoard::start().expect("pty pair");
     let mut link = Link::new(host_end);
     // The pty board's clock is the host's: a loaded host needs a link
@@ -373,7 +381,7 @@ fn the_plan_through_hil_logs_what_sim_logs() {
         ..HilOptions::default()
     };
     let (hil_log, hil_summary) =
-        host_tools::joint::excite::run_hil(&plan, &s, &mut link, opts, true).unwrap();
+        host_tools::joint::excite::run_hil(&plan, &spec, &mut link, opts, true).unwrap();
     drop(board);
     assert_eq!(hil_log.len(), 300);
     assert_eq!(hil_summary.faults_seen, sim_summary.faults_seen);

@@ -1,23 +1,27 @@
 //! Memory stays flat however long a run: a 2-hour simulated run with a CSV
 //! trace and a plot peaks far below what keeping its 720,000 rows would
-//! take. The test reads its own peak resident set (`VmHWM` in
-//! /proc/self/status), so it is alone in this test binary: nothing else
-//! runs in the process while it measures.
-use host_tools::files::scenario::{JointKind, PlantSpec, Scenario, TargetStep};
-use host_tools::run::sim::{self, angle_names};
-use host_tools::run::trace::TraceFiles;
-use host_tools::stop::Stop;
+//! take. The run is `softjoint sim` as a user runs it, in a process of its
+//! own (this test binary runs other tests in threads beside it, so its own
+//! resident set says nothing about one run); the test follows the child's
+//! peak resident set (`VmHWM` in /proc/PID/status) while it runs.
+use std::io::Read as _;
+use std::process::{Command, Stdio};
+use std::time::Duration;
 
-/// Peak resident set size of this process (MB), from /proc/self/status.
-fn peak_rss_mb() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
+use host_tools::files::scenario::{
+    EstimatorMethod, EstimatorSpec, JointKind, PlantSpec, Scenario, TargetStep,
+};
+
+/// Peak resident set size of process `pid` so far (MB), or `None` once it
+/// has gone.
+fn peak_rss_mb(pid: u32) -> Option<f64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     let kb: f64 = status
         .lines()
         .find_map(|l| l.strip_prefix("VmHWM:"))
         .and_then(|v| v.split_whitespace().next())
-        .and_then(|v| v.parse().ok())
-        .expect("VmHWM line");
-    kb / 1024.0
+        .and_then(|v| v.parse().ok())?;
+    Some(kb / 1024.0)
 }
 
 #[test]
@@ -39,39 +43,73 @@ fn a_two_hour_run_with_a_csv_trace_peaks_under_50_mb() {
             rigid_bearing: true,
             ..PlantSpec::default()
         },
-        estimator: host_tools::files::scenario::EstimatorSpec {
-            method: host_tools::files::scenario::EstimatorMethod::Paper,
+        estimator: EstimatorSpec {
+            method: EstimatorMethod::Paper,
             calibration: None,
         },
         ..Scenario::default()
     };
-    let before = peak_rss_mb();
     let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("two_hours.toml");
+    std::fs::write(&scenario, toml::to_string(&s).unwrap()).unwrap();
+    // The CSV goes into a FIFO that a thread drains: 70 MB of text on a
+    // shared disk proves nothing more, and every row still goes through
+    // the writer.
+    let csv = dir.path().join("trace.csv");
+    let made = Command::new("mkfifo").arg(&csv).status().expect("mkfifo");
+    assert!(made.success(), "mkfifo {}", csv.display());
+    let drain = {
+        let csv = csv.clone();
+        std::thread::spawn(move || {
+            let mut f = std::fs::File::open(csv).expect("open the FIFO");
+            let mut buf = vec![0u8; 1 << 16];
+            let mut bytes = 0u64;
+            loop {
+                match f.read(&mut buf) {
+                    Ok(0) => return bytes,
+                    Ok(n) => bytes += n as u64,
+                    Err(e) => panic!("reading the trace FIFO: {e}"),
+                }
+            }
+        })
+    };
     let plot = dir.path().join("plot.svg");
-    // The CSV goes to /dev/null: 70 MB of text on a shared disk proves
-    // nothing more; every row still goes through the writer.
-    let angles = angle_names(&s);
-    let mut files = TraceFiles::open(
-        Some(std::path::Path::new("/dev/null")),
-        Some(&plot),
-        &angles,
-    )
-    .unwrap();
-    let mut summary = sim::run_into(
-        &s,
-        &mut files,
-        &Stop::never(),
-        &host_tools::progress::hidden(),
-    )
-    .unwrap();
-    summary.trace = files
-        .finish("two hours", &angles, summary.planned_steps)
-        .unwrap();
-    assert!(summary.cut_short.is_none(), "{:?}", summary.cut_short);
-    assert_eq!(summary.steps, 720_000);
-    assert_eq!(summary.trace.as_ref().map(|t| t.rows), Some(720_000));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .arg("sim")
+        .arg(&scenario)
+        .arg("--csv")
+        .arg(&csv)
+        .arg("--plot")
+        .arg(&plot)
+        .arg("--json")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("softjoint sim");
+    let mut peak = 0.0f64;
+    let status = loop {
+        if let Some(mb) = peak_rss_mb(child.id()) {
+            peak = peak.max(mb);
+        }
+        match child.try_wait().expect("waiting for softjoint") {
+            Some(status) => break status,
+            None => std::thread::sleep(Duration::from_millis(20)),
+        }
+    };
+    let out = child.wait_with_output().expect("its output");
+    assert!(
+        status.success(),
+        "{status}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON summary");
+    assert!(summary.get("cut_short").is_none(), "{summary}");
+    assert_eq!(summary["steps"], 720_000);
+    assert_eq!(summary["trace"]["rows"], 720_000);
+    let csv_bytes = drain.join().unwrap();
+    assert!(csv_bytes > 30_000_000, "{csv_bytes} bytes of CSV");
     assert!(std::fs::metadata(&plot).unwrap().len() < 2_000_000);
-    let peak = peak_rss_mb();
-    println!("peak RSS {peak:.1} MB (before the run {before:.1} MB)");
+    println!("peak RSS of `softjoint sim` {peak:.1} MB, {csv_bytes} bytes of CSV");
+    assert!(peak > 1.0, "the child's resident set was never read");
     assert!(peak < 50.0, "peak RSS {peak:.1} MB for a 2-hour run");
 }

@@ -7,7 +7,7 @@ use crate::common;
 
 use common::run;
 use host_tools::files::scenario::{Disturbance, EstimatorMethod, Scenario, TargetStep};
-use host_tools::run::sim::{Row, Trace};
+use host_tools::run::record::{Row, Trace};
 
 /// Every field of every row as raw bits (NaN padding compares equal).
 fn bits(t: &Trace) -> Vec<Vec<u64>> {
@@ -83,7 +83,7 @@ fn same_scenario_gives_a_bit_identical_trace() {
     }
     assert_eq!(ba, bb);
     // The summary too, apart from the wall-clock fields.
-    let strip = |s: &host_tools::run::sim::Summary| {
+    let strip = |s: &host_tools::run::summary::Summary| {
         let mut s = s.clone();
         s.wall_seconds = 0.0;
         s.realtime_factor = 0.0;

@@ -19,7 +19,6 @@ use hal_sim::{ClosedLoop, Controller, CoreController, FeedbackSource, Plant};
 use host_tools::files::calibration::CalibrationFile;
 use host_tools::files::scenario::{EstimatorMethod, EstimatorSpec, Scenario};
 use host_tools::joint::calibrate;
-use host_tools::run::sim;
 use plant_joint::{Joint3d, Joint3dParams};
 
 /// Paper §V-C, Fig. 16: 2D joint, one wire sensor read with Eq. 2 as
@@ -119,7 +118,7 @@ fn wire_feedback_3d_converges_to_the_targets_of_fig21() {
     }
 }
 
-/// Sweep rate and amplitude of `sim::calibration_sweep` (1°/s, ±20°).
+/// Sweep rate and amplitude of `run::sweep::calibration_sweep` (1°/s, ±20°).
 const SWEEP_AMPLITUDE_DEG: f64 = 20.0;
 const SWEEP_S: f64 = 80.0;
 
@@ -221,7 +220,9 @@ fn calibrate_from_simulated_sweep(seed: u64, dir: &std::path::Path) -> Calibrate
         seed,
         ..Scenario::default()
     };
-    let rows = sim::calibration_sweep(&s).expect("sweep");
+    let rows =
+        host_tools::run::sweep::calibration_sweep(&host_tools::run::joint::JointSpec::of(&s))
+            .expect("sweep");
     let csv = dir.join(format!("sweep_{seed}.csv"));
     host_tools::files::sweep::write_sweep(&csv, &rows).expect("write sweep");
     let rows = host_tools::files::sweep::read_sweep(&csv).expect("read sweep");

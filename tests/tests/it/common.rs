@@ -7,7 +7,9 @@ use host_tools::files::scenario::{
     ControlMode, ControllerSpec, Disturbance, EstimatorMethod, EstimatorSpec, FeedbackKind,
     JointKind, PlantSpec, Scenario, TargetStep,
 };
-use host_tools::run::sim::{self, Row, RunOutput, Trace};
+use host_tools::run::record::{Row, Trace};
+use host_tools::run::sim::{self, RunOutput};
+use host_tools::run::spec::RunSpec;
 
 /// The paper's visual-feedback experiment (§III-B, Eq. 1): 2D joint, camera
 /// feedback, one actuator (coil 2 unpowered, a bias spring), gain `kp`,
@@ -80,7 +82,9 @@ pub fn coil_disturbance(coil: usize, volts: f64, from_s: f64, to_s: f64) -> Dist
 
 /// Runs a scenario; a run that errors is a test failure with the reason.
 pub fn run(s: &Scenario) -> RunOutput {
-    sim::run(s).unwrap_or_else(|e| panic!("scenario `{}` failed: {e:#}", s.name))
+    RunSpec::resolve(s)
+        .and_then(|spec| sim::run(&spec))
+        .unwrap_or_else(|e| panic!("scenario `{}` failed: {e:#}", s.name))
 }
 
 /// Statistics of `true − desired` for one angle over `[from_s, to_s)`.

@@ -33,15 +33,16 @@ use hal_sim::{
 };
 use host_tools::board::controller::{BoardController, LockstepSetup};
 use host_tools::board::link::{HostLinkStats, Link, Port};
-use host_tools::files::scenario::{EstimatorMethod, Scenario, ScenarioSchedule, TargetStep};
-use host_tools::run::sim;
+use host_tools::files::scenario::{EstimatorMethod, Scenario, TargetStep};
+use host_tools::run::schedule::RunSchedule;
+use host_tools::run::spec::RunSpec;
 use integration_tests::fault_injector::{Direction, Fault, FaultRates, FaultyPort};
 use integration_tests::PtyBoard;
 
 /// The campaign's scenario: the 3D joint on wires with the paper's laws, a
 /// PI law (ki > 0, so a double or missed step changes the integrator), and
 /// targets that move every 3 s through a cycle of (α, β) pairs.
-fn scenario(steps: u64) -> Scenario {
+fn scenario(steps: u64) -> RunSpec {
     let mut s = Scenario {
         name: "fault campaign".into(),
         duration_s: steps as f64 * 1e-3,
@@ -69,7 +70,7 @@ fn scenario(steps: u64) -> Scenario {
             }
         })
         .collect();
-    s
+    RunSpec::resolve(&s).expect("the campaign scenario resolves")
 }
 
 /// A step's trajectory, as one number: true angles, coil voltages, faults.
@@ -86,7 +87,7 @@ fn fingerprint(x: &Sample<2, 4, 4>) -> u64 {
 /// The firmware core in process, made afresh at step `restart_at` (the
 /// reference for a board reset there).
 struct RestartingCore {
-    scenario: Scenario,
+    scenario: RunSpec,
     core: CoreController<2, 4>,
     mm_per_count: [f64; 4],
     restart_at: u64,
@@ -94,18 +95,18 @@ struct RestartingCore {
 }
 
 impl RestartingCore {
-    fn fresh(s: &Scenario, mm_per_count: [f64; 4]) -> CoreController<2, 4> {
+    fn fresh(s: &RunSpec, mm_per_count: [f64; 4]) -> CoreController<2, 4> {
         let mut cfg = JointConfig::paper_3d();
         for p in 0..2 {
-            cfg.gains[p] = sim::pair_gains(s, p).unwrap();
+            cfg.gains[p] = s.controller.gains.as_ref().unwrap()[p];
         }
         let ctl = JointController::new(cfg).unwrap();
         CoreController::new(
             ctl,
             FeedbackSource::Wire,
-            s.control_period_us,
+            s.period_us(),
             mm_per_count,
-            s.seed,
+            s.seed(),
         )
     }
 }
@@ -132,8 +133,8 @@ impl Controller<2, 4> for RestartingCore {
 }
 
 /// The fingerprints of the fault-free run with the core in process.
-fn reference(s: &Scenario, restart_at: u64) -> Vec<u64> {
-    let plant = sim::plant_3d(s).unwrap();
+fn reference(s: &RunSpec, restart_at: u64) -> Vec<u64> {
+    let plant = s.joint.plant_3d().unwrap();
     let mm = hal_sim::Plant::mm_per_count(&plant);
     let core = RestartingCore {
         scenario: s.clone(),
@@ -142,9 +143,9 @@ fn reference(s: &Scenario, restart_at: u64) -> Vec<u64> {
         restart_at,
         steps: 0,
     };
-    let mut cl = ClosedLoop::new(plant, core, s.control_period_us).unwrap();
+    let mut cl = ClosedLoop::new(plant, core, s.period_us()).unwrap();
     let mut out = Vec::with_capacity(s.steps() as usize);
-    cl.run(s.steps(), &mut ScenarioSchedule::new(s), |x| {
+    cl.run(s.steps(), &mut RunSchedule::new(s), |x| {
         out.push(fingerprint(x));
         Ok::<(), hal_sim::LoopError<firmware::joint::ConfigError>>(())
     })
@@ -370,8 +371,8 @@ fn campaign(
     };
     let mut link = Link::new(FaultyPort::new(port, rates, seed));
     let setup = LockstepSetup {
-        period_us: s.control_period_us,
-        gains: [0, 1].map(|p| sim::pair_gains(&s, p).unwrap()),
+        period_us: s.period_us(),
+        gains: [0, 1].map(|p| s.controller.gains.as_ref().unwrap()[p]),
         laws: JointConfig::paper_3d().laws,
         // Retries and delays must never look like a dead link.
         link_timeout_ms: Some(10_000),
@@ -387,10 +388,10 @@ fn campaign(
     let mut detected = (0, 0);
     let (restarts, retries, unexpected, stale_seqs, injected, redrawn, corrupting);
     {
-        let plant = sim::plant_3d(&s).unwrap();
+        let plant = s.joint.plant_3d().unwrap();
         let ctl = BoardController::start(&mut link, setup).expect("board setup");
-        let mut cl = ClosedLoop::new(plant, ctl, s.control_period_us).unwrap();
-        let mut schedule = ScenarioSchedule::new(&s);
+        let mut cl = ClosedLoop::new(plant, ctl, s.period_us()).unwrap();
+        let mut schedule = RunSchedule::new(&s);
         let mut ledgers = Vec::new();
         let mut stale = 0u64;
         for (from, to) in [(0, reset_at), (reset_at, steps)] {

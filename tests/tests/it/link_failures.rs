@@ -7,7 +7,10 @@ use std::time::Duration;
 use host_tools::board::hil::{self, HilOptions};
 use host_tools::board::link::Link;
 use host_tools::files::scenario::{EstimatorMethod, Scenario};
-use host_tools::run::sim::{CutCause, Row, RunContext};
+use host_tools::run::record::Row;
+use host_tools::run::sim::RunContext;
+use host_tools::run::spec::RunSpec;
+use host_tools::run::summary::CutCause;
 use host_tools::stop::Stop;
 use integration_tests::PtyBoard;
 
@@ -52,7 +55,7 @@ fn run_until(mishap: Mishap) -> (String, u64, Vec<Row>) {
     });
     let mut rows = Vec::new();
     let report = hil::run_into(
-        &s,
+        &RunSpec::resolve(&s).unwrap(),
         &mut link,
         opts,
         &mut rows,

@@ -16,7 +16,9 @@ use host_tools::board::hil::{self, HilOptions};
 use host_tools::board::link::{Link, SerialDevice};
 use host_tools::board::qemu::{Qemu, QemuBoard};
 use host_tools::files::scenario::{Scenario, TargetStep};
+use host_tools::run::record::Trace;
 use host_tools::run::sim;
+use host_tools::run::spec::RunSpec;
 
 fn image(board: QemuBoard) -> PathBuf {
     // Tests run in the crate directory; the images are under the workspace.
@@ -64,7 +66,7 @@ fn short_default() -> Scenario {
 /// `expected` (the simulation's) step for step, trajectory, outputs and
 /// faults alike. Estimates travel in centidegrees (±0.005°), rounded in f32
 /// (≈ 1e-6 at 10°), hence 1e-5 of slack on top.
-fn assert_same_trajectory(got: &sim::Trace, expected: &sim::Trace) {
+fn assert_same_trajectory(got: &Trace, expected: &Trace) {
     assert_eq!(got.rows.len(), expected.rows.len());
     for (k, (h, e)) in got.rows.iter().zip(&expected.rows).enumerate() {
         assert_eq!(h.true_deg, e.true_deg, "true angles differ at step {k}");
@@ -87,7 +89,7 @@ fn assert_same_trajectory(got: &sim::Trace, expected: &sim::Trace) {
 /// The built-in default scenario in full (30 s, 30 000 lockstep steps)
 /// through `board`'s image gives the trajectory of `softjoint sim`.
 fn lockstep_reproduces_the_simulation(board: QemuBoard) {
-    let s = Scenario::default();
+    let s = RunSpec::resolve(&Scenario::default()).expect("the default resolves");
     let expected = sim::run(&s).expect("sim");
     let (mut qemu, mut link) = launch(board, true);
     // What is compared is the control, not the link watchdog (the dead-link
@@ -161,10 +163,11 @@ fn lost_frames_are_retried_through_the_stm32f4_image() {
 /// Lost sensor frames are re-sent with the same seq and answered once, and
 /// the run is the simulation's all the same.
 fn lost_frames_are_retried(board: QemuBoard) {
-    let s = Scenario {
+    let s = RunSpec::resolve(&Scenario {
         duration_s: 1.5,
         ..short_default()
-    };
+    })
+    .expect("resolves");
     let expected = sim::run(&s).expect("sim");
     let (_qemu, mut link) = launch(board, true);
     let opts = HilOptions {

@@ -19,6 +19,7 @@ use host_tools::files::plant::PlantParams;
 use host_tools::files::JointKind;
 use host_tools::joint::tune;
 use host_tools::run::sim;
+use host_tools::run::spec::RunSpec;
 use plant_joint::identify::hidden;
 
 fn root() -> PathBuf {
@@ -40,7 +41,8 @@ fn run_on_image(gains: &Gains) -> (RunCost, Vec<String>) {
         host_tools::board::qemu::BUILD_IMAGE
     );
     let hidden = PlantParams::ThreeD(hidden::joint_3d(7));
-    let s = tune::test_scenario(JointKind::ThreeD, gains, hidden, 1);
+    let s = RunSpec::resolve(&tune::test_scenario(JointKind::ThreeD, gains, hidden, 1))
+        .expect("the step test resolves");
     let expected = sim::run(&s).expect("sim");
     let mut qemu = Qemu::launch(QemuBoard::Mps2An386, &image, true).expect("qemu");
     let mut link = Link::new(qemu.connect().expect("QEMU's serial socket"));
@@ -114,14 +116,11 @@ fn integral_action_runs_in_lockstep_with_the_simulation() {
         ..pi.clone()
     };
     let hidden = || PlantParams::ThreeD(hidden::joint_3d(7));
-    let with_i = sim::run(&tune::test_scenario(JointKind::ThreeD, &pi, hidden(), 1)).unwrap();
-    let without = sim::run(&tune::test_scenario(
-        JointKind::ThreeD,
-        &p_only,
-        hidden(),
-        1,
-    ))
-    .unwrap();
+    let run = |g: &Gains| {
+        let s = tune::test_scenario(JointKind::ThreeD, g, hidden(), 1);
+        sim::run(&RunSpec::resolve(&s).unwrap()).unwrap()
+    };
+    let (with_i, without) = (run(&pi), run(&p_only));
     assert_ne!(with_i.trace.rows, without.trace.rows);
     let (cost, faults) = run_on_image(&pi);
     assert!(faults.is_empty() && !cost.fault, "{faults:?} {cost:?}");
