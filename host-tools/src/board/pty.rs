@@ -176,8 +176,8 @@ fn board_loop(
         }
         if let Some(pl) = plant.as_mut() {
             // The coils get what the drivers are set to, paper numbering.
-            let [[c1, c3], [c2, c4]] = app.outputs();
-            let volts = [c1, c2, c3, c4].map(|v| f64::from(v.volts()));
+            let volts = firmware::joint::pairs_to_coils::<_, 2, 4>(app.outputs())
+                .map(|v: firmware::control::DriveVolts| f64::from(v.volts()));
             let t_s = now().as_micros() as f64 * 1e-6;
             let mut err = None;
             while plant_t_s + PLANT_STEP_S <= t_s {

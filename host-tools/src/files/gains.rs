@@ -92,13 +92,15 @@ pub struct GainsFile {
 
 impl GainsFile {
     /// `[K_P agonist, K_P antagonist]` per pair (plane) as the board takes
-    /// them: pair p's agonist is coil p + 1, its antagonist coil p + 1 +
-    /// planes.
+    /// them (coil order: [`firmware::joint::coil_index`]).
     pub fn pair_gains(&self) -> Vec<[f32; 2]> {
         let kp = &self.controller.kp_v_per_deg;
         let planes = kp.len() / 2;
         (0..planes)
-            .map(|p| [kp[p] as f32, kp[p + planes] as f32])
+            .map(|p| {
+                let k = |ant| kp[firmware::joint::coil_index(planes, p, ant)] as f32;
+                [k(false), k(true)]
+            })
             .collect()
     }
 

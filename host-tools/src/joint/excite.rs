@@ -545,7 +545,7 @@ fn send_interval<Po: crate::board::link::Port>(
             None => {
                 *target = None;
                 planes |= 1 << p;
-                for c in [p, p + 2] {
+                for c in [false, true].map(|ant| firmware::joint::coil_index(2, p, ant)) {
                     let v = volts[c].unwrap_or(0.0) as f32;
                     coil_mv[c] = firmware::protocol::coil_to_mv(driver.clamp(v), &driver);
                 }

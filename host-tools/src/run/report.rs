@@ -141,4 +141,3 @@ pub fn table(s: &Summary) -> String {
     }
     out
 }
-
