@@ -313,16 +313,20 @@ impl Scenario {
 
     /// Checks ranges and lengths; the error names the field.
     pub fn validate(&self) -> anyhow::Result<()> {
-        let finite_pos = |field: &str, v: f64| -> anyhow::Result<()> {
-            if !(v.is_finite() && v > 0.0) {
-                bail!(
-                    "field `{field}`: must be a finite number > 0, got {}",
-                    short(v)
-                );
-            }
-            Ok(())
-        };
-        finite_pos("duration_s", self.duration_s)?;
+        self.validate_time()?;
+        self.validate_controller()?;
+        self.validate_estimator_and_plant()?;
+        self.validate_targets()?;
+        for (i, d) in self.disturbances.iter().enumerate() {
+            self.validate_disturbance(i, d)?;
+        }
+        Ok(())
+    }
+
+    /// Duration and control period: at least one step, at most
+    /// [`MAX_DURATION_S`].
+    fn validate_time(&self) -> anyhow::Result<()> {
+        finite_positive("duration_s", self.duration_s)?;
         // Memory does not grow with the run (the trace streams to disk, the
         // summary is accumulated), so the only bound is one no run reaches.
         if self.duration_s > MAX_DURATION_S {
@@ -344,6 +348,13 @@ impl Scenario {
                 self.period_s()
             );
         }
+        Ok(())
+    }
+
+    /// Gains the control core can hold (it computes in f32: a gain that
+    /// rounds to 0 or to infinity there is refused here, by name, rather
+    /// than by the core), and a v_offset below the driver's supply.
+    fn validate_controller(&self) -> anyhow::Result<()> {
         let kp = &self.controller.kp_v_per_deg;
         if !(kp.len() == 1 || kp.len() == self.coils()) {
             bail!(
@@ -353,11 +364,9 @@ impl Scenario {
                 kp.len()
             );
         }
-        // The control core computes in f32: a gain that rounds to 0 or to
-        // infinity there is refused here, by name, rather than by the core.
         for (i, k) in kp.iter().enumerate() {
             let field = format!("controller.kp_v_per_deg[{i}]");
-            finite_pos(&field, *k)?;
+            finite_positive(&field, *k)?;
             if !(F32_GAIN_RANGE.contains(k)) {
                 bail!(
                     "field `{field}`: outside the controller's f32 range {:e}..={:e}, got {k:e}",
@@ -392,6 +401,12 @@ impl Scenario {
                 short(v)
             );
         }
+        Ok(())
+    }
+
+    /// An estimation method the joint's sensors allow, and a plant file
+    /// of the scenario's joint kind.
+    fn validate_estimator_and_plant(&self) -> anyhow::Result<()> {
         if self.planes() == 1
             && matches!(
                 self.estimator.method,
@@ -407,8 +422,13 @@ impl Scenario {
             (Some(crate::files::plant::PlantParams::ThreeD(_)), JointKind::TwoD) => {
                 bail!("field `plant.file`: a 3D plant ([joint3d]) for `joint = \"2d\"`")
             }
-            _ => {}
+            _ => Ok(()),
         }
+    }
+
+    /// At least one target; times finite, ≥ 0 and in order; one angle per
+    /// plane within the core's target range.
+    fn validate_targets(&self) -> anyhow::Result<()> {
         if self.targets.is_empty() {
             bail!("field `targets`: at least one target is needed");
         }
@@ -446,55 +466,58 @@ impl Scenario {
                 }
             }
         }
-        for (i, d) in self.disturbances.iter().enumerate() {
-            let (from, to) = match d {
-                Disturbance::CoilVoltage {
-                    coil,
-                    volts,
-                    from_s,
-                    to_s,
-                } => {
-                    if !(1..=self.coils()).contains(coil) {
-                        bail!(
-                            "field `disturbances[{i}].coil`: must be 1..={}, got {coil}",
-                            self.coils()
-                        );
-                    }
-                    if !(volts.is_finite() && (0.0..=5.0).contains(volts)) {
-                        bail!(
-                            "field `disturbances[{i}].volts`: must be within 0–5 V, got {}",
-                            short(*volts)
-                        );
-                    }
-                    (*from_s, *to_s)
+        Ok(())
+    }
+
+    /// Disturbance `i`: a coil of this joint within the driver's 0–5 V, or
+    /// a positive mass on a finite non-zero thread; 0 ≤ from < to.
+    fn validate_disturbance(&self, i: usize, d: &Disturbance) -> anyhow::Result<()> {
+        let (from, to) = match d {
+            Disturbance::CoilVoltage {
+                coil,
+                volts,
+                from_s,
+                to_s,
+            } => {
+                if !(1..=self.coils()).contains(coil) {
+                    bail!(
+                        "field `disturbances[{i}].coil`: must be 1..={}, got {coil}",
+                        self.coils()
+                    );
                 }
-                Disturbance::Weight {
-                    mass_g,
-                    plane,
-                    direction,
-                    from_s,
-                    to_s,
-                } => {
-                    finite_pos(&format!("disturbances[{i}].mass_g"), *mass_g)?;
-                    let _ = plane; // an enum: serde refused anything else
-                    if let Some(dir) = direction {
-                        // The weight's force is mass·g/|direction|·direction:
-                        // a subnormal length overflows it.
-                        if !(dir.iter().all(|v| v.is_finite()) && dir[0].hypot(dir[1]).is_normal())
-                        {
-                            bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector (length at least {:e}), got [{}, {}]", f64::MIN_POSITIVE, short(dir[0]), short(dir[1]));
-                        }
-                    }
-                    (*from_s, *to_s)
+                if !(volts.is_finite() && (0.0..=5.0).contains(volts)) {
+                    bail!(
+                        "field `disturbances[{i}].volts`: must be within 0–5 V, got {}",
+                        short(*volts)
+                    );
                 }
-            };
-            if !(from.is_finite() && to.is_finite() && from >= 0.0 && to > from) {
-                bail!(
-                    "fields `disturbances[{i}].from_s/to_s`: need 0 ≤ from_s < to_s, got {}..{}",
-                    short(from),
-                    short(to)
-                );
+                (*from_s, *to_s)
             }
+            Disturbance::Weight {
+                mass_g,
+                plane,
+                direction,
+                from_s,
+                to_s,
+            } => {
+                finite_positive(&format!("disturbances[{i}].mass_g"), *mass_g)?;
+                let _ = plane; // an enum: serde refused anything else
+                if let Some(dir) = direction {
+                    // The weight's force is mass·g/|direction|·direction:
+                    // a subnormal length overflows it.
+                    if !(dir.iter().all(|v| v.is_finite()) && dir[0].hypot(dir[1]).is_normal()) {
+                        bail!("field `disturbances[{i}].direction`: must be a finite non-zero vector (length at least {:e}), got [{}, {}]", f64::MIN_POSITIVE, short(dir[0]), short(dir[1]));
+                    }
+                }
+                (*from_s, *to_s)
+            }
+        };
+        if !(from.is_finite() && to.is_finite() && from >= 0.0 && to > from) {
+            bail!(
+                "fields `disturbances[{i}].from_s/to_s`: need 0 ≤ from_s < to_s, got {}..{}",
+                short(from),
+                short(to)
+            );
         }
         Ok(())
     }
@@ -513,6 +536,17 @@ impl Scenario {
     pub fn target_at(&self, t_s: f64) -> &[f64] {
         target_at(&self.targets, t_s)
     }
+}
+
+/// `v` when finite and > 0; else an error naming `field`.
+fn finite_positive(field: &str, v: f64) -> anyhow::Result<()> {
+    if !(v.is_finite() && v > 0.0) {
+        bail!(
+            "field `{field}`: must be a finite number > 0, got {}",
+            short(v)
+        );
+    }
+    Ok(())
 }
 
 /// Desired angles of `targets` at time `t_s`: the last target with

@@ -107,57 +107,82 @@ const THRESHOLD_GRID_DEG: f64 = 0.1;
 /// Most thresholds the search tries (a 10 000° span at 0.1°).
 const MAX_THRESHOLD_CANDIDATES: f64 = 100_000.0;
 
-fn fit_plane<const S: usize>(
-    rows: &[SweepRow],
+/// One angle of a sweep being fitted: the rows, which angle, and the
+/// sensors its laws read (0-based: `plus` is pulled out on the low side,
+/// `minus` its opposite, absent in 2D).
+struct PlaneSweep<'a, const S: usize> {
+    rows: &'a [SweepRow],
     plane: usize,
-    name: &str,
+    name: &'a str,
     plus: usize,
     minus: Option<usize>,
-) -> anyhow::Result<PlaneFit> {
-    let ang = |r: &SweepRow| r.angle_deg[plane];
-    let (lo_deg, hi_deg) = rows
-        .iter()
-        .map(ang)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(v), h.max(v))
-        });
-    // (NaN spans cannot occur: the reader refuses non-finite values.)
-    if hi_deg - lo_deg < MIN_SWEEP_SPAN_DEG {
-        bail!(
-            "{name}: the sweep's `{name}_deg` only spans {}° to {}° over its {} rows; a calibration needs the joint moved through at least {MIN_SWEEP_SPAN_DEG}° (the paper sweeps ±20°), or the law fits noise",
-            short(lo_deg),
-            short(hi_deg),
-            rows.len()
-        );
+}
+
+impl<const S: usize> PlaneSweep<'_, S> {
+    fn angle(&self, r: &SweepRow) -> f64 {
+        r.angle_deg[self.plane]
     }
-    let [a, b, c] =
-        fit_quadratic(rows.iter().map(|r| (r.d_mm[plus], ang(r)))).ok_or_else(|| {
-            anyhow::anyhow!(
-                "{name}: the insertions do not determine a quadratic (sweep too narrow?)"
-            )
-        })?;
-    let single = LawSpec::Single {
-        sensor: plus as u8 + 1,
-        a,
-        b,
-        c,
-    };
-    let range = |f: &dyn Fn(&SweepRow) -> f64| {
-        rows.iter()
+
+    /// Smallest and largest of `f` over the rows.
+    fn range(&self, f: &dyn Fn(&SweepRow) -> f64) -> (f64, f64) {
+        self.rows
+            .iter()
             .map(f)
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
                 (lo.min(v), hi.max(v))
             })
-    };
-    let (a_lo, a_hi) = range(&ang);
-    let sensors = if S == 1 { 1 } else { 4 };
-    // Why a fitted law cannot be used, and the data range behind it.
-    let unusable = |what: &str, law: &LawSpec, x: &str, (x_lo, x_hi): (f64, f64)| {
+    }
+
+    /// Sensors of the joint: 1 (2D) or 4 (3D).
+    fn sensors(&self) -> usize {
+        if S == 1 {
+            1
+        } else {
+            4
+        }
+    }
+
+    /// Refuses a sweep that does not move the joint through
+    /// [`MIN_SWEEP_SPAN_DEG`].
+    fn check_span(&self) -> anyhow::Result<()> {
+        let name = self.name;
+        let (lo_deg, hi_deg) = self.range(&|r| self.angle(r));
+        // (NaN spans cannot occur: the reader refuses non-finite values.)
+        if hi_deg - lo_deg < MIN_SWEEP_SPAN_DEG {
+            bail!(
+                "{name}: the sweep's `{name}_deg` only spans {}° to {}° over its {} rows; a calibration needs the joint moved through at least {MIN_SWEEP_SPAN_DEG}° (the paper sweeps ±20°), or the law fits noise",
+                short(lo_deg),
+                short(hi_deg),
+                self.rows.len()
+            );
+        }
+        Ok(())
+    }
+
+    /// The errors of `law` over the sweep, if it is a usable law whose
+    /// estimates stay finite.
+    fn usable(&self, law: &LawSpec) -> Option<ErrorStats> {
+        law.check(self.sensors()).ok()?;
+        let e = evaluate::<S>(law.to_law().ok()?, self.rows, self.plane)?;
+        (e.max_error_deg.is_finite() && e.rms_error_deg.is_finite()).then_some(e)
+    }
+
+    /// Why the fitted `law` (the `what` fit over input `x` spanning
+    /// `x_lo..x_hi` mm) cannot be used, with the data range behind it.
+    fn unusable(
+        &self,
+        what: &str,
+        law: &LawSpec,
+        x: &str,
+        (x_lo, x_hi): (f64, f64),
+    ) -> anyhow::Error {
+        let name = self.name;
+        let (a_lo, a_hi) = self.range(&|r| self.angle(r));
         let beyond_f32 = law
             .number_fields()
             .iter()
             .any(|&(_, v)| !(v as f32).is_finite());
-        let (why, hint) = match law.check(sensors) {
+        let (why, hint) = match law.check(self.sensors()) {
             Err(e) => (e.to_string(), beyond_f32),
             Ok(()) => (
                 "its estimates are not finite in f32 on the sweep".into(),
@@ -176,26 +201,40 @@ fn fit_plane<const S: usize>(
             short(x_lo),
             short(x_hi)
         )
-    };
-    let usable = |law: &LawSpec| -> Option<ErrorStats> {
-        law.check(sensors).ok()?;
-        let e = evaluate::<S>(law.to_law().ok()?, rows, plane)?;
-        (e.max_error_deg.is_finite() && e.rms_error_deg.is_finite()).then_some(e)
-    };
-    let d_plus = format!("d{}", plus + 1);
-    let single_err = usable(&single).ok_or_else(|| {
-        unusable(
-            "single-sensor quadratic (Eq. 2)",
-            &single,
-            &d_plus,
-            range(&|r: &SweepRow| r.d_mm[plus]),
-        )
-    })?;
-    let mut candidates = vec![(single.clone(), single_err)];
-    let (mut differential, mut switching) = (None, None);
-    if let Some(minus) = minus {
+    }
+
+    /// The single-sensor quadratic (Eq. 2) on `plus`, and its errors.
+    fn single(&self) -> anyhow::Result<(LawSpec, ErrorStats)> {
+        let (name, plus) = (self.name, self.plus);
+        let [a, b, c] = fit_quadratic(self.rows.iter().map(|r| (r.d_mm[plus], self.angle(r))))
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{name}: the insertions do not determine a quadratic (sweep too narrow?)"
+                )
+            })?;
+        let single = LawSpec::Single {
+            sensor: plus as u8 + 1,
+            a,
+            b,
+            c,
+        };
+        let e = self.usable(&single).ok_or_else(|| {
+            self.unusable(
+                "single-sensor quadratic (Eq. 2)",
+                &single,
+                &format!("d{}", plus + 1),
+                self.range(&|r| r.d_mm[plus]),
+            )
+        })?;
+        Ok((single, e))
+    }
+
+    /// The differential linear law (Eq. 3) on `plus − minus`, and its
+    /// errors.
+    fn differential(&self, minus: usize) -> anyhow::Result<(LawSpec, ErrorStats)> {
+        let (name, plus) = (self.name, self.plus);
         let diff = |r: &SweepRow| r.d_mm[plus] - r.d_mm[minus];
-        let [_, gain, offset] = fit_linear(rows.iter().map(|r| (diff(r), ang(r))))
+        let [_, gain, offset] = fit_linear(self.rows.iter().map(|r| (diff(r), self.angle(r))))
             .ok_or_else(|| anyhow::anyhow!("{name}: the insertions do not determine a line"))?;
         let d = LawSpec::Differential {
             plus: plus as u8 + 1,
@@ -203,22 +242,27 @@ fn fit_plane<const S: usize>(
             gain,
             offset,
         };
-        let de = usable(&d).ok_or_else(|| {
-            unusable(
+        let e = self.usable(&d).ok_or_else(|| {
+            self.unusable(
                 "differential (Eq. 3)",
                 &d,
-                &format!("{d_plus} − d{}", minus + 1),
-                range(&diff),
+                &format!("d{} − d{}", plus + 1, minus + 1),
+                self.range(&diff),
             )
         })?;
-        differential = Some((d.clone(), de));
-        candidates.push((d, de));
-        // Threshold search on a 0.1° grid within the sweep's range, keeping
-        // at least 15 % of the rows on each side: a branch fitted to a
-        // sliver of the range extrapolates wildly (the selector is the
-        // differential law, so such a branch would only be used there, but
-        // its coefficients would mean nothing).
-        let mut sorted: Vec<f64> = rows.iter().map(ang).collect();
+        Ok((d, e))
+    }
+
+    /// Threshold switching (Eq. 4): the threshold on a 0.1° grid within the
+    /// sweep's range with the smallest worst-case error, keeping at least
+    /// 15 % of the rows on each side (a branch fitted to a sliver of the
+    /// range extrapolates wildly: the selector is the differential law, so
+    /// such a branch would only be used there, but its coefficients would
+    /// mean nothing).
+    fn switching(&self, minus: usize) -> anyhow::Result<Option<(LawSpec, ErrorStats)>> {
+        let (name, plus) = (self.name, self.plus);
+        let diff = |r: &SweepRow| r.d_mm[plus] - r.d_mm[minus];
+        let mut sorted: Vec<f64> = self.rows.iter().map(|r| self.angle(r)).collect();
         sorted.sort_by(f64::total_cmp);
         let margin = sorted.len() * 15 / 100;
         let lo = sorted[margin];
@@ -235,11 +279,11 @@ fn fit_plane<const S: usize>(
         let mut best: Option<(LawSpec, ErrorStats)> = None;
         let mut th = (lo * 10.0).ceil() / 10.0;
         while th <= hi {
-            let below = rows.iter().filter(|r| ang(r) < th);
-            let above = rows.iter().filter(|r| ang(r) >= th);
+            let below = self.rows.iter().filter(|r| self.angle(r) < th);
+            let above = self.rows.iter().filter(|r| self.angle(r) >= th);
             if let (Some([qa, qb, qc]), Some([_, g, o])) = (
-                fit_quadratic(below.map(|r| (r.d_mm[plus], ang(r)))),
-                fit_linear(above.map(|r| (diff(r), ang(r)))),
+                fit_quadratic(below.map(|r| (r.d_mm[plus], self.angle(r)))),
+                fit_linear(above.map(|r| (diff(r), self.angle(r)))),
             ) {
                 let s = LawSpec::Switching {
                     plus: plus as u8 + 1,
@@ -253,7 +297,11 @@ fn fit_plane<const S: usize>(
                     threshold_deg: th,
                     hysteresis_deg: f64::from(DEFAULT_HYSTERESIS_DEG),
                 };
-                if let Some(e) = s.to_law().ok().and_then(|l| evaluate::<S>(l, rows, plane)) {
+                if let Some(e) = s
+                    .to_law()
+                    .ok()
+                    .and_then(|l| evaluate::<S>(l, self.rows, self.plane))
+                {
                     if best
                         .as_ref()
                         .is_none_or(|(_, b)| e.max_error_deg < b.max_error_deg)
@@ -264,9 +312,33 @@ fn fit_plane<const S: usize>(
             }
             th += THRESHOLD_GRID_DEG;
         }
-        if let Some(b) = best {
-            switching = Some(b);
-        }
+        Ok(best)
+    }
+}
+
+fn fit_plane<const S: usize>(
+    rows: &[SweepRow],
+    plane: usize,
+    name: &str,
+    plus: usize,
+    minus: Option<usize>,
+) -> anyhow::Result<PlaneFit> {
+    let sweep = PlaneSweep::<S> {
+        rows,
+        plane,
+        name,
+        plus,
+        minus,
+    };
+    sweep.check_span()?;
+    let (single, single_err) = sweep.single()?;
+    let mut candidates = vec![(single.clone(), single_err)];
+    let (mut differential, mut switching) = (None, None);
+    if let Some(minus) = sweep.minus {
+        let d = sweep.differential(minus)?;
+        differential = Some(d.clone());
+        candidates.push(d);
+        switching = sweep.switching(minus)?;
     }
     // The simplest law wins unless switching lowers the worst-case error by
     // at least 5 %: two branches and a threshold are worth it only for a
