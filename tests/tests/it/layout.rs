@@ -314,18 +314,23 @@ fn functions(code: &str) -> Vec<(String, usize, usize)> {
         if name.is_empty() {
             continue;
         }
-        // The body's `{`, unless a `;` ends the item first (a declaration).
+        // The body's `{`, unless a `;` outside brackets ends the item first
+        // (a declaration; the `;` of an array type `[T; N]` does not).
         let mut j = i;
         let mut open = None;
+        let mut nesting = 0usize;
         while j < b.len() {
             match b[j] {
-                b'{' => {
+                b'(' | b'[' => nesting += 1,
+                b')' | b']' => nesting = nesting.saturating_sub(1),
+                b'{' if nesting == 0 => {
                     open = Some(j);
                     break;
                 }
-                b';' => break,
-                _ => j += 1,
+                b';' if nesting == 0 => break,
+                _ => {}
             }
+            j += 1;
         }
         let Some(open) = open else { continue };
         let mut depth = 0usize;
@@ -404,11 +409,15 @@ fn no_function_outside_tests_is_longer_than_the_limit() {
 
 #[test]
 fn the_function_scanner_measures_what_it_should() {
-    let src = "fn a() {\n    let s = \"}\";\n    let c = '}';\n    // }\n}\nfn b();\nfn c<T>(x: T) -> T where T: Copy {\n    x\n}\n";
+    let src = "fn a() {\n    let s = \"}\";\n    let c = '}';\n    // }\n}\nfn b();\nfn c<T>(x: T) -> T where T: Copy {\n    x\n}\nfn d(v: [f64; 2]) -> [u8; 4] {\n    [0; 4]\n}\n";
     let f = functions(&code_only(src));
     assert_eq!(
         f,
-        vec![("a".to_string(), 1, 5), ("c".to_string(), 7, 3)],
+        vec![
+            ("a".to_string(), 1, 5),
+            ("c".to_string(), 7, 3),
+            ("d".to_string(), 10, 3)
+        ],
         "{f:?}"
     );
 }
