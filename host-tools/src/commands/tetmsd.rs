@@ -829,10 +829,58 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
     } else {
         mesh.nodes_m.clone()
     };
-    // View from the front right, above: turn by −35° about z, tilt 28°.
-    let (az, el) = ((-35f64).to_radians(), 28f64.to_radians());
-    let view = |p: V3| {
-        let c = p - V3::repeat(mesh.side_m / 2.0);
+    let view = Oblique::of(mesh, w, h);
+    let disp: Vec<f64> = x
+        .iter()
+        .zip(&mesh.nodes_m)
+        .map(|(a, b)| (a - b).norm())
+        .collect();
+    let max_disp = disp.iter().copied().fold(0.0, f64::max).max(1e-12);
+    draw_rest_cube(&mut svg, mesh, &view);
+    draw_surface(&mut svg, mesh, &x, &disp, max_disp, &view);
+    draw_colour_bar(&mut svg, w, max_disp);
+    svg.text(
+        20.0,
+        h - 16.0,
+        12.0,
+        Anchor::Start,
+        &format!(
+            "{} nodes, {} tetrahedra; dashed: the rest cube ({} mm); z up, viewed from the front right",
+            mesh.node_count(),
+            mesh.tets.len(),
+            mesh.side_m * 1e3
+        ),
+    );
+    svg.finish()
+}
+
+/// The oblique view of the cube: from the front right, above (turned by
+/// −35° about z, tilted 28°), scaled onto a `w` × `h` picture.
+struct Oblique {
+    az: f64,
+    el: f64,
+    half_side_m: f64,
+    scale: f64,
+    cx: f64,
+    cy: f64,
+}
+
+impl Oblique {
+    fn of(mesh: &CubeMesh, w: f64, h: f64) -> Self {
+        Oblique {
+            az: (-35f64).to_radians(),
+            el: 28f64.to_radians(),
+            half_side_m: mesh.side_m / 2.0,
+            scale: 0.46 * w / mesh.side_m,
+            cx: w / 2.0 - 50.0,
+            cy: h / 2.0 + 30.0,
+        }
+    }
+
+    /// Across, up and depth (far = large) of `p` in the camera frame.
+    fn view(&self, p: V3) -> (f64, f64, f64) {
+        let (az, el) = (self.az, self.el);
+        let c = p - V3::repeat(self.half_side_m);
         let (xr, yr) = (
             c.x * az.cos() - c.y * az.sin(),
             c.x * az.sin() + c.y * az.cos(),
@@ -844,33 +892,24 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
             yr * el.sin() + c.z * el.cos(),
             yr * el.cos() - c.z * el.sin(),
         )
-    };
-    let scale = 0.46 * w / mesh.side_m;
-    let (cx, cy) = (w / 2.0 - 50.0, h / 2.0 + 30.0);
-    let screen = |p: V3| {
-        let (sx, sy, _) = view(p);
-        (cx + sx * scale, cy - sy * scale)
-    };
-    // The viewing direction in the model frame (a face is seen when its
-    // outward normal points against it).
-    let forward = V3::new(az.sin() * el.cos(), az.cos() * el.cos(), -el.sin());
-    let disp: Vec<f64> = x
-        .iter()
-        .zip(&mesh.nodes_m)
-        .map(|(a, b)| (a - b).norm())
-        .collect();
-    let max_disp = disp.iter().copied().fold(0.0, f64::max).max(1e-12);
-    let mut faces: Vec<(f64, [usize; 3])> = mesh
-        .boundary_faces
-        .iter()
-        .map(|f| {
-            let idx = f.map(|i| i as usize);
-            let c = (x[idx[0]] + x[idx[1]] + x[idx[2]]) / 3.0;
-            (view(c).2, idx)
-        })
-        .collect();
-    faces.sort_by(|a, b| b.0.total_cmp(&a.0));
-    // The rest cube's hidden edges first (dashed), under the surface.
+    }
+
+    /// Picture coordinates (px) of `p`.
+    fn screen(&self, p: V3) -> (f64, f64) {
+        let (sx, sy, _) = self.view(p);
+        (self.cx + sx * self.scale, self.cy - sy * self.scale)
+    }
+
+    /// The viewing direction in the model frame (a face is seen when its
+    /// outward normal points against it).
+    fn forward(&self) -> V3 {
+        let (az, el) = (self.az, self.el);
+        V3::new(az.sin() * el.cos(), az.cos() * el.cos(), -el.sin())
+    }
+}
+
+/// The rest cube's twelve edges, dashed (drawn first, under the surface).
+fn draw_rest_cube(svg: &mut Svg, mesh: &CubeMesh, view: &Oblique) {
     let corner = |i: usize| {
         V3::new(
             (i & 1) as f64 * mesh.side_m,
@@ -894,11 +933,34 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
     ];
     for (a, b) in edges {
         svg.line(
-            screen(corner(a)),
-            screen(corner(b)),
+            view.screen(corner(a)),
+            view.screen(corner(b)),
             Stroke::dashed("#999", 1.0),
         );
     }
+}
+
+/// The boundary faces of the shape `x` that face the camera, far to
+/// near, coloured by their mean displacement `disp` over `max_disp`.
+fn draw_surface(
+    svg: &mut Svg,
+    mesh: &CubeMesh,
+    x: &[V3],
+    disp: &[f64],
+    max_disp: f64,
+    view: &Oblique,
+) {
+    let forward = view.forward();
+    let mut faces: Vec<(f64, [usize; 3])> = mesh
+        .boundary_faces
+        .iter()
+        .map(|f| {
+            let idx = f.map(|i| i as usize);
+            let c = (x[idx[0]] + x[idx[1]] + x[idx[2]]) / 3.0;
+            (view.view(c).2, idx)
+        })
+        .collect();
+    faces.sort_by(|a, b| b.0.total_cmp(&a.0));
     for (_, f) in &faces {
         let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]]));
         if n.dot(&forward) >= 0.0 {
@@ -906,14 +968,17 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
         }
         let t = (disp[f[0]] + disp[f[1]] + disp[f[2]]) / 3.0 / max_disp;
         let (r, g, b) = plot::false_colour(t);
-        let pts: Vec<(f64, f64)> = f.iter().map(|&i| screen(x[i])).collect();
+        let pts: Vec<(f64, f64)> = f.iter().map(|&i| view.screen(x[i])).collect();
         svg.polygon(
             &pts,
             &format!("rgb({r},{g},{b})"),
             Stroke::solid("#333", 0.6),
         );
     }
-    // Colour bar.
+}
+
+/// The displacement colour bar at the right of a picture `w` wide.
+fn draw_colour_bar(svg: &mut Svg, w: f64, max_disp: f64) {
     let (bx, by, bh) = (w - 70.0, 80.0, 300.0);
     for k in 0..60 {
         let t = 1.0 - k as f64 / 59.0;
@@ -936,17 +1001,4 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
         &format!("{:.2} mm", max_disp * 1e3),
     );
     svg.text(bx - 4.0, by + bh, 12.0, Anchor::End, "0 mm");
-    svg.text(
-        20.0,
-        h - 16.0,
-        12.0,
-        Anchor::Start,
-        &format!(
-            "{} nodes, {} tetrahedra; dashed: the rest cube ({} mm); z up, viewed from the front right",
-            mesh.node_count(),
-            mesh.tets.len(),
-            mesh.side_m * 1e3
-        ),
-    );
-    svg.finish()
 }
