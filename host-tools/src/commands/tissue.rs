@@ -206,22 +206,7 @@ fn field(a: &FieldArgs) -> Result<()> {
         bail!("--features-initial and --features-deformed must be at least 4");
     }
     let outcome = experiment::run(&pair, &params, &a.matching.variants())?;
-    write(
-        &a.out_dir.join("matches.csv"),
-        &matches_csv(&outcome, pair.twin())?,
-    )?;
-    write(
-        &a.out_dir.join("field.csv"),
-        &dense_csv(pair.initial(), &outcome.variants[0], a.grid_step)?,
-    )?;
-    let svg = mid_slice_picture(
-        pair.initial(),
-        &outcome.variants[0].measured,
-        outcome.variants[0].consistency,
-        pair.twin(),
-        a.grid_step,
-    );
-    write(&a.out_dir.join("mid_slice.svg"), &svg)?;
+    write_field_files(&a.out_dir, &pair, &outcome, a.grid_step)?;
     let summary = field_summary(pair.initial(), &outcome)?;
     output::write_json(&a.out_dir.join("summary.json"), &summary)?;
     if a.json {
@@ -257,6 +242,33 @@ fn load_pair(a: &FieldArgs) -> Result<VolumePair> {
             "give two volumes (INITIAL DEFORMED), or --synthetic for a twin with a known warp"
         ),
     }
+}
+
+/// matches.csv (every variant), and field.csv and mid_slice.svg (the
+/// first variant's dense field, every `grid_step` voxels).
+fn write_field_files(
+    dir: &Path,
+    pair: &VolumePair,
+    outcome: &FieldOutcome,
+    grid_step: usize,
+) -> Result<()> {
+    let first = &outcome.variants[0];
+    write(
+        &dir.join("matches.csv"),
+        &matches_csv(outcome, pair.twin())?,
+    )?;
+    write(
+        &dir.join("field.csv"),
+        &dense_csv(pair.initial(), first, grid_step)?,
+    )?;
+    let svg = mid_slice_picture(
+        pair.initial(),
+        &first.measured,
+        first.consistency,
+        pair.twin(),
+        grid_step,
+    );
+    write(&dir.join("mid_slice.svg"), &svg)
 }
 
 /// Every variant's matches with their displacement (and, on a twin, the
