@@ -14,5 +14,4 @@ pub mod plot;
 pub mod progress;
 pub mod run;
 pub mod stop;
-pub mod tetmsd_rt;
 pub mod visco_core;

@@ -10,28 +10,29 @@
 //!   and whether the final replicas are bit-identical;
 //! * `site` (hidden) — one site, the child process `pair` starts.
 //!
-//! The physics and the session logic live in `plant_tetmsd`, the
-//! real-time threads in `host_tools::tetmsd_rt`; this is argument
-//! handling, file I/O, reports and pictures.
+//! The physics, the session logic and the real-time sites live in
+//! `plant_tetmsd` (`session::local`, `session::pair`, `session::realtime`);
+//! this is argument handling, the child processes of a pair, file I/O,
+//! reports and pictures.
 use std::fmt::Write as _;
 use std::io::{BufRead, BufReader, Write as _};
-use std::net::{SocketAddr, UdpSocket};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, ChildStdout, Command, Stdio};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
-use host_tools::tetmsd_rt::{
-    run_site, ForceRow, LinkSummary, NetemSummary, ReplicaSummary, SiteReport, SiteSetup,
-};
 use host_tools::{out, outln};
+use plant_tetmsd::local::{self, LocalRun};
 use plant_tetmsd::mesh::CubeMesh;
-use plant_tetmsd::model::voigt::{Hold, TICK_S};
+use plant_tetmsd::model::voigt::{VoigtModel, TICK_S};
 use plant_tetmsd::model::V3;
-use plant_tetmsd::pair::{run_virtual, Haptic};
+use plant_tetmsd::pair::run_virtual;
+use plant_tetmsd::realtime::{self, SiteSetup};
+use plant_tetmsd::report::{ForceRow, PairOutcome, SiteReport};
 use plant_tetmsd::scenario::Scenario;
 use serde::Serialize;
 use serde_json::Value;
@@ -225,10 +226,6 @@ fn out_dir(out: &OutArgs) -> Result<Option<PathBuf>> {
     Ok(out.out_dir.clone())
 }
 
-fn arr(v: V3) -> [f64; 3] {
-    [v.x, v.y, v.z]
-}
-
 // ---------------------------------------------------------------- simulate
 
 fn simulate(args: &SimulateArgs) -> Result<()> {
@@ -239,153 +236,104 @@ fn simulate(args: &SimulateArgs) -> Result<()> {
     check_out_dir(&args.out)?;
     let cfg = scenario.pair_config(&name).map_err(|e| anyhow!("{e}"))?;
     let model = cfg.session.model()?;
-    let mut haptics = [Haptic::new(&model), Haptic::new(&model)];
-    let mut state = model.rest_state();
-    let mut scratch = Vec::new();
-    let every = cfg.trace_every_ticks;
-    let mut traces: [Vec<ForceRow>; 2] = [Vec::new(), Vec::new()];
-    let mut max_force = [0.0f64; 2];
-    let mut contact = [0u64; 2];
-    let mut peak = (-1.0, state.x_m.clone());
-    let mut compute_s = 0.0;
-    let mut grips: [Option<u16>; 2] = [None; 2];
-    for k in 0..cfg.duration_ticks {
-        let mut holds = Vec::with_capacity(2);
-        let mut push = 0.0;
-        for s in 0..2 {
-            let tip = cfg.trajectories[s].at(k as f64 * TICK_S);
-            let m = haptics[s].manipulate(tip, &state.x_m, grips[1 - s]);
-            grips[s] = m.grip.map(|g| g.node);
-            let force = match m.grip {
-                Some(g) => {
-                    plant_tetmsd::probe::NodeReaction::of(&model, &state.x_m, &state.v_m_s, g.node)
-                        .force_at(g.node_m)
-                }
-                None => V3::zeros(),
-            };
-            if let Some(g) = m.grip {
-                holds.push(Hold {
-                    node: u32::from(g.node),
-                    target_m: g.node_m,
-                });
-                contact[s] += 1;
-            }
-            max_force[s] = max_force[s].max(force.norm());
-            push += force.norm();
-            if k % every == 0 {
-                traces[s].push(ForceRow {
-                    tick: k,
-                    tip_m: arr(tip),
-                    force_n: arr(force),
-                    contact: m.grip.is_some(),
-                });
-            }
-        }
-        if push > peak.0 {
-            peak = (push, state.x_m.clone());
-        }
-        let t = Instant::now();
-        model
-            .step(&mut state, &holds, &mut scratch)
-            .map_err(|e| anyhow!("{name}: {e}"))?;
-        compute_s += t.elapsed().as_secs_f64();
+    let run = local::simulate(&model, &cfg).map_err(|e| anyhow!("{name}: {e}"))?;
+    let summary = simulate_summary(&name, &scenario, &model, &run)?;
+    if let Some(dir) = out_dir(&args.out)? {
+        write_simulate_files(&dir, &name, &scenario, model.mesh(), &run)?;
     }
+    if args.out.json {
+        summary.print()?;
+    } else {
+        print_simulate_table(&name, &scenario, &model, &run)?;
+    }
+    Ok(())
+}
+
+fn simulate_summary(
+    name: &str,
+    scenario: &Scenario,
+    model: &VoigtModel,
+    run: &LocalRun,
+) -> Result<JsonObject> {
     let mesh = model.mesh();
-    let energy = model.energy(&state);
-    let rate = cfg.duration_ticks as f64 / compute_s.max(1e-12);
-    let summary = JsonObject::new()
-        .field("scenario", &name)?
+    let energy = model.energy(&run.final_state);
+    JsonObject::new()
+        .field("scenario", name)?
         .field("level", &scenario.level)?
         .field("nodes", &mesh.node_count())?
         .field("tetrahedra", &mesh.tets.len())?
         .field("elements", &mesh.edges.len())?
         .field("substeps_per_tick", &model.substeps())?
-        .field("ticks", &cfg.duration_ticks)?
-        .field("compute_s", &compute_s)?
-        .field("deformation_rate_hz", &rate)?
-        .field("max_force_n", &max_force)?
-        .field("contact_ticks", &contact)?
+        .field("ticks", &run.ticks)?
+        .field("compute_s", &run.compute_s)?
+        .field("deformation_rate_hz", &run.deformation_rate_hz())?
+        .field("max_force_n", &run.max_force_n)?
+        .field("contact_ticks", &run.contact_ticks)?
         .field("final_kinetic_j", &energy.kinetic_j)?
-        .field("final_elastic_j", &energy.elastic_j)?;
-    if let Some(dir) = out_dir(&args.out)? {
-        write_forces_csv(&dir.join("forces.csv"), &traces)?;
-        output::write_svg(
-            &dir.join("forces.svg"),
-            &forces_svg(
-                &format!(
-                    "{name}: level {} ({} nodes), no network",
-                    scenario.level,
-                    mesh.node_count()
-                ),
-                &traces,
-                &[None, None],
+        .field("final_elastic_j", &energy.elastic_j)
+}
+
+fn write_simulate_files(
+    dir: &Path,
+    name: &str,
+    scenario: &Scenario,
+    mesh: &CubeMesh,
+    run: &LocalRun,
+) -> Result<()> {
+    write_forces_csv(&dir.join("forces.csv"), &run.traces)?;
+    output::write_svg(
+        &dir.join("forces.svg"),
+        &forces_svg(
+            &format!(
+                "{name}: level {} ({} nodes), no network",
+                scenario.level,
+                mesh.node_count()
             ),
-        )?;
-        let x: Vec<[f64; 3]> = peak.1.iter().map(|p| arr(*p)).collect();
-        output::write_svg(
-            &dir.join("mesh.svg"),
-            &mesh_svg(
-                mesh,
-                &x,
-                &format!("level {} cube where the users push hardest", scenario.level),
-            ),
-        )?;
-    }
-    if args.out.json {
-        summary.print()?;
-    } else {
-        outln!("scenario   {name}");
+            &run.traces,
+            &[None, None],
+        ),
+    )?;
+    output::write_svg(
+        &dir.join("mesh.svg"),
+        &mesh_svg(
+            mesh,
+            &run.peak_x_m,
+            &format!("level {} cube where the users push hardest", scenario.level),
+        ),
+    )
+}
+
+fn print_simulate_table(
+    name: &str,
+    scenario: &Scenario,
+    model: &VoigtModel,
+    run: &LocalRun,
+) -> Result<()> {
+    let mesh = model.mesh();
+    outln!("scenario   {name}");
+    outln!(
+        "mesh       level {}: {} nodes, {} tetrahedra, {} Voigt elements, {} substeps per 1 ms tick",
+        scenario.level,
+        mesh.node_count(),
+        mesh.tets.len(),
+        mesh.edges.len(),
+        model.substeps()
+    );
+    outln!(
+        "run        {} ticks in {:.3} s of computation: {:.0} deformation updates/s (the seed: 1000 Hz at level 3 to 50 Hz at 729 nodes)",
+        run.ticks, run.compute_s, run.deformation_rate_hz()
+    );
+    for s in 0..2 {
         outln!(
-            "mesh       level {}: {} nodes, {} tetrahedra, {} Voigt elements, {} substeps per 1 ms tick",
-            scenario.level,
-            mesh.node_count(),
-            mesh.tets.len(),
-            mesh.edges.len(),
-            model.substeps()
+            "user {s}     in contact {:.2} s, largest force {:.3} N",
+            run.contact_ticks[s] as f64 * TICK_S,
+            run.max_force_n[s]
         );
-        outln!(
-            "run        {} ticks in {:.3} s of computation: {:.0} deformation updates/s (the seed: 1000 Hz at level 3 to 50 Hz at 729 nodes)",
-            cfg.duration_ticks, compute_s, rate
-        );
-        for s in 0..2 {
-            outln!(
-                "user {s}     in contact {:.2} s, largest force {:.3} N",
-                contact[s] as f64 * TICK_S,
-                max_force[s]
-            );
-        }
     }
     Ok(())
 }
 
 // ---------------------------------------------------------------- pair
-
-/// A pair run's outcome in one shape for every mode.
-struct PairOutcome {
-    mode: &'static str,
-    sites: [SiteReport; 2],
-    /// Largest gap between the two displays (virtual runs only).
-    display_gap_max_mm: Option<f64>,
-    wall_s: f64,
-}
-
-fn site_setup(scenario: &Scenario, site: u8, spin_us: u64, rt_priority: u8) -> Result<SiteSetup> {
-    let cfg = scenario
-        .pair_config("scenario")
-        .map_err(|e| anyhow!("{e}"))?;
-    let [t0, t1] = cfg.trajectories;
-    Ok(SiteSetup {
-        site,
-        session: cfg.session,
-        netem: cfg.netem,
-        seed: cfg.seed,
-        duration_ticks: cfg.duration_ticks,
-        trajectory: if site == 0 { t0 } else { t1 },
-        spin_us,
-        trace_every_ticks: cfg.trace_every_ticks,
-        rt_priority,
-    })
-}
 
 fn pair(args: &PairArgs) -> Result<()> {
     if args.scenario.print_default {
@@ -405,28 +353,13 @@ fn pair(args: &PairArgs) -> Result<()> {
     let outcome = if args.r#virtual {
         virtual_pair(&scenario, &name)?
     } else if args.in_process {
-        let sockets = [bind()?, bind()?];
-        let addrs = [sockets[0].local_addr()?, sockets[1].local_addr()?];
         let setups = [
-            site_setup(&scenario, 0, spin, rt)?,
-            site_setup(&scenario, 1, spin, rt)?,
+            SiteSetup::from_scenario(&scenario, 0, spin, rt)?,
+            SiteSetup::from_scenario(&scenario, 1, spin, rt)?,
         ];
-        let [s0, s1] = sockets;
-        let [u0, u1] = setups;
-        let (r0, r1) = std::thread::scope(|s| {
-            let a = s.spawn(move || run_site(u0, s0, addrs[1]));
-            let b = s.spawn(move || run_site(u1, s1, addrs[0]));
-            (a.join(), b.join())
-        });
-        let r0 = r0
-            .map_err(|_| anyhow!("site 0 panicked"))?
-            .context("site 0")?;
-        let r1 = r1
-            .map_err(|_| anyhow!("site 1 panicked"))?
-            .context("site 1")?;
         PairOutcome {
             mode: "in-process",
-            sites: [r0, r1],
+            sites: realtime::run_pair_in_process(setups)?,
             display_gap_max_mm: None,
             wall_s: 0.0,
         }
@@ -440,57 +373,16 @@ fn pair(args: &PairArgs) -> Result<()> {
     report_pair(&scenario, &name, &outcome, &args.out)
 }
 
-fn bind() -> Result<UdpSocket> {
-    UdpSocket::bind("127.0.0.1:0").context("cannot bind a UDP socket on 127.0.0.1")
-}
-
 fn virtual_pair(scenario: &Scenario, name: &str) -> Result<PairOutcome> {
     let cfg = scenario.pair_config(name).map_err(|e| anyhow!("{e}"))?;
     let r = run_virtual(&cfg).map_err(|e| anyhow!("{name}: {e}"))?;
-    let final_x: Vec<[f64; 3]> = r.final_state.x_m.iter().map(|p| arr(*p)).collect();
-    let peak_x: Vec<[f64; 3]> = r.peak_state.x_m.iter().map(|p| arr(*p)).collect();
-    let site = |s: usize| {
-        let sm = &r.sites[s];
-        SiteReport {
-            site: s as u8,
-            haptic: None,
-            deformation: None,
-            display: None,
-            link: LinkSummary::from(&sm.link),
-            netem: NetemSummary::from(&sm.netem),
-            replica: ReplicaSummary::from(&sm.replica),
-            committed_tick: cfg.duration_ticks,
-            final_hash: sm.final_hash,
-            // The virtual run compares the two replicas itself: both final
-            // states are site 0's when they are identical.
-            final_x_m: final_x.clone(),
-            peak_x_m: peak_x.clone(),
-            trace: r
-                .trace
-                .iter()
-                .map(|row| ForceRow {
-                    tick: row.tick,
-                    tip_m: arr(row.tip_m[s]),
-                    force_n: arr(row.force_n[s]),
-                    contact: row.contact[s],
-                })
-                .collect(),
-            contact_ticks: sm.contact_ticks,
-            max_force_n: sm.max_force_n,
-        }
-    };
     if !r.identical {
         bail!(
             "the final replicas differ (largest node distance {} m): this is a defect",
             r.final_distance_m
         );
     }
-    Ok(PairOutcome {
-        mode: "virtual",
-        sites: [site(0), site(1)],
-        display_gap_max_mm: Some(r.max_display_gap_m * 1e3),
-        wall_s: 0.0,
-    })
+    Ok(PairOutcome::from_virtual(&r, cfg.duration_ticks))
 }
 
 /// Two child processes `softjoint tetmsd site`, over UDP on loopback.
@@ -499,65 +391,9 @@ fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairO
     let file = std::env::temp_dir().join(format!("softjoint-tetmsd-{}.toml", std::process::id()));
     output::write_toml(&file, "", scenario)?;
     let result = (|| {
-        let mut children = Vec::new();
-        for s in 0..2 {
-            let child = Command::new(&exe)
-                .args([
-                    "tetmsd",
-                    "site",
-                    "--site",
-                    &s.to_string(),
-                    "--spin-us",
-                    &spin_us.to_string(),
-                    "--rt-priority",
-                    &rt_priority.to_string(),
-                ])
-                .arg("--scenario")
-                .arg(&file)
-                .stdin(Stdio::piped())
-                .stdout(Stdio::piped())
-                .stderr(Stdio::piped())
-                .spawn()
-                .context("cannot start a site process")?;
-            children.push(child);
-        }
-        let mut readers = Vec::new();
-        let mut ports = Vec::new();
-        for c in children.iter_mut() {
-            let out = c.stdout.take().ok_or_else(|| anyhow!("site stdout"))?;
-            let mut r = BufReader::new(out);
-            let mut line = String::new();
-            r.read_line(&mut line)?;
-            let port = line
-                .trim()
-                .strip_prefix("port ")
-                .and_then(|p| p.parse::<u16>().ok())
-                .ok_or_else(|| anyhow!("a site process did not report its port (said {line:?})"))?;
-            ports.push(port);
-            readers.push(r);
-        }
-        for (k, c) in children.iter_mut().enumerate() {
-            let mut stdin = c.stdin.take().ok_or_else(|| anyhow!("site stdin"))?;
-            writeln!(stdin, "peer {}", ports[1 - k])?;
-        }
-        let mut reports = Vec::new();
-        for (k, (mut c, mut r)) in children.into_iter().zip(readers).enumerate() {
-            let mut text = String::new();
-            std::io::Read::read_to_string(&mut r, &mut text)?;
-            let status = c.wait()?;
-            let mut err = String::new();
-            if let Some(mut e) = c.stderr.take() {
-                std::io::Read::read_to_string(&mut e, &mut err).ok();
-            }
-            if !status.success() {
-                bail!("site {k} failed: {}", err.trim());
-            }
-            let rep: SiteReport = serde_json::from_str(text.trim())
-                .with_context(|| format!("site {k} wrote no report"))?;
-            reports.push(rep);
-        }
-        let r1 = reports.pop().ok_or_else(|| anyhow!("no report"))?;
-        let r0 = reports.pop().ok_or_else(|| anyhow!("no report"))?;
+        let mut children = spawn_sites(&exe, &file, spin_us, rt_priority)?;
+        let readers = introduce_sites(&mut children)?;
+        let [r0, r1] = collect_reports(children, readers)?;
         Ok(PairOutcome {
             mode: "processes",
             sites: [r0, r1],
@@ -569,6 +405,84 @@ fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairO
     result
 }
 
+/// Starts `softjoint tetmsd site` for sites 0 and 1 on the scenario `file`.
+fn spawn_sites(exe: &Path, file: &Path, spin_us: u64, rt_priority: u8) -> Result<Vec<Child>> {
+    let mut children = Vec::new();
+    for s in 0..2 {
+        let child = Command::new(exe)
+            .args([
+                "tetmsd",
+                "site",
+                "--site",
+                &s.to_string(),
+                "--spin-us",
+                &spin_us.to_string(),
+                "--rt-priority",
+                &rt_priority.to_string(),
+            ])
+            .arg("--scenario")
+            .arg(file)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .context("cannot start a site process")?;
+        children.push(child);
+    }
+    Ok(children)
+}
+
+/// Reads each site's `port N` and tells each the other's (`peer N`);
+/// returns the readers of their standard outputs.
+fn introduce_sites(children: &mut [Child]) -> Result<Vec<BufReader<ChildStdout>>> {
+    let mut readers = Vec::new();
+    let mut ports = Vec::new();
+    for c in children.iter_mut() {
+        let out = c.stdout.take().ok_or_else(|| anyhow!("site stdout"))?;
+        let mut r = BufReader::new(out);
+        let mut line = String::new();
+        r.read_line(&mut line)?;
+        let port = line
+            .trim()
+            .strip_prefix("port ")
+            .and_then(|p| p.parse::<u16>().ok())
+            .ok_or_else(|| anyhow!("a site process did not report its port (said {line:?})"))?;
+        ports.push(port);
+        readers.push(r);
+    }
+    for (k, c) in children.iter_mut().enumerate() {
+        let mut stdin = c.stdin.take().ok_or_else(|| anyhow!("site stdin"))?;
+        writeln!(stdin, "peer {}", ports[1 - k])?;
+    }
+    Ok(readers)
+}
+
+/// Waits for both sites and reads their JSON reports.
+fn collect_reports(
+    children: Vec<Child>,
+    readers: Vec<BufReader<ChildStdout>>,
+) -> Result<[SiteReport; 2]> {
+    let mut reports = Vec::new();
+    for (k, (mut c, mut r)) in children.into_iter().zip(readers).enumerate() {
+        let mut text = String::new();
+        std::io::Read::read_to_string(&mut r, &mut text)?;
+        let status = c.wait()?;
+        let mut err = String::new();
+        if let Some(mut e) = c.stderr.take() {
+            std::io::Read::read_to_string(&mut e, &mut err).ok();
+        }
+        if !status.success() {
+            bail!("site {k} failed: {}", err.trim());
+        }
+        let rep: SiteReport = serde_json::from_str(text.trim())
+            .with_context(|| format!("site {k} wrote no report"))?;
+        reports.push(rep);
+    }
+    let r1 = reports.pop().ok_or_else(|| anyhow!("no report"))?;
+    let r0 = reports.pop().ok_or_else(|| anyhow!("no report"))?;
+    Ok([r0, r1])
+}
+
 fn site(args: &SiteArgs) -> Result<()> {
     if args.site > 1 {
         bail!("--site must be 0 or 1, got {}", args.site);
@@ -577,8 +491,8 @@ fn site(args: &SiteArgs) -> Result<()> {
         .with_context(|| format!("cannot read {}", args.scenario.display()))?;
     let scenario: Scenario =
         host_tools::input::from_toml(&text, &args.scenario.display().to_string())?;
-    let setup = site_setup(&scenario, args.site, args.spin_us, args.rt_priority)?;
-    let socket = bind()?;
+    let setup = SiteSetup::from_scenario(&scenario, args.site, args.spin_us, args.rt_priority)?;
+    let socket = realtime::bind_loopback()?;
     outln!("port {}", socket.local_addr()?.port());
     output::flush_stdout()?;
     let mut line = String::new();
@@ -589,29 +503,9 @@ fn site(args: &SiteArgs) -> Result<()> {
         .and_then(|p| p.parse().ok())
         .ok_or_else(|| anyhow!("expected `peer PORT` on standard input, got {line:?}"))?;
     let peer = SocketAddr::from(([127, 0, 0, 1], port));
-    let report = run_site(setup, socket, peer)?;
+    let report = realtime::run_site(setup, socket, peer)?;
     output::print_json(&report)?;
     Ok(())
-}
-
-/// Whether the two sites' final committed replicas agree bit for bit, and
-/// their largest node distance (m).
-fn compare_finals(a: &SiteReport, b: &SiteReport) -> (bool, f64) {
-    let same = a.final_hash == b.final_hash
-        && a.final_x_m.len() == b.final_x_m.len()
-        && a.final_x_m
-            .iter()
-            .zip(&b.final_x_m)
-            .all(|(p, q)| (0..3).all(|i| p[i].to_bits() == q[i].to_bits()));
-    let dist = a
-        .final_x_m
-        .iter()
-        .zip(&b.final_x_m)
-        .map(|(p, q)| {
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .fold(0.0, f64::max);
-    (same, dist)
 }
 
 /// A site report without its long arrays, for `--json`.
@@ -650,37 +544,10 @@ struct PairSummary<'a> {
 }
 
 fn report_pair(scenario: &Scenario, name: &str, o: &PairOutcome, out: &OutArgs) -> Result<()> {
-    let (identical, dist) = compare_finals(&o.sites[0], &o.sites[1]);
+    let (identical, dist) = o.compare_finals();
     let nodes = CubeMesh::new(scenario.level, scenario.side_mm * 1e-3)?.node_count();
-    let bound = o.sites[0].replica.divergence_max_mm + o.sites[1].replica.divergence_max_mm;
     if let Some(dir) = out_dir(out)? {
-        let traces = [o.sites[0].trace.clone(), o.sites[1].trace.clone()];
-        write_forces_csv(&dir.join("forces.csv"), &traces)?;
-        write_divergence_csv(&dir.join("divergence.csv"), &o.sites)?;
-        let title = format!(
-            "{name}: level {} ({nodes} nodes), profile {}, loss {}, {} run",
-            scenario.level, scenario.network.profile, scenario.network.loss, o.mode
-        );
-        let series = [
-            Some(&o.sites[0].replica.divergence_series),
-            Some(&o.sites[1].replica.divergence_series),
-        ];
-        output::write_svg(
-            &dir.join("forces.svg"),
-            &forces_svg(&title, &traces, &series),
-        )?;
-        let mesh = CubeMesh::new(scenario.level, scenario.side_mm * 1e-3)?;
-        output::write_svg(
-            &dir.join("mesh.svg"),
-            &mesh_svg(
-                &mesh,
-                &o.sites[0].peak_x_m,
-                &format!(
-                    "site 0's display where its user pushed hardest (level {})",
-                    scenario.level
-                ),
-            ),
-        )?;
+        write_pair_files(&dir, scenario, name, nodes, o)?;
     }
     let summary = PairSummary {
         scenario: name,
@@ -695,7 +562,7 @@ fn report_pair(scenario: &Scenario, name: &str, o: &PairOutcome, out: &OutArgs) 
         wall_s: o.wall_s,
         replicas_identical: identical,
         final_max_distance_m: dist,
-        display_gap_bound_mm: bound,
+        display_gap_bound_mm: o.display_gap_bound_mm(),
         display_gap_max_mm: o.display_gap_max_mm,
         sites: vec![site_json(&o.sites[0])?, site_json(&o.sites[1])?],
     };
@@ -708,6 +575,42 @@ fn report_pair(scenario: &Scenario, name: &str, o: &PairOutcome, out: &OutArgs) 
         bail!("the final replicas differ (largest node distance {dist} m): this is a defect");
     }
     Ok(())
+}
+
+fn write_pair_files(
+    dir: &Path,
+    scenario: &Scenario,
+    name: &str,
+    nodes: usize,
+    o: &PairOutcome,
+) -> Result<()> {
+    let traces = [o.sites[0].trace.clone(), o.sites[1].trace.clone()];
+    write_forces_csv(&dir.join("forces.csv"), &traces)?;
+    write_divergence_csv(&dir.join("divergence.csv"), &o.sites)?;
+    let title = format!(
+        "{name}: level {} ({nodes} nodes), profile {}, loss {}, {} run",
+        scenario.level, scenario.network.profile, scenario.network.loss, o.mode
+    );
+    let series = [
+        Some(&o.sites[0].replica.divergence_series),
+        Some(&o.sites[1].replica.divergence_series),
+    ];
+    output::write_svg(
+        &dir.join("forces.svg"),
+        &forces_svg(&title, &traces, &series),
+    )?;
+    let mesh = CubeMesh::new(scenario.level, scenario.side_mm * 1e-3)?;
+    output::write_svg(
+        &dir.join("mesh.svg"),
+        &mesh_svg(
+            &mesh,
+            &o.sites[0].peak_x_m,
+            &format!(
+                "site 0's display where its user pushed hardest (level {})",
+                scenario.level
+            ),
+        ),
+    )
 }
 
 fn pair_table(s: &PairSummary<'_>, o: &PairOutcome) -> String {
@@ -926,10 +829,58 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
     } else {
         mesh.nodes_m.clone()
     };
-    // View from the front right, above: turn by −35° about z, tilt 28°.
-    let (az, el) = ((-35f64).to_radians(), 28f64.to_radians());
-    let view = |p: V3| {
-        let c = p - V3::repeat(mesh.side_m / 2.0);
+    let view = Oblique::of(mesh, w, h);
+    let disp: Vec<f64> = x
+        .iter()
+        .zip(&mesh.nodes_m)
+        .map(|(a, b)| (a - b).norm())
+        .collect();
+    let max_disp = disp.iter().copied().fold(0.0, f64::max).max(1e-12);
+    draw_rest_cube(&mut svg, mesh, &view);
+    draw_surface(&mut svg, mesh, &x, &disp, max_disp, &view);
+    draw_colour_bar(&mut svg, w, max_disp);
+    svg.text(
+        20.0,
+        h - 16.0,
+        12.0,
+        Anchor::Start,
+        &format!(
+            "{} nodes, {} tetrahedra; dashed: the rest cube ({} mm); z up, viewed from the front right",
+            mesh.node_count(),
+            mesh.tets.len(),
+            mesh.side_m * 1e3
+        ),
+    );
+    svg.finish()
+}
+
+/// The oblique view of the cube: from the front right, above (turned by
+/// −35° about z, tilted 28°), scaled onto a `w` × `h` picture.
+struct Oblique {
+    az: f64,
+    el: f64,
+    half_side_m: f64,
+    scale: f64,
+    cx: f64,
+    cy: f64,
+}
+
+impl Oblique {
+    fn of(mesh: &CubeMesh, w: f64, h: f64) -> Self {
+        Oblique {
+            az: (-35f64).to_radians(),
+            el: 28f64.to_radians(),
+            half_side_m: mesh.side_m / 2.0,
+            scale: 0.46 * w / mesh.side_m,
+            cx: w / 2.0 - 50.0,
+            cy: h / 2.0 + 30.0,
+        }
+    }
+
+    /// Across, up and depth (far = large) of `p` in the camera frame.
+    fn view(&self, p: V3) -> (f64, f64, f64) {
+        let (az, el) = (self.az, self.el);
+        let c = p - V3::repeat(self.half_side_m);
         let (xr, yr) = (
             c.x * az.cos() - c.y * az.sin(),
             c.x * az.sin() + c.y * az.cos(),
@@ -941,33 +892,24 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
             yr * el.sin() + c.z * el.cos(),
             yr * el.cos() - c.z * el.sin(),
         )
-    };
-    let scale = 0.46 * w / mesh.side_m;
-    let (cx, cy) = (w / 2.0 - 50.0, h / 2.0 + 30.0);
-    let screen = |p: V3| {
-        let (sx, sy, _) = view(p);
-        (cx + sx * scale, cy - sy * scale)
-    };
-    // The viewing direction in the model frame (a face is seen when its
-    // outward normal points against it).
-    let forward = V3::new(az.sin() * el.cos(), az.cos() * el.cos(), -el.sin());
-    let disp: Vec<f64> = x
-        .iter()
-        .zip(&mesh.nodes_m)
-        .map(|(a, b)| (a - b).norm())
-        .collect();
-    let max_disp = disp.iter().copied().fold(0.0, f64::max).max(1e-12);
-    let mut faces: Vec<(f64, [usize; 3])> = mesh
-        .boundary_faces
-        .iter()
-        .map(|f| {
-            let idx = f.map(|i| i as usize);
-            let c = (x[idx[0]] + x[idx[1]] + x[idx[2]]) / 3.0;
-            (view(c).2, idx)
-        })
-        .collect();
-    faces.sort_by(|a, b| b.0.total_cmp(&a.0));
-    // The rest cube's hidden edges first (dashed), under the surface.
+    }
+
+    /// Picture coordinates (px) of `p`.
+    fn screen(&self, p: V3) -> (f64, f64) {
+        let (sx, sy, _) = self.view(p);
+        (self.cx + sx * self.scale, self.cy - sy * self.scale)
+    }
+
+    /// The viewing direction in the model frame (a face is seen when its
+    /// outward normal points against it).
+    fn forward(&self) -> V3 {
+        let (az, el) = (self.az, self.el);
+        V3::new(az.sin() * el.cos(), az.cos() * el.cos(), -el.sin())
+    }
+}
+
+/// The rest cube's twelve edges, dashed (drawn first, under the surface).
+fn draw_rest_cube(svg: &mut Svg, mesh: &CubeMesh, view: &Oblique) {
     let corner = |i: usize| {
         V3::new(
             (i & 1) as f64 * mesh.side_m,
@@ -991,11 +933,34 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
     ];
     for (a, b) in edges {
         svg.line(
-            screen(corner(a)),
-            screen(corner(b)),
+            view.screen(corner(a)),
+            view.screen(corner(b)),
             Stroke::dashed("#999", 1.0),
         );
     }
+}
+
+/// The boundary faces of the shape `x` that face the camera, far to
+/// near, coloured by their mean displacement `disp` over `max_disp`.
+fn draw_surface(
+    svg: &mut Svg,
+    mesh: &CubeMesh,
+    x: &[V3],
+    disp: &[f64],
+    max_disp: f64,
+    view: &Oblique,
+) {
+    let forward = view.forward();
+    let mut faces: Vec<(f64, [usize; 3])> = mesh
+        .boundary_faces
+        .iter()
+        .map(|f| {
+            let idx = f.map(|i| i as usize);
+            let c = (x[idx[0]] + x[idx[1]] + x[idx[2]]) / 3.0;
+            (view.view(c).2, idx)
+        })
+        .collect();
+    faces.sort_by(|a, b| b.0.total_cmp(&a.0));
     for (_, f) in &faces {
         let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]]));
         if n.dot(&forward) >= 0.0 {
@@ -1003,14 +968,17 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
         }
         let t = (disp[f[0]] + disp[f[1]] + disp[f[2]]) / 3.0 / max_disp;
         let (r, g, b) = plot::false_colour(t);
-        let pts: Vec<(f64, f64)> = f.iter().map(|&i| screen(x[i])).collect();
+        let pts: Vec<(f64, f64)> = f.iter().map(|&i| view.screen(x[i])).collect();
         svg.polygon(
             &pts,
             &format!("rgb({r},{g},{b})"),
             Stroke::solid("#333", 0.6),
         );
     }
-    // Colour bar.
+}
+
+/// The displacement colour bar at the right of a picture `w` wide.
+fn draw_colour_bar(svg: &mut Svg, w: f64, max_disp: f64) {
     let (bx, by, bh) = (w - 70.0, 80.0, 300.0);
     for k in 0..60 {
         let t = 1.0 - k as f64 / 59.0;
@@ -1033,17 +1001,4 @@ fn mesh_svg(mesh: &CubeMesh, x_m: &[[f64; 3]], title: &str) -> String {
         &format!("{:.2} mm", max_disp * 1e3),
     );
     svg.text(bx - 4.0, by + bh, 12.0, Anchor::End, "0 mm");
-    svg.text(
-        20.0,
-        h - 16.0,
-        12.0,
-        Anchor::Start,
-        &format!(
-            "{} nodes, {} tetrahedra; dashed: the rest cube ({} mm); z up, viewed from the front right",
-            mesh.node_count(),
-            mesh.tets.len(),
-            mesh.side_m * 1e3
-        ),
-    );
-    svg.finish()
 }

@@ -20,15 +20,16 @@ use host_tools::outln;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{Anchor, Stroke, Svg};
 use plant_tissue::compress::compare::{
-    run as run_compression, CompressionOutcome, CompressionSpec,
+    run as run_compression, CompressionOutcome, CompressionReport, CompressionSpec,
 };
 use plant_tissue::compress::phantom::MARKER_SPACING_MM;
-use plant_tissue::field::matching::Consistency;
-use plant_tissue::field::pipeline::{
-    features, measure_from, registration_rms, FieldParams, MeasuredField,
+use plant_tissue::field::experiment::{
+    self, FieldOutcome, VariantField, VariantSummary, VolumePair,
 };
+use plant_tissue::field::matching::Consistency;
+use plant_tissue::field::pipeline::{FieldParams, MeasuredField};
 use plant_tissue::field::synth::{make_twin, SynthSpec, Twin};
-use plant_tissue::field::twin::compare_on_twin;
+use plant_tissue::field::twin::TwinReport;
 use plant_tissue::field::volume::Volume;
 
 /// Arguments of `softjoint tissue`.
@@ -184,30 +185,16 @@ fn field(a: &FieldArgs) -> Result<()> {
     if a.grid_step == 0 {
         bail!("--grid-step must be at least 1");
     }
-    let (iv, fv, twin): (Volume, Volume, Option<Twin>) =
-        match (&a.initial, &a.deformed, a.synthetic) {
-            (Some(i), Some(d), false) => (Volume::read_nifti(i)?, Volume::read_nifti(d)?, None),
-            (None, None, true) => {
-                let t = make_twin(&SynthSpec {
-                    seed: a.seed,
-                    ..SynthSpec::with_dims(a.dims)
-                })?;
-                (t.initial.clone(), t.deformed.clone(), Some(t))
-            }
-            (_, _, true) => {
-                bail!("--synthetic makes its own volumes: give no INITIAL/DEFORMED files with it")
-            }
-            _ => bail!(
-                "give two volumes (INITIAL DEFORMED), or --synthetic for a twin with a known warp"
-            ),
-        };
+    let pair = load_pair(a)?;
     out_dir(&a.out_dir)?;
     if a.write_volumes {
-        if twin.is_none() {
+        if pair.twin().is_none() {
             bail!("--write-volumes writes the synthetic pair: use it with --synthetic");
         }
-        iv.write_nifti(&a.out_dir.join("initial.nii.gz"))?;
-        fv.write_nifti(&a.out_dir.join("deformed.nii.gz"))?;
+        pair.initial()
+            .write_nifti(&a.out_dir.join("initial.nii.gz"))?;
+        pair.deformed()
+            .write_nifti(&a.out_dir.join("deformed.nii.gz"))?;
     }
     let params = FieldParams {
         features_initial: a.features_initial,
@@ -218,58 +205,111 @@ fn field(a: &FieldArgs) -> Result<()> {
     if params.features_initial < 4 || params.features_deformed < 4 {
         bail!("--features-initial and --features-deformed must be at least 4");
     }
-    let variants = a.matching.variants();
-    // One timed measurement (features + matching + Horn + tetrahedra) of
-    // the first variant: the benchmark figure.
-    let t0 = Instant::now();
-    let feats = features(&iv, &fv, &params)?;
-    let mut p0 = params;
-    p0.matching.consistency = variants[0];
-    let first = measure_from(&feats, &p0)?;
-    let measure_s = t0.elapsed().as_secs_f64();
-    let mut fields: Vec<MeasuredField> = vec![first];
-    for &c in &variants[1..] {
-        let mut p = params;
-        p.matching.consistency = c;
-        fields.push(measure_from(&feats, &p)?);
+    let outcome = experiment::run(&pair, &params, &a.matching.variants())?;
+    write_field_files(&a.out_dir, &pair, &outcome, a.grid_step)?;
+    let summary = field_summary(pair.initial(), &outcome)?;
+    output::write_json(&a.out_dir.join("summary.json"), &summary)?;
+    if a.json {
+        output::print_json(&summary)?;
+        return Ok(());
     }
-    let truth_report = match &twin {
-        Some(t) => Some(compare_on_twin(t, &params, &variants)?.0),
-        None => None,
-    };
-    // Files.
+    print_field_table(pair.initial(), &outcome)?;
+    outln!(
+        "wrote matches.csv, field.csv, mid_slice.svg, summary.json to {}",
+        a.out_dir.display()
+    );
+    Ok(())
+}
+
+/// The two volumes: read from INITIAL and DEFORMED, or a synthetic twin.
+fn load_pair(a: &FieldArgs) -> Result<VolumePair> {
+    match (&a.initial, &a.deformed, a.synthetic) {
+        (Some(i), Some(d), false) => Ok(VolumePair::Files {
+            initial: Volume::read_nifti(i)?,
+            deformed: Volume::read_nifti(d)?,
+        }),
+        (None, None, true) => {
+            let t = make_twin(&SynthSpec {
+                seed: a.seed,
+                ..SynthSpec::with_dims(a.dims)
+            })?;
+            Ok(VolumePair::Twin(Box::new(t)))
+        }
+        (_, _, true) => {
+            bail!("--synthetic makes its own volumes: give no INITIAL/DEFORMED files with it")
+        }
+        _ => bail!(
+            "give two volumes (INITIAL DEFORMED), or --synthetic for a twin with a known warp"
+        ),
+    }
+}
+
+/// matches.csv (every variant), and field.csv and mid_slice.svg (the
+/// first variant's dense field, every `grid_step` voxels).
+fn write_field_files(
+    dir: &Path,
+    pair: &VolumePair,
+    outcome: &FieldOutcome,
+    grid_step: usize,
+) -> Result<()> {
+    let first = &outcome.variants[0];
+    write(
+        &dir.join("matches.csv"),
+        &matches_csv(outcome, pair.twin())?,
+    )?;
+    write(
+        &dir.join("field.csv"),
+        &dense_csv(pair.initial(), first, grid_step)?,
+    )?;
+    let svg = mid_slice_picture(
+        pair.initial(),
+        &first.measured,
+        first.consistency,
+        pair.twin(),
+        grid_step,
+    );
+    write(&dir.join("mid_slice.svg"), &svg)
+}
+
+/// Every variant's matches with their displacement (and, on a twin, the
+/// true displacement and the error).
+fn matches_csv(outcome: &FieldOutcome, twin: Option<&Twin>) -> Result<String> {
     let mut csv = String::from("matching,x_mm,y_mm,z_mm,dx_mm,dy_mm,dz_mm,correlation,strength");
     if twin.is_some() {
         csv.push_str(",true_dx_mm,true_dy_mm,true_dz_mm,error_mm");
     }
     csv.push('\n');
-    for (c, m) in variants.iter().zip(&fields) {
+    for v in &outcome.variants {
+        let m = &v.measured;
         for (k, mm) in m.matches.iter().enumerate() {
             let p = m.field.nodes_mm[k];
             let d = m.field.displacement_mm[k];
-            let mut row = vec![c.name().to_string()];
-            for v in p.iter().chain(&d).chain(&[mm.correlation, mm.strength]) {
-                row.push(num(*v)?);
+            let mut row = vec![v.consistency.name().to_string()];
+            for x in p.iter().chain(&d).chain(&[mm.correlation, mm.strength]) {
+                row.push(num(*x)?);
             }
-            if let Some(t) = &twin {
-                let q = t.warp.forward_mm(p);
-                let td = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+            if let Some(t) = twin {
+                let td = t.warp.displacement_mm(p);
                 let e = ((0..3).map(|i| (d[i] - td[i]).powi(2)).sum::<f64>()).sqrt();
-                for v in td.iter().chain(&[e]) {
-                    row.push(num(*v)?);
+                for x in td.iter().chain(&[e]) {
+                    row.push(num(*x)?);
                 }
             }
             let _ = writeln!(csv, "{}", row.join(","));
         }
     }
-    write(&a.out_dir.join("matches.csv"), &csv)?;
+    Ok(csv)
+}
+
+/// The dense field of the first variant, every `grid_step` voxels in x
+/// and y on every slice, where its tetrahedra cover the voxel.
+fn dense_csv(iv: &Volume, first: &VariantField, grid_step: usize) -> Result<String> {
     let dims = iv.dims();
-    let sp = iv.spacing_mm();
-    let dense = fields[0].field.dense(dims, sp);
-    let mut dcsv = format!("# dense field of `{}` matching, every {} voxels in x and y\nx_mm,y_mm,z_mm,dx_mm,dy_mm,dz_mm\n", variants[0].name(), a.grid_step);
+    let dense = first.measured.field.dense(dims, iv.spacing_mm());
+    let mut dcsv = format!("# dense field of `{}` matching, every {} voxels in x and y\nx_mm,y_mm,z_mm,dx_mm,dy_mm,dz_mm\n", first.consistency.name(), grid_step);
     for z in 0..dims[2] {
-        for y in (0..dims[1]).step_by(a.grid_step) {
-            for x in (0..dims[0]).step_by(a.grid_step) {
+        for y in (0..dims[1]).step_by(grid_step) {
+            for x in (0..dims[0]).step_by(grid_step) {
                 if let Some(u) = dense.displacement_mm[iv.index(x, y, z)] {
                     let p = iv.position_mm([x, y, z]);
                     let vals = [
@@ -286,47 +326,23 @@ fn field(a: &FieldArgs) -> Result<()> {
             }
         }
     }
-    write(&a.out_dir.join("field.csv"), &dcsv)?;
-    let svg = mid_slice_picture(&iv, &fields[0], variants[0], twin.as_ref(), a.grid_step);
-    write(&a.out_dir.join("mid_slice.svg"), &svg)?;
-    // Summary.
-    let per_variant = variants
-        .iter()
-        .zip(&fields)
-        .map(|(c, m)| {
-            let rms = registration_rms(&iv, &fv, &m.field, None);
-            JsonObject::new()
-                .field("matching", c.name())?
-                .field("matches", &m.matches.len())?
-                .field("tetrahedra", &m.field.tets.len())?
-                .field("folded_tetrahedra", &m.folded_tets)?
-                .field("horn_angle_deg", &m.rigid.angle_deg())?
-                .field(
-                    "horn_translation_mm",
-                    &[
-                        m.rigid.translation_mm[0],
-                        m.rigid.translation_mm[1],
-                        m.rigid.translation_mm[2],
-                    ],
-                )?
-                .field("horn_rms_residual_mm", &m.rigid.rms_residual_mm)?
-                .field("registration_rms", &rms.map(|r| r.0))?
-                .field("registration_voxels", &rms.map(|r| r.1))
-        })
-        .collect::<Result<Vec<JsonObject>>>()?;
-    let summary = JsonObject::new()
-        .field("dims", &dims)?
-        .field("spacing_mm", &sp)?
-        .field("features_initial", &feats.initial.len())?
-        .field("features_deformed", &feats.deformed.len())?
-        .field("measure_seconds", &measure_s)?
+    Ok(dcsv)
+}
+
+fn field_summary(iv: &Volume, outcome: &FieldOutcome) -> Result<JsonObject> {
+    let per_variant: Vec<&VariantSummary> = outcome.variants.iter().map(|v| &v.summary).collect();
+    JsonObject::new()
+        .field("dims", &iv.dims())?
+        .field("spacing_mm", &iv.spacing_mm())?
+        .field("features_initial", &outcome.features.initial.len())?
+        .field("features_deformed", &outcome.features.deformed.len())?
+        .field("measure_seconds", &outcome.measure_seconds)?
         .field("variants", &per_variant)?
-        .field("against_truth", &truth_report)?;
-    output::write_json(&a.out_dir.join("summary.json"), &summary)?;
-    if a.json {
-        output::print_json(&summary)?;
-        return Ok(());
-    }
+        .field("against_truth", &outcome.against_truth)
+}
+
+fn print_field_table(iv: &Volume, outcome: &FieldOutcome) -> Result<()> {
+    let (dims, sp) = (iv.dims(), iv.spacing_mm());
     outln!(
         "{}×{}×{} voxels of {:.3}×{:.3}×{:.3} mm; {} + {} feature points; measured in {:.2} s",
         dims[0],
@@ -335,9 +351,9 @@ fn field(a: &FieldArgs) -> Result<()> {
         sp[0],
         sp[1],
         sp[2],
-        feats.initial.len(),
-        feats.deformed.len(),
-        measure_s
+        outcome.features.initial.len(),
+        outcome.features.deformed.len(),
+        outcome.measure_seconds
     );
     outln!(
         "{:<11} {:>8} {:>11} {:>10} {:>11}",
@@ -347,47 +363,49 @@ fn field(a: &FieldArgs) -> Result<()> {
         "Horn (°)",
         "Eq. 12 RMS"
     );
-    for v in &per_variant {
+    for v in &outcome.variants {
+        let s = &v.summary;
         outln!(
             "{:<11} {:>8} {:>11} {:>10.3} {:>11.3}",
-            v["matching"].as_str().unwrap_or(""),
-            v["matches"].as_u64().unwrap_or(0),
-            v["tetrahedra"].as_u64().unwrap_or(0),
-            v["horn_angle_deg"].as_f64().unwrap_or(f64::NAN),
-            v["registration_rms"].as_f64().unwrap_or(f64::NAN)
+            s.matching,
+            s.matches,
+            s.tetrahedra,
+            s.horn_angle_deg,
+            s.registration_rms.unwrap_or(f64::NAN)
         );
     }
-    if let Some(r) = &truth_report {
-        outln!(
-            "against the known field (common voxels; Eq. 12 unregistered {:.2}, true field {:.2}):",
-            r.rms_unregistered,
-            r.rms_true_field
-        );
-        outln!(
-            "{:<11} {:>6} {:>14} {:>14} {:>11} {:>13}",
-            "matching",
-            "wrong",
-            "match RMS (mm)",
-            "dense RMS (mm)",
-            "Eq. 12 RMS",
-            "Horn err (°)"
-        );
-        for v in &r.variants {
-            outln!(
-                "{:<11} {:>6} {:>14.3} {:>14.3} {:>11.3} {:>13.4}",
-                v.consistency.name(),
-                v.wrong_matches,
-                v.match_endpoint_rms_mm,
-                v.dense_endpoint_rms_mm,
-                v.registration_rms,
-                v.rotation_error_deg
-            );
-        }
+    if let Some(r) = &outcome.against_truth {
+        print_truth_table(r)?;
     }
+    Ok(())
+}
+
+fn print_truth_table(r: &TwinReport) -> Result<()> {
     outln!(
-        "wrote matches.csv, field.csv, mid_slice.svg, summary.json to {}",
-        a.out_dir.display()
+        "against the known field (common voxels; Eq. 12 unregistered {:.2}, true field {:.2}):",
+        r.rms_unregistered,
+        r.rms_true_field
     );
+    outln!(
+        "{:<11} {:>6} {:>14} {:>14} {:>11} {:>13}",
+        "matching",
+        "wrong",
+        "match RMS (mm)",
+        "dense RMS (mm)",
+        "Eq. 12 RMS",
+        "Horn err (°)"
+    );
+    for v in &r.variants {
+        outln!(
+            "{:<11} {:>6} {:>14.3} {:>14.3} {:>11.3} {:>13.4}",
+            v.consistency.name(),
+            v.wrong_matches,
+            v.match_endpoint_rms_mm,
+            v.dense_endpoint_rms_mm,
+            v.registration_rms,
+            v.rotation_error_deg
+        );
+    }
     Ok(())
 }
 
@@ -542,7 +560,17 @@ fn compress(a: &CompressArgs) -> Result<()> {
         output::print_json(&summary)?;
         return Ok(());
     }
-    let r = &out.report;
+    print_compress_table(&out.report, seconds)?;
+    if let Some(dir) = &a.out_dir {
+        outln!(
+            "wrote markers.csv, markers_top.svg, markers_section.svg, summary.json to {}",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+fn print_compress_table(r: &CompressionReport, seconds: f64) -> Result<()> {
     outln!(
         "{} markers, {} nodes, {} tetrahedra; FEM and geometric model in {:.2} s",
         r.markers,
@@ -573,12 +601,6 @@ fn compress(a: &CompressArgs) -> Result<()> {
             s.volume_ratio_pressed,
             s.geometric_error_mean_mm,
             s.geometric_error_max_mm
-        );
-    }
-    if let Some(dir) = &a.out_dir {
-        outln!(
-            "wrote markers.csv, markers_top.svg, markers_section.svg, summary.json to {}",
-            dir.display()
         );
     }
     Ok(())

@@ -61,6 +61,10 @@ pub enum TetError {
     /// The replicated session cannot go on; the reason is named.
     #[error("session: {0}")]
     Session(String),
+    /// A real-time site (its threads, its UDP socket, its peer) failed or
+    /// stopped; the message names the thread, the socket call or the peer.
+    #[error("{0}")]
+    Site(String),
 }
 
 /// Result alias of the tetrahedral module.

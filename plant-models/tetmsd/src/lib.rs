@@ -14,10 +14,11 @@
 //!   retransmission ([`link`]), the network emulator with the paper's
 //!   round-trip profiles ([`netem`]), the two replicas with a deterministic
 //!   update order ([`replica`]) and a whole two-site session in virtual
-//!   time over the codec ([`pair`]), and the scenario file ([`scenario`]).
-//!   The real-time runtime (threads at
-//!   1 kHz / deformation / 30 Hz and UDP sockets) lives in `host-tools`
-//!   and drives these same types.
+//!   time over the codec ([`pair`]), both users on one model without a
+//!   network ([`local`]), the scenario file ([`scenario`]), and the
+//!   real-time runtime that drives these same types from threads at
+//!   1 kHz / deformation / 30 Hz and UDP sockets ([`realtime`]), with the
+//!   report every kind of run gives ([`report`]).
 //!
 //! What is modelled: a soft cube on a fixed support, deformed by one held
 //! node per user; replicas that agree bit for bit once they have the same
@@ -34,4 +35,4 @@ pub mod session;
 
 pub use error::{Result, TetError};
 pub use model::{locate, mesh, probe, statics, voigt, V3};
-pub use session::{link, netem, packet, pair, replica, scenario};
+pub use session::{link, local, netem, packet, pair, realtime, replica, report, scenario};

@@ -41,6 +41,30 @@ pub fn equilibrium(
     start_m: &[V3],
     tolerance_n: f64,
 ) -> Result<StaticSolution> {
+    let (mut x, unknown) = held_start(model, holds, start_m)?;
+    let eqs = Equations::number(model, &unknown);
+    let mut imbalance = Imbalance::new(model, unknown);
+    let mut residual = imbalance.of(&x)?;
+    for iteration in 0..=MAX_ITERATIONS {
+        if residual <= tolerance_n {
+            return Ok(StaticSolution {
+                x_m: x,
+                iterations: iteration,
+                residual_n: residual,
+            });
+        }
+        let step = eqs.newton_step(model, &x, &imbalance.forces)?;
+        (x, residual) = eqs.backtrack(&x, &step, residual, &mut imbalance)?;
+    }
+    Err(TetError::StaticSolve(format!(
+        "no convergence in {MAX_ITERATIONS} Newton iterations (imbalance {} N)",
+        plant_common::short_number(residual)
+    )))
+}
+
+/// The start: `start_m` with held nodes at their targets and support
+/// nodes at rest, and which nodes are unknowns (neither).
+fn held_start(model: &VoigtModel, holds: &[Hold], start_m: &[V3]) -> Result<(Vec<V3>, Vec<bool>)> {
     let mesh = model.mesh();
     let n = mesh.node_count();
     if start_m.len() != n {
@@ -71,55 +95,96 @@ pub fn equilibrium(
             *p = mesh.nodes_m[i];
         }
     }
-    let mut adj = vec![Vec::new(); n];
-    for e in &mesh.edges {
-        let (a, b) = (e[0] as usize, e[1] as usize);
-        adj[a].push(b);
-        adj[b].push(a);
-    }
-    let order = reverse_cuthill_mckee(&adj, &unknown);
-    let mut base = vec![usize::MAX; n];
-    for (pos, &node) in order.iter().enumerate() {
-        base[node] = 3 * pos;
-    }
-    let neq = 3 * order.len();
-    // Every row reaches back to its node's first equation (the 3×3
-    // diagonal block), and further to its lowest-numbered neighbour.
-    let mut first: Vec<usize> = (0..neq).map(|i| i - i % 3).collect();
-    for e in &mesh.edges {
-        let (a, b) = (base[e[0] as usize], base[e[1] as usize]);
-        if a != usize::MAX && b != usize::MAX {
-            let lo = a.min(b);
-            for c in 0..3 {
-                first[a.max(b) + c] = first[a.max(b) + c].min(lo);
-            }
+    Ok((x, unknown))
+}
+
+/// The largest force imbalance on an unknown node, with the forces of the
+/// last shape evaluated (the Newton right-hand side).
+struct Imbalance<'a> {
+    model: &'a VoigtModel,
+    unknown: Vec<bool>,
+    zero_v: Vec<V3>,
+    forces: Vec<V3>,
+}
+
+impl<'a> Imbalance<'a> {
+    fn new(model: &'a VoigtModel, unknown: Vec<bool>) -> Self {
+        let n = model.mesh().node_count();
+        Imbalance {
+            model,
+            unknown,
+            zero_v: vec![V3::zeros(); n],
+            forces: vec![V3::zeros(); n],
         }
     }
-    let zero_v = vec![V3::zeros(); n];
-    let mut forces = vec![V3::zeros(); n];
-    let imbalance = |x: &[V3], forces: &mut [V3]| -> Result<f64> {
-        if let Some(e) = model.internal_forces(x, &zero_v, forces) {
+
+    /// The imbalance (N) at rest in shape `x`; an element collapsed to
+    /// zero length is an error.
+    fn of(&mut self, x: &[V3]) -> Result<f64> {
+        if let Some(e) = self
+            .model
+            .internal_forces(x, &self.zero_v, &mut self.forces)
+        {
             return Err(TetError::StaticSolve(format!(
                 "element {e} collapsed to zero length"
             )));
         }
-        Ok((0..n)
-            .filter(|&i| unknown[i])
-            .map(|i| forces[i].amax())
+        Ok((0..self.forces.len())
+            .filter(|&i| self.unknown[i])
+            .map(|i| self.forces[i].amax())
             .fold(0.0, f64::max))
-    };
-    let mut residual = imbalance(&x, &mut forces)?;
-    for iteration in 0..=MAX_ITERATIONS {
-        if residual <= tolerance_n {
-            return Ok(StaticSolution {
-                x_m: x,
-                iterations: iteration,
-                residual_n: residual,
-            });
+    }
+}
+
+/// The unknowns' equations: three per unknown node, numbered in reverse
+/// Cuthill–McKee order, and the skyline profile of the tangent.
+struct Equations {
+    /// Unknown nodes in equation order.
+    order: Vec<usize>,
+    /// Each node's first equation (`usize::MAX` for a known node).
+    base: Vec<usize>,
+    /// Each row's first column in the skyline.
+    first: Vec<usize>,
+}
+
+impl Equations {
+    fn number(model: &VoigtModel, unknown: &[bool]) -> Equations {
+        let mesh = model.mesh();
+        let n = mesh.node_count();
+        let mut adj = vec![Vec::new(); n];
+        for e in &mesh.edges {
+            let (a, b) = (e[0] as usize, e[1] as usize);
+            adj[a].push(b);
+            adj[b].push(a);
         }
-        let mut k = SkylineCholesky::with_profile(first.clone());
-        for (e, edge) in mesh.edges.iter().enumerate() {
-            let t = model.element_tangent(e, &x);
+        let order = reverse_cuthill_mckee(&adj, unknown);
+        let mut base = vec![usize::MAX; n];
+        for (pos, &node) in order.iter().enumerate() {
+            base[node] = 3 * pos;
+        }
+        let neq = 3 * order.len();
+        // Every row reaches back to its node's first equation (the 3×3
+        // diagonal block), and further to its lowest-numbered neighbour.
+        let mut first: Vec<usize> = (0..neq).map(|i| i - i % 3).collect();
+        for e in &mesh.edges {
+            let (a, b) = (base[e[0] as usize], base[e[1] as usize]);
+            if a != usize::MAX && b != usize::MAX {
+                let lo = a.min(b);
+                for c in 0..3 {
+                    first[a.max(b) + c] = first[a.max(b) + c].min(lo);
+                }
+            }
+        }
+        Equations { order, base, first }
+    }
+
+    /// The Newton step `K⁻¹ f` of the unknowns, `K` the tangent stiffness
+    /// at `x` and `f` the internal `forces` there.
+    fn newton_step(&self, model: &VoigtModel, x: &[V3], forces: &[V3]) -> Result<Vec<f64>> {
+        let base = &self.base;
+        let mut k = SkylineCholesky::with_profile(self.first.clone());
+        for (e, edge) in model.mesh().edges.iter().enumerate() {
+            let t = model.element_tangent(e, x);
             let (a, b) = (base[edge[0] as usize], base[edge[1] as usize]);
             for (p, q, sign) in [(a, a, 1.0), (b, b, 1.0), (a, b, -1.0)] {
                 if p == usize::MAX || q == usize::MAX {
@@ -143,28 +208,37 @@ pub fn equilibrium(
                 "the tangent stiffness is not positive definite ({e}); the network may have buckled"
             ))
         })?;
-        let mut step = vec![0.0; neq];
-        for &node in &order {
+        let mut step = vec![0.0; 3 * self.order.len()];
+        for &node in &self.order {
             for c in 0..3 {
                 step[base[node] + c] = forces[node][c];
             }
         }
         k.solve_in_place(&mut step);
-        // Backtracking: halve the step until the imbalance drops.
+        Ok(step)
+    }
+
+    /// Backtracking: from `x`, halves `step` until the imbalance drops
+    /// below `residual` (or the step is below 1e-3 of a whole one);
+    /// returns the new shape and its imbalance.
+    fn backtrack(
+        &self,
+        x: &[V3],
+        step: &[f64],
+        residual: f64,
+        imbalance: &mut Imbalance<'_>,
+    ) -> Result<(Vec<V3>, f64)> {
         let mut alpha = 1.0;
         loop {
-            let mut trial = x.clone();
-            for &node in &order {
+            let mut trial = x.to_vec();
+            for &node in &self.order {
                 for c in 0..3 {
-                    trial[node][c] += alpha * step[base[node] + c];
+                    trial[node][c] += alpha * step[self.base[node] + c];
                 }
             }
-            let r = imbalance(&trial, &mut forces);
-            if let Ok(r) = r {
+            if let Ok(r) = imbalance.of(&trial) {
                 if r < residual || alpha < 1e-3 {
-                    x = trial;
-                    residual = r;
-                    break;
+                    return Ok((trial, r));
                 }
             }
             alpha *= 0.5;
@@ -175,10 +249,6 @@ pub fn equilibrium(
             }
         }
     }
-    Err(TetError::StaticSolve(format!(
-        "no convergence in {MAX_ITERATIONS} Newton iterations (imbalance {} N)",
-        plant_common::short_number(residual)
-    )))
 }
 
 #[cfg(test)]

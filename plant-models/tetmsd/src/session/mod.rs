@@ -1,6 +1,7 @@
-//! The replicated session as pure logic: time is passed in (µs), nothing
-//! here opens a socket or starts a thread, so every part is tested
-//! deterministically and the real-time runtime (`host-tools`) reuses it.
+//! The replicated session. The parts below [`realtime`] are pure logic:
+//! time is passed in (µs), nothing there opens a socket or starts a
+//! thread, so every part is tested deterministically; [`realtime`] drives
+//! the same parts from threads and a UDP socket.
 //!
 //! - [`packet`]: the 64-byte manipulation packet, byte for byte.
 //! - [`link`]: sequence numbers, acknowledgements, retransmission.
@@ -8,10 +9,17 @@
 //! - [`replica`]: committed and speculative replicas, the update order,
 //!   divergence.
 //! - [`pair`]: two sites in virtual time over the codec.
+//! - [`local`]: both users on one model, no network.
+//! - [`realtime`]: one site in real time (haptic 1 kHz, deformation,
+//!   network, display 30 Hz), and two such sites in one process.
+//! - [`report`]: what a site reports, in one shape for every mode.
 //! - [`scenario`]: the session scenario (object, network, stylus paths).
 pub mod link;
+pub mod local;
 pub mod netem;
 pub mod packet;
 pub mod pair;
+pub mod realtime;
 pub mod replica;
+pub mod report;
 pub mod scenario;

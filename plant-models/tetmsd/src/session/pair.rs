@@ -221,49 +221,17 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
         })
     };
     let mut sites = [make(0)?, make(1)?];
-    let mut trace = Vec::new();
-    let mut contact_ticks = [0u64; 2];
-    let mut max_force = [0.0f64; 2];
-    let mut max_gap: f64 = 0.0;
-    let mut peak = (-1.0, model.rest_state());
-    let frame = u64::from(cfg.session.replica.frame_ticks);
-    let every = cfg.trace_every_ticks.max(1);
+    let mut tally = Tally::new(model.rest_state());
     let mut k = 0u64;
     loop {
         let now_us = k * 1000;
         exchange(&mut sites, now_us, nodes)?;
-        let mut row = TraceRow {
-            tick: k,
-            tip_m: [V3::zeros(); 2],
-            force_n: [V3::zeros(); 2],
-            contact: [false; 2],
-        };
-        if k < cfg.duration_ticks {
-            for (s, site) in sites.iter_mut().enumerate() {
-                let tip = cfg.trajectories[s].at(k as f64 * TICK_S);
-                let m = site.haptic.manipulate(
-                    tip,
-                    &site.replicas.speculative().x_m,
-                    site.replicas.peer_grip(),
-                );
-                let force = felt_force_n(&site.replicas, &m);
-                row.tip_m[s] = tip;
-                row.force_n[s] = force;
-                row.contact[s] = m.grip.is_some();
-                contact_ticks[s] += u64::from(m.grip.is_some());
-                max_force[s] = max_force[s].max(force.norm());
-                site.replicas.push_local(k, m)?;
-                let bytes = site.link.send_input(now_us, k as u32, m)?;
-                site.outgoing.push(now_us, bytes);
-            }
+        let row = if k < cfg.duration_ticks {
+            users_act(&mut sites, cfg, k, &mut tally)?
         } else {
-            for site in sites.iter_mut() {
-                if site.link.owes_ack() || k % 10 == 0 {
-                    let bytes = site.link.ack_packet();
-                    site.outgoing.push(now_us, bytes);
-                }
-            }
-        }
+            owe_acks(&mut sites, k);
+            TraceRow::idle(k)
+        };
         for site in sites.iter_mut() {
             for bytes in site.link.poll(now_us) {
                 site.outgoing.push(now_us, bytes);
@@ -273,19 +241,8 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
         for site in sites.iter_mut() {
             site.replicas.advance(k + 1)?;
         }
-        if k < cfg.duration_ticks && k % every == 0 {
-            trace.push(row);
-        }
-        if (k + 1) % frame == 0 && k < cfg.duration_ticks {
-            let gap = sites[0]
-                .replicas
-                .speculative()
-                .max_distance_m(sites[1].replicas.speculative());
-            max_gap = max_gap.max(gap);
-            let push = row.force_n[0].norm() + row.force_n[1].norm();
-            if push > peak.0 {
-                peak = (push, sites[0].replicas.speculative().clone());
-            }
+        if k < cfg.duration_ticks {
+            tally.record(cfg, k, row, &sites);
         }
         k += 1;
         let done = sites
@@ -304,34 +261,138 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
             )));
         }
     }
-    let (c0, c1) = (sites[0].replicas.committed(), sites[1].replicas.committed());
-    let identical = c0.tick == c1.tick
-        && c0
-            .x_m
-            .iter()
-            .chain(&c0.v_m_s)
-            .zip(c1.x_m.iter().chain(&c1.v_m_s))
-            .all(|(a, b)| (0..3).all(|i| a[i].to_bits() == b[i].to_bits()));
-    let final_distance_m = c0.max_distance_m(c1);
-    let final_state = c0.clone();
-    let summary = |s: usize, site: &Site| SiteSummary {
-        link: site.link.stats().clone(),
-        netem: *site.outgoing.stats(),
-        replica: site.replicas.stats().clone(),
-        final_hash: site.replicas.committed().bit_hash(),
-        contact_ticks: contact_ticks[s],
-        max_force_n: max_force[s],
-    };
-    Ok(PairReport {
-        sites: [summary(0, &sites[0]), summary(1, &sites[1])],
-        trace,
-        max_display_gap_m: max_gap,
-        identical,
-        final_distance_m,
-        completed_tick: k,
-        final_state,
-        peak_state: peak.1,
-    })
+    Ok(tally.report(&sites, k))
+}
+
+impl TraceRow {
+    /// Tick `k` with neither user doing anything.
+    fn idle(k: u64) -> Self {
+        TraceRow {
+            tick: k,
+            tip_m: [V3::zeros(); 2],
+            force_n: [V3::zeros(); 2],
+            contact: [false; 2],
+        }
+    }
+}
+
+/// Tick `k` of user input, at virtual time `k · 1000 µs`: each site's
+/// probe acts on its speculative replica, the replica takes the
+/// manipulation and the link sends it. Returns the trace row.
+fn users_act(
+    sites: &mut [Site; 2],
+    cfg: &PairConfig,
+    k: u64,
+    tally: &mut Tally,
+) -> Result<TraceRow> {
+    let now_us = k * 1000;
+    let mut row = TraceRow::idle(k);
+    for (s, site) in sites.iter_mut().enumerate() {
+        let tip = cfg.trajectories[s].at(k as f64 * TICK_S);
+        let m = site.haptic.manipulate(
+            tip,
+            &site.replicas.speculative().x_m,
+            site.replicas.peer_grip(),
+        );
+        let force = felt_force_n(&site.replicas, &m);
+        row.tip_m[s] = tip;
+        row.force_n[s] = force;
+        row.contact[s] = m.grip.is_some();
+        tally.contact_ticks[s] += u64::from(m.grip.is_some());
+        tally.max_force[s] = tally.max_force[s].max(force.norm());
+        site.replicas.push_local(k, m)?;
+        let bytes = site.link.send_input(now_us, k as u32, m)?;
+        site.outgoing.push(now_us, bytes);
+    }
+    Ok(row)
+}
+
+/// After the last input tick `k`: each site acknowledges what it owes,
+/// and every 10 ms anyway.
+fn owe_acks(sites: &mut [Site; 2], k: u64) {
+    let now_us = k * 1000;
+    for site in sites.iter_mut() {
+        if site.link.owes_ack() || k % 10 == 0 {
+            let bytes = site.link.ack_packet();
+            site.outgoing.push(now_us, bytes);
+        }
+    }
+}
+
+/// What a virtual run measures as it goes.
+struct Tally {
+    trace: Vec<TraceRow>,
+    contact_ticks: [u64; 2],
+    max_force: [f64; 2],
+    max_gap: f64,
+    /// The largest sum of felt forces at a frame, and site 0's display then.
+    peak: (f64, State),
+}
+
+impl Tally {
+    fn new(rest: State) -> Self {
+        Tally {
+            trace: Vec::new(),
+            contact_ticks: [0; 2],
+            max_force: [0.0; 2],
+            max_gap: 0.0,
+            peak: (-1.0, rest),
+        }
+    }
+
+    /// Input tick `k`'s trace row (every `trace_every_ticks`) and, at a
+    /// frame tick, the gap between the displays and the peak push.
+    fn record(&mut self, cfg: &PairConfig, k: u64, row: TraceRow, sites: &[Site; 2]) {
+        let frame = u64::from(cfg.session.replica.frame_ticks);
+        let every = cfg.trace_every_ticks.max(1);
+        if k % every == 0 {
+            self.trace.push(row);
+        }
+        if (k + 1) % frame == 0 {
+            let gap = sites[0]
+                .replicas
+                .speculative()
+                .max_distance_m(sites[1].replicas.speculative());
+            self.max_gap = self.max_gap.max(gap);
+            let push = row.force_n[0].norm() + row.force_n[1].norm();
+            if push > self.peak.0 {
+                self.peak = (push, sites[0].replicas.speculative().clone());
+            }
+        }
+    }
+
+    /// The report once both committed replicas hold every tick (at tick
+    /// `completed_tick`): the two compared bit for bit.
+    fn report(self, sites: &[Site; 2], completed_tick: u64) -> PairReport {
+        let (c0, c1) = (sites[0].replicas.committed(), sites[1].replicas.committed());
+        let identical = c0.tick == c1.tick
+            && c0
+                .x_m
+                .iter()
+                .chain(&c0.v_m_s)
+                .zip(c1.x_m.iter().chain(&c1.v_m_s))
+                .all(|(a, b)| (0..3).all(|i| a[i].to_bits() == b[i].to_bits()));
+        let final_distance_m = c0.max_distance_m(c1);
+        let final_state = c0.clone();
+        let summary = |s: usize, site: &Site| SiteSummary {
+            link: site.link.stats().clone(),
+            netem: *site.outgoing.stats(),
+            replica: site.replicas.stats().clone(),
+            final_hash: site.replicas.committed().bit_hash(),
+            contact_ticks: self.contact_ticks[s],
+            max_force_n: self.max_force[s],
+        };
+        PairReport {
+            sites: [summary(0, &sites[0]), summary(1, &sites[1])],
+            trace: self.trace,
+            max_display_gap_m: self.max_gap,
+            identical,
+            final_distance_m,
+            completed_tick,
+            final_state,
+            peak_state: self.peak.1,
+        }
+    }
 }
 
 #[cfg(test)]

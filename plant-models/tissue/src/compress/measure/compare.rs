@@ -10,7 +10,7 @@
 //! the others are "outer".
 use super::super::model::geometric::compress_point;
 use super::super::model::phantom::{BodyMesh, SemiEllipsoid, MARKER_SPACING_MM};
-use super::super::model::plates::{compress, volume_ratios, PlateSchedule};
+use super::super::model::plates::{compress, volume_ratios, PlateSchedule, PlateState};
 use crate::error::{check_range, Result, TissueError};
 use crate::field::model::shape::shape_functions;
 use plant_common::fem::LinearElastic;
@@ -172,8 +172,45 @@ pub fn run(spec: &CompressionSpec) -> Result<CompressionOutcome> {
     )?;
     let mesh = body.mesh(spec.mesh_divisions)?;
     let markers = body.markers();
-    // Each marker's tetrahedron and shape functions in the initial mesh.
-    let located: Vec<(usize, [f64; 4])> = markers
+    let located = locate_markers(&body, &mesh, &markers)?;
+    let material = LinearElastic {
+        youngs_modulus_pa: spec.youngs_modulus_pa,
+        poisson_ratio: spec.poisson_ratio,
+    };
+    let schedule = PlateSchedule {
+        step_mm: spec.step_mm,
+        ..PlateSchedule::default()
+    };
+    let plates = compress(&body, &mesh, material, &spec.gaps_mm, &schedule)?;
+    let mut stages = Vec::new();
+    let mut reports = Vec::new();
+    for state in &plates.states {
+        let stage = marker_stage(&body, &mesh, &markers, &located, state);
+        reports.push(stage_report(&body, &mesh, &markers, state, &stage));
+        stages.push(stage);
+    }
+    Ok(CompressionOutcome {
+        body,
+        node_states_mm: plates.states.iter().map(|s| s.nodes_mm.clone()).collect(),
+        report: CompressionReport {
+            markers: markers.len(),
+            nodes: mesh.nodes_mm.len(),
+            tetrahedra: mesh.tets.len(),
+            stages: reports,
+        },
+        mesh,
+        markers_mm: markers,
+        stages,
+    })
+}
+
+/// Each marker's tetrahedron and shape functions in the initial mesh.
+fn locate_markers(
+    body: &SemiEllipsoid,
+    mesh: &BodyMesh,
+    markers: &[[f64; 3]],
+) -> Result<Vec<(usize, [f64; 4])>> {
+    markers
         .iter()
         .enumerate()
         .map(|(k, m)| {
@@ -191,123 +228,127 @@ pub fn run(spec: &CompressionSpec) -> Result<CompressionOutcome> {
                     ),
                 })
         })
-        .collect::<Result<_>>()?;
-    let material = LinearElastic {
-        youngs_modulus_pa: spec.youngs_modulus_pa,
-        poisson_ratio: spec.poisson_ratio,
+        .collect()
+}
+
+/// Where the FEM (through the `located` shape functions) and the
+/// geometric model put each marker at `state`'s gap, and which markers
+/// are under the plates.
+fn marker_stage(
+    body: &SemiEllipsoid,
+    mesh: &BodyMesh,
+    markers: &[[f64; 3]],
+    located: &[(usize, [f64; 4])],
+    state: &PlateState,
+) -> MarkerStage {
+    let h = 0.5 * state.gap_mm;
+    let fem: Vec<[f64; 3]> = located
+        .iter()
+        .map(|(t, n)| {
+            let tet = mesh.tets[*t];
+            std::array::from_fn(|a| (0..4).map(|k| n[k] * state.nodes_mm[tet[k]][a]).sum())
+        })
+        .collect();
+    let geo: Vec<[f64; 3]> = markers
+        .iter()
+        .map(|m| compress_point(body, *m, h))
+        .collect();
+    let pressed: Vec<bool> = markers
+        .iter()
+        .map(|m| body.chord_half_width_mm(m[0], m[2]) > h)
+        .collect();
+    MarkerStage {
+        gap_mm: state.gap_mm,
+        fem_mm: fem,
+        geometric_mm: geo,
+        pressed,
+    }
+}
+
+/// The facts of one gap: the paper's observations on the FEM markers
+/// (mid-plane, pressed vs outer, volume ratios) and the geometric model's
+/// error against the FEM.
+fn stage_report(
+    body: &SemiEllipsoid,
+    mesh: &BodyMesh,
+    markers: &[[f64; 3]],
+    state: &PlateState,
+    stage: &MarkerStage,
+) -> StageReport {
+    let (fem, geo, pressed) = (&stage.fem_mm, &stage.geometric_mm, &stage.pressed);
+    let u: Vec<[f64; 3]> = fem
+        .iter()
+        .zip(markers)
+        .map(|(f, m)| [f[0] - m[0], f[1] - m[1], f[2] - m[2]])
+        .collect();
+    let mid = |k: usize| markers[k][1].abs() < 0.5 * MARKER_SPACING_MM;
+    let all = 0..markers.len();
+    let midplane: Vec<usize> = all.clone().filter(|&k| markers[k][1] == 0.0).collect();
+    let off_p: Vec<usize> = all.clone().filter(|&k| pressed[k] && !mid(k)).collect();
+    let off_o: Vec<usize> = all.clone().filter(|&k| !pressed[k] && !mid(k)).collect();
+    let frac = |set: &[usize], f: &dyn Fn(usize) -> bool| {
+        set.iter().filter(|&&k| f(k)).count() as f64 / set.len().max(1) as f64
     };
-    let schedule = PlateSchedule {
-        step_mm: spec.step_mm,
-        ..PlateSchedule::default()
+    let (volume_ratio_pressed, volume_ratio_outer) = volume_ratio_means(body, mesh, state);
+    let err: Vec<f64> = fem.iter().zip(geo).map(|(f, g)| dist(*f, *g)).collect();
+    let err_where = |want: bool| {
+        mean(
+            err.iter()
+                .zip(pressed)
+                .filter(|(_, p)| **p == want)
+                .map(|(e, _)| *e),
+        )
     };
-    let plates = compress(&body, &mesh, material, &spec.gaps_mm, &schedule)?;
-    let mut stages = Vec::new();
-    let mut reports = Vec::new();
+    StageReport {
+        gap_mm: state.gap_mm,
+        increments: state.increments,
+        contact_nodes: state.in_contact.iter().filter(|c| **c).count(),
+        plate_force_n: state.plate_force_n,
+        markers_pressed: pressed.iter().filter(|p| **p).count(),
+        markers_outer: pressed.iter().filter(|p| !**p).count(),
+        midplane_max_abs_uy_mm: midplane.iter().map(|&k| u[k][1].abs()).fold(0.0, f64::max),
+        midplane_mean_abs_ux_mm: mean(midplane.iter().map(|&k| u[k][0].abs())),
+        midplane_mean_abs_uz_mm: mean(midplane.iter().map(|&k| u[k][2].abs())),
+        pressed_mean_abs_uy_mm: mean(off_p.iter().map(|&k| u[k][1].abs())),
+        pressed_mean_abs_ux_mm: mean(off_p.iter().map(|&k| u[k][0].abs())),
+        outer_mean_abs_ux_mm: mean(off_o.iter().map(|&k| u[k][0].abs())),
+        outer_mean_abs_uy_mm: mean(off_o.iter().map(|&k| u[k][1].abs())),
+        pressed_y_dominant: frac(&off_p, &|k| u[k][1].abs() > u[k][0].abs()),
+        outer_x_dominant: frac(&off_o, &|k| u[k][0].abs() > u[k][1].abs()),
+        volume_ratio_pressed,
+        volume_ratio_outer,
+        geometric_error_mean_mm: mean(err.iter().copied()),
+        geometric_error_rms_mm: mean(err.iter().map(|e| e * e)).sqrt(),
+        geometric_error_max_mm: err.iter().copied().fold(0.0, f64::max),
+        geometric_error_pressed_mean_mm: err_where(true),
+        geometric_error_outer_mean_mm: err_where(false),
+    }
+}
+
+/// Mean volume ratio J of the elements under the plates and of the
+/// others at `state` (an element is under the plates when the chord
+/// through its initial centroid is wider than the gap).
+fn volume_ratio_means(body: &SemiEllipsoid, mesh: &BodyMesh, state: &PlateState) -> (f64, f64) {
+    let h = 0.5 * state.gap_mm;
     let centroid = |t: &[usize; 4]| -> [f64; 3] {
         std::array::from_fn(|a| t.iter().map(|&i| mesh.nodes_mm[i][a]).sum::<f64>() / 4.0)
     };
-    for state in &plates.states {
-        let h = 0.5 * state.gap_mm;
-        let fem: Vec<[f64; 3]> = located
-            .iter()
-            .map(|(t, n)| {
-                let tet = mesh.tets[*t];
-                std::array::from_fn(|a| (0..4).map(|k| n[k] * state.nodes_mm[tet[k]][a]).sum())
-            })
-            .collect();
-        let geo: Vec<[f64; 3]> = markers
-            .iter()
-            .map(|m| compress_point(&body, *m, h))
-            .collect();
-        let pressed: Vec<bool> = markers
-            .iter()
-            .map(|m| body.chord_half_width_mm(m[0], m[2]) > h)
-            .collect();
-        let u: Vec<[f64; 3]> = fem
-            .iter()
-            .zip(&markers)
-            .map(|(f, m)| [f[0] - m[0], f[1] - m[1], f[2] - m[2]])
-            .collect();
-        let mid = |k: usize| markers[k][1].abs() < 0.5 * MARKER_SPACING_MM;
-        let all = 0..markers.len();
-        let midplane: Vec<usize> = all.clone().filter(|&k| markers[k][1] == 0.0).collect();
-        let off_p: Vec<usize> = all.clone().filter(|&k| pressed[k] && !mid(k)).collect();
-        let off_o: Vec<usize> = all.clone().filter(|&k| !pressed[k] && !mid(k)).collect();
-        let frac = |set: &[usize], f: &dyn Fn(usize) -> bool| {
-            set.iter().filter(|&&k| f(k)).count() as f64 / set.len().max(1) as f64
-        };
-        let j = volume_ratios(&mesh, state);
-        let tet_pressed: Vec<bool> = mesh
-            .tets
-            .iter()
-            .map(|t| {
-                let c = centroid(t);
-                body.chord_half_width_mm(c[0], c[2]) > h
-            })
-            .collect();
-        let err: Vec<f64> = fem.iter().zip(&geo).map(|(f, g)| dist(*f, *g)).collect();
-        reports.push(StageReport {
-            gap_mm: state.gap_mm,
-            increments: state.increments,
-            contact_nodes: state.in_contact.iter().filter(|c| **c).count(),
-            plate_force_n: state.plate_force_n,
-            markers_pressed: pressed.iter().filter(|p| **p).count(),
-            markers_outer: pressed.iter().filter(|p| !**p).count(),
-            midplane_max_abs_uy_mm: midplane.iter().map(|&k| u[k][1].abs()).fold(0.0, f64::max),
-            midplane_mean_abs_ux_mm: mean(midplane.iter().map(|&k| u[k][0].abs())),
-            midplane_mean_abs_uz_mm: mean(midplane.iter().map(|&k| u[k][2].abs())),
-            pressed_mean_abs_uy_mm: mean(off_p.iter().map(|&k| u[k][1].abs())),
-            pressed_mean_abs_ux_mm: mean(off_p.iter().map(|&k| u[k][0].abs())),
-            outer_mean_abs_ux_mm: mean(off_o.iter().map(|&k| u[k][0].abs())),
-            outer_mean_abs_uy_mm: mean(off_o.iter().map(|&k| u[k][1].abs())),
-            pressed_y_dominant: frac(&off_p, &|k| u[k][1].abs() > u[k][0].abs()),
-            outer_x_dominant: frac(&off_o, &|k| u[k][0].abs() > u[k][1].abs()),
-            volume_ratio_pressed: mean(
-                j.iter()
-                    .zip(&tet_pressed)
-                    .filter(|(_, p)| **p)
-                    .map(|(v, _)| *v),
-            ),
-            volume_ratio_outer: mean(
-                j.iter()
-                    .zip(&tet_pressed)
-                    .filter(|(_, p)| !**p)
-                    .map(|(v, _)| *v),
-            ),
-            geometric_error_mean_mm: mean(err.iter().copied()),
-            geometric_error_rms_mm: mean(err.iter().map(|e| e * e)).sqrt(),
-            geometric_error_max_mm: err.iter().copied().fold(0.0, f64::max),
-            geometric_error_pressed_mean_mm: mean(
-                err.iter()
-                    .zip(&pressed)
-                    .filter(|(_, p)| **p)
-                    .map(|(e, _)| *e),
-            ),
-            geometric_error_outer_mean_mm: mean(
-                err.iter()
-                    .zip(&pressed)
-                    .filter(|(_, p)| !**p)
-                    .map(|(e, _)| *e),
-            ),
-        });
-        stages.push(MarkerStage {
-            gap_mm: state.gap_mm,
-            fem_mm: fem,
-            geometric_mm: geo,
-            pressed,
-        });
-    }
-    Ok(CompressionOutcome {
-        body,
-        node_states_mm: plates.states.iter().map(|s| s.nodes_mm.clone()).collect(),
-        report: CompressionReport {
-            markers: markers.len(),
-            nodes: mesh.nodes_mm.len(),
-            tetrahedra: mesh.tets.len(),
-            stages: reports,
-        },
-        mesh,
-        markers_mm: markers,
-        stages,
-    })
+    let j = volume_ratios(mesh, state);
+    let tet_pressed: Vec<bool> = mesh
+        .tets
+        .iter()
+        .map(|t| {
+            let c = centroid(t);
+            body.chord_half_width_mm(c[0], c[2]) > h
+        })
+        .collect();
+    let mean_where = |want: bool| {
+        mean(
+            j.iter()
+                .zip(&tet_pressed)
+                .filter(|(_, p)| **p == want)
+                .map(|(v, _)| *v),
+        )
+    };
+    (mean_where(true), mean_where(false))
 }

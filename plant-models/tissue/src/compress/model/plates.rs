@@ -77,6 +77,67 @@ pub fn compress(
     gaps_mm: &[f64],
     schedule: &PlateSchedule,
 ) -> Result<PlateRun> {
+    check_inputs(body, material, gaps_mm, schedule)?;
+    let n = mesh.nodes_mm.len();
+    let scale = body.semi_axes_mm.iter().copied().fold(0.0, f64::max);
+    let step = Increment {
+        mesh,
+        material,
+        on_base: mesh
+            .nodes_mm
+            .iter()
+            .map(|p| p[2].abs() <= 1e-9 * scale)
+            .collect(),
+        scale,
+        max_contact_passes: schedule.max_contact_passes,
+    };
+    let mut x = mesh.nodes_mm.clone();
+    let mut contact = vec![false; n];
+    let mut half = body.semi_axes_mm[1];
+    let mut force = 0.0;
+    let mut increments = 0;
+    let mut states = Vec::new();
+    let initial_vol: Vec<f64> = mesh
+        .tets
+        .iter()
+        .map(|t| tet_volume(t.map(|i| mesh.nodes_mm[i])))
+        .collect();
+    for &gap in gaps_mm {
+        let target = 0.5 * gap;
+        while half > target + 1e-12 {
+            let new_half = (half - schedule.step_mm).max(target);
+            let du = step.solve(&x, &mut contact, new_half)?;
+            force += plate_force(mesh, &x, &du, &contact, material);
+            for i in 0..n {
+                for c in 0..3 {
+                    x[i][c] += du[i][c];
+                }
+            }
+            check_shape(mesh, &x, &initial_vol, new_half)?;
+            half = new_half;
+            increments += 1;
+        }
+        states.push(PlateState {
+            gap_mm: gap,
+            nodes_mm: x.clone(),
+            in_contact: contact.clone(),
+            plate_force_n: force,
+            increments,
+        });
+    }
+    Ok(PlateRun {
+        mesh: mesh.clone(),
+        states,
+    })
+}
+
+/// Refuses a material, step or gap sequence the run cannot follow.
+fn check_inputs(
+    body: &SemiEllipsoid,
+    material: LinearElastic,
+    gaps_mm: &[f64],
+    schedule: &PlateSchedule,
+) -> Result<()> {
     material.validate()?;
     check_range(
         "step_mm",
@@ -104,118 +165,110 @@ pub fn compress(
         }
         last = g;
     }
-    let n = mesh.nodes_mm.len();
-    let scale = body.semi_axes_mm.iter().copied().fold(0.0, f64::max);
-    let on_base: Vec<bool> = mesh
-        .nodes_mm
-        .iter()
-        .map(|p| p[2].abs() <= 1e-9 * scale)
-        .collect();
-    let mut x = mesh.nodes_mm.clone();
-    let mut contact = vec![false; n];
-    let mut half = body.semi_axes_mm[1];
-    let mut force = 0.0;
-    let mut increments = 0;
-    let mut states = Vec::new();
-    let initial_vol: Vec<f64> = mesh
-        .tets
-        .iter()
-        .map(|t| tet_volume(t.map(|i| mesh.nodes_mm[i])))
-        .collect();
-    for &gap in gaps_mm {
-        let target = 0.5 * gap;
-        while half > target + 1e-12 {
-            let new_half = (half - schedule.step_mm).max(target);
-            let mut du = vec![[0.0; 3]; n];
-            let mut converged = false;
-            for _pass in 0..schedule.max_contact_passes {
-                for i in 0..n {
-                    if !contact[i] && x[i][1].abs() > new_half {
-                        contact[i] = true;
-                    }
-                }
-                let mut prescribed = vec![false; 3 * n];
-                let mut values = vec![0.0; 3 * n];
-                for i in 0..n {
-                    if contact[i] {
-                        let side = x[i][1].signum();
-                        prescribed[3 * i..3 * i + 3].fill(true);
-                        values[3 * i + 1] = side * new_half - x[i][1];
-                    }
-                    if on_base[i] {
-                        prescribed[3 * i + 2] = true;
-                    }
-                }
-                let sys =
-                    ElasticSystem::new(&x, &mesh.tets, material, &prescribed).map_err(|e| {
-                        TissueError::Compression {
-                            gap_mm: 2.0 * new_half,
-                            reason: format!("the stiffness could not be factored ({e})"),
-                        }
-                    })?;
-                du = sys.solve(&[], &values)?;
-                // Nodes the increment pushes beyond a plate join the contact.
-                let mut added = false;
-                for i in 0..n {
-                    if !contact[i] && (x[i][1] + du[i][1]).abs() > new_half + 1e-9 * scale {
-                        contact[i] = true;
-                        added = true;
-                    }
-                }
-                if !added {
-                    converged = true;
-                    break;
-                }
-            }
-            if !converged {
-                return Err(TissueError::Compression {
-                    gap_mm: 2.0 * new_half,
-                    reason: format!(
-                        "the contact set did not settle in {} passes; use a smaller step_mm",
-                        schedule.max_contact_passes
-                    ),
-                });
-            }
-            force += plate_force(mesh, &x, &du, &contact, material);
+    Ok(())
+}
+
+/// One plate increment: the FEM on the current shape with the contact
+/// nodes on the plates and the chest wall fixed in z, repeated while the
+/// contact set grows (the active-set loop).
+struct Increment<'a> {
+    mesh: &'a BodyMesh,
+    material: LinearElastic,
+    /// Nodes on the chest wall (z = 0), fixed in z.
+    on_base: Vec<bool>,
+    /// The body's largest semi-axis (mm), the scale of the tolerances.
+    scale: f64,
+    max_contact_passes: usize,
+}
+
+impl Increment<'_> {
+    /// The displacement (mm) of every node from `x` (mm) when the plates
+    /// move to ±`new_half`; `contact` grows by the nodes that reach them.
+    fn solve(&self, x: &[[f64; 3]], contact: &mut [bool], new_half: f64) -> Result<Vec<[f64; 3]>> {
+        let n = x.len();
+        for _pass in 0..self.max_contact_passes {
             for i in 0..n {
-                for c in 0..3 {
-                    x[i][c] += du[i][c];
+                if !contact[i] && x[i][1].abs() > new_half {
+                    contact[i] = true;
                 }
             }
-            if let Some(v) = x.iter().flatten().find(|v| !v.is_finite()) {
-                return Err(TissueError::Compression {
-                    gap_mm: 2.0 * new_half,
-                    reason: format!("a node position became {v}"),
-                });
+            let du = self.solve_with_contact(x, contact, new_half)?;
+            // Nodes the increment pushes beyond a plate join the contact.
+            let mut added = false;
+            for i in 0..n {
+                if !contact[i] && (x[i][1] + du[i][1]).abs() > new_half + 1e-9 * self.scale {
+                    contact[i] = true;
+                    added = true;
+                }
             }
-            if let Some(k) = mesh
-                .tets
-                .iter()
-                .zip(&initial_vol)
-                .position(|(t, v0)| tet_volume(t.map(|i| x[i])) <= 1e-6 * v0)
-            {
-                return Err(TissueError::Compression {
-                    gap_mm: 2.0 * new_half,
-                    reason: format!(
-                        "tetrahedron {k} turned inside out: use a finer mesh or a smaller step_mm"
-                    ),
-                });
+            if !added {
+                return Ok(du);
             }
-            half = new_half;
-            increments += 1;
         }
-        states.push(PlateState {
-            gap_mm: gap,
-            nodes_mm: x.clone(),
-            in_contact: contact.clone(),
-            plate_force_n: force,
-            increments,
+        Err(TissueError::Compression {
+            gap_mm: 2.0 * new_half,
+            reason: format!(
+                "the contact set did not settle in {} passes; use a smaller step_mm",
+                self.max_contact_passes
+            ),
+        })
+    }
+
+    /// The FEM solve for a fixed contact set: contact nodes move to their
+    /// plate in y and stay in x and z, chest-wall nodes stay in z.
+    fn solve_with_contact(
+        &self,
+        x: &[[f64; 3]],
+        contact: &[bool],
+        new_half: f64,
+    ) -> Result<Vec<[f64; 3]>> {
+        let n = x.len();
+        let mut prescribed = vec![false; 3 * n];
+        let mut values = vec![0.0; 3 * n];
+        for i in 0..n {
+            if contact[i] {
+                let side = x[i][1].signum();
+                prescribed[3 * i..3 * i + 3].fill(true);
+                values[3 * i + 1] = side * new_half - x[i][1];
+            }
+            if self.on_base[i] {
+                prescribed[3 * i + 2] = true;
+            }
+        }
+        let sys =
+            ElasticSystem::new(x, &self.mesh.tets, self.material, &prescribed).map_err(|e| {
+                TissueError::Compression {
+                    gap_mm: 2.0 * new_half,
+                    reason: format!("the stiffness could not be factored ({e})"),
+                }
+            })?;
+        Ok(sys.solve(&[], &values)?)
+    }
+}
+
+/// Stops the run, naming the gap, when a node position is no longer
+/// finite or an element turned inside out (volume ≤ 1e-6 of its initial).
+fn check_shape(mesh: &BodyMesh, x: &[[f64; 3]], initial_vol: &[f64], new_half: f64) -> Result<()> {
+    if let Some(v) = x.iter().flatten().find(|v| !v.is_finite()) {
+        return Err(TissueError::Compression {
+            gap_mm: 2.0 * new_half,
+            reason: format!("a node position became {v}"),
         });
     }
-    Ok(PlateRun {
-        mesh: mesh.clone(),
-        states,
-    })
+    if let Some(k) = mesh
+        .tets
+        .iter()
+        .zip(initial_vol)
+        .position(|(t, v0)| tet_volume(t.map(|i| x[i])) <= 1e-6 * v0)
+    {
+        return Err(TissueError::Compression {
+            gap_mm: 2.0 * new_half,
+            reason: format!(
+                "tetrahedron {k} turned inside out: use a finer mesh or a smaller step_mm"
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// The force (N) the increment `du` (mm) adds on the upper plate (y > 0),

@@ -400,6 +400,13 @@ impl KnownWarp {
         })
     }
 
+    /// The true displacement `φ(p) − p` (mm) of the tissue at `p`
+    /// (initial volume, mm): the field the method measures.
+    pub fn displacement_mm(&self, p: [f64; 3]) -> [f64; 3] {
+        let q = self.forward_mm(p);
+        [q[0] - p[0], q[1] - p[1], q[2] - p[2]]
+    }
+
     /// φ: where the tissue at `p` (initial volume, mm) is in the deformed
     /// volume — the field the method measures is `φ(p) − p`.
     pub fn forward_mm(&self, p: [f64; 3]) -> [f64; 3] {
