@@ -319,132 +319,49 @@ impl App {
 
     /// Handles one decoded message at board time `now`; returns the reply,
     /// if any.
+    ///
+    /// Each request has its own step below; a request that changes state
+    /// is answered with an ACK, or a NAK whose code says why it was refused.
     pub fn handle(&mut self, msg: Message, now: Instant) -> Option<Message> {
         let request = msg.kind();
-        let nak = |code| Some(Message::Nak(Nak { request, code }));
-        let ack = Some(Message::Ack(Ack { request }));
+        let answer = |reply: Result<Message, ErrorCode>| {
+            Some(reply.unwrap_or_else(|code| Message::Nak(Nak { request, code })))
+        };
+        let acked =
+            |done: Result<(), ErrorCode>| answer(done.map(|()| Message::Ack(Ack { request })));
         match msg {
-            Message::Hello(Hello { version }) => {
-                if version != PROTOCOL_VERSION {
-                    return nak(ErrorCode::Version);
-                }
-                Some(Message::HelloAck(HelloAck {
-                    version: PROTOCOL_VERSION,
-                    schema: SCHEMA_HASH,
-                    pairs: 2,
-                    sensors: 4,
-                }))
-            }
-            Message::HilStart(HilStart { period_us }) => {
-                if !LOCKSTEP_PERIOD_US.contains(&period_us) {
-                    return nak(ErrorCode::OutOfRange);
-                }
-                self.mode = Mode::Lockstep {
-                    period: Duration::from_micros(u64::from(period_us)),
-                    anchor: now,
-                    last: None,
-                };
-                self.enter_new_time_base();
-                ack
-            }
+            Message::Hello(hello) => answer(Self::hello(hello)),
+            Message::HilStart(start) => acked(self.start_lockstep(start, now)),
             Message::HilStop(HilStop {}) => {
                 self.mode = Mode::FreeRunning { last_step: None };
                 self.enter_new_time_base();
-                ack
+                acked(Ok(()))
             }
             Message::HilSensor(frame) => self.lockstep_step(frame),
-            Message::SetTarget(SetTarget { plane, target_deg }) => {
-                if !target_deg.is_finite() {
-                    return nak(ErrorCode::NotFinite);
-                }
-                match self.joint.set_target(usize::from(plane), target_deg) {
-                    Ok(()) => {
-                        // The plane goes back to its controller.
-                        if let Some(d) = self.drive.get_mut(usize::from(plane)) {
-                            *d = PlaneDrive::Control;
-                        }
-                        ack
-                    }
-                    Err(_) => nak(ErrorCode::OutOfRange),
-                }
-            }
-            Message::SetGains(g) => {
-                if ![
-                    g.kp_agonist,
-                    g.kp_antagonist,
-                    g.ki,
-                    g.integral_limit_v,
-                    g.v_offset_v,
-                ]
-                .iter()
-                .all(|v| v.is_finite())
-                {
-                    return nak(ErrorCode::NotFinite);
-                }
-                // Bad gains and a plane the joint does not have are both
-                // out of range; the joint owns the plane and supply checks.
-                let set = PairGains::new(g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v)
-                    .and_then(|p| p.with_v_offset(g.v_offset_v))
-                    .map_err(ConfigError::from)
-                    .and_then(|gains| self.joint.set_gains(usize::from(g.plane), gains));
-                match set {
-                    Ok(()) => ack,
-                    Err(_) => nak(ErrorCode::OutOfRange),
-                }
-            }
-            Message::SetCalibration(SetCalibration { plane, law }) => {
-                match self.joint.set_law(usize::from(plane), law) {
-                    Ok(()) => ack,
-                    Err(ConfigError::Calibration(
-                        crate::estimate::CalibrationError::CoefficientNotFinite
-                        | crate::estimate::CalibrationError::ThresholdNotFinite,
-                    )) => nak(ErrorCode::NotFinite),
-                    Err(_) => nak(ErrorCode::OutOfRange),
-                }
-            }
-            Message::GetCalibration(GetCalibration { plane }) => {
-                match self.joint.law(usize::from(plane)) {
-                    Some(law) => Some(Message::Calibration(Calibration { plane, law })),
-                    None => nak(ErrorCode::OutOfRange),
-                }
-            }
+            Message::SetTarget(target) => acked(self.set_target(target)),
+            Message::SetGains(gains) => acked(self.set_gains(gains)),
+            Message::SetCalibration(calibration) => acked(self.set_calibration(calibration)),
+            Message::GetCalibration(GetCalibration { plane }) => answer(
+                self.joint
+                    .law(usize::from(plane))
+                    .map(|law| Message::Calibration(Calibration { plane, law }))
+                    .ok_or(ErrorCode::OutOfRange),
+            ),
             Message::Arm(Arm {}) => {
                 self.joint.arm();
-                ack
+                acked(Ok(()))
             }
             Message::Disarm(Disarm {}) => {
                 self.joint.disarm();
                 self.drive = [PlaneDrive::Control; 2];
                 self.outputs_off();
-                ack
+                acked(Ok(()))
             }
-            Message::Drive(d) => match self.start_drive(d, now) {
-                Ok(()) => ack,
-                Err(code) => nak(code),
-            },
-            Message::ClearFaults(ClearFaults {}) => match self.joint.clear_faults() {
-                Ok(()) => {
-                    self.last_faults = Faults::NONE;
-                    ack
-                }
-                Err(_) => nak(ErrorCode::StillFaulted),
-            },
+            Message::Drive(d) => acked(self.start_drive(d, now)),
+            Message::ClearFaults(ClearFaults {}) => acked(self.clear_faults()),
             Message::GetStatus(GetStatus {}) => Some(Message::Status(self.status(now))),
-            Message::SetTelemetry(SetTelemetry { rate_hz }) => {
-                if rate_hz > MAX_TELEMETRY_HZ {
-                    return nak(ErrorCode::OutOfRange);
-                }
-                self.telemetry_hz = rate_hz;
-                self.next_telemetry = now;
-                ack
-            }
-            Message::SetLinkTimeout(SetLinkTimeout { timeout_ms }) => {
-                if !LINK_TIMEOUT_MS.contains(&timeout_ms) {
-                    return nak(ErrorCode::OutOfRange);
-                }
-                self.link_timeout = Duration::from_millis(u64::from(timeout_ms));
-                ack
-            }
+            Message::SetTelemetry(rate) => acked(self.set_telemetry(rate, now)),
+            Message::SetLinkTimeout(timeout) => acked(self.set_link_timeout(timeout)),
             // The board's decoder only accepts requests; a reply type that
             // reached `handle` some other way is still not a request.
             Message::HelloAck(_)
@@ -453,8 +370,132 @@ impl App {
             | Message::Status(_)
             | Message::Telemetry(_)
             | Message::Ack(_)
-            | Message::Nak(_) => nak(ErrorCode::UnknownType),
+            | Message::Nak(_) => answer(Err(ErrorCode::UnknownType)),
         }
+    }
+
+    /// The answer to a [`Hello`]: the board's protocol version, schema and
+    /// size, if the host speaks the same version.
+    fn hello(Hello { version }: Hello) -> Result<Message, ErrorCode> {
+        if version != PROTOCOL_VERSION {
+            return Err(ErrorCode::Version);
+        }
+        Ok(Message::HelloAck(HelloAck {
+            version: PROTOCOL_VERSION,
+            schema: SCHEMA_HASH,
+            pairs: 2,
+            sensors: 4,
+        }))
+    }
+
+    /// Enters lockstep mode with the host's period; board time `now` is
+    /// step 0's instant.
+    fn start_lockstep(
+        &mut self,
+        HilStart { period_us }: HilStart,
+        now: Instant,
+    ) -> Result<(), ErrorCode> {
+        if !LOCKSTEP_PERIOD_US.contains(&period_us) {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.mode = Mode::Lockstep {
+            period: Duration::from_micros(u64::from(period_us)),
+            anchor: now,
+            last: None,
+        };
+        self.enter_new_time_base();
+        Ok(())
+    }
+
+    /// Sets a plane's target angle; the plane goes back to its controller
+    /// (ending an open-loop drive).
+    fn set_target(&mut self, SetTarget { plane, target_deg }: SetTarget) -> Result<(), ErrorCode> {
+        if !target_deg.is_finite() {
+            return Err(ErrorCode::NotFinite);
+        }
+        self.joint
+            .set_target(usize::from(plane), target_deg)
+            .map_err(|_| ErrorCode::OutOfRange)?;
+        if let Some(d) = self.drive.get_mut(usize::from(plane)) {
+            *d = PlaneDrive::Control;
+        }
+        Ok(())
+    }
+
+    /// Sets a plane's pair gains: non-finite values are refused as such;
+    /// bad gains and a plane the joint does not have are both out of range
+    /// (the joint owns the plane and supply checks).
+    fn set_gains(&mut self, g: SetGains) -> Result<(), ErrorCode> {
+        if ![
+            g.kp_agonist,
+            g.kp_antagonist,
+            g.ki,
+            g.integral_limit_v,
+            g.v_offset_v,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+        {
+            return Err(ErrorCode::NotFinite);
+        }
+        PairGains::new(g.kp_agonist, g.kp_antagonist, g.ki, g.integral_limit_v)
+            .and_then(|p| p.with_v_offset(g.v_offset_v))
+            .map_err(ConfigError::from)
+            .and_then(|gains| self.joint.set_gains(usize::from(g.plane), gains))
+            .map_err(|_| ErrorCode::OutOfRange)
+    }
+
+    /// Sets a plane's calibration law; a non-finite coefficient or
+    /// threshold is refused as such, anything else the joint refuses is out
+    /// of range.
+    fn set_calibration(
+        &mut self,
+        SetCalibration { plane, law }: SetCalibration,
+    ) -> Result<(), ErrorCode> {
+        self.joint
+            .set_law(usize::from(plane), law)
+            .map_err(|e| match e {
+                ConfigError::Calibration(
+                    crate::estimate::CalibrationError::CoefficientNotFinite
+                    | crate::estimate::CalibrationError::ThresholdNotFinite,
+                ) => ErrorCode::NotFinite,
+                _ => ErrorCode::OutOfRange,
+            })
+    }
+
+    /// Clears the latched faults, if none of their causes is still present.
+    fn clear_faults(&mut self) -> Result<(), ErrorCode> {
+        self.joint
+            .clear_faults()
+            .map_err(|_| ErrorCode::StillFaulted)?;
+        self.last_faults = Faults::NONE;
+        Ok(())
+    }
+
+    /// Sets the telemetry rate (0: off); the first frame is due at `now`.
+    fn set_telemetry(
+        &mut self,
+        SetTelemetry { rate_hz }: SetTelemetry,
+        now: Instant,
+    ) -> Result<(), ErrorCode> {
+        if rate_hz > MAX_TELEMETRY_HZ {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.telemetry_hz = rate_hz;
+        self.next_telemetry = now;
+        Ok(())
+    }
+
+    /// Sets the lockstep link-loss timeout.
+    fn set_link_timeout(
+        &mut self,
+        SetLinkTimeout { timeout_ms }: SetLinkTimeout,
+    ) -> Result<(), ErrorCode> {
+        if !LINK_TIMEOUT_MS.contains(&timeout_ms) {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.link_timeout = Duration::from_millis(u64::from(timeout_ms));
+        Ok(())
     }
 
     /// Checks a [`Drive`] and starts it (see the module docs for the

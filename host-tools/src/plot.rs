@@ -735,7 +735,57 @@ pub fn panel_grid(
         (size_px + head + foot) * rows as f64 + 24.0,
     );
     let mut svg = Svg::new(w, h);
-    // One scale for all: the largest extent.
+    let (extent, centres) = view_windows(panels, shared_window);
+    let scale = (size_px - 30.0) / (extent * 1.08);
+    for (k, (p, &centre)) in panels.iter().zip(&centres).enumerate() {
+        let (col, row) = (k % columns, k / columns);
+        let frame = ViewFrame {
+            ox: col as f64 * size_px,
+            oy: row as f64 * (size_px + head + foot),
+            size_px,
+            head,
+            scale,
+            centre,
+        };
+        frame.draw(&mut svg, p);
+    }
+    let (len, label) = scale_bar;
+    if len.is_finite() && len > 0.0 {
+        let y = h - 10.0;
+        svg.line(
+            (10.0, y),
+            (10.0 + len * scale, y),
+            Stroke::solid("#333", 2.0),
+        );
+        svg.text(16.0 + len * scale, y + 4.0, 11.0, Anchor::Start, label);
+    }
+    svg
+}
+
+/// The bounding box `(x0, x1, y0, y1)` of the finite `points`; none when
+/// there is no finite point.
+fn finite_bounds<'a>(points: impl Iterator<Item = &'a (f64, f64)>) -> Option<(f64, f64, f64, f64)> {
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for q in points.filter(|q| finite(q)) {
+        x0 = x0.min(q.0);
+        x1 = x1.max(q.0);
+        y0 = y0.min(q.1);
+        y1 = y1.max(q.1);
+    }
+    x0.is_finite().then_some((x0, x1, y0, y1))
+}
+
+/// The windows of a [`panel_grid`]: one extent for all (world units; the
+/// largest of any panel) and each panel's centre, that of its own strokes
+/// and markers (the unit square for an empty panel). With
+/// `shared_window`, every panel is centred on the union of all strokes,
+/// and the extent is that union's.
+fn view_windows(panels: &[ViewPanel], shared_window: bool) -> (f64, Vec<(f64, f64)>) {
     let mut extent: f64 = 1e-9;
     let mut centres = Vec::new();
     for p in panels {
@@ -743,64 +793,49 @@ pub fn panel_grid(
             .strokes
             .iter()
             .flat_map(|s| s.points.iter())
-            .chain(p.markers.iter().map(|m| &m.0))
-            .filter(|q| finite(q));
-        let (mut x0, mut x1, mut y0, mut y1) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for q in pts {
-            x0 = x0.min(q.0);
-            x1 = x1.max(q.0);
-            y0 = y0.min(q.1);
-            y1 = y1.max(q.1);
-        }
-        if !x0.is_finite() {
-            (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
-        }
+            .chain(p.markers.iter().map(|m| &m.0));
+        let (x0, x1, y0, y1) = finite_bounds(pts).unwrap_or((0.0, 1.0, 0.0, 1.0));
         extent = extent.max(x1 - x0).max(y1 - y0);
         centres.push((0.5 * (x0 + x1), 0.5 * (y0 + y1)));
     }
     if shared_window {
-        // One window for all: the centre of the union of the panels.
-        let (mut x0, mut x1, mut y0, mut y1) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for p in panels {
-            for q in p
-                .strokes
-                .iter()
-                .flat_map(|s| s.points.iter())
-                .filter(|q| finite(q))
-            {
-                x0 = x0.min(q.0);
-                x1 = x1.max(q.0);
-                y0 = y0.min(q.1);
-                y1 = y1.max(q.1);
-            }
-        }
-        if x0.is_finite() {
+        let strokes = panels
+            .iter()
+            .flat_map(|p| p.strokes.iter().flat_map(|s| s.points.iter()));
+        if let Some((x0, x1, y0, y1)) = finite_bounds(strokes) {
             extent = (x1 - x0).max(y1 - y0);
             centres.fill((0.5 * (x0 + x1), 0.5 * (y0 + y1)));
         }
     }
-    let scale = (size_px - 30.0) / (extent * 1.08);
-    for (k, p) in panels.iter().enumerate() {
-        let (col, row) = (k % columns, k / columns);
-        let ox = col as f64 * size_px;
-        let oy = row as f64 * (size_px + head + foot);
-        let (cx, cy) = centres[k];
-        let px = |q: (f64, f64)| {
-            (
-                ox + size_px / 2.0 + (q.0 - cx) * scale,
-                oy + head + size_px / 2.0 - (q.1 - cy) * scale,
-            )
-        };
+    (extent, centres)
+}
+
+/// Where one [`ViewPanel`] of a [`panel_grid`] goes: its top-left corner
+/// (px), its square's side and the title band above it (px), the grid's
+/// scale (px per world unit) and the world point at the square's centre.
+struct ViewFrame {
+    ox: f64,
+    oy: f64,
+    size_px: f64,
+    head: f64,
+    scale: f64,
+    centre: (f64, f64),
+}
+
+impl ViewFrame {
+    /// World point `q` on the page (y up in the world, down on the page).
+    fn px(&self, q: (f64, f64)) -> (f64, f64) {
+        let (cx, cy) = self.centre;
+        (
+            self.ox + self.size_px / 2.0 + (q.0 - cx) * self.scale,
+            self.oy + self.head + self.size_px / 2.0 - (q.1 - cy) * self.scale,
+        )
+    }
+
+    /// The panel: its frame, title and axis names, then its strokes and
+    /// markers.
+    fn draw(&self, svg: &mut Svg, p: &ViewPanel) {
+        let (ox, oy, size_px, head) = (self.ox, self.oy, self.size_px, self.head);
         svg.rect(
             ox + 2.0,
             oy + head,
@@ -825,46 +860,40 @@ pub fn panel_grid(
             &format!("→ {}   ↑ {}", p.axes.0, p.axes.1),
         );
         for s in &p.strokes {
-            let width = if s.width_in_px {
-                s.width
-            } else {
-                (s.width * scale).max(1.0)
-            };
-            let pts: Vec<(f64, f64)> = s.points.iter().map(|&q| px(q)).collect();
-            if s.halo && pts.len() == 2 {
-                // The halo covers the middle of a piece only, so that
-                // consecutive pieces join without gaps while an upper
-                // strand still cuts the one below.
-                let (a, b) = (pts[0], pts[1]);
-                let at = |t: f64| (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
-                svg.polyline([at(0.2), at(0.8)], Stroke::solid("white", width + 4.0));
-            } else if s.halo && pts.len() > 2 {
-                svg.polyline(
-                    pts[1..pts.len() - 1].iter().copied(),
-                    Stroke::solid("white", width + 4.0),
-                );
-            }
-            svg.polyline(pts, Stroke::solid(&s.colour, width));
+            self.draw_stroke(svg, s);
         }
         for (q, colour, label) in &p.markers {
-            let c = px(*q);
+            let c = self.px(*q);
             svg.circle(c, 5.0, Stroke::solid(colour, 2.5));
             if !label.is_empty() {
                 svg.text(c.0 + 7.0, c.1 - 7.0, 11.0, Anchor::Start, label);
             }
         }
     }
-    let (len, label) = scale_bar;
-    if len.is_finite() && len > 0.0 {
-        let y = h - 10.0;
-        svg.line(
-            (10.0, y),
-            (10.0 + len * scale, y),
-            Stroke::solid("#333", 2.0),
-        );
-        svg.text(16.0 + len * scale, y + 4.0, 11.0, Anchor::Start, label);
+
+    /// One stroke, on its halo if it has one.
+    fn draw_stroke(&self, svg: &mut Svg, s: &PanelStroke) {
+        let width = if s.width_in_px {
+            s.width
+        } else {
+            (s.width * self.scale).max(1.0)
+        };
+        let pts: Vec<(f64, f64)> = s.points.iter().map(|&q| self.px(q)).collect();
+        if s.halo && pts.len() == 2 {
+            // The halo covers the middle of a piece only, so that
+            // consecutive pieces join without gaps while an upper
+            // strand still cuts the one below.
+            let (a, b) = (pts[0], pts[1]);
+            let at = |t: f64| (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
+            svg.polyline([at(0.2), at(0.8)], Stroke::solid("white", width + 4.0));
+        } else if s.halo && pts.len() > 2 {
+            svg.polyline(
+                pts[1..pts.len() - 1].iter().copied(),
+                Stroke::solid("white", width + 4.0),
+            );
+        }
+        svg.polyline(pts, Stroke::solid(&s.colour, width));
     }
-    svg
 }
 
 #[cfg(test)]

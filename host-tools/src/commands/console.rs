@@ -7,7 +7,7 @@ use anyhow::{bail, Context};
 use clap::Args;
 use firmware::protocol::{
     Arm, Calibration, ClearFaults, Disarm, GetCalibration, HilStop, Message, SetCalibration,
-    SetGains, SetLinkTimeout, SetTarget, SetTelemetry,
+    SetGains, SetLinkTimeout, SetTarget, SetTelemetry, Telemetry,
 };
 use host_tools::board::controller::name_the_board;
 use host_tools::board::hil::{self};
@@ -192,179 +192,218 @@ fn seconds(words: &[&str], i: usize) -> anyhow::Result<Duration> {
     Duration::try_from_secs_f64(secs).map_err(|e| anyhow::anyhow!("SECONDS: {e}"))
 }
 
+/// Runs one console command on the board (see [`HELP`]): the command word
+/// picks its step, each of which parses its own arguments and names the
+/// bad one.
 fn run_console_command<P: Port>(
     link: &mut Link<P>,
     cmd: &str,
     csv: Option<&mut std::fs::File>,
     port: &str,
 ) -> anyhow::Result<()> {
-    use firmware::app::{LINK_TIMEOUT_MS, MAX_TELEMETRY_HZ};
-    use firmware::joint::DEFAULT_MAX_TARGET_DEG;
     let words: Vec<&str> = cmd.split_whitespace().collect();
     match words.as_slice() {
         ["hello"] => {
             hil::handshake(link)?;
             outln!("hello: protocol and schema match");
         }
-        ["status"] => {
-            let s = hil::status(link)?;
-            outln!(
-                "armed {} mode {} faults [{}] latched [{}] estimate α {} β {} target α {:.2}° β {:.2}° outputs {} mV / {} mV coils {} mV drive [{}] t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
-                s.armed,
-                if s.mode == 1 { "lockstep" } else { "free-running" },
-                fault_names(u16::from(s.faults)).join(","),
-                fault_names(u16::from(s.latched)).join(","),
-                status_estimate(s.estimate_deg[0]), status_estimate(s.estimate_deg[1]),
-                s.target_deg[0], s.target_deg[1],
-                s.pair_mv[0], s.pair_mv[1],
-                s.coil_mv.map(|m| m.to_string()).join("/"),
-                drive_planes(s.drive_planes),
-                s.time_ms, s.frames_ok, s.crc_errors, s.cobs_errors, s.overfull, s.malformed
-            );
-        }
+        ["status"] => print_status(link)?,
         ["arm"] => ack(link, Arm {})?,
         ["disarm"] => ack(link, Disarm {})?,
         ["clear"] => ack(link, ClearFaults {})?,
         ["hil-stop"] => ack(link, HilStop {})?,
-        ["target", ..] => {
-            let max = f64::from(DEFAULT_MAX_TARGET_DEG);
-            ack(
-                link,
-                SetTarget {
-                    plane: plane_arg(&words, 1)?,
-                    target_deg: arg_in(&words, 2, "DEG", -max, max, "deg (the board's range)")?
-                        as f32,
-                },
-            )?
-        }
-        ["gains", "load", file] => {
-            let g = host_tools::files::gains::GainsFile::load(Path::new(file))?;
-            for (plane, [kp_agonist, kp_antagonist]) in g.pair_gains().into_iter().enumerate() {
-                ack(
-                    link,
-                    SetGains {
-                        plane: plane as u8,
-                        kp_agonist,
-                        kp_antagonist,
-                        ki: g.controller.ki_v_per_deg_s as f32,
-                        integral_limit_v: g.controller.integral_limit_v as f32,
-                        v_offset_v: g.controller.v_offset_v as f32,
-                    },
-                )?;
-            }
-        }
-        ["gains", ..] => ack(
-            link,
-            SetGains {
-                plane: plane_arg(&words, 1)?,
-                kp_agonist: arg(&words, 2, "KP_AG")?,
-                kp_antagonist: arg(&words, 3, "KP_ANT")?,
-                ki: arg(&words, 4, "KI")?,
-                integral_limit_v: arg(&words, 5, "ILIM")?,
-                v_offset_v: match words.get(6) {
-                    Some(_) => arg(&words, 6, "VOFF")?,
-                    None => firmware::control::PAPER_V_OFFSET_V,
-                },
-            },
-        )?,
-        ["calibration", "get", ..] => {
-            let plane = plane_arg(&words, 2)?;
-            let r = link.request(&GetCalibration { plane }.into(), T, 5, |m| {
-                matches!(m, Message::Calibration(_))
-            })?;
-            if let Message::Calibration(Calibration { plane, law }) = r {
-                outln!(
-                    "plane {plane}: {}",
-                    host_tools::files::calibration::describe(&LawSpec::from_law(&law))
-                );
-            }
-        }
-        ["calibration", "set", file] => {
-            let cal = CalibrationFile::load(Path::new(file))?;
-            for (p, law) in cal.laws()?.into_iter().enumerate() {
-                ack(
-                    link,
-                    SetCalibration {
-                        plane: p as u8,
-                        law,
-                    },
-                )?;
-            }
-        }
-        ["telemetry", ..] => ack(
-            link,
-            SetTelemetry {
-                rate_hz: arg_in(
-                    &words,
-                    1,
-                    "HZ",
-                    0.0,
-                    f64::from(MAX_TELEMETRY_HZ),
-                    "Hz (the board's range; 0 = off)",
-                )? as u16,
-            },
-        )?,
-        ["link-timeout", ..] => ack(
-            link,
-            SetLinkTimeout {
-                timeout_ms: arg_in(
-                    &words,
-                    1,
-                    "MS",
-                    f64::from(*LINK_TIMEOUT_MS.start()),
-                    f64::from(*LINK_TIMEOUT_MS.end()),
-                    "ms (the board's range)",
-                )? as u16,
-            },
-        )?,
-        ["stream", ..] => {
-            let span = seconds(&words, 1)?;
-            let secs = span.as_secs_f64();
-            let end = Instant::now() + span;
-            let mut csv = csv;
-            let mut n = 0u64;
-            while let Some(m) = link.recv_until(end)? {
-                if let Message::Telemetry(t) = m {
-                    n += 1;
-                    let line = format!(
-                        "{},{},{},{},{},{}",
-                        t.time_ms,
-                        output::estimate_field(f64::from(t.estimate_deg[0]), 3),
-                        output::estimate_field(f64::from(t.estimate_deg[1]), 3),
-                        t.coil_mv.map(|m| m.to_string()).join(","),
-                        t.counts.map(count_field).join(","),
-                        t.faults
-                    );
-                    output::check_csv("the telemetry", &format!("{TELEMETRY_HEADER}\n{line}"))?;
-                    match csv.as_deref_mut() {
-                        Some(f) => writeln!(f, "{line}")?,
-                        None => outln!("{line}"),
-                    }
-                }
-            }
-            eprintln!("{n} telemetry frames in {secs} s");
-            if n == 0 && secs > 0.0 {
-                let st = link.stats();
-                let noise = st.crc_errors + st.cobs_errors + st.overfull + st.malformed;
-                let heard = if noise > 0 || st.frames_received > 0 {
-                    format!(
-                        "it sent {} frame(s) of other kinds and {noise} that did not decode (CRC {}, COBS {}, oversized {}, malformed {})",
-                        st.frames_received, st.crc_errors, st.cobs_errors, st.overfull, st.malformed
-                    )
-                } else {
-                    "nothing at all arrived".into()
-                };
-                bail!(
-                    "no telemetry from {port} in {secs} s: {heard}; turn it on first (`telemetry 10; stream {secs}`), and check that a board running softjoint-fw is on {port} at the right --baud"
-                );
-            }
-        }
+        ["target", ..] => ack(link, target_request(&words)?)?,
+        ["gains", "load", file] => load_gains(link, Path::new(file))?,
+        ["gains", ..] => ack(link, gains_request(&words)?)?,
+        ["calibration", "get", ..] => print_calibration(link, plane_arg(&words, 2)?)?,
+        ["calibration", "set", file] => load_calibration(link, Path::new(file))?,
+        ["telemetry", ..] => ack(link, telemetry_request(&words)?)?,
+        ["link-timeout", ..] => ack(link, link_timeout_request(&words)?)?,
+        ["stream", ..] => stream_telemetry(link, seconds(&words, 1)?, csv, port)?,
         ["wait", ..] => std::thread::sleep(seconds(&words, 1)?),
         ["excite", plan, "--log", log] => excite_on_board(link, Path::new(plan), Path::new(log))?,
         ["excite", ..] => bail!("usage: excite PLAN.toml --log LOG.csv"),
         _ => bail!("unknown command; try `help`\n{HELP}"),
     }
     Ok(())
+}
+
+/// `status`: the board's status on one line.
+fn print_status<P: Port>(link: &mut Link<P>) -> anyhow::Result<()> {
+    let s = hil::status(link)?;
+    outln!(
+        "armed {} mode {} faults [{}] latched [{}] estimate α {} β {} target α {:.2}° β {:.2}° outputs {} mV / {} mV coils {} mV drive [{}] t {} ms | frames {} crc {} cobs {} overfull {} malformed {}",
+        s.armed,
+        if s.mode == 1 { "lockstep" } else { "free-running" },
+        fault_names(u16::from(s.faults)).join(","),
+        fault_names(u16::from(s.latched)).join(","),
+        status_estimate(s.estimate_deg[0]), status_estimate(s.estimate_deg[1]),
+        s.target_deg[0], s.target_deg[1],
+        s.pair_mv[0], s.pair_mv[1],
+        s.coil_mv.map(|m| m.to_string()).join("/"),
+        drive_planes(s.drive_planes),
+        s.time_ms, s.frames_ok, s.crc_errors, s.cobs_errors, s.overfull, s.malformed
+    );
+    Ok(())
+}
+
+/// `target PLANE DEG`, within the board's target range.
+fn target_request(words: &[&str]) -> anyhow::Result<SetTarget> {
+    let max = f64::from(firmware::joint::DEFAULT_MAX_TARGET_DEG);
+    Ok(SetTarget {
+        plane: plane_arg(words, 1)?,
+        target_deg: arg_in(words, 2, "DEG", -max, max, "deg (the board's range)")? as f32,
+    })
+}
+
+/// `gains PLANE KP_AG KP_ANT KI ILIM [VOFF]` (VOFF: the paper's by
+/// default).
+fn gains_request(words: &[&str]) -> anyhow::Result<SetGains> {
+    Ok(SetGains {
+        plane: plane_arg(words, 1)?,
+        kp_agonist: arg(words, 2, "KP_AG")?,
+        kp_antagonist: arg(words, 3, "KP_ANT")?,
+        ki: arg(words, 4, "KI")?,
+        integral_limit_v: arg(words, 5, "ILIM")?,
+        v_offset_v: match words.get(6) {
+            Some(_) => arg(words, 6, "VOFF")?,
+            None => firmware::control::PAPER_V_OFFSET_V,
+        },
+    })
+}
+
+/// `gains load FILE`: every plane's gains from a gains file, plane by
+/// plane.
+fn load_gains<P: Port>(link: &mut Link<P>, file: &Path) -> anyhow::Result<()> {
+    let g = host_tools::files::gains::GainsFile::load(file)?;
+    for (plane, [kp_agonist, kp_antagonist]) in g.pair_gains().into_iter().enumerate() {
+        ack(
+            link,
+            SetGains {
+                plane: plane as u8,
+                kp_agonist,
+                kp_antagonist,
+                ki: g.controller.ki_v_per_deg_s as f32,
+                integral_limit_v: g.controller.integral_limit_v as f32,
+                v_offset_v: g.controller.v_offset_v as f32,
+            },
+        )?;
+    }
+    Ok(())
+}
+
+/// `calibration get PLANE`: the plane's estimation law, described.
+fn print_calibration<P: Port>(link: &mut Link<P>, plane: u8) -> anyhow::Result<()> {
+    let r = link.request(&GetCalibration { plane }.into(), T, 5, |m| {
+        matches!(m, Message::Calibration(_))
+    })?;
+    if let Message::Calibration(Calibration { plane, law }) = r {
+        outln!(
+            "plane {plane}: {}",
+            host_tools::files::calibration::describe(&LawSpec::from_law(&law))
+        );
+    }
+    Ok(())
+}
+
+/// `calibration set FILE`: every plane's law from a calibration file.
+fn load_calibration<P: Port>(link: &mut Link<P>, file: &Path) -> anyhow::Result<()> {
+    let cal = CalibrationFile::load(file)?;
+    for (p, law) in cal.laws()?.into_iter().enumerate() {
+        ack(
+            link,
+            SetCalibration {
+                plane: p as u8,
+                law,
+            },
+        )?;
+    }
+    Ok(())
+}
+
+/// `telemetry HZ`, within the board's rate range (0 = off).
+fn telemetry_request(words: &[&str]) -> anyhow::Result<SetTelemetry> {
+    Ok(SetTelemetry {
+        rate_hz: arg_in(
+            words,
+            1,
+            "HZ",
+            0.0,
+            f64::from(firmware::app::MAX_TELEMETRY_HZ),
+            "Hz (the board's range; 0 = off)",
+        )? as u16,
+    })
+}
+
+/// `link-timeout MS`, within the board's range.
+fn link_timeout_request(words: &[&str]) -> anyhow::Result<SetLinkTimeout> {
+    let range = firmware::app::LINK_TIMEOUT_MS;
+    Ok(SetLinkTimeout {
+        timeout_ms: arg_in(
+            words,
+            1,
+            "MS",
+            f64::from(*range.start()),
+            f64::from(*range.end()),
+            "ms (the board's range)",
+        )? as u16,
+    })
+}
+
+/// `stream SECONDS`: the telemetry that arrives within `span`, one CSV
+/// line per frame to `csv` (or standard output), and the count on
+/// standard error. No telemetry at all in a non-empty span is an error
+/// that says what did arrive from `port`.
+fn stream_telemetry<P: Port>(
+    link: &mut Link<P>,
+    span: Duration,
+    mut csv: Option<&mut std::fs::File>,
+    port: &str,
+) -> anyhow::Result<()> {
+    let secs = span.as_secs_f64();
+    let end = Instant::now() + span;
+    let mut n = 0u64;
+    while let Some(m) = link.recv_until(end)? {
+        if let Message::Telemetry(t) = m {
+            n += 1;
+            let line = telemetry_line(&t);
+            output::check_csv("the telemetry", &format!("{TELEMETRY_HEADER}\n{line}"))?;
+            match csv.as_deref_mut() {
+                Some(f) => writeln!(f, "{line}")?,
+                None => outln!("{line}"),
+            }
+        }
+    }
+    eprintln!("{n} telemetry frames in {secs} s");
+    if n == 0 && secs > 0.0 {
+        let st = link.stats();
+        let noise = st.crc_errors + st.cobs_errors + st.overfull + st.malformed;
+        let heard = if noise > 0 || st.frames_received > 0 {
+            format!(
+                "it sent {} frame(s) of other kinds and {noise} that did not decode (CRC {}, COBS {}, oversized {}, malformed {})",
+                st.frames_received, st.crc_errors, st.cobs_errors, st.overfull, st.malformed
+            )
+        } else {
+            "nothing at all arrived".into()
+        };
+        bail!(
+            "no telemetry from {port} in {secs} s: {heard}; turn it on first (`telemetry 10; stream {secs}`), and check that a board running softjoint-fw is on {port} at the right --baud"
+        );
+    }
+    Ok(())
+}
+
+/// One telemetry frame as a row of [`TELEMETRY_HEADER`].
+fn telemetry_line(t: &Telemetry) -> String {
+    format!(
+        "{},{},{},{},{},{}",
+        t.time_ms,
+        output::estimate_field(f64::from(t.estimate_deg[0]), 3),
+        output::estimate_field(f64::from(t.estimate_deg[1]), 3),
+        t.coil_mv.map(|m| m.to_string()).join(","),
+        t.counts.map(count_field).join(","),
+        t.faults
+    )
 }
 
 /// The planes of a `drive_planes` byte, by name.

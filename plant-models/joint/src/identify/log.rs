@@ -44,6 +44,27 @@ pub fn columns(planes: usize, electrical: bool) -> Vec<String> {
     c
 }
 
+/// The log's angles from its camera columns: 1 with `cam_theta_deg` (2D),
+/// 2 with `cam_alpha_deg` (3D); an error naming the header otherwise.
+fn planes_of(t: &Table) -> Result<usize, IdentifyError> {
+    if t.has("cam_theta_deg") {
+        Ok(1)
+    } else if t.has("cam_alpha_deg") {
+        Ok(2)
+    } else {
+        Err(t
+            .error(
+                t.header_line,
+                None,
+                format!(
+                    "missing column `cam_theta_deg` (a 2D log) or `cam_alpha_deg` (3D); the header has: {}",
+                    plant_common::csv_input::excerpt(&t.columns.join(", "))
+                ),
+            )
+            .into())
+    }
+}
+
 /// A recorded excitation session (see the module docs).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ExcitationLog {
@@ -126,26 +147,37 @@ impl ExcitationLog {
     /// there. Rows must be evenly spaced from 0; errors name the file, line
     /// and column.
     pub fn from_table(t: &Table) -> Result<Self, IdentifyError> {
-        let planes = if t.has("cam_theta_deg") {
-            1
-        } else if t.has("cam_alpha_deg") {
-            2
-        } else {
-            return Err(t
-                .error(
-                    t.header_line,
-                    None,
-                    format!(
-                        "missing column `cam_theta_deg` (a 2D log) or `cam_alpha_deg` (3D); the header has: {}",
-                        plant_common::csv_input::excerpt(&t.columns.join(", "))
-                    ),
-                )
-                .into());
-        };
+        let planes = planes_of(t)?;
         let electrical = t.has("i1_a") || t.has("r1_ohm");
         let want = columns(planes, electrical);
         let idx: Vec<usize> = want.iter().map(|c| t.column(c)).collect::<Result<_, _>>()?;
         t.require_rows(10, "(a log of at least 10 intervals)")?;
+        let mut log = Self::read_rows(t, &idx, planes, electrical);
+        let dt = log.t_s[1] - log.t_s[0];
+        log.period_s = dt;
+        let col_t = &t.columns[idx[0]];
+        if !(1e-3 - 1e-9..=0.1 + 1e-9).contains(&dt) {
+            return Err(t
+                .error(
+                    t.rows[1].line,
+                    Some(col_t),
+                    format!(
+                        "rows must be 1..100 ms apart, got {} s",
+                        plant_common::short_number(dt)
+                    ),
+                )
+                .into());
+        }
+        for (k, row) in t.rows.iter().enumerate() {
+            log.check_row(t, k, row.line, col_t)?;
+        }
+        Ok(log)
+    }
+
+    /// The table's rows as a log, the columns `idx` in the order of
+    /// [`columns`]`(planes, electrical)`; the period is left at 0 and
+    /// nothing is checked yet.
+    fn read_rows(t: &Table, idx: &[usize], planes: usize, electrical: bool) -> Self {
         let (c, s) = (2 * planes, if planes == 1 { 1 } else { 4 });
         let mut log = ExcitationLog {
             planes,
@@ -185,66 +217,63 @@ impl ExcitationLog {
                 }
             }
         }
-        let dt = log.t_s[1] - log.t_s[0];
-        log.period_s = dt;
-        let col_t = &t.columns[idx[0]];
-        if !(1e-3 - 1e-9..=0.1 + 1e-9).contains(&dt) {
+        log
+    }
+
+    /// Checks row `k` (on file line `line`) of a log read from `t` whose
+    /// period is set: its time on the grid `k·Δ` (column `col_t`), driver
+    /// inputs within 0..=30 V, coil resistances positive.
+    fn check_row(
+        &self,
+        t: &Table,
+        k: usize,
+        line: usize,
+        col_t: &str,
+    ) -> Result<(), IdentifyError> {
+        let (c, dt) = (self.coils(), self.period_s);
+        let expect = k as f64 * dt;
+        if (self.t_s[k] - expect).abs() > 1e-6 + 1e-9 * expect {
             return Err(t
                 .error(
-                    t.rows[1].line,
+                    line,
                     Some(col_t),
                     format!(
-                        "rows must be 1..100 ms apart, got {} s",
-                        plant_common::short_number(dt)
+                        "rows must be evenly spaced from 0 ({} s apart): expected {}, got {}",
+                        plant_common::short_number(dt),
+                        plant_common::short_number(expect),
+                        plant_common::short_number(self.t_s[k])
                     ),
                 )
                 .into());
         }
-        for (k, row) in t.rows.iter().enumerate() {
-            let expect = k as f64 * dt;
-            if (log.t_s[k] - expect).abs() > 1e-6 + 1e-9 * expect {
+        for (j, v) in self.volts[k][..c].iter().enumerate() {
+            if !(0.0..=30.0).contains(v) {
                 return Err(t
                     .error(
-                        row.line,
-                        Some(col_t),
+                        line,
+                        Some(&format!("v{}_v", j + 1)),
                         format!(
-                            "rows must be evenly spaced from 0 ({} s apart): expected {}, got {}",
-                            plant_common::short_number(dt),
-                            plant_common::short_number(expect),
-                            plant_common::short_number(log.t_s[k])
+                            "driver input must be 0..=30 V, got {}",
+                            plant_common::short_number(*v)
                         ),
                     )
                     .into());
             }
-            for (j, v) in log.volts[k][..c].iter().enumerate() {
-                if !(0.0..=30.0).contains(v) {
+        }
+        if let Some(r) = &self.resistance_ohm {
+            for (j, v) in r[k][..c].iter().enumerate() {
+                if *v <= 0.0 {
                     return Err(t
                         .error(
-                            row.line,
-                            Some(&format!("v{}_v", j + 1)),
-                            format!(
-                                "driver input must be 0..=30 V, got {}",
-                                plant_common::short_number(*v)
-                            ),
+                            line,
+                            Some(&format!("r{}_ohm", j + 1)),
+                            "a coil resistance must be > 0",
                         )
                         .into());
                 }
             }
-            if let Some(r) = &log.resistance_ohm {
-                for (j, v) in r[k][..c].iter().enumerate() {
-                    if *v <= 0.0 {
-                        return Err(t
-                            .error(
-                                row.line,
-                                Some(&format!("r{}_ohm", j + 1)),
-                                "a coil resistance must be > 0",
-                            )
-                            .into());
-                    }
-                }
-            }
         }
-        Ok(log)
+        Ok(())
     }
 
     /// The rows `from..to` as a log of their own whose time starts at the

@@ -60,6 +60,7 @@ pub mod log;
 pub mod params;
 pub mod plan;
 pub mod replay;
+mod stage;
 pub mod twin;
 
 use rayon::prelude::*;
@@ -72,6 +73,7 @@ pub use params::{Param, Scale};
 pub use plan::ExcitationPlan;
 use plant_common::csv_input::CsvError;
 pub use replay::{replay, PlaneMap, PlaneModel, Prediction};
+use stage::{with_coords, Found, Stage};
 
 /// Why identification failed.
 #[derive(Debug, thiserror::Error)]
@@ -350,167 +352,6 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
-/// Errors a stage's data cannot average out, for the model at the fit:
-/// one change of every residual per 1σ of each (see `stage`).
-type Systematic<'a> = dyn Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a;
-
-/// A stage: fits `free` (coordinates from `model`) with `residuals`,
-/// drops the undetermined ones back to `prior` and fits again. A
-/// coordinate's 1σ is the larger of the white-noise one and the
-/// block-robust one over the log segments `blocks` (one index per
-/// residual; [`lm::block_robust_std`]), so residuals correlated in time
-/// or a segment the model fits badly widen it, combined in quadrature
-/// with the shift each of `systematic(model at the fit)` would cause (one
-/// change of every residual per 1σ of an error the data cannot average
-/// out; [`lm::systematic_shift`]). With
-/// `starts` (models that differ from `model` only in `free`), the first
-/// fit runs from each of them instead and keeps the lowest cost (the
-/// first on a tie), so the result does not depend on the thread count.
-#[allow(clippy::too_many_arguments)] // one call site per stage; a struct would only rename them
-fn stage<F>(
-    name: &str,
-    model: &mut PlaneModel,
-    prior: &PlaneModel,
-    free: &[Param],
-    opts: &IdentifyOptions,
-    residuals: F,
-    blocks: &[usize],
-    systematic: &Systematic,
-    starts: &[PlaneModel],
-    estimates: &mut Vec<Estimate>,
-    stages: &mut Vec<StageReport>,
-) -> Result<(), IdentifyError>
-where
-    F: Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync,
-{
-    let mut active: Vec<Param> = free.to_vec();
-    let mut undetermined: Vec<(Param, f64, f64, f64)> = Vec::new();
-    // (1σ used, white-noise 1σ) per coordinate of a fit.
-    let spread = |r: &LmResult, at: &PlaneModel| -> Result<(Vec<f64>, Vec<f64>), IdentifyError> {
-        if blocks.len() != r.m {
-            return Ok((r.std.clone(), r.std.clone()));
-        }
-        let robust = lm::block_robust_std(&r.jacobian, &r.residuals, blocks);
-        let mut used: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
-        for shift in systematic(at)?.iter().filter(|s| s.len() == r.m) {
-            let dx = lm::systematic_shift(&r.jacobian, shift);
-            for (u, d) in used.iter_mut().zip(dx) {
-                *u = u.hypot(d);
-            }
-        }
-        Ok((used, r.std.clone()))
-    };
-    let mut iterations = 0;
-    let mut evaluations = 0;
-    let mut last: Option<LmResult> = None;
-    let mut best_start = 0;
-    for pass in 0..3 {
-        if active.is_empty() {
-            break;
-        }
-        let base = model.clone();
-        let act = active.clone();
-        let apply = |x: &[f64]| {
-            let mut m = base.clone();
-            for (p, v) in act.iter().zip(x) {
-                p.set(&mut m, p.from_coord(*v));
-            }
-            m
-        };
-        let x0_of =
-            |m: &PlaneModel| -> Vec<f64> { active.iter().map(|p| p.to_coord(p.get(m))).collect() };
-        let f = |x: &[f64]| residuals(&apply(x));
-        let x0s: Vec<Vec<f64>> = if pass == 0 && !starts.is_empty() {
-            starts.iter().map(x0_of).collect()
-        } else {
-            vec![x0_of(model)]
-        };
-        let mut best: Option<LmResult> = None;
-        let mut first_error = None;
-        for (k, x0) in x0s.iter().enumerate() {
-            match lm::levenberg_marquardt(f, x0, opts.lm) {
-                Ok(r) => {
-                    iterations += r.iterations;
-                    evaluations += r.evaluations;
-                    if best.as_ref().is_none_or(|b| r.cost < b.cost) {
-                        best = Some(r);
-                        if pass == 0 {
-                            best_start = k;
-                        }
-                    }
-                }
-                Err(e) => {
-                    first_error.get_or_insert(e);
-                }
-            }
-        }
-        let Some(r) = best else {
-            return Err(first_error.unwrap_or_else(|| {
-                IdentifyError::Log(format!("stage {name}: no starting point"))
-            }));
-        };
-        *model = apply(&r.x);
-        let (sd, white) = spread(&r, model)?;
-        let bad: Vec<usize> = (0..active.len())
-            .filter(|&j| !active[j].determined(sd[j]))
-            .collect();
-        if bad.is_empty() {
-            last = Some(r);
-            break;
-        }
-        for &j in bad.iter().rev() {
-            let p = active.remove(j);
-            let v = p.get(model);
-            undetermined.push((p, v, p.value_std(v, sd[j]), p.value_std(v, white[j])));
-            p.set(model, p.get(prior));
-        }
-        last = Some(r);
-    }
-    let r = last.ok_or_else(|| IdentifyError::Log(format!("stage {name}: nothing to fit")))?;
-    stages.push(StageReport {
-        name: name.into(),
-        iterations,
-        evaluations,
-        residuals: r.m,
-        rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
-        stopped_by_budget: r.stopped_by_budget,
-        starts: starts.len().max(1),
-        best_start,
-    });
-    let (sd, white) = spread(&r, model)?;
-    for (j, p) in active.iter().enumerate() {
-        let v = p.get(model);
-        let at = |s: &[f64]| p.value_std(v, s.get(j).copied().unwrap_or(f64::INFINITY));
-        estimates.push(Estimate {
-            param: *p,
-            field: p.field().into(),
-            unit: p.unit().into(),
-            value: v,
-            fitted: v,
-            prior: p.get(prior),
-            std: at(&sd),
-            white_std: at(&white),
-            identifiable: true,
-            stage: name.into(),
-        });
-    }
-    for (p, fitted, sd, white) in undetermined {
-        estimates.push(Estimate {
-            param: p,
-            field: p.field().into(),
-            unit: p.unit().into(),
-            value: p.get(model),
-            fitted,
-            prior: p.get(prior),
-            std: sd,
-            white_std: white,
-            identifiable: false,
-            stage: name.into(),
-        });
-    }
-    Ok(())
-}
-
 /// Length of the log segments (s) over which the block-robust 1σ groups
 /// residuals (see `stage`): longer than the plan's transients (a pulse
 /// and its cooling, ≈ 5–10 s; a wire's lag lasts until the next pull) so
@@ -593,13 +434,7 @@ where
     let sponge = [Param::SpongeModulus, Param::SpongeDamping];
     if sponge.iter().all(|p| p.get(&model).is_finite()) {
         let base = model.clone();
-        let apply = |x: &[f64]| {
-            let mut m = base.clone();
-            for (p, v) in sponge.iter().zip(x) {
-                p.set(&mut m, p.from_coord(*v));
-            }
-            m
-        };
+        let apply = |x: &[f64]| with_coords(&base, &sponge, x);
         let x0: Vec<f64> = sponge.iter().map(|p| p.to_coord(p.get(&base))).collect();
         let opts = LmOptions {
             max_iterations: SPONGE_PREFIT_ITERATIONS,
@@ -703,134 +538,196 @@ pub fn identify_plane(
     name: &str,
     opts: &IdentifyOptions,
 ) -> Result<(PlaneModel, PlaneReport), IdentifyError> {
-    if !(0.2..=1.0).contains(&opts.fit_fraction) {
-        return Err(IdentifyError::Log(format!(
-            "fit fraction must be 0.2..=1, got {}",
-            plant_common::short_number(opts.fit_fraction)
-        )));
-    }
-    let fit_rows = ((log.len() as f64) * opts.fit_fraction).round() as usize;
-    // Log segments of the block-robust 1σ (see `stage`).
-    let block_s = UNCERTAINTY_BLOCK_S
-        .min(fit_rows as f64 * log.period_s / UNCERTAINTY_MIN_BLOCKS as f64)
-        .max(log.period_s);
-    let block_of = |t_s: f64| (t_s / block_s).floor().max(0.0) as usize;
-    // Residuals laid out as `series` series of the fitted rows, one after
-    // the other (thermal: per coil; wires: per sensor).
-    let row_blocks = |series: usize| -> Vec<usize> {
-        (0..series)
-            .flat_map(|_| (0..fit_rows).map(|k| block_of(k as f64 * log.period_s)))
-            .collect()
+    let part = FitPart::new(log, map, opts.fit_fraction)?;
+    let mut found = Found {
+        model: prior.clone(),
+        estimates: Vec::new(),
+        stages: Vec::new(),
     };
-    let mut model = prior.clone();
-    let mut estimates = Vec::new();
-    let mut stages = Vec::new();
-    let electrical = log.has_electrical();
-
-    // Stage 1: electrical and thermal, from current and resistance.
     let mut driver_fitted = false;
-    if electrical {
-        if let Some([(g, sd_g), (v_on, sd_v)]) =
-            driver_regression(log, map, fit_rows, prior.plane.driver.max_current_a)
-        {
-            driver_fitted = true;
-            Param::Transconductance.set(&mut model, g);
-            Param::TurnOn.set(&mut model, v_on);
-            for (p, v, sd) in [
-                (Param::Transconductance, g, sd_g),
-                (Param::TurnOn, v_on, sd_v),
-            ] {
-                let coord_sd = match p.scale() {
-                    Scale::Log { .. } => sd / v,
-                    Scale::Linear { .. } => sd,
-                };
-                estimates.push(Estimate {
-                    param: p,
-                    field: p.field().into(),
-                    unit: p.unit().into(),
-                    value: v,
-                    fitted: v,
-                    prior: p.get(&prior),
-                    std: sd,
-                    white_std: sd,
-                    identifiable: p.determined(coord_sd),
-                    stage: "electrical".into(),
-                });
-            }
-            stages.push(StageReport {
-                name: "electrical".into(),
-                iterations: 1,
-                evaluations: 0,
-                residuals: 0,
-                rms_scaled: 0.0,
-                stopped_by_budget: false,
-                starts: 1,
-                best_start: 0,
-            });
+    if log.has_electrical() {
+        driver_fitted = electrical_stage(&part, &prior, &mut found);
+        thermal_stage(&part, &prior, opts, &mut found)?;
+    }
+    mechanics_stage(&part, &prior, opts, driver_fitted, &mut found)?;
+    wire_stage(&part, &prior, opts, &mut found)?;
+    let validation = validate(&part, &found.model, &prior)?;
+    Ok((
+        found.model,
+        PlaneReport {
+            plane: name.into(),
+            estimates: found.estimates,
+            stages: found.stages,
+            validation,
+        },
+    ))
+}
+
+/// The log as one plane's stages see it: the plane's columns, the rows
+/// fitted (the rest is held out) and the log segments over which the
+/// block-robust 1σ groups residuals (see [`Stage`]).
+struct FitPart<'a> {
+    log: &'a ExcitationLog,
+    map: PlaneMap,
+    /// Rows `0..rows` are fitted.
+    rows: usize,
+    /// Length of a segment (s): [`UNCERTAINTY_BLOCK_S`], shorter for a
+    /// log too short for [`UNCERTAINTY_MIN_BLOCKS`] of them, never shorter
+    /// than a row.
+    block_s: f64,
+}
+
+impl<'a> FitPart<'a> {
+    /// The first `fit_fraction` (0.2..=1) of `log`, for the plane `map`.
+    fn new(
+        log: &'a ExcitationLog,
+        map: PlaneMap,
+        fit_fraction: f64,
+    ) -> Result<Self, IdentifyError> {
+        if !(0.2..=1.0).contains(&fit_fraction) {
+            return Err(IdentifyError::Log(format!(
+                "fit fraction must be 0.2..=1, got {}",
+                plant_common::short_number(fit_fraction)
+            )));
         }
-        let cur = log.current_a.as_ref().map(|c| c[..fit_rows].to_vec());
-        let res = log.resistance_ohm.as_ref().map(|c| c[..fit_rows].to_vec());
-        if let (Some(cur), Some(res)) = (cur, res) {
-            let sigma = opts.resistance_sigma_ohm;
-            let thermal = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
-                let mut out = Vec::with_capacity(2 * cur.len());
-                for &c in &map.coils {
-                    let i: Vec<f64> = cur.iter().map(|r| r[c]).collect();
-                    let pred =
-                        replay::replay_thermal(&m.plane.coil, &i, log.period_s, m.substep_s)?;
-                    out.extend(pred.iter().zip(&res).map(|(p, r)| (p - r[c]) / sigma));
-                }
-                Ok(out)
-            };
-            stage(
-                "thermal",
-                &mut model,
-                &prior,
-                &[
-                    Param::Convection,
-                    Param::AusteniteStart,
-                    Param::AusteniteFinish,
-                    Param::MartensiteStart,
-                    Param::MartensiteFinish,
-                ],
-                opts,
-                thermal,
-                &row_blocks(map.coils.len()),
-                &|_: &PlaneModel| Ok(Vec::new()),
-                &[],
-                &mut estimates,
-                &mut stages,
-            )?;
-        }
+        let rows = ((log.len() as f64) * fit_fraction).round() as usize;
+        let block_s = UNCERTAINTY_BLOCK_S
+            .min(rows as f64 * log.period_s / UNCERTAINTY_MIN_BLOCKS as f64)
+            .max(log.period_s);
+        Ok(Self {
+            log,
+            map,
+            rows,
+            block_s,
+        })
     }
 
-    // Stage 2: mechanics (and the stress slope) from the camera angles.
-    let fit_frames = frames(log, map.plane, fit_rows);
-    let sig_a = opts.angle_sigma_deg;
-    let sig_r = opts.resistance_sigma_ohm;
-    let mech = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
-        let pred = replay(m, log, map, fit_rows)?;
-        let mut out: Vec<f64> = fit_frames
-            .iter()
-            .filter_map(|(t, a)| pred.angle_at(*t).map(|p| (p - a) / sig_a))
-            .collect();
-        if let Some(res) = &log.resistance_ohm {
-            for (k, r) in pred.resistance_ohm.iter().enumerate() {
-                for (j, &c) in map.coils.iter().enumerate() {
-                    out.push((r[j] - res[k][c]) / sig_r);
-                }
-            }
+    /// The segment of time `t_s`.
+    fn block_of(&self, t_s: f64) -> usize {
+        (t_s / self.block_s).floor().max(0.0) as usize
+    }
+
+    /// The segments of residuals laid out as `series` series of the fitted
+    /// rows, one after the other (thermal: per coil; wires: per sensor).
+    fn row_blocks(&self, series: usize) -> Vec<usize> {
+        (0..series)
+            .flat_map(|_| (0..self.rows).map(|k| self.block_of(k as f64 * self.log.period_s)))
+            .collect()
+    }
+}
+
+/// Stage 1a: the driver's transconductance and turn-on voltage by linear
+/// regression of the logged current ([`driver_regression`]); false (and
+/// nothing found) when the fitted part has no spread of unsaturated
+/// inputs or no current column.
+fn electrical_stage(part: &FitPart, prior: &PlaneModel, found: &mut Found) -> bool {
+    let Some([(g, sd_g), (v_on, sd_v)]) = driver_regression(
+        part.log,
+        part.map,
+        part.rows,
+        prior.plane.driver.max_current_a,
+    ) else {
+        return false;
+    };
+    Param::Transconductance.set(&mut found.model, g);
+    Param::TurnOn.set(&mut found.model, v_on);
+    for (p, v, sd) in [
+        (Param::Transconductance, g, sd_g),
+        (Param::TurnOn, v_on, sd_v),
+    ] {
+        let coord_sd = match p.scale() {
+            Scale::Log { .. } => sd / v,
+            Scale::Linear { .. } => sd,
+        };
+        found.estimates.push(Estimate {
+            param: p,
+            field: p.field().into(),
+            unit: p.unit().into(),
+            value: v,
+            fitted: v,
+            prior: p.get(prior),
+            std: sd,
+            white_std: sd,
+            identifiable: p.determined(coord_sd),
+            stage: "electrical".into(),
+        });
+    }
+    found.stages.push(StageReport {
+        name: "electrical".into(),
+        iterations: 1,
+        evaluations: 0,
+        residuals: 0,
+        rms_scaled: 0.0,
+        stopped_by_budget: false,
+        starts: 1,
+        best_start: 0,
+    });
+    true
+}
+
+/// Stage 1b: the convection coefficient and the four transformation
+/// temperatures, from the coils' own thermal and phase model heated by the
+/// measured current, fitted to the measured resistance (only where both
+/// were logged).
+fn thermal_stage(
+    part: &FitPart,
+    prior: &PlaneModel,
+    opts: &IdentifyOptions,
+    found: &mut Found,
+) -> Result<(), IdentifyError> {
+    let (log, map, fit_rows) = (part.log, part.map, part.rows);
+    let cur = log.current_a.as_ref().map(|c| c[..fit_rows].to_vec());
+    let res = log.resistance_ohm.as_ref().map(|c| c[..fit_rows].to_vec());
+    let (Some(cur), Some(res)) = (cur, res) else {
+        return Ok(());
+    };
+    let sigma = opts.resistance_sigma_ohm;
+    let thermal = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+        let mut out = Vec::with_capacity(2 * cur.len());
+        for &c in &map.coils {
+            let i: Vec<f64> = cur.iter().map(|r| r[c]).collect();
+            let pred = replay::replay_thermal(&m.plane.coil, &i, log.period_s, m.substep_s)?;
+            out.extend(pred.iter().zip(&res).map(|(p, r)| (p - r[c]) / sigma));
         }
         Ok(out)
     };
+    Stage {
+        name: "thermal",
+        free: &[
+            Param::Convection,
+            Param::AusteniteStart,
+            Param::AusteniteFinish,
+            Param::MartensiteStart,
+            Param::MartensiteFinish,
+        ],
+        residuals: thermal,
+        blocks: &part.row_blocks(map.coils.len()),
+        systematic: &|_: &PlaneModel| Ok(Vec::new()),
+        starts: &[],
+    }
+    .run(found, prior, opts)
+}
+
+/// Stage 2: mechanics and the stress slope from the camera angles (and
+/// the resistances where logged), from the starting points of
+/// [`mechanics_starts`]; g joins it when stage 1 could not fit it.
+fn mechanics_stage(
+    part: &FitPart,
+    prior: &PlaneModel,
+    opts: &IdentifyOptions,
+    driver_fitted: bool,
+    found: &mut Found,
+) -> Result<(), IdentifyError> {
+    let fit_frames = frames(part.log, part.map.plane, part.rows);
+    let mech = mechanics_residuals(part, opts, &fit_frames);
     // The mechanics residuals' layout: the fitted frames, then the
     // resistances row by row (both coils). Were a frame to have no
-    // prediction, the lengths would differ and `stage` would fall back to
+    // prediction, the lengths would differ and `Stage` would fall back to
     // the white-noise 1σ.
-    let mut mech_blocks: Vec<usize> = fit_frames.iter().map(|(t, _)| block_of(*t)).collect();
-    if log.resistance_ohm.is_some() {
-        for k in 0..fit_rows {
-            mech_blocks.extend([block_of(k as f64 * log.period_s); 2]);
+    let mut mech_blocks: Vec<usize> = fit_frames.iter().map(|(t, _)| part.block_of(*t)).collect();
+    if part.log.resistance_ohm.is_some() {
+        for k in 0..part.rows {
+            mech_blocks.extend([part.block_of(k as f64 * part.log.period_s); 2]);
         }
     }
     let mut free = vec![
@@ -854,35 +751,69 @@ pub fn identify_plane(
     // Stage 1's h and temperatures were fitted without the stress (which
     // needs the mechanics); they start stage 2, whose estimates replace
     // them.
-    estimates.retain(|e| !free.contains(&e.param));
+    found.estimates.retain(|e| !free.contains(&e.param));
     // The slope starts inside its range so the first Jacobian sees both
     // signs of change.
-    if Param::StressShift.get(&model) <= 0.0 {
-        Param::StressShift.set(&mut model, 0.02);
+    if Param::StressShift.get(&found.model) <= 0.0 {
+        Param::StressShift.set(&mut found.model, 0.02);
     }
-    let (starts, start_evaluations) = mechanics_starts(&model, &mech);
-    stage(
-        "mechanics",
-        &mut model,
-        &prior,
-        &free,
-        opts,
-        mech,
-        &mech_blocks,
-        &|_: &PlaneModel| Ok(Vec::new()),
-        &starts,
-        &mut estimates,
-        &mut stages,
-    )?;
-    if let Some(st) = stages.last_mut() {
+    let (starts, start_evaluations) = mechanics_starts(&found.model, &mech);
+    Stage {
+        name: "mechanics",
+        free: &free,
+        residuals: mech,
+        blocks: &mech_blocks,
+        systematic: &|_: &PlaneModel| Ok(Vec::new()),
+        starts: &starts,
+    }
+    .run(found, prior, opts)?;
+    if let Some(st) = found.stages.last_mut() {
         st.evaluations += start_evaluations;
     }
+    Ok(())
+}
 
-    // Stage 3: wire jamming from the wire readings. The jamming
-    // parameters do not move the link, so the wires' paths come from one
-    // replay of the stage-2 plane; each evaluation then averages the
-    // random sensor over stick events along them (`replay` module docs).
-    let paths = replay::replay_with_wire_paths(&model, log, map, fit_rows)?;
+/// The mechanics stage's residuals of a model: the plane replayed over
+/// the fitted rows, its angle at each of `fit_frames` against the
+/// camera's, then (where logged) its coil resistances row by row, each
+/// scaled by its a priori noise.
+fn mechanics_residuals<'a>(
+    part: &'a FitPart,
+    opts: &IdentifyOptions,
+    fit_frames: &'a [(f64, f64)],
+) -> impl Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync + 'a {
+    let (log, map, fit_rows) = (part.log, part.map, part.rows);
+    let sig_a = opts.angle_sigma_deg;
+    let sig_r = opts.resistance_sigma_ohm;
+    move |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
+        let pred = replay(m, log, map, fit_rows)?;
+        let mut out: Vec<f64> = fit_frames
+            .iter()
+            .filter_map(|(t, a)| pred.angle_at(*t).map(|p| (p - a) / sig_a))
+            .collect();
+        if let Some(res) = &log.resistance_ohm {
+            for (k, r) in pred.resistance_ohm.iter().enumerate() {
+                for (j, &c) in map.coils.iter().enumerate() {
+                    out.push((r[j] - res[k][c]) / sig_r);
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Stage 3: wire jamming from the wire readings. The jamming parameters
+/// do not move the link, so the wires' paths come from one replay of the
+/// stage-2 plane; each evaluation then averages the random sensor over
+/// stick events along them (`replay` module docs).
+fn wire_stage(
+    part: &FitPart,
+    prior: &PlaneModel,
+    opts: &IdentifyOptions,
+    found: &mut Found,
+) -> Result<(), IdentifyError> {
+    let (log, map, fit_rows) = (part.log, part.map, part.rows);
+    let paths = replay::replay_with_wire_paths(&found.model, log, map, fit_rows)?;
     let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
         let expected =
             replay::expected_wire_readings(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
@@ -897,28 +828,49 @@ pub fn identify_plane(
         }
         Ok(out)
     };
-    // The wire residuals' segments are lag episodes, not fixed times: a
-    // stick's extra lag lasts until the wire is pulled clear, so residuals
-    // are correlated over a whole push (`lag_episodes`).
-    let episodes = {
-        let n = paths.substeps_per_row;
-        let mut ids = Vec::with_capacity(map.sensors.len() * fit_rows);
-        for (path, w) in paths.wire_path_mm.iter().zip(&model.wires) {
-            let per_row: Vec<f64> = (0..fit_rows).map(|k| path[k * n]).collect();
-            let first = ids.iter().max().map_or(0, |b: &usize| b + 1);
-            ids.extend(lag_episodes(&per_row, w, first));
-        }
-        ids
-    };
-    // A coder reads whole counts, and a joint returns to nearly the same
-    // rest pose after each move, so the rounding there is nearly the same
-    // every time: an offset of the readings the fit cannot average out,
-    // uniform within ±½ count (1σ = count/√12), one per sensor.
-    // The mean over a finite number of stick realisations is itself
-    // noisy: realisation r's deviation from the mean, scaled by
-    // 1/√(K(K − 1)), is one more such change, so that their shifts add up
-    // to the variance of the mean's shift.
-    let systematic = |m: &PlaneModel| -> Result<Vec<Vec<f64>>, IdentifyError> {
+    let episodes = wire_episodes(part, &paths, &found.model.wires);
+    let systematic = wire_systematic(part, opts, &paths);
+    Stage {
+        name: "wire jamming",
+        free: &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
+        residuals: wire,
+        blocks: &episodes,
+        systematic: &systematic,
+        starts: &[],
+    }
+    .run(found, prior, opts)
+}
+
+/// The wire residuals' segments: lag episodes, not fixed times, since a
+/// stick's extra lag lasts until the wire is pulled clear, so residuals
+/// are correlated over a whole push ([`lag_episodes`]); numbered on from
+/// one sensor to the next.
+fn wire_episodes(part: &FitPart, paths: &Prediction, wires: &[WireSensorParams]) -> Vec<usize> {
+    let n = paths.substeps_per_row;
+    let mut ids = Vec::with_capacity(part.map.sensors.len() * part.rows);
+    for (path, w) in paths.wire_path_mm.iter().zip(wires) {
+        let per_row: Vec<f64> = (0..part.rows).map(|k| path[k * n]).collect();
+        let first = ids.iter().max().map_or(0, |b: &usize| b + 1);
+        ids.extend(lag_episodes(&per_row, w, first));
+    }
+    ids
+}
+
+/// The wire stage's systematic errors. A coder reads whole counts, and a
+/// joint returns to nearly the same rest pose after each move, so the
+/// rounding there is nearly the same every time: an offset of the
+/// readings the fit cannot average out, uniform within ±½ count (1σ =
+/// count/√12), one per sensor. The mean over a finite number of stick
+/// realisations is itself noisy: realisation r's deviation from the mean,
+/// scaled by 1/√(K(K − 1)), is one more such change, so that their shifts
+/// add up to the variance of the mean's shift.
+fn wire_systematic<'a>(
+    part: &'a FitPart,
+    opts: &'a IdentifyOptions,
+    paths: &'a Prediction,
+) -> impl Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a {
+    let (map, fit_rows) = (part.map, part.rows);
+    move |m: &PlaneModel| -> Result<Vec<Vec<f64>>, IdentifyError> {
         let mut out: Vec<Vec<f64>> = m
             .wires
             .iter()
@@ -931,7 +883,7 @@ pub fn identify_plane(
             })
             .collect();
         let sensors =
-            replay::wire_realisations(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+            replay::wire_realisations(&m.wires, paths, fit_rows, opts.stick_realisations)?;
         let k = sensors.first().map_or(0, |s| s.1.len());
         if k > 1 {
             let scale = 1.0 / (0.01 * ((k * (k - 1)) as f64).sqrt());
@@ -944,26 +896,22 @@ pub fn identify_plane(
             }
         }
         Ok(out)
-    };
-    stage(
-        "wire jamming",
-        &mut model,
-        &prior,
-        &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
-        opts,
-        wire,
-        &episodes,
-        &systematic,
-        &[],
-        &mut estimates,
-        &mut stages,
-    )?;
+    }
+}
 
-    // Validation: the whole log replayed from t = 0.
+/// Validation: the whole log replayed from t = 0 with the identified
+/// `model` (and with the `prior`, for comparison), its angle against every
+/// camera frame, the errors over the fitted and the held-out part.
+fn validate(
+    part: &FitPart,
+    model: &PlaneModel,
+    prior: &PlaneModel,
+) -> Result<Validation, IdentifyError> {
+    let (log, map) = (part.log, part.map);
     let all = frames(log, map.plane, log.len());
-    let heldout_from_s = fit_rows as f64 * log.period_s;
-    let pred = replay(&model, log, map, log.len())?;
-    let prior_pred = replay(&prior, log, map, log.len()).ok();
+    let heldout_from_s = part.rows as f64 * log.period_s;
+    let pred = replay(model, log, map, log.len())?;
+    let prior_pred = replay(prior, log, map, log.len()).ok();
     let mut out_frames = Vec::with_capacity(all.len());
     for (t, a) in &all {
         if let Some(p) = pred.angle_at(*t) {
@@ -975,7 +923,7 @@ pub fn identify_plane(
         }
     }
     let held = || out_frames.iter().filter(|f| f.t_s >= heldout_from_s);
-    let validation = Validation {
+    Ok(Validation {
         fit_rms_deg: rms(out_frames
             .iter()
             .filter(|f| f.t_s < heldout_from_s)
@@ -992,16 +940,7 @@ pub fn identify_plane(
                 .filter_map(|(t, a)| p.angle_at(*t).map(|x| x - a)))
         }),
         frames: out_frames,
-    };
-    Ok((
-        model,
-        PlaneReport {
-            plane: name.into(),
-            estimates,
-            stages,
-            validation,
-        },
-    ))
+    })
 }
 
 #[cfg(test)]

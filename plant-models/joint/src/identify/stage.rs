@@ -1,0 +1,267 @@
+//! One stage of a plane's identification: a Levenberg–Marquardt fit of
+//! some of the plane's parameters, the uncertainty of each, and the
+//! parameters the log does not determine put back to their prior and left
+//! out of a second fit (the module docs of [`super`] say why and how).
+//!
+//! The stages' physics (which parameters, which residuals) is the
+//! caller's; this module owns only the fitting and the bookkeeping.
+
+use super::lm::{self, LmOptions, LmResult};
+use super::{Estimate, IdentifyError, IdentifyOptions, Param, PlaneModel, StageReport};
+
+/// Errors a stage's data cannot average out, for the model at the fit:
+/// one change of every residual per 1σ of each (see [`Stage`]).
+pub(super) type Systematic<'a> =
+    dyn Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a;
+
+/// What a plane's identification has found so far: the model at the last
+/// stage's fit, the estimates and the stages run, in order.
+pub(super) struct Found {
+    /// The plane's model.
+    pub model: PlaneModel,
+    /// The parameters estimated.
+    pub estimates: Vec<Estimate>,
+    /// The stages run.
+    pub stages: Vec<StageReport>,
+}
+
+/// A stage: fits `free` (coordinates from the model found so far) with
+/// `residuals`, drops the undetermined ones back to the prior and fits
+/// again. A coordinate's 1σ is the larger of the white-noise one and the
+/// block-robust one over the log segments `blocks` (one index per
+/// residual; [`lm::block_robust_std`]), so residuals correlated in time
+/// or a segment the model fits badly widen it, combined in quadrature
+/// with the shift each of `systematic(model at the fit)` would cause (one
+/// change of every residual per 1σ of an error the data cannot average
+/// out; [`lm::systematic_shift`]). With `starts` (models that differ from
+/// the model only in `free`), the first fit runs from each of them instead
+/// and keeps the lowest cost (the first on a tie), so the result does not
+/// depend on the thread count.
+pub(super) struct Stage<'a, F> {
+    /// Its name in the reports.
+    pub name: &'a str,
+    /// The parameters it fits.
+    pub free: &'a [Param],
+    /// The scaled residuals of a model.
+    pub residuals: F,
+    /// The log segment of each residual (another length than the
+    /// residuals' falls back to the white-noise 1σ).
+    pub blocks: &'a [usize],
+    /// Errors the data cannot average out.
+    pub systematic: &'a Systematic<'a>,
+    /// Starting points of the first fit (empty: the model found so far).
+    pub starts: &'a [PlaneModel],
+}
+
+/// A parameter the log did not determine: its fit before it was put back.
+struct Dropped {
+    param: Param,
+    fitted: f64,
+    std: f64,
+    white_std: f64,
+}
+
+/// The best of a pass's fits, and what all of them cost.
+struct BestFit {
+    result: LmResult,
+    /// Which starting point it ran from.
+    start: usize,
+    iterations: usize,
+    evaluations: usize,
+}
+
+/// `base` with the parameters `params` at the coordinates `x`.
+pub(super) fn with_coords(base: &PlaneModel, params: &[Param], x: &[f64]) -> PlaneModel {
+    let mut m = base.clone();
+    for (p, v) in params.iter().zip(x) {
+        p.set(&mut m, p.from_coord(*v));
+    }
+    m
+}
+
+/// The coordinates of `params` in `m`.
+fn coords(params: &[Param], m: &PlaneModel) -> Vec<f64> {
+    params.iter().map(|p| p.to_coord(p.get(m))).collect()
+}
+
+impl<F> Stage<'_, F>
+where
+    F: Fn(&PlaneModel) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
+    /// Runs the stage on `found` (at most three passes, each without the
+    /// parameters the one before could not determine) and adds its report
+    /// and estimates.
+    pub fn run(
+        &self,
+        found: &mut Found,
+        prior: &PlaneModel,
+        opts: &IdentifyOptions,
+    ) -> Result<(), IdentifyError> {
+        let model = &mut found.model;
+        let mut active: Vec<Param> = self.free.to_vec();
+        let mut dropped: Vec<Dropped> = Vec::new();
+        let mut iterations = 0;
+        let mut evaluations = 0;
+        let mut last: Option<LmResult> = None;
+        let mut best_start = 0;
+        for pass in 0..3 {
+            if active.is_empty() {
+                break;
+            }
+            let base = model.clone();
+            let x0s: Vec<Vec<f64>> = if pass == 0 && !self.starts.is_empty() {
+                self.starts.iter().map(|m| coords(&active, m)).collect()
+            } else {
+                vec![coords(&active, model)]
+            };
+            let fit = self.best_of(&base, &active, &x0s, opts.lm)?;
+            iterations += fit.iterations;
+            evaluations += fit.evaluations;
+            if pass == 0 {
+                best_start = fit.start;
+            }
+            let r = fit.result;
+            *model = with_coords(&base, &active, &r.x);
+            let (sd, white) = self.spread(&r, model)?;
+            let bad: Vec<usize> = (0..active.len())
+                .filter(|&j| !active[j].determined(sd[j]))
+                .collect();
+            if bad.is_empty() {
+                last = Some(r);
+                break;
+            }
+            for &j in bad.iter().rev() {
+                let p = active.remove(j);
+                let v = p.get(model);
+                dropped.push(Dropped {
+                    param: p,
+                    fitted: v,
+                    std: p.value_std(v, sd[j]),
+                    white_std: p.value_std(v, white[j]),
+                });
+                p.set(model, p.get(prior));
+            }
+            last = Some(r);
+        }
+        let r =
+            last.ok_or_else(|| IdentifyError::Log(format!("stage {}: nothing to fit", self.name)))?;
+        found.stages.push(StageReport {
+            name: self.name.into(),
+            iterations,
+            evaluations,
+            residuals: r.m,
+            rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
+            stopped_by_budget: r.stopped_by_budget,
+            starts: self.starts.len().max(1),
+            best_start,
+        });
+        let (sd, white) = self.spread(&r, &found.model)?;
+        self.report(found, prior, &active, &sd, &white, dropped);
+        Ok(())
+    }
+
+    /// Fits `active` from each of `x0s` (coordinates around `base`) and
+    /// keeps the lowest cost, the first on a tie; the first error when no
+    /// fit succeeded.
+    fn best_of(
+        &self,
+        base: &PlaneModel,
+        active: &[Param],
+        x0s: &[Vec<f64>],
+        lm_opts: LmOptions,
+    ) -> Result<BestFit, IdentifyError> {
+        let f = |x: &[f64]| (self.residuals)(&with_coords(base, active, x));
+        let mut best: Option<LmResult> = None;
+        let mut start = 0;
+        let mut iterations = 0;
+        let mut evaluations = 0;
+        let mut first_error = None;
+        for (k, x0) in x0s.iter().enumerate() {
+            match lm::levenberg_marquardt(f, x0, lm_opts) {
+                Ok(r) => {
+                    iterations += r.iterations;
+                    evaluations += r.evaluations;
+                    if best.as_ref().is_none_or(|b| r.cost < b.cost) {
+                        best = Some(r);
+                        start = k;
+                    }
+                }
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        let Some(result) = best else {
+            return Err(first_error.unwrap_or_else(|| {
+                IdentifyError::Log(format!("stage {}: no starting point", self.name))
+            }));
+        };
+        Ok(BestFit {
+            result,
+            start,
+            iterations,
+            evaluations,
+        })
+    }
+
+    /// (1σ used, white-noise 1σ) per coordinate of the fit `r` at `at`.
+    fn spread(&self, r: &LmResult, at: &PlaneModel) -> Result<(Vec<f64>, Vec<f64>), IdentifyError> {
+        if self.blocks.len() != r.m {
+            return Ok((r.std.clone(), r.std.clone()));
+        }
+        let robust = lm::block_robust_std(&r.jacobian, &r.residuals, self.blocks);
+        let mut used: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
+        for shift in (self.systematic)(at)?.iter().filter(|s| s.len() == r.m) {
+            let dx = lm::systematic_shift(&r.jacobian, shift);
+            for (u, d) in used.iter_mut().zip(dx) {
+                *u = u.hypot(d);
+            }
+        }
+        Ok((used, r.std.clone()))
+    }
+
+    /// Adds the stage's estimates to `found`: the parameters it
+    /// determined (`active`, with their 1σ used and white-noise 1σ in
+    /// coordinates), then those it `dropped`, at their prior.
+    fn report(
+        &self,
+        found: &mut Found,
+        prior: &PlaneModel,
+        active: &[Param],
+        sd: &[f64],
+        white: &[f64],
+        dropped: Vec<Dropped>,
+    ) {
+        for (j, p) in active.iter().enumerate() {
+            let v = p.get(&found.model);
+            let at = |s: &[f64]| p.value_std(v, s.get(j).copied().unwrap_or(f64::INFINITY));
+            found.estimates.push(Estimate {
+                param: *p,
+                field: p.field().into(),
+                unit: p.unit().into(),
+                value: v,
+                fitted: v,
+                prior: p.get(prior),
+                std: at(sd),
+                white_std: at(white),
+                identifiable: true,
+                stage: self.name.into(),
+            });
+        }
+        for d in dropped {
+            let p = d.param;
+            found.estimates.push(Estimate {
+                param: p,
+                field: p.field().into(),
+                unit: p.unit().into(),
+                value: p.get(&found.model),
+                fitted: d.fitted,
+                prior: p.get(prior),
+                std: d.std,
+                white_std: d.white_std,
+                identifiable: false,
+                stage: self.name.into(),
+            });
+        }
+    }
+}
