@@ -245,19 +245,7 @@ pub fn run<F: Flavour>() -> ! {
     // The tick takes the watchdog over, then SysTick and the receive
     // interrupt start.
     critical_section::with(|cs| IWDG.borrow_ref_mut(cs).replace(iwdg));
-    let systick_hz = F::systick_hz(&rcc);
-    let mut syst = cp.SYST;
-    syst.set_clock_source(SystClkSource::Core);
-    syst.set_reload(systick_hz / 1000 - 1);
-    syst.clear_current();
-    syst.enable_counter();
-    syst.enable_interrupt();
-    // SAFETY: unmasking USART2's interrupt is sound: its handler only
-    // touches `RX` (inside a critical section) and two atomic counters.
-    #[allow(unsafe_code)]
-    unsafe {
-        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART2);
-    }
+    let systick_hz = start_interrupts::<F>(cp.SYST, &rcc);
     defmt::info!(
         "{=str} up: SysTick at {=u32} Hz, PWM {=u32} Hz, USART2 at {=u32} Bd",
         F::NAME,
@@ -294,21 +282,45 @@ pub fn run<F: Flavour>() -> ! {
         app.poll(clock.now(), &mut io, &mut send);
         io.apply(app.outputs(), app.joint().driver());
         beat();
-        let lost = (
-            RX_DROPPED.load(Ordering::Relaxed),
-            RX_ERRORS.load(Ordering::Relaxed),
-        );
-        if lost != reported {
-            defmt::warn!(
-                "USART2: {=u32} bytes dropped (queue full), {=u32} receive errors",
-                lost.0,
-                lost.1
-            );
-            reported = lost;
-        }
+        warn_of_lost_bytes(&mut reported);
         // Sleep until the next interrupt: SysTick every millisecond (the
         // control period), or a received byte.
         cortex_m::asm::wfi();
+    }
+}
+
+/// Starts SysTick at 1 kHz (the control period and the clock) and unmasks
+/// USART2's receive interrupt; returns SysTick's clock (Hz).
+fn start_interrupts<F: Flavour>(mut syst: cortex_m::peripheral::SYST, rcc: &Rcc) -> u32 {
+    let systick_hz = F::systick_hz(rcc);
+    syst.set_clock_source(SystClkSource::Core);
+    syst.set_reload(systick_hz / 1000 - 1);
+    syst.clear_current();
+    syst.enable_counter();
+    syst.enable_interrupt();
+    // SAFETY: unmasking USART2's interrupt is sound: its handler only
+    // touches `RX` (inside a critical section) and two atomic counters.
+    #[allow(unsafe_code)]
+    unsafe {
+        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART2);
+    }
+    systick_hz
+}
+
+/// Logs received bytes lost since the last report (`reported`: dropped,
+/// receive errors), once per change.
+fn warn_of_lost_bytes(reported: &mut (u32, u32)) {
+    let lost = (
+        RX_DROPPED.load(Ordering::Relaxed),
+        RX_ERRORS.load(Ordering::Relaxed),
+    );
+    if lost != *reported {
+        defmt::warn!(
+            "USART2: {=u32} bytes dropped (queue full), {=u32} receive errors",
+            lost.0,
+            lost.1
+        );
+        *reported = lost;
     }
 }
 
