@@ -5,12 +5,20 @@
 //! that the path can be written: commands create it before a long
 //! computation and fill it after.
 //!
+//! Only a regular file (or a new path) is replaced by a rename. A symbolic
+//! link is followed and the file it points to is written atomically, the
+//! link left as it is; a device or a FIFO is written through (opened for
+//! writing, never renamed over: `-o /dev/null` discards, a FIFO feeds its
+//! reader); a socket or a directory is refused by name.
+//!
 //! The contents are checked before they are written: an [`AtomicFile`] is
 //! filled only through the checked `commit_*` methods (CSV, SVG/text,
 //! JSON, TOML), which refuse a non-finite number; its raw byte commit is
 //! private to this module.
 use std::fs::{self, File};
 use std::io::{self, Write};
+#[cfg(unix)]
+use std::os::unix::fs::FileTypeExt as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -23,44 +31,121 @@ use serde::Serialize;
 /// target untouched.
 #[derive(Debug)]
 pub struct AtomicFile {
+    /// The path as the user gave it (for messages).
     target: PathBuf,
-    temp: PathBuf,
+    /// Where the contents go.
+    how: How,
     file: Option<File>,
+}
+
+/// How an [`AtomicFile`] reaches its target.
+#[derive(Debug)]
+enum How {
+    /// A regular file or a new path (`resolved`: the target with every
+    /// symbolic link followed): written to `temp` beside it, renamed over
+    /// it. `temp` is empty once renamed.
+    Replace { resolved: PathBuf, temp: PathBuf },
+    /// A device, written through (`file` open from the start, which
+    /// checked the permission).
+    Device,
+    /// A FIFO, opened at the commit: opening it blocks until it has a
+    /// reader, which a command need not wait for before its work.
+    Fifo { path: PathBuf },
+}
+
+/// What is at a path, with symbolic links followed.
+enum Existing {
+    /// Nothing yet, or a regular file.
+    FileOrNew,
+    Directory,
+    Device,
+    Fifo,
+    Socket,
+}
+
+/// `target` with every symbolic link followed (the last link's target may
+/// not exist yet: it is the file to create).
+fn resolve_links(target: &Path) -> io::Result<PathBuf> {
+    let mut path = target.to_path_buf();
+    // The kernel's own limit (ELOOP).
+    for _ in 0..40 {
+        match fs::symlink_metadata(&path) {
+            Ok(meta) if meta.file_type().is_symlink() => {
+                let link = fs::read_link(&path)?;
+                path = match path.parent() {
+                    Some(dir) if link.is_relative() => dir.join(link),
+                    _ => link,
+                };
+            }
+            _ => return Ok(path),
+        }
+    }
+    Err(io::Error::other("too many levels of symbolic links"))
+}
+
+/// What is at `path` (links already followed).
+fn existing(path: &Path) -> Existing {
+    let Ok(meta) = fs::metadata(path) else {
+        return Existing::FileOrNew;
+    };
+    let kind = meta.file_type();
+    if kind.is_dir() {
+        return Existing::Directory;
+    }
+    #[cfg(unix)]
+    {
+        if kind.is_char_device() || kind.is_block_device() {
+            return Existing::Device;
+        }
+        if kind.is_fifo() {
+            return Existing::Fifo;
+        }
+        if kind.is_socket() {
+            return Existing::Socket;
+        }
+    }
+    Existing::FileOrNew
 }
 
 /// Distinguishes temporary files of one process.
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 impl AtomicFile {
-    /// Creates the temporary file beside `target` (so the final rename
-    /// stays on one file system). Fails, naming `target`, if its directory
-    /// does not exist or cannot be written, or if `target` is a directory.
+    /// Opens `target` for an atomic write. For a regular file or a new
+    /// path this creates the temporary file beside the file (so the final
+    /// rename stays on one file system); for a device it opens the device;
+    /// a FIFO is opened at the commit. Fails, naming `target`, if its
+    /// directory does not exist or cannot be written, or if `target` is a
+    /// directory or a socket.
     pub fn create(target: &Path) -> anyhow::Result<Self> {
-        let name = target
-            .file_name()
-            .ok_or_else(|| anyhow::anyhow!("cannot write {}: not a file name", target.display()))?;
-        if target.is_dir() {
-            anyhow::bail!("cannot write {}: it is a directory", target.display());
+        let cannot =
+            |e: &dyn std::fmt::Display| anyhow::anyhow!("cannot write {}: {e}", target.display());
+        if target.file_name().is_none() {
+            return Err(cannot(&"not a file name"));
         }
-        let dir = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
+        let resolved = resolve_links(target).map_err(|e| cannot(&e))?;
+        let (how, file) = match existing(&resolved) {
+            Existing::Directory => return Err(cannot(&"it is a directory")),
+            Existing::Socket => {
+                return Err(cannot(&"it is a socket; give a file, a device or a FIFO"))
+            }
+            Existing::Device => {
+                let file = fs::OpenOptions::new()
+                    .write(true)
+                    .open(&resolved)
+                    .map_err(|e| cannot(&e))?;
+                (How::Device, Some(file))
+            }
+            Existing::Fifo => (How::Fifo { path: resolved }, None),
+            Existing::FileOrNew => {
+                let (temp, file) = temporary_beside(&resolved).map_err(|e| cannot(&e))?;
+                (How::Replace { resolved, temp }, Some(file))
+            }
         };
-        let temp = dir.join(format!(
-            ".{}.{}-{}.tmp",
-            name.to_string_lossy(),
-            std::process::id(),
-            TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let file = fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&temp)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))?;
         Ok(Self {
             target: target.to_path_buf(),
-            temp,
-            file: Some(file),
+            how,
+            file,
         })
     }
 
@@ -99,36 +184,79 @@ impl AtomicFile {
         self.commit(text.as_bytes())
     }
 
-    /// Writes `bytes` (already checked by the caller), flushes them to
-    /// disk and renames the temporary file over the target (keeping the
-    /// target's permissions if it existed).
+    /// Writes `bytes` (already checked by the caller): into the temporary
+    /// file, flushed to disk and renamed over the target (keeping the
+    /// target's permissions if it existed), or through to the device or
+    /// FIFO.
     fn commit(mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        let fail =
-            |e: io::Error, target: &Path| anyhow::anyhow!("cannot write {}: {e}", target.display());
-        let mut file = self
-            .file
-            .take()
-            .ok_or_else(|| fail(io::ErrorKind::Other.into(), &self.target))?;
-        file.write_all(bytes)
-            .and_then(|()| file.sync_all())
-            .map_err(|e| fail(e, &self.target))?;
-        if let Ok(meta) = fs::metadata(&self.target) {
-            // Best effort: a file the user made readable to others stays so.
-            let _ = fs::set_permissions(&self.temp, meta.permissions());
+        let target = self.target.clone();
+        let fail = |e: io::Error| anyhow::anyhow!("cannot write {}: {e}", target.display());
+        let file = self.file.take();
+        match &mut self.how {
+            How::Device => {
+                let mut file = file.ok_or_else(|| fail(io::ErrorKind::Other.into()))?;
+                file.write_all(bytes)
+                    .and_then(|()| file.flush())
+                    .map_err(fail)
+            }
+            How::Fifo { path } => {
+                let mut file = fs::OpenOptions::new()
+                    .write(true)
+                    .open(&*path)
+                    .map_err(fail)?;
+                file.write_all(bytes)
+                    .and_then(|()| file.flush())
+                    .map_err(fail)
+            }
+            How::Replace { resolved, temp } => {
+                let mut file = file.ok_or_else(|| fail(io::ErrorKind::Other.into()))?;
+                file.write_all(bytes)
+                    .and_then(|()| file.sync_all())
+                    .map_err(fail)?;
+                if let Ok(meta) = fs::metadata(&*resolved) {
+                    // Best effort: a file the user made readable to others
+                    // stays so.
+                    let _ = fs::set_permissions(&*temp, meta.permissions());
+                }
+                drop(file);
+                fs::rename(&*temp, &*resolved).map_err(fail)?;
+                // Renamed: nothing left to clean up.
+                *temp = PathBuf::new();
+                Ok(())
+            }
         }
-        drop(file);
-        fs::rename(&self.temp, &self.target).map_err(|e| fail(e, &self.target))?;
-        // Renamed: nothing left to clean up.
-        self.temp = PathBuf::new();
-        Ok(())
     }
+}
+
+/// A new temporary file beside `path`, named after it and this process.
+fn temporary_beside(path: &Path) -> io::Result<(PathBuf, File)> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| io::Error::other("not a file name"))?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let temp = dir.join(format!(
+        ".{}.{}-{}.tmp",
+        name.to_string_lossy(),
+        std::process::id(),
+        TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let file = fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&temp)?;
+    Ok((temp, file))
 }
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
-        if !self.temp.as_os_str().is_empty() {
-            self.file = None;
-            let _ = fs::remove_file(&self.temp);
+        if let How::Replace { temp, .. } = &self.how {
+            if !temp.as_os_str().is_empty() {
+                self.file = None;
+                let _ = fs::remove_file(temp);
+            }
         }
     }
 }
@@ -231,5 +359,109 @@ mod tests {
         assert!(e.contains("no-such-dir/x.csv"), "{e}");
         let e = AtomicFile::create(dir.path()).unwrap_err().to_string();
         assert!(e.contains("is a directory"), "{e}");
+    }
+
+    #[test]
+    fn a_symlink_is_followed_and_the_file_it_names_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().join("real.csv");
+        fs::write(&real, "old").unwrap();
+        let link = dir.path().join("link.csv");
+        std::os::unix::fs::symlink("real.csv", &link).unwrap();
+        AtomicFile::create(&link)
+            .unwrap()
+            .commit_csv("a\n1\n")
+            .unwrap();
+        assert!(fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(fs::read_to_string(&real).unwrap(), "a\n1\n");
+        // A link to a file not made yet: the file is made, the link kept.
+        let dangling = dir.path().join("later.csv");
+        std::os::unix::fs::symlink("made.csv", &dangling).unwrap();
+        AtomicFile::create(&dangling)
+            .unwrap()
+            .commit_csv("b\n2\n")
+            .unwrap();
+        assert!(fs::symlink_metadata(&dangling)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(
+            fs::read_to_string(dir.path().join("made.csv")).unwrap(),
+            "b\n2\n"
+        );
+    }
+
+    #[test]
+    fn a_fifo_is_written_through_not_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let pending = AtomicFile::create(&fifo).unwrap();
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || fs::read_to_string(fifo).unwrap())
+        };
+        pending.commit_csv("a\n1\n").unwrap();
+        assert_eq!(reader.join().unwrap(), "a\n1\n");
+        assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+        assert_eq!(names(dir.path()), vec![std::ffi::OsString::from("pipe")]);
+    }
+
+    /// A private device node (never the machine's own /dev): `mknod`
+    /// needs root, as CI runs; elsewhere the test says it did not run.
+    fn device(dir: &Path, name: &str, minor: &str) -> Option<PathBuf> {
+        let path = dir.join(name);
+        let made = std::process::Command::new("mknod")
+            .arg(&path)
+            .args(["c", "1", minor])
+            .stderr(std::process::Stdio::null())
+            .status()
+            .ok()?;
+        made.success().then_some(path)
+    }
+
+    #[test]
+    fn a_device_is_written_through_not_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        // 1:3 is the null device, 1:7 the full one.
+        let (Some(null), Some(full)) = (
+            device(dir.path(), "null", "3"),
+            device(dir.path(), "full", "7"),
+        ) else {
+            eprintln!("not run: mknod needs root");
+            return;
+        };
+        AtomicFile::create(&null)
+            .unwrap()
+            .commit_csv("a\n1\n")
+            .unwrap();
+        assert!(fs::metadata(&null).unwrap().file_type().is_char_device());
+        let e = AtomicFile::create(&full)
+            .unwrap()
+            .commit_csv("a\n1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("full") && e.contains("No space left"), "{e}");
+        assert!(fs::metadata(&full).unwrap().file_type().is_char_device());
+        let mut left = names(dir.path());
+        left.sort();
+        assert_eq!(left, vec![std::ffi::OsString::from("full"), "null".into()]);
+    }
+
+    #[test]
+    fn a_socket_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sock");
+        let _listener = std::os::unix::net::UnixListener::bind(&path).unwrap();
+        let e = AtomicFile::create(&path).unwrap_err().to_string();
+        assert!(e.contains("sock") && e.contains("is a socket"), "{e}");
+        assert!(fs::symlink_metadata(&path).unwrap().file_type().is_socket());
     }
 }

@@ -120,6 +120,18 @@ fn an_unstable_plant_leaves_its_trace_up_to_the_failing_step() {
 #[test]
 fn output_to_a_full_device_is_an_error_not_a_panic() {
     let dir = scratch("full");
+    // A private full device (1:7), never the machine's own /dev/full:
+    // `mknod` needs root, as CI runs.
+    let full = dir.join("full");
+    let made = Command::new("mknod")
+        .arg(&full)
+        .args(["c", "1", "7"])
+        .stderr(std::process::Stdio::null())
+        .status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("not run: mknod needs root");
+        return;
+    }
     let sweep = dir.join("sweep.csv");
     let short = file(
         &dir,
@@ -134,7 +146,7 @@ fn output_to_a_full_device_is_an_error_not_a_panic() {
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_softjoint"))
             .args(&args)
-            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .stdout(std::fs::OpenOptions::new().write(true).open(&full).unwrap())
             .output()
             .unwrap();
         let err = stderr(&out);
@@ -146,13 +158,27 @@ fn output_to_a_full_device_is_an_error_not_a_panic() {
         );
     }
     // A trace file on a full device: named, before the run.
-    let out = softjoint(&["sim", &short, "--csv", "/dev/full"]);
+    let out = softjoint(&["sim", &short, "--csv", s(&full)]);
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("cannot write /dev/full: No space left"),
+        err.contains(&format!("cannot write {}: No space left", full.display())),
         "{err}"
     );
+    // Results kept atomically go through to the device: the plot and a
+    // calibration file are refused for the full device, which stays a
+    // device (a rename would have replaced it by a regular file).
+    for flag in ["--plot", "--calibration-sweep"] {
+        let out = softjoint(&["sim", &short, flag, s(&full)]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{flag}: {err}");
+        assert!(err.contains("No space left"), "{flag}: {err}");
+        use std::os::unix::fs::FileTypeExt as _;
+        assert!(
+            std::fs::metadata(&full).unwrap().file_type().is_char_device(),
+            "{flag} replaced the device"
+        );
+    }
     assert!(!err.contains("panicked"), "{err}");
 }
 
