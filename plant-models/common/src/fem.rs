@@ -184,7 +184,7 @@ pub const HEX_TETS: [[usize; 4]; 6] = [
 ];
 
 use crate::linalg::reverse_cuthill_mckee;
-pub use crate::linalg::SkylineCholesky;
+use crate::linalg::SkylineCholesky;
 
 /// Nodes with more neighbours than this are ordered last (see
 /// [`ElasticSystem::new`]).

@@ -22,7 +22,7 @@
 //! inertia (quasi-static, as the DGFM), contact between parts of the object.
 use super::mesh::{cross, dot, sub, SurfaceMesh};
 use crate::error::{Result, VeError};
-pub use plant_common::fem::{tet_volume, ElasticSystem, LinearElastic, SkylineCholesky};
+pub use plant_common::fem::{tet_volume, ElasticSystem, LinearElastic};
 use rayon::prelude::*;
 
 /// A tetrahedral volume mesh whose first `surface_nodes` nodes are the
