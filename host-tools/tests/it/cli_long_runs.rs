@@ -175,7 +175,10 @@ fn output_to_a_full_device_is_an_error_not_a_panic() {
         assert!(err.contains("No space left"), "{flag}: {err}");
         use std::os::unix::fs::FileTypeExt as _;
         assert!(
-            std::fs::metadata(&full).unwrap().file_type().is_char_device(),
+            std::fs::metadata(&full)
+                .unwrap()
+                .file_type()
+                .is_char_device(),
             "{flag} replaced the device"
         );
     }

@@ -139,7 +139,8 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
         .flexible(true)
         .from_reader(text.as_bytes());
     let mut records = reader.records();
-    let line_at = |byte: usize| record_line(text, byte);
+    let lines = LineCounter::new(text);
+    let line_at = |byte: usize| lines.record_line(byte);
     let line_of = |r: &csv::StringRecord| r.position().map_or(0, |p| line_at(p.byte() as usize));
     let header = loop {
         match records.next() {
@@ -204,12 +205,47 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
     })
 }
 
-/// The 1-based line on which the record whose reading began at `byte`
-/// starts. The csv crate reports where it began reading — before the
-/// line end of the previous record, blank lines, comment lines and the
-/// byte-order mark — and counts lines without the comments, so the record's
-/// first byte is found here and its line counted from the text.
-fn record_line(text: &str, mut byte: usize) -> usize {
+/// Line numbers of records, counted as the reader goes: records come in
+/// file order, so each count starts where the last one stopped and reading
+/// a file stays linear in its length (counting from the start for every
+/// record made a 40,000-row file take 11 s).
+struct LineCounter<'a> {
+    text: &'a str,
+    /// A byte offset and the 1-based line it is on.
+    at: std::cell::Cell<(usize, usize)>,
+}
+
+impl<'a> LineCounter<'a> {
+    fn new(text: &'a str) -> Self {
+        Self {
+            text,
+            at: std::cell::Cell::new((0, 1)),
+        }
+    }
+
+    /// The 1-based line on which the record whose reading began at `byte`
+    /// starts. The csv crate reports where it began reading — before the
+    /// line end of the previous record, blank lines, comment lines and the
+    /// byte-order mark — and counts lines without the comments, so the
+    /// record's first byte is found here and its line counted from the
+    /// text.
+    fn record_line(&self, byte: usize) -> usize {
+        let first = record_start(self.text, byte);
+        let (mut from, mut line) = self.at.get();
+        if first < from {
+            // An earlier position (an error's): count from the start.
+            (from, line) = (0, 1);
+        }
+        let between = self.text.get(from..first).unwrap_or("");
+        line += between.bytes().filter(|&b| b == b'\n').count();
+        self.at.set((first, line));
+        line
+    }
+}
+
+/// The first byte of the record whose reading began at `byte`: past line
+/// ends, comment lines and the byte-order mark.
+fn record_start(text: &str, mut byte: usize) -> usize {
     let bytes = text.as_bytes();
     loop {
         match bytes.get(byte..) {
@@ -224,8 +260,7 @@ fn record_line(text: &str, mut byte: usize) -> usize {
             _ => break,
         }
     }
-    let before = text.get(..byte).unwrap_or(text);
-    before.matches('\n').count() + 1
+    byte.min(bytes.len())
 }
 
 fn csv_line(e: &csv::Error, line_at: &impl Fn(usize) -> usize) -> usize {
@@ -290,5 +325,28 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.len() < 200, "{} characters", e.len());
+    }
+
+    #[test]
+    fn line_numbers_of_a_long_file_are_counted_right() {
+        // Comments, blank lines and CRLF among 5,000 rows; each row's line
+        // as a count from the start of the text gives it.
+        let mut text = String::from("# header next\r\nt,x\r\n");
+        for k in 0..5000 {
+            if k % 7 == 0 {
+                text.push_str("# note\n\n");
+            }
+            text.push_str(&format!("{k},{}\r\n", k * 2));
+        }
+        let t = read_numeric(&text, "long.csv").unwrap();
+        assert_eq!(t.rows.len(), 5000);
+        for r in &t.rows {
+            let needle = format!("\n{},", r.values[0] as u64);
+            let at = text.find(&needle).unwrap() + 1;
+            assert_eq!(r.line, text[..at].matches('\n').count() + 1);
+        }
+        // An error after many rows still names its line.
+        let e = read_numeric(&format!("{text}oops,1\n"), "long.csv").unwrap_err();
+        assert_eq!(e.line, text.matches('\n').count() + 1);
     }
 }
