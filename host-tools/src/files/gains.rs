@@ -24,9 +24,13 @@ pub struct Gains {
     pub v_offset_v: f64,
 }
 
-/// The paper's v_offset (V), what gains files written before it existed hold.
+/// The paper's v_offset (V), what gains files written before it existed
+/// hold: the firmware's f32 constant as the decimal it is written as (1.7,
+/// not the f32's exact 1.7000000476837158, which files and
+/// `--print-default` would otherwise show; both are the same f32).
 pub fn paper_v_offset() -> f64 {
-    f64::from(firmware::control::PAPER_V_OFFSET_V)
+    let v = firmware::control::PAPER_V_OFFSET_V;
+    v.to_string().parse().unwrap_or(f64::from(v))
 }
 
 impl Gains {

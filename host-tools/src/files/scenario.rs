@@ -76,7 +76,7 @@ impl Default for ControllerSpec {
             kp_v_per_deg: vec![2.0],
             ki_v_per_deg_s: 0.0,
             integral_limit_v: 1.0,
-            v_offset_v: f64::from(firmware::control::PAPER_V_OFFSET_V),
+            v_offset_v: crate::files::gains::paper_v_offset(),
             gains_file: None,
         }
     }
@@ -240,24 +240,22 @@ impl Default for Scenario {
             feedback: FeedbackKind::Wire,
             controller: ControllerSpec::default(),
             estimator: EstimatorSpec::default(),
-            targets: vec![
-                TargetStep {
-                    t_s: 0.0,
-                    deg: vec![0.0, 0.0],
-                },
-                TargetStep {
-                    t_s: 10.0,
-                    deg: vec![5.0, 5.0],
-                },
-                TargetStep {
-                    t_s: 20.0,
-                    deg: vec![10.0, 10.0],
-                },
-            ],
+            targets: default_targets(2),
             disturbances: vec![],
             plant: PlantSpec::default(),
         }
     }
+}
+
+/// The default targets for a joint of `planes` angles: 0° → 5° (at 10 s)
+/// → 10° (at 20 s) on every angle.
+pub fn default_targets(planes: usize) -> Vec<TargetStep> {
+    [(0.0, 0.0), (10.0, 5.0), (20.0, 10.0)]
+        .map(|(t_s, deg)| TargetStep {
+            t_s,
+            deg: vec![deg; planes],
+        })
+        .to_vec()
 }
 
 impl Scenario {
@@ -280,6 +278,18 @@ impl Scenario {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read scenario {}", path.display()))?;
         let mut s: Scenario = crate::input::from_toml(&text, &path.display().to_string())?;
+        // No targets in the file: the default's steps, one angle per plane
+        // of this joint (a 2D file would otherwise inherit the 3D
+        // default's two angles and be refused for targets it never wrote).
+        // Nor a name: the file's, not the built-in default's description.
+        let written =
+            toml::from_str::<toml::Table>(plant_common::strip_bom(&text)).unwrap_or_default();
+        if !written.contains_key("targets") {
+            s.targets = default_targets(s.planes());
+        }
+        if !written.contains_key("name") {
+            s.name = path.display().to_string();
+        }
         let base = path.parent().unwrap_or(Path::new("."));
         for c in [
             &mut s.estimator.calibration,
@@ -572,6 +582,12 @@ mod tests {
         let text = toml::to_string(&s).unwrap();
         let back: Scenario = toml::from_str(&text).unwrap();
         assert_eq!(back, s);
+        // The paper's v_offset reads as written, and is the core's f32.
+        assert!(text.contains("v_offset_v = 1.7\n"), "{text}");
+        assert_eq!(
+            s.controller.v_offset_v as f32,
+            firmware::control::PAPER_V_OFFSET_V
+        );
     }
 
     #[test]

@@ -177,6 +177,10 @@ pub struct SummaryBuilder {
     last_t_s: f64,
     /// Control period (s).
     period_s: f64,
+    /// Control steps the run is planned to take: a run that took them all
+    /// completed every segment, even the last when the duration is not a
+    /// whole number of periods.
+    planned_steps: u64,
 }
 
 impl SummaryBuilder {
@@ -213,6 +217,7 @@ impl SummaryBuilder {
             cursor: 0,
             last_t_s: f64::NEG_INFINITY,
             period_s: spec.period_s(),
+            planned_steps: spec.steps(),
         }
     }
 
@@ -278,7 +283,8 @@ impl SummaryBuilder {
         for g in self.segments.iter().filter(|g| g.rows > 0) {
             let planes = g.desired_deg.len();
             // Rows of a segment: those with from ≤ t < to, one per period.
-            let complete = self.last_t_s + self.period_s >= g.to_s - 1e-9;
+            let complete =
+                self.rows >= self.planned_steps || self.last_t_s + self.period_s >= g.to_s - 1e-9;
             let sse = (0..planes)
                 .map(|p| {
                     let at = if g.tail_rows == 0 && !complete {
@@ -367,5 +373,48 @@ impl SummaryBuilder {
             cut_short: None,
             trace: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::files::scenario::{EstimatorMethod, Scenario, TargetStep};
+
+    /// A run whose duration is not a whole number of periods (6.0004 s at
+    /// 1 ms: 6000 steps) completes its last segment: the headline counts
+    /// it. It once called the segment cut short and left it out.
+    #[test]
+    fn the_last_segment_of_a_whole_run_counts_in_the_headline() {
+        let mut s = Scenario {
+            duration_s: 6.0004,
+            ..Scenario::default()
+        };
+        s.estimator.method = EstimatorMethod::Paper;
+        s.targets = [(0.0, 0.0), (3.0, 5.0)]
+            .map(|(t_s, d)| TargetStep {
+                t_s,
+                deg: vec![d, d],
+            })
+            .to_vec();
+        let spec = RunSpec::resolve(&s).unwrap();
+        assert_eq!(spec.steps(), 6000);
+        let mut b = SummaryBuilder::new(&spec);
+        for k in 0..spec.steps() {
+            let t_s = k as f64 * 1e-3;
+            // 1° short of the second target throughout its segment.
+            let angle = if t_s < 3.0 { 0.0 } else { 4.0 };
+            b.push(&Row {
+                t_s,
+                true_deg: [angle; 2],
+                estimate_deg: [angle; 2],
+                desired_deg: [0.0; 2],
+                coil_volts: [0.0; 4],
+                faults: 0,
+            });
+        }
+        let summary = b.finish(&spec, 1.0, 0, vec![]);
+        assert!(summary.segments.iter().all(|g| g.complete));
+        assert_eq!(summary.steady_state_error_deg, vec![1.0, 1.0]);
     }
 }

@@ -321,3 +321,23 @@ fn shipped_scenarios_load() {
         dir.display()
     );
 }
+
+/// A 2D scenario file that writes no targets and no name runs the default
+/// steps on its one angle, under its file's name (it was refused for the
+/// 3D default's two angles it never wrote, and reported as the 3D default).
+#[test]
+fn a_2d_file_without_targets_runs_the_default_steps_under_its_own_name() {
+    let dir = scratch("no_targets");
+    let path = dir.join("plain2d.toml");
+    std::fs::write(
+        &path,
+        "joint = \"2d\"\nduration_s = 2.0\n[estimator]\nmethod = \"paper\"\n",
+    )
+    .unwrap();
+    let o = softjoint(&["sim", s(&path), "--json"]);
+    ok(&o);
+    let v: Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["joint"], "2d");
+    assert_eq!(v["scenario"], s(&path));
+    assert_eq!(v["segments"][0]["desired_deg"], serde_json::json!([0.0]));
+}
