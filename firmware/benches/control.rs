@@ -2,7 +2,7 @@
 //! paper's joint, Eq. 3 estimation, two antagonistic pairs, supervisor), the
 //! same with threshold switching, and the DGFM viscoelastic update of a
 //! 193-vertex object (the seed's triceratops size) with 3 active vertices.
-//! Inputs are deterministic; figures go in the README.
+//! Inputs are deterministic; figures go in docs/benchmarks.md.
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use firmware::estimate::{LinearLaw, PlaneLaw, QuadraticLaw};
 use firmware::joint::{Feedback, Joint3d, JointConfig, StepInput};

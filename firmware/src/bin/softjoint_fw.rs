@@ -7,14 +7,16 @@
 //! things: a byte UART, a millisecond clock, SMA driver outputs and wire
 //! sensors.
 //!
-//! Run it under QEMU with its UART on a pty (what `softjoint hil` does):
+//! Run it under QEMU with its UART on a Unix socket QEMU listens on (what
+//! `softjoint hil` does; docs/hil.md says why not a pty):
 //! ```text
 //! qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
-//!     -semihosting-config enable=on,target=native -serial pty \
+//!     -semihosting-config enable=on,target=native \
+//!     -serial unix:/tmp/board.sock,server=on,wait=off \
 //!     -kernel target/thumbv7em-none-eabihf/release/softjoint-fw
 //! ```
 //! The image never speaks first: QEMU drops guest output until the host
-//! opens the pty, so the host sends `Hello` and the board answers.
+//! connects, so the host sends `Hello` and the board answers.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 #![deny(

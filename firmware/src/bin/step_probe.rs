@@ -1,5 +1,5 @@
 //! A minimal Cortex-M4F image that links the portable core and runs the 3D
-//! control step: the basis of the flash/RAM figures in the README. Under
+//! control step: the basis of the flash/RAM figures in docs/benchmarks.md. Under
 //! QEMU (`cargo run -p firmware --release --target thumbv7em-none-eabihf
 //! --bin step-probe`) it runs 1000 steps against a synthetic sweep of wire
 //! counts, prints a one-line summary over semihosting and exits 0 when every

@@ -22,7 +22,7 @@
 //!   four coil pins are forced to plain GPIO outputs driven low.
 //!
 //! The pin map (every pin, its header position and what it connects to)
-//! is the one table in the README's "Running on a real board"; in code it
+//! is the one table in docs/board.md ("Wiring"); in code it
 //! is [`BoardPins`], built in one place ([`run`]).
 //!
 //! Two images come from this crate, differing only in their [`Flavour`]:

@@ -351,7 +351,7 @@ fn single_sensor_jams_on_the_pushing_side_and_two_wire_laws_stay_below_1_deg() {
 /// evaluated on independent runs of three other seeds, worst error α / β:
 /// 0.75–0.87° / 0.71–0.86° (all nine pairs below 1.0°). On this plant the
 /// search finds no threshold that pays: the single-wire branch carries the
-/// sponge's history-dependent sink (see plant-models/src/joint/README.md),
+/// sponge's history-dependent sink (see plant-models/joint/README.md),
 /// so the chosen law is the differential one over the whole range — Eq. 4
 /// with its threshold below the range, i.e. Eq. 5's form in both planes.
 /// (Before the calibration sweep was held by the wire law instead of

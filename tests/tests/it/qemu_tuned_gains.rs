@@ -1,7 +1,7 @@
 //! Issue 20's must-show in QEMU: the gains `softjoint tune` found on the
 //! plant identified from the hidden 3D joint's 10-minute log (the
 //! committed `scenarios/identify/gains.toml`, made by the commands of
-//! plant-models/src/joint/README.md, "Identified from a log") beat the
+//! plant-models/joint/README.md, "Identified from a log") beat the
 //! paper's gains on the hidden joint itself, with the real thumbv7em image
 //! in lockstep, and without a supervisor fault.
 //!
