@@ -902,7 +902,7 @@ fn frames_csv(prep: &PreparedVideo, report: &SimulateReport) -> String {
     let mut s = String::from(
         "frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f,contour_mean_px,contour_max_px,still_contour_mean_px,still_contour_max_px\n",
     );
-    for f in 0..prep.frame_count() {
+    for (f, mean_f) in mean.iter().enumerate().take(prep.frame_count()) {
         let t = sc.frame_time_s(f);
         let (cm, cx) = tracking
             .model
@@ -921,7 +921,7 @@ fn frames_csv(prep: &PreparedVideo, report: &SimulateReport) -> String {
             prep.video.forces_n[f],
             report.forces_n[f],
             report.f_per_frame[f],
-            mean[f],
+            mean_f,
             tracking.still.mean_px_per_frame[f],
             tracking.still.max_px_per_frame[f],
         );
