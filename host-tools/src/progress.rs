@@ -40,3 +40,31 @@ pub fn spinner(message: &str, json: bool) -> ProgressBar {
     s.enable_steady_tick(std::time::Duration::from_millis(200));
     s
 }
+
+/// A counter of `len` `what` (e.g. "simulations") after `prefix`, with a
+/// message the caller keeps current (e.g. the best score so far); a
+/// spinner on the same line when `len` is not known (a search bounded by
+/// wall time). Hidden like [`bar`].
+pub fn counter(prefix: &str, what: &str, len: Option<u64>, json: bool) -> ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let counter = match len {
+        Some(n) => ProgressBar::with_draw_target(Some(n), ProgressDrawTarget::stderr()),
+        None => ProgressBar::new_spinner(),
+    };
+    let template = format!("{{prefix}} [{{bar:30}}] {{pos}}/{{len}} {what}, {{msg}} ({{elapsed}})");
+    if let Ok(style) = ProgressStyle::with_template(&template) {
+        counter.set_style(style.progress_chars("=> "));
+    }
+    counter.set_prefix(prefix.to_string());
+    counter
+}
+
+/// A line on stderr for a person watching (what a long run is doing
+/// now); nothing with `--json` or when stderr is not a terminal.
+pub fn note(message: &str, json: bool) {
+    if !json && std::io::stderr().is_terminal() {
+        eprintln!("{message}");
+    }
+}

@@ -15,20 +15,18 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::input::from_json;
-use host_tools::outln;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
-use plant_pushing::classify::{classify, MaterialModel, Tally};
-use plant_pushing::contour_score::{
-    classify_by_contour, score_contour_run, skill, still_block_contour_score, still_config,
-    track_video, ContourScore, ContourTarget, ReachZone, TrackingOptions,
-};
+use host_tools::{outln, progress};
+use plant_pushing::classify::MaterialModel;
+use plant_pushing::contour_score::ReachZone;
 use plant_pushing::error::PushError;
-use plant_pushing::evaluate::{
-    score_run, score_run_observed, simulate_frames, EvalSetup, PreparedVideo, RunScore,
+use plant_pushing::evaluate::{EvalSetup, PreparedVideo};
+use plant_pushing::evolution::CalibrationResult;
+use plant_pushing::experiment::{
+    self, CalibrateReport, CalibrateSpec, ClassifyReport, ScoreKind, SimulateReport, SimulateSpec,
+    Tracking,
 };
-use plant_pushing::evolution::{calibrate, CalibrationResult, EvolutionSettings, TABLE_III_RANGES};
-use plant_pushing::force_regression::{ForcePredictor, DEFAULT_ERROR_THRESHOLD};
 use plant_pushing::forces::MaterialParams;
 use plant_pushing::reference::{record_push, ReferenceConfig, ReferenceMaterial, Video};
 use plant_pushing::scenario::{PushScenario, PushSite};
@@ -69,6 +67,14 @@ impl MaterialArg {
         match self {
             MaterialArg::Sponge => ReferenceMaterial::SPONGE,
             MaterialArg::Plasticine => ReferenceMaterial::PLASTICINE,
+        }
+    }
+    /// The seed's parameters of the material: Fig. 14 (sponge) or Fig. 15
+    /// (plasticine).
+    fn seed_params(self) -> MaterialParams {
+        match self {
+            MaterialArg::Sponge => MaterialParams::SEED_FIG14_SPONGE,
+            MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
         }
     }
 }
@@ -125,17 +131,14 @@ enum ScoreArg {
     Contour,
 }
 
-impl ScoreArg {
-    fn name(self) -> &'static str {
-        match self {
-            ScoreArg::F => "f",
-            ScoreArg::Contour => "contour",
+impl From<ScoreArg> for ScoreKind {
+    fn from(s: ScoreArg) -> Self {
+        match s {
+            ScoreArg::F => ScoreKind::F,
+            ScoreArg::Contour => ScoreKind::Contour,
         }
     }
 }
-
-/// Spacing of the resampled contours the contour distance compares, px.
-const CONTOUR_SPACING_PX: f64 = 2.0;
 
 /// Which push to use.
 #[derive(Args, Clone)]
@@ -263,6 +266,166 @@ pub fn run(args: PushArgs) -> Result<()> {
     }
 }
 
+fn simulate_cmd(a: SimulateArgs) -> Result<()> {
+    // The output directory and the parameters first: an unwritable path
+    // or a bad file is refused before the ground truth (seconds of finite
+    // elements) is generated.
+    check_out_dir(&a.out)?;
+    let params = match &a.params {
+        Some(p) => load_params(p)?,
+        None => a.video.material.seed_params(),
+    };
+    let prep = prepare(&a.video, &a.model, a.json)?;
+    let spec = SimulateSpec {
+        params,
+        sim: sim_config(&a.model),
+        predicted_forces: a.predicted_forces,
+    };
+    let bar = progress::bar("frames", a.json);
+    bar.set_length(prep.frame_count() as u64);
+    let run = experiment::run_model(&prep, &spec, &mut |done| bar.set_position(done as u64))?;
+    bar.finish_and_clear();
+    // An unstable model is a failed run — from its first frames (a stiff
+    // mesh at the seed's step: its pictures would only show the blow-up)
+    // or later — unless the user asked for its results anyway, with every
+    // frame from the instability on scored 0. Nothing non-finite is
+    // written either way.
+    if let Some(what) = &run.instability {
+        if !a.allow_unstable {
+            bail!(
+                "{what}; nothing was written: try smaller stiffnesses or another --integrator, or give --allow-unstable to write the results with every frame from there on scored 0"
+            );
+        }
+        let _ = writeln!(
+            std::io::stderr(),
+            "warning: {what}; frames from there on score 0 (--allow-unstable)"
+        );
+    }
+    let report = experiment::assess(&prep, &spec, run)?;
+    out_dir(&a.out)?;
+    let title = format!(
+        "{} pushed at {}: μ(F) = {:.4}",
+        report.material, report.site, report.mean_f
+    );
+    write_simulation(&a.out, &prep, (a.model.nx, a.model.ny), &report, &title)?;
+    if a.json {
+        return JsonObject::of(&report)?.field("out", &a.out)?.print();
+    }
+    outln!("{title} (undeformed block: {:.4})", report.still_mean_f);
+    outln!(
+        "contour distance in the finger's reach: {:.2} px mean, {:.2} px max (undeformed block {:.2} / {:.2} px): skill {:.2}",
+        report.contour_mean_px,
+        report.contour_max_px,
+        report.still_contour_mean_px,
+        report.still_contour_max_px,
+        report.contour_skill
+    );
+    if let Some(what) = &report.instability {
+        outln!("{what}: scored 0 from there");
+    }
+    outln!(
+        "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// Most generations `calibrate` runs: the history of every generation is
+/// allocated up front, and at Table III's 30 simulations per generation this
+/// is already hours of work.
+const MAX_GENERATIONS: usize = 10_000;
+
+fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    if !(1..=MAX_GENERATIONS).contains(&a.generations) {
+        bail!(
+            "--generations must be 1..={MAX_GENERATIONS} (Table III: 30), got {}",
+            a.generations
+        );
+    }
+    check_out_dir(&a.out)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
+    let spec = CalibrateSpec {
+        generations: a.generations,
+        seed: a.seed,
+        score: a.score.into(),
+        sim: sim_config(&a.model),
+    };
+    let bar = progress::counter(
+        "calibrating",
+        "generations",
+        Some(a.generations as u64),
+        a.json,
+    );
+    let report = experiment::calibrate(&prep, &spec, &mut |g| {
+        bar.set_message(match spec.score {
+            ScoreKind::F => format!("best μ(F) {:.4}", g.best),
+            ScoreKind::Contour => format!("best contour distance {:.2} px", -g.best),
+        });
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    out_dir(&a.out)?;
+    write_calibration(&a.out, &prep, (a.model.nx, a.model.ny), &report)?;
+    if a.json {
+        return JsonObject::of(&report)?.field("out", &a.out)?.print();
+    }
+    outln!(
+        "calibrated by {}: μ(F) {:.4} (undeformed block {:.4}), contour distance {:.2} px (undeformed block {:.2} px, skill {:.2}) after {} generations ({} simulations)",
+        report.score.name(),
+        report.best_mean_f,
+        report.still_mean_f,
+        report.best_contour_mean_px,
+        report.still_contour_mean_px,
+        report.contour_skill,
+        report.result.history.len(),
+        report.evaluations
+    );
+    outln!("{}", report.best_params);
+    outln!(
+        "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn classify_cmd(a: ClassifyArgs) -> Result<()> {
+    let models = parse_models(&a.models)?;
+    check_out_dir(&a.out)?;
+    let prep = prepare(&a.video, &a.model, a.json)?;
+    let score = ScoreKind::from(a.score);
+    let report = experiment::classify(&prep, &models, score, &sim_config(&a.model))?;
+    out_dir(&a.out)?;
+    write(
+        &a.out.join("classification.csv"),
+        &classification_csv(&report),
+    )?;
+    write(
+        &a.out.join("classification.svg"),
+        &classification_chart(&report),
+    )?;
+    if a.json {
+        return JsonObject::of(&report)?.field("out", &a.out)?.print();
+    }
+    outln!("global vote by {}: {}", score.name(), report.verdict());
+    let unit = if score == ScoreKind::Contour {
+        " px"
+    } else {
+        ""
+    };
+    for (k, l) in report.labels.iter().enumerate() {
+        outln!(
+            "  {l:>12}: {} frames won, weighted vote {:+.4}{unit}",
+            report.frames_won[k],
+            report.vote[k],
+        );
+    }
+    outln!(
+        "wrote classification.csv, classification.svg to {}",
+        a.out.display()
+    );
+    Ok(())
+}
+
 fn sim_config(m: &ModelArgs) -> SimConfig {
     SimConfig {
         integrator: match m.integrator {
@@ -345,7 +508,7 @@ fn load_video(v: &VideoArgs, json: bool) -> Result<Video> {
                 seed: v.noise_seed,
                 ..ReferenceConfig::default()
             };
-            let spinner = host_tools::progress::spinner(
+            let spinner = progress::spinner(
                 &format!(
                     "recording the ground-truth push ({} px elements)",
                     v.ref_element_px
@@ -396,6 +559,43 @@ fn load_params(path: &Path) -> Result<MaterialParams> {
     Ok(p)
 }
 
+fn parse_model(spec: &str) -> Result<MaterialModel> {
+    let Some((label, path)) = spec.split_once('=') else {
+        bail!("--model `{spec}`: expected LABEL=PARAMS.json");
+    };
+    if label.trim().is_empty() {
+        bail!("--model `{spec}`: the label is empty");
+    }
+    // The label becomes a CSV column name (`f_LABEL`) and a legend entry.
+    if label.contains([',', '"', '\n', '\r']) {
+        bail!("--model `{spec}`: the label may not contain a comma, a quote or a line break");
+    }
+    Ok(MaterialModel {
+        label: label.trim().to_string(),
+        params: load_params(Path::new(path.trim()))?,
+    })
+}
+
+/// The `--model LABEL=PARAMS.json` flags: at least two, no label twice.
+fn parse_models(specs: &[String]) -> Result<Vec<MaterialModel>> {
+    let models: Vec<MaterialModel> = specs
+        .iter()
+        .map(|s| parse_model(s))
+        .collect::<Result<_>>()?;
+    if models.len() < 2 {
+        bail!("classification needs at least two --model LABEL=PARAMS.json");
+    }
+    for (k, m) in models.iter().enumerate() {
+        if models[..k].iter().any(|o| o.label == m.label) {
+            bail!(
+                "--model: the label `{}` is given twice; the results could not be told apart",
+                m.label
+            );
+        }
+    }
+    Ok(models)
+}
+
 /// Creates the output directory.
 fn out_dir(dir: &Path) -> Result<()> {
     host_tools::output::create_dir(dir)
@@ -416,62 +616,63 @@ fn write(path: &Path, text: &str) -> Result<()> {
     }
 }
 
-/// Frames shown in the mesh snapshots: start, mid-push, deepest, mid-retrieval, end.
-const SNAPSHOT_FRAMES: [usize; 5] = [0, 25, 50, 75, 99];
-
-/// Mesh positions at the snapshot frames, with their frame index.
-type Snapshots = Vec<(usize, Vec<V2>)>;
-
-/// Whether frame `f` of `n` is shown in the snapshots.
-fn is_snapshot_frame(f: usize, n: usize) -> bool {
-    SNAPSHOT_FRAMES.iter().any(|&s| s.min(n - 1) == f)
-}
-
-/// Scores a run and keeps its snapshot positions in the same pass, with a
-/// progress bar over its frames (hidden unless a person watches).
-fn score_with_snapshots(
+/// `simulate`'s files: frames.csv, video.csv, snapshots.svg, f_per_frame.svg.
+fn write_simulation(
+    out: &Path,
     prep: &PreparedVideo,
-    forces: &[f64],
-    p: &MaterialParams,
-    sim: &SimConfig,
-    json: bool,
-) -> Result<(RunScore, Snapshots)> {
-    let n = prep.frame_count();
-    let bar = host_tools::progress::bar("frames", json);
-    bar.set_length(n as u64);
-    let mut shots = Vec::new();
-    let score = score_run_observed(prep, forces, p, sim, |f, pos| {
-        if is_snapshot_frame(f, n) {
-            shots.push((f, pos.to_vec()));
-        }
-        bar.set_position(f as u64 + 1);
-    })?;
-    bar.finish_and_clear();
-    Ok((score, shots))
-}
-
-/// Mesh positions of the model at the snapshot frames.
-fn snapshot_positions(
-    prep: &PreparedVideo,
-    forces: &[f64],
-    p: &MaterialParams,
-    sim: &SimConfig,
-) -> Result<Vec<(usize, Vec<V2>)>> {
-    let n = prep.frame_count();
-    let mut out = Vec::new();
-    simulate_frames(
-        &prep.mesh,
-        &prep.video.scenario,
-        forces,
-        p,
-        sim,
-        |f, pos, _| {
-            if is_snapshot_frame(f, n) {
-                out.push((f, pos.to_vec()));
-            }
-        },
+    grid: (usize, usize),
+    report: &SimulateReport,
+    title: &str,
+) -> Result<()> {
+    write(&out.join("frames.csv"), &frames_csv(prep, report))?;
+    write(&out.join("video.csv"), &write_video_csv(&prep.video))?;
+    let panels = Panels {
+        prep,
+        grid,
+        f_per_frame: &report.f_per_frame,
+        tracking: &report.tracking,
+    };
+    write(
+        &out.join("snapshots.svg"),
+        &snapshots_svg(&panels, &report.snapshots, title),
     )?;
-    Ok(out)
+    write(
+        &out.join("f_per_frame.svg"),
+        &f_per_frame_chart(prep, report),
+    )
+}
+
+/// `calibrate`'s files: params.json, generations.csv,
+/// mu_per_generation.svg, snapshots.svg.
+fn write_calibration(
+    out: &Path,
+    prep: &PreparedVideo,
+    grid: (usize, usize),
+    report: &CalibrateReport,
+) -> Result<()> {
+    output::write_json(&out.join("params.json"), &report.result)?;
+    write(&out.join("generations.csv"), &generations_csv(report))?;
+    write(
+        &out.join("mu_per_generation.svg"),
+        &generations_chart(report),
+    )?;
+    let title = format!(
+        "{} model calibrated by {} on its training push: μ(F) = {:.4}, contour distance {:.2} px",
+        report.material,
+        report.score.name(),
+        report.best_mean_f,
+        report.best_contour_mean_px
+    );
+    let panels = Panels {
+        prep,
+        grid,
+        f_per_frame: &report.f_per_frame,
+        tracking: &report.tracking,
+    };
+    write(
+        &out.join("snapshots.svg"),
+        &snapshots_svg(&panels, &report.snapshots, &title),
+    )
 }
 
 /// Most grid lines drawn per direction in a snapshot panel: a 2000 × 2000
@@ -513,23 +714,48 @@ fn mesh_segments(
     (out, k)
 }
 
+/// What every snapshot panel draws from: the push, the `nx × ny` mesh
+/// size asked for, the model's F per frame and the tracked contour.
+struct Panels<'a> {
+    prep: &'a PreparedVideo,
+    grid: (usize, usize),
+    f_per_frame: &'a [f64],
+    tracking: &'a Tracking,
+}
+
+/// Where a snapshot panel lies on the page: its left edge and top, its
+/// width and height, and the scale from pixels of the image.
+#[derive(Clone, Copy)]
+struct Panel {
+    left: f64,
+    top: f64,
+    width: f64,
+    height: f64,
+    scale: f64,
+    /// The image region shown (lowest and highest corner, px).
+    lo: V2,
+    hi: V2,
+}
+
+impl Panel {
+    /// Page coordinates of an image point (y up in the image, down on the
+    /// page).
+    fn at(&self, p: V2) -> (f64, f64) {
+        (
+            self.left + (p.x - self.lo.x) * self.scale,
+            self.top + (self.hi.y - p.y) * self.scale,
+        )
+    }
+}
+
 /// Mesh snapshots over frames: ground-truth outline (grey fill), the model
 /// mesh (blue), the finger (red).
-fn snapshots_svg(
-    prep: &PreparedVideo,
-    (nx, ny): (usize, usize),
-    shots: &[(usize, Vec<V2>)],
-    score: &RunScore,
-    tracked: &Tracking,
-    title: &str,
-) -> String {
-    let sc = &prep.video.scenario;
-    let (lo, hi) = (
-        prep.grid.origin_px,
-        V2::new(
-            prep.grid.origin_px.x + prep.grid.nx as f64 * prep.grid.cell_px,
-            prep.grid.origin_px.y + prep.grid.ny as f64 * prep.grid.cell_px,
-        ),
+fn snapshots_svg(panels: &Panels, shots: &[(usize, Vec<V2>)], title: &str) -> String {
+    let grid = &panels.prep.grid;
+    let lo = grid.origin_px;
+    let hi = V2::new(
+        lo.x + grid.nx as f64 * grid.cell_px,
+        lo.y + grid.ny as f64 * grid.cell_px,
     );
     let panel_w = 300.0;
     let scale = panel_w / (hi.x - lo.x);
@@ -540,71 +766,16 @@ fn snapshots_svg(
     let mut svg = Svg::new(width, height);
     svg.text(10.0, 20.0, 14.0, Anchor::Start, title);
     for (k, (f, pos)) in shots.iter().enumerate() {
-        let ox = 10.0 + k as f64 * (panel_w + 10.0);
-        let tx = |p: V2| (ox + (p.x - lo.x) * scale, top + (hi.y - p.y) * scale);
-        svg.rect(
-            ox,
+        let frame = Panel {
+            left: 10.0 + k as f64 * (panel_w + 10.0),
             top,
-            panel_w,
-            panel_h,
-            "none",
-            Some(Stroke::solid("#ccc", 1.0)),
-        );
-        // The table.
-        let table = tx(V2::new(lo.x, 0.0));
-        svg.line(table, (ox + panel_w, table.1), Stroke::solid("#964", 2.0));
-        let contour: Vec<(f64, f64)> = prep.video.contours_px[*f].iter().map(|p| tx(*p)).collect();
-        svg.polygon(&contour, "#ddd", Stroke::solid("#777", 1.0));
-        let mut spline: Vec<(f64, f64)> = tracked.contours_px[*f].iter().map(|p| tx(*p)).collect();
-        if let Some(&first) = spline.first() {
-            spline.push(first);
-        }
-        svg.polyline(spline, Stroke::solid("#2a2", 1.2));
-        // The zone's outline, kept inside the panel.
-        let mut zone: Vec<(f64, f64)> = zone_outline(&tracked.zone)
-            .into_iter()
-            .map(|p| tx(V2::new(p.x.clamp(lo.x, hi.x), p.y.clamp(lo.y, hi.y))))
-            .collect();
-        if let Some(&first) = zone.first() {
-            zone.push(first);
-        }
-        svg.polyline(zone, Stroke::dashed("#e80", 1.0));
-        let (segments, every) = mesh_segments(&prep.mesh, nx, ny, pos);
-        svg.segments(
-            segments.into_iter().map(|(a, b)| (tx(a), tx(b))),
-            Stroke::solid("#1f5fbf", 0.7),
-        );
-        if every > 1 && k == 0 {
-            svg.text(
-                10.0,
-                34.0,
-                11.0,
-                Anchor::Start,
-                &format!("{nx} × {ny} mesh: one grid line in {every} drawn"),
-            );
-        }
-        let finger = sc.finger_at(sc.frame_time_s(*f));
-        svg.circle(
-            tx(finger.centre_px),
-            finger.radius_px * scale,
-            Stroke::solid("#d22", 1.5),
-        );
-        let fscore = score.f_per_frame.get(*f).copied().unwrap_or(f64::NAN);
-        let phase = if sc.is_push_frame(*f) {
-            "push"
-        } else {
-            "retrieval"
+            width: panel_w,
+            height: panel_h,
+            scale,
+            lo,
+            hi,
         };
-        svg.text(
-            ox,
-            top + panel_h + 18.0,
-            12.0,
-            Anchor::Start,
-            &format!(
-                "frame {f} ({phase}), F = {fscore:.3}, d = {:.1} px",
-                score_d(tracked, *f)
-            ),
-        );
+        snapshot_panel(&mut svg, panels, &frame, *f, pos, k == 0);
     }
     svg.text_styled(
         10.0,
@@ -617,38 +788,88 @@ fn snapshots_svg(
     svg.finish()
 }
 
-/// The tracked contour as splines, its reach zone, and (when a model was
-/// run) the model's and the undeformed block's contour distances.
-struct Tracking {
-    contours_px: Vec<Vec<V2>>,
-    zone: ReachZone,
-    target: ContourTarget,
-    model: Option<ContourScore>,
-    still: ContourScore,
-}
-
-impl Tracking {
-    fn of(prep: &PreparedVideo) -> Result<Self> {
-        let tracked = track_video(&prep.video, &TrackingOptions::default())?;
-        let zone = ReachZone::default_of(&prep.video.scenario)?;
-        let target = ContourTarget::new(&tracked, zone, CONTOUR_SPACING_PX)?;
-        let still = still_block_contour_score(prep, &target);
-        Ok(Self {
-            contours_px: tracked.contours_px,
-            zone,
-            target,
-            model: None,
-            still,
-        })
+/// One snapshot panel: frame `f` with the mesh at `pos`; the first panel
+/// also says when only every k-th grid line is drawn.
+fn snapshot_panel(
+    svg: &mut Svg,
+    panels: &Panels,
+    frame: &Panel,
+    f: usize,
+    pos: &[V2],
+    first: bool,
+) {
+    let (prep, tracked) = (panels.prep, panels.tracking);
+    let (ox, top, lo, hi) = (frame.left, frame.top, frame.lo, frame.hi);
+    let tx = |p: V2| frame.at(p);
+    svg.rect(
+        ox,
+        top,
+        frame.width,
+        frame.height,
+        "none",
+        Some(Stroke::solid("#ccc", 1.0)),
+    );
+    // The table.
+    let table = tx(V2::new(lo.x, 0.0));
+    svg.line(
+        table,
+        (ox + frame.width, table.1),
+        Stroke::solid("#964", 2.0),
+    );
+    let contour: Vec<(f64, f64)> = prep.video.contours_px[f].iter().map(|p| tx(*p)).collect();
+    svg.polygon(&contour, "#ddd", Stroke::solid("#777", 1.0));
+    let mut spline: Vec<(f64, f64)> = tracked.contours_px[f].iter().map(|p| tx(*p)).collect();
+    if let Some(&first) = spline.first() {
+        spline.push(first);
     }
-}
-
-/// The model's mean contour distance at frame `f` (NaN before a run).
-fn score_d(t: &Tracking, f: usize) -> f64 {
-    t.model
-        .as_ref()
-        .and_then(|m| m.mean_px_per_frame.get(f).copied())
-        .unwrap_or(f64::NAN)
+    svg.polyline(spline, Stroke::solid("#2a2", 1.2));
+    // The zone's outline, kept inside the panel.
+    let mut zone: Vec<(f64, f64)> = zone_outline(&tracked.zone)
+        .into_iter()
+        .map(|p| tx(V2::new(p.x.clamp(lo.x, hi.x), p.y.clamp(lo.y, hi.y))))
+        .collect();
+    if let Some(&first) = zone.first() {
+        zone.push(first);
+    }
+    svg.polyline(zone, Stroke::dashed("#e80", 1.0));
+    let (nx, ny) = panels.grid;
+    let (segments, every) = mesh_segments(&prep.mesh, nx, ny, pos);
+    svg.segments(
+        segments.into_iter().map(|(a, b)| (tx(a), tx(b))),
+        Stroke::solid("#1f5fbf", 0.7),
+    );
+    if every > 1 && first {
+        svg.text(
+            10.0,
+            34.0,
+            11.0,
+            Anchor::Start,
+            &format!("{nx} × {ny} mesh: one grid line in {every} drawn"),
+        );
+    }
+    let sc = &prep.video.scenario;
+    let finger = sc.finger_at(sc.frame_time_s(f));
+    svg.circle(
+        tx(finger.centre_px),
+        finger.radius_px * frame.scale,
+        Stroke::solid("#d22", 1.5),
+    );
+    let fscore = panels.f_per_frame.get(f).copied().unwrap_or(f64::NAN);
+    let phase = if sc.is_push_frame(f) {
+        "push"
+    } else {
+        "retrieval"
+    };
+    svg.text(
+        ox,
+        top + frame.height + 18.0,
+        12.0,
+        Anchor::Start,
+        &format!(
+            "frame {f} ({phase}), F = {fscore:.3}, d = {:.1} px",
+            tracked.model_mean_px(f)
+        ),
+    );
 }
 
 /// The outline of the reach zone: the finger path's capsule.
@@ -672,18 +893,16 @@ fn zone_outline(z: &ReachZone) -> Vec<V2> {
     out
 }
 
-fn frames_csv(
-    prep: &PreparedVideo,
-    forces_used: &[f64],
-    score: &RunScore,
-    tracking: &Tracking,
-) -> String {
+/// `frames.csv`: per frame the finger, the forces, F and the contour
+/// distances of the model and the undeformed block.
+fn frames_csv(prep: &PreparedVideo, report: &SimulateReport) -> String {
     let sc = &prep.video.scenario;
-    let mean = plant_pushing::raster::running_mean(&score.f_per_frame);
+    let tracking = &report.tracking;
+    let mean = plant_pushing::raster::running_mean(&report.f_per_frame);
     let mut s = String::from(
         "frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f,contour_mean_px,contour_max_px,still_contour_mean_px,still_contour_max_px\n",
     );
-    for f in 0..prep.frame_count() {
+    for (f, mean_f) in mean.iter().enumerate().take(prep.frame_count()) {
         let t = sc.frame_time_s(f);
         let (cm, cx) = tracking
             .model
@@ -700,9 +919,9 @@ fn frames_csv(
             },
             sc.finger_depth_px(t),
             prep.video.forces_n[f],
-            forces_used[f],
-            score.f_per_frame[f],
-            mean[f],
+            report.forces_n[f],
+            report.f_per_frame[f],
+            mean_f,
             tracking.still.mean_px_per_frame[f],
             tracking.still.max_px_per_frame[f],
         );
@@ -710,106 +929,24 @@ fn frames_csv(
     s
 }
 
-fn simulate_cmd(a: SimulateArgs) -> Result<()> {
-    // The output directory and the parameters first: an unwritable path
-    // or a bad file is refused before the ground truth (seconds of finite
-    // elements) is generated.
-    check_out_dir(&a.out)?;
-    let params = match &a.params {
-        Some(p) => load_params(p)?,
-        None => match a.video.material {
-            MaterialArg::Sponge => MaterialParams::SEED_FIG14_SPONGE,
-            MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
-        },
-    };
-    let prep = prepare(&a.video, &a.model, a.json)?;
-    let sim = sim_config(&a.model);
-    let forces = if a.predicted_forces {
-        ForcePredictor::fit(
-            &prep.video.scenario,
-            &prep.video.forces_n,
-            DEFAULT_ERROR_THRESHOLD,
-        )?
-        .predict_series(&prep.video.scenario)
-    } else {
-        prep.video.forces_n.clone()
-    };
-    let (score, shots) = score_with_snapshots(&prep, &forces, &params, &sim, a.json)?;
-    // An unstable model is a failed run — from its first frames (a stiff
-    // mesh at the seed's step: its pictures would only show the blow-up)
-    // or later — unless the user asked for its results anyway, with every
-    // frame from the instability on scored 0. Nothing non-finite is
-    // written either way.
-    let instability = score.unstable_from_frame.map(|f| {
-        let why = score
-            .instability
-            .map(|i| i.to_string())
-            .unwrap_or_else(|| "unknown cause".into());
-        format!(
-            "the mass-spring model ({} integrator) became unstable at frame {f} of {} ({why})",
-            sim.integrator.name(),
-            prep.frame_count()
-        )
-    });
-    if let Some(what) = &instability {
-        if !a.allow_unstable {
-            bail!(
-                "{what}; nothing was written: try smaller stiffnesses or another --integrator, or give --allow-unstable to write the results with every frame from there on scored 0"
-            );
-        }
-        let _ = writeln!(
-            std::io::stderr(),
-            "warning: {what}; frames from there on score 0 (--allow-unstable)"
-        );
-    }
-    let still_f = score_run(
-        &prep,
-        &vec![0.0; prep.frame_count()],
-        &params,
-        &still_config(&sim),
-    )?
-    .mean_f;
-    let mut tracking = Tracking::of(&prep)?;
-    let contour = score_contour_run(&prep, &tracking.target, &forces, &params, &sim)?;
-    let contour_skill = skill(contour.mean_px, tracking.still.mean_px);
-    tracking.model = Some(contour.clone());
-    out_dir(&a.out)?;
-    write(
-        &a.out.join("frames.csv"),
-        &frames_csv(&prep, &forces, &score, &tracking),
-    )?;
-    write(&a.out.join("video.csv"), &write_video_csv(&prep.video))?;
-    let title = format!(
-        "{} pushed at {}: μ(F) = {:.4}",
-        prep.video.material,
-        prep.video.scenario.site.name(),
-        score.mean_f
-    );
-    write(
-        &a.out.join("snapshots.svg"),
-        &snapshots_svg(
-            &prep,
-            (a.model.nx, a.model.ny),
-            &shots,
-            &score,
-            &tracking,
-            &title,
-        ),
-    )?;
+/// `f_per_frame.svg`: F and μ(F), the contour distances, and the forces
+/// per frame.
+fn f_per_frame_chart(prep: &PreparedVideo, report: &SimulateReport) -> String {
     let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
-    let chart = plot::line_charts(&[
+    let (contour, still) = (&report.contour, &report.tracking.still);
+    plot::line_charts(&[
         Chart {
             title: "F-score per frame".into(),
             x_label: "frame".into(),
             y_label: "F-score".into(),
             series: vec![
-                Series::over("F", "#1f5fbf", false, &t, &score.f_per_frame),
+                Series::over("F", "#1f5fbf", false, &t, &report.f_per_frame),
                 Series::over(
                     "μ(F)",
                     "#d22",
                     true,
                     &t,
-                    &plant_pushing::raster::running_mean(&score.f_per_frame),
+                    &plant_pushing::raster::running_mean(&report.f_per_frame),
                 ),
             ],
         },
@@ -832,14 +969,14 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
                     "#555",
                     false,
                     &t,
-                    &tracking.still.mean_px_per_frame,
+                    &still.mean_px_per_frame,
                 ),
                 Series::over(
                     "undeformed block, max",
                     "#555",
                     true,
                     &t,
-                    &tracking.still.max_px_per_frame,
+                    &still.max_px_per_frame,
                 ),
             ],
         },
@@ -849,373 +986,122 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
             y_label: "force (N)".into(),
             series: vec![
                 Series::over("sensed", "#555", false, &t, &prep.video.forces_n),
-                Series::over("driving the model", "#e80", true, &t, &forces),
+                Series::over("driving the model", "#e80", true, &t, &report.forces_n),
             ],
         },
-    ]);
-    write(&a.out.join("f_per_frame.svg"), &chart.finish())?;
-    if a.json {
-        JsonObject::new()
-            .field("material", &prep.video.material)?
-            .field("site", prep.video.scenario.site.name())?
-            .field("integrator", sim.integrator.name())?
-            .field("mode", sim.mode.name())?
-            .field("params", &params)?
-            .field("mean_f", &score.mean_f)?
-            .field("still_mean_f", &still_f)?
-            .field("contour_mean_px", &contour.mean_px)?
-            .field("contour_max_px", &contour.max_px)?
-            .field("contour_worst_px", &contour.worst_px)?
-            .field("still_contour_mean_px", &tracking.still.mean_px)?
-            .field("still_contour_max_px", &tracking.still.max_px)?
-            .field("contour_skill", &contour_skill)?
-            .field("contour_mean_px_per_frame", &contour.mean_px_per_frame)?
-            .field("unstable_from_frame", &score.unstable_from_frame)?
-            .field("instability", &instability)?
-            .field("f_per_frame", &score.f_per_frame)?
-            .field("out", &a.out)?
-            .print()?;
-    } else {
-        outln!("{title} (undeformed block: {still_f:.4})");
-        outln!(
-            "contour distance in the finger's reach: {:.2} px mean, {:.2} px max (undeformed block {:.2} / {:.2} px): skill {:.2}",
-            contour.mean_px,
-            contour.max_px,
-            tracking.still.mean_px,
-            tracking.still.max_px,
-            contour_skill
-        );
-        if let Some(what) = &instability {
-            outln!("{what}: scored 0 from there");
-        }
-        outln!(
-            "wrote frames.csv, video.csv, snapshots.svg, f_per_frame.svg to {}",
-            a.out.display()
-        );
-    }
-    Ok(())
+    ])
+    .finish()
 }
 
-/// Most generations `calibrate` runs: the history of every generation is
-/// allocated up front, and at Table III's 30 simulations per generation this
-/// is already hours of work.
-const MAX_GENERATIONS: usize = 10_000;
-
-fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
-    if !(1..=MAX_GENERATIONS).contains(&a.generations) {
-        bail!(
-            "--generations must be 1..={MAX_GENERATIONS} (Table III: 30), got {}",
-            a.generations
-        );
-    }
-    check_out_dir(&a.out)?;
-    let prep = prepare(&a.video, &a.model, a.json)?;
-    let sim = sim_config(&a.model);
-    let mut tracking = Tracking::of(&prep)?;
-    let mut st = EvolutionSettings::table_iii(a.seed);
-    st.generations = a.generations;
-    let bar = indicatif::ProgressBar::new(a.generations as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{prefix} [{bar:30}] {pos}/{len} generations, {msg} ({elapsed})",
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .progress_chars("=> "),
-    );
-    bar.set_prefix("calibrating");
-    let result: CalibrationResult = calibrate(
-        &st,
-        &TABLE_III_RANGES,
-        |p| match a.score {
-            ScoreArg::F => score_run(&prep, &prep.video.forces_n, p, &sim)
-                .map(|s| s.mean_f)
-                .unwrap_or(f64::NAN),
-            ScoreArg::Contour => {
-                score_contour_run(&prep, &tracking.target, &prep.video.forces_n, p, &sim)
-                    .map(|s| -s.mean_px)
-                    .unwrap_or(f64::NAN)
-            }
-        },
-        |g| {
-            bar.set_message(match a.score {
-                ScoreArg::F => format!("best μ(F) {:.4}", g.best),
-                ScoreArg::Contour => format!("best contour distance {:.2} px", -g.best),
-            });
-            bar.inc(1);
-        },
-    )?;
-    bar.finish_and_clear();
-    out_dir(&a.out)?;
-    output::write_json(&a.out.join("params.json"), &result)?;
-    // Generation scores in the score's own terms: μ(F), or the contour
-    // distance in px (the search maximised its negative).
-    let sign = if a.score == ScoreArg::Contour {
-        -1.0
-    } else {
-        1.0
-    };
-    let mut csv = String::from(match a.score {
-        ScoreArg::F => "generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n",
-        ScoreArg::Contour => {
+/// `generations.csv`: each generation's scores in the score's own terms
+/// (μ(F), or the contour distance in px) and σ.
+fn generations_csv(report: &CalibrateReport) -> String {
+    let score = report.score;
+    let mut csv = String::from(match score {
+        ScoreKind::F => "generation,best_mean_f,population_mean_f,worst_mean_f,sigma\n",
+        ScoreKind::Contour => {
             "generation,best_contour_px,population_mean_contour_px,worst_contour_px,sigma\n"
         }
     });
-    for g in &result.history {
+    for g in &report.result.history {
         let _ = writeln!(
             csv,
             "{},{:.6},{:.6},{:.6},{:.2}",
             g.generation,
-            sign * g.best,
-            sign * g.mean,
-            sign * g.worst,
+            score.in_own_terms(g.best),
+            score.in_own_terms(g.mean),
+            score.in_own_terms(g.worst),
             g.sigma
         );
     }
-    write(&a.out.join("generations.csv"), &csv)?;
-    let t: Vec<f64> = result.history.iter().map(|g| g.generation as f64).collect();
-    let best: Vec<f64> = result.history.iter().map(|g| sign * g.best).collect();
-    let mean: Vec<f64> = result.history.iter().map(|g| sign * g.mean).collect();
-    let what = match a.score {
-        ScoreArg::F => "μ(F)",
-        ScoreArg::Contour => "contour distance (px)",
+    csv
+}
+
+/// `mu_per_generation.svg`: the best and the population's mean per
+/// generation.
+fn generations_chart(report: &CalibrateReport) -> String {
+    let history = &report.result.history;
+    let t: Vec<f64> = history.iter().map(|g| g.generation as f64).collect();
+    let mean: Vec<f64> = history
+        .iter()
+        .map(|g| report.score.in_own_terms(g.mean))
+        .collect();
+    let what = match report.score {
+        ScoreKind::F => "μ(F)",
+        ScoreKind::Contour => "contour distance (px)",
     };
-    let chart = plot::line_charts(&[Chart {
+    plot::line_charts(&[Chart {
         title: format!(
             "{what} per generation, {} at {}",
-            prep.video.material,
-            prep.video.scenario.site.name()
+            report.material, report.site
         ),
         x_label: "generation".into(),
         y_label: what.into(),
         series: vec![
-            Series::over("best", "#1f5fbf", false, &t, &best),
+            Series::over("best", "#1f5fbf", false, &t, &report.best_per_generation),
             Series::over("population mean", "#e80", true, &t, &mean),
         ],
-    }]);
-    write(&a.out.join("mu_per_generation.svg"), &chart.finish())?;
-    let score = score_run(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
-    let contour = score_contour_run(
-        &prep,
-        &tracking.target,
-        &prep.video.forces_n,
-        &result.best_params,
-        &sim,
-    )?;
-    let still_f = score_run(
-        &prep,
-        &vec![0.0; prep.frame_count()],
-        &result.best_params,
-        &still_config(&sim),
-    )?
-    .mean_f;
-    let contour_skill = skill(contour.mean_px, tracking.still.mean_px);
-    tracking.model = Some(contour.clone());
-    let shots = snapshot_positions(&prep, &prep.video.forces_n, &result.best_params, &sim)?;
-    let title = format!(
-        "{} model calibrated by {} on its training push: μ(F) = {:.4}, contour distance {:.2} px",
-        prep.video.material,
-        a.score.name(),
-        score.mean_f,
-        contour.mean_px
-    );
-    write(
-        &a.out.join("snapshots.svg"),
-        &snapshots_svg(
-            &prep,
-            (a.model.nx, a.model.ny),
-            &shots,
-            &score,
-            &tracking,
-            &title,
-        ),
-    )?;
-    if a.json {
-        JsonObject::new()
-            .field("material", &prep.video.material)?
-            .field("site", prep.video.scenario.site.name())?
-            .field("integrator", sim.integrator.name())?
-            .field("mode", sim.mode.name())?
-            .field("score", a.score.name())?
-            .field("best_params", &result.best_params)?
-            .field("best_mean_f", &score.mean_f)?
-            .field("still_mean_f", &still_f)?
-            .field("best_contour_mean_px", &contour.mean_px)?
-            .field("best_contour_max_px", &contour.max_px)?
-            .field("still_contour_mean_px", &tracking.still.mean_px)?
-            .field("contour_skill", &contour_skill)?
-            .field("evaluations", &result.evaluations)?
-            .field("best_per_generation", &best)?
-            .field("out", &a.out)?
-            .print()?;
-    } else {
-        outln!(
-            "calibrated by {}: μ(F) {:.4} (undeformed block {:.4}), contour distance {:.2} px (undeformed block {:.2} px, skill {:.2}) after {} generations ({} simulations)",
-            a.score.name(),
-            score.mean_f,
-            still_f,
-            contour.mean_px,
-            tracking.still.mean_px,
-            contour_skill,
-            result.history.len(),
-            result.evaluations
-        );
-        outln!("{}", result.best_params);
-        outln!(
-            "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
-            a.out.display()
-        );
-    }
-    Ok(())
+    }])
+    .finish()
 }
 
-fn parse_model(spec: &str) -> Result<MaterialModel> {
-    let Some((label, path)) = spec.split_once('=') else {
-        bail!("--model `{spec}`: expected LABEL=PARAMS.json");
+/// `classification.csv`: each model's value per frame and the frame's
+/// winner.
+fn classification_csv(report: &ClassifyReport) -> String {
+    let (prefix, digits) = match report.score {
+        ScoreKind::F => ("f", 5),
+        ScoreKind::Contour => ("d_px", 3),
     };
-    if label.trim().is_empty() {
-        bail!("--model `{spec}`: the label is empty");
-    }
-    // The label becomes a CSV column name (`f_LABEL`) and a legend entry.
-    if label.contains([',', '"', '\n', '\r']) {
-        bail!("--model `{spec}`: the label may not contain a comma, a quote or a line break");
-    }
-    Ok(MaterialModel {
-        label: label.trim().to_string(),
-        params: load_params(Path::new(path.trim()))?,
-    })
-}
-
-fn classify_cmd(a: ClassifyArgs) -> Result<()> {
-    let models: Vec<MaterialModel> = a
-        .models
-        .iter()
-        .map(|s| parse_model(s))
-        .collect::<Result<_>>()?;
-    if models.len() < 2 {
-        bail!("classification needs at least two --model LABEL=PARAMS.json");
-    }
-    for (k, m) in models.iter().enumerate() {
-        if models[..k].iter().any(|o| o.label == m.label) {
-            bail!(
-                "--model: the label `{}` is given twice; the results could not be told apart",
-                m.label
-            );
-        }
-    }
-    check_out_dir(&a.out)?;
-    let prep = prepare(&a.video, &a.model, a.json)?;
-    let sim = sim_config(&a.model);
-    // Per-frame values (F, or contour distance in px) and the tally.
-    let (per_frame, tally, labels) = match a.score {
-        ScoreArg::F => {
-            let c = classify(&prep, &prep.video.forces_n, &models, &sim)?;
-            let tally = Tally {
-                frame_winner: c.frame_winner,
-                frames_won: c.frames_won,
-                vote: c.vote,
-                winner: c.winner,
-                leaders: c.leaders,
-            };
-            (c.f_per_frame, tally, c.labels)
-        }
-        ScoreArg::Contour => {
-            let tracking = Tracking::of(&prep)?;
-            let c =
-                classify_by_contour(&prep, &tracking.target, &prep.video.forces_n, &models, &sim)?;
-            (c.mean_px_per_frame, c.tally, c.labels)
-        }
-    };
-    let winner = tally.winner.map(|k| labels[k].as_str());
-    let verdict = tally.verdict(&labels);
-    let (prefix, y_label, digits) = match a.score {
-        ScoreArg::F => ("f", "F-score", 5),
-        ScoreArg::Contour => (
-            "d_px",
-            "mean contour distance in the finger's reach (px)",
-            3,
-        ),
-    };
-    out_dir(&a.out)?;
     let mut csv = String::from("frame");
-    for m in &models {
-        let _ = write!(csv, ",{prefix}_{}", m.label);
+    for label in &report.labels {
+        let _ = write!(csv, ",{prefix}_{label}");
     }
     csv.push_str(",winner\n");
-    for f in 0..prep.frame_count() {
+    for (f, winner) in report.frame_winner.iter().enumerate() {
         let _ = write!(csv, "{f}");
-        for values in &per_frame {
+        for values in &report.per_frame {
             let _ = write!(csv, ",{:.digits$}", values[f]);
         }
         let _ = writeln!(
             csv,
             ",{}",
-            tally.frame_winner[f]
-                .map(|k| labels[k].as_str())
-                .unwrap_or("tie")
+            winner.map(|k| report.labels[k].as_str()).unwrap_or("tie")
         );
     }
-    write(&a.out.join("classification.csv"), &csv)?;
+    csv
+}
+
+/// `classification.svg`: each model's value per frame.
+fn classification_chart(report: &ClassifyReport) -> String {
     const COLOURS: [&str; 6] = ["#1f5fbf", "#d22", "#2a2", "#e80", "#808", "#555"];
-    let t: Vec<f64> = (0..prep.frame_count()).map(|f| f as f64).collect();
-    let chart = plot::line_charts(&[Chart {
-        title: format!("{y_label} per frame of each model — global vote: {verdict}"),
+    let y_label = match report.score {
+        ScoreKind::F => "F-score",
+        ScoreKind::Contour => "mean contour distance in the finger's reach (px)",
+    };
+    let t: Vec<f64> = (0..report.frame_winner.len()).map(|f| f as f64).collect();
+    plot::line_charts(&[Chart {
+        title: format!(
+            "{y_label} per frame of each model — global vote: {}",
+            report.verdict()
+        ),
         x_label: "frame".into(),
         y_label: y_label.into(),
-        series: models
+        series: report
+            .labels
             .iter()
             .enumerate()
-            .map(|(k, m)| {
+            .map(|(k, label)| {
                 Series::over(
-                    m.label.clone(),
+                    label.clone(),
                     COLOURS[k % COLOURS.len()],
                     k % 2 == 1,
                     &t,
-                    &per_frame[k],
+                    &report.per_frame[k],
                 )
             })
             .collect(),
-    }]);
-    write(&a.out.join("classification.svg"), &chart.finish())?;
-    if a.json {
-        JsonObject::new()
-            .field("video_material", &prep.video.material)?
-            .field("site", prep.video.scenario.site.name())?
-            .field("score", a.score.name())?
-            .field("winner", &winner)?
-            .field("tie", &winner.is_none())?
-            .field(
-                "leaders",
-                &tally
-                    .leaders
-                    .iter()
-                    .map(|&k| &labels[k])
-                    .collect::<Vec<_>>(),
-            )?
-            .field("labels", &labels)?
-            .field("frames_won", &tally.frames_won)?
-            .field("vote", &tally.vote)?
-            .field("out", &a.out)?
-            .print()?;
-    } else {
-        outln!("global vote by {}: {verdict}", a.score.name());
-        for (k, l) in labels.iter().enumerate() {
-            outln!(
-                "  {l:>12}: {} frames won, weighted vote {:+.4}{}",
-                tally.frames_won[k],
-                tally.vote[k],
-                if a.score == ScoreArg::Contour {
-                    " px"
-                } else {
-                    ""
-                }
-            );
-        }
-        outln!(
-            "wrote classification.csv, classification.svg to {}",
-            a.out.display()
-        );
-    }
-    Ok(())
+    }])
+    .finish()
 }
 
 #[cfg(test)]

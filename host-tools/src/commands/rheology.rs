@@ -13,27 +13,30 @@
 //! handling, files, pictures and reports.
 use std::fmt::Write as _;
 use std::fs;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
-use host_tools::{out, outln};
+use host_tools::{out, outln, progress};
+use indicatif::ProgressBar;
 use plant_rheology::contact::ContactParams;
-use plant_rheology::identify::calibrate::{calibrate, CalibrationSettings, Problem};
+use plant_rheology::identify::calibrate::CalibrationSettings;
+use plant_rheology::identify::experiment::{
+    self, CalibrationReport, CalibrationSpec, Event, LatticePush, ReferencePush, ScoreSummary,
+    UnseenPush,
+};
 use plant_rheology::identify::ga::GaSettings;
 use plant_rheology::identify::measurement::Measurement;
-use plant_rheology::identify::objective::{score, Score};
 use plant_rheology::identify::ra::RaSettings;
-use plant_rheology::identify::reference::{record_push, ReferenceConfig};
-use plant_rheology::identify::search::{Budget, Method, Progress};
+use plant_rheology::identify::reference::ReferenceConfig;
+use plant_rheology::identify::search::{Budget, HistoryRow, Method};
 use plant_rheology::lattice::{mid_section, surface_nodes, V3};
 use plant_rheology::params::{LatticeParams, ParamSet};
 use plant_rheology::scenario::{
-    lattice_sim, push_schedule_mm, BlockSpec, Frame, MeasureSpec, ModelSpec, Objective, ParamsSpec,
-    PlateSpec, Run, Scenario,
+    push_schedule_mm, BlockSpec, Frame, MeasureSpec, ModelSpec, Objective, ParamsSpec, PlateSpec,
+    Run, Scenario,
 };
 use serde::{Deserialize, Serialize};
 
@@ -213,6 +216,256 @@ pub fn run(args: RheologyArgs) -> Result<()> {
     }
 }
 
+fn simulate_cmd(a: SimulateArgs) -> Result<()> {
+    if a.print_default {
+        return print_default();
+    }
+    let mut file = ScenarioFile::load(a.scenario.as_deref())?;
+    if let Some(p) = &a.params {
+        file.model.params = params_spec(&load_params(p)?);
+    }
+    let sc = file.scenario();
+    sc.validate()?;
+    let sections = a.section_times.clone().unwrap_or_else(|| {
+        let mut t = vec![0.0];
+        t.extend(&sc.measure.frame_times_s);
+        t
+    });
+    check_times("--section-times", &sections, sc.plate.end_s)?;
+    if sections.is_empty() || sections.len() > 12 {
+        bail!("--section-times: give 1 to 12 times");
+    }
+    output::create_dir(&a.out)?;
+    match a.model {
+        ModelArg::Reference => {
+            if a.measured.is_some() || a.params.is_some() {
+                bail!("--measured and --params apply to the lattice, not to --model reference");
+            }
+            simulate_reference(&a, &sc, &file.reference, &sections)
+        }
+        ModelArg::Lattice => simulate_lattice(&a, &sc, &sections),
+    }
+}
+
+/// `simulate --print-default`: the built-in scenario with the paper's
+/// push and parameters written out.
+fn print_default() -> Result<()> {
+    let mut d = ScenarioFile::default();
+    d.plate.depth_mm = Some(push_schedule_mm(15.0, 1.0));
+    d.model.params.all = Some(plant_rheology::params::ElementParams::PAPER_DEFAULT);
+    out!("{}", toml::to_string(&d)?);
+    Ok(())
+}
+
+fn simulate_reference(
+    a: &SimulateArgs,
+    sc: &Scenario,
+    cfg: &ReferenceConfig,
+    sections: &[f64],
+) -> Result<()> {
+    let push = experiment::push_reference(sc, cfg, sections)?;
+    write_reference(&a.out, sc, &push, sections)?;
+    if a.json {
+        return JsonObject::of(&push)?.field("out", &a.out)?.print();
+    }
+    outln!(
+        "reference block {}×{}×{} cubes: {} steps, peak force {:.1} N, {} surface points in {} frames",
+        push.cells[0],
+        push.cells[1],
+        push.cells[2],
+        push.steps,
+        push.peak_force_n,
+        push.measurement.point_count(),
+        push.measurement.frames.len()
+    );
+    outln!(
+        "wrote forces.csv, surface_points.csv (a measured push for `calibrate --measured`), sections.svg, force.svg to {}",
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result<()> {
+    let measured = a.measured.as_deref().map(load_measurement).transpose()?;
+    if let Some(m) = &measured {
+        check_times("measured frame", &m.frame_times_s(), sc.plate.end_s)?;
+    }
+    let push = experiment::push_lattice(sc, measured.as_ref(), sections)?;
+    let nodes = push.lattice.nodes;
+    let title = format!(
+        "lattice {}×{}×{}, model {} ({} volume condition)",
+        nodes[0],
+        nodes[1],
+        nodes[2],
+        sc.model.volume.model_number(),
+        sc.model.volume.name()
+    );
+    write_lattice(&a.out, sc, &push, measured.as_ref(), sections, &title)?;
+    if a.json {
+        JsonObject::of(&push)?.field("out", &a.out)?.print()?;
+    } else {
+        outln!("{title}: {} steps in {:.2} s", push.steps, push.wall_s);
+        if let Some(e) = &push.instability {
+            outln!("UNSTABLE: {e}; the files stop there");
+        }
+        outln!(
+            "peak force {:.1} N, volume at the end {:.2} % of rest",
+            push.peak_force_n,
+            100.0 * push.final_volume_ratio.unwrap_or(f64::NAN)
+        );
+        if let Some(s) = &push.score {
+            outln!("{}", score_text(s));
+        }
+        outln!(
+            "wrote forces.csv, surface_points.csv, sections.svg, force.svg to {}",
+            a.out.display()
+        );
+    }
+    if let Some(e) = &push.run.instability {
+        return Err(anyhow::anyhow!("the lattice became {e}"));
+    }
+    Ok(())
+}
+
+fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    let file = ScenarioFile::load(a.scenario.as_deref())?;
+    let scenario = file.scenario();
+    let set = ParamSet::from_count(a.params).map_err(|e| anyhow::anyhow!("--params: {e}"))?;
+    let budget = budget(&a)?;
+    let unseen = unseen_push(&a, &scenario)?;
+    let measured = a.measured.as_deref().map(load_measurement).transpose()?;
+    let mut settings = CalibrationSettings::new(a.method.into(), budget, a.seed);
+    settings.ga = file.ga;
+    settings.ra = file.ra;
+    let spec = CalibrationSpec {
+        scenario,
+        reference: file.reference,
+        measured,
+        set,
+        settings,
+        unseen,
+    };
+    let mut watch = Watch {
+        prefix: format!("{} ({} params)", settings.method.name(), set.len()),
+        simulations: budget.max_evaluations.map(|n| n as u64),
+        json: a.json,
+        counter: None,
+    };
+    let report = experiment::calibrate_push(&spec, &mut |e| watch.event(e))?;
+    watch.finish();
+    write_calibration(&a.out, &spec, &report)?;
+    if a.json {
+        return JsonObject::of(&report)?.field("out", &a.out)?.print();
+    }
+    outln!(
+        "{} on {} parameters: {} simulations in {:.1} s ({} unstable), stopped by {}",
+        report.method.name(),
+        report.params,
+        report.evaluations,
+        report.elapsed_s,
+        report.unstable,
+        report.stopped_by
+    );
+    outln!("defaults:   {}", score_text(&report.default));
+    outln!("calibrated: {}", score_text(&report.calibrated));
+    for (r, g) in set.ranges().iter().zip(&report.search.best_genes) {
+        outln!("  {:<28} {:>12.4}   (range {}–{})", r.name, g, r.min, r.max);
+    }
+    if let Some(v) = &report.validation {
+        outln!("unseen push ({} mm over {} s):", v.depth_mm, v.push_s);
+        outln!("  defaults:   {}", score_text(&v.default));
+        outln!("  calibrated: {}", score_text(&v.calibrated));
+    }
+    outln!(
+        "wrote params.toml, generations.csv, s_per_generation.svg, force.svg, sections.svg to {}",
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// The search's budget from `--evaluations` and `--seconds` (1000
+/// simulations when neither is given).
+fn budget(a: &CalibrateArgs) -> Result<Budget> {
+    if let Some(n) = a.evaluations {
+        if n == 0 || n > 10_000_000 {
+            bail!("--evaluations must be 1..=10000000, got {n}");
+        }
+    }
+    if let Some(s) = a.seconds {
+        if !(s.is_finite() && s > 0.0) {
+            bail!("--seconds must be a number of seconds > 0, got {s}");
+        }
+    }
+    Ok(Budget {
+        max_evaluations: a.evaluations.or(if a.seconds.is_none() {
+            Some(1000)
+        } else {
+            None
+        }),
+        max_seconds: a.seconds,
+    })
+}
+
+/// The push to check the result on, from `--validate-depth-mm` and
+/// `--validate-push-s` (15 mm over 1 s for the one not given).
+fn unseen_push(a: &CalibrateArgs, sc: &Scenario) -> Result<Option<UnseenPush>> {
+    if a.measured.is_some() && (a.validate_depth_mm.is_some() || a.validate_push_s.is_some()) {
+        bail!("--validate-depth-mm/--validate-push-s push the reference block; they need a generated measurement (no --measured)");
+    }
+    if a.validate_depth_mm.is_none() && a.validate_push_s.is_none() {
+        return Ok(None);
+    }
+    let depth = a.validate_depth_mm.unwrap_or(15.0);
+    let push = a.validate_push_s.unwrap_or(1.0);
+    if !(depth > 0.0 && depth < sc.block.size_cm[1] * 10.0) {
+        bail!("--validate-depth-mm must be between 0 and the block's height, got {depth}");
+    }
+    if !(push > 0.0 && 4.0 * push <= sc.plate.end_s) {
+        bail!(
+            "--validate-push-s must be > 0 with the push, hold and release (4× it) inside plate.end_s = {} s, got {push}",
+            sc.plate.end_s
+        );
+    }
+    Ok(Some(UnseenPush {
+        depth_mm: depth,
+        push_s: push,
+    }))
+}
+
+/// The calibration's progress on stderr: a note for each push of the
+/// reference block, a counter of simulations during the search.
+struct Watch {
+    prefix: String,
+    /// The budget in simulations, if it has one.
+    simulations: Option<u64>,
+    json: bool,
+    counter: Option<ProgressBar>,
+}
+
+impl Watch {
+    fn event(&mut self, e: Event) {
+        match e {
+            Event::Phase(what) => {
+                self.finish();
+                progress::note(what, self.json);
+            }
+            Event::Search(p) => {
+                let counter = self.counter.get_or_insert_with(|| {
+                    progress::counter(&self.prefix, "simulations", self.simulations, self.json)
+                });
+                counter.set_position(p.evaluations as u64);
+                counter.set_message(format!("best S {:.2}", p.best_s));
+            }
+        }
+    }
+
+    fn finish(&mut self) {
+        if let Some(counter) = self.counter.take() {
+            counter.finish_and_clear();
+        }
+    }
+}
+
 /// Writes a CSV or SVG result through the checked writer (no non-finite
 /// number, atomic).
 fn write(path: &Path, text: &str) -> Result<()> {
@@ -263,12 +516,183 @@ fn check_times(name: &str, times: &[f64], end_s: f64) -> Result<()> {
     Ok(())
 }
 
-/// Sorted, distinct times.
-fn merge_times(a: &[f64], b: &[f64]) -> Vec<f64> {
-    let mut t: Vec<f64> = a.iter().chain(b).copied().collect();
-    t.sort_by(f64::total_cmp);
-    t.dedup();
-    t
+/// The reference push's files: forces.csv, surface_points.csv,
+/// sections.svg, force.svg.
+fn write_reference(
+    out: &Path,
+    sc: &Scenario,
+    push: &ReferencePush,
+    sections: &[f64],
+) -> Result<()> {
+    let r = &push.run;
+    write(
+        &out.join("forces.csv"),
+        &forces_csv(&r.t_s, &push.depth_m, &push.force_n, &r.volume_m3),
+    )?;
+    write(
+        &out.join("surface_points.csv"),
+        &push.measurement.points_csv(),
+    )?;
+    let shots = section_shots(&r.frames, r.nodes, Some(sections));
+    let svg = sections_svg(
+        sc,
+        r.nodes,
+        &shots,
+        Some(&r.measurement),
+        "reference block (continuum FEM, hidden material)",
+    );
+    write(&out.join("sections.svg"), &svg)?;
+    let volume: Vec<f64> = r.volume_m3.iter().map(|v| v / r.volume0_m3).collect();
+    let chart = force_chart(
+        "Reference block: plate force (as measured, with sensor noise)",
+        &[("reference, measured", "#555", false, &r.t_s, &push.force_n)],
+        &[("reference", "#555", &r.t_s, &volume)],
+    );
+    write(&out.join("force.svg"), &chart)
+}
+
+/// The lattice push's files: forces.csv, surface_points.csv,
+/// sections.svg, force.svg.
+fn write_lattice(
+    out: &Path,
+    sc: &Scenario,
+    push: &LatticePush,
+    measured: Option<&Measurement>,
+    sections: &[f64],
+    title: &str,
+) -> Result<()> {
+    let r = &push.run;
+    write(
+        &out.join("forces.csv"),
+        &forces_csv(&r.t_s, &r.plate_depth_m, &r.plate_force_n, &r.volume_m3),
+    )?;
+    write(
+        &out.join("surface_points.csv"),
+        &lattice_points_csv(sc, push),
+    )?;
+    let nodes = push.lattice.nodes;
+    let shots = section_shots(&r.frames, nodes, Some(sections));
+    write(
+        &out.join("sections.svg"),
+        &sections_svg(sc, nodes, &shots, measured, title),
+    )?;
+    let mt: Vec<f64>;
+    let mf: Vec<f64>;
+    let mut series: Vec<ForceSeries> =
+        vec![("lattice", "#1f5fbf", false, &r.t_s, &r.plate_force_n)];
+    if let Some(m) = measured {
+        mt = m.forces.iter().map(|f| f.t_s).collect();
+        mf = m.forces.iter().map(|f| f.force_n).collect();
+        series.insert(0, ("measured", "#555", false, &mt, &mf));
+    }
+    write(
+        &out.join("force.svg"),
+        &force_chart(
+            &format!("Plate force: {title}"),
+            &series,
+            &[("lattice", "#1f5fbf", &r.t_s, &push.volume_ratio)],
+        ),
+    )
+}
+
+/// The lattice's own surface masses at the scenario's frames, in the
+/// measurement format (a twin experiment can calibrate against them).
+fn lattice_points_csv(sc: &Scenario, push: &LatticePush) -> String {
+    let nodes = surface_nodes(&push.lattice.surface);
+    let mut pts = String::from("frame,time_s,x_cm,y_cm,z_cm\n");
+    let mut k = 0;
+    for f in &push.run.frames {
+        if sc.measure.frame_times_s.contains(&f.t_s) {
+            for &n in &nodes {
+                let p = f.positions_m[n] * 100.0;
+                let _ = writeln!(pts, "{k},{},{:.5},{:.5},{:.5}", f.t_s, p.x, p.y, p.z);
+            }
+            k += 1;
+        }
+    }
+    pts
+}
+
+/// The calibration's files: params.toml, generations.csv,
+/// s_per_generation.svg, force.svg, sections.svg.
+fn write_calibration(out: &Path, spec: &CalibrationSpec, report: &CalibrationReport) -> Result<()> {
+    output::create_dir(out)?;
+    output::write_toml(
+        &out.join("params.toml"),
+        "# Calibrated rheology parameters (softjoint rheology calibrate); `simulate --params` reads them.\n",
+        &params_spec(&report.best_params),
+    )?;
+    write(
+        &out.join("generations.csv"),
+        &generations_csv(&report.search.history),
+    )?;
+    write(
+        &out.join("s_per_generation.svg"),
+        &s_chart(
+            &report.search.history,
+            &format!(
+                "S per generation: {} on {} parameters ({} simulations)",
+                report.method.name(),
+                report.params,
+                report.evaluations
+            ),
+        ),
+    )?;
+    write(&out.join("force.svg"), &calibration_force_chart(report))?;
+    let problem = &report.problem;
+    let shots = section_shots(&report.calibrated_run.frames, problem.lattice().nodes, None);
+    write(
+        &out.join("sections.svg"),
+        &sections_svg(
+            &spec.scenario,
+            problem.lattice().nodes,
+            &shots,
+            Some(&problem.measurement),
+            "calibrated lattice and the measured points",
+        ),
+    )
+}
+
+/// `generations.csv`: one row per generation (or RA cycle).
+fn generations_csv(history: &[HistoryRow]) -> String {
+    let mut csv =
+        String::from("generation,evaluations,best_s,batch_best_s,batch_mean_s,elapsed_s\n");
+    for h in history {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{:.3}",
+            h.generation,
+            h.evaluations,
+            csv_number(h.best_s),
+            csv_number(h.batch_best_s),
+            csv_number(h.batch_mean_s),
+            h.elapsed_s
+        );
+    }
+    csv
+}
+
+/// The calibration's `force.svg`: the measured force, the lattice with
+/// the defaults and calibrated.
+fn calibration_force_chart(report: &CalibrationReport) -> String {
+    let forces = &report.problem.measurement.forces;
+    let mt: Vec<f64> = forces.iter().map(|f| f.t_s).collect();
+    let mf: Vec<f64> = forces.iter().map(|f| f.force_n).collect();
+    let (dr, br) = (&report.default_run, &report.calibrated_run);
+    let vol = |r: &Run| -> Vec<f64> { r.volume_m3.iter().map(|v| v / r.volume0_m3).collect() };
+    let (vd, vb) = (vol(dr), vol(br));
+    force_chart(
+        "Plate force: measured, lattice with the defaults, calibrated lattice",
+        &[
+            ("measured", "#555", false, &mt, &mf),
+            ("defaults", "#e80", true, &dr.t_s, &dr.plate_force_n),
+            ("calibrated", "#1f5fbf", false, &br.t_s, &br.plate_force_n),
+        ],
+        &[
+            ("defaults", "#e80", &dr.t_s, &vd),
+            ("calibrated", "#1f5fbf", &br.t_s, &vb),
+        ],
+    )
 }
 
 /// `forces.csv`: one row per step.
@@ -287,343 +711,32 @@ fn forces_csv(t: &[f64], depth_m: &[f64], force_n: &[f64], volume_m3: &[f64]) ->
     s
 }
 
-fn simulate_cmd(a: SimulateArgs) -> Result<()> {
-    if a.print_default {
-        let mut d = ScenarioFile::default();
-        d.plate.depth_mm = Some(push_schedule_mm(15.0, 1.0));
-        d.model.params.all = Some(plant_rheology::params::ElementParams::PAPER_DEFAULT);
-        out!("{}", toml::to_string(&d)?);
-        return Ok(());
-    }
-    let mut file = ScenarioFile::load(a.scenario.as_deref())?;
-    if let Some(p) = &a.params {
-        let params = load_params(p)?;
-        file.model.params = ParamsSpec {
-            all: None,
-            surface_on: Some(params.surface_on),
-            surface_in: Some(params.surface_in),
-            core_on: Some(params.core_on),
-            core_in: Some(params.core_in),
-        };
-    }
-    let sc = file.scenario();
-    sc.validate()?;
-    let sections = a.section_times.clone().unwrap_or_else(|| {
-        let mut t = vec![0.0];
-        t.extend(&sc.measure.frame_times_s);
-        t
-    });
-    check_times("--section-times", &sections, sc.plate.end_s)?;
-    if sections.is_empty() || sections.len() > 12 {
-        bail!("--section-times: give 1 to 12 times");
-    }
-    output::create_dir(&a.out)?;
-    match a.model {
-        ModelArg::Reference => {
-            if a.measured.is_some() || a.params.is_some() {
-                bail!("--measured and --params apply to the lattice, not to --model reference");
-            }
-            simulate_reference(&a, &sc, &file.reference, &sections)
-        }
-        ModelArg::Lattice => simulate_lattice(&a, &sc, &sections),
-    }
-}
-
-fn simulate_reference(
-    a: &SimulateArgs,
-    sc: &Scenario,
-    cfg: &ReferenceConfig,
-    sections: &[f64],
-) -> Result<()> {
-    let mut sc2 = sc.clone();
-    sc2.measure.frame_times_s = merge_times(&sc.measure.frame_times_s, sections);
-    let r = record_push(&sc2, cfg)?;
-    // The measurement keeps only the scenario's frames.
-    let mut m = r.measurement.clone();
-    m.frames
-        .retain(|f| sc.measure.frame_times_s.contains(&f.t_s));
-    let top = sc.size_m()[1];
-    let plate = sc.plate()?;
-    let depth: Vec<f64> = r
-        .t_s
-        .iter()
-        .map(|&t| plate.face_y_m(t).map(|f| top - f).unwrap_or(0.0))
-        .collect();
-    let measured_force: Vec<f64> = m.forces.iter().map(|f| f.force_n).collect();
-    write(
-        &a.out.join("forces.csv"),
-        &forces_csv(&r.t_s, &depth, &measured_force, &r.volume_m3),
-    )?;
-    write(&a.out.join("surface_points.csv"), &m.points_csv())?;
-    let shots = section_shots(&r.frames, r.nodes, Some(sections));
-    let all_points = r.measurement.clone();
-    let svg = sections_svg(
-        sc,
-        r.nodes,
-        &shots,
-        Some(&all_points),
-        "reference block (continuum FEM, hidden material)",
-    );
-    write(&a.out.join("sections.svg"), &svg)?;
-    let chart = force_chart(
-        "Reference block: plate force (as measured, with sensor noise)",
-        &[(
-            "reference, measured",
-            "#555",
-            false,
-            &r.t_s,
-            &measured_force,
-        )],
-        &[(
-            "reference",
-            "#555",
-            &r.t_s,
-            &r.volume_m3
-                .iter()
-                .map(|v| v / r.volume0_m3)
-                .collect::<Vec<_>>(),
-        )],
-    );
-    write(&a.out.join("force.svg"), &chart)?;
-    let peak = measured_force
-        .iter()
-        .copied()
-        .fold(f64::NEG_INFINITY, f64::max);
-    if a.json {
-        let frames: Vec<FrameJson> = m
-            .frames
-            .iter()
-            .map(|f| FrameJson {
-                time_s: f.t_s,
-                points: f.points_m.len(),
-            })
-            .collect();
-        JsonObject::new()
-            .field("model", "reference")?
-            .field("cells", &cfg.cells)?
-            .field("steps", &r.t_s.len())?
-            .field("peak_force_n", &peak)?
-            .field(
-                "final_volume_ratio",
-                &r.volume_m3.last().map(|v| v / r.volume0_m3),
-            )?
-            .field("frames", &frames)?
-            .field("out", &a.out)?
-            .print()?;
-    } else {
-        outln!(
-            "reference block {}×{}×{} cubes: {} steps, peak force {:.1} N, {} surface points in {} frames",
-            cfg.cells[0],
-            cfg.cells[1],
-            cfg.cells[2],
-            r.t_s.len(),
-            peak,
-            m.point_count(),
-            m.frames.len()
-        );
-        outln!(
-            "wrote forces.csv, surface_points.csv (a measured push for `calibrate --measured`), sections.svg, force.svg to {}",
-            a.out.display()
-        );
-    }
-    Ok(())
-}
-
-fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result<()> {
-    let measured = a.measured.as_deref().map(load_measurement).transpose()?;
-    let lattice = sc.lattice()?;
-    let params = sc.model.params.resolve()?;
-    let mut frame_times = merge_times(&sc.measure.frame_times_s, sections);
-    if let Some(m) = &measured {
-        check_times("measured frame", &m.frame_times_s(), sc.plate.end_s)?;
-        frame_times = merge_times(&frame_times, &m.frame_times_s());
-    }
-    let mut sim = lattice_sim(sc, &lattice, &params)?;
-    let started = std::time::Instant::now();
-    let r = plant_rheology::scenario::run(&mut sim, sc.plate.end_s, &frame_times);
-    let wall_s = started.elapsed().as_secs_f64();
-    write(
-        &a.out.join("forces.csv"),
-        &forces_csv(&r.t_s, &r.plate_depth_m, &r.plate_force_n, &r.volume_m3),
-    )?;
-    // The lattice's own surface masses at the scenario's frames, in the
-    // measurement format (a twin experiment can calibrate against them).
-    let nodes = surface_nodes(&lattice.surface);
-    let mut pts = String::from("frame,time_s,x_cm,y_cm,z_cm\n");
-    let mut k = 0;
-    for f in &r.frames {
-        if sc.measure.frame_times_s.contains(&f.t_s) {
-            for &n in &nodes {
-                let p = f.positions_m[n] * 100.0;
-                let _ = writeln!(pts, "{k},{},{:.5},{:.5},{:.5}", f.t_s, p.x, p.y, p.z);
-            }
-            k += 1;
-        }
-    }
-    write(&a.out.join("surface_points.csv"), &pts)?;
-    let shots = section_shots(&r.frames, lattice.nodes, Some(sections));
-    let title = format!(
-        "lattice {}×{}×{}, model {} ({} volume condition)",
-        lattice.nodes[0],
-        lattice.nodes[1],
-        lattice.nodes[2],
-        sc.model.volume.model_number(),
-        sc.model.volume.name()
-    );
-    write(
-        &a.out.join("sections.svg"),
-        &sections_svg(sc, lattice.nodes, &shots, measured.as_ref(), &title),
-    )?;
-    let mt: Vec<f64>;
-    let mf: Vec<f64>;
-    let mut series: Vec<ForceSeries> =
-        vec![("lattice", "#1f5fbf", false, &r.t_s, &r.plate_force_n)];
-    if let Some(m) = &measured {
-        mt = m.forces.iter().map(|f| f.t_s).collect();
-        mf = m.forces.iter().map(|f| f.force_n).collect();
-        series.insert(0, ("measured", "#555", false, &mt, &mf));
-    }
-    let vol: Vec<f64> = r.volume_m3.iter().map(|v| v / r.volume0_m3).collect();
-    write(
-        &a.out.join("force.svg"),
-        &force_chart(
-            &format!("Plate force: {title}"),
-            &series,
-            &[("lattice", "#1f5fbf", &r.t_s, &vol)],
-        ),
-    )?;
-    let s = measured.as_ref().map(|m| {
-        score(
-            &lattice.surface,
-            &r,
-            m,
-            &sc.objective,
-            sc.measure.force_window_s,
-        )
-    });
-    let peak = r
-        .plate_force_n
-        .iter()
-        .copied()
-        .fold(f64::NEG_INFINITY, f64::max);
-    let instability = r.instability.as_ref().map(|e| e.to_string());
-    if a.json {
-        JsonObject::new()
-            .field("model", "lattice")?
-            .field("grid", &lattice.nodes)?
-            .field("masses", &lattice.masses())?
-            .field("elements", &lattice.elements.len())?
-            .field("volume_condition", sc.model.volume.name())?
-            .field("integrator", sc.model.integrator.name())?
-            .field("dt_ms", &sc.model.dt_ms)?
-            .field("steps", &r.t_s.len())?
-            .field("solver_iterations", &r.iterations)?
-            .field("wall_s", &wall_s)?
-            .field("peak_force_n", &finite(peak))?
-            .field("final_volume_ratio", &vol.last().copied().and_then(finite))?
-            .field("instability", &instability)?
-            .field("score", &s.map(score_json))?
-            .field("out", &a.out)?
-            .print()?;
-    } else {
-        outln!("{title}: {} steps in {:.2} s", r.t_s.len(), wall_s);
-        if let Some(e) = &instability {
-            outln!("UNSTABLE: {e}; the files stop there");
-        }
-        outln!(
-            "peak force {:.1} N, volume at the end {:.2} % of rest",
-            peak,
-            100.0 * vol.last().copied().unwrap_or(f64::NAN)
-        );
-        if let Some(s) = s {
-            outln!("{}", score_text(&s));
-        }
-        outln!(
-            "wrote forces.csv, surface_points.csv, sections.svg, force.svg to {}",
-            a.out.display()
-        );
-    }
-    if let Some(e) = r.instability {
-        return Err(anyhow::anyhow!("the lattice became {e}"));
-    }
-    Ok(())
-}
-
-fn finite(v: f64) -> Option<f64> {
-    v.is_finite().then_some(v)
-}
-
-/// A frame of a measured push in `--json`.
-#[derive(Serialize)]
-struct FrameJson {
-    time_s: f64,
-    points: usize,
-}
-
-/// S and its parts in `--json` (S null when the run was unstable).
-#[derive(Serialize)]
-struct ScoreJson {
-    s: Option<f64>,
-    shape_cm: f64,
-    force_n: f64,
-    points: usize,
-    force_samples: usize,
-    mean_distance_mm: f64,
-    mean_force_error_n: f64,
-}
-
-fn score_json(s: Score) -> ScoreJson {
-    ScoreJson {
-        s: finite(s.s),
-        shape_cm: s.shape_cm,
-        force_n: s.force_n,
-        points: s.points,
-        force_samples: s.samples,
-        mean_distance_mm: s.mean_distance_mm(),
-        mean_force_error_n: s.mean_force_error_n(),
-    }
-}
-
-/// The check on a push the calibration did not see, in `--json`.
-#[derive(Serialize)]
-struct ValidationJson {
-    depth_mm: f64,
-    push_s: f64,
-    default: ScoreJson,
-    calibrated: ScoreJson,
-}
-
-fn score_text(s: &Score) -> String {
-    if !s.s.is_finite() {
+fn score_text(s: &ScoreSummary) -> String {
+    let Some(total) = s.s else {
         return "S = ∞ (the run was unstable)".into();
-    }
-    let mut t = format!("S = {:.2}", s.s);
+    };
+    let mut t = format!("S = {total:.2}");
     if s.points > 0 {
         let _ = write!(
             t,
             "; shape: {:.2} cm over {} points ({:.3} mm each)",
-            s.shape_cm,
-            s.points,
-            s.mean_distance_mm()
+            s.shape_cm, s.points, s.mean_distance_mm
         );
     }
-    if s.samples > 0 {
+    if s.force_samples > 0 {
         let _ = write!(
             t,
             "; force: {:.1} N over {} samples ({:.2} N each)",
-            s.force_n,
-            s.samples,
-            s.mean_force_error_n()
+            s.force_n, s.force_samples, s.mean_force_error_n
         );
     }
     t
 }
 
-/// Force (and volume) against time.
-#[allow(clippy::type_complexity)]
 /// A force curve: label, colour, dashed, times (s), forces (N).
 type ForceSeries<'a> = (&'a str, &'static str, bool, &'a [f64], &'a [f64]);
 
+/// Force (and volume) against time.
 fn force_chart(
     title: &str,
     force: &[ForceSeries],
@@ -681,7 +794,6 @@ fn sections_svg(
     title: &str,
 ) -> String {
     let size = sc.size_m();
-    let (nx, ny) = (nodes[0], nodes[1]);
     let panel_w = 260.0;
     let margin_m = 0.2 * size[0];
     let scale = panel_w / (size[0] + 2.0 * margin_m);
@@ -700,89 +812,20 @@ fn sections_svg(
         r#"font-weight="bold""#,
         &format!("Cross-sections at mid-depth: {title}"),
     );
-    let plate = sc.plate().ok();
-    let zmid = size[2] / 2.0;
+    let page = SectionPage {
+        sc,
+        plate: sc.plate().ok(),
+        nodes,
+        measured,
+        panel_w,
+        panel_h,
+        margin_m,
+        scale,
+    };
     for (k, (t, sec)) in shots.iter().enumerate() {
         let ox = 12.0 + (k % cols) as f64 * (panel_w + 12.0);
         let oy = top + (k / cols) as f64 * (panel_h + 34.0);
-        let floor = oy + panel_h - 6.0;
-        let tx = |p: V3| (ox + (p.x + margin_m) * scale, floor - p.y * scale);
-        svg.rect(
-            ox,
-            oy,
-            panel_w,
-            panel_h,
-            "none",
-            Some(Stroke::solid("#ddd", 1.0)),
-        );
-        svg.line(
-            (ox, floor),
-            (ox + panel_w, floor),
-            Stroke::solid("#964", 2.0),
-        );
-        // Rest outline.
-        let rest = [
-            V3::new(0.0, 0.0, 0.0),
-            V3::new(size[0], 0.0, 0.0),
-            V3::new(size[0], size[1], 0.0),
-            V3::new(0.0, size[1], 0.0),
-            V3::new(0.0, 0.0, 0.0),
-        ];
-        svg.polyline(rest.iter().map(|p| tx(*p)), Stroke::dashed("#999", 1.0));
-        // The section's grid lines.
-        let at = |i: usize, j: usize| tx(sec[i + nx * j]);
-        let mut segs = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                if i + 1 < nx {
-                    segs.push((at(i, j), at(i + 1, j)));
-                }
-                if j + 1 < ny {
-                    segs.push((at(i, j), at(i, j + 1)));
-                }
-            }
-        }
-        svg.segments(segs, Stroke::solid("#1f5fbf", 1.0));
-        // Measured points near the plane at this time.
-        if let Some(m) = measured {
-            if let Some(f) = m.frames.iter().find(|f| (f.t_s - t).abs() < 1e-9) {
-                for p in f.points_m.iter().filter(|p| (p.z - zmid).abs() < 0.005) {
-                    let (x, y) = tx(*p);
-                    svg.rect(x - 1.5, y - 1.5, 3.0, 3.0, "#222", None);
-                }
-            }
-        }
-        // The plate.
-        if let Some(pl) = &plate {
-            if let Some(face) = pl.face_y_m(*t) {
-                let (x0, y0) = tx(V3::new(
-                    pl.centre_xz_m[0] - pl.footprint_m[0] / 2.0,
-                    face,
-                    0.0,
-                ));
-                let (x1, _) = tx(V3::new(
-                    pl.centre_xz_m[0] + pl.footprint_m[0] / 2.0,
-                    face,
-                    0.0,
-                ));
-                let (x0, x1) = (x0.max(ox), x1.min(ox + panel_w));
-                svg.rect(
-                    x0,
-                    (y0 - 14.0).max(oy),
-                    x1 - x0,
-                    (y0 - oy).clamp(0.0, 14.0),
-                    "#f3c6c6",
-                    Some(Stroke::solid("#d22", 1.5)),
-                );
-            }
-        }
-        svg.text(
-            ox + 4.0,
-            oy + panel_h + 16.0,
-            12.0,
-            Anchor::Start,
-            &format!("t = {t} s"),
-        );
+        section_panel(&mut svg, &page, (ox, oy), *t, sec);
     }
     svg.text_styled(
         12.0,
@@ -795,7 +838,107 @@ fn sections_svg(
     svg.finish()
 }
 
-fn s_chart(rows: &[plant_rheology::identify::search::HistoryRow], title: &str) -> String {
+/// What every cross-section panel shares: the scenario and its plate, the
+/// grid, the measured points, the panels' size (page units), the margin
+/// beside the block (m) and the scale (page units per m).
+struct SectionPage<'a> {
+    sc: &'a Scenario,
+    plate: Option<plant_rheology::contact::Plate>,
+    nodes: [usize; 3],
+    measured: Option<&'a Measurement>,
+    panel_w: f64,
+    panel_h: f64,
+    margin_m: f64,
+    scale: f64,
+}
+
+/// One cross-section panel at `(ox, oy)`: the section `sec` at time `t`.
+fn section_panel(svg: &mut Svg, page: &SectionPage, (ox, oy): (f64, f64), t: f64, sec: &[V3]) {
+    let size = page.sc.size_m();
+    let (nx, ny) = (page.nodes[0], page.nodes[1]);
+    let (panel_w, panel_h, scale) = (page.panel_w, page.panel_h, page.scale);
+    let floor = oy + panel_h - 6.0;
+    let tx = |p: V3| (ox + (p.x + page.margin_m) * scale, floor - p.y * scale);
+    svg.rect(
+        ox,
+        oy,
+        panel_w,
+        panel_h,
+        "none",
+        Some(Stroke::solid("#ddd", 1.0)),
+    );
+    svg.line(
+        (ox, floor),
+        (ox + panel_w, floor),
+        Stroke::solid("#964", 2.0),
+    );
+    // Rest outline.
+    let rest = [
+        V3::new(0.0, 0.0, 0.0),
+        V3::new(size[0], 0.0, 0.0),
+        V3::new(size[0], size[1], 0.0),
+        V3::new(0.0, size[1], 0.0),
+        V3::new(0.0, 0.0, 0.0),
+    ];
+    svg.polyline(rest.iter().map(|p| tx(*p)), Stroke::dashed("#999", 1.0));
+    // The section's grid lines.
+    let at = |i: usize, j: usize| tx(sec[i + nx * j]);
+    let mut segs = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            if i + 1 < nx {
+                segs.push((at(i, j), at(i + 1, j)));
+            }
+            if j + 1 < ny {
+                segs.push((at(i, j), at(i, j + 1)));
+            }
+        }
+    }
+    svg.segments(segs, Stroke::solid("#1f5fbf", 1.0));
+    // Measured points near the plane at this time.
+    let zmid = size[2] / 2.0;
+    if let Some(m) = page.measured {
+        if let Some(f) = m.frames.iter().find(|f| (f.t_s - t).abs() < 1e-9) {
+            for p in f.points_m.iter().filter(|p| (p.z - zmid).abs() < 0.005) {
+                let (x, y) = tx(*p);
+                svg.rect(x - 1.5, y - 1.5, 3.0, 3.0, "#222", None);
+            }
+        }
+    }
+    // The plate.
+    if let Some(pl) = &page.plate {
+        if let Some(face) = pl.face_y_m(t) {
+            let (x0, y0) = tx(V3::new(
+                pl.centre_xz_m[0] - pl.footprint_m[0] / 2.0,
+                face,
+                0.0,
+            ));
+            let (x1, _) = tx(V3::new(
+                pl.centre_xz_m[0] + pl.footprint_m[0] / 2.0,
+                face,
+                0.0,
+            ));
+            let (x0, x1) = (x0.max(ox), x1.min(ox + panel_w));
+            svg.rect(
+                x0,
+                (y0 - 14.0).max(oy),
+                x1 - x0,
+                (y0 - oy).clamp(0.0, 14.0),
+                "#f3c6c6",
+                Some(Stroke::solid("#d22", 1.5)),
+            );
+        }
+    }
+    svg.text(
+        ox + 4.0,
+        oy + panel_h + 16.0,
+        12.0,
+        Anchor::Start,
+        &format!("t = {t} s"),
+    );
+}
+
+fn s_chart(rows: &[HistoryRow], title: &str) -> String {
     let e: Vec<f64> = rows.iter().map(|h| h.evaluations as f64).collect();
     let best: Vec<f64> = rows.iter().map(|h| h.best_s).collect();
     let batch: Vec<f64> = rows.iter().map(|h| h.batch_mean_s).collect();
@@ -809,251 +952,6 @@ fn s_chart(rows: &[plant_rheology::identify::search::HistoryRow], title: &str) -
         ],
     }])
     .finish()
-}
-
-fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
-    let file = ScenarioFile::load(a.scenario.as_deref())?;
-    let sc = file.scenario();
-    let set = ParamSet::from_count(a.params).map_err(|e| anyhow::anyhow!("--params: {e}"))?;
-    if let Some(n) = a.evaluations {
-        if n == 0 || n > 10_000_000 {
-            bail!("--evaluations must be 1..=10000000, got {n}");
-        }
-    }
-    if let Some(s) = a.seconds {
-        if !(s.is_finite() && s > 0.0) {
-            bail!("--seconds must be a number of seconds > 0, got {s}");
-        }
-    }
-    let budget = Budget {
-        max_evaluations: a.evaluations.or(if a.seconds.is_none() {
-            Some(1000)
-        } else {
-            None
-        }),
-        max_seconds: a.seconds,
-    };
-    if a.measured.is_some() && (a.validate_depth_mm.is_some() || a.validate_push_s.is_some()) {
-        bail!("--validate-depth-mm/--validate-push-s push the reference block; they need a generated measurement (no --measured)");
-    }
-    let validation = match (a.validate_depth_mm, a.validate_push_s) {
-        (None, None) => None,
-        (d, p) => {
-            let depth = d.unwrap_or(15.0);
-            let push = p.unwrap_or(1.0);
-            if !(depth > 0.0 && depth < sc.block.size_cm[1] * 10.0) {
-                bail!("--validate-depth-mm must be between 0 and the block's height, got {depth}");
-            }
-            if !(push > 0.0 && 4.0 * push <= sc.plate.end_s) {
-                bail!(
-                    "--validate-push-s must be > 0 with the push, hold and release (4× it) inside plate.end_s = {} s, got {push}",
-                    sc.plate.end_s
-                );
-            }
-            Some((depth, push))
-        }
-    };
-    let quiet = a.json || !std::io::stderr().is_terminal();
-    let note = |msg: &str| {
-        if !quiet {
-            eprintln!("{msg}");
-        }
-    };
-    let measurement = match &a.measured {
-        Some(dir) => load_measurement(dir)?,
-        None => {
-            note("pushing the reference block for the measurement…");
-            record_push(&sc, &file.reference)?.measurement
-        }
-    };
-    let problem = Problem::new(sc.clone(), set, measurement)?;
-    let defaults = sc.model.params.resolve()?;
-    let (default_score, default_run) = problem.score(&defaults)?;
-    let mut settings = CalibrationSettings::new(a.method.into(), budget, a.seed);
-    settings.ga = file.ga;
-    settings.ra = file.ra;
-    let bar = if quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        match budget.max_evaluations {
-            Some(n) => indicatif::ProgressBar::new(n as u64),
-            None => indicatif::ProgressBar::new_spinner(),
-        }
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{prefix} [{bar:30}] {pos}/{len} simulations, {msg} ({elapsed})",
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .progress_chars("=> "),
-    );
-    bar.set_prefix(format!("{} ({} params)", settings.method.name(), set.len()));
-    let mut progress = |p: &Progress| {
-        bar.set_position(p.evaluations as u64);
-        bar.set_message(format!("best S {:.2}", p.best_s));
-    };
-    let cal = calibrate(&problem, &settings, &mut progress)?;
-    bar.finish_and_clear();
-    let (best_score, best_run) = problem.score(&cal.best_params)?;
-    output::create_dir(&a.out)?;
-    output::write_toml(
-        &a.out.join("params.toml"),
-        "# Calibrated rheology parameters (softjoint rheology calibrate); `simulate --params` reads them.\n",
-        &params_spec(&cal.best_params),
-    )?;
-    let mut csv =
-        String::from("generation,evaluations,best_s,batch_best_s,batch_mean_s,elapsed_s\n");
-    for h in &cal.search.history {
-        let _ = writeln!(
-            csv,
-            "{},{},{},{},{},{:.3}",
-            h.generation,
-            h.evaluations,
-            csv_number(h.best_s),
-            csv_number(h.batch_best_s),
-            csv_number(h.batch_mean_s),
-            h.elapsed_s
-        );
-    }
-    write(&a.out.join("generations.csv"), &csv)?;
-    write(
-        &a.out.join("s_per_generation.svg"),
-        &s_chart(
-            &cal.search.history,
-            &format!(
-                "S per generation: {} on {} parameters ({} simulations)",
-                settings.method.name(),
-                set.len(),
-                cal.search.evaluations
-            ),
-        ),
-    )?;
-    let mt: Vec<f64> = problem.measurement.forces.iter().map(|f| f.t_s).collect();
-    let mf: Vec<f64> = problem
-        .measurement
-        .forces
-        .iter()
-        .map(|f| f.force_n)
-        .collect();
-    let vol = |r: &Run| -> Vec<f64> { r.volume_m3.iter().map(|v| v / r.volume0_m3).collect() };
-    let (vd, vb) = (vol(&default_run), vol(&best_run));
-    write(
-        &a.out.join("force.svg"),
-        &force_chart(
-            "Plate force: measured, lattice with the defaults, calibrated lattice",
-            &[
-                ("measured", "#555", false, &mt, &mf),
-                (
-                    "defaults",
-                    "#e80",
-                    true,
-                    &default_run.t_s,
-                    &default_run.plate_force_n,
-                ),
-                (
-                    "calibrated",
-                    "#1f5fbf",
-                    false,
-                    &best_run.t_s,
-                    &best_run.plate_force_n,
-                ),
-            ],
-            &[
-                ("defaults", "#e80", &default_run.t_s, &vd),
-                ("calibrated", "#1f5fbf", &best_run.t_s, &vb),
-            ],
-        ),
-    )?;
-    let shots = section_shots(&best_run.frames, problem.lattice().nodes, None);
-    write(
-        &a.out.join("sections.svg"),
-        &sections_svg(
-            &sc,
-            problem.lattice().nodes,
-            &shots,
-            Some(&problem.measurement),
-            "calibrated lattice and the measured points",
-        ),
-    )?;
-    let validation = match validation {
-        None => None,
-        Some((depth, push)) => {
-            note("pushing the reference block for the validation push…");
-            let mut vs = sc.clone();
-            vs.plate.depth_mm = Some(push_schedule_mm(depth, push));
-            vs.plate.force_n = None;
-            let mut vcfg = file.reference.clone();
-            vcfg.seed = vcfg.seed.wrapping_add(1);
-            let vm = record_push(&vs, &vcfg)?.measurement;
-            let vp = Problem::new(vs, set, vm)?;
-            let (d, _) = vp.score(&defaults)?;
-            let (c, _) = vp.score(&cal.best_params)?;
-            Some((depth, push, d, c))
-        }
-    };
-    if a.json {
-        let best_genes: std::collections::BTreeMap<_, _> = set
-            .ranges()
-            .iter()
-            .zip(&cal.search.best_genes)
-            .map(|(r, g)| (r.name.clone(), *g))
-            .collect();
-        let best_s_per_generation: Vec<Option<f64>> = cal
-            .search
-            .history
-            .iter()
-            .map(|h| finite(h.best_s))
-            .collect();
-        JsonObject::new()
-            .field("method", settings.method.name())?
-            .field("params", &set.len())?
-            .field("seed", &a.seed)?
-            .field("evaluations", &cal.search.evaluations)?
-            .field("unstable", &cal.search.unstable)?
-            .field("stopped_by", cal.search.stopped_by)?
-            .field("elapsed_s", &cal.search.elapsed_s)?
-            .field("default", &score_json(default_score))?
-            .field("calibrated", &score_json(best_score))?
-            .field("best_params", &cal.best_params)?
-            .field("best_genes", &best_genes)?
-            .field("best_s_per_generation", &best_s_per_generation)?
-            .field(
-                "validation",
-                &validation.map(|(depth_mm, push_s, d, c)| ValidationJson {
-                    depth_mm,
-                    push_s,
-                    default: score_json(d),
-                    calibrated: score_json(c),
-                }),
-            )?
-            .field("out", &a.out)?
-            .print()?;
-    } else {
-        outln!(
-            "{} on {} parameters: {} simulations in {:.1} s ({} unstable), stopped by {}",
-            settings.method.name(),
-            set.len(),
-            cal.search.evaluations,
-            cal.search.elapsed_s,
-            cal.search.unstable,
-            cal.search.stopped_by
-        );
-        outln!("defaults:   {}", score_text(&default_score));
-        outln!("calibrated: {}", score_text(&best_score));
-        for (r, g) in set.ranges().iter().zip(&cal.search.best_genes) {
-            outln!("  {:<28} {:>12.4}   (range {}–{})", r.name, g, r.min, r.max);
-        }
-        if let Some((depth, push, d, c)) = validation {
-            outln!("unseen push ({depth} mm over {push} s):");
-            outln!("  defaults:   {}", score_text(&d));
-            outln!("  calibrated: {}", score_text(&c));
-        }
-        outln!(
-            "wrote params.toml, generations.csv, s_per_generation.svg, force.svg, sections.svg to {}",
-            a.out.display()
-        );
-    }
-    Ok(())
 }
 
 /// A number for a CSV cell; empty when not finite (no candidate of the

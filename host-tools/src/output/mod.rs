@@ -300,6 +300,16 @@ impl JsonObject {
         Ok(self)
     }
 
+    /// The fields of `value` (a report struct), each checked as
+    /// [`field`](Self::field) checks it; more fields may follow.
+    pub fn of<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<Self> {
+        check_field("the JSON summary", "", value)?;
+        match serde_json::to_value(value)? {
+            serde_json::Value::Object(fields) => Ok(Self(fields)),
+            other => anyhow::bail!("the JSON summary is not an object: {other}"),
+        }
+    }
+
     /// Prints the object on standard output.
     pub fn print(self) -> anyhow::Result<()> {
         print_json(&self.0)

@@ -35,8 +35,8 @@ pub mod identify;
 pub mod model;
 
 pub use identify::{
-    classify, contour_score, evaluate, evolution, force_regression, raster, reference, table_ii,
-    video_csv,
+    classify, contour_score, evaluate, evolution, experiment, force_regression, raster, reference,
+    table_ii, video_csv,
 };
 pub use model::{collision, forces, mesh, plasticity, scenario, sim, vec2};
 

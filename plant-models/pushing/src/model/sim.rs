@@ -307,6 +307,23 @@ impl<'m> Simulator<'m> {
             return Err(i);
         }
         let h = self.config.step_s;
+        self.gather_forces(finger, force_on_object);
+        self.integrate(h);
+        self.resolve_contacts(finger);
+        self.yield_compressed_springs();
+        self.time_s += h;
+        if let Some(i) = self.check_stability() {
+            self.instability = Some(i);
+            return Err(i);
+        }
+        Ok(())
+    }
+
+    /// The forces of this step at p(t): the springs (less the length
+    /// springs the sequential sweep applies itself), the sensed finger
+    /// force when the mode uses it, each capped at max(F).
+    #[inline]
+    fn gather_forces(&mut self, finger: Option<&Finger>, force_on_object: Option<V2>) {
         self.refresh_velocities();
         self.forces.iter_mut().for_each(|f| *f = V2::zeros());
         let sequential = self.config.integrator == Integrator::CustomisedSequential;
@@ -336,31 +353,17 @@ impl<'m> Simulator<'m> {
             }
         }
         clamp_forces(&mut self.forces, self.params.max_force);
+    }
+
+    /// Moves the vertices by the gathered forces over `h`, as the
+    /// integrator says (the previous positions kept for velocities).
+    #[inline]
+    fn integrate(&mut self, h: f64) {
         let inv_m = 1.0 / VERTEX_MASS;
         match self.config.integrator {
             Integrator::CustomisedSequential => {
                 self.prev_positions_px.copy_from_slice(&self.positions_px);
-                let cap = self.params.max_force;
-                for (k, &[i, j]) in self.mesh.edges.iter().enumerate() {
-                    let mut f = length_force(
-                        self.positions_px[i],
-                        self.positions_px[j],
-                        self.velocities_px_s[i],
-                        self.velocities_px_s[j],
-                        self.mesh.rest_lengths_px[k],
-                        self.rest_len_px[k],
-                        self.params.k_length,
-                        self.params.k_damping,
-                    );
-                    // max(F) caps each spring's push here, the summed
-                    // remainder below.
-                    let n = f.norm();
-                    if n > cap {
-                        f *= cap / n;
-                    }
-                    self.positions_px[i] += f * (h * inv_m);
-                    self.positions_px[j] -= f * (h * inv_m);
-                }
+                self.sweep_length_springs(h * inv_m);
                 for (p, f) in self.positions_px.iter_mut().zip(&self.forces) {
                     *p += f * (h * inv_m);
                 }
@@ -402,6 +405,39 @@ impl<'m> Simulator<'m> {
                 }
             }
         }
+    }
+
+    /// The spring-by-spring update of Eq. 15: each length spring moves its
+    /// two ends by `h_over_m`·F at once, in mesh edge order.
+    #[inline]
+    fn sweep_length_springs(&mut self, h_over_m: f64) {
+        let cap = self.params.max_force;
+        for (k, &[i, j]) in self.mesh.edges.iter().enumerate() {
+            let mut f = length_force(
+                self.positions_px[i],
+                self.positions_px[j],
+                self.velocities_px_s[i],
+                self.velocities_px_s[j],
+                self.mesh.rest_lengths_px[k],
+                self.rest_len_px[k],
+                self.params.k_length,
+                self.params.k_damping,
+            );
+            // max(F) caps each spring's push here, the summed
+            // remainder after the sweep.
+            let n = f.norm();
+            if n > cap {
+                f *= cap / n;
+            }
+            self.positions_px[i] += f * h_over_m;
+            self.positions_px[j] -= f * h_over_m;
+        }
+    }
+
+    /// The geometric repair, then the finger (when the mode collides) and
+    /// the table push the vertices out of themselves.
+    #[inline]
+    fn resolve_contacts(&mut self, finger: Option<&Finger>) {
         if self.config.geometric_repair {
             repair_triangles(self.mesh, &mut self.positions_px);
         }
@@ -413,6 +449,12 @@ impl<'m> Simulator<'m> {
             }
         }
         self.table.resolve(&mut self.positions_px);
+    }
+
+    /// Plasticity (Algorithm 2): a spring compressed below its rest
+    /// length yields, shortening its rest length.
+    #[inline]
+    fn yield_compressed_springs(&mut self) {
         for (k, &[i, j]) in self.mesh.edges.iter().enumerate() {
             let l = (self.positions_px[j] - self.positions_px[i]).norm();
             if l >= self.rest_len_px[k] {
@@ -424,12 +466,6 @@ impl<'m> Simulator<'m> {
             self.alpha[k] = update_alpha(self.alpha[k], l, d0, &self.params);
             self.rest_len_px[k] = (1.0 - self.alpha[k]) * d0;
         }
-        self.time_s += h;
-        if let Some(i) = self.check_stability() {
-            self.instability = Some(i);
-            return Err(i);
-        }
-        Ok(())
     }
 
     fn check_stability(&self) -> Option<Instability> {

@@ -722,17 +722,49 @@ impl<'a> ReferenceSim<'a> {
 
     /// One backward-Euler step; returns the plate force (N).
     fn step(&mut self, dt: f64) -> Result<f64> {
-        let block = self.block;
         let t_next = (self.steps + 1) as f64 * dt;
         let (g, voigt_share) = self.step_shear(dt);
-        let bulk = self.material.bulk_kpa * 1e3;
         self.contacts.prepare(t_next, dt, &self.x, &self.v);
+        self.start_with_inertia(dt);
+        self.assemble_elements(dt, g, voigt_share)?;
+        self.contacts.add_rhs(&mut self.rhs);
+        self.contacts.add_diag(&mut self.diag);
+        if self.factor.is_none()
+            || self.last_iterations > REFACTOR_ITERATIONS
+            || self.since_factor >= REFACTOR_STEPS
+        {
+            self.refactor(dt);
+        }
+        self.since_factor += 1;
+        let iterations = self.solve_velocities(dt)?;
+        self.iterations += iterations;
+        self.last_iterations = iterations;
+        self.advance(dt)?;
+        self.update_internal_states(dt, g);
+        self.steps += 1;
+        Ok(self.contacts.finish(&self.x, &self.v))
+    }
+
+    /// The right-hand side and block diagonal start as the masses' momentum
+    /// and weight over the step: `m v / Δt − m g`, `m / Δt`.
+    #[inline]
+    fn start_with_inertia(&mut self, dt: f64) {
         let grav = if self.gravity { GRAVITY_M_S2 } else { 0.0 };
         for i in 0..self.x.len() {
-            let m = block.node_mass_kg[i];
+            let m = self.block.node_mass_kg[i];
             self.rhs[i] = self.v[i] * (m / dt) + V3::new(0.0, -m * grav, 0.0);
             self.diag[i] = M3::identity() * (m / dt);
         }
+    }
+
+    /// Each tetrahedron's elastic force at the start of the step (its
+    /// rotation held), added to the right-hand side, and its step matrix
+    /// Δt·K_e, kept and added to the block diagonal. Fails on a collapsed
+    /// tetrahedron.
+    #[inline]
+    fn assemble_elements(&mut self, dt: f64, g: f64, voigt_share: f64) -> Result<()> {
+        let block = self.block;
+        let bulk = self.material.bulk_kpa * 1e3;
         for t in 0..block.tets.len() {
             let f = self.deformation(t, &self.x);
             let r = polar_rotation(&f).ok_or_else(|| {
@@ -766,15 +798,15 @@ impl<'a> ReferenceSim<'a> {
                 }
             }
         }
-        self.contacts.add_rhs(&mut self.rhs);
-        self.contacts.add_diag(&mut self.diag);
-        if self.factor.is_none()
-            || self.last_iterations > REFACTOR_ITERATIONS
-            || self.since_factor >= REFACTOR_STEPS
-        {
-            self.refactor(dt);
-        }
-        self.since_factor += 1;
+        Ok(())
+    }
+
+    /// Solves the step's system for the end-of-step velocities (in
+    /// `v_new`) by preconditioned conjugate gradients from the linear
+    /// extrapolation of the last two; returns the iterations. Fails when
+    /// the solver stalls.
+    fn solve_velocities(&mut self, dt: f64) -> Result<usize> {
+        let block = self.block;
         for d in self.diag.iter_mut() {
             *d = invert_block(d);
         }
@@ -787,22 +819,7 @@ impl<'a> ReferenceSim<'a> {
                 *o = *vi * (block.node_mass_kg[i] / dt);
             }
             for (t, ke) in stiffness.iter().enumerate() {
-                let tet = block.tets[t];
-                let mut x = [0.0; 12];
-                for k in 0..4 {
-                    let vk = v[tet[k] as usize];
-                    x[3 * k] = vk.x;
-                    x[3 * k + 1] = vk.y;
-                    x[3 * k + 2] = vk.z;
-                }
-                for k in 0..4 {
-                    let mut y = [0.0; 3];
-                    for (a, ya) in y.iter_mut().enumerate() {
-                        let row = &ke[(3 * k + a) * 12..(3 * k + a) * 12 + 12];
-                        *ya = row.iter().zip(&x).map(|(r, x)| r * x).sum();
-                    }
-                    out[tet[k] as usize] += V3::new(y[0], y[1], y[2]);
-                }
+                apply_tet(&block.tets[t], ke, v, out);
             }
             contacts.add_apply(v, out);
         };
@@ -822,7 +839,7 @@ impl<'a> ReferenceSim<'a> {
             }
             None => jacobi(r, z),
         };
-        let iterations = pcg(
+        pcg(
             &mut apply,
             &mut precondition,
             &self.fixed,
@@ -840,9 +857,13 @@ impl<'a> ReferenceSim<'a> {
                     residual: s.relative_residual,
                 },
             )
-        })?;
-        self.iterations += iterations;
-        self.last_iterations = iterations;
+        })
+    }
+
+    /// Takes the solved velocities and moves the nodes by them; fails on a
+    /// non-finite node.
+    #[inline]
+    fn advance(&mut self, dt: f64) -> Result<()> {
         for i in 0..self.x.len() {
             self.v_prev[i] = self.v[i];
             self.v[i] = self.v_new[i];
@@ -851,23 +872,47 @@ impl<'a> ReferenceSim<'a> {
                 return Err(self.unstable(dt, Instability::NonFinite { node: i }));
             }
         }
-        // Internal states from the end-of-step strain (rotation of the
-        // step's start, as in the solve).
+        Ok(())
+    }
+
+    /// The Burgers body's internal strains from the end-of-step strain
+    /// (rotation of the step's start, as in the solve).
+    #[inline]
+    fn update_internal_states(&mut self, dt: f64, g: f64) {
         let m = self.material;
         let (eta2, eta1) = (
             m.retarded_viscosity_kpa_s * 1e3,
             m.flow_viscosity_kpa_s * 1e3,
         );
         let g2 = m.retarded_shear_kpa * 1e3;
-        for t in 0..block.tets.len() {
+        for t in 0..self.block.tets.len() {
             let f = self.deformation(t, &self.x);
             let eps = (self.rot[t].transpose() * f).sym() - M3::identity();
             let s = (dev(&eps) - self.e_star[t]) * (2.0 * g);
             self.e_voigt[t] = (s * 0.5 + self.e_voigt[t] * (eta2 / dt)) * (1.0 / (g2 + eta2 / dt));
             self.e_flow[t] += s * (dt / (2.0 * eta1));
         }
-        self.steps += 1;
-        Ok(self.contacts.finish(&self.x, &self.v))
+    }
+}
+
+/// `out += K_e v` for one tetrahedron's step matrix `ke` (12×12,
+/// row-major, node-major xyz) and its nodes `tet`.
+#[inline]
+fn apply_tet(tet: &[u32; 4], ke: &[f64; 144], v: &[V3], out: &mut [V3]) {
+    let mut x = [0.0; 12];
+    for k in 0..4 {
+        let vk = v[tet[k] as usize];
+        x[3 * k] = vk.x;
+        x[3 * k + 1] = vk.y;
+        x[3 * k + 2] = vk.z;
+    }
+    for k in 0..4 {
+        let mut y = [0.0; 3];
+        for (a, ya) in y.iter_mut().enumerate() {
+            let row = &ke[(3 * k + a) * 12..(3 * k + a) * 12 + 12];
+            *ya = row.iter().zip(&x).map(|(r, x)| r * x).sum();
+        }
+        out[tet[k] as usize] += V3::new(y[0], y[1], y[2]);
     }
 }
 

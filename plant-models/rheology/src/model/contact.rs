@@ -243,6 +243,45 @@ struct Active {
     d: M3,
 }
 
+/// What every contact of one step shares: the penalty stiffness per
+/// area (N/m per m²), μ_k, the look-ahead (s) and the plate face's
+/// velocity (m/s).
+#[derive(Clone, Copy, Debug)]
+struct StepContact {
+    penalty: f64,
+    mu_kinetic: f64,
+    lookahead_s: f64,
+    face_v: f64,
+}
+
+impl StepContact {
+    /// The tangential part of a contact in `state` with normal stiffness
+    /// `stiff` and normal force estimate `fn_est`: a stuck mass's anchor
+    /// spring, a sliding one's kinetic friction as a damper.
+    #[inline]
+    fn tangential(&self, state: Tangential, stiff: f64, xn: &V3, vn: &V3, fn_est: f64) -> (M3, V3) {
+        let h = self.lookahead_s;
+        let mut d = M3::zeros();
+        let mut r = V3::zeros();
+        match state {
+            Tangential::Stuck(anchor) => {
+                d[(0, 0)] = stiff * h;
+                d[(2, 2)] = stiff * h;
+                r.x = stiff * (anchor[0] - xn.x);
+                r.z = stiff * (anchor[1] - xn.z);
+            }
+            Tangential::Sliding => {
+                let speed = (vn.x * vn.x + vn.z * vn.z).sqrt().max(1e-6);
+                let c = self.mu_kinetic * fn_est / speed;
+                d[(0, 0)] = c;
+                d[(2, 2)] = c;
+            }
+            Tangential::Free => {}
+        }
+        (d, r)
+    }
+}
+
 /// Contacts of every mass with the table and the plate.
 #[derive(Clone, Debug)]
 pub struct Contacts {
@@ -300,9 +339,6 @@ impl Contacts {
     /// predicted at the end of the step) and 0 for the explicit one.
     pub fn prepare(&mut self, t_next: f64, lookahead_s: f64, x: &[V3], v: &[V3]) {
         self.active.clear();
-        let kp = self.params.penalty();
-        let mu_k = self.params.mu_kinetic;
-        let h = lookahead_s;
         let face = self.plate.as_ref().and_then(|p| p.face_y_m(t_next));
         let face_v = self
             .plate
@@ -311,121 +347,134 @@ impl Contacts {
             .unwrap_or(0.0);
         self.plate_face_next = face;
         self.plate_velocity = face_v;
-        let tangential = |state: Tangential, stiff: f64, xn: &V3, vn: &V3, fn_est: f64| {
-            let mut d = M3::zeros();
-            let mut r = V3::zeros();
-            match state {
-                Tangential::Stuck(anchor) => {
-                    d[(0, 0)] = stiff * h;
-                    d[(2, 2)] = stiff * h;
-                    r.x = stiff * (anchor[0] - xn.x);
-                    r.z = stiff * (anchor[1] - xn.z);
-                }
-                Tangential::Sliding => {
-                    let speed = (vn.x * vn.x + vn.z * vn.z).sqrt().max(1e-6);
-                    let c = mu_k * fn_est / speed;
-                    d[(0, 0)] = c;
-                    d[(2, 2)] = c;
-                }
-                Tangential::Free => {}
-            }
-            (d, r)
+        let step = StepContact {
+            penalty: self.params.penalty(),
+            mu_kinetic: self.params.mu_kinetic,
+            lookahead_s,
+            face_v,
         };
         for n in 0..x.len() {
             let (xn, vn) = (&x[n], &v[n]);
-            let area = self.areas_m2[n];
-            // Table at y = 0. In contact when the mass is in the table now
-            // or would be at the end of the step at its present velocity
-            // (a look-ahead alone would toggle a resting mass on and off).
-            let pen = (-xn.y).max(-(xn.y + h * vn.y));
-            let st = &mut self.states[n];
-            if pen > 0.0 {
-                let stiff = kp * area;
-                if st.table == Tangential::Free {
-                    st.table = Tangential::Stuck([xn.x, xn.z]);
-                }
-                let (mut d, mut r) = tangential(st.table, stiff, xn, vn, stiff * pen);
-                d[(1, 1)] += stiff * h;
-                r.y += -stiff * xn.y;
-                self.active.push(Active {
-                    node: n,
-                    body: Body::Table,
-                    r,
-                    d,
-                });
-            } else {
-                st.table = Tangential::Free;
-            }
-            // Plate driven by depth.
-            if let (Some(plate), Some(face)) = (&self.plate, face) {
-                let cover = plate.coverage(xn.x, xn.z, self.cell_m);
-                let stiff = kp * area * cover;
-                let pen = (xn.y - face).max(xn.y + h * vn.y - face);
-                if cover > 0.0 && pen > 0.0 {
-                    if st.plate == Tangential::Free {
-                        st.plate = Tangential::Stuck([xn.x, xn.z]);
-                    }
-                    if self.params.pull_off_kpa_per_mm > 0.0 {
-                        st.bonded = true;
-                    }
-                    let (mut d, mut r) = tangential(st.plate, stiff, xn, vn, stiff * pen);
-                    d[(1, 1)] += stiff * h;
-                    r.y += -stiff * (xn.y - face);
-                    self.active.push(Active {
-                        node: n,
-                        body: Body::Plate,
-                        r,
-                        d,
-                    });
-                } else {
-                    st.plate = Tangential::Free;
-                    if st.bonded {
-                        let relative = (vn.y - face_v).abs();
-                        if cover <= 0.0 || relative > self.params.pull_off_speed_mm_s * 1e-3 {
-                            st.bonded = false;
-                        } else {
-                            let k = self.params.pull_off_kpa_per_mm * 1e6 * area * cover;
-                            let c = self.params.pull_off_damping_kpa_s_per_mm * 1e6 * area * cover;
-                            let mut d = M3::zeros();
-                            d[(1, 1)] = k * h + c;
-                            let r = V3::new(0.0, k * (face - xn.y) + c * face_v, 0.0);
-                            self.active.push(Active {
-                                node: n,
-                                body: Body::Bond,
-                                r,
-                                d,
-                            });
-                        }
-                    }
-                }
+            self.touch_table(n, xn, vn, &step);
+            if let Some(face) = face {
+                self.touch_plate(n, xn, vn, face, &step);
             }
         }
-        // Plate driven by force: F_n·S_i/S_n on the top masses under it.
-        if let Some(plate) = &self.plate {
-            if let PlateDrive::Force(s) = &plate.drive {
-                let force = s.at(t_next);
-                let shares: Vec<(usize, f64)> = self
-                    .top_nodes
-                    .iter()
-                    .map(|&n| {
-                        (
-                            n,
-                            self.areas_m2[n] * plate.coverage(x[n].x, x[n].z, self.cell_m),
-                        )
-                    })
-                    .filter(|s| s.1 > 0.0)
-                    .collect();
-                let total: f64 = shares.iter().map(|s| s.1).sum();
-                if total > 0.0 {
-                    for (n, s) in shares {
-                        self.active.push(Active {
-                            node: n,
-                            body: Body::Load,
-                            r: V3::new(0.0, -force * s / total, 0.0),
-                            d: M3::zeros(),
-                        });
-                    }
-                }
+        self.load_top_masses(t_next, x);
+    }
+
+    /// The table at y = 0 and mass `n`. In contact when the mass is in the
+    /// table now or would be at the end of the step at its present
+    /// velocity (a look-ahead alone would toggle a resting mass on and
+    /// off).
+    #[inline]
+    fn touch_table(&mut self, n: usize, xn: &V3, vn: &V3, step: &StepContact) {
+        let h = step.lookahead_s;
+        let area = self.areas_m2[n];
+        let pen = (-xn.y).max(-(xn.y + h * vn.y));
+        let st = &mut self.states[n];
+        if pen > 0.0 {
+            let stiff = step.penalty * area;
+            if st.table == Tangential::Free {
+                st.table = Tangential::Stuck([xn.x, xn.z]);
+            }
+            let (mut d, mut r) = step.tangential(st.table, stiff, xn, vn, stiff * pen);
+            d[(1, 1)] += stiff * h;
+            r.y += -stiff * xn.y;
+            self.active.push(Active {
+                node: n,
+                body: Body::Table,
+                r,
+                d,
+            });
+        } else {
+            st.table = Tangential::Free;
+        }
+    }
+
+    /// A depth-driven plate whose face is at `face` (m) and mass `n`: in
+    /// contact as with the table; once withdrawn, a bonded mass is held by
+    /// its pull-off bond until the bond breaks.
+    #[inline]
+    fn touch_plate(&mut self, n: usize, xn: &V3, vn: &V3, face: f64, step: &StepContact) {
+        let Some(plate) = &self.plate else {
+            return;
+        };
+        let h = step.lookahead_s;
+        let area = self.areas_m2[n];
+        let st = &mut self.states[n];
+        let cover = plate.coverage(xn.x, xn.z, self.cell_m);
+        let stiff = step.penalty * area * cover;
+        let pen = (xn.y - face).max(xn.y + h * vn.y - face);
+        if cover > 0.0 && pen > 0.0 {
+            if st.plate == Tangential::Free {
+                st.plate = Tangential::Stuck([xn.x, xn.z]);
+            }
+            if self.params.pull_off_kpa_per_mm > 0.0 {
+                st.bonded = true;
+            }
+            let (mut d, mut r) = step.tangential(st.plate, stiff, xn, vn, stiff * pen);
+            d[(1, 1)] += stiff * h;
+            r.y += -stiff * (xn.y - face);
+            self.active.push(Active {
+                node: n,
+                body: Body::Plate,
+                r,
+                d,
+            });
+            return;
+        }
+        st.plate = Tangential::Free;
+        if !st.bonded {
+            return;
+        }
+        let relative = (vn.y - step.face_v).abs();
+        if cover <= 0.0 || relative > self.params.pull_off_speed_mm_s * 1e-3 {
+            st.bonded = false;
+            return;
+        }
+        let k = self.params.pull_off_kpa_per_mm * 1e6 * area * cover;
+        let c = self.params.pull_off_damping_kpa_s_per_mm * 1e6 * area * cover;
+        let mut d = M3::zeros();
+        d[(1, 1)] = k * h + c;
+        let r = V3::new(0.0, k * (face - xn.y) + c * step.face_v, 0.0);
+        self.active.push(Active {
+            node: n,
+            body: Body::Bond,
+            r,
+            d,
+        });
+    }
+
+    /// A force-driven plate: F_n·S_i/S_n on the top masses under it.
+    fn load_top_masses(&mut self, t_next: f64, x: &[V3]) {
+        let Some(plate) = &self.plate else {
+            return;
+        };
+        let PlateDrive::Force(s) = &plate.drive else {
+            return;
+        };
+        let force = s.at(t_next);
+        let shares: Vec<(usize, f64)> = self
+            .top_nodes
+            .iter()
+            .map(|&n| {
+                (
+                    n,
+                    self.areas_m2[n] * plate.coverage(x[n].x, x[n].z, self.cell_m),
+                )
+            })
+            .filter(|s| s.1 > 0.0)
+            .collect();
+        let total: f64 = shares.iter().map(|s| s.1).sum();
+        if total > 0.0 {
+            for (n, s) in shares {
+                self.active.push(Active {
+                    node: n,
+                    body: Body::Load,
+                    r: V3::new(0.0, -force * s / total, 0.0),
+                    d: M3::zeros(),
+                });
             }
         }
     }
