@@ -28,7 +28,6 @@
 
 use anyhow::{bail, Context};
 use hal_sim::{ClosedLoop, CoreController, Plant, Sample};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use plant_joint::identify::{Param, PlaneModel, Scale};
 use plant_joint::{Joint2dParams, Joint3dParams, PlaneParams, WireSensorParams};
 use rand::Rng;
@@ -425,17 +424,7 @@ pub fn tune(
     };
     let plants = sample_plants(file, n_plants.max(1), seed)?;
     let cands = candidates(coils, n_candidates.max(1), seed, search_v_offset);
-    let bar = ProgressBar::new(cands.len() as u64);
-    if progress {
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} candidates, {elapsed} elapsed, ~{eta} left",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-    } else {
-        bar.set_draw_target(ProgressDrawTarget::hidden());
-    }
+    let bar = crate::progress::counter("tune", "candidates", Some(cands.len() as u64), !progress);
     let scores: Vec<Option<Score>> = cands
         .par_iter()
         .map(|g| {
