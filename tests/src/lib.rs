@@ -37,4 +37,5 @@ pub fn start_lockstep<P: Port>(
     .expect("SetTarget");
     link.command(&Arm {}.into(), timeout, 5).expect("Arm");
 }
+pub mod fault_campaign;
 pub mod fault_injector;

@@ -1,10 +1,10 @@
 //! Eq. 1 (one coil, camera feedback, Kp = 2 V/°, θd = 20°) on the plant
 //! alone, over the driver transconductances and convection coefficients of
 //! SPEC §2: the mean of θ − θd over 10–60 s, lowest and highest of seeds
-//! 1–5. Reproduces the table in `src/joint/README.md`:
+//! 1–5. Reproduces the table in the joint README (plant-models/joint/README.md):
 //!
 //! ```text
-//! cargo run --release -p plant-models --example camera_p_sweep
+//! cargo run --release -p plant-joint --example camera_p_sweep
 //! ```
 use plant_joint::{Joint2d, Joint2dParams, PlantError};
 

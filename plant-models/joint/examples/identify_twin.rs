@@ -1,7 +1,7 @@
-//! The twin experiment of plant-models/src/joint/README.md ("Identified
+//! The twin experiment of plant-models/joint/README.md ("Identified
 //! from a log"): a hidden joint (defaults moved 20–50 %, noise, jamming)
 //! records the standard excitation; identification starts from the
-//! defaults. `cargo run --release -p plant-models --example identify_twin -- [SECONDS] [2d|3d] [noelec]`
+//! defaults. `cargo run --release -p plant-joint --example identify_twin -- [SECONDS] [2d|3d] [noelec]`
 use std::time::Instant;
 
 use plant_joint::identify::{self, hidden, twin, ElectricalNoise, ExcitationPlan};

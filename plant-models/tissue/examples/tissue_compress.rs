@@ -2,7 +2,7 @@
 //! 100 and 80 mm by the FEM and the geometric model.
 //!
 //! ```sh
-//! cargo run --release -p plant-models --example tissue_compress -- [mesh_divisions] [step_mm]
+//! cargo run --release -p plant-tissue --example tissue_compress -- [mesh_divisions] [step_mm]
 //! ```
 use plant_tissue::compress::compare::{run, CompressionSpec};
 use std::time::Instant;

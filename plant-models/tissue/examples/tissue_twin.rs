@@ -3,7 +3,7 @@
 //! against the known field.
 //!
 //! ```sh
-//! cargo run --release -p plant-models --example tissue_twin -- 256 256 57 [seed] [n_iv] [n_fv]
+//! cargo run --release -p plant-tissue --example tissue_twin -- 256 256 57 [seed] [n_iv] [n_fv]
 //! ```
 use plant_tissue::field::matching::Consistency;
 use plant_tissue::field::pipeline::FieldParams;

@@ -2,17 +2,16 @@
 //! (seed 000, Fujioka & Kano) and the contour distance within the finger's
 //! reach, beside the pixel F-score (issue 17).
 //!
-//! CI runs the short form (16 px ground truth, 10×5 mesh, 4 px cells, a
+//! These are the short forms (16 px ground truth, 10×5 mesh, 4 px cells, a
 //! few generations); the full experiment — calibration by F and by contour
 //! distance, both scores against the undeformed block, classification of
-//! all six pushes by both — is `#[ignore]`d and run with
-//! `cargo test --release -p plant-models --test pushing_contour_score -- --ignored --nocapture`
-//! (figures in `pushing/README.md`).
+//! all six pushes by both — is the example
+//! `cargo run --release -p plant-pushing --example contour_score`
+//! (figures in the pushing README).
 use plant_contour::identify::distance::point_polygon_distance;
-use plant_pushing::classify::{classify, MaterialModel};
 use plant_pushing::contour_score::{
-    classify_by_contour, score_contour_run, skill, still_block_contour_score, still_config,
-    track_video, ContourTarget, ReachZone, TrackingOptions,
+    score_contour_run, skill, still_block_contour_score, still_config, track_video, ContourTarget,
+    ReachZone, TrackingOptions,
 };
 use plant_pushing::evaluate::{score_run, EvalSetup, PreparedVideo};
 use plant_pushing::evolution::{calibrate, EvolutionSettings, TABLE_III_RANGES};
@@ -183,177 +182,4 @@ fn contour_distance_sees_the_dent_that_the_f_score_hides() {
         .mean_f;
     println!("μ(F) against the raw contour {f_model:.4}, against the spline {f_spline:.4}");
     assert!((f_spline - f_model).abs() < 0.01);
-}
-
-/// Full experiment (release): both materials, three pushes each.
-#[test]
-#[ignore = "full experiment, 6–18 min in release on the shared machine; figures in pushing/README.md"]
-fn full_contour_score_experiment() {
-    let setup = EvalSetup::default();
-    let cfg = sim();
-    let generations = 30;
-    let mut models_f = Vec::new();
-    let mut models_c = Vec::new();
-    let mut pushes = Vec::new();
-    for (label, mat) in [
-        ("sponge", ReferenceMaterial::SPONGE),
-        ("plasticine", ReferenceMaterial::PLASTICINE),
-    ] {
-        let ps: Vec<Push> = PushSite::ALL
-            .iter()
-            .map(|&site| prepare(video(mat, label, site, 8.0, true), &setup))
-            .collect();
-        let train = &ps[0];
-        let mut st = EvolutionSettings::table_iii(2016);
-        st.generations = generations;
-        let by_f = calibrate(
-            &st,
-            &TABLE_III_RANGES,
-            |p| {
-                score_run(&train.raw, &train.raw.video.forces_n, p, &cfg)
-                    .map(|s| s.mean_f)
-                    .unwrap_or(f64::NAN)
-            },
-            |_| {},
-        )
-        .unwrap();
-        let by_f_spline = calibrate(
-            &st,
-            &TABLE_III_RANGES,
-            |p| {
-                score_run(&train.spline, &train.spline.video.forces_n, p, &cfg)
-                    .map(|s| s.mean_f)
-                    .unwrap_or(f64::NAN)
-            },
-            |_| {},
-        )
-        .unwrap();
-        let by_c = calibrate(
-            &st,
-            &TABLE_III_RANGES,
-            |p| {
-                score_contour_run(
-                    &train.raw,
-                    &train.target,
-                    &train.raw.video.forces_n,
-                    p,
-                    &cfg,
-                )
-                .map(|s| -s.mean_px)
-                .unwrap_or(f64::NAN)
-            },
-            |_| {},
-        )
-        .unwrap();
-        println!(
-            "{label}: calibrated by F (raw truth) {:?}",
-            by_f.best_params
-        );
-        println!(
-            "{label}: calibrated by F (spline truth) {:?}",
-            by_f_spline.best_params
-        );
-        println!(
-            "{label}: calibrated by contour distance {:?}",
-            by_c.best_params
-        );
-        for (k, push) in ps.iter().enumerate() {
-            let site = push.raw.video.scenario.site.name();
-            let f_still = score_run(
-                &push.raw,
-                &[0.0; 100],
-                &by_f.best_params,
-                &still_config(&cfg),
-            )
-            .unwrap()
-            .mean_f;
-            let f_still_sp = score_run(
-                &push.spline,
-                &[0.0; 100],
-                &by_f.best_params,
-                &still_config(&cfg),
-            )
-            .unwrap()
-            .mean_f;
-            let d_still = still_block_contour_score(&push.raw, &push.target);
-            println!(
-                "{label} {site}{}: still block F {f_still:.4} (spline truth {f_still_sp:.4}), contour {:.2} px (max {:.2})",
-                if k == 0 { " (training)" } else { "" },
-                d_still.mean_px,
-                d_still.max_px
-            );
-            for (name, p) in [
-                ("by F", &by_f.best_params),
-                ("by F, spline truth", &by_f_spline.best_params),
-                ("by contour", &by_c.best_params),
-            ] {
-                let f = score_run(&push.raw, &push.raw.video.forces_n, p, &cfg)
-                    .unwrap()
-                    .mean_f;
-                let f_sp = score_run(&push.spline, &push.spline.video.forces_n, p, &cfg)
-                    .unwrap()
-                    .mean_f;
-                let d =
-                    score_contour_run(&push.raw, &push.target, &push.raw.video.forces_n, p, &cfg)
-                        .unwrap();
-                println!(
-                    "    model {name}: F {f:.4} (spline truth {f_sp:.4}, skill {:.2}) | contour {:.2} px (max {:.2}, worst {:.1}) skill {:.2}",
-                    (f - f_still) / (1.0 - f_still),
-                    d.mean_px,
-                    d.max_px,
-                    d.worst_px,
-                    skill(d.mean_px, d_still.mean_px)
-                );
-            }
-        }
-        models_f.push(MaterialModel {
-            label: label.into(),
-            params: by_f.best_params,
-        });
-        models_c.push(MaterialModel {
-            label: label.into(),
-            params: by_c.best_params,
-        });
-        pushes.push((label, ps));
-    }
-    for (set, models) in [
-        ("calibrated by F", &models_f),
-        ("calibrated by contour", &models_c),
-    ] {
-        println!("classification, models {set}:");
-        for (label, ps) in &pushes {
-            for push in ps {
-                let site = push.raw.video.scenario.site.name();
-                let by_f = classify(&push.raw, &push.raw.video.forces_n, models, &cfg).unwrap();
-                let by_c = classify_by_contour(
-                    &push.raw,
-                    &push.target,
-                    &push.raw.video.forces_n,
-                    models,
-                    &cfg,
-                )
-                .unwrap();
-                // What held in the full run: all six right by either score.
-                assert_eq!(
-                    by_f.winner_label(),
-                    Some(*label),
-                    "{set}, by F, {label} {site}"
-                );
-                assert_eq!(
-                    by_c.winner_label(),
-                    Some(*label),
-                    "{set}, by contour, {label} {site}"
-                );
-                println!(
-                    "  {label} {site}: by F → {} (frames {:?}, vote {:.3?}); by contour → {} (frames {:?}, vote {:.1?} px)",
-                    by_f.verdict(),
-                    by_f.frames_won,
-                    by_f.vote,
-                    by_c.verdict(),
-                    by_c.tally.frames_won,
-                    by_c.tally.vote
-                );
-            }
-        }
-    }
 }

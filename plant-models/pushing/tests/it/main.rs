@@ -4,4 +4,3 @@ mod acceptance;
 mod contour_score;
 mod model;
 mod scoring;
-mod table_ii;

@@ -3,20 +3,14 @@
 //!
 //! The ground truth is the continuum reference block (co-rotational Burgers
 //! tetrahedra, hidden material constants, point and force noise): not the
-//! lattice being calibrated. The test that runs in CI is a short form on a
-//! small block; the paper-sized experiments are `#[ignore]`d and print the
-//! figures the system README reports:
-//!
-//! ```sh
-//! CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
-//!   cargo test --release -p plant-models --test rheology_calibration -- \
-//!   --ignored --nocapture --test-threads 1
-//! ```
+//! lattice being calibrated. This is the short form on a small block; the
+//! paper-sized experiments are the crate's examples `ga_against_ra` and
+//! `dense_against_sparse`, which print the figures the rheology README
+//! reports (`cargo run --release -p plant-rheology --example ga_against_ra`).
 use plant_rheology::identify::calibrate::{calibrate, CalibrationSettings, Problem};
 use plant_rheology::identify::measurement::Measurement;
 use plant_rheology::identify::reference::{record_push, ReferenceConfig};
 use plant_rheology::identify::search::{Budget, Method};
-use plant_rheology::lattice::VolumeMode;
 use plant_rheology::params::{LatticeParams, ParamSet};
 use plant_rheology::scenario::{push_schedule_mm, Scenario};
 
@@ -125,120 +119,4 @@ fn calibrated_parameters_predict_an_unseen_push_better_than_the_defaults() {
         c.mean_force_error_n(),
         d.mean_force_error_n()
     );
-}
-
-/// Evaluations of the `#[ignore]`d experiments (`RH_EVALS` overrides).
-fn experiment_evaluations(default: usize) -> usize {
-    std::env::var("RH_EVALS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-/// The paper's Table (L1901–1915): for 8 parameters the GA reached S 2350
-/// and RA 2442 after 168 h each. Here: equal evaluations, 5 seeds, the
-/// small push on a 5 × 4 × 5 lattice (the smallest with core voxels, so
-/// that surface and core constants both matter). The assertion holds at
-/// the default 500 evaluations and fails at `RH_EVALS=2000`, where RA's
-/// mean is lower: both methods end in one of two basins, which one
-/// depending on the seed (src/rheology/README.md, GA against RA).
-#[test]
-#[ignore = "experiment (≈ 3 min in release on 2 cores); figures in src/rheology/README.md"]
-fn ga_against_random_search_for_8_parameters_over_5_seeds() {
-    let sc = small_scenario([5, 4, 5], 8.0, 0.5);
-    let problem = Problem::new(
-        sc.clone(),
-        ParamSet::Eight,
-        measured(&sc, &small_reference(1)),
-    )
-    .unwrap();
-    let evaluations = experiment_evaluations(500);
-    let (d, _) = problem.score(&LatticeParams::paper_default()).unwrap();
-    eprintln!("defaults: S {:.2}", d.s);
-    let mut wins = 0;
-    let (mut ga_sum, mut ra_sum, mut seconds, mut total) = (0.0, 0.0, 0.0, 0);
-    for seed in 1..=5 {
-        let mut best = [0.0; 2];
-        for (k, method) in [Method::Ga, Method::Ra].into_iter().enumerate() {
-            let cal = calibrate(
-                &problem,
-                &CalibrationSettings::new(method, Budget::evaluations(evaluations), seed),
-                &mut |_| {},
-            )
-            .unwrap();
-            best[k] = cal.search.best_s;
-            seconds += cal.search.elapsed_s;
-            total += cal.search.evaluations;
-        }
-        eprintln!(
-            "seed {seed}: {evaluations} evaluations, GA S {:.2}, RA S {:.2}",
-            best[0], best[1]
-        );
-        wins += usize::from(best[0] < best[1]);
-        ga_sum += best[0];
-        ra_sum += best[1];
-    }
-    eprintln!(
-        "mean S: GA {:.2}, RA {:.2}; GA lower on {wins} of 5 seeds; {:.1} evaluations/s",
-        ga_sum / 5.0,
-        ra_sum / 5.0,
-        total as f64 / seconds
-    );
-    assert!(
-        ga_sum < ra_sum,
-        "GA mean S {ga_sum} ≥ RA mean S {ra_sum} (×5)"
-    );
-}
-
-/// The paper's dense-versus-sparse comparison for Model 2′ (local volume
-/// condition, 16 parameters; L1998–2001: S 1506 dense vs 1831 sparse): the
-/// paper's 10 × 6 × 10 cm block on 6 × 4 × 6 and 11 × 7 × 11 lattices,
-/// calibrated by the GA at equal evaluations against the same measured
-/// push (the paper's depth, scaled to 0.5 s of pushing to keep runs short)
-/// of the default 12 × 7 × 12-cube reference block.
-#[test]
-#[ignore = "experiment (≈ 12 min in release on 2 cores); figures in src/rheology/README.md"]
-fn the_dense_lattice_reaches_a_lower_s_than_the_sparse_one_for_model_2_prime() {
-    let evaluations = experiment_evaluations(300);
-    let make = |grid: [usize; 3]| {
-        let mut sc = Scenario::default();
-        sc.block.grid = grid;
-        sc.model.volume = VolumeMode::Local;
-        sc.model.dt_ms = 10.0;
-        sc.plate.depth_mm = Some(push_schedule_mm(15.0, 0.5));
-        sc.plate.end_s = 2.0;
-        sc.measure.frame_times_s = vec![0.5, 1.0, 1.5, 2.0];
-        sc.measure.force_window_s = [0.5, 1.5];
-        sc
-    };
-    let sparse = make([6, 4, 6]);
-    let dense = make([11, 7, 11]);
-    let reference = ReferenceConfig {
-        dt_ms: 10.0,
-        points_per_frame: 400,
-        ..ReferenceConfig::default()
-    };
-    let m = measured(&sparse, &reference);
-    let mut s = [0.0; 2];
-    for (k, sc) in [sparse, dense].into_iter().enumerate() {
-        let problem = Problem::new(sc.clone(), ParamSet::Sixteen, m.clone()).unwrap();
-        let (d, _) = problem.score(&LatticeParams::paper_default()).unwrap();
-        let cal = calibrate(
-            &problem,
-            &CalibrationSettings::new(Method::Ga, Budget::evaluations(evaluations), 1),
-            &mut |_| {},
-        )
-        .unwrap();
-        s[k] = cal.search.best_s;
-        eprintln!(
-            "{:?}: defaults S {:.2}, GA S {:.2} ({:.3} mm/point) after {} evaluations in {:.1} s",
-            sc.block.grid,
-            d.s,
-            cal.search.best_s,
-            10.0 * cal.search.best_s / d.points.max(1) as f64,
-            cal.search.evaluations,
-            cal.search.elapsed_s
-        );
-    }
-    assert!(s[1] < s[0], "dense S {} ≥ sparse S {}", s[1], s[0]);
 }
