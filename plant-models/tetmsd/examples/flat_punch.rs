@@ -100,7 +100,8 @@ fn run() -> Result<()> {
         let force = punch_force_n(level, depth_mm * 1e-3, load_steps)?;
         println!(
             "level {level} (h = {} mm): punch force {force:.6} N ({:.1} s)",
-            60.0 / f64::from(level),
+            // The regular levels 3m are the Kuhn grid of 2^m cells a side.
+            SIDE_M * 1e3 / f64::from(1u32 << (level / 3)),
             t.elapsed().as_secs_f64()
         );
         f.push(force);
