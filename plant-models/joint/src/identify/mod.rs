@@ -814,13 +814,19 @@ fn wire_stage(
 ) -> Result<(), IdentifyError> {
     let (log, map, fit_rows) = (part.log, part.map, part.rows);
     let paths = replay::replay_with_wire_paths(&found.model, log, map, fit_rows)?;
+    let sticks = replay::StickEvents::draw(
+        &found.model.wires,
+        &paths,
+        fit_rows,
+        opts.stick_realisations,
+    )?;
     let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
-        let expected =
-            replay::expected_wire_readings(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+        let expected = sticks.realisations(&m.wires, &paths)?;
         let mut out = Vec::with_capacity(map.sensors.len() * fit_rows);
         for (j, &s) in map.sensors.iter().enumerate() {
             out.extend(
                 expected[j]
+                    .0
                     .iter()
                     .enumerate()
                     .map(|(k, p)| (p - log.wire_mm[k][s]) / 0.01),
@@ -829,7 +835,7 @@ fn wire_stage(
         Ok(out)
     };
     let episodes = wire_episodes(part, &paths, &found.model.wires);
-    let systematic = wire_systematic(part, opts, &paths);
+    let systematic = wire_systematic(part, &paths, &sticks);
     Stage {
         name: "wire jamming",
         free: &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
@@ -866,8 +872,8 @@ fn wire_episodes(part: &FitPart, paths: &Prediction, wires: &[WireSensorParams])
 /// add up to the variance of the mean's shift.
 fn wire_systematic<'a>(
     part: &'a FitPart,
-    opts: &'a IdentifyOptions,
     paths: &'a Prediction,
+    sticks: &'a replay::StickEvents,
 ) -> impl Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a {
     let (map, fit_rows) = (part.map, part.rows);
     move |m: &PlaneModel| -> Result<Vec<Vec<f64>>, IdentifyError> {
@@ -882,8 +888,7 @@ fn wire_systematic<'a>(
                     .collect()
             })
             .collect();
-        let sensors =
-            replay::wire_realisations(&m.wires, paths, fit_rows, opts.stick_realisations)?;
+        let sensors = sticks.realisations(&m.wires, paths)?;
         let k = sensors.first().map_or(0, |s| s.1.len());
         if k > 1 {
             let scale = 1.0 / (0.01 * ((k * (k - 1)) as f64).sqrt());
