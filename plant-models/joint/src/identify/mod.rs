@@ -431,6 +431,8 @@ where
 {
     let mut model = model.clone();
     let mut evaluations = 0;
+    // The pre-fit's cost at its result, which is the grid's first point.
+    let mut cost_at_model = None;
     let sponge = [Param::SpongeModulus, Param::SpongeDamping];
     if sponge.iter().all(|p| p.get(&model).is_finite()) {
         let base = model.clone();
@@ -445,6 +447,7 @@ where
         if let Ok(r) = lm::levenberg_marquardt(|x: &[f64]| residuals(&apply(x)), &x0, opts) {
             evaluations += r.evaluations;
             model = apply(&r.x);
+            cost_at_model = Some(r.cost);
         }
     }
     let h0 = Param::Convection.get(&model);
@@ -459,14 +462,18 @@ where
     }
     let costs: Vec<Option<f64>> = grid
         .par_iter()
-        .map(|m| {
-            residuals(m)
-                .ok()
-                .map(|r| r.iter().map(|x| x * x).sum::<f64>())
-                .filter(|c| c.is_finite())
+        .enumerate()
+        .map(|(k, m)| {
+            let cost = match cost_at_model.filter(|_| k == 0) {
+                Some(known) => Some(known),
+                None => residuals(m)
+                    .ok()
+                    .map(|r| r.iter().map(|x| x * x).sum::<f64>()),
+            };
+            cost.filter(|c| c.is_finite())
         })
         .collect();
-    evaluations += grid.len();
+    evaluations += grid.len() - usize::from(cost_at_model.is_some());
     let mut order: Vec<usize> = (0..grid.len()).filter(|&k| costs[k].is_some()).collect();
     order.sort_by(|&a, &b| {
         costs[a]
