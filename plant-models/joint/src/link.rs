@@ -492,6 +492,7 @@ impl PlanarJoint {
     }
 
     /// Checks the state after a step: finite, energy and pose in range.
+    #[inline]
     pub fn check(&self, plane: &'static str, max_kinetic_j: f64) -> Result<(), PlantError> {
         let s = &self.state;
         let vals = [

@@ -173,50 +173,70 @@ where
     };
     while iterations < opts.max_iterations {
         iterations += 1;
-        let jm = DMatrix::from_fn(m, n, |i, j| jac[j][i]);
-        let rv = DVector::from_column_slice(&r);
-        let jtj = jm.transpose() * &jm;
-        let g = jm.transpose() * rv;
-        let mut accepted = false;
-        for _ in 0..8 {
-            let mut a = jtj.clone();
-            for k in 0..n {
-                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
-            }
-            let Some(chol) = a.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let dx = chol.solve(&(-&g));
-            let trial: Vec<f64> = x.iter().zip(dx.iter()).map(|(a, b)| a + b).collect();
-            evaluations += 1;
-            match f(&trial) {
-                Ok(rt) if sq(&rt).is_finite() && sq(&rt) < cost => {
-                    let new_cost = sq(&rt);
-                    let decrease = (cost - new_cost) / cost.max(1e-300);
-                    x = trial;
-                    r = rt;
-                    cost = new_cost;
-                    lambda = (lambda / 10.0).max(1e-9);
-                    accepted = true;
-                    if decrease < opts.ftol {
-                        return Ok(stop(x, r, cost, iterations, evaluations, false, None));
-                    }
-                    break;
-                }
-                // A trial the plant refuses (unstable) counts as worse.
-                _ => lambda *= 10.0,
-            }
-        }
-        if !accepted {
+        let Some((trial, rt, new_cost)) =
+            lm_step(f, &x, &r, cost, &jac, &mut lambda, &mut evaluations)
+        else {
             // No step lowers the cost: a (local) optimum, where the
             // Jacobian is the one just used.
             return Ok(stop(x, r, cost, iterations, evaluations, false, Some(jac)));
+        };
+        let decrease = (cost - new_cost) / cost.max(1e-300);
+        x = trial;
+        r = rt;
+        cost = new_cost;
+        if decrease < opts.ftol {
+            return Ok(stop(x, r, cost, iterations, evaluations, false, None));
         }
         jac = jacobian(f, &x, &r, opts.step)?;
         evaluations += n;
     }
     Ok(stop(x, r, cost, iterations, evaluations, true, Some(jac)))
+}
+
+/// One Levenberg–Marquardt step from `x` with the Jacobian `jac`: λ grows
+/// tenfold per rejected trial (at most 8) and falls tenfold on
+/// acceptance; the accepted trial point, its residuals and cost.
+#[allow(clippy::type_complexity)] // (x, r, cost)
+fn lm_step<F>(
+    f: &F,
+    x: &[f64],
+    r: &[f64],
+    cost: f64,
+    jac: &[Vec<f64>],
+    lambda: &mut f64,
+    evaluations: &mut usize,
+) -> Option<(Vec<f64>, Vec<f64>, f64)>
+where
+    F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
+    let (m, n) = (r.len(), x.len());
+    let jm = DMatrix::from_fn(m, n, |i, j| jac[j][i]);
+    let rv = DVector::from_column_slice(r);
+    let jtj = jm.transpose() * &jm;
+    let g = jm.transpose() * rv;
+    for _ in 0..8 {
+        let mut a = jtj.clone();
+        for k in 0..n {
+            a[(k, k)] += *lambda * jtj[(k, k)].max(1e-12);
+        }
+        let Some(chol) = a.cholesky() else {
+            *lambda *= 10.0;
+            continue;
+        };
+        let dx = chol.solve(&(-&g));
+        let trial: Vec<f64> = x.iter().zip(dx.iter()).map(|(a, b)| a + b).collect();
+        *evaluations += 1;
+        match f(&trial) {
+            Ok(rt) if sq(&rt).is_finite() && sq(&rt) < cost => {
+                let new_cost = sq(&rt);
+                *lambda = (*lambda / 10.0).max(1e-9);
+                return Some((trial, rt, new_cost));
+            }
+            // A trial the plant refuses (unstable) counts as worse.
+            _ => *lambda *= 10.0,
+        }
+    }
+    None
 }
 
 /// Forward-difference Jacobian, one column per coordinate, in parallel.

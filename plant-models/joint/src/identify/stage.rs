@@ -6,6 +6,8 @@
 //! The stages' physics (which parameters, which residuals) is the
 //! caller's; this module owns only the fitting and the bookkeeping.
 
+use rayon::prelude::*;
+
 use super::lm::{self, LmOptions, LmResult};
 use super::{Estimate, IdentifyError, IdentifyOptions, Param, PlaneModel, StageReport};
 
@@ -183,8 +185,13 @@ where
         let mut iterations = 0;
         let mut evaluations = 0;
         let mut first_error = None;
-        for (k, x0) in x0s.iter().enumerate() {
-            match lm::minimise(&f, x0, lm_opts) {
+        // The starts run in parallel; their results are taken in order.
+        let fits: Vec<Result<lm::Minimum, IdentifyError>> = x0s
+            .par_iter()
+            .map(|x0| lm::minimise(&f, x0, lm_opts))
+            .collect();
+        for (k, fit) in fits.into_iter().enumerate() {
+            match fit {
                 Ok(r) => {
                     iterations += r.iterations;
                     evaluations += r.evaluations;
