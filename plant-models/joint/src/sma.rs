@@ -300,7 +300,29 @@ impl SmaParams {
     }
 
     /// [`Self::settle_latent_heat`] with the branch constants precomputed.
+    /// Most steps end outside the transformation bands with ξ unchanged:
+    /// that is settled here, inline, and only the rest goes to
+    /// [`Self::settle_latent_heat_solve`] (which finds the same ξ first).
+    #[inline(always)]
     fn settle_latent_heat_with(
+        &self,
+        shape: &PhaseShape,
+        t_old: f64,
+        xi_old: f64,
+        t_sensible: f64,
+        shift_k: [f64; 2],
+    ) -> (f64, f64) {
+        let outside =
+            self.phase_update_outside_bands(t_old - shift_k[0], xi_old, t_sensible - shift_k[1]);
+        match outside {
+            Some(xi) if xi == xi_old || self.latent_rise_k() == 0.0 => (t_sensible, xi),
+            _ => self.settle_latent_heat_solve(shape, t_old, xi_old, t_sensible, shift_k),
+        }
+    }
+
+    /// [`Self::settle_latent_heat_with`] in full.
+    #[inline(never)]
+    fn settle_latent_heat_solve(
         &self,
         shape: &PhaseShape,
         t_old: f64,
@@ -397,14 +419,10 @@ impl SmaParams {
         xi_old: f64,
         t_new: f64,
     ) -> f64 {
+        if let Some(xi) = self.phase_update_outside_bands(t_old, xi_old, t_new) {
+            return xi;
+        }
         if t_new > t_old {
-            if t_new >= self.austenite_finish_c {
-                return 0.0;
-            }
-            if t_new <= self.austenite_start_c {
-                // g_A(t_old) = g_A(t_new) = 1: ξ·1/1 = ξ.
-                return xi_old.min(xi_old).clamp(0.0, 1.0);
-            }
             let g_old = *from.heat.get_or_insert_with(|| self.g_heat(shape, t_old));
             if g_old <= 0.0 {
                 return xi_old;
@@ -412,23 +430,43 @@ impl SmaParams {
             (xi_old * self.g_heat(shape, t_new) / g_old)
                 .min(xi_old)
                 .clamp(0.0, 1.0)
-        } else if t_new < t_old {
-            if t_new <= self.martensite_finish_c {
-                return 1.0;
-            }
-            if t_new >= self.martensite_start_c {
-                // g_M(t_old) = g_M(t_new) = 1: (1 − ξ)·1/1 = 1 − ξ.
-                let aus = (1.0 - xi_old).min(1.0 - xi_old);
-                return (1.0 - aus).clamp(0.0, 1.0);
-            }
+        } else {
             let g_old = *from.cool.get_or_insert_with(|| self.g_cool(shape, t_old));
             if g_old <= 0.0 {
                 return xi_old;
             }
             let aus = ((1.0 - xi_old) * self.g_cool(shape, t_new) / g_old).min(1.0 - xi_old);
             (1.0 - aus).clamp(0.0, 1.0)
+        }
+    }
+
+    /// [`Self::phase_update`] where it needs neither branch's shape: no
+    /// change of temperature, or an end outside the band of the branch
+    /// taken (heating: at or above A_f, at or below A_s; cooling: at or
+    /// below M_f, at or above M_s); `None` inside it.
+    #[inline(always)]
+    fn phase_update_outside_bands(&self, t_old: f64, xi_old: f64, t_new: f64) -> Option<f64> {
+        if t_new > t_old {
+            if t_new >= self.austenite_finish_c {
+                return Some(0.0);
+            }
+            if t_new <= self.austenite_start_c {
+                // g_A(t_old) = g_A(t_new) = 1: ξ·1/1 = ξ.
+                return Some(xi_old.min(xi_old).clamp(0.0, 1.0));
+            }
+            None
+        } else if t_new < t_old {
+            if t_new <= self.martensite_finish_c {
+                return Some(1.0);
+            }
+            if t_new >= self.martensite_start_c {
+                // g_M(t_old) = g_M(t_new) = 1: (1 − ξ)·1/1 = 1 − ξ.
+                let aus = (1.0 - xi_old).min(1.0 - xi_old);
+                return Some((1.0 - aus).clamp(0.0, 1.0));
+            }
+            None
         } else {
-            xi_old
+            Some(xi_old)
         }
     }
 }
