@@ -275,24 +275,11 @@ impl StickEvents {
         let mut out = Vec::with_capacity(wires.len());
         for ((w, path), runs) in wires.iter().zip(&pred.wire_path_mm).zip(&self.events) {
             let rows = self.rows.min(path.len() / n.max(1));
-            let runs: Vec<Vec<f64>> = runs
-                .par_iter()
-                .map(|events| {
-                    let mut sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0)?;
-                    let mut next = events.iter().peekable();
-                    let mut read = Vec::with_capacity(rows);
-                    for k in 0..rows {
-                        read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
-                        for (i, &ideal) in path[k * n..(k + 1) * n].iter().enumerate() {
-                            let step = k * n + i;
-                            sensor.advance_to_ideal_with(ideal, |_, _| {
-                                next.next_if(|e| e.0 == step).map(|e| e.1)
-                            });
-                        }
-                    }
-                    Ok(read)
-                })
+            let groups: Vec<Vec<Vec<f64>>> = runs
+                .par_chunks(LOCKSTEP_REALISATIONS)
+                .map(|group| lockstep_runs(w, &path[..rows * n], n, group))
                 .collect::<Result<_, IdentifyError>>()?;
+            let runs: Vec<Vec<f64>> = groups.into_iter().flatten().collect();
             let mut mean = vec![0.0; rows];
             for run in &runs {
                 for (m, v) in mean.iter_mut().zip(run) {
@@ -395,6 +382,43 @@ pub fn replay_thermal(
         }
     }
     Ok(out)
+}
+
+/// Realisations a thread runs side by side (see [`lockstep_runs`]).
+const LOCKSTEP_REALISATIONS: usize = 8;
+
+/// The readings (mm, at each row start) of one run of the sensor `w`
+/// along `path` (`n` substeps per row) per list of recorded sticks in
+/// `group`. The runs advance side by side, substep by substep: each is a
+/// chain of dependent operations (the lag), so that the processor can
+/// overlap several; each run's operations are those of running it alone.
+fn lockstep_runs(
+    w: &WireSensorParams,
+    path: &[f64],
+    n: usize,
+    group: &[Vec<(usize, f64)>],
+) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    let rows = path.len() / n.max(1);
+    let mut sensors = group
+        .iter()
+        .map(|_| WireSensor::new(w.clone(), 0.0, 0.0, 0.0))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut next: Vec<_> = group.iter().map(|e| e.iter().peekable()).collect();
+    let mut reads = vec![Vec::with_capacity(rows); group.len()];
+    for k in 0..rows {
+        for (read, sensor) in reads.iter_mut().zip(&sensors) {
+            read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
+        }
+        for (i, &ideal) in path[k * n..(k + 1) * n].iter().enumerate() {
+            let step = k * n + i;
+            for (sensor, next) in sensors.iter_mut().zip(&mut next) {
+                sensor.advance_to_ideal_with(ideal, |_, _| {
+                    next.next_if(|e| e.0 == step).map(|e| e.1)
+                });
+            }
+        }
+    }
+    Ok(reads)
 }
 
 #[cfg(test)]
