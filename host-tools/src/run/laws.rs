@@ -2,7 +2,9 @@
 //! file's, or laws fitted to a simulated calibration sweep of the run's own
 //! joint. The fit is an explicit step ([`fitted`]) whose result is cached
 //! for the process, keyed by the joint and the method, so a program that
-//! resolves the same scenario many times (tests, sweeps) runs one sweep.
+//! resolves the same scenario many times (tests, sweeps) runs one sweep,
+//! and between runs in a file ([`crate::run::law_cache`]), so the main
+//! job's second run does not sweep at all.
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -13,6 +15,7 @@ use crate::files::calibration::CalibrationFile;
 use crate::files::scenario::{EstimatorMethod, FeedbackKind, Scenario};
 use crate::joint::calibrate;
 use crate::run::joint::JointSpec;
+use crate::run::law_cache;
 use crate::run::sweep::calibration_sweep;
 
 /// A run's estimation laws and where they come from.
@@ -89,7 +92,8 @@ pub struct FittedLaws {
 /// `single` and `differential` force that method. The result is cached
 /// for the process: the same joint and method give the same laws without
 /// a second sweep (the sweep and fit are deterministic, so the cache
-/// changes no result).
+/// changes no result), and so is it between runs of the same program
+/// ([`law_cache`]).
 pub fn fitted(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<Arc<FittedLaws>> {
     static CACHE: OnceLock<Mutex<HashMap<String, Arc<FittedLaws>>>> = OnceLock::new();
     // `{:?}` prints every f64 so that it reads back to the same value: two
@@ -99,6 +103,32 @@ pub fn fitted(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<Arc<
     if let Some(hit) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
         return Ok(hit);
     }
+    let kept = law_cache::dir().zip(law_cache::key(&key));
+    let fit = match kept
+        .as_ref()
+        .and_then(|(dir, file_key)| law_cache::load(dir, file_key))
+    {
+        Some((calibration, sweep_rows)) => FittedLaws {
+            calibration,
+            sweep_rows,
+        },
+        None => {
+            let fit = sweep_and_fit(joint, method)?;
+            if let Some((dir, file_key)) = &kept {
+                law_cache::store(dir, file_key, &fit.calibration, fit.sweep_rows);
+            }
+            fit
+        }
+    };
+    let fit = Arc::new(fit);
+    if let Ok(mut c) = cache.lock() {
+        c.insert(key, fit.clone());
+    }
+    Ok(fit)
+}
+
+/// The sweep of `joint` and `method`'s fit to it, uncached.
+fn sweep_and_fit(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<FittedLaws> {
     let rows = calibration_sweep(joint)?;
     let fits = calibrate::fit(&rows)?;
     let calibration = match method {
@@ -108,12 +138,8 @@ pub fn fitted(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<Arc<
         }
         _ => calibrate::calibration_of(&fits)?,
     };
-    let fit = Arc::new(FittedLaws {
+    Ok(FittedLaws {
         calibration,
         sweep_rows: rows.len(),
-    });
-    if let Ok(mut c) = cache.lock() {
-        c.insert(key, fit.clone());
-    }
-    Ok(fit)
+    })
 }

@@ -341,3 +341,59 @@ fn a_2d_file_without_targets_runs_the_default_steps_under_its_own_name() {
     assert_eq!(v["scenario"], s(&path));
     assert_eq!(v["segments"][0]["desired_deg"], serde_json::json!([0.0]));
 }
+
+/// The laws fitted to the default joint's sweep are kept between runs
+/// (`run::law_cache`): the second run reads them instead of sweeping and
+/// prints the same summary; an entry is used only under its own key.
+#[test]
+fn fitted_laws_are_kept_between_runs_and_used_only_under_their_key() {
+    let dir = scratch("law-cache");
+    let run = |cache: &Path| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_softjoint"))
+            .args(["sim", "--json"])
+            .env("SOFTJOINT_CACHE_DIR", cache)
+            .output()
+            .expect("binary runs");
+        ok(&o);
+        let mut v: Value = serde_json::from_str(&stdout(&o)).expect("JSON");
+        // Wall-clock figures differ between any two runs.
+        v.as_object_mut().unwrap().remove("realtime_factor");
+        v.as_object_mut().unwrap().remove("wall_seconds");
+        v
+    };
+    let cold = run(&dir);
+    let entries: Vec<_> = std::fs::read_dir(&*dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(entries.len(), 1, "one kept fit: {entries:?}");
+    let kept = std::fs::read_to_string(&entries[0]).unwrap();
+    assert!(
+        kept.contains("key = ") && kept.contains("[calibration.alpha]"),
+        "{kept}"
+    );
+    assert_eq!(
+        run(&dir),
+        cold,
+        "a run from the kept laws differs from the sweep's"
+    );
+
+    // The entry is really read: laws edited in it (same key) change the run.
+    let offset_line = kept
+        .lines()
+        .find(|l| l.starts_with("offset = "))
+        .expect("a differential offset in the kept laws");
+    let edited = kept.replacen(offset_line, "offset = 40.0", 1);
+    std::fs::write(&entries[0], &edited).unwrap();
+    assert_ne!(run(&dir), cold, "the edited entry was not read");
+
+    // Under another key (a rebuilt program, another joint) it is a miss:
+    // the run sweeps again, gives the original summary and rewrites it.
+    std::fs::write(
+        &entries[0],
+        edited.replacen("key = \"", "key = \"other ", 1),
+    )
+    .unwrap();
+    assert_eq!(run(&dir), cold, "an entry under another key was used");
+    assert_eq!(std::fs::read_to_string(&entries[0]).unwrap(), kept);
+}

@@ -6,12 +6,20 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-/// Runs the built `softjoint` with `args`.
+/// Runs the built `softjoint` with `args`. Its cache of fitted laws
+/// (`run::law_cache`) is kept under the build's own temporary directory,
+/// shared by the tests, never in the user's home.
 pub fn softjoint(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_softjoint"))
         .args(args)
+        .env("SOFTJOINT_CACHE_DIR", test_cache_dir())
         .output()
         .expect("binary runs")
+}
+
+/// The law cache the tests' runs share.
+pub fn test_cache_dir() -> std::path::PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join("softjoint-cache")
 }
 
 /// Standard output as text.
