@@ -5,6 +5,8 @@
 //!
 //! - [`packet`]: the 64-byte manipulation packet, byte for byte.
 //! - [`link`]: sequence numbers, acknowledgements, retransmission.
+//! - [`control`]: the handshake, the session clock, state transfer to a
+//!   restarted peer.
 //! - [`netem`]: the network emulator and the seed's round-trip tables.
 //! - [`replica`]: committed and speculative replicas, the update order,
 //!   divergence.
@@ -14,6 +16,7 @@
 //!   network, display 30 Hz), and two such sites in one process.
 //! - [`report`]: what a site reports, in one shape for every mode.
 //! - [`scenario`]: the session scenario (object, network, stylus paths).
+pub mod control;
 pub mod link;
 pub mod local;
 pub mod netem;
