@@ -12,6 +12,8 @@
 //!   divergence.
 //! - [`pair`]: two sites in virtual time over the codec.
 //! - [`local`]: both users on one model, no network.
+//! - [`paths`]: the link's figures on an emulated path against the path
+//!   itself (round trip, resends, committed lag), and the table of paths.
 //! - [`realtime`]: one site in real time (haptic 1 kHz, deformation,
 //!   network, display 30 Hz), and two such sites in one process.
 //! - [`report`]: what a site reports, in one shape for every mode.
@@ -22,6 +24,7 @@ pub mod local;
 pub mod netem;
 pub mod packet;
 pub mod pair;
+pub mod paths;
 pub mod realtime;
 pub mod replica;
 pub mod report;
