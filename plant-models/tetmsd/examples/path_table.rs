@@ -39,11 +39,18 @@ fn main() -> ExitCode {
     println!("{duration_s} s per row, level {level}, seed {seed}\n");
     println!("{}", PathFigures::header());
     let mut missed = Vec::new();
-    for case in full_table().into_iter().filter(|c| c.label().contains(&only)) {
+    for case in full_table()
+        .into_iter()
+        .filter(|c| c.label().contains(&only))
+    {
         match run_case(case, level, duration_s, seed) {
             Ok(f) => {
                 println!("{}", f.row());
-                missed.extend(f.failures().into_iter().map(|w| format!("{}: {w}", case.label())));
+                missed.extend(
+                    f.failures()
+                        .into_iter()
+                        .map(|w| format!("{}: {w}", case.label())),
+                );
             }
             Err(e) => missed.push(format!("{}: the run failed: {e}", case.label())),
         }

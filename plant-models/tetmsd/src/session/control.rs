@@ -235,7 +235,12 @@ impl Control {
             .is_none_or(|t| now_us >= t + HELLO_EVERY_US);
         match &self.phase {
             Phase::Fresh | Phase::Joining(_) if due => {
-                vec![self.hello(now_us, Stage::Hello { committed_tick: None })]
+                vec![self.hello(
+                    now_us,
+                    Stage::Hello {
+                        committed_tick: None,
+                    },
+                )]
             }
             Phase::Offering {
                 tick,
@@ -297,7 +302,12 @@ impl Control {
         }
         let known = self.peer_nonce == Some(h.nonce);
         match (&self.phase, h.stage) {
-            (Phase::Fresh, Stage::Hello { committed_tick: None }) => {
+            (
+                Phase::Fresh,
+                Stage::Hello {
+                    committed_tick: None,
+                },
+            ) => {
                 self.take_echo(now_us, h);
                 if self.site == 0 && self.rtt_samples.len() >= RTT_SAMPLES {
                     return self.go(now_us, h.nonce);
@@ -347,7 +357,12 @@ impl Control {
                 self.phase = Phase::Preparing;
                 (vec![Event::PeerRestarted], Vec::new())
             }
-            (Phase::Running, Stage::Hello { committed_tick: None }) if self.site == 0 => {
+            (
+                Phase::Running,
+                Stage::Hello {
+                    committed_tick: None,
+                },
+            ) if self.site == 0 => {
                 // Our go was lost: say it again with the clock as it is now.
                 self.take_echo(now_us, h);
                 let clock = self.clock_us(now_us).unwrap_or(0);
@@ -374,8 +389,7 @@ impl Control {
                 Stage::Hello {
                     committed_tick: Some(t),
                 },
-            ) if !known =>
-            {
+            ) if !known => {
                 let who = format!(
                     "a site of another session (nonce {:08x}, at tick {t}) was ignored",
                     h.nonce
@@ -410,7 +424,12 @@ impl Control {
         (vec![start], vec![go])
     }
 
-    fn on_state(&mut self, now_us: u64, tick: u32, chunk: &StateChunk) -> (Vec<Event>, Vec<[u8; 64]>) {
+    fn on_state(
+        &mut self,
+        now_us: u64,
+        tick: u32,
+        chunk: &StateChunk,
+    ) -> (Vec<Event>, Vec<[u8; 64]>) {
         if self.running() {
             // A round after we started: the peer did not hear us.
             if matches!(self.phase, Phase::Running) && matches!(chunk, StateChunk::Summary { .. }) {
@@ -481,7 +500,9 @@ impl Control {
         let owd = (self.rtt_us().unwrap_or(0) / 2) as i64;
         let clock_now = peer_clock_us + owd + (now_us - arrived_us) as i64;
         let origin = now_us as i64 - clock_now;
-        let first_tick = (clock_now.max(0) as u64).div_ceil(1000).max(u64::from(tick));
+        let first_tick = (clock_now.max(0) as u64)
+            .div_ceil(1000)
+            .max(u64::from(tick));
         self.origin_us = Some(origin);
         self.phase = Phase::Running;
         let ok = Stage::StateReceived { state_tick: tick };

@@ -502,11 +502,7 @@ impl Link {
             };
             report.blocks[..part.len()].copy_from_slice(part);
             let acks = self.acks();
-            out.push(self.packet(Message::Ack {
-                from,
-                acks,
-                report,
-            }));
+            out.push(self.packet(Message::Ack { from, acks, report }));
             self.stats.acks_sent += 1;
             from = self.recv_base + u32::from(part[part.len() - 1].1);
         }
@@ -962,11 +958,17 @@ mod tests {
                 w.links[1].on_datagram(now, &b, &g, n);
             }
             for s in 0..2 {
-                let mut out: Vec<[u8; 64]> =
-                    w.links[s].send_input(now, k, input(k)).unwrap().into_iter().collect();
+                let mut out: Vec<[u8; 64]> = w.links[s]
+                    .send_input(now, k, input(k))
+                    .unwrap()
+                    .into_iter()
+                    .collect();
                 out.extend(w.links[s].poll(now));
                 for p in out {
-                    if s == 0 && k == 20 && held.is_none() && w.links[0].stats().retransmissions == 0
+                    if s == 0
+                        && k == 20
+                        && held.is_none()
+                        && w.links[0].stats().retransmissions == 0
                     {
                         held = Some(p);
                         continue;
@@ -998,7 +1000,10 @@ mod tests {
         assert_eq!(b.stats().malformed.total(), 2);
         // A tick far ahead is dropped and counted.
         let mut far = Link::starting_at(0, LinkConfig::default(), WINDOW_TICKS + 5);
-        let p = far.send_input(0, WINDOW_TICKS + 5, input(1)).unwrap().unwrap();
+        let p = far
+            .send_input(0, WINDOW_TICKS + 5, input(1))
+            .unwrap()
+            .unwrap();
         assert_eq!(b.on_datagram(0, &p, &g, n), Arrival::Nothing);
         assert_eq!(b.stats().beyond_window, 1);
         // A sender with a full window of unacknowledged inputs stops.
@@ -1053,7 +1058,10 @@ mod tests {
         assert_eq!(a.stats().retransmissions, 0);
         let mut b = Link::starting_at(1, LinkConfig::default(), 10);
         for p in &held {
-            assert!(matches!(b.on_datagram(2_000_000, p, &g, n), Arrival::Input { .. }));
+            assert!(matches!(
+                b.on_datagram(2_000_000, p, &g, n),
+                Arrival::Input { .. }
+            ));
         }
         assert_eq!(b.received_through(), 15);
         let q = b.ack_packet();

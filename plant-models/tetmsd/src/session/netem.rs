@@ -644,13 +644,20 @@ mod tests {
             assert_eq!(s.inputs_passed + s.inputs_lost, n);
             let runs = passed.windows(2).filter(|w| w[0] && !w[1]).count();
             let mean_run = s.lost as f64 / runs as f64;
-            assert!((mean_run - burst).abs() < 0.1 * burst, "{loss} {burst}: runs of {mean_run}");
+            assert!(
+                (mean_run - burst).abs() < 0.1 * burst,
+                "{loss} {burst}: runs of {mean_run}"
+            );
         }
         let bad = NetemConfig {
             burst_len: 0.5,
             ..NetemConfig::default()
         };
-        assert!(bad.validate().unwrap_err().to_string().contains("burst_len"));
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("burst_len"));
     }
 
     #[test]

@@ -115,7 +115,10 @@ impl SessionFields {
     pub fn mismatches(&self, peer: &SessionFields) -> Vec<String> {
         let mut out = Vec::new();
         if self.level != peer.level {
-            out.push(format!("level: ours {}, the peer's {}", self.level, peer.level));
+            out.push(format!(
+                "level: ours {}, the peer's {}",
+                self.level, peer.level
+            ));
         }
         if self.tick_us != peer.tick_us {
             out.push(format!(
@@ -1011,16 +1014,22 @@ mod tests {
         let echo = proptest::option::of(
             (any::<u16>(), 0u16..0xFFFF).prop_map(|(serial, hold_us)| Echo { serial, hold_us }),
         );
-        (stage, any::<u16>(), echo, fields(), any::<u64>(), any::<u32>()).prop_map(
-            |(stage, serial, echo, fields, config_hash, nonce)| Hello {
+        (
+            stage,
+            any::<u16>(),
+            echo,
+            fields(),
+            any::<u64>(),
+            any::<u32>(),
+        )
+            .prop_map(|(stage, serial, echo, fields, config_hash, nonce)| Hello {
                 stage,
                 serial,
                 echo,
                 fields,
                 config_hash,
                 nonce,
-            },
-        )
+            })
     }
 
     fn reason() -> impl Strategy<Value = ByeReason> {
@@ -1156,7 +1165,10 @@ mod tests {
             site: 1,
             message: Message::Input {
                 tick: 123_456,
-                acks: Acks { ack: 7, sack: 0b1010 },
+                acks: Acks {
+                    ack: 7,
+                    sack: 0b1010,
+                },
                 input: Manipulation {
                     tip_m: V3::new(0.021, 0.033, 0.0598),
                     grip: Some(Grip {
@@ -1231,7 +1243,11 @@ mod tests {
                 a[4 * k..4 * k + 2].copy_from_slice(&s.to_le_bytes());
                 a[4 * k + 2..4 * k + 4].copy_from_slice(&e.to_le_bytes());
             }
-            assert_eq!(Packet::decode(&reseal(a)), Err(Malformed::BadBlocks), "{blocks:?}");
+            assert_eq!(
+                Packet::decode(&reseal(a)),
+                Err(Malformed::BadBlocks),
+                "{blocks:?}"
+            );
         }
         let input = input_packet().encode();
         let mut nan = input;
@@ -1266,7 +1282,10 @@ mod tests {
         };
         let named = a.mismatches(&b);
         assert_eq!(named.len(), 2, "{named:?}");
-        assert!(named[0].starts_with("level: ours 6, the peer's 5"), "{named:?}");
+        assert!(
+            named[0].starts_with("level: ours 6, the peer's 5"),
+            "{named:?}"
+        );
         assert!(named[1].starts_with("density_kg_m3"), "{named:?}");
         assert_ne!(a.hash(), b.hash());
         // −0.0 and 0.0 are different bits: a different configuration.
@@ -1283,8 +1302,8 @@ mod tests {
     fn grips_and_states_are_checked_against_the_mesh() {
         use crate::model::mesh::CubeMesh;
         use crate::model::voigt::{VoigtMaterial, VoigtModel};
-        let model = VoigtModel::new(CubeMesh::new(3, 0.06).unwrap(), VoigtMaterial::default())
-            .unwrap();
+        let model =
+            VoigtModel::new(CubeMesh::new(3, 0.06).unwrap(), VoigtMaterial::default()).unwrap();
         let g = ContactGeometry::of(&model);
         let n = model.mesh().node_count();
         let with = |tet: u16, node: u16| Packet {
@@ -1310,9 +1329,18 @@ mod tests {
                 .position(|t| t.contains(&(node as u32)) == has)
                 .unwrap() as u16
         };
-        assert_eq!(with(holding(top, true), top as u16).check_against(&g, n), Ok(()));
-        assert_eq!(with(48, 0).check_against(&g, n), Err(Malformed::IndexOutOfRange));
-        assert_eq!(with(0, 27).check_against(&g, n), Err(Malformed::IndexOutOfRange));
+        assert_eq!(
+            with(holding(top, true), top as u16).check_against(&g, n),
+            Ok(())
+        );
+        assert_eq!(
+            with(48, 0).check_against(&g, n),
+            Err(Malformed::IndexOutOfRange)
+        );
+        assert_eq!(
+            with(0, 27).check_against(&g, n),
+            Err(Malformed::IndexOutOfRange)
+        );
         assert_eq!(
             with(holding(top, false), top as u16).check_against(&g, n),
             Err(Malformed::BadGrip)

@@ -176,12 +176,17 @@ impl Scenario {
                 ),
             })?;
         let n = &self.network;
-        check_range("jitter_ms", n.jitter_ms, 0.0, 1000.0, "must be 0 to 1000 ms").map_err(
-            |e| TetError::Malformed {
-                location: format!("{file}: network"),
-                reason: e.to_string(),
-            },
-        )?;
+        check_range(
+            "jitter_ms",
+            n.jitter_ms,
+            0.0,
+            1000.0,
+            "must be 0 to 1000 ms",
+        )
+        .map_err(|e| TetError::Malformed {
+            location: format!("{file}: network"),
+            reason: e.to_string(),
+        })?;
         let cfg = NetemConfig {
             profile,
             loss: n.loss,

@@ -43,7 +43,10 @@ fn round_trips_resends_lag_and_replicas_on_the_grid_corners() {
                 "{name}: site {s}: {site:?}"
             );
             if c.loss > 0.0 {
-                assert!(site.lost > 0 && site.resends >= site.lost, "{name}: {site:?}");
+                assert!(
+                    site.lost > 0 && site.resends >= site.lost,
+                    "{name}: {site:?}"
+                );
             }
             if lag_checked {
                 assert!(

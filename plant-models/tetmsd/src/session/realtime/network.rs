@@ -204,7 +204,8 @@ impl<'a> Net<'a> {
                     .on_datagram(now, &buf[..len], &self.geometry, self.nodes)
                 {
                     Arrival::Input { tick, input } => {
-                        self.backlog.push_back(PeerEvent::Input(u64::from(tick), input));
+                        self.backlog
+                            .push_back(PeerEvent::Input(u64::from(tick), input));
                     }
                     Arrival::Control(p) => {
                         if let Some(s) = self.on_connect_packet(now, &p)? {
@@ -262,7 +263,8 @@ impl<'a> Net<'a> {
                     }));
                 }
                 Event::Refused(why) => {
-                    self.link.refuse(crate::session::packet::Malformed::WrongPeer);
+                    self.link
+                        .refuse(crate::session::packet::Malformed::WrongPeer);
                     return Err(TetError::Site(format!(
                         "refused the peer at {}: {why}",
                         self.peer
@@ -432,7 +434,8 @@ impl<'a> Net<'a> {
                         self.control.peer_is_running();
                         self.link.set_paused(false);
                     }
-                    self.backlog.push_back(PeerEvent::Input(u64::from(tick), input));
+                    self.backlog
+                        .push_back(PeerEvent::Input(u64::from(tick), input));
                 }
                 Arrival::Control(p) => self.on_control(shared, now, &p),
                 Arrival::Nothing => {}
@@ -446,10 +449,7 @@ impl<'a> Net<'a> {
 
     /// A handshake, state or bye packet during the session.
     fn on_control(&mut self, shared: &Shared, now: u64, p: &Packet) {
-        if let Message::Bye {
-            next_tick, bye, ..
-        } = p.message
-        {
+        if let Message::Bye { next_tick, bye, .. } = p.message {
             self.on_bye(shared, u64::from(next_tick), bye);
             return;
         }
@@ -475,8 +475,9 @@ impl<'a> Net<'a> {
         self.backlog.retain(|e| !matches!(e, PeerEvent::Input(..)));
         self.backlog.push_back(PeerEvent::Resync(u64::from(tick)));
         self.waiting_state = true;
-        self.notes
-            .push(format!("the peer restarted; re-synchronised at tick {tick}"));
+        self.notes.push(format!(
+            "the peer restarted; re-synchronised at tick {tick}"
+        ));
     }
 
     fn on_bye(&mut self, shared: &Shared, next_tick: u64, bye: Bye) {

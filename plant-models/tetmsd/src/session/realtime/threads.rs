@@ -8,10 +8,10 @@ use super::{STOP_NONE, STOP_USER};
 use crate::error::{Result, TetError};
 use crate::model::probe::Manipulation;
 use crate::model::voigt::State;
-use crate::session::replica::LagHistogram;
 use crate::model::voigt::TICK_S;
 use crate::model::V3;
 use crate::session::pair::Haptic;
+use crate::session::replica::LagHistogram;
 use crate::session::replica::Replicas;
 use crate::session::report::{arr, DeformationTiming, DisplayTiming, ForceRow, HapticTiming};
 use std::collections::VecDeque;
@@ -112,9 +112,12 @@ fn stopping(setup: &SiteSetup, shared: &Shared, k: u64) -> bool {
         return true;
     }
     if setup.stop.load(Ordering::Relaxed) != 0 {
-        let _ = shared
-            .stop
-            .compare_exchange(STOP_NONE, STOP_USER, Ordering::Relaxed, Ordering::Relaxed);
+        let _ = shared.stop.compare_exchange(
+            STOP_NONE,
+            STOP_USER,
+            Ordering::Relaxed,
+            Ordering::Relaxed,
+        );
     }
     if k >= setup.duration_ticks {
         let _ = shared.stop.compare_exchange(
@@ -193,7 +196,12 @@ pub(super) fn haptic_thread(
         };
         run.contact_ticks += u64::from(m.grip.is_some());
         run.max_force = run.max_force.max(force.norm());
-        let ok_net = offer(&to_net, &mut net_backlog, (k as u32, m), &mut timing.backlogged);
+        let ok_net = offer(
+            &to_net,
+            &mut net_backlog,
+            (k as u32, m),
+            &mut timing.backlogged,
+        );
         let ok_def = offer(&to_deform, &mut def_backlog, (k, m), &mut timing.backlogged);
         shared.haptic_tick.store(k, Ordering::Relaxed);
         if live {
