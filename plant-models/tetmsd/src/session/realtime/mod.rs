@@ -41,8 +41,9 @@
 //! loop's lateness is measured and reported, never assumed.
 //!
 //! The parts: [`threads`] (haptic, deformation, display), [`network`]
-//! (handshake and the network thread); the report they fill is
-//! [`super::report::SiteReport`]. The pure session logic they drive is
+//! (handshake and the network thread), [`relay`] (the path emulator as a
+//! UDP relay process between two sites, for `tetmsd relay`); the report
+//! they fill is [`super::report::SiteReport`]. The pure session logic they drive is
 //! tested deterministically in [`super::pair`], [`super::link`] and
 //! [`super::control`]; this module is tested over real sockets by
 //! host-tools' `tetmsd_cli` (and across two network namespaces).
@@ -50,6 +51,7 @@
 //! Errors are the crate's [`TetError`]: a thread, socket or peer failure
 //! is [`TetError::Site`] with the words that name it.
 mod network;
+mod relay;
 mod threads;
 
 use super::pair::{Haptic, PairConfig, SessionConfig};
@@ -69,6 +71,8 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 use threads::{DeformOut, HapticOut};
+
+pub use relay::{run_relay, RelayReport, RelaySetup};
 
 /// Capacity of each inter-thread channel and of the haptic thread's
 /// backlog (ticks): 4 s of input.
@@ -311,14 +315,27 @@ pub fn run_site(setup: SiteSetup, socket: UdpSocket, peer: SocketAddr) -> Result
     let model = Arc::new(setup.session.model()?);
     let haptic = Haptic::new(&model);
     let epoch = Instant::now();
-    let mut net = network::Net::new(&setup, socket, peer, &haptic, model.mesh().node_count(), epoch)?;
+    let mut net = network::Net::new(
+        &setup,
+        socket,
+        peer,
+        &haptic,
+        model.mesh().node_count(),
+        epoch,
+    )?;
     let started: Started = net.connect()?;
     let replicas = match &started.state {
-        Some(s) => Replicas::from_state(model.clone(), setup.site, setup.session.replica, s.clone()),
+        Some(s) => {
+            Replicas::from_state(model.clone(), setup.site, setup.session.replica, s.clone())
+        }
         None => Replicas::new(model.clone(), setup.site, setup.session.replica),
     };
     let base = replicas.committed().tick;
-    let shared = Shared::at(base, replicas.committed().x_m.clone(), replicas.committed().bit_hash());
+    let shared = Shared::at(
+        base,
+        replicas.committed().x_m.clone(),
+        replicas.committed().bit_hash(),
+    );
     let out = run_threads(&setup, &shared, haptic, replicas, net, &started)?;
     Ok(site_report(&setup, out, &started))
 }
@@ -402,7 +419,12 @@ fn site_report(setup: &SiteSetup, out: ThreadsOut, started: &Started) -> SiteRep
         deformation: Some(out.deform.timing),
         display: Some(out.display.0),
         link: link_summary,
-        netem: out.net.emulator.as_ref().map(|e| NetemSummary::from(e.stats())).unwrap_or_default(),
+        netem: out
+            .net
+            .emulator
+            .as_ref()
+            .map(|e| NetemSummary::from(e.stats()))
+            .unwrap_or_default(),
         replica,
         committed_tick: committed.tick,
         final_hash: committed.bit_hash(),
