@@ -73,6 +73,12 @@ impl Stop {
         Ok(stop)
     }
 
+    /// The flag itself (0 while no stop is asked; otherwise the signal's
+    /// number), for a library that polls a plain atomic.
+    pub fn flag(&self) -> Arc<AtomicUsize> {
+        self.signal.clone()
+    }
+
     /// Asks the run to stop as if `signal` had arrived.
     pub fn request(&self, signal: StopSignal) {
         let s = match signal {

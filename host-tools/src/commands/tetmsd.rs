@@ -8,7 +8,12 @@
 //!   process (`--in-process`), or virtual time (`--virtual`, deterministic);
 //!   reports missed haptic ticks, packet statistics, replica divergence
 //!   and whether the final replicas are bit-identical;
-//! * `site` (hidden) — one site, the child process `pair` starts.
+//! * `site` — one site of a session between two machines: `--bind` and
+//!   `--peer` (without them, the child process `pair` starts, which reads
+//!   its peer's port on standard input); a status line every
+//!   `--status-every-s`; the site's report as JSON at the end;
+//! * `relay` — the path emulator as a UDP relay between two sites (delay,
+//!   jitter, loss, reordering, bursts), for networks without `tc netem`.
 //!
 //! The physics, the session logic and the real-time sites live in
 //! `plant_tetmsd` (`session::local`, `session::pair`, `session::realtime`);
@@ -16,7 +21,7 @@
 //! reports and pictures.
 use std::fmt::Write as _;
 use std::io::{BufRead, BufReader, Write as _};
-use std::net::SocketAddr;
+use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command, Stdio};
 use std::time::Instant;
@@ -30,6 +35,7 @@ use plant_tetmsd::local::{self, LocalRun};
 use plant_tetmsd::mesh::CubeMesh;
 use plant_tetmsd::model::voigt::{VoigtModel, TICK_S};
 use plant_tetmsd::model::V3;
+use plant_tetmsd::netem::{NetemConfig, Profile};
 use plant_tetmsd::pair::run_virtual;
 use plant_tetmsd::realtime::{self, SiteSetup};
 use plant_tetmsd::report::{ForceRow, PairOutcome, SiteReport};
@@ -51,9 +57,15 @@ enum TetCommand {
     Simulate(SimulateArgs),
     /// Two sites against each other through the network emulator.
     Pair(PairArgs),
-    /// One site of a pair (started by `pair`; reads `peer PORT` on stdin).
-    #[command(hide = true)]
+    /// One site of a session: `--bind ADDR:PORT --peer HOST:PORT` between
+    /// two machines (the handshake agrees on the configuration and refuses
+    /// a mismatch by name; a restarted peer is re-synchronised). Without
+    /// `--peer` it is the child process `pair` starts.
     Site(SiteArgs),
+    /// The path emulator as a UDP relay process between two sites: each
+    /// site's peer address is the relay, and each direction gets the
+    /// emulated delay, jitter, loss, reordering and bursts.
+    Relay(RelayArgs),
 }
 
 /// The scenario and what the command line changes in it.
@@ -134,18 +146,92 @@ struct PairArgs {
 
 #[derive(Args)]
 struct SiteArgs {
-    /// Which site (0 or 1).
+    /// Which site (0 or 1). Site 0 starts a new session.
     #[arg(long, allow_negative_numbers = true)]
     site: u8,
-    /// The scenario, as `pair` wrote it.
+    /// The scenario (TOML); without it the built-in default.
     #[arg(long)]
-    scenario: PathBuf,
+    scenario: Option<PathBuf>,
     /// Busy-wait before each haptic deadline (µs).
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     spin_us: u64,
     /// SCHED_FIFO priority of the haptic thread (0: normal).
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     rt_priority: u8,
+    /// Local address and port to bind, e.g. `0.0.0.0:7400` or `[::]:7400`
+    /// (with `--peer`; default: the unspecified address of the peer's
+    /// family, port 7400 + site).
+    #[arg(long, requires = "peer")]
+    bind: Option<String>,
+    /// The peer site's address: `HOST:PORT`, an IPv4 or IPv6 address
+    /// (`[::1]:7401`) or a DNS name. Without it, reads `peer PORT` on
+    /// standard input (the child process `pair` starts).
+    #[arg(long)]
+    peer: Option<String>,
+    /// Pass this site's packets through the scenario's network emulator
+    /// too (with `--peer`; by default a site with a peer sends straight to
+    /// the socket, as on a real network).
+    #[arg(long, requires = "peer")]
+    emulate: bool,
+    /// Refinement level (overrides the scenario's; both sites must agree).
+    #[arg(long, allow_negative_numbers = true)]
+    level: Option<i64>,
+    /// Session time this site makes inputs for (s; overrides the
+    /// scenario's).
+    #[arg(long, allow_negative_numbers = true)]
+    duration_s: Option<f64>,
+    /// A status line (round trip, resends, incoming gaps, replica lag) on
+    /// standard error every this many seconds (0: none).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    status_every_s: f64,
+    /// How long to look for the peer (s).
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    connect_timeout_s: f64,
+}
+
+#[derive(Args)]
+struct RelayArgs {
+    /// The relay's socket facing site A (`ADDR:PORT`).
+    #[arg(long)]
+    a: String,
+    /// The relay's socket facing site B.
+    #[arg(long)]
+    b: String,
+    /// Site A's address (default: learnt from its first datagram).
+    #[arg(long)]
+    a_site: Option<String>,
+    /// Site B's address (default: learnt).
+    #[arg(long)]
+    b_site: Option<String>,
+    /// Round-trip profile: none, table2 … table5 (the seed's Tables 2–5)
+    /// or rtt-MS (a fixed round trip of MS ms).
+    #[arg(long, default_value = "rtt-20")]
+    profile: String,
+    /// Probability a packet is lost (0–0.5).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    loss: f64,
+    /// Probability a packet is held 1–3 ms extra (0–1).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    reorder: f64,
+    /// Extra one-way delay per packet, uniform in [0, JITTER] ms.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    jitter_ms: f64,
+    /// Mean length of a run of lost packets (0: independent losses).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    burst_len: f64,
+    /// Packets each direction's queue holds.
+    #[arg(long, default_value_t = 4096, allow_negative_numbers = true)]
+    queue_packets: i64,
+    /// Seed of the delays, losses and reordering.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    seed: u64,
+    /// Stop once nothing has come for this long after the first datagram
+    /// (s).
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    idle_exit_s: f64,
+    /// Stop after this long in any case (s).
+    #[arg(long, default_value_t = 3600.0, allow_negative_numbers = true)]
+    max_run_s: f64,
 }
 
 /// Runs a `softjoint tetmsd` subcommand.
@@ -154,6 +240,7 @@ pub fn run(args: TetArgs) -> Result<()> {
         TetCommand::Simulate(a) => simulate(&a),
         TetCommand::Pair(a) => pair(&a),
         TetCommand::Site(a) => site(&a),
+        TetCommand::Relay(a) => relay(&a),
     }
 }
 
@@ -487,11 +574,107 @@ fn site(args: &SiteArgs) -> Result<()> {
     if args.site > 1 {
         bail!("--site must be 0 or 1, got {}", args.site);
     }
-    let text = std::fs::read_to_string(&args.scenario)
-        .with_context(|| format!("cannot read {}", args.scenario.display()))?;
-    let scenario: Scenario =
-        host_tools::input::from_toml(&text, &args.scenario.display().to_string())?;
-    let setup = SiteSetup::from_scenario(&scenario, args.site, args.spin_us, args.rt_priority)?;
+    let scenario = site_scenario(args)?;
+    let mut setup = SiteSetup::from_scenario(&scenario, args.site, args.spin_us, args.rt_priority)?;
+    setup.connect_timeout = seconds("--connect-timeout-s", args.connect_timeout_s)?;
+    let stop = host_tools::stop::Stop::on_signals()?;
+    setup.stop = stop.flag();
+    let status_printer = if args.status_every_s > 0.0 {
+        let every = seconds("--status-every-s", args.status_every_s)?;
+        let (tx, rx) = std::sync::mpsc::sync_channel::<realtime::SiteStatus>(16);
+        setup.status = Some((every, tx));
+        Some(std::thread::spawn(move || {
+            for s in rx {
+                eprintln!("{}", s.line());
+            }
+        }))
+    } else {
+        None
+    };
+    let (socket, peer) = match &args.peer {
+        Some(peer) => {
+            if !args.emulate {
+                setup.netem = None;
+            }
+            bind_to_peer(args.site, args.bind.as_deref(), peer)?
+        }
+        None => peer_from_stdin()?,
+    };
+    let report = realtime::run_site(setup, socket, peer);
+    if let Some(t) = status_printer {
+        t.join().ok();
+    }
+    output::print_json(&report?)?;
+    Ok(())
+}
+
+/// The site's scenario: the file or the default, with `--level` and
+/// `--duration-s`, checked.
+fn site_scenario(args: &SiteArgs) -> Result<Scenario> {
+    let (mut scenario, name) = match &args.scenario {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            let name = p.display().to_string();
+            (host_tools::input::from_toml(&text, &name)?, name)
+        }
+        None => (Scenario::default(), "the default scenario".to_string()),
+    };
+    if let Some(l) = args.level {
+        scenario.level = u32::try_from(l).map_err(|_| {
+            anyhow!("--level must be 0 to 12 (the seed's levels are 3 to 9), got {l}")
+        })?;
+    }
+    if let Some(d) = args.duration_s {
+        scenario.duration_s = d;
+    }
+    scenario.pair_config(&name).map_err(|e| anyhow!("{e}"))?;
+    Ok(scenario)
+}
+
+/// A positive, finite number of seconds from `flag`.
+fn seconds(flag: &str, s: f64) -> Result<std::time::Duration> {
+    if !(s.is_finite() && s > 0.0 && s <= 1e6) {
+        bail!("{flag} must be a positive number of seconds up to 1e6, got {s}");
+    }
+    Ok(std::time::Duration::from_secs_f64(s))
+}
+
+/// `HOST:PORT` resolved (DNS names, IPv4, IPv6 in brackets): the first
+/// address, or an error naming `flag`.
+fn resolve(flag: &str, text: &str) -> Result<SocketAddr> {
+    use std::net::ToSocketAddrs;
+    text.to_socket_addrs()
+        .with_context(|| format!("{flag} {text:?}: not HOST:PORT, or the name does not resolve"))?
+        .next()
+        .ok_or_else(|| anyhow!("{flag} {text:?}: the name resolves to no address"))
+}
+
+/// The socket bound at `bind` (default: the unspecified address of the
+/// peer's family, port 7400 + site) and the peer's address.
+fn bind_to_peer(site: u8, bind: Option<&str>, peer: &str) -> Result<(UdpSocket, SocketAddr)> {
+    let peer = resolve("--peer", peer)?;
+    let local = match bind {
+        Some(b) => resolve("--bind", b)?,
+        None => {
+            let any: std::net::IpAddr = if peer.is_ipv6() {
+                std::net::Ipv6Addr::UNSPECIFIED.into()
+            } else {
+                std::net::Ipv4Addr::UNSPECIFIED.into()
+            };
+            SocketAddr::new(any, 7400 + u16::from(site))
+        }
+    };
+    if local.is_ipv6() != peer.is_ipv6() {
+        bail!("--bind {local} and --peer {peer} are of different address families");
+    }
+    let socket = UdpSocket::bind(local).with_context(|| format!("--bind {local}: cannot bind"))?;
+    Ok((socket, peer))
+}
+
+/// The child process of `pair`: a loopback socket, its port on standard
+/// output, the peer's port from standard input.
+fn peer_from_stdin() -> Result<(UdpSocket, SocketAddr)> {
     let socket = realtime::bind_loopback()?;
     outln!("port {}", socket.local_addr()?.port());
     output::flush_stdout()?;
@@ -502,8 +685,52 @@ fn site(args: &SiteArgs) -> Result<()> {
         .strip_prefix("peer ")
         .and_then(|p| p.parse().ok())
         .ok_or_else(|| anyhow!("expected `peer PORT` on standard input, got {line:?}"))?;
-    let peer = SocketAddr::from(([127, 0, 0, 1], port));
-    let report = realtime::run_site(setup, socket, peer)?;
+    Ok((socket, SocketAddr::from(([127, 0, 0, 1], port))))
+}
+
+/// `softjoint tetmsd relay`: the emulated path between two sites.
+fn relay(args: &RelayArgs) -> Result<()> {
+    let profile = Profile::by_name(&args.profile).ok_or_else(|| {
+        anyhow!(
+            "--profile {:?}: expected none, table2, table3, table4, table5 or rtt-MS",
+            args.profile
+        )
+    })?;
+    if !(args.jitter_ms.is_finite() && (0.0..=1000.0).contains(&args.jitter_ms)) {
+        bail!("--jitter-ms must be 0 to 1000, got {}", args.jitter_ms);
+    }
+    let netem = NetemConfig {
+        profile,
+        loss: args.loss,
+        reorder: args.reorder,
+        capacity: usize::try_from(args.queue_packets).map_err(|_| {
+            anyhow!(
+                "--queue-packets must be positive, got {}",
+                args.queue_packets
+            )
+        })?,
+        jitter_us: (args.jitter_ms * 1000.0).round() as u64,
+        burst_len: args.burst_len,
+    };
+    netem.validate().map_err(|e| anyhow!("relay: {e}"))?;
+    let bind = |flag: &str, text: &str| -> Result<UdpSocket> {
+        let addr = resolve(flag, text)?;
+        UdpSocket::bind(addr).with_context(|| format!("{flag} {addr}: cannot bind"))
+    };
+    let site =
+        |flag: &str, text: &Option<String>| text.as_deref().map(|t| resolve(flag, t)).transpose();
+    let stop = host_tools::stop::Stop::on_signals()?;
+    let report = realtime::run_relay(realtime::RelaySetup {
+        a: bind("--a", &args.a)?,
+        b: bind("--b", &args.b)?,
+        a_site: site("--a-site", &args.a_site)?,
+        b_site: site("--b-site", &args.b_site)?,
+        netem,
+        seed: args.seed,
+        idle_exit: seconds("--idle-exit-s", args.idle_exit_s)?,
+        max_run: seconds("--max-run-s", args.max_run_s)?,
+        stop: stop.flag(),
+    })?;
     output::print_json(&report)?;
     Ok(())
 }

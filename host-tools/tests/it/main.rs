@@ -17,6 +17,7 @@ mod identify_cli;
 mod long_run_memory;
 mod rheology_cli;
 mod tetmsd_cli;
+mod tetmsd_sites;
 mod tissue_cli;
 mod visco_cli;
 mod writers_check_finite;

@@ -96,9 +96,12 @@ fn two_processes_over_udp_end_with_identical_replicas() {
     assert_eq!(v["mode"], "processes");
     assert_eq!(v["replicas_identical"], true);
     for site in v["sites"].as_array().unwrap() {
-        // Every tick ran (late ones are run late, never skipped); how late
-        // is reported, not asserted: the machine is shared.
-        assert_eq!(site["haptic"]["ticks"], 1500);
+        // Every live tick ran (late ones are run late, never skipped); how
+        // late is reported, not asserted: the machine is shared. Site 1
+        // goes live when site 0's go arrives: the ticks its clock had
+        // passed by then are sent at once as "no contact", not run live.
+        let live = site["haptic"]["ticks"].as_u64().unwrap();
+        assert!((1400..=1500).contains(&live), "{live} live ticks");
         assert!(site["haptic"]["late_max_us"].as_f64().unwrap() >= 0.0);
         assert_eq!(site["committed_tick"], 1500);
         assert_eq!(site["link"]["inputs_received"], 1500);

@@ -12,7 +12,7 @@ use plant_tetmsd::model::probe::{Grip, Manipulation};
 use plant_tetmsd::model::voigt::{Hold, VoigtMaterial, VoigtModel};
 use plant_tetmsd::model::V3;
 use plant_tetmsd::netem::{Profile, TABLE_2};
-use plant_tetmsd::packet::{Message, Packet};
+use plant_tetmsd::packet::{Acks, Message, Packet};
 use plant_tetmsd::pair::run_virtual;
 use plant_tetmsd::scenario::Scenario;
 use std::hint::black_box;
@@ -90,17 +90,21 @@ fn point_location(c: &mut Criterion) {
 fn codec(c: &mut Criterion) {
     let p = Packet {
         site: 1,
-        seq: 123_456,
-        ack: 7,
-        sack: 0b1010,
-        message: Message::Input(Manipulation {
-            tip_m: V3::new(0.021, 0.033, 0.0598),
-            grip: Some(Grip {
-                tet: 1234,
-                node: 321,
-                node_m: V3::new(0.0225, 0.03, 0.0598),
-            }),
-        }),
+        message: Message::Input {
+            tick: 123_456,
+            acks: Acks {
+                ack: 7,
+                sack: 0b1010,
+            },
+            input: Manipulation {
+                tip_m: V3::new(0.021, 0.033, 0.0598),
+                grip: Some(Grip {
+                    tet: 1234,
+                    node: 321,
+                    node_m: V3::new(0.0225, 0.03, 0.0598),
+                }),
+            },
+        },
     };
     let bytes = p.encode();
     let mut g = c.benchmark_group("tetmsd_packet");

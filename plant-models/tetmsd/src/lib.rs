@@ -35,4 +35,6 @@ pub mod session;
 
 pub use error::{Result, TetError};
 pub use model::{locate, mesh, probe, statics, voigt, V3};
-pub use session::{link, local, netem, packet, pair, realtime, replica, report, scenario};
+pub use session::{
+    control, link, local, netem, packet, pair, paths, realtime, replica, report, scenario,
+};

@@ -2,27 +2,53 @@
 //! packet: every input of the peer arrives exactly once, or the session
 //! says why it cannot go on.
 //!
-//! A site sends one input packet per 1 kHz tick, numbered by the tick.
-//! Every packet it sends carries, in the node-ID word, how many of the
-//! peer's ticks it has received without a gap (low 16 bits, extended on
-//! arrival against the receiver's own count) and a 16-bit map of the ticks
-//! after that gap that did arrive. The sender keeps every unacknowledged
-//! input in a bounded window ([`WINDOW_TICKS`]) and sends one again when
-//! neither an acknowledgement nor a selective acknowledgement has come
-//! within the retransmission timeout, estimated from the measured round
-//! trips as TCP does (Jacobson/Karels: `srtt + 4·rttvar`, clamped; samples
-//! only from packets sent once, Karn's rule), doubled for every resend of
-//! the same packet. The receiver keeps a bounded window of ticks ahead of
-//! its gap, counts duplicates (a late original after its retransmission, a
-//! retransmission after a late original) and every gap it saw and later
-//! saw filled ("recovered").
+//! **Sending.** A site sends one input packet per 1 kHz tick, numbered by
+//! the tick, and keeps every input not yet acknowledged in a bounded window
+//! ([`WINDOW_TICKS`]).
+//!
+//! **Acknowledging.** Every input (and ack, and bye) carries how many of
+//! the peer's ticks this site has received without a gap (low 16 bits,
+//! extended on arrival against the sender's own count) and a 15-bit map of
+//! the ticks after that gap, with a "more" bit when ticks beyond the map
+//! have arrived. While "more" is set, this site also sends ack packets
+//! whose selective-ack blocks cover every tick that arrived up to the
+//! highest one, every [`REPORT_EVERY_US`] (a report of more than
+//! [`MAX_BLOCKS`] blocks takes several packets, each saying from which tick
+//! it describes). So the sender learns within a few milliseconds of every
+//! arrival, however much is in flight, and resends only what is missing.
+//!
+//! **Round trips** (Karn's rule made exact): a tick gives a sample only if
+//! it was sent once and an acknowledgement described it as *missing* at
+//! most [`REPORT_EVERY_US`] + 1 tick before this one describes it as
+//! *arrived*: it arrived between the two, so the sample is its round trip
+//! plus at most that gap (normally one tick). A tick that was resent, or
+//! whose arrival came to light only later (a cumulative ack that jumps
+//! over ticks nobody described), gives none. The
+//! samples feed RFC 6298's estimator (`srtt`, `rttvar` with gains 1/8 and
+//! 1/4, the first sample giving `srtt = R`, `rttvar = R/2`).
+//!
+//! **Resending.** A tick is resent (1) when the peer has described it as
+//! missing and a tick sent after it has arrived, once it has been out
+//! longer than that tick's round trip plus a reordering window (RACK, RFC
+//! 8985 §6): the window starts at [`LinkConfig::reorder_window_us`] and
+//! doubles, up to `srtt`, each time a resend turns out to have been
+//! needless (the tick is reported arrived sooner after the resend than
+//! the smallest round trip, so the earlier copy arrived); or (2) when
+//! nothing about it has come for the retransmission timeout `RTO = srtt +
+//! max(4·rttvar, G)`, `G` the reordering window plus two ticks of ack
+//! hold, within [`LinkConfig::min_rto_us`]–[`LinkConfig::max_rto_us`],
+//! doubled per timeout of the same tick. The receiver counts duplicates
+//! and every gap it saw and later saw filled.
 //!
 //! Time is passed in as microseconds (`now_us`), so the same code runs in
 //! virtual time (tests, `pair --virtual`) and in real time over UDP.
 //!
 //! Left out: congestion control (the stream is 64 kB/s), sequence-number
 //! wrap (2³² ticks are 49.7 days: a longer session is refused).
-use super::packet::{DecodeStats, Malformed, Message, Packet};
+use super::packet::{
+    Acks, DecodeStats, Malformed, Message, Packet, SackReport, MAX_BLOCKS, SACK_MAP_TICKS,
+    SACK_MORE,
+};
 use crate::error::{Result, TetError};
 use crate::model::probe::{ContactGeometry, Manipulation};
 use std::collections::VecDeque;
@@ -32,17 +58,35 @@ use std::collections::VecDeque;
 /// measured (1,126,960 µs, L2803).
 pub const WINDOW_TICKS: u32 = 8192;
 
+/// How often a receiver with arrivals beyond its 15-tick map sends its
+/// selective-ack blocks (µs): every other tick.
+pub const REPORT_EVERY_US: u64 = 2_000;
+
+/// One tick (µs): the acknowledgement of an arrival waits at most this
+/// long for the receiver's next packet.
+const TICK_US: u64 = 1_000;
+
+/// A tick gives a round-trip sample only if the acknowledgement that last
+/// described it missing came at most this long before the one that
+/// describes it arrived (µs): a report period and a tick of ack hold, so
+/// a sample overstates the round trip by at most that.
+const SAMPLE_GAP_US: u64 = REPORT_EVERY_US + TICK_US;
+
 /// Retransmission timing.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LinkConfig {
-    /// Lower bound of the retransmission timeout (µs). 15 ms: above the
-    /// seed's typical round trips (9–14 ms), so ordinary jitter does not
-    /// cause resends, and short enough that a lost input costs little.
+    /// Lower bound of the retransmission timeout (µs). 10 ms: the tail
+    /// of a session, where no later tick reveals a loss, is not left
+    /// waiting long.
     pub min_rto_us: u64,
     /// Upper bound (µs).
     pub max_rto_us: u64,
-    /// Timeout before the first round-trip sample (µs).
+    /// Timeout before the first round-trip sample (µs): RFC 6298's 1 s.
     pub initial_rto_us: u64,
+    /// The reordering a sender tolerates at first (µs) before it calls a
+    /// missing tick lost: 5 ms covers the emulator's 1–3 ms holds plus a
+    /// tick of ack hold and one lost acknowledgement.
+    pub reorder_window_us: u64,
     /// Most packets resent by one [`Link::poll`] (bounds a burst).
     pub max_resends_per_poll: usize,
 }
@@ -50,10 +94,11 @@ pub struct LinkConfig {
 impl Default for LinkConfig {
     fn default() -> Self {
         LinkConfig {
-            min_rto_us: 15_000,
+            min_rto_us: 10_000,
             max_rto_us: 1_000_000,
-            initial_rto_us: 100_000,
-            max_resends_per_poll: 32,
+            initial_rto_us: 1_000_000,
+            reorder_window_us: 5_000,
+            max_resends_per_poll: 64,
         }
     }
 }
@@ -63,13 +108,20 @@ impl Default for LinkConfig {
 pub struct LinkStats {
     /// Input packets sent for the first time.
     pub inputs_sent: u64,
-    /// Input packets sent again.
+    /// Input packets sent again (both kinds below).
     pub retransmissions: u64,
-    /// Acknowledgement-only packets sent.
+    /// Of those, resent because a later tick arrived first (RACK).
+    pub fast_retransmissions: u64,
+    /// Of those, resent when the timeout ran out.
+    pub timeout_retransmissions: u64,
+    /// Resends this site found needless afterwards (the tick arrived
+    /// sooner after its resend than any round trip).
+    pub needless_resends: u64,
+    /// Acknowledgement-only packets sent (selective-ack reports included).
     pub acks_sent: u64,
     /// Peer inputs received for the first time.
     pub inputs_received: u64,
-    /// Peer inputs received again (late originals, spurious resends).
+    /// Peer inputs received again (late originals, needless resends).
     pub duplicates: u64,
     /// Peer inputs that arrived further ahead than the window (dropped;
     /// the peer resends them).
@@ -80,7 +132,7 @@ pub struct LinkStats {
     pub gaps_filled: u64,
     /// Refused packets by reason.
     pub malformed: DecodeStats,
-    /// Round-trip samples (µs): count, min, sum, max.
+    /// Round-trip samples.
     pub rtt_samples: u64,
     /// Smallest round trip (µs).
     pub rtt_min_us: u64,
@@ -88,6 +140,10 @@ pub struct LinkStats {
     pub rtt_sum_us: u64,
     /// Largest round trip (µs).
     pub rtt_max_us: u64,
+    /// The smoothed round trip at the end (µs).
+    pub srtt_us: f64,
+    /// The reordering window at the end (µs).
+    pub reorder_window_us: u64,
 }
 
 impl LinkStats {
@@ -107,9 +163,77 @@ struct Slot {
     input: Manipulation,
     first_sent_us: u64,
     last_sent_us: u64,
+    /// Times sent (0: held back while the link is paused).
     sends: u32,
-    /// Selectively acknowledged: known to have arrived.
+    /// Known to have arrived (a selective ack).
     arrived: bool,
+    /// The latest acknowledgement that described it said it had not
+    /// arrived.
+    seen_missing: bool,
+    /// When that acknowledgement came (µs).
+    missing_at_us: Option<u64>,
+    /// The last send was a timeout's (for the backoff).
+    timeouts: u32,
+}
+
+/// What one acknowledgement says about a tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Knowledge {
+    Arrived,
+    Missing,
+    Unknown,
+}
+
+/// An acknowledgement extended to full tick numbers.
+#[derive(Clone, Copy, Debug)]
+struct Described<'a> {
+    /// Every tick below this arrived; this one did not.
+    through: u32,
+    sack: u16,
+    /// Selective-ack blocks describing `[from, ..)`.
+    report: Option<(u32, &'a SackReport)>,
+}
+
+impl Described<'_> {
+    fn about(&self, tick: u32) -> Knowledge {
+        if tick < self.through {
+            return Knowledge::Arrived;
+        }
+        let offset = tick - self.through;
+        if offset == 0 {
+            return Knowledge::Missing;
+        }
+        if offset <= SACK_MAP_TICKS {
+            return if self.sack & (1 << (offset - 1)) != 0 {
+                Knowledge::Arrived
+            } else {
+                Knowledge::Missing
+            };
+        }
+        match self.report {
+            None if self.sack & SACK_MORE == 0 => Knowledge::Missing,
+            None => Knowledge::Unknown,
+            Some((from, r)) => {
+                let frontier = u64::from(self.through) + u64::from(r.frontier);
+                if u64::from(tick) >= frontier {
+                    return Knowledge::Missing;
+                }
+                let to = r
+                    .used()
+                    .last()
+                    .map_or(from, |b| self.through + u32::from(b.1));
+                if tick < from || tick >= to {
+                    return Knowledge::Unknown;
+                }
+                let o = offset as u16;
+                if r.used().iter().any(|(s, e)| o >= *s && o < *e) {
+                    Knowledge::Arrived
+                } else {
+                    Knowledge::Missing
+                }
+            }
+        }
+    }
 }
 
 /// What a datagram brought.
@@ -122,10 +246,8 @@ pub enum Arrival {
         /// Its manipulation.
         input: Manipulation,
     },
-    /// The peer's hello with its configuration hash.
-    Hello(u64),
-    /// The peer is leaving.
-    Bye,
+    /// A handshake, bye or state packet: for the session layer.
+    Control(Packet),
     /// Nothing new (acks only, a duplicate, or a refused packet).
     Nothing,
 }
@@ -140,9 +262,16 @@ pub struct Link {
     /// Inputs `acked..next_seq` are in `window`.
     acked: u32,
     window: VecDeque<Slot>,
+    /// Inputs are queued but not sent (a state transfer is under way).
+    paused: bool,
     srtt_us: f64,
     rttvar_us: f64,
     rto_us: u64,
+    /// RACK: the send time and round trip of the most recently sent tick
+    /// known to have arrived.
+    rack_sent_us: Option<u64>,
+    rack_rtt_us: u64,
+    reorder_window_us: u64,
     /// Every peer tick below this has arrived.
     recv_base: u32,
     /// Arrival flags of peer ticks `recv_base..` (front = recv_base).
@@ -151,26 +280,41 @@ pub struct Link {
     recv_high: u32,
     /// Something arrived that the peer has not yet seen acknowledged.
     owe_ack: bool,
+    last_report_us: Option<u64>,
     stats: LinkStats,
 }
 
 impl Link {
-    /// The link of site `site` (0 or 1).
+    /// The link of site `site` (0 or 1) from tick 0.
     pub fn new(site: u8, config: LinkConfig) -> Self {
+        Link::starting_at(site, config, 0)
+    }
+
+    /// The link of a site that joins a session at `tick`: both sides'
+    /// ticks below it are settled.
+    pub fn starting_at(site: u8, config: LinkConfig, tick: u32) -> Self {
         Link {
             site: site & 1,
             config,
-            next_seq: 0,
-            acked: 0,
+            next_seq: tick,
+            acked: tick,
             window: VecDeque::new(),
+            paused: false,
             srtt_us: 0.0,
             rttvar_us: 0.0,
             rto_us: config.initial_rto_us,
-            recv_base: 0,
+            rack_sent_us: None,
+            rack_rtt_us: 0,
+            reorder_window_us: config.reorder_window_us,
+            recv_base: tick,
             ahead: VecDeque::new(),
-            recv_high: 0,
+            recv_high: tick,
             owe_ack: false,
-            stats: LinkStats::default(),
+            last_report_us: None,
+            stats: LinkStats {
+                reorder_window_us: config.reorder_window_us,
+                ..LinkStats::default()
+            },
         }
     }
 
@@ -199,6 +343,16 @@ impl Link {
         self.acked == self.next_seq
     }
 
+    /// Whether every input below `tick` has been acknowledged.
+    pub fn acknowledged_below(&self, tick: u32) -> bool {
+        self.acked >= tick
+            || self
+                .window
+                .iter()
+                .take((tick - self.acked) as usize)
+                .all(|s| s.arrived)
+    }
+
     /// Whether an acknowledgement is owed (something new arrived since the
     /// last packet this site sent).
     pub fn owes_ack(&self) -> bool {
@@ -210,27 +364,57 @@ impl Link {
         self.rto_us
     }
 
-    fn header(&mut self, seq: u32, message: Message) -> [u8; 64] {
+    /// The smoothed round trip (µs; 0 before the first sample).
+    pub fn srtt_us(&self) -> f64 {
+        self.srtt_us
+    }
+
+    /// Seeds the estimator with a round trip measured outside the link
+    /// (the handshake's), as its first sample would.
+    pub fn seed_rtt(&mut self, rtt_us: u64) {
+        if self.stats.rtt_samples == 0 && self.srtt_us == 0.0 {
+            self.srtt_us = rtt_us as f64;
+            self.rttvar_us = rtt_us as f64 / 2.0;
+            self.update_rto();
+        }
+    }
+
+    /// The acknowledgement words this site sends now.
+    pub fn acks(&self) -> Acks {
         let mut sack = 0u16;
-        for b in 0..16 {
+        for b in 0..SACK_MAP_TICKS as usize {
             if self.ahead.get(b + 1).copied().unwrap_or(false) {
                 sack |= 1 << b;
             }
         }
+        if self.recv_high > self.recv_base + 1 + SACK_MAP_TICKS {
+            sack |= SACK_MORE;
+        }
+        Acks {
+            ack: self.recv_base as u16,
+            sack,
+        }
+    }
+
+    fn packet(&mut self, message: Message) -> [u8; 64] {
         self.owe_ack = false;
         Packet {
             site: self.site,
-            seq,
-            ack: self.recv_base as u16,
-            sack,
             message,
         }
         .encode()
     }
 
     /// The packet of this site's input for `tick`, which must be the next
-    /// tick; refused when the peer has not acknowledged a window's worth.
-    pub fn send_input(&mut self, now_us: u64, tick: u32, input: Manipulation) -> Result<[u8; 64]> {
+    /// tick (`None` while the link is paused: the input waits in the
+    /// window); refused when the peer has not acknowledged a window's
+    /// worth.
+    pub fn send_input(
+        &mut self,
+        now_us: u64,
+        tick: u32,
+        input: Manipulation,
+    ) -> Result<Option<[u8; 64]>> {
         if tick != self.next_seq {
             return Err(TetError::Session(format!(
                 "input for tick {tick} sent out of order (next is {})",
@@ -248,60 +432,123 @@ impl Link {
                 self.acked
             )));
         }
+        let sends = u32::from(!self.paused);
         self.window.push_back(Slot {
             input,
             first_sent_us: now_us,
             last_sent_us: now_us,
-            sends: 1,
+            sends,
             arrived: false,
+            seen_missing: false,
+            missing_at_us: None,
+            timeouts: 0,
         });
         self.next_seq += 1;
+        if self.paused {
+            return Ok(None);
+        }
         self.stats.inputs_sent += 1;
-        Ok(self.header(tick, Message::Input(input)))
+        let acks = self.acks();
+        Ok(Some(self.packet(Message::Input { tick, acks, input })))
     }
 
-    /// An acknowledgement-only packet.
+    /// An acknowledgement-only packet (no selective-ack blocks).
     pub fn ack_packet(&mut self) -> [u8; 64] {
         self.stats.acks_sent += 1;
-        self.header(self.next_seq, Message::Ack)
+        let acks = self.acks();
+        self.packet(Message::Ack {
+            from: self.recv_base,
+            acks,
+            report: SackReport {
+                frontier: (self.recv_high - self.recv_base) as u16,
+                ..SackReport::default()
+            },
+        })
     }
 
-    /// A hello carrying this site's configuration hash.
-    pub fn hello_packet(&mut self, config_hash: u64) -> [u8; 64] {
-        self.header(self.next_seq, Message::Hello { config_hash })
-    }
-
-    /// A bye.
-    pub fn bye_packet(&mut self) -> [u8; 64] {
-        self.header(self.next_seq, Message::Bye)
-    }
-
-    /// Packets to resend at `now_us`: unacknowledged inputs whose timeout
-    /// (doubled per resend) has run out, oldest first, at most
-    /// [`LinkConfig::max_resends_per_poll`].
-    pub fn poll(&mut self, now_us: u64) -> Vec<[u8; 64]> {
-        let mut due = Vec::new();
-        for (k, slot) in self.window.iter().enumerate() {
-            if due.len() >= self.config.max_resends_per_poll {
-                break;
-            }
-            let backoff = self.rto_us.saturating_mul(1 << (slot.sends - 1).min(6));
-            let timeout = backoff.min(self.config.max_rto_us);
-            if !slot.arrived && now_us.saturating_sub(slot.last_sent_us) >= timeout {
-                due.push(k);
+    /// The selective-ack report, if one is due at `now_us`: while ticks
+    /// beyond the 15-tick map have arrived, every [`REPORT_EVERY_US`], as
+    /// many packets as its blocks need.
+    pub fn report_packets(&mut self, now_us: u64) -> Vec<[u8; 64]> {
+        let beyond = self.recv_high > self.recv_base + 1 + SACK_MAP_TICKS;
+        let due = self
+            .last_report_us
+            .is_none_or(|t| now_us >= t + REPORT_EVERY_US);
+        if !beyond || !due {
+            return Vec::new();
+        }
+        self.last_report_us = Some(now_us);
+        let mut blocks: Vec<(u16, u16)> = Vec::new();
+        let mut k = 1;
+        while k < self.ahead.len() {
+            if self.ahead[k] {
+                let start = k;
+                while k < self.ahead.len() && self.ahead[k] {
+                    k += 1;
+                }
+                blocks.push((start as u16, k as u16));
+            } else {
+                k += 1;
             }
         }
-        let mut out = Vec::with_capacity(due.len());
-        for k in due {
-            let tick = self.acked + k as u32;
-            let slot = &mut self.window[k];
-            slot.sends += 1;
-            slot.last_sent_us = now_us;
-            let input = slot.input;
-            self.stats.retransmissions += 1;
-            out.push(self.header(tick, Message::Input(input)));
+        let frontier = (self.recv_high - self.recv_base) as u16;
+        let mut out = Vec::new();
+        let mut from = self.recv_base;
+        for part in blocks.chunks(MAX_BLOCKS) {
+            let mut report = SackReport {
+                frontier,
+                count: part.len() as u8,
+                ..SackReport::default()
+            };
+            report.blocks[..part.len()].copy_from_slice(part);
+            let acks = self.acks();
+            out.push(self.packet(Message::Ack { from, acks, report }));
+            self.stats.acks_sent += 1;
+            from = self.recv_base + u32::from(part[part.len() - 1].1);
         }
         out
+    }
+
+    /// Builds a packet of `message` (a bye) with this site's acks filled
+    /// in by `make`.
+    pub fn with_acks(&mut self, make: impl FnOnce(u32, Acks) -> Message) -> [u8; 64] {
+        let acks = self.acks();
+        let m = make(self.next_seq, acks);
+        self.packet(m)
+    }
+
+    /// Holds new inputs back (the peer is being given a state) or lets
+    /// them go: on release every held input is sent at the next poll.
+    pub fn set_paused(&mut self, paused: bool) {
+        self.paused = paused;
+    }
+
+    /// Starts the session over at `tick` with a peer that joined there:
+    /// the peer's ticks below it are settled, this site's inputs below it
+    /// are dropped, and the reordering and loss state is forgotten.
+    pub fn rebase(&mut self, tick: u32) {
+        while self.acked < tick && self.acked < self.next_seq {
+            self.window.pop_front();
+            self.acked += 1;
+        }
+        self.acked = self.acked.max(tick);
+        self.next_seq = self.next_seq.max(tick);
+        for slot in self.window.iter_mut() {
+            slot.seen_missing = false;
+            slot.missing_at_us = None;
+            slot.arrived = false;
+        }
+        self.rack_sent_us = None;
+        self.recv_base = tick;
+        self.recv_high = tick;
+        self.ahead.clear();
+        self.last_report_us = None;
+    }
+
+    fn update_rto(&mut self) {
+        let g = self.reorder_window_us as f64 + 2.0 * TICK_US as f64;
+        let rto = (self.srtt_us + (4.0 * self.rttvar_us).max(g)) as u64;
+        self.rto_us = rto.clamp(self.config.min_rto_us, self.config.max_rto_us);
     }
 
     fn rtt_sample(&mut self, rtt_us: u64) {
@@ -315,53 +562,155 @@ impl Link {
         s.rtt_sum_us += rtt_us;
         s.rtt_samples += 1;
         let r = rtt_us as f64;
-        if s.rtt_samples == 1 {
+        if s.rtt_samples == 1 && self.srtt_us == 0.0 {
             self.srtt_us = r;
             self.rttvar_us = r / 2.0;
         } else {
             self.rttvar_us = 0.75 * self.rttvar_us + 0.25 * (self.srtt_us - r).abs();
             self.srtt_us = 0.875 * self.srtt_us + 0.125 * r;
         }
-        let rto = (self.srtt_us + 4.0 * self.rttvar_us) as u64;
-        self.rto_us = rto.clamp(self.config.min_rto_us, self.config.max_rto_us);
+        self.stats.srtt_us = self.srtt_us;
+        self.update_rto();
     }
 
-    /// Takes in the peer's acknowledgements.
-    fn on_ack(&mut self, now_us: u64, ack: u16, sack: u16) {
+    /// The smallest round trip seen (µs), or the smoothed one before any.
+    fn min_rtt_us(&self) -> u64 {
+        if self.stats.rtt_samples > 0 {
+            self.stats.rtt_min_us
+        } else {
+            self.srtt_us as u64
+        }
+    }
+
+    /// Takes in the peer's acknowledgements (and blocks).
+    fn on_acks(&mut self, now_us: u64, acks: Acks, report: Option<(u32, &SackReport)>) {
         // Extend the 16-bit count against what this site has sent: the
         // true count lies within the window below `next_seq`.
-        let behind = (self.next_seq as u16).wrapping_sub(ack) as u32;
+        let behind = (self.next_seq as u16).wrapping_sub(acks.ack) as u32;
         if behind > self.next_seq - self.acked {
             return; // older than what is already acknowledged
         }
-        let through = self.next_seq - behind;
-        while self.acked < through {
-            if let Some(slot) = self.window.pop_front() {
-                if slot.sends == 1 && !slot.arrived {
-                    self.rtt_sample(now_us.saturating_sub(slot.first_sent_us));
-                }
-            }
-            self.acked += 1;
-        }
-        for b in 0..16u32 {
-            if sack & (1 << b) != 0 {
-                let k = (b + 1) as usize;
-                if let Some(slot) = self.window.get_mut(k) {
-                    if !slot.arrived {
-                        slot.arrived = true;
-                        if slot.sends == 1 {
-                            let rtt = now_us.saturating_sub(slot.first_sent_us);
-                            self.rtt_sample(rtt);
-                        }
+        let described = Described {
+            through: self.next_seq - behind,
+            sack: acks.sack,
+            report,
+        };
+        let min_rtt = self.min_rtt_us();
+        let mut samples = Vec::new();
+        let mut needless = 0u64;
+        for (k, slot) in self.window.iter_mut().enumerate() {
+            let tick = self.acked + k as u32;
+            match described.about(tick) {
+                Knowledge::Arrived if !slot.arrived && slot.sends > 0 => {
+                    slot.arrived = true;
+                    let fresh = slot
+                        .missing_at_us
+                        .is_some_and(|t| now_us <= t + SAMPLE_GAP_US);
+                    if slot.sends == 1 && fresh {
+                        samples.push(now_us.saturating_sub(slot.first_sent_us));
+                    }
+                    let since = now_us.saturating_sub(slot.last_sent_us);
+                    if slot.sends > 1 && since < min_rtt {
+                        needless += 1;
+                    } else if self.rack_sent_us.is_none_or(|t| slot.last_sent_us >= t) {
+                        self.rack_sent_us = Some(slot.last_sent_us);
+                        self.rack_rtt_us = since;
                     }
                 }
+                Knowledge::Arrived => {}
+                Knowledge::Missing if !slot.arrived => {
+                    slot.seen_missing = true;
+                    slot.missing_at_us = Some(now_us);
+                }
+                Knowledge::Missing | Knowledge::Unknown => {}
             }
         }
+        for r in samples {
+            self.rtt_sample(r);
+        }
+        if needless > 0 {
+            self.stats.needless_resends += needless;
+            let cap = (self.srtt_us as u64).max(self.config.reorder_window_us);
+            self.reorder_window_us = (2 * self.reorder_window_us).min(cap);
+            self.stats.reorder_window_us = self.reorder_window_us;
+            self.update_rto();
+        }
+        while self.acked < described.through {
+            self.window.pop_front();
+            self.acked += 1;
+        }
+    }
+
+    /// Packets to send at `now_us`: inputs held back by a pause, ticks
+    /// the peer reported missing after a later tick arrived (RACK), and
+    /// ticks whose timeout ran out; oldest first, at most
+    /// [`LinkConfig::max_resends_per_poll`] resends.
+    pub fn poll(&mut self, now_us: u64) -> Vec<[u8; 64]> {
+        if self.paused {
+            return Vec::new();
+        }
+        let mut due = Vec::new();
+        let mut resends = 0;
+        for (k, slot) in self.window.iter().enumerate() {
+            if slot.arrived {
+                continue;
+            }
+            if slot.sends == 0 {
+                due.push((k, Resend::Held));
+                continue;
+            }
+            if resends >= self.config.max_resends_per_poll {
+                continue;
+            }
+            let out_us = now_us.saturating_sub(slot.last_sent_us);
+            let lost = slot.seen_missing
+                && self.rack_sent_us.is_some_and(|t| slot.last_sent_us < t)
+                && out_us >= self.rack_rtt_us + self.reorder_window_us;
+            let backoff = self.rto_us.saturating_mul(1 << slot.timeouts.min(6));
+            if lost {
+                due.push((k, Resend::Fast));
+                resends += 1;
+            } else if out_us >= backoff.min(self.config.max_rto_us) {
+                due.push((k, Resend::Timeout));
+                resends += 1;
+            }
+        }
+        let mut out = Vec::with_capacity(due.len());
+        for (k, why) in due {
+            let tick = self.acked + k as u32;
+            let slot = &mut self.window[k];
+            match why {
+                Resend::Held => {
+                    slot.first_sent_us = now_us;
+                    self.stats.inputs_sent += 1;
+                }
+                Resend::Fast => {
+                    slot.timeouts = 0;
+                    self.stats.fast_retransmissions += 1;
+                    self.stats.retransmissions += 1;
+                }
+                Resend::Timeout => {
+                    slot.timeouts += 1;
+                    self.stats.timeout_retransmissions += 1;
+                    self.stats.retransmissions += 1;
+                }
+            }
+            slot.sends += 1;
+            slot.last_sent_us = now_us;
+            slot.seen_missing = false;
+            slot.missing_at_us = None;
+            let input = slot.input;
+            let acks = self.acks();
+            out.push(self.packet(Message::Input { tick, acks, input }));
+        }
+        out
     }
 
     /// Takes in a datagram from the peer. Refused packets are counted
     /// (and reported as [`Arrival::Nothing`]); `geometry` and `nodes` check
-    /// grips against the session's mesh.
+    /// grips against the session's mesh. Handshake, bye and state packets
+    /// are handed on as [`Arrival::Control`] (a bye's acknowledgements are
+    /// taken in first).
     pub fn on_datagram(
         &mut self,
         now_us: u64,
@@ -382,23 +731,27 @@ impl Link {
                 return Arrival::Nothing;
             }
         };
-        // A hello goes out when the handshake needs it, outside the
-        // emulated path; its acknowledgements would arrive early and spoil
-        // the round-trip estimate, so they are not read.
-        if !matches!(packet.message, Message::Hello { .. }) {
-            self.on_ack(now_us, packet.ack, packet.sack);
-        }
         match packet.message {
-            Message::Input(input) => self.on_input(packet.seq, input),
-            Message::Hello { config_hash } => Arrival::Hello(config_hash),
-            Message::Bye => Arrival::Bye,
-            Message::Ack => Arrival::Nothing,
+            Message::Input { tick, acks, input } => {
+                self.on_acks(now_us, acks, None);
+                self.on_input(tick, input)
+            }
+            Message::Ack { from, acks, report } => {
+                self.on_acks(now_us, acks, Some((from, &report)));
+                Arrival::Nothing
+            }
+            Message::Bye { acks, .. } => {
+                self.on_acks(now_us, acks, None);
+                Arrival::Control(packet)
+            }
+            Message::Hello(_) | Message::State { .. } => Arrival::Control(packet),
         }
     }
 
-    /// Records that a hello was refused (another configuration).
-    pub fn refuse_peer(&mut self) {
-        self.stats.malformed.record(Malformed::WrongPeer);
+    /// Records a refusal the session layer made (a hello of another
+    /// configuration).
+    pub fn refuse(&mut self, why: Malformed) {
+        self.stats.malformed.record(why);
     }
 
     fn on_input(&mut self, tick: u32, input: Manipulation) -> Arrival {
@@ -435,12 +788,24 @@ impl Link {
     }
 }
 
+/// Why a packet goes out again.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Resend {
+    /// Held back by a pause: its first sending.
+    Held,
+    /// Reported missing after a later tick arrived.
+    Fast,
+    /// Its timeout ran out.
+    Timeout,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::model::mesh::CubeMesh;
     use crate::model::voigt::{VoigtMaterial, VoigtModel};
     use crate::model::V3;
+    use std::collections::BTreeMap;
 
     fn geometry() -> (ContactGeometry, usize) {
         let m = VoigtModel::new(CubeMesh::new(3, 0.06).unwrap(), VoigtMaterial::default()).unwrap();
@@ -451,81 +816,173 @@ mod tests {
         Manipulation::free(V3::new(f64::from(k), 0.0, 0.0))
     }
 
-    #[test]
-    fn in_order_delivery_acknowledges_and_measures_round_trips() {
-        let (g, n) = geometry();
-        let (mut a, mut b) = (
-            Link::new(0, LinkConfig::default()),
-            Link::new(1, LinkConfig::default()),
-        );
-        for k in 0..100u32 {
-            let t = u64::from(k) * 1000;
-            let p = a.send_input(t, k, input(k)).unwrap();
-            // 5 ms one way each direction.
-            assert_eq!(
-                b.on_datagram(t + 5000, &p, &g, n),
-                Arrival::Input {
-                    tick: k,
-                    input: input(k)
-                }
-            );
-            let q = b.send_input(t + 5000, k, input(k)).unwrap();
-            a.on_datagram(t + 10_000, &q, &g, n);
+    /// Two links over a fixed one-way delay, one input per millisecond
+    /// each way for `ticks`, then acks until both are acknowledged.
+    /// `drop(site, tick_of_input_or_none, nth_packet)` loses a packet.
+    struct Wire {
+        links: [Link; 2],
+        geometry: (ContactGeometry, usize),
+        one_way_us: u64,
+        /// (arrival µs, order) → (to site, bytes)
+        queue: BTreeMap<(u64, u64), (usize, [u8; 64])>,
+        order: u64,
+        sent: [u64; 2],
+        received: [Vec<u32>; 2],
+    }
+
+    impl Wire {
+        fn new(one_way_us: u64) -> Self {
+            Wire {
+                links: [
+                    Link::new(0, LinkConfig::default()),
+                    Link::new(1, LinkConfig::default()),
+                ],
+                geometry: geometry(),
+                one_way_us,
+                queue: BTreeMap::new(),
+                order: 0,
+                sent: [0; 2],
+                received: [Vec::new(), Vec::new()],
+            }
         }
-        assert_eq!(b.received_through(), 100);
-        // The last ack covers tick 98 (b's packet k acknowledges a's 0..=k).
-        assert_eq!(a.acked, 100);
-        assert!(a.all_acknowledged());
-        let s = a.stats();
-        assert_eq!((s.rtt_min_us, s.rtt_max_us), (10_000, 10_000));
-        assert_eq!(a.rto_us(), 15_000, "clamped to the minimum");
-        assert!(a.poll(1_000_000).is_empty());
+
+        fn push(&mut self, from: usize, now: u64, b: [u8; 64], drop: &dyn Fn(usize, u64) -> bool) {
+            let n = self.sent[from];
+            self.sent[from] += 1;
+            if drop(from, n) {
+                return;
+            }
+            self.order += 1;
+            self.queue
+                .insert((now + self.one_way_us, self.order), (1 - from, b));
+        }
+
+        fn deliver_until(&mut self, t: u64, drop: &dyn Fn(usize, u64) -> bool) {
+            while let Some((&(at, o), _)) = self.queue.iter().next() {
+                if at > t {
+                    break;
+                }
+                let (to, b) = self.queue.remove(&(at, o)).unwrap();
+                let (g, n) = (&self.geometry.0, self.geometry.1);
+                if let Arrival::Input { tick, .. } = self.links[to].on_datagram(at, &b, g, n) {
+                    self.received[to].push(tick);
+                }
+                for p in self.links[to].poll(at) {
+                    self.push(to, at, p, drop);
+                }
+            }
+        }
+
+        fn run(&mut self, ticks: u32, drop: &dyn Fn(usize, u64) -> bool) {
+            let mut k = 0u32;
+            loop {
+                let now = u64::from(k) * 1000;
+                self.deliver_until(now, drop);
+                for s in 0..2 {
+                    let mut out = Vec::new();
+                    if k < ticks {
+                        out.extend(self.links[s].send_input(now, k, input(k)).unwrap());
+                    } else if self.links[s].owes_ack() || k % 10 == 0 {
+                        out.push(self.links[s].ack_packet());
+                    }
+                    out.extend(self.links[s].report_packets(now));
+                    out.extend(self.links[s].poll(now));
+                    for p in out {
+                        self.push(s, now, p, drop);
+                    }
+                }
+                k += 1;
+                let done = self.links.iter().all(|l| l.all_acknowledged())
+                    && self.links.iter().all(|l| l.received_through() == ticks);
+                if k > ticks && done {
+                    break;
+                }
+                assert!(k < ticks + 20_000, "the links did not complete");
+            }
+        }
     }
 
     #[test]
-    fn a_lost_input_is_seen_missing_resent_and_filled() {
-        let (g, n) = geometry();
-        let (mut a, mut b) = (
-            Link::new(0, LinkConfig::default()),
-            Link::new(1, LinkConfig::default()),
-        );
-        let mut lost = None;
-        for k in 0..40u32 {
-            let t = u64::from(k) * 1000;
-            let p = a.send_input(t, k, input(k)).unwrap();
-            if k == 10 {
-                lost = Some(p);
-                continue;
-            }
-            b.on_datagram(t + 1000, &p, &g, n);
-            let q = b.ack_packet();
-            a.on_datagram(t + 2000, &q, &g, n);
+    fn in_order_delivery_measures_every_round_trip_exactly() {
+        let mut w = Wire::new(5_000);
+        w.run(200, &|_, _| false);
+        for l in &w.links {
+            let s = l.stats();
+            assert_eq!(s.retransmissions, 0);
+            // Every tick was described missing, then arrived: one sample
+            // each; the peer's input of the same tick carries the ack.
+            assert!(s.rtt_samples >= 199, "{s:?}");
+            assert_eq!((s.rtt_min_us, s.rtt_max_us), (10_000, 10_000), "{s:?}");
+            assert!((l.srtt_us() - 10_000.0).abs() < 1e-6);
         }
-        assert_eq!(b.received_through(), 10);
-        assert_eq!(b.stats().gaps_seen, 1);
-        // Ticks 11..=26 were selectively acknowledged and are not resent.
-        let resent = a.poll(40_000 + 100_000);
-        assert_eq!(resent.len(), 1 + (40 - 27), "tick 10 and the unsacked tail");
-        let first = Packet::decode(&resent[0]).unwrap();
-        assert_eq!(first.seq, 10);
-        assert_eq!(
-            b.on_datagram(150_000, &resent[0], &g, n),
-            Arrival::Input {
-                tick: 10,
-                input: input(10)
+        assert_eq!(w.received[1], (0..200).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn only_the_lost_ticks_are_resent_however_much_is_in_flight() {
+        // A 200 ms path: 200 inputs in flight, far beyond the 15-tick map.
+        // Site 0's packets number 10, 60, 61 and 150 are lost (inputs of
+        // ticks 10, 60, 61, 150); nothing else.
+        let lost = [10u64, 60, 61, 150];
+        let drop = |s: usize, n: u64| s == 0 && lost.contains(&n);
+        let mut w = Wire::new(100_000);
+        w.run(400, &drop);
+        let (a, b) = (w.links[0].stats(), w.links[1].stats());
+        assert_eq!(a.retransmissions, 4, "{a:?}");
+        assert_eq!(a.fast_retransmissions, 4, "{a:?}");
+        assert_eq!(b.duplicates, 0);
+        assert_eq!(b.gaps_seen, 4);
+        assert_eq!(b.gaps_filled, 4);
+        // No sample from a tick whose arrival the peer could not describe
+        // in time: every sample is the path's 200 ms plus at most two ticks.
+        assert!(a.rtt_min_us >= 200_000 && a.rtt_max_us <= 202_000, "{a:?}");
+        assert!(a.rtt_samples > 300, "{a:?}");
+        let mut got = w.received[1].clone();
+        got.sort();
+        assert_eq!(got, (0..400).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_resent_tick_gives_no_sample_and_a_needless_resend_widens_the_window() {
+        // Site 0's input of tick 20 is held 30 ms (reordered, not lost):
+        // it is resent after the 5 ms window, the original arrives first,
+        // the resend is a counted duplicate and the window doubles.
+        let mut w = Wire::new(10_000);
+        let (g, n) = geometry();
+        let mut held: Option<[u8; 64]> = None;
+        for k in 0..200u32 {
+            let now = u64::from(k) * 1000;
+            w.deliver_until(now, &|_, _| false);
+            if k == 50 {
+                let b = held.take().unwrap();
+                w.links[1].on_datagram(now, &b, &g, n);
             }
-        );
-        assert_eq!(b.received_through(), 40);
-        assert_eq!(b.stats().gaps_filled, 1);
-        // The late original is a counted duplicate.
-        assert_eq!(
-            b.on_datagram(160_000, &lost.unwrap(), &g, n),
-            Arrival::Nothing
-        );
-        assert_eq!(b.stats().duplicates, 1);
-        let q = b.ack_packet();
-        a.on_datagram(161_000, &q, &g, n);
-        assert!(a.all_acknowledged());
+            for s in 0..2 {
+                let mut out: Vec<[u8; 64]> = w.links[s]
+                    .send_input(now, k, input(k))
+                    .unwrap()
+                    .into_iter()
+                    .collect();
+                out.extend(w.links[s].poll(now));
+                for p in out {
+                    if s == 0
+                        && k == 20
+                        && held.is_none()
+                        && w.links[0].stats().retransmissions == 0
+                    {
+                        held = Some(p);
+                        continue;
+                    }
+                    w.push(s, now, p, &|_, _| false);
+                }
+            }
+        }
+        let a = w.links[0].stats();
+        assert_eq!(a.retransmissions, 1, "{a:?}");
+        assert_eq!(w.links[1].stats().duplicates, 1);
+        assert_eq!(a.needless_resends, 1, "{a:?}");
+        assert_eq!(a.reorder_window_us, 10_000);
+        assert_eq!(a.rtt_max_us, 20_000, "no sample from tick 20: {a:?}");
     }
 
     #[test]
@@ -534,7 +991,7 @@ mod tests {
         let mut a = Link::new(0, LinkConfig::default());
         let mut b = Link::new(1, LinkConfig::default());
         // Own site's packet, garbage, a bad length.
-        let mine = a.send_input(0, 0, input(0)).unwrap();
+        let mine = a.send_input(0, 0, input(0)).unwrap().unwrap();
         let mut other = Link::new(0, LinkConfig::default());
         assert_eq!(other.on_datagram(0, &mine, &g, n), Arrival::Nothing);
         assert_eq!(other.stats().malformed.count(Malformed::WrongPeer), 1);
@@ -542,10 +999,11 @@ mod tests {
         assert_eq!(b.on_datagram(0, &[1, 2, 3], &g, n), Arrival::Nothing);
         assert_eq!(b.stats().malformed.total(), 2);
         // A tick far ahead is dropped and counted.
-        let mut far = Link::new(0, LinkConfig::default());
-        far.next_seq = WINDOW_TICKS + 5;
-        far.acked = far.next_seq;
-        let p = far.send_input(0, WINDOW_TICKS + 5, input(1)).unwrap();
+        let mut far = Link::starting_at(0, LinkConfig::default(), WINDOW_TICKS + 5);
+        let p = far
+            .send_input(0, WINDOW_TICKS + 5, input(1))
+            .unwrap()
+            .unwrap();
         assert_eq!(b.on_datagram(0, &p, &g, n), Arrival::Nothing);
         assert_eq!(b.stats().beyond_window, 1);
         // A sender with a full window of unacknowledged inputs stops.
@@ -567,7 +1025,7 @@ mod tests {
             Link::new(1, LinkConfig::default()),
         );
         for k in 0..70_000u32 {
-            let p = a.send_input(u64::from(k), k, input(0)).unwrap();
+            let p = a.send_input(u64::from(k), k, input(0)).unwrap().unwrap();
             b.on_datagram(u64::from(k), &p, &g, n);
             if k % 64 == 0 {
                 let q = b.ack_packet();
@@ -578,5 +1036,36 @@ mod tests {
         a.on_datagram(70_000, &q, &g, n);
         assert!(a.all_acknowledged());
         assert_eq!(b.received_through(), 70_000);
+    }
+
+    #[test]
+    fn a_paused_link_holds_its_inputs_and_a_rebased_one_starts_over() {
+        let (g, n) = geometry();
+        let mut a = Link::new(0, LinkConfig::default());
+        for k in 0..10 {
+            a.send_input(0, k, input(k)).unwrap();
+        }
+        // The peer restarts; the session goes on from tick 10.
+        a.rebase(10);
+        a.set_paused(true);
+        for k in 10..15 {
+            assert_eq!(a.send_input(1000, k, input(k)).unwrap(), None);
+        }
+        assert!(a.poll(5_000_000).is_empty(), "nothing leaves while paused");
+        a.set_paused(false);
+        let held = a.poll(2_000_000);
+        assert_eq!(held.len(), 5);
+        assert_eq!(a.stats().retransmissions, 0);
+        let mut b = Link::starting_at(1, LinkConfig::default(), 10);
+        for p in &held {
+            assert!(matches!(
+                b.on_datagram(2_000_000, p, &g, n),
+                Arrival::Input { .. }
+            ));
+        }
+        assert_eq!(b.received_through(), 15);
+        let q = b.ack_packet();
+        a.on_datagram(2_010_000, &q, &g, n);
+        assert!(a.all_acknowledged());
     }
 }

@@ -22,13 +22,24 @@
 //! directions are taken as equal. Each direction has its own series, so a
 //! round trip in the session is the sum of two independent halves.
 //!
-//! **Loss and reordering.** Each packet is lost with probability `loss`,
-//! and with probability `reorder` held 1–3 ms extra; delays that vary by
-//! more than the 1 ms between packets reorder them anyway (the tables'
-//! spread is milliseconds). The queue holds at most `capacity` packets; a
+//! **Loss, bursts, reordering and jitter** (beyond the tables: the seed
+//! gives none of them). Each packet is lost with probability `loss`,
+//! independently, or — with `burst_len` ≥ 1 — by a two-state (Gilbert)
+//! chain that loses every packet in its bad state, leaves it with
+//! probability `1/burst_len` per packet and enters it with probability
+//! `loss/(burst_len·(1 − loss))`, so that the long-run loss is still
+//! `loss` and a run of losses is `burst_len` packets long on average. With
+//! probability `reorder` a packet is held 1–3 ms extra, and every packet
+//! is delayed by a further uniform draw in `[0, jitter]`; delays that vary
+//! by more than the 1 ms between packets reorder them (the tables' spread
+//! is milliseconds too). The queue holds at most `capacity` packets; a
 //! packet that finds it full is dropped and counted. The seed used TCP and
 //! counted "only correct frames" (L2712), so it reports no loss rate: the
 //! loss here is a parameter (default 1 %, an estimate for a loaded WAN).
+//!
+//! The emulator also keeps the truth a site cannot see, for checking what
+//! the sites measure: how many *input* packets it lost and the mean
+//! one-way delay it gave the inputs it passed.
 use crate::error::{check_range, Result};
 use plant_common::rng;
 use rand::Rng;
@@ -261,6 +272,11 @@ pub struct NetemConfig {
     pub reorder: f64,
     /// Packets the queue holds.
     pub capacity: usize,
+    /// Extra one-way delay, uniform in `[0, jitter_us]` per packet (µs).
+    pub jitter_us: u64,
+    /// Mean length of a run of lost packets (Gilbert chain); 0: losses
+    /// are independent.
+    pub burst_len: f64,
 }
 
 impl Default for NetemConfig {
@@ -270,6 +286,8 @@ impl Default for NetemConfig {
             loss: 0.01,
             reorder: 0.01,
             capacity: 4096,
+            jitter_us: 0,
+            burst_len: 0.0,
         }
     }
 }
@@ -286,6 +304,22 @@ impl NetemConfig {
             1e6,
             "must be 1 to 1,000,000 packets",
         )?;
+        check_range(
+            "jitter_ms",
+            self.jitter_us as f64 / 1000.0,
+            0.0,
+            1000.0,
+            "must be 0 to 1000 ms",
+        )?;
+        if self.burst_len != 0.0 {
+            check_range(
+                "burst_len",
+                self.burst_len,
+                1.0,
+                1000.0,
+                "must be 0 (independent losses) or 1 to 1000 packets",
+            )?;
+        }
         Ok(())
     }
 }
@@ -307,6 +341,26 @@ pub struct NetemStats {
     pub max_queued: usize,
     /// Largest one-way delay given (µs).
     pub max_delay_us: u64,
+    /// Input packets (kind 0) given to the emulator.
+    pub inputs_offered: u64,
+    /// Input packets lost (at random or by a full queue): what the sender
+    /// really has to resend.
+    pub inputs_lost: u64,
+    /// Input packets passed on.
+    pub inputs_passed: u64,
+    /// Sum of the one-way delays given to those (µs).
+    pub input_delay_sum_us: u64,
+}
+
+impl NetemStats {
+    /// Mean one-way delay of the inputs passed (µs), 0 without any.
+    pub fn input_delay_mean_us(&self) -> f64 {
+        if self.inputs_passed == 0 {
+            0.0
+        } else {
+            self.input_delay_sum_us as f64 / self.inputs_passed as f64
+        }
+    }
 }
 
 /// One direction of the emulated network.
@@ -320,6 +374,8 @@ pub struct Emulator {
     rng: ChaCha8Rng,
     queue: BinaryHeap<Reverse<(u64, u64, [u8; 64])>>,
     order: u64,
+    /// The Gilbert chain is in its losing state.
+    in_burst: bool,
     stats: NetemStats,
 }
 
@@ -352,6 +408,7 @@ impl Emulator {
             rng: rng::stream(seed, rng::TETMSD_LOSS_BASE + u64::from(site & 1)),
             queue: BinaryHeap::new(),
             order: 0,
+            in_burst: false,
             stats: NetemStats::default(),
         })
     }
@@ -378,28 +435,51 @@ impl Emulator {
         self.queue.len()
     }
 
+    /// Whether the next packet is lost: an independent draw `u`, or a step
+    /// of the Gilbert chain driven by `u`.
+    fn loses(&mut self, u: f64) -> bool {
+        let c = &self.config;
+        if c.burst_len < 1.0 {
+            return u < c.loss;
+        }
+        let leave = 1.0 / c.burst_len;
+        let enter = c.loss * leave / (1.0 - c.loss);
+        self.in_burst = if self.in_burst { u >= leave } else { u < enter };
+        self.in_burst
+    }
+
     /// Sends `packet` at `now_us`.
     pub fn push(&mut self, now_us: u64, packet: [u8; 64]) {
         self.stats.offered += 1;
-        // Draw both numbers for every packet so that one setting does not
-        // shift the other's stream.
-        let (lose, hold, extra) = (
+        let input = packet[27] & 0b111 == 0;
+        self.stats.inputs_offered += u64::from(input);
+        // Draw every number for every packet so that one setting does
+        // not shift the others' streams.
+        let (lose, hold, extra, jitter) = (
             self.rng.gen::<f64>(),
             self.rng.gen::<f64>(),
             self.rng.gen_range(1_000..=3_000u64),
+            self.rng.gen::<f64>(),
         );
-        if lose < self.config.loss {
+        if self.loses(lose) {
             self.stats.lost += 1;
+            self.stats.inputs_lost += u64::from(input);
             return;
         }
         if self.queue.len() >= self.config.capacity {
             self.stats.overflowed += 1;
+            self.stats.inputs_lost += u64::from(input);
             return;
         }
         let mut delay = self.delay_at_us(now_us);
         if hold < self.config.reorder {
             delay += extra;
             self.stats.held_extra += 1;
+        }
+        delay += (jitter * (self.config.jitter_us as f64 + 1.0)).floor() as u64;
+        if input {
+            self.stats.inputs_passed += 1;
+            self.stats.input_delay_sum_us += delay;
         }
         self.stats.max_delay_us = self.stats.max_delay_us.max(delay);
         self.order += 1;
@@ -479,6 +559,7 @@ mod tests {
             loss: 0.1,
             reorder: 0.2,
             capacity: 100,
+            ..NetemConfig::default()
         };
         let mut e = Emulator::new(cfg, 3, 0).unwrap();
         let mut got = Vec::new();
@@ -522,5 +603,85 @@ mod tests {
         );
         assert_eq!(Profile::by_name("table9"), None);
         assert_eq!(Profile::by_name("rtt-x"), None);
+    }
+
+    /// Inputs (kind byte 0) numbered by their first eight bytes.
+    fn numbered(k: u64) -> [u8; 64] {
+        let mut p = [0u8; 64];
+        p[..8].copy_from_slice(&k.to_le_bytes());
+        p
+    }
+
+    #[test]
+    fn bursts_keep_the_loss_rate_and_have_their_mean_length() {
+        // The Gilbert chain: long-run loss `loss`, runs of mean `burst_len`
+        // (a geometric law with that mean), against 200,000 packets.
+        for (loss, burst) in [(0.05, 4.0), (0.1, 10.0), (0.02, 1.0)] {
+            let cfg = NetemConfig {
+                profile: Profile::Constant(2_000),
+                loss,
+                reorder: 0.0,
+                capacity: 1_000_000,
+                burst_len: burst,
+                ..NetemConfig::default()
+            };
+            let mut e = Emulator::new(cfg, 11, 1).unwrap();
+            let n = 200_000u64;
+            let mut passed = vec![false; n as usize];
+            for k in 0..n {
+                e.push(k * 1000, numbered(k));
+                while let Some(q) = e.pop_due(k * 1000) {
+                    passed[u64::from_le_bytes(q[..8].try_into().unwrap()) as usize] = true;
+                }
+            }
+            while let Some(q) = e.pop_due(u64::MAX) {
+                passed[u64::from_le_bytes(q[..8].try_into().unwrap()) as usize] = true;
+            }
+            let s = *e.stats();
+            let rate = s.lost as f64 / n as f64;
+            assert!((rate - loss).abs() < 0.15 * loss, "{loss} {burst}: {rate}");
+            assert_eq!(s.inputs_lost, s.lost);
+            assert_eq!(s.inputs_passed + s.inputs_lost, n);
+            let runs = passed.windows(2).filter(|w| w[0] && !w[1]).count();
+            let mean_run = s.lost as f64 / runs as f64;
+            assert!(
+                (mean_run - burst).abs() < 0.1 * burst,
+                "{loss} {burst}: runs of {mean_run}"
+            );
+        }
+        let bad = NetemConfig {
+            burst_len: 0.5,
+            ..NetemConfig::default()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("burst_len"));
+    }
+
+    #[test]
+    fn jitter_is_uniform_and_the_input_delays_are_counted() {
+        let cfg = NetemConfig {
+            profile: Profile::Constant(20_000),
+            loss: 0.0,
+            reorder: 0.0,
+            capacity: 1_000_000,
+            jitter_us: 8_000,
+            ..NetemConfig::default()
+        };
+        let mut e = Emulator::new(cfg, 5, 0).unwrap();
+        for k in 0..100_000u64 {
+            e.push(k * 1000, numbered(k));
+        }
+        // An ack (kind 2) is not an input.
+        let mut ack = [0u8; 64];
+        ack[27] = 2;
+        e.push(0, ack);
+        let s = *e.stats();
+        assert_eq!((s.inputs_offered, s.inputs_passed), (100_000, 100_000));
+        // 10 ms one way plus uniform [0, 8] ms: mean 14 ms, at most 18 ms.
+        assert!((s.input_delay_mean_us() - 14_000.0).abs() < 30.0, "{s:?}");
+        assert!(s.max_delay_us <= 18_000 && s.max_delay_us > 17_990, "{s:?}");
     }
 }

@@ -14,6 +14,7 @@
 //! hold every tick, then the two are compared bit for bit.
 use super::link::{Arrival, Link, LinkConfig, LinkStats};
 use super::netem::{Emulator, NetemConfig, NetemStats};
+use super::packet::{SessionFields, TICK_US};
 use super::replica::{ReplicaConfig, ReplicaStats, Replicas};
 use crate::error::{Result, TetError};
 use crate::model::mesh::CubeMesh;
@@ -47,26 +48,23 @@ impl SessionConfig {
         VoigtModel::new(CubeMesh::new(self.level, self.side_m)?, self.material)
     }
 
-    /// FNV-1a hash of everything that decides the committed replica
-    /// (level, cube, material): the `Hello` packet carries it, and sites
-    /// with different hashes refuse each other.
-    pub fn hash(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        let words = [
-            u64::from(self.level),
-            self.side_m.to_bits(),
-            self.material.stiffness_modulus_pa.to_bits(),
-            self.material.damping_modulus_pa_s.to_bits(),
-            self.material.density_kg_m3.to_bits(),
-            u64::from(super::packet::VERSION),
-        ];
-        for w in words {
-            for b in w.to_le_bytes() {
-                h ^= u64::from(b);
-                h = h.wrapping_mul(0x0000_0100_0000_01b3);
-            }
+    /// What the hello carries of this session: the fields both sites
+    /// must agree on (level, cube, material, tick).
+    pub fn fields(&self) -> SessionFields {
+        SessionFields {
+            level: self.level as u16,
+            tick_us: TICK_US,
+            side_m: self.side_m,
+            stiffness_modulus_pa: self.material.stiffness_modulus_pa,
+            damping_modulus_pa_s: self.material.damping_modulus_pa_s,
+            density_kg_m3: self.material.density_kg_m3,
         }
-        h
+    }
+
+    /// The configuration hash ([`SessionFields::hash`]): the hello carries
+    /// it, and the status line and reports show it.
+    pub fn hash(&self) -> u64 {
+        self.fields().hash()
     }
 }
 
@@ -190,22 +188,32 @@ pub struct PairReport {
     pub peak_state: State,
 }
 
-fn deliver(from: &mut Site, to: &mut Site, now_us: u64, nodes: usize) -> Result<()> {
-    while let Some(bytes) = from.outgoing.pop_due(now_us) {
+/// Delivers every packet due by `until_us`, each at its own arrival time
+/// and in arrival order across both directions; the receiving site takes
+/// it in, and sends at once what its link then wants to resend.
+fn deliver_until(sites: &mut [Site; 2], until_us: u64, nodes: usize) -> Result<()> {
+    loop {
+        let next = (0..2)
+            .filter_map(|s| sites[s].outgoing.next_due_us().map(|t| (t, s)))
+            .filter(|(t, _)| *t <= until_us)
+            .min();
+        let Some((at_us, from)) = next else {
+            return Ok(());
+        };
+        let Some(bytes) = sites[from].outgoing.pop_due(at_us) else {
+            return Ok(());
+        };
+        let to = &mut sites[1 - from];
         let arrival = to
             .link
-            .on_datagram(now_us, &bytes, to.haptic.geometry(), nodes);
+            .on_datagram(at_us, &bytes, to.haptic.geometry(), nodes);
         if let Arrival::Input { tick, input } = arrival {
             to.replicas.push_remote(u64::from(tick), input)?;
         }
+        for p in to.link.poll(at_us) {
+            to.outgoing.push(at_us, p);
+        }
     }
-    Ok(())
-}
-
-fn exchange(sites: &mut [Site; 2], now_us: u64, nodes: usize) -> Result<()> {
-    let [a, b] = sites;
-    deliver(a, b, now_us, nodes)?;
-    deliver(b, a, now_us, nodes)
 }
 
 /// Runs two sites against each other in virtual time.
@@ -225,7 +233,7 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
     let mut k = 0u64;
     loop {
         let now_us = k * 1000;
-        exchange(&mut sites, now_us, nodes)?;
+        deliver_until(&mut sites, now_us, nodes)?;
         let row = if k < cfg.duration_ticks {
             users_act(&mut sites, cfg, k, &mut tally)?
         } else {
@@ -233,13 +241,18 @@ pub fn run_virtual(cfg: &PairConfig) -> Result<PairReport> {
             TraceRow::idle(k)
         };
         for site in sites.iter_mut() {
-            for bytes in site.link.poll(now_us) {
+            let mut out = site.link.report_packets(now_us);
+            out.extend(site.link.poll(now_us));
+            for bytes in out {
                 site.outgoing.push(now_us, bytes);
             }
         }
-        exchange(&mut sites, now_us, nodes)?;
+        deliver_until(&mut sites, now_us, nodes)?;
         for site in sites.iter_mut() {
             site.replicas.advance(k + 1)?;
+            if k < cfg.duration_ticks {
+                site.replicas.record_lag(k + 1);
+            }
         }
         if k < cfg.duration_ticks {
             tally.record(cfg, k, row, &sites);
@@ -301,8 +314,9 @@ fn users_act(
         tally.contact_ticks[s] += u64::from(m.grip.is_some());
         tally.max_force[s] = tally.max_force[s].max(force.norm());
         site.replicas.push_local(k, m)?;
-        let bytes = site.link.send_input(now_us, k as u32, m)?;
-        site.outgoing.push(now_us, bytes);
+        if let Some(bytes) = site.link.send_input(now_us, k as u32, m)? {
+            site.outgoing.push(now_us, bytes);
+        }
     }
     Ok(row)
 }
@@ -485,7 +499,7 @@ mod tests {
             },
             loss: 0.0,
             reorder: 0.0,
-            capacity: 4096,
+            ..NetemConfig::default()
         };
         let r = run_virtual(&cfg).unwrap();
         assert!(r.identical);

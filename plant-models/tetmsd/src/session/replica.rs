@@ -82,6 +82,79 @@ pub struct ReplicaStats {
     pub divergence: Vec<(u64, f64)>,
     /// Largest gap between the speculative and committed tick.
     pub max_lag_ticks: u64,
+    /// The committed replica's lag behind the present, once per tick
+    /// ([`Replicas::record_lag`]).
+    pub lag: LagHistogram,
+    /// Times this site re-synchronised a restarted peer from its state.
+    pub resyncs: u64,
+}
+
+/// How far the committed replica is behind the present, counted once per
+/// tick in whole ticks (1 ms); lags of a window or more share the last
+/// bucket. The buckets are allocated once, so the 1 kHz haptic thread can
+/// record without allocating.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LagHistogram {
+    counts: Vec<u64>,
+    samples: u64,
+    max_ticks: u64,
+}
+
+impl LagHistogram {
+    /// An empty histogram with its buckets allocated.
+    pub fn new() -> Self {
+        LagHistogram {
+            counts: vec![0; WINDOW_TICKS as usize + 1],
+            samples: 0,
+            max_ticks: 0,
+        }
+    }
+
+    /// Counts one tick's lag.
+    pub fn record(&mut self, lag_ticks: u64) {
+        if self.counts.is_empty() {
+            self.counts = vec![0; WINDOW_TICKS as usize + 1];
+        }
+        let last = self.counts.len() - 1;
+        self.counts[(lag_ticks as usize).min(last)] += 1;
+        self.samples += 1;
+        self.max_ticks = self.max_ticks.max(lag_ticks);
+    }
+
+    /// Ticks counted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The largest lag (ticks).
+    pub fn max_ticks(&self) -> u64 {
+        self.max_ticks
+    }
+
+    /// The mean lag (ticks).
+    pub fn mean_ticks(&self) -> f64 {
+        let sum: f64 = self
+            .counts
+            .iter()
+            .enumerate()
+            .map(|(k, n)| k as f64 * *n as f64)
+            .sum();
+        sum / self.samples.max(1) as f64
+    }
+
+    /// The smallest lag that at least a fraction `q` of the ticks did not
+    /// exceed (ticks; 0 without samples).
+    pub fn quantile_ticks(&self, q: f64) -> u64 {
+        let need = (q.clamp(0.0, 1.0) * self.samples as f64).ceil() as u64;
+        let mut seen = 0;
+        for (k, n) in self.counts.iter().enumerate() {
+            seen += n;
+            if seen >= need.max(1) {
+                return k as u64;
+            }
+        }
+        0
+    }
 }
 
 impl ReplicaStats {
@@ -149,6 +222,19 @@ impl Replicas {
     /// Both replicas of site `site` (0 or 1) at rest.
     pub fn new(model: Arc<VoigtModel>, site: u8, config: ReplicaConfig) -> Self {
         let rest = model.rest_state();
+        Replicas::from_state(model, site, config, rest)
+    }
+
+    /// Both replicas of a site that joins a session at `state` (a state
+    /// transfer from the peer): committed and speculative start there, and
+    /// the first inputs expected are those of `state.tick`.
+    pub fn from_state(
+        model: Arc<VoigtModel>,
+        site: u8,
+        config: ReplicaConfig,
+        state: State,
+    ) -> Self {
+        let rest = state;
         Replicas {
             model,
             site: usize::from(site & 1),
@@ -156,15 +242,64 @@ impl Replicas {
             committed: rest.clone(),
             inputs: [VecDeque::new(), VecDeque::new()],
             last_committed_peer: Manipulation::free(V3::zeros()),
+            shown: rest.tick,
             speculative: rest,
             used: VecDeque::new(),
-            shown: 0,
             dirty: false,
             since_rebase: 0,
             frames: VecDeque::new(),
             scratch: Vec::new(),
-            stats: ReplicaStats::default(),
+            stats: ReplicaStats {
+                lag: LagHistogram::new(),
+                ..ReplicaStats::default()
+            },
         }
+    }
+
+    /// Counts the committed replica's lag behind `present` (the tick the
+    /// site is at) once.
+    pub fn record_lag(&mut self, present: u64) {
+        let lag = present.saturating_sub(self.committed.tick);
+        self.stats.lag.record(lag);
+    }
+
+    /// Re-synchronises a restarted peer (this site runs the session on):
+    /// the peer's inputs this site never got for ticks before `tick` are
+    /// taken as "no contact", its inputs from `tick` on are dropped (its
+    /// new incarnation sends them), the committed replica advances to
+    /// `tick` and is returned — the state the peer starts from. Needs this
+    /// site's own inputs up to `tick`.
+    pub fn resync_at(&mut self, tick: u64) -> Result<State> {
+        let base = self.committed.tick;
+        if tick < base || tick > self.local_end() {
+            return Err(TetError::Session(format!(
+                "cannot re-synchronise at tick {tick}: committed tick {base}, own inputs up to {}",
+                self.local_end()
+            )));
+        }
+        let peer = 1 - self.site;
+        let n = (tick - base) as usize;
+        let q = &mut self.inputs[peer];
+        q.truncate(n);
+        q.resize(n, None);
+        for m in q.iter_mut() {
+            if m.is_none() {
+                *m = Some(Manipulation::free(V3::zeros()));
+            }
+        }
+        self.advance(self.local_end())?;
+        if self.committed.tick != tick {
+            return Err(TetError::Session(format!(
+                "re-synchronisation stopped at tick {} of {tick}",
+                self.committed.tick
+            )));
+        }
+        // Speculate again from here with the peer free.
+        self.last_committed_peer = Manipulation::free(V3::zeros());
+        self.dirty = true;
+        self.since_rebase = self.config.rebase_every_ticks;
+        self.stats.resyncs += 1;
+        Ok(self.committed.clone())
     }
 
     /// The model.

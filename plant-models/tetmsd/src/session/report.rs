@@ -7,7 +7,7 @@
 use super::link::LinkStats;
 use super::netem::NetemStats;
 use super::pair::PairReport;
-use super::replica::ReplicaStats;
+use super::replica::{LagHistogram, ReplicaStats};
 use crate::model::V3;
 use serde::{Deserialize, Serialize};
 
@@ -92,6 +92,12 @@ pub struct LinkSummary {
     pub inputs_sent: u64,
     /// Inputs sent again.
     pub retransmissions: u64,
+    /// Of those, resent because a later tick arrived first.
+    pub fast_retransmissions: u64,
+    /// Of those, resent when the timeout ran out.
+    pub timeout_retransmissions: u64,
+    /// Resends found needless afterwards.
+    pub needless_resends: u64,
     /// Ack-only packets.
     pub acks_sent: u64,
     /// Peer inputs received.
@@ -114,6 +120,12 @@ pub struct LinkSummary {
     pub rtt_mean_us: f64,
     /// Largest round trip (µs).
     pub rtt_max_us: u64,
+    /// Round-trip samples.
+    pub rtt_samples: u64,
+    /// Smoothed round trip at the end (µs).
+    pub srtt_us: f64,
+    /// Reordering window at the end (µs).
+    pub reorder_window_us: u64,
     /// Datagrams the socket refused to send.
     pub send_errors: u64,
     /// The network thread's scheduling (`normal` or `SCHED_FIFO N`).
@@ -125,6 +137,9 @@ impl From<&LinkStats> for LinkSummary {
         LinkSummary {
             inputs_sent: s.inputs_sent,
             retransmissions: s.retransmissions,
+            fast_retransmissions: s.fast_retransmissions,
+            timeout_retransmissions: s.timeout_retransmissions,
+            needless_resends: s.needless_resends,
             acks_sent: s.acks_sent,
             inputs_received: s.inputs_received,
             duplicates: s.duplicates,
@@ -141,6 +156,9 @@ impl From<&LinkStats> for LinkSummary {
             rtt_min_us: s.rtt_min_us,
             rtt_mean_us: s.rtt_mean_us(),
             rtt_max_us: s.rtt_max_us,
+            rtt_samples: s.rtt_samples,
+            srtt_us: s.srtt_us,
+            reorder_window_us: s.reorder_window_us,
             send_errors: 0,
             scheduling: "virtual".into(),
         }
@@ -164,6 +182,12 @@ pub struct NetemSummary {
     pub max_queued: usize,
     /// Largest one-way delay (µs).
     pub max_delay_us: u64,
+    /// Input packets offered.
+    pub inputs_offered: u64,
+    /// Input packets lost (what the sender really had to resend).
+    pub inputs_lost: u64,
+    /// Mean one-way delay of the inputs passed (µs).
+    pub input_delay_mean_us: f64,
 }
 
 impl From<&NetemStats> for NetemSummary {
@@ -176,6 +200,9 @@ impl From<&NetemStats> for NetemSummary {
             delivered: s.delivered,
             max_queued: s.max_queued,
             max_delay_us: s.max_delay_us,
+            inputs_offered: s.inputs_offered,
+            inputs_lost: s.inputs_lost,
+            input_delay_mean_us: s.input_delay_mean_us(),
         }
     }
 }
@@ -203,6 +230,15 @@ pub struct ReplicaSummary {
     pub rebase_jump_max_mm: f64,
     /// Largest gap speculative − committed (ticks).
     pub lag_max_ticks: u64,
+    /// The committed replica's lag behind the present, per tick: median
+    /// (ms).
+    pub lag_p50_ms: u64,
+    /// 99th percentile (ms).
+    pub lag_p99_ms: u64,
+    /// Mean (ms).
+    pub lag_mean_ms: f64,
+    /// Restarted peers this site re-synchronised.
+    pub resyncs: u64,
     /// (tick, divergence mm) of every checked frame.
     pub divergence_series: Vec<(u64, f64)>,
 }
@@ -220,9 +256,46 @@ impl From<&ReplicaStats> for ReplicaSummary {
             mispredictions: s.mispredictions,
             rebase_jump_max_mm: s.max_rebase_jump_m * 1e3,
             lag_max_ticks: s.max_lag_ticks,
+            lag_p50_ms: s.lag.quantile_ticks(0.5),
+            lag_p99_ms: s.lag.quantile_ticks(0.99),
+            lag_mean_ms: s.lag.mean_ticks(),
+            resyncs: s.resyncs,
             divergence_series: s.divergence.iter().map(|(t, d)| (*t, d * 1e3)).collect(),
         }
     }
+}
+
+impl ReplicaSummary {
+    /// The lag figures from a histogram filled elsewhere (the haptic
+    /// thread of a real-time site).
+    pub fn set_lag(&mut self, lag: &LagHistogram) {
+        self.lag_p50_ms = lag.quantile_ticks(0.5);
+        self.lag_p99_ms = lag.quantile_ticks(0.99);
+        self.lag_mean_ms = lag.mean_ticks();
+        self.lag_max_ticks = self.lag_max_ticks.max(lag.max_ticks());
+    }
+}
+
+/// How the session ended for a real-time site: both sites' tick counts,
+/// the end tick, and the hashes of both committed replicas there.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct EndReport {
+    /// Why this site stopped.
+    pub reason: String,
+    /// Ticks this site made.
+    pub own_ticks: u64,
+    /// Ticks the peer made (from its bye).
+    pub peer_ticks: Option<u64>,
+    /// Why the peer stopped.
+    pub peer_reason: Option<String>,
+    /// The session's end tick (the smaller count).
+    pub end_tick: Option<u64>,
+    /// This site's committed hash there (hex).
+    pub own_hash: Option<String>,
+    /// The peer's, from its bye (hex).
+    pub peer_hash: Option<String>,
+    /// Whether the two agree (`None`: the peer's never came).
+    pub peer_confirmed: Option<bool>,
 }
 
 /// What a site reports at the end.
@@ -256,6 +329,14 @@ pub struct SiteReport {
     pub contact_ticks: u64,
     /// Largest felt force (N).
     pub max_force_n: f64,
+    /// How the session ended (real-time sites).
+    pub end: Option<EndReport>,
+    /// The tick this site joined a running session at (after a restart).
+    pub joined_at_tick: Option<u64>,
+    /// The handshake's round trip (µs).
+    pub handshake_rtt_us: Option<u64>,
+    /// What happened on the way (peers restarted, strangers refused).
+    pub notes: Vec<String>,
 }
 
 /// A pair run's outcome in one shape for every mode.
@@ -305,6 +386,10 @@ impl PairOutcome {
                     .collect(),
                 contact_ticks: sm.contact_ticks,
                 max_force_n: sm.max_force_n,
+                end: None,
+                joined_at_tick: None,
+                handshake_rtt_us: None,
+                notes: Vec::new(),
             }
         };
         PairOutcome {

@@ -24,6 +24,12 @@ pub struct NetworkSpec {
     pub reorder: f64,
     /// Packets the emulator queue holds.
     pub queue_packets: usize,
+    /// Extra one-way delay per packet, uniform in `[0, jitter_ms]` (ms).
+    #[serde(default)]
+    pub jitter_ms: f64,
+    /// Mean length of a run of lost packets (0: independent losses).
+    #[serde(default)]
+    pub burst_len: f64,
 }
 
 /// One user's stylus.
@@ -87,6 +93,8 @@ impl Default for Scenario {
                 loss: 0.01,
                 reorder: 0.01,
                 queue_packets: 4096,
+                jitter_ms: 0.0,
+                burst_len: 0.0,
             },
             rebase_every_ticks: ReplicaConfig::default().rebase_every_ticks,
             site: vec![
@@ -167,11 +175,25 @@ impl Scenario {
                     self.network.profile
                 ),
             })?;
+        let n = &self.network;
+        check_range(
+            "jitter_ms",
+            n.jitter_ms,
+            0.0,
+            1000.0,
+            "must be 0 to 1000 ms",
+        )
+        .map_err(|e| TetError::Malformed {
+            location: format!("{file}: network"),
+            reason: e.to_string(),
+        })?;
         let cfg = NetemConfig {
             profile,
-            loss: self.network.loss,
-            reorder: self.network.reorder,
-            capacity: self.network.queue_packets,
+            loss: n.loss,
+            reorder: n.reorder,
+            capacity: n.queue_packets,
+            jitter_us: (n.jitter_ms * 1000.0).round() as u64,
+            burst_len: n.burst_len,
         };
         cfg.validate().map_err(|e| TetError::Malformed {
             location: format!("{file}: network"),
