@@ -4,7 +4,7 @@
 //! §4.2, §6–§8).
 
 use firmware::protocol::{
-    faults_to_u8, Drive, ErrorCode, HilActuator, HilSensor, HilStart, HilStop, Message, SetGains,
+    faults_to_u8, Drive, ErrorCode, HilActuator, HilSensor, HilStart, HilStop, Message,
     SetLinkTimeout, SetTarget, SetTelemetry,
 };
 use firmware::supervisor::Faults;
@@ -101,14 +101,7 @@ fn cold_lockstep<P: Port>(
 ) -> Result<(), NotPassed> {
     s.ack(SetLinkTimeout { timeout_ms })?;
     for plane in 0..2 {
-        s.ack(SetGains {
-            plane,
-            kp_agonist: 0.01,
-            kp_antagonist: 0.01,
-            ki: 0.0,
-            integral_limit_v: 0.0,
-            v_offset_v: 0.0,
-        })?;
+        s.ack(super::cold_gains(plane))?;
     }
     s.ack(SetTarget {
         plane: 0,
@@ -152,19 +145,12 @@ fn telemetry<P: Port>(s: &mut Session<'_, P>) -> Verdict {
             times.len()
         )
     })?;
-    // Frame k is due at anchor + 10k ms and stamped when sent: late by
-    // at most a poll, never early, and a late one does not move the grid.
-    // Less than one interval of spread means no frame was skipped or
-    // doubled.
-    let offsets: Vec<i64> = (0i64..)
-        .zip(&times)
-        .map(|(k, t)| i64::from(t.wrapping_sub(times[0])) - 10 * k)
-        .collect();
-    let anchor = offsets.iter().copied().min().unwrap_or(0);
-    let late: Vec<i64> = offsets.iter().map(|o| o - anchor).collect();
-    need(late.iter().all(|l| *l < 8), || {
+    let grid = on_grid(&times, 10).map_err(NotPassed::Fail)?;
+    need(grid.restarts * 3 <= times.len(), || {
         format!(
-            "frames off a 10 ms grid of the board's clock (ms after their grid time): {late:?}, stamped {times:?}"
+            "the grid restarted {} times in {} frames (a frame 10 ms or more behind its grid time): the board skips frames; stamped {times:?}",
+            grid.restarts,
+            times.len()
         )
     })?;
     let span = times[times.len() - 1].wrapping_sub(times[0]);
@@ -183,10 +169,54 @@ fn telemetry<P: Port>(s: &mut Session<'_, P>) -> Verdict {
         format!("telemetry stamped after SetTelemetry{{0}} (at {stopped_at} ms): {late:?}")
     })?;
     Ok(format!(
-        "{} frames over {span} ms on a 10 ms grid (each at most {} ms late); none after rate 0",
+        "{} frames over {span} ms on a 10 ms grid (at most {} ms late, {} restarts after a late step); none after rate 0",
         times.len(),
-        late.iter().max().unwrap_or(&0)
+        grid.max_late_ms,
+        grid.restarts
     ))
+}
+
+/// How a telemetry stream kept its grid.
+struct Grid {
+    /// Frames after which the grid started again (§7: a step more than
+    /// one interval late restarts the grid from there).
+    restarts: usize,
+    /// The latest frame, in ms after its grid time.
+    max_late_ms: i64,
+}
+
+/// Holds frame stamps `times` to §7's grid of `interval_ms`: each frame
+/// at its grid time or less than one interval after it (sent at the first
+/// step on or after it), never before it (less one 1 ms step: the grid
+/// starts at the request, the first frame at the next step); a frame an
+/// interval or more late starts the grid again from itself. A doubled
+/// frame is early by an interval; a skipped one restarts the grid.
+fn on_grid(times: &[u32], interval_ms: i64) -> Result<Grid, String> {
+    let mut grid = Grid {
+        restarts: 0,
+        max_late_ms: 0,
+    };
+    let Some(&first) = times.first() else {
+        return Ok(grid);
+    };
+    let (mut anchor, mut k) = (first, 0i64);
+    for &t in &times[1..] {
+        k += 1;
+        let late = i64::from(t.wrapping_sub(anchor) as i32) - interval_ms * k;
+        if late < -1 {
+            return Err(format!(
+                "a frame stamped {t} ms, {} ms before its grid time (anchor {anchor} ms, interval {interval_ms} ms): more frames than the rate; stamped {times:?}",
+                -late
+            ));
+        }
+        if late >= interval_ms {
+            grid.restarts += 1;
+            (anchor, k) = (t, 0);
+        } else {
+            grid.max_late_ms = grid.max_late_ms.max(late);
+        }
+    }
+    Ok(grid)
 }
 
 /// α's coils below the conduction threshold (co-contraction), `hold_ms`.
@@ -534,4 +564,28 @@ fn counters_saturate<P: Port>(s: &mut Session<'_, P>) -> Verdict {
         "{} → {} after {frames} more errors",
         before.cobs_errors, st.cobs_errors
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::on_grid;
+
+    #[test]
+    fn the_grid_takes_late_frames_and_restarts_and_refuses_doubled_ones() {
+        // On time, and late by less than an interval: no restart.
+        let g = on_grid(&[100, 110, 123, 130, 149, 150], 10).unwrap();
+        assert_eq!((g.restarts, g.max_late_ms), (0, 9));
+        // A step 15 ms late: the grid starts again from it.
+        let g = on_grid(&[100, 110, 135, 145, 155], 10).unwrap();
+        assert_eq!((g.restarts, g.max_late_ms), (1, 0));
+        // Half the rate: every frame restarts the grid.
+        let g = on_grid(&[100, 120, 140, 160], 10).unwrap();
+        assert_eq!(g.restarts, 3);
+        // Twice the rate: a frame a whole interval early.
+        assert!(on_grid(&[100, 100, 110, 110], 10).is_err());
+        assert!(on_grid(&[100, 105, 110], 10).is_err());
+        // The first frame comes at the step after the request: 1 ms of
+        // slack before the grid.
+        assert!(on_grid(&[101, 110, 120], 10).is_ok());
+    }
 }

@@ -13,8 +13,9 @@
 //! **Safe mode** (`--safe`, for a board with real coils): the suite never
 //! asks for a driver input that passes current by the document's own
 //! driver model (§8.4: nothing below 1.7 V) — lockstep outputs come from a
-//! law with `v_offset = 0` and a gain of 0.01 V/deg, drives stay at
-//! 1.5 V — and it skips the check that heats a coil to its trip level. If
+//! law with `v_offset = 0` and a gain of 0.01 V/deg (so do free-running
+//! outputs once armed: safe mode never arms with the default law's 1.7 V
+//! offset), drives stay at 1.5 V — and it skips the check that heats a coil to its trip level. If
 //! the board reports a coil input above 1.7 V all the same, the suite
 //! disarms it at once and fails the check that saw it.
 //!
@@ -337,13 +338,19 @@ impl<'a, P: Port> Session<'a, P> {
                 target_deg: 0.0,
             })?;
             let g = defaults.gains[usize::from(plane)];
-            self.ack(SetGains {
-                plane,
-                kp_agonist: g.kp_agonist(),
-                kp_antagonist: g.kp_antagonist(),
-                ki: g.ki(),
-                integral_limit_v: g.integral_limit_v(),
-                v_offset_v: g.v_offset_v(),
+            // Safe mode arms with a law that cannot pass current (the
+            // default law's 1.7 V offset is the driver's threshold).
+            self.ack(if self.opts.safe {
+                cold_gains(plane)
+            } else {
+                SetGains {
+                    plane,
+                    kp_agonist: g.kp_agonist(),
+                    kp_antagonist: g.kp_antagonist(),
+                    ki: g.ki(),
+                    integral_limit_v: g.integral_limit_v(),
+                    v_offset_v: g.v_offset_v(),
+                }
             })?;
             self.ack(SetCalibration {
                 plane,
@@ -364,6 +371,19 @@ impl<'a, P: Port> Session<'a, P> {
     pub fn arm(&mut self) -> Result<(), NotPassed> {
         let _ = self.ask(firmware::protocol::ClearFaults {})?;
         self.ack(Arm {})
+    }
+}
+
+/// Gains under which no reading passes current (§8.4: nothing below
+/// 1.7 V): `v_offset = 0`, 0.01 V/deg, no integral.
+pub fn cold_gains(plane: u8) -> SetGains {
+    SetGains {
+        plane,
+        kp_agonist: 0.01,
+        kp_antagonist: 0.01,
+        ki: 0.0,
+        integral_limit_v: 0.0,
+        v_offset_v: 0.0,
     }
 }
 
