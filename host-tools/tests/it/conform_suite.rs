@@ -153,3 +153,31 @@ fn the_cli_reports_as_json_and_junit_and_exits_non_zero_on_a_failure() {
     assert_eq!(junit.matches("<testcase ").count(), 22);
     assert!(junit.contains("name=\"handshake.hello\"") && junit.contains("<failure message="));
 }
+
+/// The page's "Physical layer" (§1) tells a user how to build and start
+/// each QEMU image; it must say what the tools do: the build command, the
+/// image's path and the machine's serial ports.
+#[test]
+fn the_protocol_page_builds_and_starts_each_qemu_image_as_the_tools_do() {
+    use host_tools::board::qemu::QemuBoard;
+    let page = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/protocol.md"))
+        .unwrap();
+    // The page wraps long commands with `\` and indents the rest.
+    let flat = page
+        .replace("\\\n", " ")
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    for board in [QemuBoard::Mps2An386, QemuBoard::Stm32f4] {
+        let build = board.build_command();
+        let build = build.split(" --bin ").next().unwrap();
+        assert!(flat.contains(build), "the page lacks `{build}`");
+        assert!(
+            flat.contains(&format!("-kernel {}", board.default_image())),
+            "the page does not start {}",
+            board.default_image()
+        );
+        let machine = board.machine_args().join(" ");
+        assert!(flat.contains(&machine), "the page lacks `{machine}`");
+    }
+}

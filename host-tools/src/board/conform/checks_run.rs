@@ -568,13 +568,13 @@ fn counters_saturate<P: Port>(s: &mut Session<'_, P>) -> Verdict {
             .link()
             .request(
                 &firmware::protocol::GetStatus {}.into(),
-                std::time::Duration::from_secs(30),
+                std::time::Duration::from_secs(120),
                 1,
                 |m| matches!(m, Message::Status(_)),
             )
             .map_err(|e| {
                 NotPassed::Fail(format!(
-                    "{e} within 30 s of {n} COBS errors ({sent} of {frames} sent): the board stopped reading"
+                    "{e} within 120 s of {n} COBS errors ({sent} of {frames} sent): the board stopped reading"
                 ))
             })?;
         if let Message::Status(now) = reply {

@@ -229,7 +229,8 @@ impl<'a, P: Port> Session<'a, P> {
     pub fn ask(&mut self, msg: impl Into<Message>) -> Result<Option<ErrorCode>, NotPassed> {
         let msg = msg.into();
         let k = msg.kind();
-        match self.link.request(
+        let retries = self.link.stats().retries;
+        let reply = match self.link.request(
             &msg,
             REPLY_TIMEOUT,
             ATTEMPTS,
@@ -238,7 +239,23 @@ impl<'a, P: Port> Session<'a, P> {
             Ok(_) => Ok(None),
             Err(LinkError::Refused { code, .. }) => Ok(Some(code)),
             Err(e) => Err(e.into()),
+        };
+        if self.link.stats().retries != retries {
+            self.drain_duplicates()?;
         }
+        reply
+    }
+
+    /// After a retry (a reply slower than [`REPLY_TIMEOUT`], as on a
+    /// loaded host): the board may answer the repeated request too, and
+    /// that answer must not be taken for the next request's (replies name
+    /// only the request's type). Waits a reply timeout and drops what came.
+    fn drain_duplicates(&mut self) -> Result<(), NotPassed> {
+        let deadline = Instant::now() + REPLY_TIMEOUT;
+        while let Some(m) = self.link.recv_until(deadline)? {
+            self.watch(&m);
+        }
+        Ok(())
     }
 
     /// Sends `msg`, which must be acknowledged.
@@ -271,10 +288,14 @@ impl<'a, P: Port> Session<'a, P> {
         msg: impl Into<Message>,
         accept: impl Fn(&Message) -> bool,
     ) -> Result<Message, NotPassed> {
+        let retries = self.link.stats().retries;
         let reply = self
             .link
             .request(&msg.into(), REPLY_TIMEOUT, ATTEMPTS, accept)?;
         self.watch(&reply);
+        if self.link.stats().retries != retries {
+            self.drain_duplicates()?;
+        }
         Ok(reply)
     }
 
