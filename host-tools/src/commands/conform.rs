@@ -18,7 +18,12 @@ pub struct ConformArgs {
     #[arg(long, conflicts_with_all = ["board", "image", "pty_board"])]
     port: Option<String>,
     /// Baud rate for --port.
-    #[arg(long, default_value_t = 115_200, requires = "port")]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        default_value_t = 115_200,
+        requires = "port"
+    )]
     baud: u32,
     /// The image QEMU runs: mps2-an386 (`softjoint-fw`) or stm32f4 (the
     /// STM32F4 image's QEMU flavour on netduinoplus2).
