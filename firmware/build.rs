@@ -6,6 +6,9 @@
 use std::{env, fs, path::PathBuf};
 
 fn main() {
+    // The step probe's machine when firmware/probes builds it for another
+    // core (src/bin/step_probe.rs reads it for the machine's clock).
+    println!("cargo::rustc-check-cfg=cfg(probe_machine, values(\"an505\", \"microbit\"))");
     let target_os = env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     if target_os != "none" {
         return;

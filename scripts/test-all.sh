@@ -36,10 +36,13 @@ as_root() {
         echo "need root to run: $*" >&2; return 1; fi
 }
 
-step "install: thumbv7em-none-eabihf target, clippy, qemu-system-arm"
-if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
-    rustup target add thumbv7em-none-eabihf
-fi
+# The images' target, and the three the core library is held to (issue
+# 32): Cortex-M0+ (no FPU), Cortex-M33, RISC-V.
+core_targets=(thumbv6m-none-eabi thumbv8m.main-none-eabihf riscv32imac-unknown-none-elf)
+step "install: thumbv7em-none-eabihf and the core's targets (${core_targets[*]}), clippy, qemu-system-arm"
+for t in thumbv7em-none-eabihf "${core_targets[@]}"; do
+    rustup target list --installed | grep -qx "$t" || rustup target add "$t"
+done
 rustup component list --installed | grep -q '^clippy' || rustup component add clippy
 if ! command -v qemu-system-arm >/dev/null; then
     as_root apt-get update
@@ -66,6 +69,12 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 cargo clippy -p firmware --target thumbv7em-none-eabihf --lib --bins --locked -- -D warnings
 cargo clippy -p firmware --target thumbv7em-none-eabihf --features defmt --lib --bins --locked -- -D warnings
 (cd firmware/stm32f4 && cargo clippy --release --lib --bins --locked -- -D warnings)
+
+step "the core library on ${core_targets[*]}: build and clippy -D warnings (the library only; the per-target images and their figures: docs/benchmarks.md)"
+for t in "${core_targets[@]}"; do
+    cargo build -p firmware --lib --target "$t" --locked
+    cargo clippy -p firmware --lib --target "$t" --locked -- -D warnings
+done
 
 step "the core's 3D control step in the Cortex-M4F image under QEMU"
 timeout 60 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -icount shift=0 \

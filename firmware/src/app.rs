@@ -37,7 +37,10 @@
 //!   for its `hold_ms` (≤ [`MAX_DRIVE_HOLD_MS`]); not refreshed by then,
 //!   the plane's coils go **unpowered** and stay so until the next
 //!   `Drive` or a `SetTarget` for the plane, which gives it back to the
-//!   controller. `Disarm` and `HilStart` end every drive. A `Drive` is
+//!   controller; a latching fault ends a drive the same way. `Disarm` and
+//!   `HilStart` end every drive (the planes go back to the controller).
+//!   Like the controller, a drive powers nothing before every sensor the
+//!   laws read has delivered a reading. A `Drive` is
 //!   refused by name when disarmed, with a fault latched, in lockstep, for
 //!   a coil cooling after a trip, or with a value out of range.
 //!
@@ -71,8 +74,11 @@ impl BoardSensors for NoSensors {
 pub const FREE_RUNNING_PERIOD: Duration = Duration::from_millis(1);
 /// Default link-loss timeout in lockstep mode (ms of the board's clock).
 pub const DEFAULT_LINK_TIMEOUT_MS: u16 = 50;
-/// Accepted lockstep periods (µs).
-pub const LOCKSTEP_PERIOD_US: core::ops::RangeInclusive<u32> = 100..=1_000_000;
+/// Accepted lockstep periods (µs). The longest is the wire sensors' stale
+/// limit (50 ms): with a longer period every sensor would be stale at the
+/// second step, so such a `HilStart` is refused rather than accepted into
+/// a certain sensor-stale latch.
+pub const LOCKSTEP_PERIOD_US: core::ops::RangeInclusive<u32> = 100..=50_000;
 /// Accepted link timeouts (ms).
 pub const LINK_TIMEOUT_MS: core::ops::RangeInclusive<u16> = 1..=60_000;
 /// Highest telemetry rate (frames per second).
@@ -291,6 +297,16 @@ impl App {
                         PlaneDrive::Released => Some([DriveVolts::ZERO; 2]),
                     });
                     let out = self.joint.step_driven(&input, drive);
+                    if out.faults.intersects(Faults::LATCHING) {
+                        // A latch ends every drive as an expiry does: the
+                        // planes stay unpowered, in drive mode, after
+                        // ClearFaults until the next Drive or SetTarget.
+                        for d in self.drive.iter_mut() {
+                            if matches!(d, PlaneDrive::Driven { .. }) {
+                                *d = PlaneDrive::Released;
+                            }
+                        }
+                    }
                     self.pair_commands = out.commands;
                     self.outputs = out.coils;
                     self.last_faults = out.faults;
@@ -333,8 +349,13 @@ impl App {
             Message::Hello(hello) => answer(Self::hello(hello)),
             Message::HilStart(start) => acked(self.start_lockstep(start, now)),
             Message::HilStop(HilStop {}) => {
-                self.mode = Mode::FreeRunning { last_step: None };
-                self.enter_new_time_base();
+                // In free-running mode there is no lockstep to leave: the
+                // request changes nothing (a retried HilStop must not
+                // restart the time base again).
+                if self.in_hil() {
+                    self.mode = Mode::FreeRunning { last_step: None };
+                    self.enter_new_time_base();
+                }
                 acked(Ok(()))
             }
             Message::HilSensor(frame) => self.lockstep_step(frame),
@@ -452,6 +473,11 @@ impl App {
         &mut self,
         SetCalibration { plane, law }: SetCalibration,
     ) -> Result<(), ErrorCode> {
+        // NotFinite comes before every other refusal, as for SetTarget and
+        // SetGains (§4.5 of docs/protocol.md).
+        if !law.is_finite() {
+            return Err(ErrorCode::NotFinite);
+        }
         self.joint
             .set_law(usize::from(plane), law)
             .map_err(|e| match e {

@@ -263,6 +263,32 @@ impl PlaneLaw {
         }
     }
 
+    /// True when every float the law's kind uses is finite (the fields a
+    /// kind does not use are not part of it).
+    pub fn is_finite(&self) -> bool {
+        match *self {
+            PlaneLaw::Single { law, .. } => [law.a, law.b, law.c].iter().all(|v| v.is_finite()),
+            PlaneLaw::Differential { law, .. } => law.gain.is_finite() && law.offset.is_finite(),
+            PlaneLaw::Switching {
+                high,
+                low,
+                threshold_deg,
+                hysteresis_deg,
+                ..
+            } => [
+                high.gain,
+                high.offset,
+                low.a,
+                low.b,
+                low.c,
+                threshold_deg,
+                hysteresis_deg,
+            ]
+            .iter()
+            .all(|v| v.is_finite()),
+        }
+    }
+
     /// Checks coefficients and sensor indices against an array of `sensors`.
     pub fn validate(&self, sensors: usize) -> Result<(), CalibrationError> {
         let idx_ok = |i: u8| usize::from(i) < sensors;

@@ -230,6 +230,12 @@ pub struct StepInput<const S: usize, const P: usize> {
     pub feedback: Feedback<S, P>,
 }
 
+/// The faults of the sensor checks (§8 steps 1–2 of docs/protocol.md): a
+/// step that finds one reports no estimate.
+const SENSOR_FAULTS: Faults = Faults::from_bits(
+    Faults::SENSOR_RANGE.bits() | Faults::SENSOR_RATE.bits() | Faults::SENSOR_STALE.bits(),
+);
+
 /// Result of one step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepOutput<const P: usize> {
@@ -237,7 +243,8 @@ pub struct StepOutput<const P: usize> {
     pub commands: [PairCommand; P],
     /// Angle estimate per plane (deg): the held value when a channel had no
     /// new reading; NaN until every channel the plane's law uses has
-    /// delivered a valid reading (and the outputs are off until then).
+    /// delivered a valid reading (and the outputs are off until then), and
+    /// NaN on a step whose sensor checks found a fault.
     pub estimate_deg: [f32; P],
     /// Estimation method per plane (`None` for measured angles).
     pub methods: [Option<Method>; P],
@@ -511,9 +518,10 @@ impl<const P: usize, const S: usize> JointController<P, S> {
     /// the estimate still runs; every input goes through the supervisor
     /// (arm state, latched faults, each coil's thermal budget). A driven
     /// plane's controller is reset, so it resumes without integrator state.
-    /// An open-loop drive does not need the estimate, so it is applied
-    /// before every sensor has delivered (but not after a sensor fault,
-    /// which latches).
+    /// An open-loop drive does not use the estimate, but like the
+    /// controller it drives nothing before every sensor the laws read has
+    /// delivered (the sensor checks must be watching the coils it heats),
+    /// nor after a sensor fault, which latches.
     pub fn step_driven(
         &mut self,
         input: &StepInput<S, P>,
@@ -592,7 +600,10 @@ impl<const P: usize, const S: usize> JointController<P, S> {
         let mut want = [[DriveVolts::ZERO; 2]; P];
         for ((w, c), d) in want.iter_mut().zip(commands.iter()).zip(drive.iter()) {
             *w = match d {
-                Some(v) if faults.is_empty() => *v,
+                // No output before readings (as for the controller): a drive
+                // waits until every sensor the laws read has delivered, so
+                // the sensor checks watch every coil it heats.
+                Some(v) if ready && faults.is_empty() => *v,
                 Some(_) => [DriveVolts::ZERO; 2],
                 None => c.coil_drive(),
             };
@@ -611,9 +622,16 @@ impl<const P: usize, const S: usize> JointController<P, S> {
                 p.reset();
             }
         }
+        // A step whose sensor checks failed reports no estimate: the held
+        // value is not what the sensors say now.
+        let estimate_deg = if faults.intersects(SENSOR_FAULTS) {
+            [f32::NAN; P]
+        } else {
+            self.estimate_deg
+        };
         StepOutput {
             commands: out_commands,
-            estimate_deg: self.estimate_deg,
+            estimate_deg,
             methods,
             faults: supervised.faults,
             coils: supervised.coils,

@@ -180,7 +180,7 @@ impl<const S: usize> SensorGuard<S> {
                         // rate to judge.
                         Some(t) if now > t => {
                             let elapsed_s = (now - t).as_secs_f32();
-                            (r - *value).abs() <= lim.max_rate_per_s * elapsed_s
+                            within_rate(r, *value, lim.max_rate_per_s * elapsed_s)
                         }
                         _ => true,
                     };
@@ -209,6 +209,20 @@ impl<const S: usize> SensorGuard<S> {
             delivered,
         }
     }
+}
+
+/// True when `reading` is within `max_change` of `held`, the limit
+/// included. The comparison allows for the rounding of both values to
+/// `f32` (four units in the last place of the larger magnitude, and of the
+/// limit): a change of exactly the limit — 20 counts of 0.01 mm in 1 ms at
+/// 200 mm/s — is accepted whatever the counts, where a bare `<=` accepted
+/// it at some counts and refused it at others. The allowance is below
+/// 10⁻⁵ mm at the ±10 mm range, far below one count, so a change one count
+/// above the limit is still refused.
+pub fn within_rate(reading: f32, held: f32, max_change: f32) -> bool {
+    let change = (reading - held).abs();
+    let rounding = 4.0 * f32::EPSILON * (reading.abs().max(held.abs()) + max_change.abs());
+    change <= max_change + rounding
 }
 
 /// Extends a 16-bit hardware quadrature counter to an `i32` count.

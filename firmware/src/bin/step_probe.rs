@@ -8,7 +8,10 @@
 //! It also measures instructions per control step. Under `qemu-system-arm
 //! -icount shift=0` QEMU advances virtual time by exactly 1 ns per executed
 //! instruction, and SysTick counts the AN386's 25 MHz system clock (40 ns
-//! per tick), so `ticks × 40` is the number of instructions executed. A
+//! per tick), so `ticks × 40` is the number of instructions executed. Built
+//! for another Cortex-M core, the probe is for the QEMU machine that runs
+//! it (firmware/build.rs: thumbv7m on mps2-an385, thumbv8m.main on
+//! mps2-an505, thumbv6m on microbit) and counts at that machine's clock. A
 //! loop of known length (`nop; subs; bne`, 3 instructions per iteration) is
 //! timed the same way as a check of the method. Without `-icount` the
 //! figures are host-speed dependent and meaningless.
@@ -39,15 +42,30 @@ mod image {
     const PERIOD: Duration = Duration::from_millis(1);
     /// SysTick reload: the full 24-bit range.
     const RELOAD: u32 = 0x00FF_FFFF;
-    /// Nanoseconds per SysTick tick at the AN386's 25 MHz system clock;
-    /// with -icount shift=0 also instructions per tick.
-    const INSNS_PER_TICK: u64 = 40;
+    /// Nanoseconds per SysTick tick, times 2, at the system clock of the
+    /// QEMU machine this target's probe runs in; with -icount shift=0 also
+    /// instructions per tick (×2). AN385/AN386: 25 MHz (hw/arm/mps2.c);
+    /// AN505: 20 MHz (hw/arm/mps2-tz.c); micro:bit: 16 MHz
+    /// (hw/arm/nrf51_soc.c, 62.5 ns).
+    const HALF_NS_PER_TICK: u64 = if cfg!(probe_machine = "an505") {
+        100
+    } else if cfg!(probe_machine = "microbit") {
+        125
+    } else {
+        80
+    };
 
     static WRAPS: AtomicU32 = AtomicU32::new(0);
 
     #[exception]
     fn SysTick() {
-        WRAPS.fetch_add(1, Ordering::Relaxed);
+        // Load and store, not fetch_add (Cortex-M0 has no atomic
+        // read-modify-write): the handler is the only writer, and the main
+        // loop cannot run inside it.
+        WRAPS.store(
+            WRAPS.load(Ordering::Relaxed).wrapping_add(1),
+            Ordering::Relaxed,
+        );
     }
 
     /// Ticks since SysTick was started (wrap count × reload + elapsed).
@@ -79,7 +97,7 @@ mod image {
         for _ in 0..black_box(100_000u32) {
             cortex_m::asm::nop();
         }
-        let nop_insns = (ticks() - t0) * INSNS_PER_TICK;
+        let nop_insns = (ticks() - t0) * HALF_NS_PER_TICK / 2;
         hprintln!(
             "nop loop: {} instructions measured for 100000 iterations",
             nop_insns
@@ -123,7 +141,7 @@ mod image {
             }
             faults |= out.faults.bits();
         }
-        let insns = (ticks() - t0) * INSNS_PER_TICK;
+        let insns = (ticks() - t0) * HALF_NS_PER_TICK / 2;
         hprintln!("3D control step: {} instructions per step (mean of {} steps, loop and input setup included)", insns / STEPS as u64, STEPS);
         #[cfg(feature = "defmt")]
         defmt::info!(

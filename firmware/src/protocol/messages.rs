@@ -238,7 +238,7 @@ protocol_messages! {
     }
     /// Enter lockstep mode (or restart it) with a control period.
     0x02 HIL_START HilStart ToBoard {
-        /// Control period (µs), 100..=1 000 000.
+        /// Control period (µs), 100..=50 000 (the wire sensors' stale limit).
         period_us: u32,
     }
     /// A lockstep sensor frame: run one control step.

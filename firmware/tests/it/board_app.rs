@@ -23,8 +23,8 @@ const UPTIMES: [Instant; 5] = [
 
 /// A board that has been up for `t0`: its u32 millisecond counter reads
 /// `t0 mod 2³²` and is extended by `MillisCounter`, as in the image.
-struct Board {
-    app: App,
+pub(crate) struct Board {
+    pub(crate) app: App,
     raw_ms: u32,
     counter: MillisCounter,
     first: Instant,
@@ -33,7 +33,7 @@ struct Board {
 }
 
 impl Board {
-    fn up_for(t0: Instant) -> Self {
+    pub(crate) fn up_for(t0: Instant) -> Self {
         let raw_ms = t0.wrapping_millis_u32();
         let mut counter = MillisCounter::new();
         let first = counter.extend(raw_ms);
@@ -57,7 +57,7 @@ impl Board {
     }
 
     /// One millisecond passes; the main loop polls.
-    fn tick(&mut self, sensors: &mut impl BoardSensors) -> Vec<Message> {
+    pub(crate) fn tick(&mut self, sensors: &mut impl BoardSensors) -> Vec<Message> {
         self.raw_ms = self.raw_ms.wrapping_add(1);
         let now = self.now();
         let mut out = Vec::new();
@@ -75,7 +75,7 @@ impl Board {
     }
 
     /// Sends one message as bytes; returns the replies.
-    fn send(&mut self, msg: impl Into<Message>) -> Vec<Message> {
+    pub(crate) fn send(&mut self, msg: impl Into<Message>) -> Vec<Message> {
         let mut frame = [0u8; MAX_FRAME];
         let n = encode_frame(&msg.into(), &mut frame);
         let now = self.now();
@@ -86,7 +86,7 @@ impl Board {
         self.decode(&out)
     }
 
-    fn ack(&mut self, msg: impl Into<Message>) {
+    pub(crate) fn ack(&mut self, msg: impl Into<Message>) {
         let msg = msg.into();
         let kind = msg.kind();
         assert_eq!(
@@ -96,14 +96,14 @@ impl Board {
         );
     }
 
-    fn status(&mut self) -> Status {
+    pub(crate) fn status(&mut self) -> Status {
         match self.send(GetStatus {}).as_slice() {
             [Message::Status(s)] => *s,
             other => panic!("{other:?}"),
         }
     }
 
-    fn sensor(&mut self, seq: u16, counts: [i16; 4]) -> Option<HilActuator> {
+    pub(crate) fn sensor(&mut self, seq: u16, counts: [i16; 4]) -> Option<HilActuator> {
         match self.send(HilSensor { seq, counts }).as_slice() {
             [] => None,
             [Message::HilActuator(a)] => Some(*a),
@@ -111,7 +111,7 @@ impl Board {
         }
     }
 
-    fn lockstep(&mut self, alpha_target_deg: f32) {
+    pub(crate) fn lockstep(&mut self, alpha_target_deg: f32) {
         self.ack(HilStart { period_us: 1000 });
         let _ = self.send(ClearFaults {});
         self.ack(SetTarget {
@@ -123,7 +123,7 @@ impl Board {
 }
 
 /// Counts for α = β = `deg` under the default Eq. 3 law (0.01 mm/count).
-fn counts_for(deg: f32) -> [i16; 4] {
+pub(crate) fn counts_for(deg: f32) -> [i16; 4] {
     let da = ((deg - 0.323) / 2.727 / 2.0 / 0.01) as i16;
     let db = ((deg - 0.131) / 2.670 / 2.0 / 0.01) as i16;
     [-da, -db, da, db]
@@ -131,15 +131,15 @@ fn counts_for(deg: f32) -> [i16; 4] {
 
 /// Sensors that deliver `counts_for(0°)` on the channels set in `mask`
 /// from read number `from` on, and count how often they are read.
-struct Scripted {
-    reads: u64,
+pub(crate) struct Scripted {
+    pub(crate) reads: u64,
     from: u64,
     mask: [bool; 4],
-    silent_after: Option<u64>,
+    pub(crate) silent_after: Option<u64>,
 }
 
 impl Scripted {
-    fn all_from(from: u64) -> Self {
+    pub(crate) fn all_from(from: u64) -> Self {
         Self {
             reads: 0,
             from,
@@ -451,7 +451,7 @@ fn hil_stop_returns_to_free_running() {
 
 /// α's coils 1 and 3 both heated (co-contraction), β left to its
 /// controller.
-fn alpha_drive(c1_mv: u16, c3_mv: u16, hold_ms: u16) -> Drive {
+pub(crate) fn alpha_drive(c1_mv: u16, c3_mv: u16, hold_ms: u16) -> Drive {
     Drive {
         planes: 1,
         coil_mv: [c1_mv, 0, c3_mv, 0],
@@ -459,7 +459,7 @@ fn alpha_drive(c1_mv: u16, c3_mv: u16, hold_ms: u16) -> Drive {
     }
 }
 
-fn nak_code(b: &mut Board, msg: impl Into<Message>) -> Option<ErrorCode> {
+pub(crate) fn nak_code(b: &mut Board, msg: impl Into<Message>) -> Option<ErrorCode> {
     match b.send(msg).as_slice() {
         [Message::Nak(n)] => Some(n.code),
         [Message::Ack(_)] => None,
@@ -468,7 +468,7 @@ fn nak_code(b: &mut Board, msg: impl Into<Message>) -> Option<ErrorCode> {
 }
 
 /// An armed free-running board whose sensors deliver (α = β ≈ 0°).
-fn armed_free_running(t0: Instant) -> (Board, Scripted) {
+pub(crate) fn armed_free_running(t0: Instant) -> (Board, Scripted) {
     let mut b = Board::up_for(t0);
     let mut s = Scripted::all_from(0);
     for _ in 0..5 {

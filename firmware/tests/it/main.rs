@@ -5,6 +5,7 @@ mod board_io;
 mod estimation;
 mod protocol;
 mod protocol_doc;
+mod protocol_gaps;
 mod safety;
 mod uptime;
 mod viscoelastic;

@@ -298,6 +298,9 @@ impl<P: Port> Link<P> {
     /// Sends raw bytes (a leading delimiter to flush the board's decoder,
     /// or deliberate garbage in tests).
     pub fn send_raw(&mut self, bytes: &[u8]) -> io::Result<()> {
+        // As in `send`: the last read may have left the timeout at a
+        // millisecond, too short for a far end that reads slowly.
+        self.port.set_read_timeout(WRITE_TIMEOUT)?;
         self.port.write_all(bytes)
     }
 

@@ -23,6 +23,8 @@ use std::time::{Duration, Instant};
 
 use firmware::app::{App, BoardSensors, NoSensors};
 use firmware::control::DriveVolts;
+
+use crate::board::seeded::{SeededFault, Seeder};
 use plant_joint::Joint3d;
 use serialport::{SerialPort, TTYPort};
 
@@ -79,15 +81,21 @@ impl PtyBoard {
     /// Starts a board without sensors; returns it and the host end of the
     /// pty.
     pub fn start() -> serialport::Result<(Self, TTYPort)> {
-        Self::start_inner(None)
+        Self::start_seeded(None, &[])
     }
 
     /// Starts a board wired to `plant` (see the module docs).
     pub fn start_with_plant(plant: Joint3d) -> serialport::Result<(Self, TTYPort)> {
-        Self::start_inner(Some(plant))
+        Self::start_seeded(Some(plant), &[])
     }
 
-    fn start_inner(plant: Option<Joint3d>) -> serialport::Result<(Self, TTYPort)> {
+    /// Starts a board (wired to `plant`, if given) that breaks the
+    /// protocol as `seeded` says: the broken board the conformance
+    /// suite's own tests run against ([`crate::board::seeded`]).
+    pub fn start_seeded(
+        plant: Option<Joint3d>,
+        seeded: &[SeededFault],
+    ) -> serialport::Result<(Self, TTYPort)> {
         // pair() returns (master, slave); only the slave has a device path.
         let (board, mut host) = TTYPort::pair()?;
         host.set_exclusive(false)?;
@@ -97,7 +105,8 @@ impl PtyBoard {
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let (faults, state, stop) = (faults.clone(), state.clone(), stop.clone());
-            std::thread::spawn(move || board_loop(board, plant, faults, state, stop))
+            let seeder = Seeder::new(seeded);
+            std::thread::spawn(move || board_loop(board, plant, seeder, faults, state, stop))
         };
         Ok((
             Self {
@@ -136,6 +145,7 @@ const PLANT_STEP_S: f64 = 1e-3;
 fn board_loop(
     mut port: TTYPort,
     mut plant: Option<Joint3d>,
+    mut seeder: Seeder,
     faults: Arc<Mutex<BoardFaults>>,
     state: Arc<Mutex<BoardState>>,
     stop: Arc<AtomicBool>,
@@ -172,6 +182,7 @@ fn board_loop(
             }
             for &b in &buf[..n] {
                 app.on_byte(b, now(), &mut |f: &[u8]| out.push(f.to_vec()));
+                seeder.on_byte(b, &mut out);
             }
         }
         if let Some(pl) = plant.as_mut() {
@@ -197,12 +208,14 @@ fn board_loop(
                 plant = None;
             }
         }
+        seeder.before_poll(&mut app, now());
         match plant.as_ref() {
             Some(pl) => app.poll(now(), &mut PlantSensors(pl), &mut |f: &[u8]| {
                 out.push(f.to_vec())
             }),
             None => app.poll(now(), &mut NoSensors, &mut |f: &[u8]| out.push(f.to_vec())),
         }
+        out = seeder.rewrite(std::mem::take(&mut out));
         for frame in out.drain(..) {
             let f = *faults.lock().unwrap();
             if f.drop_replies > 0 {

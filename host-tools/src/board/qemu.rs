@@ -94,7 +94,7 @@ impl QemuBoard {
 
     /// QEMU's machine and the serial ports before the board's protocol
     /// UART (on `null`); the protocol UART's `-serial` follows.
-    fn machine_args(self) -> &'static [&'static str] {
+    pub const fn machine_args(self) -> &'static [&'static str] {
         match self {
             QemuBoard::Mps2An386 => &["-cpu", "cortex-m4", "-machine", "mps2-an386"],
             // USART1 is serial0, USART2 (the Nucleo's virtual COM port,

@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod calibrate;
+pub mod conform;
 pub mod console;
 pub mod contour;
 pub mod dlo;
@@ -37,6 +38,10 @@ pub enum Command {
     Hil(hil::HilArgs),
     /// Send commands to a board and stream its telemetry.
     Console(console::ConsoleArgs),
+    /// Hold a board to docs/protocol.md: the conformance suite (a serial
+    /// port, the images under QEMU, or the pty board), each check citing
+    /// its section; text, JSON or JUnit XML, non-zero exit on a failure.
+    Conform(conform::ConformArgs),
     /// Viscoelastic solids (seed 002): 3-element model on your data, fits,
     /// and the measured DGFM object.
     Viscoelastic(viscoelastic::ViscoArgs),
@@ -75,6 +80,7 @@ pub fn exec(cli: Cli) -> anyhow::Result<()> {
         Command::Calibrate(cmd) => calibrate::run(cmd),
         Command::Hil(args) => hil::run(args),
         Command::Console(args) => console::run(args),
+        Command::Conform(args) => conform::run(args),
         Command::Viscoelastic(args) => viscoelastic::run(args),
         Command::Push(args) => push::run(args),
         Command::Tetmsd(args) => tetmsd::run(args),

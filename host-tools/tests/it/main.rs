@@ -9,6 +9,7 @@ mod cli_real_files;
 mod cli_results;
 mod cli_sim;
 mod common;
+mod conform_suite;
 mod console_excite;
 mod contour_cli;
 mod dlo_cli;

@@ -9,6 +9,7 @@ mod fault_campaign;
 mod layout;
 mod link_failures;
 mod protocol_pty;
+mod qemu_conform;
 mod qemu_hil;
 mod qemu_tuned_gains;
 mod visco_core_vs_plant;
