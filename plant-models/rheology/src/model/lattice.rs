@@ -24,6 +24,7 @@ use std::collections::HashMap;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{bad_setting, check_positive, Result};
+use crate::model::effective::{class_factors_m, family_of};
 use crate::model::element::ElementConstants;
 use crate::model::params::{ElementClass, LatticeParams};
 
@@ -74,8 +75,9 @@ impl VolumeMode {
 }
 
 /// One element: two masses, the rest length, the class whose parameters
-/// it takes and how many voxel contributions (half elements count 2) it
-/// carries.
+/// it takes and how many voxel contributions it carries (half elements
+/// count 2; on non-cubic voxels each contribution is its family's share,
+/// see [`crate::model::effective`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ElementDef {
     pub i: u32,
@@ -107,7 +109,7 @@ pub struct Lattice {
     /// the table or plate stands for ("opposite area", L2269).
     pub tributary_area_m2: Vec<f64>,
     /// Edge of a voxel (geometric mean of the spacings, m): the h of the
-    /// element constants.
+    /// element constants (times each element's weight).
     pub voxel_edge_m: f64,
     /// Voxels facing the surface, and all voxels.
     pub surface_voxels: usize,
@@ -136,6 +138,11 @@ impl Lattice {
             size_m[1] / (ny - 1) as f64,
             size_m[2] / (nz - 1) as f64,
         ];
+        // Each element family's share of a voxel, relative to the voxel
+        // edge h̄ the element constants are built with: 1 for cubic voxels,
+        // chosen so that the stiffness is the cubic lattice's otherwise.
+        let voxel_edge_m = (h[0] * h[1] * h[2]).cbrt();
+        let share = class_factors_m(h)?.map(|g| g / voxel_edge_m);
         let id = |i: usize, j: usize, k: usize| (i + nx * (j + ny * k)) as u32;
         let mut rest_m = Vec::with_capacity(nx * ny * nz);
         for k in 0..nz {
@@ -195,7 +202,7 @@ impl Lattice {
                                     corner(a),
                                     corner(b),
                                     ElementClass::of(surf, false),
-                                    1.0,
+                                    share[family_of(a, b)],
                                     &rest_m,
                                 );
                             } else if centre.is_none() {
@@ -203,13 +210,19 @@ impl Lattice {
                                     corner(a),
                                     corner(b),
                                     ElementClass::of(surf, true),
-                                    1.0,
+                                    share[7],
                                     &rest_m,
                                 );
                             }
                         }
                         if let Some(c) = centre {
-                            add(corner(a), c, ElementClass::of(surf, true), 2.0, &rest_m);
+                            add(
+                                corner(a),
+                                c,
+                                ElementClass::of(surf, true),
+                                2.0 * share[7],
+                                &rest_m,
+                            );
                         }
                     }
                 }
@@ -233,7 +246,7 @@ impl Lattice {
             elements: merged,
             surface,
             tributary_area_m2,
-            voxel_edge_m: (h[0] * h[1] * h[2]).cbrt(),
+            voxel_edge_m,
             surface_voxels,
             voxels,
         })

@@ -2,4 +2,5 @@
 //! would otherwise be a binary of its own to link).
 mod calibration;
 mod model;
+mod stiffness;
 mod volume;
