@@ -278,14 +278,14 @@ pub fn uniaxial_creep(
     let face_mean = |x: &[V3], axis: usize, side: usize| {
         let nodes = &lattice.nodes;
         let (mut sum, mut count) = (0.0, 0.0);
-        for g in 0..lattice.grid_masses {
+        for (g, p) in x.iter().enumerate().take(lattice.grid_masses) {
             let ijk = [
                 g % nodes[0],
                 (g / nodes[0]) % nodes[1],
                 g / (nodes[0] * nodes[1]),
             ];
             if ijk[axis] == side {
-                sum += x[g][axis];
+                sum += p[axis];
                 count += 1.0;
             }
         }
@@ -318,10 +318,10 @@ mod tests {
     #[test]
     fn the_cubic_voxel_sums_to_28_thirds_and_10_thirds() {
         let c = normal_stiffness([0.01; 3], &[0.01; 8]);
-        for i in 0..3 {
-            for j in 0..3 {
+        for (i, row) in c.iter().enumerate() {
+            for (j, cij) in row.iter().enumerate() {
                 let want = if i == j { 28.0 / 3.0 } else { 10.0 / 3.0 };
-                assert!((c[i][j] - want).abs() < 1e-12, "{i}{j}: {}", c[i][j]);
+                assert!((cij - want).abs() < 1e-12, "{i}{j}: {cij}");
             }
         }
         let (e, nu) = young_and_poisson(&c);
@@ -340,10 +340,10 @@ mod tests {
             let g = class_factors_m(h).unwrap();
             assert!(FAMILIES.iter().all(|&m| g[m] > 0.0), "{h:?}: {g:?}");
             let c = normal_stiffness(h, &g);
-            for i in 0..3 {
-                for j in 0..3 {
+            for (i, row) in c.iter().enumerate() {
+                for (j, cij) in row.iter().enumerate() {
                     let want = if i == j { CUBIC_C11 } else { CUBIC_C12 };
-                    assert!((c[i][j] - want).abs() < 1e-9, "{h:?} {i}{j}: {}", c[i][j]);
+                    assert!((cij - want).abs() < 1e-9, "{h:?} {i}{j}: {cij}");
                 }
             }
         }
