@@ -264,6 +264,24 @@ fn bad_input_is_refused_with_the_file_field_line_or_flag() {
         &["rheology", "calibrate", &sc, "--measured", s(&meas)],
         &["surface_points.csv:3", "y_cm"],
     );
+    // A single surface point for 4 parameters (issue 31): refused with
+    // the minimum, before any search.
+    let one = dir.join("one");
+    std::fs::create_dir_all(&one).unwrap();
+    file(
+        &one,
+        "surface_points.csv",
+        "frame,time_s,x_cm,y_cm,z_cm\n0,0.5,1,2,3\n",
+    );
+    file(&one, "forces.csv", "time_s,force_n\n0.1,1\n0.2,2\n");
+    refused(
+        &["rheology", "calibrate", &sc, "--measured", s(&one)],
+        &[
+            "surface_points.csv",
+            "1 surface point(s) for 4 parameters",
+            "(4)",
+        ],
+    );
     refused(
         &[
             "rheology",
