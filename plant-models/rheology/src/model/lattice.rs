@@ -144,14 +144,7 @@ impl Lattice {
         let voxel_edge_m = (h[0] * h[1] * h[2]).cbrt();
         let share = class_factors_m(h)?.map(|g| g / voxel_edge_m);
         let id = |i: usize, j: usize, k: usize| (i + nx * (j + ny * k)) as u32;
-        let mut rest_m = Vec::with_capacity(nx * ny * nz);
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    rest_m.push(V3::new(i as f64 * h[0], j as f64 * h[1], k as f64 * h[2]));
-                }
-            }
-        }
+        let mut rest_m = grid_positions(nodes, h);
         let grid_masses = rest_m.len();
         let mut merged: Vec<ElementDef> = Vec::new();
         let mut index: HashMap<(u32, u32, ElementClass), usize> = HashMap::new();
@@ -229,14 +222,7 @@ impl Lattice {
             }
         }
         let surface = box_surface(nodes, &rest_m);
-        let w = |n: usize, i: usize, h: f64| if i == 0 || i == n - 1 { h / 2.0 } else { h };
-        let mut tributary_area_m2: Vec<f64> = (0..grid_masses)
-            .map(|g| {
-                let (i, k) = (g % nx, g / (nx * ny));
-                w(nx, i, h[0]) * w(nz, k, h[2])
-            })
-            .collect();
-        tributary_area_m2.resize(rest_m.len(), h[0] * h[2]);
+        let tributary_area_m2 = tributary_areas(nodes, h, rest_m.len());
         Ok(Self {
             nodes,
             size_m,
@@ -308,6 +294,36 @@ impl Lattice {
     pub fn volume_m3(&self, x: &[V3]) -> f64 {
         enclosed_volume_m3(&self.surface, x)
     }
+}
+
+/// The rest positions of a grid of `nodes` masses at spacings `h` (m),
+/// index `i + nx·(j + ny·k)`.
+fn grid_positions(nodes: [usize; 3], h: [f64; 3]) -> Vec<V3> {
+    let [nx, ny, nz] = nodes;
+    let mut rest_m = Vec::with_capacity(nx * ny * nz);
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                rest_m.push(V3::new(i as f64 * h[0], j as f64 * h[1], k as f64 * h[2]));
+            }
+        }
+    }
+    rest_m
+}
+
+/// The horizontal tributary areas (m²) of a grid's masses (halved on the
+/// x and z boundaries), then of `masses − grid masses` voxel centres.
+fn tributary_areas(nodes: [usize; 3], h: [f64; 3], masses: usize) -> Vec<f64> {
+    let [nx, ny, nz] = nodes;
+    let w = |n: usize, i: usize, h: f64| if i == 0 || i == n - 1 { h / 2.0 } else { h };
+    let mut areas: Vec<f64> = (0..nx * ny * nz)
+        .map(|g| {
+            let (i, k) = (g % nx, g / (nx * ny));
+            w(nx, i, h[0]) * w(nz, k, h[2])
+        })
+        .collect();
+    areas.resize(masses, h[0] * h[2]);
+    areas
 }
 
 /// The section through the middle of a grid of `nodes` (x, y, z) at
