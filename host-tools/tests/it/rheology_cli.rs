@@ -48,6 +48,9 @@ fn the_printed_default_scenario_reads_back_and_simulates() {
     assert!(text.contains("[reference.material]") && text.contains("depth_mm"));
     // Shrink it for a debug build, keep everything else as printed.
     let small = text
+        // Cubic voxels (3 cm): a lattice of non-cubic voxels that positive
+        // constants cannot make as stiff as cubic ones is refused (issue 29).
+        .replace("size_cm = [10.0, 6.0, 10.0]", "size_cm = [6.0, 6.0, 6.0]")
         .replace("grid = [6, 4, 6]", "grid = [3, 3, 3]")
         .replace("dt_ms = 5.0\ngravity", "dt_ms = 50.0\ngravity");
     let path = file(&dir, "default.toml", &small);
@@ -260,6 +263,24 @@ fn bad_input_is_refused_with_the_file_field_line_or_flag() {
     refused(
         &["rheology", "calibrate", &sc, "--measured", s(&meas)],
         &["surface_points.csv:3", "y_cm"],
+    );
+    // A single surface point for 4 parameters (issue 31): refused with
+    // the minimum, before any search.
+    let one = dir.join("one");
+    std::fs::create_dir_all(&one).unwrap();
+    file(
+        &one,
+        "surface_points.csv",
+        "frame,time_s,x_cm,y_cm,z_cm\n0,0.5,1,2,3\n",
+    );
+    file(&one, "forces.csv", "time_s,force_n\n0.1,1\n0.2,2\n");
+    refused(
+        &["rheology", "calibrate", &sc, "--measured", s(&one)],
+        &[
+            "surface_points.csv",
+            "1 surface point(s) for 4 parameters",
+            "(4)",
+        ],
     );
     refused(
         &[

@@ -30,4 +30,4 @@ pub mod identify;
 pub mod model;
 
 pub use error::{Instability, Result, RheologyError};
-pub use model::{contact, element, lattice, params, scenario, sim, solver};
+pub use model::{contact, effective, element, lattice, params, scenario, sim, solver};

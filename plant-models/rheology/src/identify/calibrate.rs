@@ -34,6 +34,20 @@ impl Problem {
                 "no surface-point frames to compare shapes with",
             ));
         }
+        // Each point gives one distance: fewer than one per parameter
+        // cannot determine them (issue 31: a single point was accepted).
+        let points = measurement.point_count();
+        if scenario.objective.shape_per_cm > 0.0 && points < set.len() {
+            return Err(bad_setting(
+                "surface_points.csv",
+                format!(
+                    "{points} surface point(s) for {} parameters; the shape term needs at least \
+                     one point per parameter ({})",
+                    set.len(),
+                    set.len()
+                ),
+            ));
+        }
         let end = scenario.plate.end_s;
         for (k, f) in measurement.frames.iter().enumerate() {
             if !(0.0..=end).contains(&f.t_s) {

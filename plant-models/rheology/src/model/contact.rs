@@ -3,7 +3,8 @@
 //! by the reference block of `identify` (the same physical rig).
 //!
 //! What is modelled, per mass:
-//! * non-penetration of the table (y = 0) and of the plate's lower face by
+//! * non-penetration of the table (y = 0; a mass resting on it touches it)
+//!   and of the plate's lower face (masses under its footprint) by
 //!   penalty forces proportional to the mass's "opposite area" (its
 //!   horizontal tributary area times the fraction of it under the plate),
 //!   so that the plate's force is shared among the masses it touches as
@@ -201,6 +202,13 @@ impl Plate {
         }
     }
 
+    /// Whether the point (x, z) lies under the footprint (edges included).
+    pub fn covers_point(&self, x: f64, z: f64) -> bool {
+        let inside = |c: f64, pc: f64, pw: f64| (c - pc).abs() <= pw / 2.0 * (1.0 + 1e-12);
+        inside(x, self.centre_xz_m[0], self.footprint_m[0])
+            && inside(z, self.centre_xz_m[1], self.footprint_m[1])
+    }
+
     /// Fraction of a `cell_m` rectangle centred at (x, z) under the plate.
     pub fn coverage(&self, x: f64, z: f64, cell_m: [f64; 2]) -> f64 {
         let overlap = |c: f64, w: f64, pc: f64, pw: f64| {
@@ -279,6 +287,17 @@ impl StepContact {
             Tangential::Free => {}
         }
         (d, r)
+    }
+}
+
+/// The tangential state of a mass that starts touching a body at `xn`:
+/// stuck at its anchor, or sliding when there is no static friction
+/// (μ_s = 0 cannot hold it for even one step).
+fn first_touch(mu_static: f64, xn: &V3) -> Tangential {
+    if mu_static > 0.0 {
+        Tangential::Stuck([xn.x, xn.z])
+    } else {
+        Tangential::Sliding
     }
 }
 
@@ -373,10 +392,14 @@ impl Contacts {
         let area = self.areas_m2[n];
         let pen = (-xn.y).max(-(xn.y + h * vn.y));
         let st = &mut self.states[n];
-        if pen > 0.0 {
+        // Resting on the table (y = 0, not moving away) counts as touching:
+        // otherwise the first step of a run at rest has no table under it
+        // and the whole block drops by dt²·(g + F/M) (issue 29).
+        let resting = xn.y <= 0.0 && vn.y <= 0.0;
+        if pen > 0.0 || resting {
             let stiff = step.penalty * area;
             if st.table == Tangential::Free {
-                st.table = Tangential::Stuck([xn.x, xn.z]);
+                st.table = first_touch(self.params.mu_static, xn);
             }
             let (mut d, mut r) = step.tangential(st.table, stiff, xn, vn, stiff * pen);
             d[(1, 1)] += stiff * h;
@@ -403,12 +426,18 @@ impl Contacts {
         let h = step.lookahead_s;
         let area = self.areas_m2[n];
         let st = &mut self.states[n];
+        // Only a mass under the plate's footprint touches it. (Before issue
+        // 29 a mass beside the plate whose cell overlapped the footprint by
+        // a sliver touched it with that sliver's penalty, sank millimetres
+        // into it and carried a share of the force that jumped when a mass
+        // under the plate came back into contact.)
+        let under = plate.covers_point(xn.x, xn.z);
         let cover = plate.coverage(xn.x, xn.z, self.cell_m);
         let stiff = step.penalty * area * cover;
         let pen = (xn.y - face).max(xn.y + h * vn.y - face);
-        if cover > 0.0 && pen > 0.0 {
+        if under && pen > 0.0 {
             if st.plate == Tangential::Free {
-                st.plate = Tangential::Stuck([xn.x, xn.z]);
+                st.plate = first_touch(self.params.mu_static, xn);
             }
             if self.params.pull_off_kpa_per_mm > 0.0 {
                 st.bonded = true;
@@ -429,7 +458,7 @@ impl Contacts {
             return;
         }
         let relative = (vn.y - step.face_v).abs();
-        if cover <= 0.0 || relative > self.params.pull_off_speed_mm_s * 1e-3 {
+        if !under || relative > self.params.pull_off_speed_mm_s * 1e-3 {
             st.bonded = false;
             return;
         }
@@ -527,7 +556,7 @@ impl Contacts {
             let vt = (vn.x * vn.x + vn.z * vn.z).sqrt();
             *slot = match *slot {
                 Tangential::Stuck(_) if ft > mu_s * normal => Tangential::Sliding,
-                Tangential::Sliding if vt < stick => {
+                Tangential::Sliding if vt < stick && mu_s > 0.0 => {
                     Tangential::Stuck([x_new[a.node].x, x_new[a.node].z])
                 }
                 s => s,

@@ -24,6 +24,7 @@ use std::collections::HashMap;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{bad_setting, check_positive, Result};
+use crate::model::effective::{class_factors_m, family_of};
 use crate::model::element::ElementConstants;
 use crate::model::params::{ElementClass, LatticeParams};
 
@@ -74,8 +75,9 @@ impl VolumeMode {
 }
 
 /// One element: two masses, the rest length, the class whose parameters
-/// it takes and how many voxel contributions (half elements count 2) it
-/// carries.
+/// it takes and how many voxel contributions it carries (half elements
+/// count 2; on non-cubic voxels each contribution is its family's share,
+/// see [`crate::model::effective`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ElementDef {
     pub i: u32,
@@ -107,7 +109,7 @@ pub struct Lattice {
     /// the table or plate stands for ("opposite area", L2269).
     pub tributary_area_m2: Vec<f64>,
     /// Edge of a voxel (geometric mean of the spacings, m): the h of the
-    /// element constants.
+    /// element constants (times each element's weight).
     pub voxel_edge_m: f64,
     /// Voxels facing the surface, and all voxels.
     pub surface_voxels: usize,
@@ -136,15 +138,13 @@ impl Lattice {
             size_m[1] / (ny - 1) as f64,
             size_m[2] / (nz - 1) as f64,
         ];
+        // Each element family's share of a voxel, relative to the voxel
+        // edge h̄ the element constants are built with: 1 for cubic voxels,
+        // chosen so that the stiffness is the cubic lattice's otherwise.
+        let voxel_edge_m = (h[0] * h[1] * h[2]).cbrt();
+        let share = class_factors_m(h)?.map(|g| g / voxel_edge_m);
         let id = |i: usize, j: usize, k: usize| (i + nx * (j + ny * k)) as u32;
-        let mut rest_m = Vec::with_capacity(nx * ny * nz);
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    rest_m.push(V3::new(i as f64 * h[0], j as f64 * h[1], k as f64 * h[2]));
-                }
-            }
-        }
+        let mut rest_m = grid_positions(nodes, h);
         let grid_masses = rest_m.len();
         let mut merged: Vec<ElementDef> = Vec::new();
         let mut index: HashMap<(u32, u32, ElementClass), usize> = HashMap::new();
@@ -195,7 +195,7 @@ impl Lattice {
                                     corner(a),
                                     corner(b),
                                     ElementClass::of(surf, false),
-                                    1.0,
+                                    share[family_of(a, b)],
                                     &rest_m,
                                 );
                             } else if centre.is_none() {
@@ -203,27 +203,26 @@ impl Lattice {
                                     corner(a),
                                     corner(b),
                                     ElementClass::of(surf, true),
-                                    1.0,
+                                    share[7],
                                     &rest_m,
                                 );
                             }
                         }
                         if let Some(c) = centre {
-                            add(corner(a), c, ElementClass::of(surf, true), 2.0, &rest_m);
+                            add(
+                                corner(a),
+                                c,
+                                ElementClass::of(surf, true),
+                                2.0 * share[7],
+                                &rest_m,
+                            );
                         }
                     }
                 }
             }
         }
         let surface = box_surface(nodes, &rest_m);
-        let w = |n: usize, i: usize, h: f64| if i == 0 || i == n - 1 { h / 2.0 } else { h };
-        let mut tributary_area_m2: Vec<f64> = (0..grid_masses)
-            .map(|g| {
-                let (i, k) = (g % nx, g / (nx * ny));
-                w(nx, i, h[0]) * w(nz, k, h[2])
-            })
-            .collect();
-        tributary_area_m2.resize(rest_m.len(), h[0] * h[2]);
+        let tributary_area_m2 = tributary_areas(nodes, h, rest_m.len());
         Ok(Self {
             nodes,
             size_m,
@@ -233,7 +232,7 @@ impl Lattice {
             elements: merged,
             surface,
             tributary_area_m2,
-            voxel_edge_m: (h[0] * h[1] * h[2]).cbrt(),
+            voxel_edge_m,
             surface_voxels,
             voxels,
         })
@@ -295,6 +294,36 @@ impl Lattice {
     pub fn volume_m3(&self, x: &[V3]) -> f64 {
         enclosed_volume_m3(&self.surface, x)
     }
+}
+
+/// The rest positions of a grid of `nodes` masses at spacings `h` (m),
+/// index `i + nx·(j + ny·k)`.
+fn grid_positions(nodes: [usize; 3], h: [f64; 3]) -> Vec<V3> {
+    let [nx, ny, nz] = nodes;
+    let mut rest_m = Vec::with_capacity(nx * ny * nz);
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                rest_m.push(V3::new(i as f64 * h[0], j as f64 * h[1], k as f64 * h[2]));
+            }
+        }
+    }
+    rest_m
+}
+
+/// The horizontal tributary areas (m²) of a grid's masses (halved on the
+/// x and z boundaries), then of `masses − grid masses` voxel centres.
+fn tributary_areas(nodes: [usize; 3], h: [f64; 3], masses: usize) -> Vec<f64> {
+    let [nx, ny, nz] = nodes;
+    let w = |n: usize, i: usize, h: f64| if i == 0 || i == n - 1 { h / 2.0 } else { h };
+    let mut areas: Vec<f64> = (0..nx * ny * nz)
+        .map(|g| {
+            let (i, k) = (g % nx, g / (nx * ny));
+            w(nx, i, h[0]) * w(nz, k, h[2])
+        })
+        .collect();
+    areas.resize(masses, h[0] * h[2]);
+    areas
 }
 
 /// The section through the middle of a grid of `nodes` (x, y, z) at

@@ -8,8 +8,11 @@
 //! `C1·h/a`, `C2·h/(1−a)` (a spring of modulus K, cross-section h² and
 //! length a·h; see [`super::element`]). On the paper's sparse 1 cm lattice
 //! (L1925) that is K/a gf/cm numerically, and the same parameters describe
-//! the same material at any lattice spacing. With this reading the paper's
-//! defaults are a stiff dough: K = 500 gf/cm² is 49 kPa.
+//! the same material at any lattice spacing. K is the modulus of one
+//! element's spring, not of the block: K = 500 gf/cm² is 49 kPa, but the
+//! lattice of such elements has a Young's modulus of (144/19)·K/a ≈ 7.6·K/a
+//! and a Poisson ratio of 5/19 ([`super::effective`]), so the paper's
+//! defaults (a = 0.5) are a block of E ≈ 743 kPa (15.2·K), a stiff dough.
 use serde::{Deserialize, Serialize};
 
 use crate::error::{bad_setting, check_positive, check_range, Result, RheologyError};

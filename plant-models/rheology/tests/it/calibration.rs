@@ -120,3 +120,43 @@ fn calibrated_parameters_predict_an_unseen_push_better_than_the_defaults() {
         d.mean_force_error_n()
     );
 }
+
+#[test]
+fn a_measurement_with_fewer_surface_points_than_parameters_is_refused_with_the_minimum() {
+    // Issue 31: `rheology calibrate` accepted a single surface point.
+    use plant_rheology::identify::calibrate::Problem;
+    use plant_rheology::identify::measurement::{ForceSample, PointFrame};
+    use plant_rheology::lattice::V3;
+    let sc = small_scenario([4, 3, 4], 8.0, 0.5);
+    let forces = vec![
+        ForceSample {
+            t_s: 0.1,
+            force_n: 1.0,
+        },
+        ForceSample {
+            t_s: 0.2,
+            force_n: 2.0,
+        },
+    ];
+    let with_points = |n: usize| Measurement {
+        frames: vec![PointFrame {
+            t_s: 0.5,
+            points_m: (0..n)
+                .map(|i| V3::new(0.01 * i as f64, 0.04, 0.03))
+                .collect(),
+        }],
+        forces: forces.clone(),
+    };
+    for (set, need) in [(ParamSet::Four, 4), (ParamSet::Sixteen, 16)] {
+        let e = Problem::new(sc.clone(), set, with_points(1))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("surface_points.csv")
+                && e.contains(&format!("at least one point per parameter ({need})")),
+            "{e}"
+        );
+        assert!(Problem::new(sc.clone(), set, with_points(need - 1)).is_err());
+        assert!(Problem::new(sc.clone(), set, with_points(need)).is_ok());
+    }
+}

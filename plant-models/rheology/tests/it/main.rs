@@ -2,4 +2,6 @@
 //! would otherwise be a binary of its own to link).
 mod calibration;
 mod model;
+mod plate;
+mod stiffness;
 mod volume;
