@@ -171,7 +171,7 @@ fn parse_lambda(text: &str) -> Result<Lambda> {
         .with_context(|| format!("--lambda `{text}`: expected a number > 0 or `gcv`"))?;
     if !(v.is_finite() && v > 0.0 && v <= MAX_LAMBDA) {
         bail!(
-            "--lambda {text}: λ must be a number in (0, {MAX_LAMBDA:e}] (or `gcv`); λ beyond 1e6 smooths any contour to its mean"
+            "--lambda {text}: λ must be a number > 0 and ≤ {MAX_LAMBDA:e} (or `gcv`); λ beyond 1e6 smooths any contour to its mean"
         );
     }
     Ok(Lambda::Fixed(v))
@@ -418,10 +418,13 @@ fn fit_report(s: &FitSummary) -> String {
     if let Some(l) = &s.surface_lambda {
         let _ = writeln!(
             out,
-            "surface: λ = {:.3e}{} (GCV {:.4e}, tr H = {:.1}), RMS residual {:.4}",
+            "surface: λ = {:.3e}{} (GCV {}, tr H = {:.1}), RMS residual {:.4}",
             l.lambda,
             if l.by_gcv { " by GCV" } else { "" },
-            l.gcv,
+            l.gcv
+                .map_or("— (past its degrees-of-freedom bound)".into(), |v| format!(
+                    "{v:.4e}"
+                )),
             l.trace_hat,
             s.surface_rms_residual.unwrap_or(f64::NAN)
         );
@@ -764,8 +767,14 @@ fn synth_rbc(a: &SynthArgs) -> Result<SynthSummary> {
         out: a.out.display().to_string(),
         files: vec!["data.csv", "truth.csv", "synth.svg"],
         fit_command: format!(
-            "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 1e-3",
-            data_path.display()
+            "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 1e-3{}",
+            data_path.display(),
+            // Eq. 38 with noise can dip below 0 near r ≈ 0.46.
+            if frames.iter().any(|f| f.data.iter().any(|p| p.1 < 0.0)) {
+                " --signed-radii"
+            } else {
+                ""
+            }
         ),
     })
 }

@@ -135,7 +135,7 @@ pub struct LambdaSummary {
     pub by_gcv: bool,
     pub at_scan_edge: bool,
     pub at_dof_bound: bool,
-    pub gcv: f64,
+    pub gcv: Option<f64>,
     pub trace_hat: f64,
 }
 
@@ -357,7 +357,7 @@ fn fit_signatures(
                 perimeter,
                 bending_energy: fit.radius.signature_bending_energy(),
                 lambda: Some(fit.lambda.lambda),
-                gcv: Some(fit.lambda.gcv),
+                gcv: fit.lambda.gcv,
                 trace_hat: Some(fit.lambda.trace_hat),
                 rms_residual: Some(fit.rms_residual),
                 checks,
@@ -419,7 +419,7 @@ fn fit_curves(
                 perimeter,
                 bending_energy: fit.curve.bending_energy(),
                 lambda: Some(fit.lambda.lambda),
-                gcv: Some(fit.lambda.gcv),
+                gcv: fit.lambda.gcv,
                 trace_hat: Some(fit.lambda.trace_hat),
                 rms_residual: Some(fit.rms_residual),
                 checks,

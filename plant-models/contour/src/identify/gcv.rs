@@ -65,8 +65,9 @@ pub enum Lambda {
 pub struct LambdaReport {
     /// λ used.
     pub lambda: f64,
-    /// `V(λ)`, the GCV score at λ.
-    pub gcv: f64,
+    /// `V(λ)`, the GCV score at λ (None past the degrees-of-freedom bound,
+    /// `γ tr H ≥ N`, which only a given λ can be).
+    pub gcv: Option<f64>,
     /// `tr H`, the effective number of parameters.
     pub trace_hat: f64,
     /// Whether λ was chosen by GCV.
@@ -134,7 +135,7 @@ pub fn factor_with(
                 f,
                 LambdaReport {
                     lambda: l,
-                    gcv,
+                    gcv: Some(gcv).filter(|v| v.is_finite()),
                     trace_hat: tr,
                     by_gcv: false,
                     at_scan_edge: false,
@@ -224,7 +225,7 @@ fn choose_by_gcv(
         f,
         LambdaReport {
             lambda: lam,
-            gcv,
+            gcv: Some(gcv).filter(|v| v.is_finite()),
             trace_hat: tr,
             by_gcv: true,
             at_scan_edge,
