@@ -534,7 +534,7 @@ fn frames_csv(frames: &[FittedFrame]) -> String {
         let r = &f.result;
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{:.6e},{},{},{},{},{},{}",
             r.frame,
             status_word(r.checks.status).to_lowercase(),
             flag_names(r),
@@ -544,7 +544,7 @@ fn frames_csv(frames: &[FittedFrame]) -> String {
             opt(Some(r.centre_y), 4),
             opt(r.smoothness, 6),
             opt(Some(r.perimeter), 4),
-            format!("{:.6e}", r.bending_energy),
+            r.bending_energy,
             opt(r.checks.data_area, 6),
             opt(r.checks.data_perimeter, 4),
             r.lambda.map(|v| format!("{v:.4e}")).unwrap_or_default(),

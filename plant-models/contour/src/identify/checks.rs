@@ -197,7 +197,7 @@ impl FrameChecks {
             .fold(0.0, f64::max);
         let bound = kappa_max * g * g * g / (12.0 * area.abs());
         self.gap_area_bound = Some(bound).filter(|v| v.is_finite());
-        if !(bound <= GAP_AREA_LIMIT) {
+        if bound.is_nan() || bound > GAP_AREA_LIMIT {
             self.flag(Flag::DataGap);
         }
     }
@@ -212,7 +212,7 @@ impl FrameChecks {
                 let dp = (a.1 - b.1).abs() / full.1.abs();
                 self.half_area_spread = Some(da).filter(|v| v.is_finite());
                 self.half_perimeter_spread = Some(dp).filter(|v| v.is_finite());
-                if !(da <= HALF_LIMIT && dp <= HALF_LIMIT) {
+                if da.is_nan() || dp.is_nan() || da > HALF_LIMIT || dp > HALF_LIMIT {
                     self.flag(Flag::UnderResolved);
                 }
             }
