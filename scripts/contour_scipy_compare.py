@@ -65,7 +65,7 @@ def softjoint_fit(binary, data, lam, workdir):
     out = os.path.join(workdir, "fit")
     cmd = [binary, "contour", "fit", path, "--model", "signature",
            "--knots", str(KNOTS), "--lambda", lam, "--samples", str(EVAL),
-           "--out", out, "--json"]
+           "--out", out, "--json", "--signed-radii", "--allow-unverified"]
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         sys.exit(f"softjoint failed: {' '.join(cmd)}\n{res.stderr}")

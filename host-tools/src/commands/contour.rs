@@ -21,12 +21,13 @@ use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Chart, Panel, Series, Shape, ShapeStyle};
 use host_tools::{out, outln};
 use plant_contour::fit::Solver;
+use plant_contour::identify::checks::Status;
 use plant_contour::identify::contours::{
     fit_contours, ContourFitReport, ContourFitSpec, ContourModel, FittedFrame, FittedSplines,
     FrameResult, LambdaSummary,
 };
 use plant_contour::identify::data::read_contour_csv;
-use plant_contour::identify::gcv::{Lambda, LambdaReport};
+use plant_contour::identify::gcv::{Lambda, LambdaReport, MAX_LAMBDA};
 use plant_contour::identify::paper;
 use plant_contour::identify::synth::{movie_case, rbc_case, MovieCase, RbcFrame};
 use plant_contour::identify::tracked::Point;
@@ -87,10 +88,19 @@ struct FitArgs {
     /// 3–50 (the paper: 10 for 11 frames).
     #[arg(allow_negative_numbers = true, long)]
     time_knots: Option<usize>,
-    /// Smoothing parameter λ (> 0; the paper uses 1e-3 and 5e-4 with
-    /// weights 1/N), or `gcv` to choose it by generalised cross-validation.
+    /// Smoothing parameter λ (0 < λ ≤ 1e6; the paper uses 1e-3 and 5e-4
+    /// with weights 1/N), or `gcv` to choose it by generalised
+    /// cross-validation (guarded against interpolating the noise).
     #[arg(long, default_value = "gcv", allow_hyphen_values = true)]
     lambda: String,
+    /// Radii are signed values (test data such as the paper's Eq. 38 with
+    /// noise), not measured distances: negative ones are accepted.
+    #[arg(long)]
+    signed_radii: bool,
+    /// Exit 0 even when a frame fails its checks (the frames are still
+    /// marked `unverified` in every output).
+    #[arg(long)]
+    allow_unverified: bool,
     /// Linear solver.
     #[arg(long, value_enum, default_value = "reduced")]
     solver: SolverArg,
@@ -159,8 +169,10 @@ fn parse_lambda(text: &str) -> Result<Lambda> {
         .trim()
         .parse()
         .with_context(|| format!("--lambda `{text}`: expected a number > 0 or `gcv`"))?;
-    if !(v.is_finite() && v > 0.0) {
-        bail!("--lambda {text}: λ must be a finite number > 0 (or `gcv`)");
+    if !(v.is_finite() && v > 0.0 && v <= MAX_LAMBDA) {
+        bail!(
+            "--lambda {text}: λ must be a number > 0 and ≤ {MAX_LAMBDA:e} (or `gcv`); λ beyond 1e6 smooths any contour to its mean"
+        );
     }
     Ok(Lambda::Fixed(v))
 }
@@ -194,9 +206,31 @@ impl From<SolverArg> for Solver {
     }
 }
 
+/// The units of the per-frame figures (`length` is the data's unit, px
+/// for tracked contours).
+#[derive(Serialize)]
+struct Units {
+    area: &'static str,
+    perimeter: &'static str,
+    smoothness: &'static str,
+    bending_energy: &'static str,
+}
+
+const UNITS: Units = Units {
+    area: "length^2",
+    perimeter: "length",
+    smoothness: "length^2/rad^3 (Eq. 41 over the angle θ: ∫(d²r/dθ²)² dθ)",
+    bending_energy: "1/length (∫κ² dl)",
+};
+
 /// What `fit` prints with `--json` and writes as fit.json.
 #[derive(Serialize)]
 struct FitSummary<'a> {
+    /// `verified` when every frame passed its checks.
+    status: Status,
+    /// Frames that failed a check (their `checks` say why).
+    unverified_frames: Vec<f64>,
+    units: Units,
     input: String,
     model: ContourModel,
     solver: &'static str,
@@ -234,15 +268,20 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
         lambda,
         solver,
         samples: a.samples,
+        signed_radii: a.signed_radii,
     };
     let fit = fit_contours(&data, &spec)?;
-    // The fitted splines themselves (axes and coefficients), for spline.json.
-    let splines = splines_json(&fit)?;
-    fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let files = write_fit_files(&a.out, &file, &fit, &splines)?;
     let surface = fit.surface();
+    let unverified: Vec<f64> = fit.unverified().map(|f| f.frame).collect();
     let summary = FitSummary {
-        input: file,
+        status: if unverified.is_empty() {
+            Status::Verified
+        } else {
+            Status::Unverified
+        },
+        unverified_frames: unverified,
+        units: UNITS,
+        input: file.clone(),
         model: fit.model,
         solver: solver.name(),
         knots: fit.knots,
@@ -253,15 +292,49 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
         surface_rms_residual: surface.map(|f| f.rms_residual),
         per_frame: fit.frames.iter().map(|f| &f.result).collect(),
         out: a.out.display().to_string(),
-        files,
+        files: Vec::new(),
     };
+    // Every file is rendered and checked before the first is written:
+    // a result that cannot be written leaves nothing behind.
+    let files = fit_files(&file, &fit, &summary)?;
+    let summary = FitSummary {
+        files: files
+            .iter()
+            .map(|f| f.0)
+            .chain(std::iter::once("fit.json"))
+            .collect(),
+        ..summary
+    };
+    output::check_value("fit.json", &summary)?;
+    output::create_dir(&a.out)?;
+    for (name, text) in &files {
+        write(&a.out.join(name), text)?;
+    }
     output::write_json(&a.out.join("fit.json"), &summary)?;
     if a.json {
         output::print_json(&summary)?;
     } else {
         out!("{}", fit_report(&summary));
     }
+    if summary.status == Status::Unverified && !a.allow_unverified {
+        bail!(
+            "{} of {} fitted frame(s) UNVERIFIED (frames {}): their figures failed the fit's own checks (see `checks` in fit.json / frames.csv); the results were written with that mark to {} (give --allow-unverified to exit 0)",
+            summary.unverified_frames.len(),
+            summary.per_frame.len(),
+            frame_list(&summary.unverified_frames),
+            summary.out
+        );
+    }
     Ok(())
+}
+
+/// Up to 10 frame numbers, then how many more.
+fn frame_list(frames: &[f64]) -> String {
+    let mut s: Vec<String> = frames.iter().take(10).map(|f| f.to_string()).collect();
+    if frames.len() > 10 {
+        s.push(format!("and {} more", frames.len() - 10));
+    }
+    s.join(", ")
 }
 
 /// spline.json: the model and its splines, per frame or the surface.
@@ -290,40 +363,34 @@ fn splines_json(fit: &ContourFitReport) -> Result<JsonObject> {
         .field("splines", &splines)
 }
 
-/// Writes spline.json, fit.csv, frames.csv and the pictures into `out`;
-/// returns the names of all the fit's files (fit.json is written last).
-fn write_fit_files(
-    out: &Path,
+/// spline.json, fit.csv, frames.csv and the pictures, rendered and
+/// checked (finite numbers) but not written; fit.json is the summary.
+fn fit_files(
     file: &str,
     fit: &ContourFitReport,
-    splines: &JsonObject,
-) -> Result<Vec<&'static str>> {
+    summary: &FitSummary,
+) -> Result<Vec<(&'static str, String)>> {
+    let splines = splines_json(fit)?;
     let mut files = vec![
-        "fit.csv",
-        "frames.csv",
-        "fit.json",
-        "spline.json",
-        "fit.svg",
+        ("spline.json", output::json("spline.json", &splines)?),
+        ("fit.csv", fit_csv(&fit.frames)),
+        ("frames.csv", frames_csv(&fit.frames)),
+        (
+            "fit.svg",
+            fit_picture(file, fit.model, &fit.frames, summary).finish(),
+        ),
     ];
-    output::write_json(&out.join("spline.json"), splines)?;
-    write(&out.join("fit.csv"), &fit_csv(&fit.frames))?;
-    write(&out.join("frames.csv"), &frames_csv(&fit.frames))?;
-    write(
-        &out.join("fit.svg"),
-        &fit_picture(file, fit.model, &fit.frames).finish(),
-    )?;
     if let Some(surface) = fit.surface() {
-        files.push("functionals.svg");
-        write(
-            &out.join("functionals.svg"),
-            &functionals_picture(&fit.frames).finish(),
-        )?;
+        files.push(("functionals.svg", functionals_picture(&fit.frames).finish()));
         if surface.lambda.by_gcv {
-            files.push("gcv.svg");
-            write(
-                &out.join("gcv.svg"),
-                &gcv_picture("surface", &surface.lambda).finish(),
-            )?;
+            files.push(("gcv.svg", gcv_picture("surface", &surface.lambda).finish()));
+        }
+    }
+    for (name, text) in &files {
+        if name.ends_with(".csv") {
+            output::check_csv(name, text)?;
+        } else {
+            output::check_text(name, text)?;
         }
     }
     Ok(files)
@@ -351,10 +418,13 @@ fn fit_report(s: &FitSummary) -> String {
     if let Some(l) = &s.surface_lambda {
         let _ = writeln!(
             out,
-            "surface: λ = {:.3e}{} (GCV {:.4e}, tr H = {:.1}), RMS residual {:.4}",
+            "surface: λ = {:.3e}{} (GCV {}, tr H = {:.1}), RMS residual {:.4}",
             l.lambda,
             if l.by_gcv { " by GCV" } else { "" },
-            l.gcv,
+            l.gcv
+                .map_or("— (past its degrees-of-freedom bound)".into(), |v| format!(
+                    "{v:.4e}"
+                )),
             l.trace_hat,
             s.surface_rms_residual.unwrap_or(f64::NAN)
         );
@@ -365,30 +435,74 @@ fn fit_report(s: &FitSummary) -> String {
             );
         }
     }
+    let _ = writeln!(
+        out,
+        "units: area {}, perimeter {}, smoothness {}, bending {} (length = the data's unit)",
+        s.units.area, s.units.perimeter, s.units.smoothness, s.units.bending_energy
+    );
     let shown: Vec<&&FrameResult> = if s.per_frame.len() > 12 {
         let step = s.per_frame.len().div_ceil(12);
         s.per_frame.iter().step_by(step).collect()
     } else {
         s.per_frame.iter().collect()
     };
-    let _ = writeln!(out, "frame | points | area | centre | λ | RMS residual");
+    let _ = writeln!(
+        out,
+        "frame | points | area | perimeter | centre | λ | RMS residual | status"
+    );
     for f in shown {
         let _ = writeln!(
             out,
-            "{} | {} | {:.4} | ({:.2}, {:.2}) | {} | {}",
+            "{} | {} | {:.4} | {:.4} | ({:.2}, {:.2}) | {} | {} | {}",
             f.frame,
             f.points,
             f.area,
+            f.perimeter,
             f.centre_x,
             f.centre_y,
             f.lambda.map(|v| format!("{v:.2e}")).unwrap_or("—".into()),
             f.rms_residual
                 .map(|v| format!("{v:.4}"))
-                .unwrap_or("—".into())
+                .unwrap_or("—".into()),
+            status_word(f.checks.status)
         );
     }
+    for f in s.per_frame.iter().filter(|f| !f.checks.verified()) {
+        let why: Vec<&str> = f.checks.flags.iter().map(|g| g.describe()).collect();
+        let _ = writeln!(out, "UNVERIFIED frame {}: {}", f.frame, why.join("; "));
+    }
     let _ = writeln!(out, "wrote {} to {}", s.files.join(", "), s.out);
+    if s.status == Status::Unverified {
+        let _ = writeln!(
+            out,
+            "UNVERIFIED: {} of {} frame(s) failed the fit's own checks; do not use their figures",
+            s.unverified_frames.len(),
+            s.per_frame.len()
+        );
+    }
     out
+}
+
+fn status_word(s: Status) -> &'static str {
+    match s {
+        Status::Verified => "verified",
+        Status::Unverified => "UNVERIFIED",
+    }
+}
+
+/// The failed checks of a frame, `;`-separated (empty when verified).
+fn flag_names(r: &FrameResult) -> String {
+    r.checks
+        .flags
+        .iter()
+        .map(|f| {
+            serde_json::to_value(f)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default()
+        })
+        .collect::<Vec<_>>()
+        .join(";")
 }
 
 fn fit_csv(frames: &[FittedFrame]) -> String {
@@ -413,20 +527,26 @@ fn opt(v: Option<f64>, digits: usize) -> String {
 
 fn frames_csv(frames: &[FittedFrame]) -> String {
     let mut s = String::from(
-        "frame,points,area,centre_x,centre_y,smoothness,perimeter,lambda,gcv,trace_hat,rms_residual\n",
+        "# lengths in the data's unit (length); smoothness = Eq. 41 over the angle θ, ∫(d²r/dθ²)² dθ; bending = ∫κ² dl\n\
+         frame,status,flags,points,area_len2,centre_x,centre_y,smoothness_len2_per_rad3,perimeter_len,bending_per_len,data_area_len2,data_perimeter_len,lambda,gcv,trace_hat,rms_residual\n",
     );
     for f in frames {
         let r = &f.result;
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{:.6e},{},{},{},{},{},{}",
             r.frame,
+            status_word(r.checks.status).to_lowercase(),
+            flag_names(r),
             r.points,
             opt(Some(r.area), 6),
             opt(Some(r.centre_x), 4),
             opt(Some(r.centre_y), 4),
             opt(r.smoothness, 6),
-            opt(r.perimeter, 4),
+            opt(Some(r.perimeter), 4),
+            r.bending_energy,
+            opt(r.checks.data_area, 6),
+            opt(r.checks.data_perimeter, 4),
             r.lambda.map(|v| format!("{v:.4e}")).unwrap_or_default(),
             r.gcv
                 .filter(|v| v.is_finite())
@@ -440,7 +560,12 @@ fn frames_csv(frames: &[FittedFrame]) -> String {
 }
 
 /// Up to 12 panels: the frames with data (all fitted frames if none has).
-fn fit_picture(file: &str, model: ContourModel, frames: &[FittedFrame]) -> plot::Svg {
+fn fit_picture(
+    file: &str,
+    model: ContourModel,
+    frames: &[FittedFrame],
+    summary: &FitSummary,
+) -> plot::Svg {
     let with_data: Vec<&FittedFrame> = frames.iter().filter(|f| !f.data.is_empty()).collect();
     let pool = if with_data.is_empty() {
         frames.iter().collect()
@@ -452,7 +577,16 @@ fn fit_picture(file: &str, model: ContourModel, frames: &[FittedFrame]) -> plot:
         .iter()
         .step_by(step)
         .map(|f| Panel {
-            caption: format!("frame {}: area {:.4}", f.frame, f.result.area),
+            caption: format!(
+                "frame {}: area {:.4}{}",
+                f.frame,
+                f.result.area,
+                if f.result.checks.verified() {
+                    ""
+                } else {
+                    " — UNVERIFIED"
+                }
+            ),
             shapes: vec![
                 Shape {
                     points: f.fit.clone(),
@@ -480,8 +614,17 @@ fn fit_picture(file: &str, model: ContourModel, frames: &[FittedFrame]) -> plot:
         ContourModel::Curve => "closed parametric splines (x(t), y(t))",
         ContourModel::Surface => "the contour × time surface",
     };
+    let title = if summary.status == Status::Unverified {
+        format!(
+            "{file}: {what} — UNVERIFIED: {} of {} frame(s) failed their checks",
+            summary.unverified_frames.len(),
+            summary.per_frame.len()
+        )
+    } else {
+        format!("{file}: {what}")
+    };
     plot::shape_panels(
-        &format!("{file}: {what}"),
+        &title,
         &panels,
         4,
         true,
@@ -518,14 +661,14 @@ fn functionals_picture(frames: &[FittedFrame]) -> plot::Svg {
             ],
         },
         Chart {
-            title: "Smoothness C (Eq. 41) over frames".into(),
+            title: "Smoothness C (Eq. 41 over the angle) over frames".into(),
             x_label: "frame".into(),
-            y_label: "C = ∫(∂²x/∂t²)² dt".into(),
+            y_label: "C = ∫(∂²r/∂θ²)² dθ, length²/rad³".into(),
             series: vec![Series::over("model", "#1f5fbf", false, &t, &smooth)],
         },
         Chart {
             title: "(C(s), S(s)) as in the paper's Fig. 7".into(),
-            x_label: "smoothness C".into(),
+            x_label: "smoothness C, length²/rad³".into(),
             y_label: "area S".into(),
             series: vec![Series::over("model", "#2a2", false, &smooth, &area)],
         },
@@ -624,8 +767,14 @@ fn synth_rbc(a: &SynthArgs) -> Result<SynthSummary> {
         out: a.out.display().to_string(),
         files: vec!["data.csv", "truth.csv", "synth.svg"],
         fit_command: format!(
-            "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 1e-3",
-            data_path.display()
+            "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 1e-3{}",
+            data_path.display(),
+            // Eq. 38 with noise can dip below 0 near r ≈ 0.46.
+            if frames.iter().any(|f| f.data.iter().any(|p| p.1 < 0.0)) {
+                " --signed-radii"
+            } else {
+                ""
+            }
         ),
     })
 }

@@ -32,7 +32,7 @@ pub mod rng {
     //! | [`TETMSD_DELAY_BASE`] + s | `tetmsd`: one-way delays of the packets site s sends |
     //! | [`TETMSD_LOSS_BASE`] + s | `tetmsd`: loss and reordering draws of site s's packets |
     //! | [`TETMSD_TEST_BASE`] + k | `tetmsd` tests: random points, states and packets |
-    //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise) |
+    //! | [`CONTOUR_BASE`] + k | contour splines: [`CONTOUR_SYNTH_NOISE`] (`contour synth` data), [`CONTOUR_MONTE_CARLO`] (Theorem 1 replicates), [`CONTOUR_MOVIE_NOISE`] (the deforming-contour movie's tracker noise), [`CONTOUR_CAMPAIGN`] (the random contours of the self-check campaign) |
     //! | [`LINK_FAULTS_BASE`] + d | the lockstep fault campaign's faults, direction d (0 host → board, 1 board → host) |
     //! | [`IDENTIFY_NOISE`] | identification logs: the electrical measurement noise |
     //! | [`IDENTIFY_REPLAY`] | retired: identification replays once held it (never drawn) |
@@ -75,6 +75,9 @@ pub mod rng {
     pub const CONTOUR_MONTE_CARLO: u64 = CONTOUR_BASE + 1;
     /// Tracker noise of the synthetic deforming-contour movie.
     pub const CONTOUR_MOVIE_NOISE: u64 = CONTOUR_BASE + 2;
+    /// Shapes, sampling and noise of the random contours of the
+    /// self-check campaign (issue 29).
+    pub const CONTOUR_CAMPAIGN: u64 = CONTOUR_BASE + 3;
     /// The fault campaign of the lockstep link (`tests/src/fault_injector.rs`)
     /// draws the faults of direction d from `LINK_FAULTS_BASE + d`.
     pub const LINK_FAULTS_BASE: u64 = 0x200;

@@ -6,6 +6,14 @@
 //! figures (area, Eq. 40; centre; smoothness, Eq. 41; λ and its GCV
 //! evidence), and the fitted splines themselves.
 //!
+//! Every frame carries its checks ([`crate::identify::checks`]): a frame
+//! that fails one is `unverified`, with the reasons.
+//!
+//! Units: lengths are the data's (px for tracked contours); areas
+//! length², perimeters length, Eq. 41's smoothness in the angle's units
+//! (length²/rad³, independent of the knot count), the bending energy
+//! `∫κ² dl` in 1/length.
+//!
 //! The knots default from the data (the fewest points of a frame, within
 //! 4–100, or 4–40 for a surface; frames − 1 along time, within 3–50). A
 //! surface is reported at every whole frame from the first to the last
@@ -14,14 +22,16 @@ use std::f64::consts::TAU;
 
 use serde::Serialize;
 
-use crate::error::Result;
+use crate::error::{ContourError, Result};
 use crate::fit::Solver;
+use crate::identify::checks::{jumps, polygon_self_intersects, Flag, FrameChecks};
 use crate::identify::data::{ContourData, FrameData};
 use crate::identify::gcv::{Lambda, LambdaReport};
 use crate::identify::tracked::{
     fit_closed_curve, fit_movie, fit_signature, polygon_centroid, ClosedCurveFit, ContourOptions,
     MovieFit, MovieOptions, Point, Signature, SignatureFit,
 };
+use crate::model::curve::sample_sites;
 
 /// What is fitted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -67,6 +77,9 @@ pub struct ContourFitSpec {
     pub solver: Solver,
     /// Points per fitted contour in the report.
     pub samples: usize,
+    /// Whether signature radii may be negative (the paper's Eq. 38 test
+    /// data with noise); measured distances may not.
+    pub signed_radii: bool,
 }
 
 /// Most whole frames a surface is reported at; over a longer span, the
@@ -79,19 +92,25 @@ pub struct FrameResult {
     pub frame: f64,
     /// Data points of the frame (0 for a surface's frame between data).
     pub points: usize,
-    /// Enclosed area (Eq. 40).
+    /// Enclosed area (Eq. 40; Green's for a closed curve), length².
     pub area: f64,
     pub centre_x: f64,
     pub centre_y: f64,
-    /// Eq. 41 (signature and surface models), in the spline's parameter
-    /// units.
+    /// Eq. 41 in the angle's units, `∫₀^{2π} (d²r/dθ²)² dθ`,
+    /// length²/rad³ (signature and surface models; independent of the
+    /// knot count).
     pub smoothness: Option<f64>,
-    /// Length of the fitted contour (curve model).
-    pub perimeter: Option<f64>,
+    /// Length of the fitted contour.
+    pub perimeter: f64,
+    /// Bending energy `∫ κ² dl` of the fitted contour, 1/length (a circle
+    /// of radius R: 2π/R); every model, independent of the knot count.
+    pub bending_energy: f64,
     pub lambda: Option<f64>,
     pub gcv: Option<f64>,
     pub trace_hat: Option<f64>,
     pub rms_residual: Option<f64>,
+    /// The frame's checks: verified or not, and why.
+    pub checks: FrameChecks,
 }
 
 /// A fitted frame: its data, the fitted contour and its figures.
@@ -115,7 +134,8 @@ pub struct LambdaSummary {
     pub lambda: f64,
     pub by_gcv: bool,
     pub at_scan_edge: bool,
-    pub gcv: f64,
+    pub at_dof_bound: bool,
+    pub gcv: Option<f64>,
     pub trace_hat: f64,
 }
 
@@ -125,6 +145,7 @@ impl From<&LambdaReport> for LambdaSummary {
             lambda: r.lambda,
             by_gcv: r.by_gcv,
             at_scan_edge: r.at_scan_edge,
+            at_dof_bound: r.at_dof_bound,
             gcv: r.gcv,
             trace_hat: r.trace_hat,
         }
@@ -156,6 +177,16 @@ pub struct ContourFitReport {
     pub splines: FittedSplines,
 }
 
+/// Sample points per knot interval of the self-intersection test (at
+/// least [`MIN_CHECK_SAMPLES`] in all).
+pub const CHECK_SAMPLES_PER_KNOT: usize = 16;
+/// Fewest sample points of the self-intersection test.
+pub const MIN_CHECK_SAMPLES: usize = 256;
+
+fn check_samples(knots: usize) -> usize {
+    (CHECK_SAMPLES_PER_KNOT * knots).max(MIN_CHECK_SAMPLES)
+}
+
 impl ContourFitReport {
     /// The surface fit (surface model).
     pub fn surface(&self) -> Option<&MovieFit> {
@@ -163,6 +194,11 @@ impl ContourFitReport {
             FittedSplines::Surface(fit) => Some(fit),
             _ => None,
         }
+    }
+
+    /// The frames that failed a check.
+    pub fn unverified(&self) -> impl Iterator<Item = &FittedFrame> {
+        self.frames.iter().filter(|f| !f.result.checks.verified())
     }
 }
 
@@ -188,7 +224,10 @@ pub fn fit_contours(data: &ContourData, spec: &ContourFitSpec) -> Result<Contour
     };
     let n = spec.samples;
     let mut time_knots = None;
-    let (frames, splines) = match model {
+    if !spec.signed_radii {
+        refuse_negative_radii(data)?;
+    }
+    let (mut frames, splines) = match model {
         ContourModel::Signature => fit_signatures(data, &opts, n)?,
         ContourModel::Curve => fit_curves(data, &opts, n)?,
         ContourModel::Surface => {
@@ -199,6 +238,9 @@ pub fn fit_contours(data: &ContourData, spec: &ContourFitSpec) -> Result<Contour
             fit_surface(data, &opts, tk, n)?
         }
     };
+    if model != ContourModel::Surface {
+        flag_jumps(&mut frames);
+    }
     Ok(ContourFitReport {
         model,
         knots,
@@ -206,6 +248,47 @@ pub fn fit_contours(data: &ContourData, spec: &ContourFitSpec) -> Result<Contour
         frames,
         splines,
     })
+}
+
+/// Radii are distances: a negative one is refused, naming the frame and
+/// point, unless the data are declared signed.
+fn refuse_negative_radii(data: &ContourData) -> Result<()> {
+    for (frame, f) in &data.frames {
+        if let FrameData::Signature(s) = f {
+            if let Some(k) = s.radii.iter().position(|r| *r < 0.0) {
+                return Err(ContourError::MalformedInput {
+                    location: format!(
+                        "{}: frame {}, point {k}",
+                        data.file,
+                        plant_common::short_number(*frame)
+                    ),
+                    reason: format!(
+                        "radius {} is negative; a radius is a distance from the centre (give --signed-radii for signed test data such as the paper's Eq. 38 with noise)",
+                        plant_common::short_number(s.radii[k])
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Flags the frames whose fitted area or perimeter jumps against their
+/// neighbours' (relative to each frame's data polygon).
+fn flag_jumps(frames: &mut [FittedFrame]) {
+    let area: Vec<f64> = frames.iter().map(|f| f.result.area).collect();
+    let data_area: Vec<Option<f64>> = frames.iter().map(|f| f.result.checks.data_area).collect();
+    let perimeter: Vec<f64> = frames.iter().map(|f| f.result.perimeter).collect();
+    let data_perimeter: Vec<Option<f64>> = frames
+        .iter()
+        .map(|f| f.result.checks.data_perimeter)
+        .collect();
+    for i in jumps(&area, &data_area) {
+        frames[i].result.checks.flag(Flag::AreaJump);
+    }
+    for i in jumps(&perimeter, &data_perimeter) {
+        frames[i].result.checks.flag(Flag::PerimeterJump);
+    }
 }
 
 /// The fewest points of a frame, within 4..=`cap`.
@@ -240,6 +323,24 @@ fn fit_signatures(
         let fit = fit_signature(&loc, &sig, opts)?;
         let angle = sample_angles(n);
         let radius: Vec<f64> = angle.iter().map(|&t| fit.radius_at(t)).collect();
+        let (area, perimeter) = (fit.area(), fit.radius.signature_perimeter());
+        let data_points = f.points();
+        let mut checks = FrameChecks::of_frame(
+            Some(&fit.lambda),
+            signature_crosses_centre(&fit.radius, opts.knots),
+            area,
+            perimeter,
+            &data_points,
+        );
+        checks.halves(
+            (area, perimeter),
+            signature_halves(&loc, &sig, opts, fit.lambda.lambda),
+        );
+        let kappa_max = sample_sites(&fit.radius.axis, check_samples(opts.knots))
+            .into_iter()
+            .map(|t| fit.radius.signature_curvature(t).abs())
+            .fold(0.0, f64::max);
+        checks.gap(&data_points, kappa_max, area);
         frames.push(FittedFrame {
             frame: *frame,
             data: sig.points(),
@@ -249,15 +350,17 @@ fn fit_signatures(
             result: FrameResult {
                 frame: *frame,
                 points: f.len(),
-                area: fit.area(),
+                area,
                 centre_x: fit.centre.0,
                 centre_y: fit.centre.1,
-                smoothness: Some(fit.radius.roughness()),
-                perimeter: None,
+                smoothness: Some(fit.radius.signature_smoothness()),
+                perimeter,
+                bending_energy: fit.radius.signature_bending_energy(),
                 lambda: Some(fit.lambda.lambda),
-                gcv: Some(fit.lambda.gcv),
+                gcv: fit.lambda.gcv,
                 trace_hat: Some(fit.lambda.trace_hat),
                 rms_residual: Some(fit.rms_residual),
+                checks,
             },
         });
         fits.push((*frame, fit));
@@ -276,10 +379,30 @@ fn fit_curves(
         let loc = format!("{}: frame {frame}", data.file);
         let pts = f.points();
         let fit = fit_closed_curve(&loc, &pts, opts)?;
-        let area = fit.curve.signed_area();
-        let centre = polygon_centroid(&fit.curve.sample(n.max(64)))
-            .map(|c| c.0)
-            .unwrap_or((f64::NAN, f64::NAN));
+        let area = fit.curve.signed_area().abs();
+        let dense = fit.curve.sample(check_samples(opts.knots));
+        let centre = polygon_centroid(&dense).map(|c| c.0).ok_or_else(|| {
+            ContourError::Unsolvable(format!(
+                "{loc}: the fitted curve encloses no area (all points on a line?)"
+            ))
+        })?;
+        let perimeter = fit.curve.length(4);
+        let mut checks = FrameChecks::of_frame(
+            Some(&fit.lambda),
+            polygon_self_intersects(&dense),
+            area,
+            perimeter,
+            &pts,
+        );
+        checks.halves(
+            (area, perimeter),
+            curve_halves(&loc, &pts, opts, fit.lambda.lambda),
+        );
+        let kappa_max = sample_sites(&fit.curve.x.axis, check_samples(opts.knots))
+            .into_iter()
+            .map(|t| fit.curve.curvature(t).abs())
+            .fold(0.0, f64::max);
+        checks.gap(&pts, kappa_max, area);
         frames.push(FittedFrame {
             frame: *frame,
             data: pts,
@@ -289,20 +412,90 @@ fn fit_curves(
             result: FrameResult {
                 frame: *frame,
                 points: f.len(),
-                area: area.abs(),
+                area,
                 centre_x: centre.0,
                 centre_y: centre.1,
                 smoothness: None,
-                perimeter: Some(fit.curve.length(4)),
+                perimeter,
+                bending_energy: fit.curve.bending_energy(),
                 lambda: Some(fit.lambda.lambda),
-                gcv: Some(fit.lambda.gcv),
+                gcv: fit.lambda.gcv,
                 trace_hat: Some(fit.lambda.trace_hat),
                 rms_residual: Some(fit.rms_residual),
+                checks,
             },
         });
         fits.push((*frame, fit));
     }
     Ok((frames, FittedSplines::Curves(fits)))
+}
+
+/// Indices of every other point, starting at `first` (0 or 1).
+fn half(n: usize, first: usize) -> impl Iterator<Item = usize> {
+    (first..n).step_by(2)
+}
+
+/// Area and perimeter of the signatures fitted to each half of `sig`'s
+/// points (every other one in angle order) with the knots and `lambda`
+/// of the full fit; None when a half has fewer than 3 points or fails.
+fn signature_halves(
+    loc: &str,
+    sig: &Signature,
+    opts: &ContourOptions,
+    lambda: f64,
+) -> Option<[(f64, f64); 2]> {
+    let n = sig.radii.len();
+    if n < 6 {
+        return None;
+    }
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| sig.angles_rad[a].total_cmp(&sig.angles_rad[b]));
+    let opts = ContourOptions {
+        lambda: Lambda::Fixed(lambda),
+        ..*opts
+    };
+    let fit_half = |first: usize| -> Option<(f64, f64)> {
+        let idx: Vec<usize> = half(n, first).map(|k| order[k]).collect();
+        let angles: Vec<f64> = idx.iter().map(|&k| sig.angles_rad[k]).collect();
+        let radii: Vec<f64> = idx.iter().map(|&k| sig.radii[k]).collect();
+        let h = Signature::new(loc, sig.centre, &angles, &radii).ok()?;
+        let f = fit_signature(loc, &h, &opts).ok()?;
+        Some((f.area(), f.radius.signature_perimeter()))
+    };
+    Some([fit_half(0)?, fit_half(1)?])
+}
+
+/// The same for a closed curve's points (every other one along it).
+fn curve_halves(
+    loc: &str,
+    pts: &[Point],
+    opts: &ContourOptions,
+    lambda: f64,
+) -> Option<[(f64, f64); 2]> {
+    if pts.len() < 6 {
+        return None;
+    }
+    let opts = ContourOptions {
+        lambda: Lambda::Fixed(lambda),
+        ..*opts
+    };
+    let fit_half = |first: usize| -> Option<(f64, f64)> {
+        let h: Vec<Point> = half(pts.len(), first).map(|k| pts[k]).collect();
+        let f = fit_closed_curve(loc, &h, &opts).ok()?;
+        Some((f.curve.signed_area().abs(), f.curve.length(4)))
+    };
+    Some([fit_half(0)?, fit_half(1)?])
+}
+
+/// Whether a signature's radius reaches 0 or below anywhere (sampled at
+/// [`check_samples`] points): its contour then passes through or behind
+/// its centre and crosses itself. A positive signature is a simple,
+/// star-shaped contour.
+fn signature_crosses_centre(radius: &crate::model::curve::SplineCurve, knots: usize) -> bool {
+    radius
+        .sample(check_samples(knots))
+        .iter()
+        .any(|&(_, r)| r <= 0.0)
 }
 
 /// The signature surface over all frames, reported at every whole frame
@@ -349,6 +542,16 @@ fn surface_frame(fit: &MovieFit, sigs: &[(f64, Signature)], frame: f64, n: usize
     let angle = sample_angles(n);
     let radius: Vec<f64> = angle.iter().map(|&t| fit.radius_at(frame, t)).collect();
     let c = fit.centre_at(frame);
+    let contour = fit.surface.curve_at(fit.s_of_frame(frame));
+    let (area, perimeter) = (fit.area_at(frame), contour.signature_perimeter());
+    let data_points = data_frame.map(|s| FrameData::Signature(s.1.clone()).points());
+    let checks = FrameChecks::of_frame(
+        Some(&fit.lambda),
+        signature_crosses_centre(&contour, fit.surface.t_axis.intervals),
+        area,
+        perimeter,
+        data_points.as_deref().unwrap_or_default(),
+    );
     FittedFrame {
         frame,
         data: data_frame.map(|s| s.1.points()).unwrap_or_default(),
@@ -358,15 +561,17 @@ fn surface_frame(fit: &MovieFit, sigs: &[(f64, Signature)], frame: f64, n: usize
         result: FrameResult {
             frame,
             points: data_frame.map_or(0, |s| s.1.radii.len()),
-            area: fit.area_at(frame),
+            area,
             centre_x: c.0,
             centre_y: c.1,
-            smoothness: Some(fit.smoothness_at(frame)),
-            perimeter: None,
+            smoothness: Some(contour.signature_smoothness()),
+            perimeter,
+            bending_energy: contour.signature_bending_energy(),
             lambda: None,
             gcv: None,
             trace_hat: None,
             rms_residual: None,
+            checks,
         },
     }
 }

@@ -5,6 +5,8 @@
 //! deforming-contour movie with held-out frames). [`contours`] fits a data
 //! file's frames and [`synth`] writes the test cases as data, as
 //! `softjoint contour` does.
+pub mod campaign;
+pub mod checks;
 pub mod contours;
 pub mod data;
 pub mod distance;

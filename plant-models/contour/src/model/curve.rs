@@ -68,6 +68,52 @@ impl SplineCurve {
         std::f64::consts::PI / self.axis.length() * self.integral_of_square()
     }
 
+    /// The paper's smoothness (Eq. 41) of the curve read as a signature
+    /// r(θ), θ = 2π(s − s₀)/L, in the angle's units so that it does not
+    /// depend on the knot count: `C = ∫₀^{2π} (d²r/dθ²)² dθ
+    /// = (L/2π)³ ∫ x″(s)² ds`, in (length unit)²/rad³. A circle has 0.
+    pub fn signature_smoothness(&self) -> f64 {
+        let k = self.axis.length() / std::f64::consts::TAU;
+        k * k * k * self.roughness()
+    }
+
+    /// Length of the contour of the signature r(θ):
+    /// `∫ √(r² + r_θ²) dθ` (Gauss quadrature, [`QUADRATURE_SUB`]
+    /// sub-intervals per knot interval).
+    pub fn signature_perimeter(&self) -> f64 {
+        let k = self.axis.length() / std::f64::consts::TAU;
+        integrate(&self.axis, QUADRATURE_SUB, |s| {
+            let (r, r1) = (self.value(s), k * self.derivative(s, 1));
+            r.hypot(r1) / k
+        })
+    }
+
+    /// Bending energy of the contour of the signature r(θ), `∫ κ² dl`, in
+    /// 1/(length unit): the curvature of a polar curve is
+    /// `(r² + 2r_θ² − r r_θθ)/(r² + r_θ²)^{3/2}` and `dl = √(r² + r_θ²) dθ`.
+    /// A circle of radius R has 2π/R.
+    pub fn signature_bending_energy(&self) -> f64 {
+        let k = self.axis.length() / std::f64::consts::TAU;
+        integrate(&self.axis, QUADRATURE_SUB, |s| {
+            let r = self.value(s);
+            let r1 = k * self.derivative(s, 1);
+            let r2 = k * k * self.derivative(s, 2);
+            let v2 = r * r + r1 * r1;
+            let num = r * r + 2.0 * r1 * r1 - r * r2;
+            num * num / (v2 * v2 * v2.sqrt()) / k
+        })
+    }
+
+    /// Curvature of the contour of the signature r(θ) at s, 1/length.
+    pub fn signature_curvature(&self, s: f64) -> f64 {
+        let k = self.axis.length() / std::f64::consts::TAU;
+        let r = self.value(s);
+        let r1 = k * self.derivative(s, 1);
+        let r2 = k * k * self.derivative(s, 2);
+        let v2 = r * r + r1 * r1;
+        (r * r + 2.0 * r1 * r1 - r * r2) / (v2 * v2.sqrt())
+    }
+
     /// `n` values at equally spaced s over the domain (the end excluded on
     /// a periodic axis, included otherwise).
     pub fn sample(&self, n: usize) -> Vec<(f64, f64)> {
@@ -76,6 +122,24 @@ impl SplineCurve {
             .map(|s| (s, self.value(s)))
             .collect()
     }
+}
+
+/// Sub-intervals per knot interval of the quadratures whose integrand is
+/// not a polynomial (length, bending energy): 4-point Gauss on each.
+pub const QUADRATURE_SUB: usize = 8;
+
+/// `∫ f(s) ds` over the axis's domain by 4-point Gauss on `sub`
+/// sub-intervals of each knot interval.
+pub(crate) fn integrate(axis: &Axis, sub: usize, f: impl Fn(f64) -> f64) -> f64 {
+    let sub = sub.max(1);
+    let h = 1.0 / (axis.alpha * sub as f64);
+    let mut total = 0.0;
+    for j in 0..axis.intervals * sub {
+        for &(x, w) in gauss4() {
+            total += w * h * f(axis.start + (j as f64 + x) * h);
+        }
+    }
+    total
 }
 
 /// `τᵀ Q τ` for a band matrix.
@@ -138,18 +202,31 @@ impl ClosedCurve {
     /// Length of the curve (Gauss quadrature, 4 points per knot interval
     /// and `sub` sub-intervals; the speed is not a polynomial).
     pub fn length(&self, sub: usize) -> f64 {
-        let axis = &self.x.axis;
-        let sub = sub.max(1);
-        let h = 1.0 / (axis.alpha * sub as f64);
-        let mut l = 0.0;
-        for j in 0..axis.intervals * sub {
-            for &(x, w) in gauss4() {
-                let t = axis.start + (j as f64 + x) * h;
-                let (dx, dy) = self.derivative(t, 1);
-                l += w * h * dx.hypot(dy);
-            }
-        }
-        l
+        integrate(&self.x.axis, sub, |t| {
+            let (dx, dy) = self.derivative(t, 1);
+            dx.hypot(dy)
+        })
+    }
+
+    /// Signed curvature at t, 1/length.
+    pub fn curvature(&self, t: f64) -> f64 {
+        let (dx, dy) = self.derivative(t, 1);
+        let (ddx, ddy) = self.derivative(t, 2);
+        let v2 = dx * dx + dy * dy;
+        (dx * ddy - dy * ddx) / (v2 * v2.sqrt())
+    }
+
+    /// Bending energy `∫ κ² dl = ∫ (x′y″ − y′x″)² / |c′|⁵ dt`, in
+    /// 1/(length unit): independent of the parameter and of the knot
+    /// count. A circle of radius R has 2π/R.
+    pub fn bending_energy(&self) -> f64 {
+        integrate(&self.x.axis, QUADRATURE_SUB, |t| {
+            let (dx, dy) = self.derivative(t, 1);
+            let (ddx, ddy) = self.derivative(t, 2);
+            let cross = dx * ddy - dy * ddx;
+            let v2 = dx * dx + dy * dy;
+            cross * cross / (v2 * v2 * v2.sqrt())
+        })
     }
 
     /// `n` points at equally spaced parameters (the closing point not

@@ -504,6 +504,13 @@ fn kkt_pseudo_inverse(problem: &FitProblem, lambda: f64) -> Result<DMatrix<f64>>
         });
     }
     let k = problem.kkt_matrix(lambda);
+    // An SVD of a matrix with an infinite or NaN entry need not return.
+    if k.iter().any(|v| !v.is_finite()) {
+        return Err(ContourError::Unsolvable(format!(
+            "the KKT matrix of Eq. 27 overflows at λ = {}",
+            plant_common::short_number(lambda)
+        )));
+    }
     let svd = k.svd(true, true);
     let smax = svd.singular_values.max();
     if !(smax.is_finite() && smax > 0.0) {

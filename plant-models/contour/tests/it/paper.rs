@@ -206,18 +206,28 @@ fn held_out_frames_fitted_versus_linear_interpolation_in_time() {
                 mean_of(&rows, |r| r.linear_centre_px),
             );
             println!("  mean: data angles {s:.2} vs {l:.2}; dense {sd:.2} vs {ld:.2}; centroid {sc:.2} vs {lc:.2}");
-            // Always: the whole contour (dense) and the centroid path.
+            println!(
+                "  GCV against its degrees-of-freedom bound: surface {}, centroid {}",
+                fit.lambda.at_dof_bound, fit.centre_lambda.at_dof_bound
+            );
+            if opts.lambda == Lambda::Gcv {
+                // 110 data for 130 surface coefficients, 11 centroids for
+                // 13: plain GCV went to interpolation (λ 7e-12), which won
+                // here; guarded GCV (γ = 1.4, issue 29) may not, and
+                // smooths more. Its figures are reported, not asserted
+                // (README).
+                continue;
+            }
+            // The paper's λ: the whole contour (dense) and the centroid
+            // path beat linear interpolation in time.
             assert!(
                 sd < ld,
                 "{label} σ {sigma}: dense spline {sd} vs linear {ld}"
             );
             assert!(sc < 0.5 * lc, "{label} σ {sigma}: centroid {sc} vs {lc}");
-            // At the data angles, the paper's λ smooths the 3-lobed shape by
+            // At the data angles the paper's λ smooths the 3-lobed shape by
             // ≈ 1 px and loses to linear interpolation of the raw radii
-            // (reported, see README); with λ by GCV the spline wins there too.
-            if opts.lambda == Lambda::Gcv {
-                assert!(s < l, "GCV σ {sigma}: spline {s} vs linear {l}");
-            }
+            // (reported, see README).
         }
     }
 }

@@ -1,0 +1,383 @@
+//! A fitted contour checks its own answer before it is reported as
+//! verified (issue 29): what the fit returned is compared with what the
+//! data show without any spline — the polygon through the data points —
+//! and with the neighbouring frames.
+//!
+//! Per frame:
+//! * **λ against the degrees-of-freedom bound** (GCV wanted to interpolate:
+//!   the data showed no noise to smooth, [`LambdaReport::at_dof_bound`]).
+//! * **Self-intersection**: a signature whose radius reaches 0 or below
+//!   (the contour passes through its centre), or a closed curve whose
+//!   dense sample (≥ 16 points per knot interval, ≥ 256) crosses itself.
+//! * **Area and perimeter against the data polygon**: the polygon through
+//!   the data points is an estimate that needs no λ. A smooth fit lies
+//!   close to it: sparse points cut corners (a regular polygon of 6
+//!   points on a circle has 83 % of its area and 95 % of its length) and
+//!   noise lengthens the polygon, so the fit is allowed an area ratio
+//!   within [1/[`AREA_RATIO_LIMIT`], AREA_RATIO_LIMIT] and a length at
+//!   most [`PERIMETER_RATIO_LIMIT`] times the polygon's. A collapsed fit
+//!   (issue 29: area 7×, perimeter 117×) is far outside both.
+//! * **Resolution**: the frame's points split into two halves (every other
+//!   point along the contour), each fitted with the same knots and λ; when
+//!   the halves' areas or perimeters differ by more than [`HALF_LIMIT`] of
+//!   the full fit's, the points do not determine the contour (too sparse,
+//!   or gaps the spline bridges by guesswork). A two-resolution estimate:
+//!   the full data's error is smaller than the halves' spread. Frames of
+//!   fewer than 6 points cannot be split and fail it.
+//! * **Gaps**: the halves share the data's largest gap, so they agree on
+//!   how to bridge it even when both cut a corner there. Across a gap of
+//!   chord g on a contour of curvature κ the spline may miss a cap of area
+//!   ≈ κg³/12 (the segment of a circle of radius 1/κ); with κ the fitted
+//!   contour's largest curvature this bounds what the gap can hide. A
+//!   bound over [`GAP_AREA_LIMIT`] of the area is flagged.
+//! * **Jumps across frames** (per-frame fits of ≥ 3 frames): the ratio of
+//!   the fit's area (perimeter) to its data polygon's, against the median
+//!   of the same ratio over the two frames either side. A fit that departs
+//!   from its data differently from its neighbours by more than
+//!   [`JUMP_LIMIT`] is flagged; a contour that really changes shows the
+//!   change in its data polygon too and is not.
+//!
+//! Left out: a check of the fit against the true contour (unknown), and
+//! self-intersection loops smaller than the sampling step.
+use crate::identify::gcv::LambdaReport;
+use crate::identify::tracked::Point;
+use serde::{Deserialize, Serialize};
+
+/// The fit's area may be at most this many times the data polygon's, or
+/// at least its reciprocal.
+pub const AREA_RATIO_LIMIT: f64 = 1.25;
+/// The fit's perimeter may be at most this many times the data polygon's.
+pub const PERIMETER_RATIO_LIMIT: f64 = 1.25;
+/// Largest relative departure of a frame's fit-to-data ratio from its
+/// neighbours' median.
+pub const JUMP_LIMIT: f64 = 0.1;
+/// Largest relative spread of the two half-data fits' area or perimeter.
+pub const HALF_LIMIT: f64 = 0.1;
+/// Largest share of the area that the largest data gap may hide
+/// (κ_max g³ / 12 A): the 5 % to which a verified area is claimed
+/// (the campaign's tolerance, [`crate::identify::campaign::TOLERANCE`]).
+pub const GAP_AREA_LIMIT: f64 = 0.05;
+/// Frames either side that a frame is compared with.
+pub const JUMP_WINDOW: usize = 2;
+
+/// Why a frame is not verified.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Flag {
+    /// GCV's minimum is against the degrees-of-freedom bound.
+    LambdaAtDofBound,
+    /// The fitted contour crosses itself (or its radius reaches 0).
+    SelfIntersection,
+    /// The halves of the data give contours too different to trust the
+    /// whole.
+    UnderResolved,
+    /// The largest gap between data points may hide too much area.
+    DataGap,
+    /// The fitted area is outside the data polygon's allowance.
+    AreaDisagreesWithData,
+    /// The fitted perimeter exceeds the data polygon's allowance.
+    PerimeterDisagreesWithData,
+    /// The fit-to-data area ratio jumps against the neighbouring frames.
+    AreaJump,
+    /// The fit-to-data perimeter ratio jumps against the neighbouring
+    /// frames.
+    PerimeterJump,
+}
+
+impl Flag {
+    /// What the flag means, for the text report.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Flag::LambdaAtDofBound => "GCV heads for interpolation (λ against its degrees-of-freedom bound: no noise seen, or too few points for the knots)",
+            Flag::SelfIntersection => "the fitted contour crosses itself",
+            Flag::DataGap => "the largest gap between the points may hide more than 5 % of the area (κ_max g³/12)",
+            Flag::UnderResolved => "the two halves of the points (every other one) give areas or perimeters more than 10 % apart: too few points, or gaps, to determine the contour",
+            Flag::AreaDisagreesWithData => "the fitted area is not within 25 % of the data polygon's",
+            Flag::PerimeterDisagreesWithData => "the fitted perimeter is more than 1.25× the data polygon's",
+            Flag::AreaJump => "the fit's area departs from its data unlike the neighbouring frames' (> 10 %)",
+            Flag::PerimeterJump => "the fit's perimeter departs from its data unlike the neighbouring frames' (> 10 %)",
+        }
+    }
+}
+
+/// Whether a frame passed its checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    /// Every check held.
+    Verified,
+    /// At least one check failed: the figures are not to be trusted.
+    Unverified,
+}
+
+/// The checks of one frame and the data-polygon figures they used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameChecks {
+    /// Verified when `flags` is empty.
+    pub status: Status,
+    /// The failed checks.
+    pub flags: Vec<Flag>,
+    /// Area of the polygon through the data points (None without data).
+    pub data_area: Option<f64>,
+    /// Perimeter of that polygon.
+    pub data_perimeter: Option<f64>,
+    /// Relative spread `|a₁ − a₂| / a` of the two half-data fits' areas
+    /// (None: not split, e.g. a surface's frame).
+    pub half_area_spread: Option<f64>,
+    /// The same for the perimeters.
+    pub half_perimeter_spread: Option<f64>,
+    /// `κ_max g³ / 12 A`: the share of the area the largest data gap may
+    /// hide (None without data).
+    pub gap_area_bound: Option<f64>,
+}
+
+impl FrameChecks {
+    /// Checks of a frame with data: its λ report, whether the fit crosses
+    /// itself, the fitted area and perimeter, and the data points in order
+    /// along the contour.
+    pub fn of_frame(
+        lambda: Option<&LambdaReport>,
+        self_intersects: bool,
+        area: f64,
+        perimeter: f64,
+        data: &[Point],
+    ) -> Self {
+        let mut flags = Vec::new();
+        if lambda.is_some_and(|l| l.at_dof_bound) {
+            flags.push(Flag::LambdaAtDofBound);
+        }
+        if self_intersects {
+            flags.push(Flag::SelfIntersection);
+        }
+        let (mut data_area, mut data_perimeter) = (None, None);
+        if data.len() >= 3 {
+            let (a, p) = (polygon_area(data).abs(), polygon_perimeter(data));
+            let ratio = area / a;
+            if !(ratio.is_finite() && (1.0 / AREA_RATIO_LIMIT..=AREA_RATIO_LIMIT).contains(&ratio))
+            {
+                flags.push(Flag::AreaDisagreesWithData);
+            }
+            if !(perimeter.is_finite() && perimeter <= PERIMETER_RATIO_LIMIT * p) {
+                flags.push(Flag::PerimeterDisagreesWithData);
+            }
+            data_area = Some(a);
+            data_perimeter = Some(p);
+        }
+        Self::with(flags, data_area, data_perimeter)
+    }
+
+    fn with(flags: Vec<Flag>, data_area: Option<f64>, data_perimeter: Option<f64>) -> Self {
+        Self {
+            status: if flags.is_empty() {
+                Status::Verified
+            } else {
+                Status::Unverified
+            },
+            flags,
+            data_area,
+            data_perimeter,
+            half_area_spread: None,
+            half_perimeter_spread: None,
+            gap_area_bound: None,
+        }
+    }
+
+    /// Checks the largest gap between consecutive `data` points against
+    /// the fitted contour's largest curvature `kappa_max` and its `area`.
+    pub fn gap(&mut self, data: &[Point], kappa_max: f64, area: f64) {
+        let n = data.len();
+        if n < 2 {
+            return;
+        }
+        let g = (0..n)
+            .map(|i| {
+                let (a, b) = (data[i], data[(i + 1) % n]);
+                (b.0 - a.0).hypot(b.1 - a.1)
+            })
+            .fold(0.0, f64::max);
+        let bound = kappa_max * g * g * g / (12.0 * area.abs());
+        self.gap_area_bound = Some(bound).filter(|v| v.is_finite());
+        if bound.is_nan() || bound > GAP_AREA_LIMIT {
+            self.flag(Flag::DataGap);
+        }
+    }
+
+    /// Records the half-data fits' (area, perimeter) pairs against the
+    /// full fit's, or `None` when the frame could not be split or a half
+    /// could not be fitted; flags [`Flag::UnderResolved`] accordingly.
+    pub fn halves(&mut self, full: (f64, f64), halves: Option<[(f64, f64); 2]>) {
+        match halves {
+            Some([a, b]) => {
+                let da = (a.0 - b.0).abs() / full.0.abs();
+                let dp = (a.1 - b.1).abs() / full.1.abs();
+                self.half_area_spread = Some(da).filter(|v| v.is_finite());
+                self.half_perimeter_spread = Some(dp).filter(|v| v.is_finite());
+                if da.is_nan() || dp.is_nan() || da > HALF_LIMIT || dp > HALF_LIMIT {
+                    self.flag(Flag::UnderResolved);
+                }
+            }
+            None => self.flag(Flag::UnderResolved),
+        }
+    }
+
+    /// Adds a failed check.
+    pub fn flag(&mut self, flag: Flag) {
+        if !self.flags.contains(&flag) {
+            self.flags.push(flag);
+        }
+        self.status = Status::Unverified;
+    }
+
+    /// True when every check held.
+    pub fn verified(&self) -> bool {
+        self.status == Status::Verified
+    }
+}
+
+/// Flags the frames whose fit-to-data ratio of `fitted` (area or
+/// perimeter, one per frame, in frame order) against `data` departs by
+/// more than [`JUMP_LIMIT`] from the median ratio of the [`JUMP_WINDOW`]
+/// frames either side. Returns the indices of the frames that jump (none
+/// with fewer than 3 frames).
+pub fn jumps(fitted: &[f64], data: &[Option<f64>]) -> Vec<usize> {
+    let ratio: Vec<Option<f64>> = fitted
+        .iter()
+        .zip(data)
+        .map(|(f, d)| d.map(|d| f / d).filter(|r| r.is_finite() && *r > 0.0))
+        .collect();
+    let n = ratio.len();
+    if n < 3 {
+        return Vec::new();
+    }
+    (0..n)
+        .filter(|&i| {
+            let Some(r) = ratio[i] else { return false };
+            let mut nb: Vec<f64> = (i.saturating_sub(JUMP_WINDOW)..(i + JUMP_WINDOW + 1).min(n))
+                .filter(|&j| j != i)
+                .filter_map(|j| ratio[j])
+                .collect();
+            if nb.is_empty() {
+                return false;
+            }
+            nb.sort_by(f64::total_cmp);
+            let med = if nb.len() % 2 == 1 {
+                nb[nb.len() / 2]
+            } else {
+                0.5 * (nb[nb.len() / 2 - 1] + nb[nb.len() / 2])
+            };
+            (r / med - 1.0).abs() > JUMP_LIMIT
+        })
+        .collect()
+}
+
+/// Signed area of a closed polygon (counter-clockwise positive).
+pub fn polygon_area(points: &[Point]) -> f64 {
+    let n = points.len();
+    0.5 * (0..n)
+        .map(|i| {
+            let (a, b) = (points[i], points[(i + 1) % n]);
+            a.0 * b.1 - b.0 * a.1
+        })
+        .sum::<f64>()
+}
+
+/// Perimeter of a closed polygon.
+pub fn polygon_perimeter(points: &[Point]) -> f64 {
+    let n = points.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (points[i], points[(i + 1) % n]);
+            (b.0 - a.0).hypot(b.1 - a.1)
+        })
+        .sum()
+}
+
+/// Whether a closed polygon crosses itself: some two edges that are not
+/// neighbours intersect (touching counts). O(n²); for a few hundred
+/// points.
+pub fn polygon_self_intersects(points: &[Point]) -> bool {
+    let n = points.len();
+    if n < 4 {
+        return false;
+    }
+    let edge = |i: usize| (points[i], points[(i + 1) % n]);
+    for i in 0..n {
+        let (a, b) = edge(i);
+        let (lo_x, hi_x) = (a.0.min(b.0), a.0.max(b.0));
+        let (lo_y, hi_y) = (a.1.min(b.1), a.1.max(b.1));
+        // Edges i + 2 … skipping the edge that shares i's start point.
+        for j in i + 2..n {
+            if i == 0 && j == n - 1 {
+                continue;
+            }
+            let (c, d) = edge(j);
+            if c.0.max(d.0) < lo_x
+                || c.0.min(d.0) > hi_x
+                || c.1.max(d.1) < lo_y
+                || c.1.min(d.1) > hi_y
+            {
+                continue;
+            }
+            if segments_cross(a, b, c, d) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Whether segments ab and cd have a common point.
+fn segments_cross(a: Point, b: Point, c: Point, d: Point) -> bool {
+    let orient =
+        |p: Point, q: Point, r: Point| (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0);
+    let (d1, d2) = (orient(c, d, a), orient(c, d, b));
+    let (d3, d4) = (orient(a, b, c), orient(a, b, d));
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
+        return true;
+    }
+    let on = |p: Point, q: Point, r: Point| {
+        r.0 >= p.0.min(q.0) && r.0 <= p.0.max(q.0) && r.1 >= p.1.min(q.1) && r.1 <= p.1.max(q.1)
+    };
+    (d1 == 0.0 && on(c, d, a))
+        || (d2 == 0.0 && on(c, d, b))
+        || (d3 == 0.0 && on(a, b, c))
+        || (d4 == 0.0 && on(a, b, d))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_figure_eight_crosses_itself_and_a_square_does_not() {
+        let square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)];
+        assert!(!polygon_self_intersects(&square));
+        assert_eq!(polygon_area(&square), 1.0);
+        assert_eq!(polygon_perimeter(&square), 4.0);
+        let bow = [(0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.0, 1.0)];
+        assert!(polygon_self_intersects(&bow));
+        // A circle sampled finely does not cross itself.
+        let circle: Vec<Point> = (0..300)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 300.0;
+                (a.cos(), a.sin())
+            })
+            .collect();
+        assert!(!polygon_self_intersects(&circle));
+    }
+
+    #[test]
+    fn a_ratio_that_jumps_against_its_neighbours_is_flagged() {
+        let data = vec![Some(100.0); 7];
+        let mut fit = vec![101.0, 99.0, 100.5, 100.0, 99.5, 100.0, 101.0];
+        assert!(jumps(&fit, &data).is_empty());
+        fit[3] = 700.0;
+        assert_eq!(jumps(&fit, &data), vec![3]);
+        // The data change with the fit: no jump.
+        let mut data2 = data.clone();
+        data2[3] = Some(690.0);
+        assert!(jumps(&fit, &data2).is_empty());
+    }
+}

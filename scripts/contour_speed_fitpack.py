@@ -1,0 +1,96 @@
+#!/usr/bin/env python3
+"""Per-frame speed of `softjoint contour fit` against SciPy/FITPACK's
+periodic smoothing spline (``splrep(..., per=1)``) on the same contours,
+side by side in one run (issue 34).
+
+The data: F frames of one noisy closed contour each, N points as
+(angle, radius) at equally spaced angles (an ellipse-like signature with
+1 % noise). softjoint fits every frame as a periodic signature with the
+knots and lambda given (no GCV search), through the whole command line:
+reading the CSV, the fits, the per-frame checks (issue 29: two half-data
+fits, the data polygon, curvature and self-intersection sampling) and
+writing its files. FITPACK gets the same samples, one ``splrep(per=1)``
+per frame with its smoothing condition s given (the data's noise
+N sigma^2), in a Python loop; its time does not include reading or
+writing anything. The two are run alternately, REPS times each, and the
+medians compared.
+
+Usage (after ``cargo build --release -p host-tools``):
+
+    python3 scripts/contour_speed_fitpack.py [--softjoint target/release/softjoint]
+        [--frames 200] [--points 64] [--knots 16] [--reps 5]
+
+Needs numpy and scipy (pip install numpy scipy).
+"""
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+from scipy.interpolate import splrep
+
+
+def contours(frames, points, seed=34):
+    rng = np.random.default_rng(seed)
+    theta = 2 * np.pi * np.arange(points) / points
+    data = []
+    for f in range(frames):
+        a, b = 40 + 5 * np.sin(f / 10), 30 + 3 * np.cos(f / 7)
+        r = a * b / np.sqrt((b * np.cos(theta)) ** 2 + (a * np.sin(theta)) ** 2)
+        data.append(r + rng.normal(0, 0.01 * 35, points))
+    return theta, data
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    default_bin = os.path.join(here, "..", "target", "release", "softjoint")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--softjoint", default=default_bin)
+    ap.add_argument("--frames", type=int, default=200)
+    ap.add_argument("--points", type=int, default=64)
+    ap.add_argument("--knots", type=int, default=16)
+    ap.add_argument("--lambda", dest="lam", default="1e-3")
+    ap.add_argument("--reps", type=int, default=5)
+    a = ap.parse_args()
+    theta, data = contours(a.frames, a.points)
+    sigma = 0.01 * 35
+    with tempfile.TemporaryDirectory() as work:
+        path = os.path.join(work, "data.csv")
+        with open(path, "w") as fh:
+            fh.write("frame,angle_rad,radius\n")
+            for f, r in enumerate(data):
+                for t, v in zip(theta, r):
+                    fh.write(f"{f},{t:.12f},{v:.12f}\n")
+        cmd = [a.softjoint, "contour", "fit", path, "--model", "signature",
+               "--knots", str(a.knots), "--lambda", a.lam, "--samples", "64",
+               "--out", os.path.join(work, "out"), "--json", "--allow-unverified"]
+        ours, theirs = [], []
+        for _ in range(a.reps):
+            t0 = time.perf_counter()
+            res = subprocess.run(cmd, capture_output=True, text=True)
+            ours.append(time.perf_counter() - t0)
+            if res.returncode != 0:
+                sys.exit(f"softjoint failed: {res.stderr}")
+            # FITPACK: a closed contour needs the first point repeated at
+            # 2 pi for per=1.
+            tt = np.append(theta, 2 * np.pi)
+            t0 = time.perf_counter()
+            for r in data:
+                splrep(tt, np.append(r, r[0]), per=1, s=a.points * sigma ** 2)
+            theirs.append(time.perf_counter() - t0)
+    mo, mt = statistics.median(ours), statistics.median(theirs)
+    print(f"{a.frames} frames x {a.points} points, knots {a.knots}, lambda {a.lam}; "
+          f"median of {a.reps} alternating runs")
+    print(f"softjoint contour fit (whole command, checks included): {1e3 * mo / a.frames:.3f} ms per frame "
+          f"({mo:.3f} s)")
+    print(f"FITPACK splrep(per=1), s = N sigma^2, fit only: {1e3 * mt / a.frames:.3f} ms per frame "
+          f"({mt:.3f} s)")
+    print(f"ratio softjoint / FITPACK: {mo / mt:.2f}")
+
+
+if __name__ == "__main__":
+    main()
