@@ -164,11 +164,23 @@ fn record_identify_tune_and_load_the_gains() {
         "2",
         "--search-v-offset",
         "--json",
+        // 3 candidates × 2 plants: the plumbing; the winner may lose to
+        // the paper's gains on the held-out steps.
+        "--allow-unproven",
         "-o",
         s(&gains),
     ]);
     ok(&o);
+    let j: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let proven = j["heldout_beats_or_ties_paper"].as_bool().unwrap();
     let g = GainsFile::load(&gains).unwrap();
+    let heldout = g.tuning.as_ref().unwrap().heldout.as_ref().unwrap();
+    assert_eq!(proven, heldout.beats_or_ties_paper);
+    assert_eq!(
+        proven,
+        heldout.score.robust <= heldout.paper.robust * (1.0 + tune::HELDOUT_TIE),
+        "{heldout:?}"
+    );
     assert_eq!(g.joint, JointKind::TwoD);
     assert_eq!(g.controller.kp_v_per_deg.len(), 2);
     // v_offset searched, in its range (the scenario below runs with it).
