@@ -145,6 +145,10 @@ fn run() -> Result<ExitCode> {
             "board-estimate",
             "-o",
             &path(&plant_file),
+            // The board's estimates are smoothed, so the camera noise
+            // floor the verdict judges by is not there; the example's
+            // own claim is the held-out error below.
+            "--allow-unverified",
         ],
     )?;
     println!("{text}");

@@ -89,6 +89,11 @@ pub struct JointArgs {
     /// jamming stage fitting the wires against an angle read off the wires.
     #[arg(long, value_enum, default_value = "camera")]
     angles: AngleSource,
+    /// Exit 0 even when a plane fails its checks against the data (the
+    /// result is still marked UNVERIFIED in the table, `--json` and the
+    /// plant file); without it such a result exits 1.
+    #[arg(long)]
+    allow_unverified: bool,
 }
 
 /// What `--angles board-estimate` tells the reader with every result.
@@ -213,24 +218,15 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
             if log.planes == 1 { "2D" } else { "3D" }
         ),
     };
-    let uncertainty: Vec<Uncertainty> = reports
-        .iter()
-        .flat_map(|r| {
-            r.estimates
-                .iter()
-                .filter(|e| e.identifiable && e.std.is_finite())
-                .map(|e| Uncertainty {
-                    plane: r.plane.clone(),
-                    field: e.field.clone(),
-                    value: e.value,
-                    std: e.std,
-                })
-        })
-        .collect();
-    let header = format!(
+    let uncertainty = uncertainties(&reports);
+    let unverified = unverified(&reports);
+    let mut header = format!(
         "# Written by `softjoint identify joint {}`: the identified joint.\n# `[[uncertainty]]` lists each identified parameter's 1σ (softjoint tune samples them).\n",
         a.log.display()
     );
+    for f in &unverified {
+        let _ = writeln!(header, "# UNVERIFIED: {f}");
+    }
     PlantFile::new(params, uncertainty).save(&a.output, &header)?;
     if let Some(p) = &a.plot {
         write_plot(p, &reports)?;
@@ -246,6 +242,8 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
                 "planes",
                 &serde_json::to_value(reports_without_frames(&reports))?,
             )?
+            .field("verified", &unverified.is_empty())?
+            .field("unverified_because", &unverified)?
             .field("never_fitted", &NEVER_FITTED)?
             .field("plant_file", &a.output)?
             .field(
@@ -263,7 +261,46 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         host_tools::out!("{}", table(&reports));
         host_tools::outln!("plant file written to {}", a.output.display());
     }
+    if !unverified.is_empty() {
+        let why = unverified.join("\n  ");
+        if a.allow_unverified {
+            eprintln!("UNVERIFIED (kept by --allow-unverified):\n  {why}");
+        } else {
+            bail!("the identified plant is UNVERIFIED (written to {} all the same; --allow-unverified exits 0):\n  {why}", a.output.display());
+        }
+    }
     Ok(())
+}
+
+/// The 1σ of every parameter identified and verified, for the plant file.
+fn uncertainties(reports: &[PlaneReport]) -> Vec<Uncertainty> {
+    reports
+        .iter()
+        .flat_map(|r| {
+            r.estimates
+                .iter()
+                .filter(|e| e.identifiable && e.verified && e.std.is_finite())
+                .map(|e| Uncertainty {
+                    plane: r.plane.clone(),
+                    field: e.field.clone(),
+                    value: e.value,
+                    std: e.std,
+                })
+        })
+        .collect()
+}
+
+/// Every plane's failed checks, "plane: why" (empty: verified).
+fn unverified(reports: &[PlaneReport]) -> Vec<String> {
+    reports
+        .iter()
+        .flat_map(|r| {
+            r.verdict
+                .failures
+                .iter()
+                .map(move |f| format!("{}: {f}", r.plane))
+        })
+        .collect()
 }
 
 fn reports_without_frames(r: &[PlaneReport]) -> Vec<PlaneReport> {
@@ -304,13 +341,18 @@ fn table(reports: &[PlaneReport]) -> String {
                 e.prior,
                 e.stage,
                 e.unit,
-                if e.identifiable {
-                    String::new()
-                } else {
+                if !e.identifiable {
                     format!(
-                        "  NOT IDENTIFIABLE from this log (the fit found {:.4e}): kept at the prior",
-                        e.fitted
+                        "  NOT IDENTIFIABLE from this log (the fit found {:.4e}): kept at the prior; {}",
+                        e.fitted,
+                        e.reason.as_deref().unwrap_or("")
                     )
+                } else if !e.verified {
+                    format!("  UNVERIFIED: {}", e.reason.as_deref().unwrap_or(""))
+                } else if e.pull_sigma.abs() > 3.0 {
+                    format!("  ({:+.1}σ from the prior)", e.pull_sigma)
+                } else {
+                    String::new()
                 }
             );
         }
@@ -324,6 +366,28 @@ fn table(reports: &[PlaneReport]) -> String {
             "  angle error: fit rms {:.3}°; held-out (from {:.1} s) rms {:.3}°, max {:.3}° (prior plant: rms {prior})",
             v.fit_rms_deg, v.heldout_from_s, v.heldout_rms_deg, v.heldout_max_deg
         );
+        let noise = r
+            .verdict
+            .camera_noise_deg
+            .map_or("unknown".into(), |n| format!("{n:.3}°"));
+        let _ = writeln!(
+            s,
+            "  checks: camera noise {noise} (from the frames); fit within {}×, held-out within {}× of it and not above the prior's{}",
+            r.verdict.fit_margin,
+            r.verdict.heldout_margin,
+            r.verdict.driver.as_ref().map_or(String::new(), |d| format!(
+                "; driver vs logged currents {:.1} mA rms (noise {:.1} mA)",
+                1e3 * d.rms_error_a,
+                1e3 * d.noise_a
+            ))
+        );
+        if r.verdict.verified {
+            let _ = writeln!(s, "  verdict: verified against the log's own data");
+        } else {
+            for f in &r.verdict.failures {
+                let _ = writeln!(s, "  verdict: UNVERIFIED: {f}");
+            }
+        }
         for st in &r.stages {
             let _ = writeln!(
                 s,

@@ -38,6 +38,10 @@ pub struct TuneArgs {
     /// Print a machine-readable result.
     #[arg(long)]
     json: bool,
+    /// Write the gains and exit 0 even when they lose to the paper's on
+    /// the held-out steps (the file and the output say so).
+    #[arg(long)]
+    allow_unproven: bool,
 }
 
 /// Runs `tune`.
@@ -79,8 +83,25 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
             score: r.score.clone(),
             paper: r.paper.clone(),
             v_offset_searched: a.search_v_offset,
+            heldout: Some(r.heldout.clone()),
         }),
     };
+    let proven = r.heldout.beats_or_ties_paper;
+    let verdict = format!(
+        "held-out steps {:?} on {} plants drawn anew: tuned robust cost {:.3}, paper {:.3}: {}",
+        tune::HELDOUT_STEPS.map(|s| s.1),
+        a.plants,
+        r.heldout.score.robust,
+        r.heldout.paper.robust,
+        if proven {
+            "the tuned gains beat or tie the paper's"
+        } else {
+            "the tuned gains LOSE to the paper's: NOT RECOMMENDED"
+        }
+    );
+    if !proven && !a.allow_unproven {
+        anyhow::bail!("{verdict}; no gains written (--allow-unproven writes them all the same)");
+    }
     output::write_toml(
         &a.output,
         "# Written by `softjoint tune`: gains for the console (`gains load FILE`)\n# and scenarios (`controller.gains_file`).\n",
@@ -91,6 +112,7 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
             .field("gains", &g)?
             .field("failed_candidates", &r.failed)?
             .field("wall_seconds", &wall)?
+            .field("heldout_beats_or_ties_paper", &proven)?
             .print()?;
     } else {
         let c = &r.best;
@@ -117,6 +139,7 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
                 r.failed
             );
         }
+        host_tools::outln!("{verdict}");
         host_tools::outln!("gains written to {}", a.output.display());
     }
     Ok(())

@@ -78,6 +78,25 @@ pub struct Tuning {
     /// Whether v_offset was searched (`--search-v-offset`).
     #[serde(default)]
     pub v_offset_searched: bool,
+    /// The tuned and the paper's gains on the held-out steps and plants
+    /// (issue 28); absent in files written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heldout: Option<HeldOut>,
+}
+
+/// Tuned gains against the paper's on manoeuvres the search never saw
+/// (`host_tools::joint::tune::heldout_scenario`) and on plants drawn
+/// anew from the identification's uncertainty.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeldOut {
+    /// The tuned gains' score there.
+    pub score: Score,
+    /// The paper's gains' score there.
+    pub paper: Score,
+    /// Whether the tuned gains' robust cost is at most the paper's
+    /// (within `host_tools::joint::tune::HELDOUT_TIE`).
+    pub beats_or_ties_paper: bool,
 }
 
 /// A gains file (`softjoint tune -o`), loaded by scenarios

@@ -25,6 +25,13 @@
 //! - **Robust cost** of a candidate: mean + standard deviation over the
 //!   plants. Candidates are scored in parallel (rayon); the result does
 //!   not depend on the number of threads.
+//! - **Held out** (issue 28): the winner and the paper's gains are scored
+//!   again on a step pattern the search never saw ([`heldout_scenario`]:
+//!   other sizes, the other direction first) and on as many plants drawn
+//!   anew from the uncertainty (another seed of the same stream). The
+//!   winner beats or ties the paper's gains there when its robust cost is
+//!   at most the paper's plus [`HELDOUT_TIE`]; `softjoint tune` refuses
+//!   to recommend it otherwise.
 
 use anyhow::{bail, Context};
 use hal_sim::{ClosedLoop, CoreController, Plant, Sample};
@@ -35,7 +42,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
-use crate::files::gains::{paper_v_offset, Gains, RunCost, Score};
+use crate::files::gains::{paper_v_offset, Gains, HeldOut, RunCost, Score};
 use crate::files::plant::{PlantFile, PlantParams, Uncertainty};
 use crate::files::scenario::{EstimatorMethod, FeedbackKind, Scenario, TargetStep};
 use crate::files::JointKind;
@@ -51,8 +58,46 @@ pub const V_OFFSET_SEARCH_V: (f64, f64) = (1.2, 2.2);
 /// Settling band (°).
 pub const SETTLING_BAND_DEG: f64 = 0.5;
 
+/// The steps of the search's test: (time s, target °).
+pub const TEST_STEPS: [(f64, f64); 4] = [(0.0, 0.0), (1.0, 8.0), (9.0, -6.0), (17.0, 0.0)];
+
+/// The held-out steps (issue 28): other sizes, the other direction first,
+/// steps that do not return to 0, inside the test's ±8° range. 25 s like
+/// the test.
+pub const HELDOUT_STEPS: [(f64, f64); 5] = [
+    (0.0, 0.0),
+    (1.0, -4.0),
+    (7.0, 6.0),
+    (14.0, 2.0),
+    (20.0, -5.0),
+];
+
+/// Relative slack within which the tuned gains' held-out robust cost
+/// ties the paper's (1 %).
+pub const HELDOUT_TIE: f64 = 0.01;
+
 /// The test scenario for a joint kind (see the module docs).
 pub fn test_scenario(joint: JointKind, gains: &Gains, params: PlantParams, seed: u64) -> Scenario {
+    step_scenario(joint, gains, params, seed, &TEST_STEPS)
+}
+
+/// The held-out scenario: [`HELDOUT_STEPS`], otherwise the test's.
+pub fn heldout_scenario(
+    joint: JointKind,
+    gains: &Gains,
+    params: PlantParams,
+    seed: u64,
+) -> Scenario {
+    step_scenario(joint, gains, params, seed, &HELDOUT_STEPS)
+}
+
+fn step_scenario(
+    joint: JointKind,
+    gains: &Gains,
+    params: PlantParams,
+    seed: u64,
+    steps: &[(f64, f64)],
+) -> Scenario {
     let planes = if joint == JointKind::TwoD { 1 } else { 2 };
     let mut s = Scenario {
         name: "tuning step test".into(),
@@ -60,12 +105,13 @@ pub fn test_scenario(joint: JointKind, gains: &Gains, params: PlantParams, seed:
         duration_s: 25.0,
         seed,
         feedback: FeedbackKind::Wire,
-        targets: [(0.0, 0.0), (1.0, 8.0), (9.0, -6.0), (17.0, 0.0)]
-            .map(|(t_s, d)| TargetStep {
+        targets: steps
+            .iter()
+            .map(|&(t_s, d)| TargetStep {
                 t_s,
                 deg: vec![d; planes],
             })
-            .to_vec(),
+            .collect(),
         ..Scenario::default()
     };
     s.estimator.method = EstimatorMethod::Paper;
@@ -372,14 +418,26 @@ pub fn score(
     plants: &[PlantParams],
     seed: u64,
 ) -> anyhow::Result<Score> {
+    score_on(joint, gains, plants, seed, &TEST_STEPS)
+}
+
+/// Scores `gains` on every plant with the steps `steps`.
+fn score_on(
+    joint: JointKind,
+    gains: &Gains,
+    plants: &[PlantParams],
+    seed: u64,
+    steps: &[(f64, f64)],
+) -> anyhow::Result<Score> {
     let runs = plants
         .iter()
         .map(|p| {
-            evaluate(&RunSpec::resolve(&test_scenario(
+            evaluate(&RunSpec::resolve(&step_scenario(
                 joint,
                 gains,
                 p.clone(),
                 seed,
+                steps,
             ))?)
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
@@ -404,6 +462,40 @@ pub struct TuneResult {
     pub paper: Score,
     /// Candidates whose runs failed (plant instability), by index.
     pub failed: usize,
+    /// The best and the paper's gains on the held-out steps and plants.
+    pub heldout: HeldOut,
+}
+
+/// Scores `best` and the paper's gains on the held-out steps
+/// ([`HELDOUT_STEPS`]) and on `n_plants` plants drawn anew from `file`'s
+/// uncertainty (seed `seed + 1` of the plant stream; plant 0 is the
+/// identified one, as in the search).
+pub fn heldout(
+    file: &PlantFile,
+    best: &Gains,
+    n_plants: usize,
+    seed: u64,
+) -> anyhow::Result<HeldOut> {
+    let params = file.params()?;
+    let (joint, coils) = match params {
+        PlantParams::TwoD(_) => (JointKind::TwoD, 2),
+        PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
+    };
+    let plants = sample_plants(file, n_plants.max(1), seed.wrapping_add(1))?;
+    let paper_gains = Gains::paper(coils);
+    let (score, paper) = rayon::join(
+        || score_on(joint, best, &plants, seed, &HELDOUT_STEPS),
+        || score_on(joint, &paper_gains, &plants, seed, &HELDOUT_STEPS),
+    );
+    let (score, paper) = (
+        score.context("the tuned gains on the held-out steps")?,
+        paper.context("the paper's gains on the held-out steps")?,
+    );
+    Ok(HeldOut {
+        beats_or_ties_paper: score.robust <= paper.robust * (1.0 + HELDOUT_TIE),
+        score,
+        paper,
+    })
 }
 
 /// Searches `n_candidates` gains (with v_offset when `search_v_offset`)
@@ -444,17 +536,34 @@ pub fn tune(
         .filter_map(|(i, s)| s.as_ref().map(|s| (i, s)))
         .min_by(|a, b| a.1.robust.total_cmp(&b.1.robust).then(a.0.cmp(&b.0)))
         .context("no candidate could be scored")?;
+    let heldout = heldout(file, &cands[i], n_plants, seed)?;
     Ok(TuneResult {
         best: cands[i].clone(),
         score: best.clone(),
         paper,
         failed,
+        heldout,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The held-out verdict can fail: gains with a tenth of the paper's
+    /// K_P (slow, never settling within the band in time) lose to the
+    /// paper's on the held-out steps; the paper's own gains tie.
+    #[test]
+    fn heldout_refuses_gains_that_lose_to_the_papers() {
+        let file = PlantFile::new(PlantParams::ThreeD(Joint3dParams::default()), vec![]);
+        let mut weak = Gains::paper(4);
+        weak.kp_v_per_deg = vec![0.2; 4];
+        let h = heldout(&file, &weak, 1, 1).unwrap();
+        assert!(!h.beats_or_ties_paper, "{h:?}");
+        assert!(h.score.robust > h.paper.robust, "{h:?}");
+        let h = heldout(&file, &Gains::paper(4), 1, 1).unwrap();
+        assert!(h.beats_or_ties_paper, "{h:?}");
+    }
 
     /// `--search-v-offset` adds v_offset to the draws without changing the
     /// other gains (its own stream), keeps the paper's candidate first and

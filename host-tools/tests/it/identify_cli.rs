@@ -95,6 +95,9 @@ fn record_identify_tune_and_load_the_gains() {
         s(&plant),
         "--max-iterations",
         "3",
+        // 24 s and 3 iterations: the plumbing, not a plant that passes
+        // its checks (it says UNVERIFIED; the flag keeps exit 0).
+        "--allow-unverified",
         "--plot",
         s(&dir.join("fit.svg")),
     ]);
@@ -120,10 +123,36 @@ fn record_identify_tune_and_load_the_gains() {
         "--max-iterations",
         "2",
         "--json",
+        "--allow-unverified",
     ]);
     ok(&o);
     let j: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert!(j["planes"][0]["estimates"].as_array().unwrap().len() >= 10);
+    // The verdict travels with the JSON: a flag, and the planes' reasons.
+    let verified = j["verified"].as_bool().unwrap();
+    let failures = j["planes"][0]["verdict"]["failures"].as_array().unwrap();
+    assert_eq!(verified, failures.is_empty(), "{j}");
+    assert_eq!(
+        j["unverified_because"].as_array().unwrap().len(),
+        failures.len()
+    );
+    // Without the flag, an unverified result exits 1 and says why.
+    if !verified {
+        let o = softjoint(&[
+            "identify",
+            "joint",
+            s(&log),
+            "-o",
+            s(&dir.join("plant2.toml")),
+            "--max-iterations",
+            "2",
+        ]);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains("UNVERIFIED"), "{}", stderr(&o));
+        assert!(std::fs::read_to_string(dir.join("plant2.toml"))
+            .unwrap()
+            .contains("# UNVERIFIED: theta: "));
+    }
 
     let gains = dir.join("gains.toml");
     let o = softjoint(&[
@@ -135,11 +164,23 @@ fn record_identify_tune_and_load_the_gains() {
         "2",
         "--search-v-offset",
         "--json",
+        // 3 candidates × 2 plants: the plumbing; the winner may lose to
+        // the paper's gains on the held-out steps.
+        "--allow-unproven",
         "-o",
         s(&gains),
     ]);
     ok(&o);
+    let j: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let proven = j["heldout_beats_or_ties_paper"].as_bool().unwrap();
     let g = GainsFile::load(&gains).unwrap();
+    let heldout = g.tuning.as_ref().unwrap().heldout.as_ref().unwrap();
+    assert_eq!(proven, heldout.beats_or_ties_paper);
+    assert_eq!(
+        proven,
+        heldout.score.robust <= heldout.paper.robust * (1.0 + tune::HELDOUT_TIE),
+        "{heldout:?}"
+    );
     assert_eq!(g.joint, JointKind::TwoD);
     assert_eq!(g.controller.kp_v_per_deg.len(), 2);
     // v_offset searched, in its range (the scenario below runs with it).

@@ -62,6 +62,7 @@ pub mod plan;
 pub mod replay;
 mod stage;
 pub mod twin;
+pub mod verify;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -164,10 +165,22 @@ pub struct Estimate {
     /// The white-noise (Gauss–Newton) 1σ alone, for comparison: it assumes
     /// independent residuals and a right model.
     pub white_std: f64,
-    /// Whether the log determines it (1σ within the parameter's threshold).
+    /// Whether the log determines it: 1σ within the parameter's
+    /// threshold, and the data's own checks passed ([`verify`]: the
+    /// halves of the log agree, no equally good fit from another start
+    /// lies far from it).
     pub identifiable: bool,
     /// The stage that fitted it.
     pub stage: String,
+    /// Why it is not identifiable, or why it is not verified.
+    pub reason: Option<String>,
+    /// False where a check of the whole plane casts doubt on it although
+    /// its stage determined it: it was fitted through a driver the logged
+    /// currents contradict ([`Verdict`]).
+    pub verified: bool,
+    /// How far the data pulled it from the prior: (value − prior) / 1σ
+    /// (0 where not identifiable).
+    pub pull_sigma: f64,
 }
 
 /// One stage's fit.
@@ -218,6 +231,9 @@ pub struct Validation {
     /// identification), for comparison (deg); none when the prior's replay
     /// went unstable.
     pub prior_heldout_rms_deg: Option<f64>,
+    /// rms over the fitted part of the prior model (deg), as
+    /// `prior_heldout_rms_deg`.
+    pub prior_fit_rms_deg: Option<f64>,
     /// Every frame of the log with its prediction.
     pub frames: Vec<Frame>,
 }
@@ -233,6 +249,29 @@ pub struct PlaneReport {
     pub stages: Vec<StageReport>,
     /// Held-out validation.
     pub validation: Validation,
+    /// Whether the identified plane passed the checks against its data.
+    pub verdict: Verdict,
+}
+
+/// The checks of an identified plane against its own data (issue 28).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Verdict {
+    /// Every check passed and every parameter reported identifiable is
+    /// verified. False: the plant is **unverified**, `failures` says why.
+    pub verified: bool,
+    /// The camera's angle noise estimated from the log's frames (deg);
+    /// none with too few frames.
+    pub camera_noise_deg: Option<f64>,
+    /// The fit's rms must stay within this multiple of the noise
+    /// ([`verify::FIT_MARGIN`]).
+    pub fit_margin: f64,
+    /// The held-out rms must stay within this multiple of the noise
+    /// ([`verify::HELDOUT_MARGIN`]), and not above the prior's.
+    pub heldout_margin: f64,
+    /// The identified driver against the logged currents, where logged.
+    pub driver: Option<verify::DriverCheck>,
+    /// The failed checks, one sentence each.
+    pub failures: Vec<String>,
 }
 
 impl PlaneReport {
@@ -559,6 +598,7 @@ pub fn identify_plane(
     mechanics_stage(&part, &prior, opts, driver_fitted, &mut found)?;
     wire_stage(&part, &prior, opts, &mut found)?;
     let validation = validate(&part, &found.model, &prior)?;
+    let verdict = verdict(&part, &found.model, &validation, &mut found.estimates);
     Ok((
         found.model,
         PlaneReport {
@@ -566,8 +606,97 @@ pub fn identify_plane(
             estimates: found.estimates,
             stages: found.stages,
             validation,
+            verdict,
         },
     ))
+}
+
+/// The checks of the identified `model` against its data ([`Verdict`]):
+/// the fit and held-out rms against the camera's noise floor with the
+/// margins of [`verify`], the held-out rms against the prior's, and the
+/// driver against the logged currents (a driver the currents contradict
+/// leaves every thermal and mechanical parameter unverified). Also sets
+/// each estimate's pull from the prior.
+fn verdict(
+    part: &FitPart,
+    model: &PlaneModel,
+    v: &Validation,
+    estimates: &mut [Estimate],
+) -> Verdict {
+    let mut failures = Vec::new();
+    let noise = verify::camera_noise_floor_deg(part.log, part.map.plane, part.log.len());
+    let (fm, hm) = (verify::FIT_MARGIN, verify::HELDOUT_MARGIN);
+    match noise {
+        Some(n) => {
+            if v.fit_rms_deg > fm * n {
+                failures.push(format!(
+                    "the fit's rms {:.3}° is above {fm} × the camera's noise ({n:.3}°): the model does not fit its own data",
+                    v.fit_rms_deg
+                ));
+            }
+            let held_out = v.frames.iter().any(|f| f.t_s >= v.heldout_from_s);
+            if held_out && v.heldout_rms_deg > hm * n {
+                failures.push(format!(
+                    "the held-out rms {:.3}° is above {hm} × the camera's noise ({n:.3}°)",
+                    v.heldout_rms_deg
+                ));
+            }
+        }
+        None => failures.push("too few camera frames to judge the fit against the noise".into()),
+    }
+    if let Some(p) = v.prior_heldout_rms_deg {
+        if v.heldout_rms_deg > verify::PRIOR_MARGIN * p {
+            failures.push(format!(
+                "the held-out rms {:.3}° is above {} × the prior's {p:.3}°: the identification made the plant worse",
+                v.heldout_rms_deg,
+                verify::PRIOR_MARGIN
+            ));
+        }
+    }
+    if let Some(p) = v.prior_fit_rms_deg {
+        if v.fit_rms_deg > verify::PRIOR_MARGIN * p {
+            failures.push(format!(
+                "the fit's rms {:.3}° is above {} × the prior's {p:.3}° on the same frames: the fit ended worse than the prior it started from",
+                v.fit_rms_deg,
+                verify::PRIOR_MARGIN
+            ));
+        }
+    }
+    let driver = verify::driver_check(part.log, part.map, model, part.rows);
+    if let Some(d) = driver.as_ref().filter(|d| !d.passed) {
+        let why = format!(
+            "fitted through a driver (g {:.3} A/V, turn-on {:.3} V) that mispredicts the logged currents by {:.1} mA rms (noise {:.1} mA)",
+            model.plane.driver.transconductance_a_v,
+            model.plane.driver.turn_on_v,
+            1e3 * d.rms_error_a,
+            1e3 * d.noise_a
+        );
+        failures.push(format!(
+            "{why}: the thermal and mechanical parameters are conditional on a wrong driver"
+        ));
+        for e in estimates
+            .iter_mut()
+            .filter(|e| e.identifiable && (e.stage == "thermal" || e.stage == "mechanics"))
+        {
+            e.verified = false;
+            e.reason = Some(why.clone());
+        }
+    }
+    for e in estimates.iter_mut() {
+        e.pull_sigma = if e.identifiable && e.std > 0.0 {
+            (e.value - e.prior) / e.std
+        } else {
+            0.0
+        };
+    }
+    Verdict {
+        verified: failures.is_empty(),
+        camera_noise_deg: noise,
+        fit_margin: fm,
+        heldout_margin: hm,
+        driver,
+        failures,
+    }
 }
 
 /// The log as one plane's stages see it: the plane's columns, the rows
@@ -634,6 +763,7 @@ fn electrical_stage(part: &FitPart, prior: &PlaneModel, found: &mut Found) -> bo
         part.rows,
         prior.plane.driver.max_current_a,
     ) else {
+        turn_on_not_determined(part, prior, found);
         return false;
     };
     Param::Transconductance.set(&mut found.model, g);
@@ -657,6 +787,10 @@ fn electrical_stage(part: &FitPart, prior: &PlaneModel, found: &mut Found) -> bo
             white_std: sd,
             identifiable: p.determined(coord_sd),
             stage: "electrical".into(),
+            reason: (!p.determined(coord_sd))
+                .then(|| "1σ above its threshold: too little spread of unsaturated inputs".into()),
+            verified: true,
+            pull_sigma: 0.0,
         });
     }
     found.stages.push(StageReport {
@@ -670,6 +804,37 @@ fn electrical_stage(part: &FitPart, prior: &PlaneModel, found: &mut Found) -> bo
         best_start: 0,
     });
     true
+}
+
+/// The driver's turn-on named not identifiable where the log has currents
+/// but no spread of unsaturated ones to regress (it stays at the prior),
+/// with what the currents do say: the highest input at which the coils
+/// carried no current and the lowest at which they did.
+fn turn_on_not_determined(part: &FitPart, prior: &PlaneModel, found: &mut Found) {
+    let Some(seen) = verify::driver_check(part.log, part.map, prior, part.rows) else {
+        return;
+    };
+    let short = |v: Option<f64>| v.map_or("none".to_string(), plant_common::short_number);
+    let p = Param::TurnOn;
+    found.estimates.push(Estimate {
+        param: p,
+        field: p.field().into(),
+        unit: p.unit().into(),
+        value: p.get(prior),
+        fitted: p.get(prior),
+        prior: p.get(prior),
+        std: f64::INFINITY,
+        white_std: f64::INFINITY,
+        identifiable: false,
+        stage: "electrical".into(),
+        reason: Some(format!(
+            "the coils never carried an unsaturated current to regress (highest input with no current: {} V; lowest with a current: {} V): add inputs between those levels",
+            short(seen.highest_off_v),
+            short(seen.lowest_on_v)
+        )),
+        verified: true,
+        pull_sigma: 0.0,
+    });
 }
 
 /// Stage 1b: the convection coefficient and the four transformation
@@ -711,6 +876,7 @@ fn thermal_stage(
         blocks: &part.row_blocks(map.coils.len()),
         systematic: &|_: &PlaneModel| Ok(Vec::new()),
         starts: &[],
+        halves: true,
     }
     .run(found, prior, opts)
 }
@@ -764,7 +930,23 @@ fn mechanics_stage(
     if Param::StressShift.get(&found.model) <= 0.0 {
         Param::StressShift.set(&mut found.model, 0.02);
     }
-    let (starts, start_evaluations) = mechanics_starts(&found.model, &mech);
+    let (mut starts, mut start_evaluations) = mechanics_starts(&found.model, &mech);
+    // The prior is a candidate too (with stage 1's driver): where it fits
+    // better than every start of the grid, the fit runs from it as well,
+    // so the stage never ends worse than the prior it started from.
+    let at_prior = with_coords(&found.model, &free, &stage::coords(&free, prior));
+    let cost = |m: &PlaneModel| {
+        mech(m)
+            .ok()
+            .map(|r| r.iter().map(|x| x * x).sum::<f64>())
+            .filter(|c| c.is_finite())
+    };
+    if let (Some(c_prior), best) = (cost(&at_prior), starts.first().and_then(cost)) {
+        start_evaluations += 2;
+        if best.is_none_or(|b| c_prior < b) {
+            starts.push(at_prior);
+        }
+    }
     Stage {
         name: "mechanics",
         free: &free,
@@ -772,6 +954,7 @@ fn mechanics_stage(
         blocks: &mech_blocks,
         systematic: &|_: &PlaneModel| Ok(Vec::new()),
         starts: &starts,
+        halves: true,
     }
     .run(found, prior, opts)?;
     if let Some(st) = found.stages.last_mut() {
@@ -850,6 +1033,7 @@ fn wire_stage(
         blocks: &episodes,
         systematic: &systematic,
         starts: &[],
+        halves: false,
     }
     .run(found, prior, opts)
 }
@@ -945,10 +1129,16 @@ fn validate(
             .map(|f| (f.predicted_deg - f.recorded_deg).abs())
             .fold(0.0, f64::max),
         heldout_from_s,
-        prior_heldout_rms_deg: prior_pred.map(|p| {
+        prior_heldout_rms_deg: prior_pred.as_ref().map(|p| {
             rms(all
                 .iter()
                 .filter(|(t, _)| *t >= heldout_from_s)
+                .filter_map(|(t, a)| p.angle_at(*t).map(|x| x - a)))
+        }),
+        prior_fit_rms_deg: prior_pred.as_ref().map(|p| {
+            rms(all
+                .iter()
+                .filter(|(t, _)| *t < heldout_from_s)
                 .filter_map(|(t, a)| p.angle_at(*t).map(|x| x - a)))
         }),
         frames: out_frames,

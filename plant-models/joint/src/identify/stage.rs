@@ -9,7 +9,7 @@
 use rayon::prelude::*;
 
 use super::lm::{self, LmOptions, LmResult};
-use super::{Estimate, IdentifyError, IdentifyOptions, Param, PlaneModel, StageReport};
+use super::{verify, Estimate, IdentifyError, IdentifyOptions, Param, PlaneModel, StageReport};
 
 /// Errors a stage's data cannot average out, for the model at the fit:
 /// one change of every residual per 1σ of each (see [`Stage`]).
@@ -53,6 +53,11 @@ pub(super) struct Stage<'a, F> {
     pub systematic: &'a Systematic<'a>,
     /// Starting points of the first fit (empty: the model found so far).
     pub starts: &'a [PlaneModel],
+    /// Whether `blocks` are in time order across all residuals, so that
+    /// the halves of the log can be checked against each other
+    /// ([`verify::halves`]); the wire stage's lag episodes are numbered
+    /// sensor after sensor and are not.
+    pub halves: bool,
 }
 
 /// A parameter the log did not determine: its fit before it was put back.
@@ -61,6 +66,8 @@ struct Dropped {
     fitted: f64,
     std: f64,
     white_std: f64,
+    /// Why the log does not determine it.
+    reason: String,
 }
 
 /// The best of a pass's fits, and what all of them cost.
@@ -68,6 +75,8 @@ struct BestFit {
     result: LmResult,
     /// Which starting point it ran from.
     start: usize,
+    /// The other starts' minima: (coordinates, cost).
+    others: Vec<(Vec<f64>, f64)>,
     iterations: usize,
     evaluations: usize,
 }
@@ -82,7 +91,7 @@ pub(super) fn with_coords(base: &PlaneModel, params: &[Param], x: &[f64]) -> Pla
 }
 
 /// The coordinates of `params` in `m`.
-fn coords(params: &[Param], m: &PlaneModel) -> Vec<f64> {
+pub(super) fn coords(params: &[Param], m: &PlaneModel) -> Vec<f64> {
     params.iter().map(|p| p.to_coord(p.get(m))).collect()
 }
 
@@ -126,8 +135,9 @@ where
             let r = fit.result;
             *model = with_coords(&base, &active, &r.x);
             let (sd, white) = self.spread(&r, model)?;
+            let reasons = self.undetermined(&active, &r, &sd, &white, &fit.others);
             let bad: Vec<usize> = (0..active.len())
-                .filter(|&j| !active[j].determined(sd[j]))
+                .filter(|&j| reasons[j].is_some())
                 .collect();
             if bad.is_empty() {
                 last = Some(r);
@@ -142,6 +152,7 @@ where
                     fitted: v,
                     std: p.value_std(v, sd[j]),
                     white_std: p.value_std(v, white[j]),
+                    reason: reasons[j].clone().unwrap_or_default(),
                 });
                 p.set(model, p.get(prior));
             }
@@ -216,9 +227,11 @@ where
             match minimum.finish(&f, lm_opts) {
                 Ok(result) => {
                     evaluations += result.evaluations - before;
+                    let others = minima.iter().map(|(_, o)| (o.x.clone(), o.cost)).collect();
                     return Ok(BestFit {
                         result,
                         start: k,
+                        others,
                         iterations,
                         evaluations,
                     });
@@ -233,6 +246,69 @@ where
         Err(first_error.map(|(_, e)| e).unwrap_or_else(|| {
             IdentifyError::Log(format!("stage {}: no starting point", self.name))
         }))
+    }
+
+    /// Why each of `active` is not determined by the fit `r` (1σ used
+    /// `sd`, white-noise `white`, in coordinates), None where it is: its
+    /// 1σ above the parameter's threshold; the halves of the log
+    /// disagreeing on it ([`verify::halves`]); another start's equally
+    /// good minimum far from it ([`verify::starts_disagree`]).
+    fn undetermined(
+        &self,
+        active: &[Param],
+        r: &LmResult,
+        sd: &[f64],
+        white: &[f64],
+        others: &[(Vec<f64>, f64)],
+    ) -> Vec<Option<String>> {
+        let ratio: Vec<f64> = sd.iter().zip(white).map(|(s, w)| s / w).collect();
+        let halves = if self.halves && self.blocks.len() == r.m {
+            verify::halves(&r.jacobian, &r.residuals, self.blocks, &ratio)
+        } else {
+            vec![(0.0, 0.0, 0.0); active.len()]
+        };
+        let starts = verify::starts_disagree(&r.x, r.cost, others, sd, r.m);
+        let short = plant_common::short_number;
+        (0..active.len())
+            .map(|j| {
+                let p = active[j];
+                let v = p.from_coord(r.x[j]);
+                if !p.determined(sd[j]) {
+                    let s = p.value_std(v, sd[j]);
+                    let s = match p.scale() {
+                        super::Scale::Log { .. } => format!("{:.0} %", 100.0 * sd[j]),
+                        super::Scale::Linear { .. } => format!("{s:.3e} {}", p.unit()),
+                    };
+                    return Some(if sd[j].is_finite() {
+                        format!(
+                            "1σ {s} is above the threshold of {} (the log barely moves the fit along it)",
+                            threshold(p)
+                        )
+                    } else {
+                        "the fit does not depend on it (the log does not excite it)".into()
+                    });
+                }
+                let (a, b, z) = halves[j];
+                if z > verify::HALVES_MAX_Z {
+                    return Some(format!(
+                        "the two halves of the fitted log disagree: {} against {} {} ({:.1} σ of their difference); a model error elsewhere, or a part of the log that does not excite it",
+                        short(p.from_coord(r.x[j] + a)),
+                        short(p.from_coord(r.x[j] + b)),
+                        p.unit(),
+                        z
+                    ));
+                }
+                if let Some((x, dchi2)) = starts[j] {
+                    return Some(format!(
+                        "another starting point reached an equally good fit (Δχ² {:.1}) at {} {}",
+                        dchi2,
+                        short(p.from_coord(x)),
+                        p.unit()
+                    ));
+                }
+                None
+            })
+            .collect()
     }
 
     /// (1σ used, white-noise 1σ) per coordinate of the fit `r` at `at`.
@@ -278,6 +354,9 @@ where
                 white_std: at(white),
                 identifiable: true,
                 stage: self.name.into(),
+                reason: None,
+                verified: true,
+                pull_sigma: 0.0,
             });
         }
         for d in dropped {
@@ -293,7 +372,22 @@ where
                 white_std: d.white_std,
                 identifiable: false,
                 stage: self.name.into(),
+                reason: Some(d.reason),
+                verified: true,
+                pull_sigma: 0.0,
             });
+        }
+    }
+}
+
+/// A parameter's identifiability threshold in words.
+fn threshold(p: Param) -> String {
+    match p.scale() {
+        super::Scale::Log { max_rel } => {
+            format!("{} %", plant_common::short_number(100.0 * max_rel))
+        }
+        super::Scale::Linear { max_abs } => {
+            format!("{} {}", plant_common::short_number(max_abs), p.unit())
         }
     }
 }

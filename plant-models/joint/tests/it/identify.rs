@@ -356,3 +356,153 @@ fn ten_minute_twin_3d_seed_7_names_the_inertia_not_identifiable() {
         .collect();
     assert!(fails.is_empty(), "{fails:#?}");
 }
+
+/// Issue 28's joint (`hidden::off_plan_joint_3d`: α's driver turns on at
+/// 2.0 V, above the plan's sustained levels; β's at 1.6 V) on the 240 s
+/// standard plan that `softjoint identify plan --duration-s 240` prints,
+/// identified from the defaults (or from `prior`): α's and β's reports
+/// with their truths. Recorded with the twins' electrical noise.
+fn off_plan_240s(prior: Option<&Joint3dParams>) -> Vec<(PlaneReport, PlaneModel)> {
+    let hidden = hidden::off_plan_joint_3d(5);
+    let plan = ExcitationPlan::standard(2, 240.0, false);
+    let log = twin::record_3d(&hidden, &plan, true, NOISE).unwrap();
+    let default = Joint3dParams::default();
+    let (_, reports) =
+        identify::identify_3d(&log, prior.unwrap_or(&default), &IdentifyOptions::default())
+            .unwrap();
+    let truths = [
+        truth(&hidden.alpha, &hidden.wires[0]),
+        truth(&hidden.beta, &hidden.wires[1]),
+    ];
+    reports.into_iter().zip(truths).collect()
+}
+
+/// The parameters a plane reports as determined and verified whose fit
+/// lies more than `k`σ from the truth, one line each: what a lab would
+/// build on and be wrong.
+fn wrong_but_called_identifiable(r: &PlaneReport, t: &PlaneModel, k: f64) -> Vec<String> {
+    r.estimates
+        .iter()
+        .filter(|e| e.identifiable && e.verified && r.verdict.verified)
+        .filter_map(|e| {
+            let err = (e.fitted - e.param.get(t)) / e.std;
+            (err.abs() > k)
+                .then(|| format!("{}: {} is {err:+.1}σ from the truth", r.plane, e.field))
+        })
+        .collect()
+}
+
+/// Issue 28, first failure: before it, α came out with g +17 %, h +24 %,
+/// the temperatures 1–4.4 K low and the slope −74 %, each called
+/// identifiable 4.6–25.6σ from the truth, and a held-out rms of 0.062°
+/// against 0.05° of camera noise that no check judged. Now the turn-on
+/// is named not identifiable with what the currents show (no current up
+/// to 1.9 V, a saturated one at 3 V), the driver the fit went through is
+/// found to mispredict the logged currents, and the plane is unverified;
+/// β, whose driver the plan excites, is verified and right.
+#[test]
+#[ignore = "a 240 s 3D log: ≈ 15–40 s optimised; CI runs it in the ci-opt build (scripts/test-all.sh)"]
+fn off_plan_twin_names_the_turn_on_and_leaves_the_plane_unverified() {
+    let planes = off_plan_240s(None);
+    for (r, t) in &planes {
+        print_estimates(r, t);
+        eprintln!("{}: {:?}", r.plane, r.verdict);
+    }
+    let (alpha, beta) = (&planes[0].0, &planes[1].0);
+    let turn_on = alpha.estimate(Param::TurnOn).expect("α's turn-on reported");
+    assert!(!turn_on.identifiable, "{turn_on:?}");
+    let why = turn_on.reason.as_deref().unwrap_or("");
+    assert!(
+        why.contains("no current: 1.9 V") && why.contains("with a current: 3 V"),
+        "{why}"
+    );
+    assert!(!alpha.verdict.verified, "{:?}", alpha.verdict);
+    assert!(
+        alpha.verdict.driver.as_ref().is_some_and(|d| !d.passed),
+        "{:?}",
+        alpha.verdict
+    );
+    assert!(beta.verdict.verified, "{:?}", beta.verdict);
+    let wrong: Vec<String> = planes
+        .iter()
+        .flat_map(|(r, t)| wrong_but_called_identifiable(r, t, 3.0))
+        .collect();
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+/// Issue 28, second failure: `--prior` set to the very truth returned a
+/// sponge 27 times too soft with a fit rms of 1.15°. Now the prior is a
+/// candidate start of the mechanics stage, so no plane ends worse than
+/// its prior (fit and held-out rms within `verify::PRIOR_MARGIN` of the
+/// prior's on the same frames), both planes are verified, and the sponge
+/// stays within 2 % of the truth.
+#[test]
+#[ignore = "a 240 s 3D log: ≈ 15–40 s optimised; CI runs it in the ci-opt build (scripts/test-all.sh)"]
+fn a_true_prior_is_never_made_worse() {
+    let hidden = hidden::off_plan_joint_3d(5);
+    let planes = off_plan_240s(Some(&hidden));
+    let mut fails = Vec::new();
+    for (r, t) in &planes {
+        print_estimates(r, t);
+        let v = &r.validation;
+        let margin = identify::verify::PRIOR_MARGIN;
+        if v.fit_rms_deg > margin * v.prior_fit_rms_deg.unwrap() {
+            fails.push(format!(
+                "{}: fit rms {} vs prior {:?}",
+                r.plane, v.fit_rms_deg, v.prior_fit_rms_deg
+            ));
+        }
+        if v.heldout_rms_deg > margin * v.prior_heldout_rms_deg.unwrap() {
+            fails.push(format!(
+                "{}: held-out {} vs prior {:?}",
+                r.plane, v.heldout_rms_deg, v.prior_heldout_rms_deg
+            ));
+        }
+        if !r.verdict.verified {
+            fails.push(format!("{}: {:?}", r.plane, r.verdict.failures));
+        }
+        fails.extend(check(r, t, Param::SpongeModulus, Some(0.02), None));
+    }
+    assert!(fails.is_empty(), "{fails:#?}");
+}
+
+/// A log the model cannot fit (the compact 2D twin's camera angles moved
+/// by +1° over every other 5 s, as a slipping camera mount would): the
+/// verdict says the fit does not fit its own data and the plane is
+/// unverified, whatever the 1σ say.
+#[test]
+#[ignore = "identification of a 60 s log: ≈ 5 s optimised, a minute in a debug build; CI runs it in the ci-opt build"]
+fn a_fit_far_above_the_noise_is_unverified() {
+    let hidden = hidden::joint_2d(3);
+    let mut log = twin::record_2d(&hidden, &ExcitationPlan::compact(1), true, NOISE).unwrap();
+    for k in 0..log.len() {
+        if (log.t_s[k] / 5.0).floor() as usize % 2 == 1 {
+            log.cam_deg[k][0] += 1.0;
+        }
+    }
+    let opts = IdentifyOptions {
+        lm: LmOptions {
+            max_iterations: 8,
+            ..LmOptions::default()
+        },
+        ..IdentifyOptions::default()
+    };
+    let (_, reports) = identify::identify_2d(&log, &Joint2dParams::default(), &opts).unwrap();
+    let r = &reports[0];
+    eprintln!("{:?}", r.verdict);
+    let noise = r.verdict.camera_noise_deg.unwrap();
+    assert!(
+        r.validation.fit_rms_deg > 3.0 * noise,
+        "{:?}",
+        r.validation.fit_rms_deg
+    );
+    assert!(!r.verdict.verified);
+    assert!(
+        r.verdict
+            .failures
+            .iter()
+            .any(|f| f.contains("does not fit its own data")),
+        "{:?}",
+        r.verdict.failures
+    );
+}
