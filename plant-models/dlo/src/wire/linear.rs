@@ -330,13 +330,13 @@ impl WireProblem {
     /// are moved to the asked ones in steps of at most 0.05 L and 0.2 rad,
     /// each solve starting from the last with its multipliers (the paper
     /// moves the end likewise, L811); and the direct solve from the natural
-    /// state, tilted either way. The kept answer is then solved again on a
+    /// state, tilted by `initial_tilt_rad` and by 0.3 rad. The kept answer is then solved again on a
     /// discretisation twice as fine (harmonics and intervals doubled, up to
     /// 12 and 2000), started from it, for the discretisation check.
     pub fn solve_verified(&self, settings: &Settings) -> Result<WireShape> {
         let c = self.compile()?;
         let mut candidates = vec![self.continuation(settings)?];
-        for tilt in [self.initial_tilt_rad, -self.initial_tilt_rad] {
+        for tilt in [self.initial_tilt_rad, 0.3] {
             let sol = optimize::solve(&c, c.natural_start(tilt), settings)?;
             candidates.push(c.shape(c.polished(sol, settings)));
         }
@@ -394,9 +394,15 @@ impl WireProblem {
             }
             let c = p.compile()?;
             let sol = match prev.take() {
-                Some(s) => {
-                    optimize::solve_warm(&c, s.x.clone(), Some((&s.multipliers, s.rho)), settings)?
-                }
+                // The multipliers carry the reactions from step to step;
+                // ρ starts afresh (a ρ grown to 1e9 on an earlier step
+                // leaves BFGS too ill-conditioned to reach stationarity).
+                Some(s) => optimize::solve_warm(
+                    &c,
+                    s.x.clone(),
+                    Some((&s.multipliers, settings.rho0)),
+                    settings,
+                )?,
                 None => optimize::solve(&c, c.natural_start(self.initial_tilt_rad), settings)?,
             };
             let sol = if k == steps {

@@ -22,7 +22,7 @@ use super::optimize::{Kind, Problem, Solution};
 
 /// Largest KKT residual accepted: ‖∇U + ∇P + Σλ∇c‖∞ and the largest
 /// |λ·c| of an inequality, relative to max(1, ‖∇U‖∞).
-pub const KKT_TOLERANCE: f64 = 1e-6;
+pub const KKT_TOLERANCE: f64 = 1e-5;
 /// Smallest reduced-Hessian eigenvalue accepted, relative to the largest.
 pub const STABILITY_TOLERANCE: f64 = 1e-6;
 /// Largest change of the energy (relative) or of any point (in units of the
