@@ -37,7 +37,10 @@ fn main() -> ExitCode {
             } else {
                 unverified += 1;
             }
-            println!("case {i}: {c:?} -> {o:?}");
+            println!(
+                "case {i}: {c:?} -> right {}, verified {}, energy {:.1e} off, mid deflection {:.1e} L off, fails {:?}, elastica k = {:.3}",
+                o.right, o.verified, o.energy_error, o.deflection_error, o.failures, o.modulus_k
+            );
         }
     }
     let share = |k: u64| 100.0 * k as f64 / cases.max(1) as f64;

@@ -338,7 +338,7 @@ impl WireProblem {
         let mut candidates = vec![self.continuation(settings)?];
         for tilt in [self.initial_tilt_rad, 0.3] {
             let sol = optimize::solve(&c, c.natural_start(tilt), settings)?;
-            candidates.push(c.shape(c.polished(sol, settings)));
+            candidates.push(c.settled(c.shape(c.polished(sol, settings)), settings)?);
         }
         let rank = |s: &WireShape| (!s.verified(), s.energy_j);
         let mut best = candidates
@@ -414,7 +414,7 @@ impl WireProblem {
             last = Some((c, sol));
         }
         let (c, sol) = last.expect("at least one step");
-        Ok(c.shape(sol))
+        c.settled(c.shape(sol), settings)
     }
 
     /// Solves again with harmonics and intervals doubled, from `shape`'s
@@ -427,7 +427,7 @@ impl WireProblem {
         let x0 = cf.embed(&cc, &shape.solution.x);
         let warm = Some((shape.solution.multipliers.as_slice(), shape.solution.rho));
         let sol = optimize::solve_warm(&cf, x0, warm, settings)?;
-        let f = cf.shape(cf.polished(sol, settings));
+        let f = cf.settled(cf.shape(cf.polished(sol, settings)), settings)?;
         let l = self.wire.length_m;
         if f.verified() {
             let scale = f
@@ -435,9 +435,19 @@ impl WireProblem {
                 .abs()
                 .max(1e-9 * self.wire.flexural_rigidity_n_m2 / l);
             shape.checks.discretisation_energy = Some((f.energy_j - shape.energy_j).abs() / scale);
-            // Points at the same arc length (the fine grid holds the coarse one).
+            // Points at the same arc length (the fine grid holds the coarse
+            // one), by their distances to the two ends: a rigid turn that
+            // leaves the problem unchanged (a planar shape turned about its
+            // clamps' axis, an exact zero mode) does not count as a change.
+            let ends = |x: &[V3], k: usize| {
+                let last = x.len() - 1;
+                ((x[k] - x[0]).norm(), (x[k] - x[last]).norm())
+            };
             let moved = (0..shape.s_m.len())
-                .map(|k| (f.x_m[2 * k] - shape.x_m[k]).norm() / l)
+                .map(|k| {
+                    let (a, b) = (ends(&f.x_m, 2 * k), ends(&shape.x_m, k));
+                    (a.0 - b.0).abs().max((a.1 - b.1).abs()) / l
+                })
                 .fold(0.0, f64::max);
             shape.checks.discretisation_position = Some(moved);
         } else {
@@ -709,6 +719,27 @@ impl Compiled {
             }
             None => sol,
         }
+    }
+
+    /// `shape` again, when it is not stationary: up to three more rounds
+    /// of the multiplier method from it with ρ started afresh, each
+    /// polished (the multiplier method stops on the violation alone, which
+    /// its first round may meet before BFGS is stationary).
+    fn settled(&self, mut shape: WireShape, settings: &Settings) -> Result<WireShape> {
+        for _ in 0..3 {
+            if shape.checks.kkt_residual <= shape.checks.kkt_tolerance {
+                break;
+            }
+            let s = &shape.solution;
+            let again = optimize::solve_warm(
+                self,
+                s.x.clone(),
+                Some((&s.multipliers, settings.rho0)),
+                settings,
+            )?;
+            shape = self.shape(self.polished(again, settings));
+        }
+        Ok(shape)
     }
 
     /// The checks of `sol` at this discretisation (the discretisation

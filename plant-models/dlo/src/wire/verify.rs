@@ -50,7 +50,8 @@ pub struct Checks {
     pub self_overlap: f64,
     pub self_overlap_tolerance: f64,
     /// Relative energy change to a discretisation twice as fine, and the
-    /// largest move of a point there (units of L); `None` when that solve
+    /// largest change of a point's distance to either end there (units of
+    /// L; blind to the rigid turns that leave the problem unchanged); `None` when that solve
     /// was not made (a sequence step) or failed its own checks
     /// (`fine_solve_failed`).
     pub discretisation_energy: Option<f64>,
@@ -65,20 +66,21 @@ impl Checks {
     /// The names of the checks that fail; empty when the answer is verified.
     pub fn failures(&self) -> Vec<&'static str> {
         let mut f = Vec::new();
-        // NaN fails every comparison below on purpose.
-        if !(self.violation <= self.violation_tolerance) {
+        // A NaN fails: `within` is true only for ordered, small values.
+        let within = |v: f64, tol: f64| v.partial_cmp(&tol).is_some_and(|o| o.is_le());
+        if !within(self.violation, self.violation_tolerance) {
             f.push("constraints");
         }
-        if !(self.kkt_residual <= self.kkt_tolerance) {
+        if !within(self.kkt_residual, self.kkt_tolerance) {
             f.push("stationarity (KKT)");
         }
-        if !(self.min_curvature >= -self.stability_tolerance) {
+        if !within(-self.min_curvature, self.stability_tolerance) {
             f.push("stability (saddle)");
         }
-        if !(self.self_overlap <= self.self_overlap_tolerance) {
+        if !within(self.self_overlap, self.self_overlap_tolerance) {
             f.push("self-contact");
         }
-        let fine = |v: Option<f64>| v.is_none_or(|v| v <= self.discretisation_tolerance);
+        let fine = |v: Option<f64>| v.is_none_or(|v| within(v, self.discretisation_tolerance));
         if self.fine_solve_failed
             || !fine(self.discretisation_energy)
             || !fine(self.discretisation_position)

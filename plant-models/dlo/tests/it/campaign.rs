@@ -33,6 +33,8 @@ pub struct Outcome {
     pub energy_error: f64,
     pub deflection_error: f64,
     pub failures: Vec<&'static str>,
+    /// The elastica's modulus k = sin(θ_max/2) (NaN when the solve failed).
+    pub modulus_k: f64,
 }
 
 /// splitmix64: the campaign's own random stream (no dependency).
@@ -106,6 +108,7 @@ self_contact = {}
                         "refused"
                     },
                 ],
+                modulus_k: f64::NAN,
             }
         }
     };
@@ -119,6 +122,7 @@ self_contact = {}
         energy_error,
         deflection_error,
         failures: shape.checks.failures(),
+        modulus_k: reference.k,
     }
 }
 
@@ -137,10 +141,11 @@ fn random_clamped_wires_short_form() {
         );
         assert!(
             o.right && o.verified,
-            "case {i} not solved: energy {:.1e} off, mid deflection {:.1e} L off, fails {:?}",
+            "case {i} not solved: energy {:.1e} off, mid deflection {:.1e} L off, fails {:?} (k = {:.3})",
             o.energy_error,
             o.deflection_error,
-            o.failures
+            o.failures,
+            o.modulus_k
         );
     }
 }
