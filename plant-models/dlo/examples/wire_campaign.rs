@@ -27,6 +27,9 @@ fn main() -> ExitCode {
     };
     let (mut solved, mut wrong_converged, mut unverified) = (0u64, 0u64, 0u64);
     for i in 0..cases {
+        if i % 10 == 0 {
+            eprintln!("{i} of {cases} cases: {solved} solved, {wrong_converged} wrong and called converged");
+        }
         let c = campaign::case(seed, i);
         let o = campaign::run(&c);
         if o.right && o.verified {
