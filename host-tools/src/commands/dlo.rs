@@ -378,18 +378,74 @@ fn solve_cmd(a: SolveArgs) -> Result<()> {
         print_solve_report(&summary)?;
         outln!("wrote {} and {}", csv_path.display(), svg_path.display());
     }
-    Ok(())
+    match unverified(&solution) {
+        None => Ok(()),
+        Some(why) => anyhow::bail!(
+            "{src}: UNVERIFIED: {why}; the files were written for inspection (see \"checks\" in --json)"
+        ),
+    }
+}
+
+/// Why a solution is not verified (the failing checks of each shape), or
+/// none when every shape passed all its checks.
+fn unverified(solution: &StaticSolution) -> Option<String> {
+    let why = |name: String, f: Vec<&'static str>| {
+        (!f.is_empty()).then(|| format!("{name} fails {}", f.join(", ")))
+    };
+    let list: Vec<String> = match solution {
+        StaticSolution::Wire { shape, .. } => why("the wire".into(), shape.checks.failures())
+            .into_iter()
+            .collect(),
+        StaticSolution::Belt { shape, .. } => why(
+            "the belt".into(),
+            if shape.solution.converged {
+                Vec::new()
+            } else {
+                vec!["constraints"]
+            },
+        )
+        .into_iter()
+        .collect(),
+        StaticSolution::Sequence { steps, .. } => steps
+            .iter()
+            .flat_map(|st| {
+                [
+                    why(
+                        format!("{:.2} L knot-free", st.l_fraction),
+                        st.free.checks.failures(),
+                    ),
+                    why(
+                        format!("{:.2} L one-knot", st.l_fraction),
+                        st.knot.checks.failures(),
+                    ),
+                ]
+            })
+            .flatten()
+            .collect(),
+    };
+    (!list.is_empty()).then(|| list.join("; "))
 }
 
 /// shape.csv and shape.svg of a solution.
 fn solution_files(solution: &StaticSolution) -> (String, String) {
     match solution {
         StaticSolution::Wire { shape, radius_m } => {
-            let panels = three_views("wire", &shape.x_m, *radius_m, None);
-            (
-                wire_csv(&[("wire", None, shape)]),
-                plot::panel_grid(&panels, 3, 320.0, (0.1, "0.1 m"), false).finish(),
-            )
+            let failures = shape.checks.failures();
+            let note = (!failures.is_empty()).then(|| "UNVERIFIED".to_string());
+            let panels = three_views("wire", &shape.x_m, *radius_m, note);
+            let mut svg = plot::panel_grid(&panels, 3, 320.0, (0.1, "0.1 m"), false);
+            if !failures.is_empty() {
+                // Bottom right, beside the scale bar: why it is unverified.
+                svg.text_styled(
+                    3.0 * 320.0 - 10.0,
+                    320.0 + 22.0 + 18.0 + 24.0 - 8.0,
+                    14.0,
+                    plot::Anchor::End,
+                    r##"fill="#d62728" font-weight="bold""##,
+                    &format!("UNVERIFIED: fails {}", failures.join(", ")),
+                );
+            }
+            (wire_csv(&[("wire", None, shape)]), svg.finish())
         }
         StaticSolution::Belt { shape, .. } => (belt_csv(shape), belt_views(shape).finish()),
         StaticSolution::Sequence { steps, radius_m } => {
@@ -419,7 +475,10 @@ fn solve_json(solution: &StaticSolution) -> Result<JsonObject> {
             .field("extensional_j", &shape.extensional_j)?
             .field("gravitational_j", &shape.gravitational_j)?
             .field("max_violation", &shape.max_violation)?
-            .field("converged", &shape.solution.converged)?
+            .field("converged", &shape.verified())?
+            .field("status", status(shape.verified()))?
+            .field("failed_checks", &shape.checks.failures())?
+            .field("checks", &shape.checks)?
             .field("crossings_m", &shape.crossings_m)?
             .field("min_self_distance_m", &shape.min_self_distance_m),
         StaticSolution::Belt { shape, method } => belt_json(shape, *method),
@@ -464,7 +523,20 @@ fn sequence_step_json(st: &SequenceStep) -> Result<JsonObject> {
         .field("one_knot_j", &st.knot.energy_j)?
         .field("one_knot_torsional_j", &st.knot.torsional_j)?
         .field("lower", st.lower())?
-        .field("converged", &st.converged())
+        .field("converged", &st.converged())?
+        .field("status", status(st.converged()))?
+        .field("knot_free_failed_checks", &st.free.checks.failures())?
+        .field("one_knot_failed_checks", &st.knot.checks.failures())
+}
+
+/// The `status` field: "verified" when every check holds, else
+/// "UNVERIFIED" (and the command exits 1).
+fn status(verified: bool) -> &'static str {
+    if verified {
+        "verified"
+    } else {
+        "UNVERIFIED"
+    }
 }
 
 /// The text report of a solve: the sequence as a table, any other model
@@ -474,18 +546,25 @@ fn print_solve_report(summary: &JsonObject) -> Result<()> {
     let summary = serde_json::to_value(summary)?;
     match summary["model"].as_str() {
         Some("sequence") => {
-            outln!("end distance   knot-free (J)   one-knot (J)   lower");
+            outln!("end distance   knot-free (J)   one-knot (J)   lower       status");
             for st in summary["steps"].as_array().into_iter().flatten() {
                 outln!(
-                    "{:>10.2} L   {:>12.4e}   {:>12.4e}   {}",
+                    "{:>10.2} L   {:>12.4e}   {:>12.4e}   {:<10}  {}",
                     st["l_fraction"].as_f64().unwrap_or(f64::NAN),
                     st["knot_free_j"].as_f64().unwrap_or(f64::NAN),
                     st["one_knot_j"].as_f64().unwrap_or(f64::NAN),
-                    st["lower"].as_str().unwrap_or("?")
+                    st["lower"].as_str().unwrap_or("?"),
+                    st["status"].as_str().unwrap_or("?")
                 );
             }
         }
         _ => {
+            if summary["status"].as_str() == Some("UNVERIFIED") {
+                outln!(
+                    "UNVERIFIED: the answer fails {} (it is not converged)",
+                    summary["failed_checks"]
+                );
+            }
             for (k, v) in summary.as_object().into_iter().flatten() {
                 outln!("{k:>26}: {v}");
             }
@@ -650,9 +729,10 @@ fn sequence_views(steps: &[SequenceStep], radius_m: f64) -> plot::Svg {
                 ),
                 ("∥x", ("y (m)", "z (m)"), |p: &V3| (p.y, p.z, p.x)),
             ] {
+                let mark = if sh.verified() { "" } else { " UNVERIFIED" };
                 panels.push(ViewPanel {
                     title: format!(
-                        "{:.1}L {name} {view} {:.2e} J{lower}",
+                        "{:.2}L {name} {view} {:.2e} J{lower}{mark}",
                         st.l_fraction, sh.energy_j
                     ),
                     axes: (axes.0.into(), axes.1.into()),

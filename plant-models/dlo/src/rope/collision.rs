@@ -15,6 +15,19 @@
 //! chatter.
 use super::forces::V3;
 
+/// The smallest index distance j − i at which two segments of rest length
+/// `rest_length_m` can be apart in space on a straight rope: (j − i − 1)
+/// segments lie between them, so they are tested for contact only when
+/// (j − i − 1)·l_r ≥ 2r. The paper excludes the immediate neighbours
+/// (L1333), which is this rule when l_r ≥ 2r (Table I: l_r = 0.102 m at
+/// N = 50, 2r = 0.1 m). With shorter segments (N > 51 at Table I's l and
+/// r) segment i and i + 2 overlap on a straight rope; testing them would
+/// push every rope apart on every step (issue 29: N = 60 hung 31 % low).
+pub fn contact_index_gap(rest_length_m: f64, radius_m: f64) -> usize {
+    let between = (2.0 * radius_m / rest_length_m - 1e-9).ceil().max(1.0);
+    1 + between as usize
+}
+
 /// A bounding sphere.
 #[derive(Debug, Clone, Copy)]
 struct Sphere {
@@ -116,10 +129,17 @@ impl Bvh {
         }
     }
 
-    /// Every pair of non-neighbouring segments whose centre lines are
+    /// Every pair of segments at least `index_gap` apart along the chain
+    /// (j ≥ i + index_gap; see [`contact_index_gap`]) whose centre lines are
     /// closer than `2·radius_m`, found by exploring two copies of the tree
     /// from the top down (L1330). Appends to `out`.
-    pub fn self_contacts(&mut self, x: &[V3], radius_m: f64, out: &mut Vec<Contact>) {
+    pub fn self_contacts(
+        &mut self,
+        x: &[V3],
+        radius_m: f64,
+        index_gap: usize,
+        out: &mut Vec<Contact>,
+    ) {
         let Some(&root) = self.level.first() else {
             return;
         };
@@ -140,9 +160,10 @@ impl Bvh {
             match (na.children, nb.children) {
                 (None, None) => {
                     let (i, j) = (na.segment.min(nb.segment), na.segment.max(nb.segment));
-                    // No segment collides with itself or its immediate
-                    // neighbours along the chain (L1333).
-                    if j <= i + 1 {
+                    // No segment collides with itself, its immediate
+                    // neighbours (L1333), or segments within reach along
+                    // the chain (`contact_index_gap`).
+                    if j < i + index_gap.max(2) {
                         continue;
                     }
                     let (a, b, ca, cb) = closest_points(x[i], x[i + 1], x[j], x[j + 1]);
@@ -304,7 +325,7 @@ mod tests {
         let mut bvh = Bvh::default();
         bvh.build(&x, r);
         let mut got = Vec::new();
-        bvh.self_contacts(&x, r, &mut got);
+        bvh.self_contacts(&x, r, 2, &mut got);
         let mut got: Vec<(usize, usize)> = got.iter().map(|c| (c.seg_a, c.seg_b)).collect();
         got.sort_unstable();
         let mut want = Vec::new();

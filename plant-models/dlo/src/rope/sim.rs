@@ -392,9 +392,10 @@ impl Rope {
     fn collide(&mut self) {
         let p = self.params.clone();
         let (r, dt, m) = (p.radius_m, p.dt_s, p.node_mass_kg);
+        let gap = super::collision::contact_index_gap(p.rest_length_m(), r);
         self.contacts.clear();
         self.bvh.build(&self.x, r);
-        self.bvh.self_contacts(&self.x, r, &mut self.contacts);
+        self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
         self.stats.contacts = self.contacts.len();
         for c in &self.contacts {
             let pts = ContactPoints::new(c, &self.inv_mass);
@@ -427,7 +428,7 @@ impl Rope {
             if pass > 0 {
                 self.contacts.clear();
                 self.bvh.build(&self.x, r);
-                self.bvh.self_contacts(&self.x, r, &mut self.contacts);
+                self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
             }
             if self.contacts.is_empty() {
                 break;
@@ -464,7 +465,7 @@ impl Rope {
         // The deepest overlap left.
         self.contacts.clear();
         self.bvh.build(&self.x, r);
-        self.bvh.self_contacts(&self.x, r, &mut self.contacts);
+        self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
         self.stats.max_penetration_m = self
             .contacts
             .iter()

@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use super::basis::{self, Basis};
 use super::frame::rotation_and_partials;
 use super::optimize::{self, Kind, Problem, Settings, Solution};
+use super::verify::{self, Checks, Penalised};
 use crate::error::{check_non_negative, check_positive, check_range, DloError, Result};
 
 type V3 = Vector3<f64>;
@@ -167,6 +168,16 @@ pub struct WireShape {
     /// (Eq. 15 holds when this is ≥ 2r), m.
     pub min_self_distance_m: f64,
     pub solution: Solution,
+    /// The answer's own evidence (issue 29): constraints, stationarity,
+    /// stability, self-contact, discretisation; see [`Checks`].
+    pub checks: Checks,
+}
+
+impl WireShape {
+    /// Whether every check holds: only then is the answer converged.
+    pub fn verified(&self) -> bool {
+        self.checks.verified()
+    }
 }
 
 /// Per-grid state of one evaluation.
@@ -301,12 +312,148 @@ impl WireProblem {
     }
 
     /// Solves from the natural (straight) state, nudged by `start` (added
-    /// coefficients; see [`Compiled::natural_start`]).
+    /// coefficients; see [`Compiled::natural_start`]): one start, no
+    /// continuation, no discretisation estimate; the shape carries the
+    /// checks that can be made at this discretisation.
     pub fn solve(&self, settings: &Settings, start: Option<Vec<f64>>) -> Result<WireShape> {
         let c = self.compile()?;
         let x0 = start.unwrap_or_else(|| c.natural_start(self.initial_tilt_rad));
-        let sol = optimize::solve(&c, x0, settings)?;
+        let sol = c.polished(optimize::solve(&c, x0, settings)?, settings);
         Ok(c.shape(sol))
+    }
+
+    /// The robust solve (issue 29): every start is polished and checked,
+    /// and the lowest-energy answer that passes its checks is kept.
+    ///
+    /// Starts: continuation from the natural state (straight, untwisted,
+    /// tilted by `initial_tilt_rad`), whose position and orientation targets
+    /// are moved to the asked ones in steps of at most 0.05 L and 0.2 rad,
+    /// each solve starting from the last with its multipliers (the paper
+    /// moves the end likewise, L811); and the direct solve from the natural
+    /// state, tilted by `initial_tilt_rad` and by 0.3 rad. The kept answer is then solved again on a
+    /// discretisation twice as fine (harmonics and intervals doubled, up to
+    /// 12 and 2000), started from it, for the discretisation check.
+    pub fn solve_verified(&self, settings: &Settings) -> Result<WireShape> {
+        let c = self.compile()?;
+        let mut candidates = vec![self.continuation(settings)?];
+        for tilt in [self.initial_tilt_rad, 0.3] {
+            let sol = optimize::solve(&c, c.natural_start(tilt), settings)?;
+            candidates.push(c.settled(c.shape(c.polished(sol, settings)), settings)?);
+        }
+        let rank = |s: &WireShape| (!s.verified(), s.energy_j);
+        let mut best = candidates
+            .into_iter()
+            .min_by(|a, b| {
+                let (ra, rb) = (rank(a), rank(b));
+                ra.0.cmp(&rb.0).then(ra.1.total_cmp(&rb.1))
+            })
+            .expect("three starts were solved");
+        self.estimate_discretisation(&mut best, settings)?;
+        Ok(best)
+    }
+
+    /// The continuation start of [`Self::solve_verified`].
+    fn continuation(&self, settings: &Settings) -> Result<WireShape> {
+        let l = self.wire.length_m;
+        let mut steps = 1.0f64;
+        for k in &self.constraints {
+            match k {
+                Constraint::Position { s_a_m, s_b_m, l_m } => {
+                    let natural = [0.0, 0.0, s_b_m - s_a_m];
+                    for d in 0..3 {
+                        steps = steps.max((l_m[d] - natural[d]).abs() / (0.05 * l));
+                    }
+                }
+                Constraint::Orientation { euler_rad, .. } => {
+                    for v in euler_rad {
+                        steps = steps.max(v.abs() / 0.2);
+                    }
+                }
+                _ => {}
+            }
+        }
+        let steps = (steps.ceil() as usize).min(200);
+        let mut prev: Option<Solution> = None;
+        let mut last = None;
+        for k in 1..=steps {
+            let t = k as f64 / steps as f64;
+            let mut p = self.clone();
+            for k in &mut p.constraints {
+                match k {
+                    Constraint::Position { s_a_m, s_b_m, l_m } => {
+                        let natural = [0.0, 0.0, *s_b_m - *s_a_m];
+                        for d in 0..3 {
+                            l_m[d] = natural[d] + t * (l_m[d] - natural[d]);
+                        }
+                    }
+                    Constraint::Orientation { euler_rad, .. } => {
+                        euler_rad.iter_mut().for_each(|v| *v *= t);
+                    }
+                    _ => {}
+                }
+            }
+            let c = p.compile()?;
+            let sol = match prev.take() {
+                // The multipliers carry the reactions from step to step;
+                // ρ starts afresh (a ρ grown to 1e9 on an earlier step
+                // leaves BFGS too ill-conditioned to reach stationarity).
+                Some(s) => optimize::solve_warm(
+                    &c,
+                    s.x.clone(),
+                    Some((&s.multipliers, settings.rho0)),
+                    settings,
+                )?,
+                None => optimize::solve(&c, c.natural_start(self.initial_tilt_rad), settings)?,
+            };
+            let sol = if k == steps {
+                c.polished(sol, settings)
+            } else {
+                sol
+            };
+            prev = Some(sol.clone());
+            last = Some((c, sol));
+        }
+        let (c, sol) = last.expect("at least one step");
+        c.settled(c.shape(sol), settings)
+    }
+
+    /// Solves again with harmonics and intervals doubled, from `shape`'s
+    /// coefficients, and records the change in `shape.checks`.
+    fn estimate_discretisation(&self, shape: &mut WireShape, settings: &Settings) -> Result<()> {
+        let mut fine = self.clone();
+        fine.harmonics = (2 * self.harmonics).clamp(1, 12);
+        fine.intervals = (2 * self.intervals).min(2000);
+        let (cc, cf) = (self.compile()?, fine.compile()?);
+        let x0 = cf.embed(&cc, &shape.solution.x);
+        let warm = Some((shape.solution.multipliers.as_slice(), shape.solution.rho));
+        let sol = optimize::solve_warm(&cf, x0, warm, settings)?;
+        let f = cf.settled(cf.shape(cf.polished(sol, settings)), settings)?;
+        let l = self.wire.length_m;
+        if f.verified() {
+            let scale = f
+                .energy_j
+                .abs()
+                .max(1e-9 * self.wire.flexural_rigidity_n_m2 / l);
+            shape.checks.discretisation_energy = Some((f.energy_j - shape.energy_j).abs() / scale);
+            // Points at the same arc length (the fine grid holds the coarse
+            // one), by their distances to the two ends: a rigid turn that
+            // leaves the problem unchanged (a planar shape turned about its
+            // clamps' axis, an exact zero mode) does not count as a change.
+            let ends = |x: &[V3], k: usize| {
+                let last = x.len() - 1;
+                ((x[k] - x[0]).norm(), (x[k] - x[last]).norm())
+            };
+            let moved = (0..shape.s_m.len())
+                .map(|k| {
+                    let (a, b) = (ends(&f.x_m, 2 * k), ends(&shape.x_m, k));
+                    (a.0 - b.0).abs().max((a.1 - b.1).abs()) / l
+                })
+                .fold(0.0, f64::max);
+            shape.checks.discretisation_position = Some(moved);
+        } else {
+            shape.checks.fine_solve_failed = true;
+        }
+        Ok(())
     }
 }
 
@@ -545,10 +692,99 @@ impl Compiled {
             crossings_m,
             max_violation: sol.max_violation * l,
             min_self_distance_m: min_d,
+            checks: self.checks(&sol, min_d, Settings::default().tolerance),
             s_m,
             x_m,
             solution: sol,
         }
+    }
+
+    /// `sol` after a Newton polish of its KKT conditions (with the
+    /// self-contact penalty at the solve's last weight), when the polish
+    /// reaches a KKT point no higher in energy; else `sol` itself.
+    pub fn polished(&self, sol: Solution, settings: &Settings) -> Solution {
+        let p = Penalised {
+            problem: self,
+            weight: sol.rho,
+        };
+        // The polish compares energies with the penalty included.
+        let mut base = sol.clone();
+        base.energy += sol.rho * sol.penalty;
+        match optimize::polish(&p, &base, settings.tolerance) {
+            Some(mut s) => {
+                let mut g = vec![0.0; s.x.len()];
+                s.energy = self.energy(&s.x, &mut g);
+                s.penalty = self.penalty(&s.x, 1.0, &mut g);
+                s
+            }
+            None => sol,
+        }
+    }
+
+    /// `shape` again, when it is not stationary: up to three more rounds
+    /// of the multiplier method from it with ρ started afresh, each
+    /// polished (the multiplier method stops on the violation alone, which
+    /// its first round may meet before BFGS is stationary).
+    fn settled(&self, mut shape: WireShape, settings: &Settings) -> Result<WireShape> {
+        for _ in 0..3 {
+            if shape.checks.kkt_residual <= shape.checks.kkt_tolerance {
+                break;
+            }
+            let s = &shape.solution;
+            let again = optimize::solve_warm(
+                self,
+                s.x.clone(),
+                Some((&s.multipliers, settings.rho0)),
+                settings,
+            )?;
+            shape = self.shape(self.polished(again, settings));
+        }
+        Ok(shape)
+    }
+
+    /// The checks of `sol` at this discretisation (the discretisation
+    /// check is left to [`WireProblem::solve_verified`]).
+    fn checks(&self, sol: &Solution, min_self_distance_m: f64, tolerance: f64) -> Checks {
+        let p = Penalised {
+            problem: self,
+            weight: sol.rho,
+        };
+        let (kkt, curvature) = verify::first_and_second_order(&p, sol, tolerance);
+        let reach = 2.0 * self.p.wire.radius_m;
+        let overlap = if self.p.self_contact && reach > 0.0 {
+            ((reach - min_self_distance_m) / reach).max(0.0)
+        } else {
+            0.0
+        };
+        Checks {
+            violation: sol.max_violation,
+            violation_tolerance: tolerance,
+            kkt_residual: kkt,
+            kkt_tolerance: verify::KKT_TOLERANCE,
+            min_curvature: curvature,
+            stability_tolerance: verify::STABILITY_TOLERANCE,
+            self_overlap: overlap,
+            self_overlap_tolerance: verify::SELF_CONTACT_TOLERANCE,
+            discretisation_energy: None,
+            discretisation_position: None,
+            discretisation_tolerance: verify::DISCRETISATION_TOLERANCE,
+            fine_solve_failed: false,
+        }
+    }
+
+    /// Coefficients of `coarse` (a compiled problem with fewer harmonics)
+    /// as a start of this one: the shared basis functions keep their
+    /// coefficients, the added harmonics start at 0.
+    fn embed(&self, coarse: &Compiled, x: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.vars()];
+        let blocks = if self.extensible { 4 } else { 3 };
+        for b in 0..blocks.min(if coarse.extensible { 4 } else { 3 }) {
+            out[b * self.n..b * self.n + coarse.n]
+                .copy_from_slice(&x[b * coarse.n..(b + 1) * coarse.n]);
+        }
+        let (o, oc) = (self.cross_offset(), coarse.cross_offset());
+        out[o..].copy_from_slice(&x[oc..oc + 2 * self.crossings]);
+        out
     }
 
     /// Grid points used for the self-contact penalty.
@@ -800,9 +1036,10 @@ impl SequenceStep {
         }
     }
 
-    /// Whether both solves converged.
+    /// Whether both shapes pass their checks (the discretisation check is
+    /// not made for a sequence step).
     pub fn converged(&self) -> bool {
-        self.free.solution.converged && self.knot.solution.converged
+        self.free.verified() && self.knot.verified()
     }
 }
 
@@ -888,7 +1125,7 @@ pub fn end_distance_sequence(
             };
             start = Some(sol.clone());
             if (l - target).abs() < 1e-12 {
-                free.push(c.shape(sol));
+                free.push(c.shape(c.polished(sol, settings)));
                 break;
             }
         }
@@ -931,7 +1168,7 @@ pub fn end_distance_sequence(
             }
         };
         start = Some(sol.clone());
-        knots.push(c.shape(sol));
+        knots.push(c.shape(c.polished(sol, settings)));
     }
     knots.reverse();
     Ok(targets

@@ -19,5 +19,6 @@ pub mod linear;
 pub mod optimize;
 pub mod problem;
 pub mod strip;
+pub mod verify;
 
 pub use linear::{Constraint, WireParams, WireProblem, WireShape};

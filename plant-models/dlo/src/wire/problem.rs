@@ -64,7 +64,7 @@ impl StaticProblem {
     pub fn solve(&self) -> Result<StaticSolution> {
         Ok(match self {
             StaticProblem::Wire { problem } => StaticSolution::Wire {
-                shape: problem.solve(&Settings::default(), None)?,
+                shape: problem.solve_verified(&Settings::default())?,
                 radius_m: problem.wire.radius_m,
             },
             StaticProblem::Belt { problem } => StaticSolution::Belt {

@@ -1,0 +1,6 @@
+//! The integration tests of `plant-dlo`, one binary (each file under tests/
+//! would otherwise be a binary of its own to link).
+mod campaign;
+mod elastica;
+mod elastica_ref;
+mod rope;
