@@ -8,7 +8,8 @@
 //! it, a random nonce for this start of the process) and the echo of the
 //! peer's last hello (its serial and how long it was held), from which
 //! each side measures the round trip. A hello of another configuration is
-//! refused, naming each field that differs. When both sites are fresh,
+//! refused, naming each field that differs, and a fresh site answers it
+//! with its own hello (so a peer that started later learns why too). When both sites are fresh,
 //! site 0 — once it has heard site 1 and has [`RTT_SAMPLES`] round trips —
 //! starts a new session: it sends `go` with its session clock, negative by
 //! half the smallest round trip, and starts tick 0 that much later; site 1
@@ -298,7 +299,20 @@ impl Control {
 
     fn on_hello(&mut self, now_us: u64, h: &Hello) -> (Vec<Event>, Vec<[u8; 64]>) {
         if let Some(why) = self.describe(h) {
-            return (vec![Event::Refused(why)], Vec::new());
+            // Answer a fresh site's refusal with our own hello, so that a
+            // peer which started later (and missed our earlier hellos)
+            // hears our configuration and names the mismatch itself before
+            // we go away.
+            let answer = match self.phase {
+                Phase::Fresh | Phase::Joining(_) => vec![self.hello(
+                    now_us,
+                    Stage::Hello {
+                        committed_tick: None,
+                    },
+                )],
+                _ => Vec::new(),
+            };
+            return (vec![Event::Refused(why)], answer);
         }
         let known = self.peer_nonce == Some(h.nonce);
         match (&self.phase, h.stage) {
@@ -557,4 +571,44 @@ pub fn state_packets(site: u8, state: &State, clock_us: i64) -> Vec<[u8; 64]> {
         .encode(),
     );
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::session::packet::TICK_US;
+
+    fn fields(level: u16) -> SessionFields {
+        SessionFields {
+            level,
+            tick_us: TICK_US,
+            side_m: 0.05,
+            stiffness_modulus_pa: 1.0e4,
+            damping_modulus_pa_s: 10.0,
+            density_kg_m3: 1000.0,
+        }
+    }
+
+    /// Site 1 starts after site 0's hellos went unheard: its first hello
+    /// reaches site 0, which refuses it and answers with its own, so site 1
+    /// names the mismatch too instead of waiting for a hello that never
+    /// comes.
+    #[test]
+    fn a_refused_hello_is_answered_so_both_sides_name_the_mismatch() {
+        let mut site0 = Control::new(0, fields(3), 11);
+        let mut site1 = Control::new(1, fields(4), 22);
+        let hello1 = site1.poll(0);
+        assert_eq!(hello1.len(), 1);
+        let (events, answer) = site0.on_packet(50, &Packet::decode(&hello1[0]).unwrap());
+        match events.as_slice() {
+            [Event::Refused(why)] => assert!(why.contains("level: ours 3, the peer's 4"), "{why}"),
+            other => panic!("site 0 did not refuse: {other:?}"),
+        }
+        assert_eq!(answer.len(), 1, "site 0 must answer the refused hello");
+        let (events, _) = site1.on_packet(100, &Packet::decode(&answer[0]).unwrap());
+        match events.as_slice() {
+            [Event::Refused(why)] => assert!(why.contains("level: ours 4, the peer's 3"), "{why}"),
+            other => panic!("site 1 did not refuse: {other:?}"),
+        }
+    }
 }
