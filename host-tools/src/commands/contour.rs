@@ -9,8 +9,8 @@
 //! * `synth` — write the paper's test cases: the red-blood-cell surface of
 //!   Eq. 38 sampled with noise, and a pulsating, translating contour movie.
 //!
-//! The splines live in `plant_contour`; this is argument handling,
-//! files and pictures.
+//! The splines, the fits and the test cases live in `plant_contour`; this
+//! is argument handling, files and pictures.
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -20,15 +20,16 @@ use clap::{Args, Subcommand, ValueEnum};
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Chart, Panel, Series, Shape, ShapeStyle};
 use host_tools::{out, outln};
-use plant_common::rng;
 use plant_contour::fit::Solver;
-use plant_contour::identify::data::{read_contour_csv, ContourData, FrameData};
-use plant_contour::identify::gcv::{Lambda, LambdaReport};
-use plant_contour::identify::movie::{PulsatingContour, TRUTH_POINTS};
-use plant_contour::identify::paper::{self, rbc_surface, DOMAIN};
-use plant_contour::identify::tracked::{
-    fit_closed_curve, fit_movie, fit_signature, ContourOptions, MovieOptions, Point, Signature,
+use plant_contour::identify::contours::{
+    fit_contours, ContourFitReport, ContourFitSpec, ContourModel, FittedFrame, FittedSplines,
+    FrameResult, LambdaSummary,
 };
+use plant_contour::identify::data::read_contour_csv;
+use plant_contour::identify::gcv::{Lambda, LambdaReport};
+use plant_contour::identify::paper;
+use plant_contour::identify::synth::{movie_case, rbc_case, MovieCase, RbcFrame};
+use plant_contour::identify::tracked::Point;
 use serde::Serialize;
 
 /// Arguments of `softjoint contour`.
@@ -48,8 +49,7 @@ enum ContourCommand {
     Synth(SynthArgs),
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum ModelArg {
     /// Per frame, the radius about the centroid as a periodic spline of
     /// the angle (the paper's signature; the contour must be star-shaped).
@@ -175,29 +175,30 @@ fn write(path: &Path, text: &str) -> Result<()> {
     }
 }
 
-/// Per-frame results.
-#[derive(Serialize)]
-struct FrameResult {
-    frame: f64,
-    points: usize,
-    area: f64,
-    centre_x: f64,
-    centre_y: f64,
-    /// Eq. 41 (signature and surface models), in the spline's parameter
-    /// units.
-    smoothness: Option<f64>,
-    /// Length of the fitted contour (curve model).
-    perimeter: Option<f64>,
-    lambda: Option<f64>,
-    gcv: Option<f64>,
-    trace_hat: Option<f64>,
-    rms_residual: Option<f64>,
+impl From<ModelArg> for ContourModel {
+    fn from(m: ModelArg) -> Self {
+        match m {
+            ModelArg::Signature => ContourModel::Signature,
+            ModelArg::Curve => ContourModel::Curve,
+            ModelArg::Surface => ContourModel::Surface,
+        }
+    }
 }
 
+impl From<SolverArg> for Solver {
+    fn from(s: SolverArg) -> Self {
+        match s {
+            SolverArg::Reduced => Solver::Reduced,
+            SolverArg::Kkt => Solver::Kkt,
+        }
+    }
+}
+
+/// What `fit` prints with `--json` and writes as fit.json.
 #[derive(Serialize)]
-struct FitSummary {
+struct FitSummary<'a> {
     input: String,
-    model: ModelArg,
+    model: ContourModel,
     solver: &'static str,
     knots: usize,
     time_knots: Option<usize>,
@@ -208,56 +209,9 @@ struct FitSummary {
     centre_lambda: Option<LambdaSummary>,
     /// RMS radius residual of the surface (surface model).
     surface_rms_residual: Option<f64>,
-    per_frame: Vec<FrameResult>,
+    per_frame: Vec<&'a FrameResult>,
     out: String,
     files: Vec<&'static str>,
-}
-
-#[derive(Serialize)]
-struct LambdaSummary {
-    lambda: f64,
-    by_gcv: bool,
-    at_scan_edge: bool,
-    gcv: f64,
-    trace_hat: f64,
-}
-
-impl From<&LambdaReport> for LambdaSummary {
-    fn from(r: &LambdaReport) -> Self {
-        Self {
-            lambda: r.lambda,
-            by_gcv: r.by_gcv,
-            at_scan_edge: r.at_scan_edge,
-            gcv: r.gcv,
-            trace_hat: r.trace_hat,
-        }
-    }
-}
-
-/// A fitted frame ready for output.
-struct FittedFrame {
-    frame: f64,
-    data: Vec<Point>,
-    fit: Vec<Point>,
-    /// Fitted radius per output point (signature-based models).
-    radius: Option<Vec<f64>>,
-    angle: Option<Vec<f64>>,
-    result: FrameResult,
-}
-
-/// Most whole frames the surface model is written at.
-const MAX_MODEL_FRAMES: usize = 5000;
-
-fn default_knots(data: &ContourData, cap: usize) -> usize {
-    let min_points = data.frames.iter().map(|f| f.1.len()).min().unwrap_or(4);
-    min_points.clamp(4, cap)
-}
-
-fn signature_of(location: &str, f: &FrameData) -> Result<Signature> {
-    Ok(match f {
-        FrameData::Signature(s) => s.clone(),
-        FrameData::Points(p) => Signature::from_points(location, p)?,
-    })
 }
 
 fn fit_cmd(a: FitArgs) -> Result<()> {
@@ -269,221 +223,35 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
         fs::read_to_string(&a.input).with_context(|| format!("reading {}", a.input.display()))?;
     let file = a.input.display().to_string();
     let data = read_contour_csv(&text, &file)?;
-    let model = a.model.unwrap_or(if data.frames.len() > 1 {
-        ModelArg::Surface
-    } else {
-        match data.frames[0].1 {
-            FrameData::Signature(_) => ModelArg::Signature,
-            FrameData::Points(_) => ModelArg::Curve,
-        }
-    });
-    let solver = match a.solver {
-        SolverArg::Reduced => Solver::Reduced,
-        SolverArg::Kkt => Solver::Kkt,
-    };
-    let knots = a
-        .knots
-        .unwrap_or_else(|| default_knots(&data, if model == ModelArg::Surface { 40 } else { 100 }));
-    let opts = ContourOptions {
-        knots,
+    if a.model == Some(ModelArg::Surface) && data.frames.len() < 2 {
+        bail!("{file}: --model surface needs at least two frames (column `frame`), found one");
+    }
+    let solver = Solver::from(a.solver);
+    let spec = ContourFitSpec {
+        model: a.model.map(ContourModel::from),
+        knots: a.knots,
+        time_knots: a.time_knots,
         lambda,
         solver,
+        samples: a.samples,
     };
-    let n = a.samples;
-    let mut frames = Vec::new();
-    let mut surface = None;
-    // The fitted splines themselves (axes and coefficients), per frame or
-    // the surface, for spline.json.
-    let mut splines: Vec<JsonObject> = Vec::new();
-    let mut time_knots = None;
-    match model {
-        ModelArg::Signature => {
-            for (frame, f) in &data.frames {
-                let loc = format!("{file}: frame {frame}");
-                let sig = signature_of(&loc, f)?;
-                let fit = fit_signature(&loc, &sig, &opts)?;
-                splines.push(
-                    JsonObject::new()
-                        .field("frame", frame)?
-                        .field("signature", &fit)?,
-                );
-                let angle: Vec<f64> = (0..n)
-                    .map(|k| std::f64::consts::TAU * k as f64 / n as f64)
-                    .collect();
-                let radius: Vec<f64> = angle.iter().map(|&t| fit.radius_at(t)).collect();
-                frames.push(FittedFrame {
-                    frame: *frame,
-                    data: sig.points(),
-                    fit: fit.points(n),
-                    radius: Some(radius),
-                    angle: Some(angle),
-                    result: FrameResult {
-                        frame: *frame,
-                        points: f.len(),
-                        area: fit.area(),
-                        centre_x: fit.centre.0,
-                        centre_y: fit.centre.1,
-                        smoothness: Some(fit.radius.roughness()),
-                        perimeter: None,
-                        lambda: Some(fit.lambda.lambda),
-                        gcv: Some(fit.lambda.gcv),
-                        trace_hat: Some(fit.lambda.trace_hat),
-                        rms_residual: Some(fit.rms_residual),
-                    },
-                });
-            }
-        }
-        ModelArg::Curve => {
-            for (frame, f) in &data.frames {
-                let loc = format!("{file}: frame {frame}");
-                let pts = f.points();
-                let fit = fit_closed_curve(&loc, &pts, &opts)?;
-                splines.push(
-                    JsonObject::new()
-                        .field("frame", frame)?
-                        .field("closed_curve", &fit)?,
-                );
-                let area = fit.curve.signed_area();
-                let centre = plant_contour::identify::tracked::polygon_centroid(
-                    &fit.curve.sample(n.max(64)),
-                )
-                .map(|c| c.0)
-                .unwrap_or((f64::NAN, f64::NAN));
-                frames.push(FittedFrame {
-                    frame: *frame,
-                    data: pts,
-                    fit: fit.curve.sample(n),
-                    radius: None,
-                    angle: None,
-                    result: FrameResult {
-                        frame: *frame,
-                        points: f.len(),
-                        area: area.abs(),
-                        centre_x: centre.0,
-                        centre_y: centre.1,
-                        smoothness: None,
-                        perimeter: Some(fit.curve.length(4)),
-                        lambda: Some(fit.lambda.lambda),
-                        gcv: Some(fit.lambda.gcv),
-                        trace_hat: Some(fit.lambda.trace_hat),
-                        rms_residual: Some(fit.rms_residual),
-                    },
-                });
-            }
-        }
-        ModelArg::Surface => {
-            if data.frames.len() < 2 {
-                bail!(
-                    "{file}: --model surface needs at least two frames (column `frame`), found one"
-                );
-            }
-            let tk = a
-                .time_knots
-                .unwrap_or_else(|| (data.frames.len() - 1).clamp(3, 50));
-            time_knots = Some(tk);
-            let mut sigs = Vec::new();
-            for (frame, f) in &data.frames {
-                sigs.push((*frame, signature_of(&format!("{file}: frame {frame}"), f)?));
-            }
-            let fit = fit_movie(
-                &sigs,
-                &MovieOptions {
-                    time_knots: tk,
-                    angle_knots: knots,
-                    lambda,
-                    centre_lambda: lambda,
-                    solver,
-                },
-            )?;
-            // The model at every whole frame from the first to the last
-            // (the frames between the data frames are the model's own).
-            // (Over a span of more than MAX_MODEL_FRAMES frames: the data
-            // frames only, to keep the files small.)
-            let (f0, f1) = (fit.first_frame, fit.last_frame);
-            let whole: Vec<f64> = if f1 - f0 <= MAX_MODEL_FRAMES as f64 {
-                (f0.ceil() as i64..=f1.floor() as i64)
-                    .map(|f| f as f64)
-                    .collect()
-            } else {
-                sigs.iter().map(|s| s.0).collect()
-            };
-            for &frame in &whole {
-                let data_frame = sigs.iter().find(|s| s.0 == frame);
-                let angle: Vec<f64> = (0..n)
-                    .map(|k| std::f64::consts::TAU * k as f64 / n as f64)
-                    .collect();
-                let radius: Vec<f64> = angle.iter().map(|&t| fit.radius_at(frame, t)).collect();
-                let c = fit.centre_at(frame);
-                frames.push(FittedFrame {
-                    frame,
-                    data: data_frame.map(|s| s.1.points()).unwrap_or_default(),
-                    fit: fit.contour_at(frame, n),
-                    radius: Some(radius),
-                    angle: Some(angle),
-                    result: FrameResult {
-                        frame,
-                        points: data_frame.map_or(0, |s| s.1.radii.len()),
-                        area: fit.area_at(frame),
-                        centre_x: c.0,
-                        centre_y: c.1,
-                        smoothness: Some(fit.smoothness_at(frame)),
-                        perimeter: None,
-                        lambda: None,
-                        gcv: None,
-                        trace_hat: None,
-                        rms_residual: None,
-                    },
-                });
-            }
-            splines.push(JsonObject::new().field("surface", &fit)?);
-            surface = Some(fit);
-        }
-    }
+    let fit = fit_contours(&data, &spec)?;
+    // The fitted splines themselves (axes and coefficients), for spline.json.
+    let splines = splines_json(&fit)?;
     fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let mut files = vec![
-        "fit.csv",
-        "frames.csv",
-        "fit.json",
-        "spline.json",
-        "fit.svg",
-    ];
-    output::write_json(
-        &a.out.join("spline.json"),
-        &JsonObject::new()
-            .field("model", &model)?
-            .field("splines", &splines)?,
-    )?;
-    write(&a.out.join("fit.csv"), &fit_csv(&frames))?;
-    write(&a.out.join("frames.csv"), &frames_csv(&frames))?;
-    write(
-        &a.out.join("fit.svg"),
-        &fit_picture(&file, model, &frames).finish(),
-    )?;
-    if let Some(fit) = &surface {
-        files.push("functionals.svg");
-        write(
-            &a.out.join("functionals.svg"),
-            &functionals_picture(&frames).finish(),
-        )?;
-        if fit.lambda.by_gcv {
-            files.push("gcv.svg");
-            write(
-                &a.out.join("gcv.svg"),
-                &gcv_picture("surface", &fit.lambda).finish(),
-            )?;
-        }
-    }
+    let files = write_fit_files(&a.out, &file, &fit, &splines)?;
+    let surface = fit.surface();
     let summary = FitSummary {
-        input: file.clone(),
-        model,
+        input: file,
+        model: fit.model,
         solver: solver.name(),
-        knots,
-        time_knots,
+        knots: fit.knots,
+        time_knots: fit.time_knots,
         frames: data.frames.len(),
-        surface_lambda: surface.as_ref().map(|f| (&f.lambda).into()),
-        centre_lambda: surface.as_ref().map(|f| (&f.centre_lambda).into()),
-        surface_rms_residual: surface.as_ref().map(|f| f.rms_residual),
-        per_frame: frames.into_iter().map(|f| f.result).collect(),
+        surface_lambda: surface.map(|f| (&f.lambda).into()),
+        centre_lambda: surface.map(|f| (&f.centre_lambda).into()),
+        surface_rms_residual: surface.map(|f| f.rms_residual),
+        per_frame: fit.frames.iter().map(|f| &f.result).collect(),
         out: a.out.display().to_string(),
         files,
     };
@@ -496,6 +264,73 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
     Ok(())
 }
 
+/// spline.json: the model and its splines, per frame or the surface.
+fn splines_json(fit: &ContourFitReport) -> Result<JsonObject> {
+    let splines: Vec<JsonObject> = match &fit.splines {
+        FittedSplines::Signatures(fits) => fits
+            .iter()
+            .map(|(frame, s)| {
+                JsonObject::new()
+                    .field("frame", frame)?
+                    .field("signature", s)
+            })
+            .collect::<Result<_>>()?,
+        FittedSplines::Curves(fits) => fits
+            .iter()
+            .map(|(frame, c)| {
+                JsonObject::new()
+                    .field("frame", frame)?
+                    .field("closed_curve", c)
+            })
+            .collect::<Result<_>>()?,
+        FittedSplines::Surface(s) => vec![JsonObject::new().field("surface", s)?],
+    };
+    JsonObject::new()
+        .field("model", &fit.model)?
+        .field("splines", &splines)
+}
+
+/// Writes spline.json, fit.csv, frames.csv and the pictures into `out`;
+/// returns the names of all the fit's files (fit.json is written last).
+fn write_fit_files(
+    out: &Path,
+    file: &str,
+    fit: &ContourFitReport,
+    splines: &JsonObject,
+) -> Result<Vec<&'static str>> {
+    let mut files = vec![
+        "fit.csv",
+        "frames.csv",
+        "fit.json",
+        "spline.json",
+        "fit.svg",
+    ];
+    output::write_json(&out.join("spline.json"), splines)?;
+    write(&out.join("fit.csv"), &fit_csv(&fit.frames))?;
+    write(&out.join("frames.csv"), &frames_csv(&fit.frames))?;
+    write(
+        &out.join("fit.svg"),
+        &fit_picture(file, fit.model, &fit.frames).finish(),
+    )?;
+    if let Some(surface) = fit.surface() {
+        files.push("functionals.svg");
+        write(
+            &out.join("functionals.svg"),
+            &functionals_picture(&fit.frames).finish(),
+        )?;
+        if surface.lambda.by_gcv {
+            files.push("gcv.svg");
+            write(
+                &out.join("gcv.svg"),
+                &gcv_picture("surface", &surface.lambda).finish(),
+            )?;
+        }
+    }
+    Ok(files)
+}
+
+/// The text report of a fit: the model, the surface's λ, up to 12 frames
+/// and the files.
 fn fit_report(s: &FitSummary) -> String {
     let mut out = String::new();
     let _ = writeln!(
@@ -503,9 +338,9 @@ fn fit_report(s: &FitSummary) -> String {
         "{}: {} model, {} frame(s), {} knot intervals around the contour{}",
         s.input,
         match s.model {
-            ModelArg::Signature => "signature",
-            ModelArg::Curve => "closed-curve",
-            ModelArg::Surface => "surface",
+            ContourModel::Signature => "signature",
+            ContourModel::Curve => "closed-curve",
+            ContourModel::Surface => "surface",
         },
         s.frames,
         s.knots,
@@ -530,7 +365,7 @@ fn fit_report(s: &FitSummary) -> String {
             );
         }
     }
-    let shown: Vec<&FrameResult> = if s.per_frame.len() > 12 {
+    let shown: Vec<&&FrameResult> = if s.per_frame.len() > 12 {
         let step = s.per_frame.len().div_ceil(12);
         s.per_frame.iter().step_by(step).collect()
     } else {
@@ -605,7 +440,7 @@ fn frames_csv(frames: &[FittedFrame]) -> String {
 }
 
 /// Up to 12 panels: the frames with data (all fitted frames if none has).
-fn fit_picture(file: &str, model: ModelArg, frames: &[FittedFrame]) -> plot::Svg {
+fn fit_picture(file: &str, model: ContourModel, frames: &[FittedFrame]) -> plot::Svg {
     let with_data: Vec<&FittedFrame> = frames.iter().filter(|f| !f.data.is_empty()).collect();
     let pool = if with_data.is_empty() {
         frames.iter().collect()
@@ -641,9 +476,9 @@ fn fit_picture(file: &str, model: ModelArg, frames: &[FittedFrame]) -> plot::Svg
         })
         .collect();
     let what = match model {
-        ModelArg::Signature => "periodic signature splines r(θ)",
-        ModelArg::Curve => "closed parametric splines (x(t), y(t))",
-        ModelArg::Surface => "the contour × time surface",
+        ContourModel::Signature => "periodic signature splines r(θ)",
+        ContourModel::Curve => "closed parametric splines (x(t), y(t))",
+        ContourModel::Surface => "the contour × time surface",
     };
     plot::shape_panels(
         &format!("{file}: {what}"),
@@ -724,6 +559,7 @@ fn gcv_picture(what: &str, r: &LambdaReport) -> plot::Svg {
     }])
 }
 
+/// What `synth` prints (with `--json` as JSON).
 #[derive(Serialize)]
 struct SynthSummary {
     case: &'static str,
@@ -739,167 +575,9 @@ struct SynthSummary {
 
 fn synth_cmd(a: SynthArgs) -> Result<()> {
     fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let mut noise = rng::stream(a.seed, rng::CONTOUR_SYNTH_NOISE);
-    let data_path = a.out.join("data.csv");
     let summary = match a.case {
-        SynthCase::Rbc => {
-            let sigma = a.sigma.unwrap_or(paper::SIGMA);
-            if !(sigma.is_finite() && sigma >= 0.0) {
-                bail!("--sigma must be finite and ≥ 0, got {sigma}");
-            }
-            if !(2..=1000).contains(&a.n) {
-                bail!("--n must be 2..=1000 (the paper: 5 and 40), got {}", a.n);
-            }
-            // Frame i ↔ s = 10 i/(N − 1); angle θ(t_j) = 2π j/N.
-            let mut data = String::from("frame,angle_rad,radius\n");
-            let mut truth = String::from("frame,angle_rad,radius\n");
-            let mut panels = Vec::new();
-            for (i, (s, frame)) in paper::rbc_frames(a.n, sigma, &mut noise)
-                .into_iter()
-                .enumerate()
-            {
-                let mut pts = Vec::new();
-                for (th, r) in frame {
-                    let _ = writeln!(data, "{i},{th:.9},{r:.9}");
-                    pts.push((r * th.cos(), r * th.sin()));
-                }
-                let mut true_pts = Vec::new();
-                for j in 0..200 {
-                    let t = DOMAIN * j as f64 / 200.0;
-                    let (r, th) = (rbc_surface(s, t), paper::theta(t));
-                    let _ = writeln!(truth, "{i},{th:.9},{r:.9}");
-                    true_pts.push((r * th.cos(), r * th.sin()));
-                }
-                panels.push(Panel {
-                    caption: format!("frame {i} (s = {s:.2})"),
-                    shapes: vec![
-                        Shape {
-                            points: true_pts,
-                            colour: "#555",
-                            style: ShapeStyle::Closed {
-                                width: 1.2,
-                                dashed: false,
-                            },
-                        },
-                        Shape {
-                            points: pts,
-                            colour: "#d22",
-                            style: ShapeStyle::Dots { radius: 2.0 },
-                        },
-                    ],
-                });
-            }
-            write(&data_path, &data)?;
-            write(&a.out.join("truth.csv"), &truth)?;
-            let step = panels.len().div_ceil(8).max(1);
-            let shown: Vec<Panel> = panels.into_iter().step_by(step).collect();
-            write(
-                &a.out.join("synth.svg"),
-                &plot::shape_panels(
-                    &format!("Eq. 38 (red blood cell), N = {}, σ = {sigma}", a.n),
-                    &shown,
-                    4,
-                    true,
-                    "grey: true contour f(s, ·) in polar form (Eq. 39) · red: noisy data",
-                )
-                .finish(),
-            )?;
-            SynthSummary {
-                case: "rbc",
-                frames: a.n,
-                points_per_frame: a.n,
-                sigma,
-                seed: a.seed,
-                out: a.out.display().to_string(),
-                files: vec!["data.csv", "truth.csv", "synth.svg"],
-                fit_command: format!(
-                    "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 1e-3",
-                    data_path.display()
-                ),
-            }
-        }
-        SynthCase::Movie => {
-            let sigma = a.sigma.unwrap_or(1.0);
-            if !(sigma.is_finite() && sigma >= 0.0) {
-                bail!("--sigma must be finite and ≥ 0 (px), got {sigma}");
-            }
-            if !(3..=100_000).contains(&a.angles) {
-                bail!("--angles must be 3..=100000, got {}", a.angles);
-            }
-            if !(1..=100).contains(&a.every) {
-                bail!("--every must be 1..=100, got {}", a.every);
-            }
-            let movie = PulsatingContour::default();
-            let mut data = String::from("frame,centre_x,centre_y,angle_rad,radius\n");
-            let mut truth = String::from("frame,x,y\n");
-            let mut panels = Vec::new();
-            let mut kept = 0;
-            for f in 0..movie.frames {
-                let true_pts = movie.contour(f as f64, 180);
-                for p in &true_pts {
-                    let _ = writeln!(truth, "{f},{:.4},{:.4}", p.0, p.1);
-                }
-                if f % a.every != 0 {
-                    continue;
-                }
-                kept += 1;
-                let sig = movie.observe(f, a.angles, sigma, &mut noise)?;
-                for (th, r) in sig.angles_rad.iter().zip(&sig.radii) {
-                    let _ = writeln!(
-                        data,
-                        "{f},{:.4},{:.4},{th:.9},{r:.4}",
-                        sig.centre.0, sig.centre.1
-                    );
-                }
-                panels.push(Panel {
-                    caption: format!("frame {f}"),
-                    shapes: vec![
-                        Shape {
-                            points: movie.contour(f as f64, TRUTH_POINTS / 4),
-                            colour: "#555",
-                            style: ShapeStyle::Closed {
-                                width: 1.2,
-                                dashed: false,
-                            },
-                        },
-                        Shape {
-                            points: sig.points(),
-                            colour: "#d22",
-                            style: ShapeStyle::Dots { radius: 2.0 },
-                        },
-                    ],
-                });
-            }
-            write(&data_path, &data)?;
-            write(&a.out.join("truth.csv"), &truth)?;
-            write(
-                &a.out.join("synth.svg"),
-                &plot::shape_panels(
-                    &format!(
-                        "pulsating, translating contour: every {}th of {} frames, {} rays, σ = {sigma} px",
-                        a.every, movie.frames, a.angles
-                    ),
-                    &panels,
-                    4,
-                    true,
-                    "grey: true contour · red: tracked centroid + radii along rays",
-                )
-                .finish(),
-            )?;
-            SynthSummary {
-                case: "movie",
-                frames: kept,
-                points_per_frame: a.angles,
-                sigma,
-                seed: a.seed,
-                out: a.out.display().to_string(),
-                files: vec!["data.csv", "truth.csv", "synth.svg"],
-                fit_command: format!(
-                    "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 5e-4",
-                    data_path.display()
-                ),
-            }
-        }
+        SynthCase::Rbc => synth_rbc(&a)?,
+        SynthCase::Movie => synth_movie(&a)?,
     };
     if a.json {
         output::print_json(&summary)?;
@@ -917,4 +595,187 @@ fn synth_cmd(a: SynthArgs) -> Result<()> {
         outln!("fit it as the paper does: {}", summary.fit_command);
     }
     Ok(())
+}
+
+/// Eq. 38 (red blood cell): data.csv, truth.csv and synth.svg.
+fn synth_rbc(a: &SynthArgs) -> Result<SynthSummary> {
+    let sigma = a.sigma.unwrap_or(paper::SIGMA);
+    if !(sigma.is_finite() && sigma >= 0.0) {
+        bail!("--sigma must be finite and ≥ 0, got {sigma}");
+    }
+    if !(2..=1000).contains(&a.n) {
+        bail!("--n must be 2..=1000 (the paper: 5 and 40), got {}", a.n);
+    }
+    // Frame i ↔ s = 10 i/(N − 1); angle θ(t_j) = 2π j/N.
+    let frames = rbc_case(a.n, sigma, a.seed);
+    let data_path = a.out.join("data.csv");
+    write(&data_path, &polar_csv(&frames, |f| &f.data))?;
+    write(&a.out.join("truth.csv"), &polar_csv(&frames, |f| &f.truth))?;
+    write(
+        &a.out.join("synth.svg"),
+        &rbc_picture(&frames, a.n, sigma).finish(),
+    )?;
+    Ok(SynthSummary {
+        case: "rbc",
+        frames: a.n,
+        points_per_frame: a.n,
+        sigma,
+        seed: a.seed,
+        out: a.out.display().to_string(),
+        files: vec!["data.csv", "truth.csv", "synth.svg"],
+        fit_command: format!(
+            "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 1e-3",
+            data_path.display()
+        ),
+    })
+}
+
+/// `frame,angle_rad,radius` rows of the (θ, r) pairs `of` each frame.
+fn polar_csv(frames: &[RbcFrame], of: impl Fn(&RbcFrame) -> &Vec<(f64, f64)>) -> String {
+    let mut csv = String::from("frame,angle_rad,radius\n");
+    for (i, f) in frames.iter().enumerate() {
+        for (th, r) in of(f) {
+            let _ = writeln!(csv, "{i},{th:.9},{r:.9}");
+        }
+    }
+    csv
+}
+
+/// (θ, r) pairs as points.
+fn polar_points(pairs: &[(f64, f64)]) -> Vec<Point> {
+    pairs
+        .iter()
+        .map(|(th, r)| (r * th.cos(), r * th.sin()))
+        .collect()
+}
+
+/// Up to 8 frames: the true contour and the noisy data.
+fn rbc_picture(frames: &[RbcFrame], n: usize, sigma: f64) -> plot::Svg {
+    let step = frames.len().div_ceil(8).max(1);
+    let shown: Vec<Panel> = frames
+        .iter()
+        .enumerate()
+        .step_by(step)
+        .map(|(i, f)| {
+            truth_and_data_panel(
+                format!("frame {i} (s = {:.2})", f.s),
+                polar_points(&f.truth),
+                polar_points(&f.data),
+            )
+        })
+        .collect();
+    plot::shape_panels(
+        &format!("Eq. 38 (red blood cell), N = {n}, σ = {sigma}"),
+        &shown,
+        4,
+        true,
+        "grey: true contour f(s, ·) in polar form (Eq. 39) · red: noisy data",
+    )
+}
+
+/// A panel of a true contour (grey line) and data (red dots).
+fn truth_and_data_panel(caption: String, truth: Vec<Point>, data: Vec<Point>) -> Panel {
+    Panel {
+        caption,
+        shapes: vec![
+            Shape {
+                points: truth,
+                colour: "#555",
+                style: ShapeStyle::Closed {
+                    width: 1.2,
+                    dashed: false,
+                },
+            },
+            Shape {
+                points: data,
+                colour: "#d22",
+                style: ShapeStyle::Dots { radius: 2.0 },
+            },
+        ],
+    }
+}
+
+/// The pulsating contour movie: data.csv, truth.csv and synth.svg.
+fn synth_movie(a: &SynthArgs) -> Result<SynthSummary> {
+    let sigma = a.sigma.unwrap_or(1.0);
+    if !(sigma.is_finite() && sigma >= 0.0) {
+        bail!("--sigma must be finite and ≥ 0 (px), got {sigma}");
+    }
+    if !(3..=100_000).contains(&a.angles) {
+        bail!("--angles must be 3..=100000, got {}", a.angles);
+    }
+    if !(1..=100).contains(&a.every) {
+        bail!("--every must be 1..=100, got {}", a.every);
+    }
+    let case = movie_case(a.every, a.angles, sigma, a.seed)?;
+    let data_path = a.out.join("data.csv");
+    let (data, truth) = movie_csv(&case);
+    write(&data_path, &data)?;
+    write(&a.out.join("truth.csv"), &truth)?;
+    write(
+        &a.out.join("synth.svg"),
+        &movie_picture(&case, a.every, a.angles, sigma).finish(),
+    )?;
+    Ok(SynthSummary {
+        case: "movie",
+        frames: case.kept(),
+        points_per_frame: a.angles,
+        sigma,
+        seed: a.seed,
+        out: a.out.display().to_string(),
+        files: vec!["data.csv", "truth.csv", "synth.svg"],
+        fit_command: format!(
+            "softjoint contour fit {} --model surface --time-knots 10 --knots 10 --lambda 5e-4",
+            data_path.display()
+        ),
+    })
+}
+
+/// data.csv (the tracked centroid and radii of the kept frames) and
+/// truth.csv (the true contour of every frame).
+fn movie_csv(case: &MovieCase) -> (String, String) {
+    let mut data = String::from("frame,centre_x,centre_y,angle_rad,radius\n");
+    let mut truth = String::from("frame,x,y\n");
+    for f in &case.frames {
+        let n = f.frame;
+        for p in &f.truth {
+            let _ = writeln!(truth, "{n},{:.4},{:.4}", p.0, p.1);
+        }
+        if let Some(sig) = &f.observed {
+            for (th, r) in sig.angles_rad.iter().zip(&sig.radii) {
+                let _ = writeln!(
+                    data,
+                    "{n},{:.4},{:.4},{th:.9},{r:.4}",
+                    sig.centre.0, sig.centre.1
+                );
+            }
+        }
+    }
+    (data, truth)
+}
+
+/// Every kept frame: the true contour and what the tracker saw.
+fn movie_picture(case: &MovieCase, every: usize, angles: usize, sigma: f64) -> plot::Svg {
+    let panels: Vec<Panel> = case
+        .frames
+        .iter()
+        .filter_map(|f| {
+            let sig = f.observed.as_ref()?;
+            Some(truth_and_data_panel(
+                format!("frame {}", f.frame),
+                f.truth.clone(),
+                sig.points(),
+            ))
+        })
+        .collect();
+    plot::shape_panels(
+        &format!(
+            "pulsating, translating contour: every {every}th of {} frames, {angles} rays, σ = {sigma} px",
+            case.movie.frames
+        ),
+        &panels,
+        4,
+        true,
+        "grey: true contour · red: tracked centroid + radii along rays",
+    )
 }

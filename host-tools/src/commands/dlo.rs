@@ -7,6 +7,8 @@
 //!   problem; writes the solved shape as CSV and its three views.
 //!
 //! Both print a short report, or with `--json` a machine-readable summary.
+//! The models, the runs and the solves live in `plant_dlo`; this is
+//! argument handling, files, reports and pictures.
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -18,12 +20,11 @@ use host_tools::plot::{self, PanelStroke, ViewPanel};
 use host_tools::{out, outln};
 use plant_dlo::rope::script::{Frame, RopeScenario, RunResult};
 use plant_dlo::rope::V3;
-use plant_dlo::wire::belt::{belt_settings, curve_top, BeltMethod, BeltProblem, BeltShape};
-use plant_dlo::wire::linear::{end_distance_sequence, SequenceStep};
-use plant_dlo::wire::optimize::Settings;
-use plant_dlo::wire::{WireParams, WireProblem, WireShape};
+use plant_dlo::wire::belt::{curve_top, BeltMethod, BeltShape};
+use plant_dlo::wire::linear::SequenceStep;
+use plant_dlo::wire::problem::{StaticProblem, StaticSolution};
+use plant_dlo::wire::WireShape;
 use serde::de::DeserializeOwned;
-use serde::Deserialize;
 
 #[derive(Args)]
 pub struct DloArgs {
@@ -51,32 +52,6 @@ struct SolveArgs {
     /// Print a machine-readable summary.
     #[arg(long)]
     json: bool,
-}
-
-/// A `dlo solve` problem file.
-#[derive(Deserialize)]
-#[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
-enum SolveFile {
-    /// One wire (Eq. 1–24).
-    Wire { problem: WireProblem },
-    /// One belt (Eq. 31–61).
-    Belt { problem: BeltProblem },
-    /// The end-distance sequence of L811 on both branches.
-    Sequence {
-        wire: WireParams,
-        fractions: Vec<f64>,
-        #[serde(default = "default_step")]
-        step: f64,
-        #[serde(default = "default_intervals")]
-        intervals: usize,
-    },
-}
-
-fn default_step() -> f64 {
-    0.05
-}
-fn default_intervals() -> usize {
-    96
 }
 
 #[derive(Args)]
@@ -141,88 +116,96 @@ fn rope_cmd(a: RopeArgs) -> Result<()> {
     // kept and written, checked, at the end.
     let mut csv = String::from("time_s,node,x_m,y_m,z_m\n");
     let result = scenario
-        .run(|f| {
-            for (i, p) in f.x.iter().enumerate() {
-                let _ = writeln!(csv, "{:.4},{i},{:.6},{:.6},{:.6}", f.time_s, p.x, p.y, p.z);
-            }
-        })
+        .run(|f| rope_csv_rows(&mut csv, f))
         .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     output::write_csv(&csv_path, &csv)?;
     let svg_path = a.out.join("rope_frames.svg");
     output::write_svg(&svg_path, &rope_strip(&scenario, &result, a.strip).finish())?;
-    let step_us = 1e6 * result.wall_s / result.steps.max(1) as f64;
     if a.json {
-        JsonObject::new()
-            .field("scenario", &scenario.name)?
-            .field("nodes", &scenario.rope.nodes)?
-            .field("model", &scenario.rope.model.number())?
-            .field("duration_s", &scenario.duration_s)?
-            .field("steps", &result.steps)?
-            .field("step_time_us", &step_us)?
-            .field("max_penetration_m", &result.max_penetration_m)?
-            .field("max_penetration_time_s", &result.max_penetration_time_s)?
-            .field(
-                "penetration_tolerance_m",
-                &penetration_tolerance_m(&scenario),
-            )?
-            .field("contact_steps", &result.contact_steps)?
-            .field("clamped_segments", &result.clamped_segments)?
-            .field("max_internal_force_sum_n", &result.max_internal_force_sum_n)?
-            .field("checks", &result.checks)?
-            .field("hands", &result.hands)?
+        rope_json(&scenario, &result)?
             .field("csv", &csv_path)?
             .field("picture", &svg_path)?
             .print()?;
     } else {
-        outln!(
-            "{}: {} nodes, model {}, {} s in {} steps ({:.1} µs/step)",
-            scenario.name,
-            scenario.rope.nodes,
-            scenario.rope.model.number(),
-            scenario.duration_s,
-            result.steps,
-            step_us
-        );
-        outln!(
-            "deepest segment overlap {:.4} m at {:.2} s (tolerance {:.4} m), {} steps with self-contact",
-            result.max_penetration_m,
-            result.max_penetration_time_s,
-            penetration_tolerance_m(&scenario),
-            result.contact_steps
-        );
-        for c in &result.checks {
-            outln!(
-                "check {:>10} at {:6.2} s: {} crossings seen from above, knot determinant {}",
-                c.label,
-                c.time_s,
-                c.crossings,
-                c.determinant
-                    .map(|d| d.to_string())
-                    .unwrap_or_else(|| "undetermined".into())
-            );
-        }
-        for h in &result.hands {
-            outln!(
-                "hand {:>6}: max coupling force {:.2} N, device force {:.3} N (Omni max 3.3 N){}",
-                h.name,
-                h.max_coupling_force_n,
-                h.max_output_force_n,
-                if h.missed_grasps_s.is_empty() {
-                    String::new()
-                } else {
-                    format!(", missed grasps at {:?} s", h.missed_grasps_s)
-                }
-            );
-        }
+        print_rope_report(&scenario, &result)?;
         outln!("wrote {} and {}", csv_path.display(), svg_path.display());
     }
     Ok(())
 }
 
-/// The stated bound on segment overlap: 0.3 r (centre lines never closer
-/// than 1.7 r; passing through would need 2r).
-pub fn penetration_tolerance_m(s: &RopeScenario) -> f64 {
-    0.3 * s.rope.radius_m
+/// One frame's nodes as rows of rope_nodes.csv.
+fn rope_csv_rows(csv: &mut String, f: &Frame) {
+    for (i, p) in f.x.iter().enumerate() {
+        let _ = writeln!(csv, "{:.4},{i},{:.6},{:.6},{:.6}", f.time_s, p.x, p.y, p.z);
+    }
+}
+
+/// The `--json` summary of a rope run (without the file names).
+fn rope_json(scenario: &RopeScenario, result: &RunResult) -> Result<JsonObject> {
+    JsonObject::new()
+        .field("scenario", &scenario.name)?
+        .field("nodes", &scenario.rope.nodes)?
+        .field("model", &scenario.rope.model.number())?
+        .field("duration_s", &scenario.duration_s)?
+        .field("steps", &result.steps)?
+        .field("step_time_us", &result.step_time_us())?
+        .field("max_penetration_m", &result.max_penetration_m)?
+        .field("max_penetration_time_s", &result.max_penetration_time_s)?
+        .field(
+            "penetration_tolerance_m",
+            &scenario.penetration_tolerance_m(),
+        )?
+        .field("contact_steps", &result.contact_steps)?
+        .field("clamped_segments", &result.clamped_segments)?
+        .field("max_internal_force_sum_n", &result.max_internal_force_sum_n)?
+        .field("checks", &result.checks)?
+        .field("hands", &result.hands)
+}
+
+/// The text report of a rope run: the run, the overlap, each topology
+/// check and each hand.
+fn print_rope_report(scenario: &RopeScenario, result: &RunResult) -> Result<()> {
+    outln!(
+        "{}: {} nodes, model {}, {} s in {} steps ({:.1} µs/step)",
+        scenario.name,
+        scenario.rope.nodes,
+        scenario.rope.model.number(),
+        scenario.duration_s,
+        result.steps,
+        result.step_time_us()
+    );
+    outln!(
+        "deepest segment overlap {:.4} m at {:.2} s (tolerance {:.4} m), {} steps with self-contact",
+        result.max_penetration_m,
+        result.max_penetration_time_s,
+        scenario.penetration_tolerance_m(),
+        result.contact_steps
+    );
+    for c in &result.checks {
+        outln!(
+            "check {:>10} at {:6.2} s: {} crossings seen from above, knot determinant {}",
+            c.label,
+            c.time_s,
+            c.crossings,
+            c.determinant
+                .map(|d| d.to_string())
+                .unwrap_or_else(|| "undetermined".into())
+        );
+    }
+    for h in &result.hands {
+        outln!(
+            "hand {:>6}: max coupling force {:.2} N, device force {:.3} N (Omni max 3.3 N){}",
+            h.name,
+            h.max_coupling_force_n,
+            h.max_output_force_n,
+            if h.missed_grasps_s.is_empty() {
+                String::new()
+            } else {
+                format!(", missed grasps at {:?} s", h.missed_grasps_s)
+            }
+        );
+    }
+    Ok(())
 }
 
 /// Strokes of a rope seen along one axis pair: one stroke per segment, in
@@ -374,78 +357,42 @@ fn rope_strip(s: &RopeScenario, r: &RunResult, count: usize) -> plot::Svg {
 }
 
 fn solve_cmd(a: SolveArgs) -> Result<()> {
-    let file: SolveFile = load_toml(&a.problem)?;
+    let problem: StaticProblem = load_toml(&a.problem)?;
     let src = a.problem.display().to_string();
     fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let csv_path = a.out.join("shape.csv");
     let svg_path = a.out.join("shape.svg");
     let started = std::time::Instant::now();
-    let summary = match file {
-        SolveFile::Wire { problem } => {
-            let shape = problem
-                .solve(&Settings::default(), None)
-                .map_err(|e| anyhow::anyhow!("{src}: {e}"))?;
-            let wall = started.elapsed().as_secs_f64();
-            output::write_csv(&csv_path, &wire_csv(&[("wire", None, &shape)]))?;
-            let panels = three_views("wire", &shape.x_m, problem.wire.radius_m, None);
-            output::write_svg(
-                &svg_path,
-                &plot::panel_grid(&panels, 3, 320.0, (0.1, "0.1 m"), false).finish(),
-            )?;
-            JsonObject::new()
-                .field("model", "wire")?
-                .field("energy_j", &shape.energy_j)?
-                .field("flexural_j", &shape.flexural_j)?
-                .field("torsional_j", &shape.torsional_j)?
-                .field("extensional_j", &shape.extensional_j)?
-                .field("gravitational_j", &shape.gravitational_j)?
-                .field("max_violation", &shape.max_violation)?
-                .field("converged", &shape.solution.converged)?
-                .field("crossings_m", &shape.crossings_m)?
-                .field("min_self_distance_m", &shape.min_self_distance_m)?
-                .field("solve_s", &wall)?
+    let solution = problem.solve().map_err(|e| anyhow::anyhow!("{src}: {e}"))?;
+    let wall = started.elapsed().as_secs_f64();
+    let (csv, svg) = solution_files(&solution);
+    output::write_csv(&csv_path, &csv)?;
+    output::write_svg(&svg_path, &svg)?;
+    let summary = solve_json(&solution)?.field("solve_s", &wall)?;
+    if a.json {
+        summary
+            .field("csv", &csv_path)?
+            .field("picture", &svg_path)?
+            .print()?;
+    } else {
+        print_solve_report(&summary)?;
+        outln!("wrote {} and {}", csv_path.display(), svg_path.display());
+    }
+    Ok(())
+}
+
+/// shape.csv and shape.svg of a solution.
+fn solution_files(solution: &StaticSolution) -> (String, String) {
+    match solution {
+        StaticSolution::Wire { shape, radius_m } => {
+            let panels = three_views("wire", &shape.x_m, *radius_m, None);
+            (
+                wire_csv(&[("wire", None, shape)]),
+                plot::panel_grid(&panels, 3, 320.0, (0.1, "0.1 m"), false).finish(),
+            )
         }
-        SolveFile::Belt { problem } => {
-            let shape = problem
-                .solve(&belt_settings())
-                .map_err(|e| anyhow::anyhow!("{src}: {e}"))?;
-            let wall = started.elapsed().as_secs_f64();
-            output::write_csv(&csv_path, &belt_csv(&shape))?;
-            output::write_svg(&svg_path, &belt_views(&shape).finish())?;
-            let top = spine_top(&shape);
-            JsonObject::new()
-                .field("model", "belt")?
-                .field(
-                    "method",
-                    match problem.method {
-                        BeltMethod::Segments => "segments",
-                        BeltMethod::Ritz => "ritz",
-                    },
-                )?
-                .field("energy_j", &shape.energy_j)?
-                .field(
-                    "highest_surface_point_m",
-                    &[shape.highest_m.x, shape.highest_m.y, shape.highest_m.z],
-                )?
-                .field("highest_spine_point_m", &[top.x, top.y, top.z])?
-                .field("paper_highest_point_lu", &[0.3, 0.4, -0.01])?
-                .field("max_violation", &shape.max_violation)?
-                .field("converged", &shape.solution.converged)?
-                .field("solve_s", &wall)?
-        }
-        SolveFile::Sequence {
-            wire,
-            fractions,
-            step,
-            intervals,
-        } => {
-            if fractions.is_empty() {
-                anyhow::bail!("{src}: field `fractions`: give at least one end distance");
-            }
-            let steps =
-                end_distance_sequence(&wire, &fractions, step, intervals, &Settings::default())
-                    .map_err(|e| anyhow::anyhow!("{src}: {e}"))?;
-            let wall = started.elapsed().as_secs_f64();
+        StaticSolution::Belt { shape, .. } => (belt_csv(shape), belt_views(shape).finish()),
+        StaticSolution::Sequence { steps, radius_m } => {
             let rows: Vec<(&str, Option<f64>, &WireShape)> = steps
                 .iter()
                 .flat_map(|st| {
@@ -455,71 +402,96 @@ fn solve_cmd(a: SolveArgs) -> Result<()> {
                     ]
                 })
                 .collect();
-            output::write_csv(&csv_path, &wire_csv(&rows))?;
-            output::write_svg(&svg_path, &sequence_views(&steps, wire.radius_m).finish())?;
+            (wire_csv(&rows), sequence_views(steps, *radius_m).finish())
+        }
+    }
+}
+
+/// The summary of a solve (without its time and file names): energies and
+/// the solve's evidence (constraint violation, convergence).
+fn solve_json(solution: &StaticSolution) -> Result<JsonObject> {
+    match solution {
+        StaticSolution::Wire { shape, .. } => JsonObject::new()
+            .field("model", "wire")?
+            .field("energy_j", &shape.energy_j)?
+            .field("flexural_j", &shape.flexural_j)?
+            .field("torsional_j", &shape.torsional_j)?
+            .field("extensional_j", &shape.extensional_j)?
+            .field("gravitational_j", &shape.gravitational_j)?
+            .field("max_violation", &shape.max_violation)?
+            .field("converged", &shape.solution.converged)?
+            .field("crossings_m", &shape.crossings_m)?
+            .field("min_self_distance_m", &shape.min_self_distance_m),
+        StaticSolution::Belt { shape, method } => belt_json(shape, *method),
+        StaticSolution::Sequence { steps, .. } => {
             let table = steps
                 .iter()
-                .map(|st| {
-                    JsonObject::new()
-                        .field("l_fraction", &st.l_fraction)?
-                        .field("knot_free_j", &st.free.energy_j)?
-                        .field("one_knot_j", &st.knot.energy_j)?
-                        .field("one_knot_torsional_j", &st.knot.torsional_j)?
-                        .field(
-                            "lower",
-                            if st.knot.energy_j < st.free.energy_j {
-                                "one_knot"
-                            } else {
-                                "knot_free"
-                            },
-                        )?
-                        .field(
-                            "converged",
-                            &(st.free.solution.converged && st.knot.solution.converged),
-                        )
-                })
+                .map(sequence_step_json)
                 .collect::<Result<Vec<JsonObject>>>()?;
             JsonObject::new()
                 .field("model", "sequence")?
-                .field("steps", &table)?
-                .field("solve_s", &wall)?
+                .field("steps", &table)
         }
-    };
-    if a.json {
-        summary
-            .field("csv", &csv_path)?
-            .field("picture", &svg_path)?
-            .print()?;
-    } else {
-        // Every field was checked finite as it was added.
-        let summary = serde_json::to_value(&summary)?;
-        match summary["model"].as_str() {
-            Some("sequence") => {
-                outln!("end distance   knot-free (J)   one-knot (J)   lower");
-                for st in summary["steps"].as_array().into_iter().flatten() {
-                    outln!(
-                        "{:>10.2} L   {:>12.4e}   {:>12.4e}   {}",
-                        st["l_fraction"].as_f64().unwrap_or(f64::NAN),
-                        st["knot_free_j"].as_f64().unwrap_or(f64::NAN),
-                        st["one_knot_j"].as_f64().unwrap_or(f64::NAN),
-                        st["lower"].as_str().unwrap_or("?")
-                    );
-                }
-            }
-            _ => {
-                for (k, v) in summary.as_object().into_iter().flatten() {
-                    outln!("{k:>26}: {v}");
-                }
-            }
-        }
-        outln!("wrote {} and {}", csv_path.display(), svg_path.display());
     }
-    Ok(())
 }
 
-/// The highest (largest x) spine point of a belt, refined between samples.
-fn spine_top(b: &BeltShape) -> V3 {
-    curve_top(&b.spine_m)
+fn belt_json(shape: &BeltShape, method: BeltMethod) -> Result<JsonObject> {
+    let top = curve_top(&shape.spine_m);
+    JsonObject::new()
+        .field("model", "belt")?
+        .field(
+            "method",
+            match method {
+                BeltMethod::Segments => "segments",
+                BeltMethod::Ritz => "ritz",
+            },
+        )?
+        .field("energy_j", &shape.energy_j)?
+        .field(
+            "highest_surface_point_m",
+            &[shape.highest_m.x, shape.highest_m.y, shape.highest_m.z],
+        )?
+        .field("highest_spine_point_m", &[top.x, top.y, top.z])?
+        .field("paper_highest_point_lu", &[0.3, 0.4, -0.01])?
+        .field("max_violation", &shape.max_violation)?
+        .field("converged", &shape.solution.converged)
+}
+
+fn sequence_step_json(st: &SequenceStep) -> Result<JsonObject> {
+    JsonObject::new()
+        .field("l_fraction", &st.l_fraction)?
+        .field("knot_free_j", &st.free.energy_j)?
+        .field("one_knot_j", &st.knot.energy_j)?
+        .field("one_knot_torsional_j", &st.knot.torsional_j)?
+        .field("lower", st.lower())?
+        .field("converged", &st.converged())
+}
+
+/// The text report of a solve: the sequence as a table, any other model
+/// as its summary's fields.
+fn print_solve_report(summary: &JsonObject) -> Result<()> {
+    // Every field was checked finite as it was added.
+    let summary = serde_json::to_value(summary)?;
+    match summary["model"].as_str() {
+        Some("sequence") => {
+            outln!("end distance   knot-free (J)   one-knot (J)   lower");
+            for st in summary["steps"].as_array().into_iter().flatten() {
+                outln!(
+                    "{:>10.2} L   {:>12.4e}   {:>12.4e}   {}",
+                    st["l_fraction"].as_f64().unwrap_or(f64::NAN),
+                    st["knot_free_j"].as_f64().unwrap_or(f64::NAN),
+                    st["one_knot_j"].as_f64().unwrap_or(f64::NAN),
+                    st["lower"].as_str().unwrap_or("?")
+                );
+            }
+        }
+        _ => {
+            for (k, v) in summary.as_object().into_iter().flatten() {
+                outln!("{k:>26}: {v}");
+            }
+        }
+    }
+    Ok(())
 }
 
 fn wire_csv(rows: &[(&str, Option<f64>, &WireShape)]) -> String {
@@ -665,7 +637,7 @@ fn sequence_views(steps: &[SequenceStep], radius_m: f64) -> plot::Svg {
     let mut panels = Vec::new();
     for st in steps {
         for (name, sh) in [("knot-free", &st.free), ("one-knot", &st.knot)] {
-            let lower = if (name == "one-knot") == (st.knot.energy_j < st.free.energy_j) {
+            let lower = if (name == "one-knot") == st.knot_is_lower() {
                 " ✓"
             } else {
                 ""

@@ -1,26 +1,27 @@
 //! `softjoint viscoelastic`: the 3-element model of seed 002 for users'
 //! data (`simulate`, `fit`) and the measured-object pipeline on a mesh
-//! (`object`). The physics lives in `plant_viscoelastic`; this is
-//! argument handling, file I/O and reports.
+//! (`object`). The physics and the experiments live in
+//! `plant_viscoelastic`; the haptic model of `object` is the firmware's
+//! real-time update (`host_tools::visco_core`). This is argument handling,
+//! file I/O and reports.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use host_tools::outln;
 use host_tools::output;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
-use plant_viscoelastic::dgfm::{support_below, Dgfm, DEFAULT_SUPPORT_HEIGHT_FRACTION};
 use plant_viscoelastic::error::VeError;
-use plant_viscoelastic::estimate::{estimate_all, spread_columns};
-use plant_viscoelastic::fem::{LinearElastic, DEFAULT_SHELL_SCALES};
-use plant_viscoelastic::fit::{
-    fit_trial, fit_trials, simulate_displacement, simulate_force, NelderMeadOptions, Weighting,
+use plant_viscoelastic::experiment::pipeline::{
+    default_probe_script, object_dgfm, probe_beside_reference, Campaign, IdentifiedObject, ProbeRun,
 };
-use plant_viscoelastic::io::{columns_of, read_columns, read_probe_script, read_table};
-use plant_viscoelastic::measure::{simulate_campaign, ProbeProtocol, Trial, VertexTruth};
-use plant_viscoelastic::object::HapticSample;
-use plant_viscoelastic::object::{run_script, Contact, ProbeEvent, HAPTIC_PERIOD_S};
+use plant_viscoelastic::experiment::trial::{
+    fit_trial_checked, simulate_table, ThreeElementParams, Trace,
+};
+use plant_viscoelastic::fit::{simulate_force, TrialFit, Weighting};
+use plant_viscoelastic::io::{read_columns, read_probe_script, read_table};
+use plant_viscoelastic::object::{ProbeEvent, HAPTIC_PERIOD_S};
 use plant_viscoelastic::Vec3;
-use plant_viscoelastic::{HapticLoop, SurfaceMesh, ViscoObject};
+use plant_viscoelastic::{Dgfm, SurfaceMesh};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -36,114 +37,90 @@ enum ViscoCommand {
     /// Run the 1D 3-element model (seed 002 Eq. 3) on a CSV of
     /// `time_s,displacement` (m) → force (N), or `time_s,force` (N) →
     /// displacement (m); writes `time_s,displacement,force`.
-    Simulate {
-        /// Input CSV with a header.
-        input: PathBuf,
-        /// Delayed spring k1 (N/m).
-        #[arg(allow_negative_numbers = true, long)]
-        k1: f64,
-        /// Series (instantaneous) spring k2 (N/m).
-        #[arg(allow_negative_numbers = true, long)]
-        k2: f64,
-        /// Dashpot b (N·s/m).
-        #[arg(allow_negative_numbers = true, long)]
-        b: f64,
-        /// Output CSV (default: standard output).
-        #[arg(short, long)]
-        output: Option<PathBuf>,
-    },
+    Simulate(SimulateArgs),
     /// Fit (k1, k2, b) to a force-vs-time trial CSV
     /// `time_s,displacement,force` (s, m, N) by Nelder–Mead with the seed's
     /// weighting (tail ×100, 3 points around the peak ×1000).
-    Fit {
-        /// Input CSV with a header.
-        input: PathBuf,
-        /// Weight every sample equally instead.
-        #[arg(long)]
-        uniform: bool,
-        /// Write a plot of measured and fitted force (SVG).
-        #[arg(long)]
-        plot: Option<PathBuf>,
-        /// Print a JSON object instead of text.
-        #[arg(long)]
-        json: bool,
-    },
+    Fit(FitArgs),
     /// Build the DGFM object of a mesh (default: the shipped ~200-vertex
     /// blob), estimate its parameters from simulated probe trials, run a
     /// scripted probe at 1 kHz and write per-vertex displacement and force
     /// at 30 Hz, the contact trace, the parameters and a false-colour
     /// damping image.
-    Object {
-        /// Closed, star-shaped triangle mesh (OBJ, metres).
-        #[arg(long)]
-        mesh: Option<PathBuf>,
-        /// Probe script CSV `time_s,vertex,fx_n,fy_n,fz_n` (vertex −1
-        /// releases). Default: 1 N down on the top vertex for 0.5 s.
-        #[arg(long)]
-        script: Option<PathBuf>,
-        /// Simulated duration (s).
-        #[arg(allow_negative_numbers = true, long, default_value_t = 1.5)]
-        duration_s: f64,
-        /// Probe every N-th traction vertex in the simulated campaign.
-        #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
-        probe_every: usize,
-        /// Seed of the measurement noise.
-        #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
-        seed: u64,
-        /// Use general damping tensors instead of Rayleigh damping.
-        #[arg(long)]
-        tensor: bool,
-        /// Also write every simulated probe trial as
-        /// `trial_NNNN.csv` (`time_s,displacement,force`) plus `trials.csv`
-        /// with the 1D parameters that generated each (for `fit`, Fig. 8).
-        #[arg(long)]
-        trials_dir: Option<PathBuf>,
-        /// Output directory (created).
-        #[arg(long)]
-        out_dir: PathBuf,
-    },
+    Object(ObjectArgs),
+}
+
+// (The subcommands' help comes from the variants' doc comments above.)
+#[derive(Args)]
+struct SimulateArgs {
+    /// Input CSV with a header.
+    input: PathBuf,
+    /// Delayed spring k1 (N/m).
+    #[arg(allow_negative_numbers = true, long)]
+    k1: f64,
+    /// Series (instantaneous) spring k2 (N/m).
+    #[arg(allow_negative_numbers = true, long)]
+    k2: f64,
+    /// Dashpot b (N·s/m).
+    #[arg(allow_negative_numbers = true, long)]
+    b: f64,
+    /// Output CSV (default: standard output).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct FitArgs {
+    /// Input CSV with a header.
+    input: PathBuf,
+    /// Weight every sample equally instead.
+    #[arg(long)]
+    uniform: bool,
+    /// Write a plot of measured and fitted force (SVG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Print a JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct ObjectArgs {
+    /// Closed, star-shaped triangle mesh (OBJ, metres).
+    #[arg(long)]
+    mesh: Option<PathBuf>,
+    /// Probe script CSV `time_s,vertex,fx_n,fy_n,fz_n` (vertex −1
+    /// releases). Default: 1 N down on the top vertex for 0.5 s.
+    #[arg(long)]
+    script: Option<PathBuf>,
+    /// Simulated duration (s).
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.5)]
+    duration_s: f64,
+    /// Probe every N-th traction vertex in the simulated campaign.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 10)]
+    probe_every: usize,
+    /// Seed of the measurement noise.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1)]
+    seed: u64,
+    /// Use general damping tensors instead of Rayleigh damping.
+    #[arg(long)]
+    tensor: bool,
+    /// Also write every simulated probe trial as
+    /// `trial_NNNN.csv` (`time_s,displacement,force`) plus `trials.csv`
+    /// with the 1D parameters that generated each (for `fit`, Fig. 8).
+    #[arg(long)]
+    trials_dir: Option<PathBuf>,
+    /// Output directory (created).
+    #[arg(long)]
+    out_dir: PathBuf,
 }
 
 /// Runs a `softjoint viscoelastic` subcommand.
 pub fn run(args: ViscoArgs) -> Result<()> {
     match args.command {
-        ViscoCommand::Simulate {
-            input,
-            k1,
-            k2,
-            b,
-            output,
-        } => simulate(&input, k1, k2, b, output.as_deref()),
-        ViscoCommand::Fit {
-            input,
-            uniform,
-            plot,
-            json,
-        } => fit(&input, uniform, plot.as_deref(), json),
-        ViscoCommand::Object {
-            mesh,
-            script,
-            duration_s,
-            probe_every,
-            seed,
-            tensor,
-            trials_dir,
-            out_dir,
-        } => {
-            let o = ObjectRun {
-                duration_s,
-                every: probe_every,
-                seed,
-                tensor,
-            };
-            object(
-                mesh.as_deref(),
-                script.as_deref(),
-                &o,
-                trials_dir.as_deref(),
-                &out_dir,
-            )
-        }
+        ViscoCommand::Simulate(a) => simulate(&a),
+        ViscoCommand::Fit(a) => fit(&a),
+        ViscoCommand::Object(a) => object(&a),
     }
 }
 
@@ -167,55 +144,42 @@ fn check_flag(flag: &str, value: f64, zero_ok: bool, unit: &str) -> Result<()> {
     Ok(())
 }
 
-fn simulate(input: &Path, k1: f64, k2: f64, b: f64, output: Option<&Path>) -> Result<()> {
-    check_flag("--k1", k1, false, "N/m")?;
-    check_flag("--k2", k2, false, "N/m")?;
-    check_flag("--b", b, true, "N s/m")?;
-    let text = read_text(input)?;
-    let name = input.display().to_string();
+fn simulate(a: &SimulateArgs) -> Result<()> {
+    check_flag("--k1", a.k1, false, "N/m")?;
+    check_flag("--k2", a.k2, false, "N/m")?;
+    check_flag("--b", a.b, true, "N s/m")?;
+    let text = read_text(&a.input)?;
+    let name = a.input.display().to_string();
     let table = read_table(&text, &name)?;
-    let (t, u, f) = if table.has("displacement") {
-        let c = columns_of(&table, &["time_s", "displacement"], Some("time_s"))?;
-        let (t, u) = (c.values[0].clone(), c.values[1].clone());
-        let f = simulate_force(k1, k2, b, &t, &u)?;
-        (t, u, f)
-    } else if table.has("force") {
-        let c = columns_of(&table, &["time_s", "force"], Some("time_s"))?;
-        let (t, f) = (c.values[0].clone(), c.values[1].clone());
-        let u = simulate_displacement(k1, k2, b, &t, &f)?;
-        (t, u, f)
-    } else {
-        bail!(
-            "{name}:{}: missing column: need `displacement` or `force` beside `time_s` (the header has: {})",
-            table.header_line,
-            plant_common::csv_input::excerpt(&table.columns.join(", "))
-        );
+    let params = ThreeElementParams {
+        k1_n_per_m: a.k1,
+        k2_n_per_m: a.k2,
+        b_n_s_per_m: a.b,
     };
-    // Parameters or samples near the f64 range overflow the model; a NaN or
-    // infinite result is refused rather than written.
-    for k in 0..t.len() {
-        if !(u[k].is_finite() && f[k].is_finite()) {
-            bail!(
-                "{name}: the model overflowed at the sample at time_s = {} (displacement {}, force {}): k1 = {k1:e}, k2 = {k2:e}, b = {b:e} and the input are too large together",
-                t[k],
-                u[k],
-                f[k]
-            );
-        }
-    }
-    let mut s = String::from("time_s,displacement,force\n");
-    for k in 0..t.len() {
-        let _ = writeln!(s, "{},{},{}", t[k], u[k], f[k]);
-    }
-    match output {
-        Some(p) => output::write_csv(p, &s),
-        None => output::print_csv(&s),
+    let trace = simulate_table(&table, &name, params)?;
+    let csv = trace_csv(&trace);
+    match &a.output {
+        Some(p) => output::write_csv(p, &csv),
+        None => output::print_csv(&csv),
     }
 }
 
-fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<()> {
-    let text = read_text(input)?;
-    let name = input.display().to_string();
+/// `time_s,displacement,force` rows of a trace.
+fn trace_csv(trace: &Trace) -> String {
+    let mut s = String::from("time_s,displacement,force\n");
+    for k in 0..trace.time_s.len() {
+        let _ = writeln!(
+            s,
+            "{},{},{}",
+            trace.time_s[k], trace.displacement_m[k], trace.force_n[k]
+        );
+    }
+    s
+}
+
+fn fit(a: &FitArgs) -> Result<()> {
+    let text = read_text(&a.input)?;
+    let name = a.input.display().to_string();
     let c = read_columns(
         &text,
         &name,
@@ -223,36 +187,42 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
         Some("time_s"),
     )?;
     let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
-    let weighting = if uniform {
+    let weighting = if a.uniform {
         Weighting::Uniform
     } else {
         Weighting::Seed
     };
-    let r = fit_trial(t, u, f, weighting, NelderMeadOptions::default())
-        .with_context(|| format!("fitting {name}"))?;
-    if !(r.rms_residual_n.is_finite() && r.weighted_cost_n2.is_finite()) {
-        bail!(
-            "fitting {name}: the model's force overflowed (rms residual {} N): displacements and forces this large cannot be fitted",
-            plant_common::short_number(r.rms_residual_n)
-        );
-    }
-    // Numbers the data do not determine are not a result.
-    r.check_determined()
-        .with_context(|| format!("fitting {name}"))?;
-    if let Some(p) = plot {
+    let weighting_name = if a.uniform { "uniform" } else { "seed" };
+    let r = fit_trial_checked(t, u, f, weighting).with_context(|| format!("fitting {name}"))?;
+    if let Some(p) = &a.plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
-            "{name}: k1 = {:.4e} N/m, k2 = {:.4e} N/m, b = {:.4e} N s/m ({} weighting)",
-            r.k1_n_per_m,
-            r.k2_n_per_m,
-            r.b_n_s_per_m,
-            if uniform { "uniform" } else { "seed" }
+            "{name}: k1 = {:.4e} N/m, k2 = {:.4e} N/m, b = {:.4e} N s/m ({weighting_name} weighting)",
+            r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m,
         );
         output::write_svg(p, &fit_plot(t, f, &fitted, &caption))?;
     }
-    // How far each parameter could move before the fit changes by its
-    // own misfit: a factor (1.05 is ±5 %).
-    let factor = r.ln_uncertainty.map(f64::exp);
+    if a.json {
+        output::JsonObject::new()
+            .field("k1_n_per_m", &r.k1_n_per_m)?
+            .field("k2_n_per_m", &r.k2_n_per_m)?
+            .field("b_n_s_per_m", &r.b_n_s_per_m)?
+            .field("rms_residual_n", &r.rms_residual_n)?
+            .field("weighted_cost_n2", &r.weighted_cost_n2)?
+            .field("uncertainty_factor", &r.uncertainty_factor())?
+            .field("evaluations", &r.evaluations)?
+            .field("weighting", weighting_name)?
+            .field("samples", &t.len())?
+            .print()
+    } else {
+        print_fit(&r, t.len(), weighting_name)
+    }
+}
+
+/// The text report of a fit: each parameter with how well the trial
+/// determines it, and the residual.
+fn print_fit(r: &TrialFit, samples: usize, weighting_name: &str) -> Result<()> {
+    let factor = r.uncertainty_factor();
     let spread = |k: usize| {
         if factor[k] < 2.0 {
             format!("±{:.1} %", 100.0 * (factor[k] - 1.0))
@@ -260,55 +230,15 @@ fn fit(input: &Path, uniform: bool, plot: Option<&Path>, json: bool) -> Result<(
             format!("within a factor of {:.1}", factor[k])
         }
     };
-    if json {
-        output::JsonObject::new()
-            .field("k1_n_per_m", &r.k1_n_per_m)?
-            .field("k2_n_per_m", &r.k2_n_per_m)?
-            .field("b_n_s_per_m", &r.b_n_s_per_m)?
-            .field("rms_residual_n", &r.rms_residual_n)?
-            .field("weighted_cost_n2", &r.weighted_cost_n2)?
-            .field("uncertainty_factor", &factor)?
-            .field("evaluations", &r.evaluations)?
-            .field("weighting", if uniform { "uniform" } else { "seed" })?
-            .field("samples", &t.len())?
-            .print()?;
-    } else {
-        outln!("k1 = {:.6e} N/m ({})", r.k1_n_per_m, spread(0));
-        outln!("k2 = {:.6e} N/m ({})", r.k2_n_per_m, spread(1));
-        outln!("b  = {:.6e} N s/m ({})", r.b_n_s_per_m, spread(2));
-        outln!(
-            "rms residual = {:.4e} N over {} samples ({} weighting, {} evaluations)",
-            r.rms_residual_n,
-            t.len(),
-            if uniform { "uniform" } else { "seed" },
-            r.evaluations
-        );
-    }
+    outln!("k1 = {:.6e} N/m ({})", r.k1_n_per_m, spread(0));
+    outln!("k2 = {:.6e} N/m ({})", r.k2_n_per_m, spread(1));
+    outln!("b  = {:.6e} N s/m ({})", r.b_n_s_per_m, spread(2));
+    outln!(
+        "rms residual = {:.4e} N over {samples} samples ({weighting_name} weighting, {} evaluations)",
+        r.rms_residual_n,
+        r.evaluations
+    );
     Ok(())
-}
-
-/// Synthetic ground truth of the default pipeline: Rayleigh b larger in the
-/// middle of the object than at its ends (like the seed's triceratops,
-/// Fig. 9), ratio from the seed's Fig. 8 fit. Estimates, not measurements.
-fn synthetic_truth(dgfm: &Dgfm, every: usize) -> Result<Vec<VertexTruth>> {
-    let mesh = dgfm.mesh();
-    let x_max = mesh
-        .vertices_m
-        .iter()
-        .map(|v| v[0].abs())
-        .fold(0.0, f64::max)
-        .max(1e-12);
-    let mut out = Vec::new();
-    for j in (0..dgfm.len()).step_by(every.max(1)) {
-        let x = mesh.vertices_m[dgfm.traction_vertices()[j]][0].abs() / x_max;
-        out.push(VertexTruth::from_dgfm(
-            dgfm,
-            j,
-            0.29,
-            0.1 + 0.4 * (1.0 - x),
-        )?);
-    }
-    Ok(out)
 }
 
 /// Longest `object` run: every haptic step and every 30 Hz frame of every
@@ -321,73 +251,55 @@ const MAX_OBJECT_DURATION_S: f64 = 600.0;
 /// end in sight); 3,000 vertices is about two minutes.
 const MAX_OBJECT_VERTICES: usize = 3000;
 
-/// Scalar options of `object`.
-struct ObjectRun {
-    duration_s: f64,
-    every: usize,
-    seed: u64,
-    tensor: bool,
-}
-
-fn write_trials(dir: &Path, trials: &[Trial], truths: &[VertexTruth]) -> Result<()> {
-    output::create_dir(dir)?;
-    let mut index = String::from(
-        "file,vertex,speed_m_per_s,ux,uy,uz,true_k1_n_per_m,true_k2_n_per_m,true_b_n_s_per_m\n",
-    );
-    for (k, t) in trials.iter().enumerate() {
-        let name = format!("trial_{k:04}.csv");
-        let mut s = String::from("time_s,displacement,force\n");
-        for i in 0..t.time_s.len() {
-            let _ = writeln!(
-                s,
-                "{},{:e},{:e}",
-                t.time_s[i], t.displacement_m[i], t.force_n[i]
-            );
-        }
-        output::write_csv(&dir.join(&name), &s)?;
-        let truth = truths
-            .iter()
-            .find(|v| v.vertex == t.vertex)
-            .context("trial without truth")?;
-        let (k1, k2, b) = truth.trial_scalars(t.direction);
-        let d = t.direction;
-        let _ = writeln!(
-            index,
-            "{name},{},{},{},{},{},{k1:e},{k2:e},{b:e}",
-            t.vertex, t.speed_m_per_s, d[0], d[1], d[2]
-        );
-    }
-    output::write_csv(&dir.join("trials.csv"), &index)
-}
-
-fn object(
-    mesh_path: Option<&Path>,
-    script: Option<&Path>,
-    run: &ObjectRun,
-    trials_dir: Option<&Path>,
-    out_dir: &Path,
-) -> Result<()> {
-    let ObjectRun {
-        duration_s,
-        every,
-        seed,
-        tensor,
-    } = *run;
+fn object(a: &ObjectArgs) -> Result<()> {
+    let duration_s = a.duration_s;
     if !(duration_s.is_finite() && (HAPTIC_PERIOD_S..=MAX_OBJECT_DURATION_S).contains(&duration_s))
     {
         bail!(
             "--duration-s must be between one haptic period ({HAPTIC_PERIOD_S} s) and {MAX_OBJECT_DURATION_S} s, got {duration_s:e}"
         );
     }
-    if every == 0 {
+    if a.probe_every == 0 {
         bail!("--probe-every must be at least 1 (probe every N-th traction vertex)");
     }
     // The outputs are checked before the long part, not after it.
-    output::check_dir(out_dir)?;
-    if let Some(dir) = trials_dir {
+    output::check_dir(&a.out_dir)?;
+    if let Some(dir) = &a.trials_dir {
         output::check_dir(dir)?;
     }
-    let mesh = match mesh_path {
+    let mesh = load_mesh(a.mesh.as_deref())?;
+    let n = mesh.vertices_m.len();
+    let phase =
+        host_tools::progress::spinner(&format!("building the DGFM of {n} vertices (FEM)"), false);
+    let dgfm = object_dgfm(mesh)?;
+    // Measure (simulated), fit, estimate and spread, as in seed §4.
+    phase.set_message("simulating and fitting the probe campaign");
+    let campaign = Campaign::simulate(&dgfm, a.probe_every, a.seed)?;
+    if let Some(dir) = &a.trials_dir {
+        write_trials(dir, &campaign)?;
+    }
+    let identified = campaign.identify(&dgfm, a.tensor)?;
+    let script = Script::load(a.script.as_deref(), &dgfm)?;
+    // The haptic device runs the firmware's real-time update (seed §5);
+    // the plant's exact reference runs the same script beside it.
+    phase.set_message("running the probe script at 1 kHz");
+    let run = probe_beside_reference(
+        &dgfm,
+        &identified.params,
+        &script.events,
+        duration_s,
+        |dgfm, params| CoreObject::new(dgfm, params, HAPTIC_PERIOD_S),
+    )
+    .map_err(|e| script.name_error(e))?;
+    phase.finish_and_clear();
+    write_object_files(&a.out_dir, &dgfm, &campaign, &identified, &run)?;
+    print_object_summary(&a.out_dir, &dgfm, &campaign, &identified, &run)
+}
+
+/// The mesh of `path` (default: the shipped object), refused when its DGFM
+/// would take too long.
+fn load_mesh(path: Option<&Path>) -> Result<SurfaceMesh> {
+    let mesh = match path {
         Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,
         None => SurfaceMesh::default_object(),
     };
@@ -398,88 +310,96 @@ fn object(
         let minutes = 0.5 * (n as f64 / 1982.0).powi(3);
         bail!(
             "{}: {n} vertices is more than {MAX_OBJECT_VERTICES}: the DGFM and its fits take time growing as the cube of the vertex count (about {} minutes for this mesh; 1,982 vertices took 30 s); simplify the mesh (the seed's object has 193 vertices)",
-            mesh_path.map_or("the mesh".into(), |p| p.display().to_string()),
+            path.map_or("the mesh".into(), |p| p.display().to_string()),
             plant_common::short_number(minutes.round())
         );
     }
-    let phase =
-        host_tools::progress::spinner(&format!("building the DGFM of {n} vertices (FEM)"), false);
-    let fixed = support_below(&mesh, DEFAULT_SUPPORT_HEIGHT_FRACTION);
-    let dgfm = Dgfm::from_mesh(mesh, LinearElastic::default(), fixed, &DEFAULT_SHELL_SCALES)?;
-    // Measure (simulated), fit, estimate and spread, as in seed §4.
-    phase.set_message("simulating and fitting the probe campaign");
-    let truths = synthetic_truth(&dgfm, every)?;
-    let protocol = ProbeProtocol {
-        speeds_m_per_s: vec![20.0e-3],
-        ..ProbeProtocol::default()
-    };
-    let trials = simulate_campaign(&dgfm, &truths, &protocol, seed)?;
-    if let Some(dir) = trials_dir {
-        write_trials(dir, &trials, &truths)?;
+    Ok(mesh)
+}
+
+/// The probe script of `object`: the user's file (its events and their
+/// lines) or the default push.
+struct Script<'a> {
+    path: Option<&'a Path>,
+    events: Vec<ProbeEvent>,
+    /// The file line of each event (empty for the default).
+    lines: Vec<usize>,
+}
+
+impl<'a> Script<'a> {
+    fn load(path: Option<&'a Path>, dgfm: &Dgfm) -> Result<Self> {
+        let (events, lines) = match path {
+            Some(p) => {
+                let text = read_text(p)?;
+                let s = read_probe_script(&text, &p.display().to_string(), dgfm.mesh().len())?;
+                (s.events, s.lines)
+            }
+            None => (
+                default_probe_script(dgfm).context("no traction vertex")?,
+                Vec::new(),
+            ),
+        };
+        Ok(Script {
+            path,
+            events,
+            lines,
+        })
     }
-    let fits = fit_trials(&trials, Weighting::Seed, NelderMeadOptions::default());
-    let estimates = estimate_all(&dgfm, &trials, &fits)?;
-    let params = spread_columns(dgfm.len(), &estimates, 1.0, tensor)?;
-    let magnitude = params.damping_magnitude_n_s_per_m(&dgfm);
-    let nv = dgfm.mesh().len();
-    let mut per_vertex = vec![0.0; nv];
-    for (j, &v) in dgfm.traction_vertices().iter().enumerate() {
-        per_vertex[v] = magnitude[j];
-    }
-    let script_text = script.map(read_text).transpose()?;
-    let (events, event_lines) = match (script, &script_text) {
-        (Some(p), Some(text)) => {
-            let s = read_probe_script(text, &p.display().to_string(), nv)?;
-            (s.events, s.lines)
-        }
-        _ => {
-            let top = (0..nv)
-                .filter(|&v| !dgfm.fixed()[v])
-                .max_by(|&a, &b| {
-                    dgfm.mesh().vertices_m[a][2].total_cmp(&dgfm.mesh().vertices_m[b][2])
-                })
-                .context("no traction vertex")?;
-            let default = vec![
-                ProbeEvent {
-                    time_s: 0.0,
-                    contact: Some(Contact::Vertex(top)),
-                    force_n: [0.0, 0.0, -1.0],
-                },
-                ProbeEvent {
-                    time_s: 0.5,
-                    contact: None,
-                    force_n: [0.0; 3],
-                },
-            ];
-            (default, Vec::new())
-        }
-    };
-    let mesh_for_image = dgfm.mesh().clone();
-    let fixed_flags = dgfm.fixed().to_vec();
-    // The haptic device runs the firmware's real-time update (seed §5);
-    // the plant's exact reference runs the same script beside it.
-    let name_script_error = |e: VeError| {
-        // An event of the user's script is named by its file and line.
-        match (&e, script) {
-            (VeError::ProbeEvent { index, error, .. }, Some(p)) => match event_lines.get(*index) {
+
+    /// An error of the run, with an event of the user's script named by
+    /// its file and line.
+    fn name_error(&self, e: VeError) -> anyhow::Error {
+        match (&e, self.path) {
+            (VeError::ProbeEvent { index, error, .. }, Some(p)) => match self.lines.get(*index) {
                 Some(line) => anyhow::anyhow!("{}:{line}: {error}", p.display()),
                 None => anyhow::Error::new(e),
             },
             _ => anyhow::Error::new(e),
         }
-    };
-    phase.set_message("running the probe script at 1 kHz");
-    let reference = ViscoObject::new(dgfm.clone(), params.clone(), HAPTIC_PERIOD_S)?;
-    let mut exact = HapticLoop::new(reference)?;
-    let exact_samples = run_script(&mut exact, &events, duration_s).map_err(name_script_error)?;
-    let core = CoreObject::new(dgfm, &params, HAPTIC_PERIOD_S)?;
-    let mut haptic = HapticLoop::new(core)?;
-    let samples = run_script(&mut haptic, &events, duration_s).map_err(name_script_error)?;
-    let difference = CoreDifference::of(&samples, &exact_samples, &haptic.frames, &exact.frames);
-    phase.finish_and_clear();
+    }
+}
+
+/// Every simulated trial as `trial_NNNN.csv` and the index `trials.csv`
+/// with the 1D parameters that generated each.
+fn write_trials(dir: &Path, campaign: &Campaign) -> Result<()> {
+    output::create_dir(dir)?;
+    let mut index = String::from(
+        "file,vertex,speed_m_per_s,ux,uy,uz,true_k1_n_per_m,true_k2_n_per_m,true_b_n_s_per_m\n",
+    );
+    for (k, t) in campaign.trials.iter().enumerate() {
+        let name = format!("trial_{k:04}.csv");
+        let mut s = String::from("time_s,displacement,force\n");
+        for i in 0..t.time_s.len() {
+            let _ = writeln!(
+                s,
+                "{},{:e},{:e}",
+                t.time_s[i], t.displacement_m[i], t.force_n[i]
+            );
+        }
+        output::write_csv(&dir.join(&name), &s)?;
+        let (k1, k2, b) = campaign.trial_scalars(t).context("trial without truth")?;
+        let d = t.direction;
+        let _ = writeln!(
+            index,
+            "{name},{},{},{},{},{},{k1:e},{k2:e},{b:e}",
+            t.vertex, t.speed_m_per_s, d[0], d[1], d[2]
+        );
+    }
+    output::write_csv(&dir.join("trials.csv"), &index)
+}
+
+/// frames.csv, haptic.csv, params.csv and damping.svg of an `object` run.
+fn write_object_files(
+    out_dir: &Path,
+    dgfm: &Dgfm,
+    campaign: &Campaign,
+    identified: &IdentifiedObject,
+    run: &ProbeRun,
+) -> Result<()> {
     output::create_dir(out_dir)?;
+    let nv = dgfm.mesh().len();
     let mut frames = String::from("time_s,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n\n");
-    for fr in &haptic.frames {
+    for fr in &run.frames {
         for v in 0..nv {
             let (u, f) = (fr.displacement_m[v], fr.force_n[v]);
             let _ = writeln!(
@@ -490,9 +410,30 @@ fn object(
         }
     }
     output::write_csv(&out_dir.join("frames.csv"), &frames)?;
+    output::write_csv(&out_dir.join("haptic.csv"), &haptic_csv(run))?;
+    let per_vertex = &identified.damping_per_vertex_n_s_per_m;
+    let mut ps = String::from("vertex,fixed,damping_magnitude_n_s_per_m\n");
+    for (v, (&fixed, damping)) in dgfm.fixed().iter().zip(per_vertex).enumerate() {
+        let _ = writeln!(ps, "{v},{},{damping:e}", u8::from(fixed));
+    }
+    output::write_csv(&out_dir.join("params.csv"), &ps)?;
+    let caption = format!(
+        "damping magnitude ({} trials, {} vertices estimated)",
+        campaign.trials.len(),
+        identified.estimates.len()
+    );
+    output::write_svg(
+        &out_dir.join("damping.svg"),
+        &false_colour_mesh(dgfm.mesh(), per_vertex, [0.3, 1.0, -0.5], &caption),
+    )
+}
+
+/// haptic.csv: force and contact displacement per step, beside the exact
+/// reference's displacement.
+fn haptic_csv(run: &ProbeRun) -> String {
     let mut hs =
         String::from("time_s,fx_n,fy_n,fz_n,ux_m,uy_m,uz_m,exact_ux_m,exact_uy_m,exact_uz_m\n");
-    for (s, e) in samples.iter().zip(&exact_samples) {
+    for (s, e) in run.samples.iter().zip(&run.exact_samples) {
         let (f, u, x) = (
             s.force_n,
             s.contact_displacement_m,
@@ -504,81 +445,35 @@ fn object(
             s.time_s, f[0], f[1], f[2], u[0], u[1], u[2], x[0], x[1], x[2]
         );
     }
-    output::write_csv(&out_dir.join("haptic.csv"), &hs)?;
-    let mut ps = String::from("vertex,fixed,damping_magnitude_n_s_per_m\n");
-    for v in 0..nv {
-        let _ = writeln!(ps, "{v},{},{:e}", u8::from(fixed_flags[v]), per_vertex[v]);
-    }
-    output::write_csv(&out_dir.join("params.csv"), &ps)?;
-    let caption = format!(
-        "damping magnitude ({} trials, {} vertices estimated)",
-        trials.len(),
-        estimates.len()
-    );
-    output::write_svg(
-        &out_dir.join("damping.svg"),
-        &false_colour_mesh(&mesh_for_image, &per_vertex, [0.3, 1.0, -0.5], &caption),
-    )?;
+    hs
+}
+
+fn print_object_summary(
+    out_dir: &Path,
+    dgfm: &Dgfm,
+    campaign: &Campaign,
+    identified: &IdentifiedObject,
+    run: &ProbeRun,
+) -> Result<()> {
     outln!(
         "{} vertices ({} traction), {} trials fitted, {} vertices estimated; {} haptic steps, {} display frames written to {}",
-        nv,
-        fixed_flags.iter().filter(|f| !**f).count(),
-        trials.len(),
-        estimates.len(),
-        samples.len(),
-        haptic.frames.len(),
+        dgfm.mesh().len(),
+        dgfm.fixed().iter().filter(|f| !**f).count(),
+        campaign.trials.len(),
+        identified.estimates.len(),
+        run.samples.len(),
+        run.frames.len(),
         out_dir.display()
     );
+    let d = &run.difference;
     outln!(
         "firmware update vs exact reference: contact max |Δu| {:.3e} m ({:.3} % of max |u|), all vertices over the display frames {:.3e} m ({:.3} %)",
-        difference.contact_m,
-        100.0 * difference.contact_rel,
-        difference.frames_m,
-        100.0 * difference.frames_rel
+        d.contact_m,
+        100.0 * d.contact_rel,
+        d.frames_m,
+        100.0 * d.frames_rel
     );
     Ok(())
-}
-
-/// How far the firmware's real-time update is from the plant's exact
-/// reference over a run.
-struct CoreDifference {
-    contact_m: f64,
-    contact_rel: f64,
-    frames_m: f64,
-    frames_rel: f64,
-}
-
-impl CoreDifference {
-    fn of(
-        core: &[HapticSample],
-        exact: &[HapticSample],
-        core_frames: &[plant_viscoelastic::object::DisplayFrame],
-        exact_frames: &[plant_viscoelastic::object::DisplayFrame],
-    ) -> Self {
-        let dist = |a: [f64; 3], b: [f64; 3]| {
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-        };
-        let norm = |a: [f64; 3]| dist(a, [0.0; 3]);
-        let (mut contact_m, mut contact_max) = (0.0f64, 0.0f64);
-        for (c, e) in core.iter().zip(exact) {
-            contact_m = contact_m.max(dist(c.contact_displacement_m, e.contact_displacement_m));
-            contact_max = contact_max.max(norm(e.contact_displacement_m));
-        }
-        let (mut frames_m, mut frames_max) = (0.0f64, 0.0f64);
-        for (c, e) in core_frames.iter().zip(exact_frames) {
-            for (a, b) in c.displacement_m.iter().zip(&e.displacement_m) {
-                frames_m = frames_m.max(dist(*a, *b));
-                frames_max = frames_max.max(norm(*b));
-            }
-        }
-        let rel = |d: f64, m: f64| if m > 0.0 { d / m } else { 0.0 };
-        CoreDifference {
-            contact_m,
-            contact_rel: rel(contact_m, contact_max),
-            frames_m,
-            frames_rel: rel(frames_m, frames_max),
-        }
-    }
 }
 
 /// Measured and fitted force against time.

@@ -19,6 +19,12 @@ pub enum DloError {
     /// A scenario item (a grasp, a waypoint, a constraint) is inconsistent.
     #[error("invalid scenario: {0}")]
     InvalidScenario(String),
+    /// A field of a problem file is unusable as a whole (an empty list).
+    #[error("field `{field}`: {reason}")]
+    InvalidField {
+        field: &'static str,
+        reason: &'static str,
+    },
     /// The rope simulation became unstable: a non-finite state, a segment
     /// stretched past any physical length, or a node that left the world.
     #[error("rope simulation unstable at t = {} s: {reason}", short_number(*time_s))]

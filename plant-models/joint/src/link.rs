@@ -492,9 +492,29 @@ impl PlanarJoint {
     }
 
     /// Checks the state after a step: finite, energy and pose in range.
+    /// Inlined into the step loops; a failure is described out of line.
+    #[inline(always)]
     pub fn check(&self, plane: &'static str, max_kinetic_j: f64) -> Result<(), PlantError> {
+        let vals = self.checked_values();
+        // NaN and ±∞ propagate through the sum: one test on the hot path,
+        // the per-variable search only once something is wrong.
+        let finite = vals.iter().map(|v| v.1).sum::<f64>().is_finite();
+        let runaway = self.kinetic_energy_j() > max_kinetic_j;
+        let b = self.base_m();
+        let out_of_range =
+            self.state.theta_rad.abs() > 1.2 || b[0] * b[0] + b[1] * b[1] > 0.02 * 0.02;
+        if finite && !runaway && !out_of_range {
+            Ok(())
+        } else {
+            Err(self.check_failure(plane, max_kinetic_j))
+        }
+    }
+
+    /// The quantities [`Self::check`] requires finite, named.
+    #[inline(always)]
+    fn checked_values(&self) -> [(&'static str, f64); 8] {
         let s = &self.state;
-        let vals = [
+        [
             ("com_x", s.com_m[0]),
             ("com_y", s.com_m[1]),
             ("theta", s.theta_rad),
@@ -503,41 +523,41 @@ impl PlanarJoint {
             ("omega", s.omega_rad_s),
             ("coil_temperature[0]", self.coils[0].temperature_c()),
             ("coil_temperature[1]", self.coils[1].temperature_c()),
-        ];
-        // NaN and ±∞ propagate through the sum: one test on the hot path,
-        // the per-variable search only once something is wrong.
+        ]
+    }
+
+    /// What [`Self::check`] found wrong: the first of a non-finite value,
+    /// the kinetic energy above `max_kinetic_j`, the pose out of range.
+    #[cold]
+    #[inline(never)]
+    fn check_failure(&self, plane: &'static str, max_kinetic_j: f64) -> PlantError {
+        let vals = self.checked_values();
         if !vals.iter().map(|v| v.1).sum::<f64>().is_finite() {
-            for (name, v) in vals {
-                if !v.is_finite() {
-                    return Err(PlantError::NonFinite {
-                        plane,
-                        quantity: name,
-                    });
-                }
-            }
-            // Finite values whose sum overflows (absurd magnitudes).
-            return Err(PlantError::NonFinite {
+            // Finite values whose sum overflows (absurd magnitudes) have
+            // no culprit of their own.
+            let name = vals
+                .iter()
+                .find(|v| !v.1.is_finite())
+                .map_or("state sum", |v| v.0);
+            return PlantError::NonFinite {
                 plane,
-                quantity: "state sum",
-            });
+                quantity: name,
+            };
         }
         let ke = self.kinetic_energy_j();
         if ke > max_kinetic_j {
-            return Err(PlantError::EnergyRunaway {
+            return PlantError::EnergyRunaway {
                 plane,
                 kinetic_j: ke,
                 limit_j: max_kinetic_j,
-            });
+            };
         }
         let b = self.base_m();
-        if s.theta_rad.abs() > 1.2 || b[0] * b[0] + b[1] * b[1] > 0.02 * 0.02 {
-            return Err(PlantError::PoseOutOfRange {
-                plane,
-                theta_deg: s.theta_rad.to_degrees(),
-                base_offset_mm: 1e3 * b[0].hypot(b[1]),
-            });
+        PlantError::PoseOutOfRange {
+            plane,
+            theta_deg: self.state.theta_rad.to_degrees(),
+            base_offset_mm: 1e3 * b[0].hypot(b[1]),
         }
-        Ok(())
     }
 
     /// Zeroes the link's velocities (warm starts in tests).

@@ -300,7 +300,29 @@ impl SmaParams {
     }
 
     /// [`Self::settle_latent_heat`] with the branch constants precomputed.
+    /// Most steps end outside the transformation bands with ξ unchanged:
+    /// that is settled here, inline, and only the rest goes to
+    /// [`Self::settle_latent_heat_solve`] (which finds the same ξ first).
+    #[inline(always)]
     fn settle_latent_heat_with(
+        &self,
+        shape: &PhaseShape,
+        t_old: f64,
+        xi_old: f64,
+        t_sensible: f64,
+        shift_k: [f64; 2],
+    ) -> (f64, f64) {
+        let outside =
+            self.phase_update_outside_bands(t_old - shift_k[0], xi_old, t_sensible - shift_k[1]);
+        match outside {
+            Some(xi) if xi == xi_old || self.latent_rise_k() == 0.0 => (t_sensible, xi),
+            _ => self.settle_latent_heat_solve(shape, t_old, xi_old, t_sensible, shift_k),
+        }
+    }
+
+    /// [`Self::settle_latent_heat_with`] in full.
+    #[inline(never)]
+    fn settle_latent_heat_solve(
         &self,
         shape: &PhaseShape,
         t_old: f64,
@@ -310,36 +332,44 @@ impl SmaParams {
     ) -> (f64, f64) {
         // The phase law on the effective temperature T − s·σ: `shift_k` is
         // s·σ at the start and at the end of the step ([0, 0] without the
-        // stress dependence, where the subtractions are exact).
-        let xi_at =
-            |t: f64| self.phase_update_with(shape, t_old - shift_k[0], xi_old, t - shift_k[1]);
+        // stress dependence, where the subtractions are exact). Every
+        // evaluation starts from the same (T_old, ξ_old), so the branch
+        // shapes there are computed once (`from`), and each temperature's
+        // ξ is kept with its residual rather than evaluated again: the
+        // same operations on the same values as evaluating afresh.
+        let mut from = PhaseFrom::default();
+        let mut xi_at = |t: f64| {
+            self.phase_update_from(shape, &mut from, t_old - shift_k[0], xi_old, t - shift_k[1])
+        };
         let xi_sensible = xi_at(t_sensible);
         let l = self.latent_rise_k();
         if xi_sensible == xi_old || l == 0.0 {
             return (t_sensible, xi_sensible);
         }
-        let residual = |t: f64| t - t_sensible - l * (xi_at(t) - xi_old);
+        let residual = |t: f64, xi: f64| t - t_sensible - l * (xi - xi_old);
         // Bracket [lo, hi] with residual(lo) < 0 < residual(hi).
-        let (mut lo, mut hi) = if t_sensible > t_old {
-            (t_old, t_sensible)
+        let (mut lo, mut hi, xi_lo, xi_hi) = if t_sensible > t_old {
+            (t_old, t_sensible, xi_at(t_old), xi_sensible)
         } else {
-            (t_sensible, t_old)
+            (t_sensible, t_old, xi_sensible, xi_at(t_old))
         };
-        let (mut r_lo, mut r_hi) = (residual(lo), residual(hi));
+        let (mut r_lo, mut r_hi) = (residual(lo, xi_lo), residual(hi, xi_hi));
         if r_lo >= 0.0 {
-            return (lo, xi_at(lo));
+            return (lo, xi_lo);
         }
         if r_hi <= 0.0 {
-            return (hi, xi_at(hi));
+            return (hi, xi_hi);
         }
         let mut side = 0i8;
         let mut t = 0.5 * (lo + hi);
+        let mut xi = xi_old;
         for _ in 0..60 {
             t = (lo * r_hi - hi * r_lo) / (r_hi - r_lo);
             if !(t > lo && t < hi) {
                 t = 0.5 * (lo + hi);
             }
-            let r = residual(t);
+            xi = xi_at(t);
+            let r = residual(t, xi);
             if r == 0.0 || hi - lo < 1e-9 {
                 break;
             }
@@ -359,7 +389,7 @@ impl SmaParams {
                 side = 1;
             }
         }
-        (t, xi_at(t))
+        (t, xi)
     }
 
     /// One Liang–Rogers phase update from (`t_old`, `xi_old`) to `t_new`.
@@ -374,40 +404,79 @@ impl SmaParams {
     /// bit-identical.
     #[inline]
     fn phase_update_with(&self, shape: &PhaseShape, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
+        self.phase_update_from(shape, &mut PhaseFrom::default(), t_old, xi_old, t_new)
+    }
+
+    /// [`Self::phase_update_with`] keeping g_A(`t_old`) and g_M(`t_old`)
+    /// in `from` once computed, for several updates from the same
+    /// (`t_old`, `xi_old`).
+    #[inline(always)]
+    fn phase_update_from(
+        &self,
+        shape: &PhaseShape,
+        from: &mut PhaseFrom,
+        t_old: f64,
+        xi_old: f64,
+        t_new: f64,
+    ) -> f64 {
+        if let Some(xi) = self.phase_update_outside_bands(t_old, xi_old, t_new) {
+            return xi;
+        }
         if t_new > t_old {
-            if t_new >= self.austenite_finish_c {
-                return 0.0;
-            }
-            if t_new <= self.austenite_start_c {
-                // g_A(t_old) = g_A(t_new) = 1: ξ·1/1 = ξ.
-                return xi_old.min(xi_old).clamp(0.0, 1.0);
-            }
-            let g_old = self.g_heat(shape, t_old);
+            let g_old = *from.heat.get_or_insert_with(|| self.g_heat(shape, t_old));
             if g_old <= 0.0 {
                 return xi_old;
             }
             (xi_old * self.g_heat(shape, t_new) / g_old)
                 .min(xi_old)
                 .clamp(0.0, 1.0)
-        } else if t_new < t_old {
-            if t_new <= self.martensite_finish_c {
-                return 1.0;
-            }
-            if t_new >= self.martensite_start_c {
-                // g_M(t_old) = g_M(t_new) = 1: (1 − ξ)·1/1 = 1 − ξ.
-                let aus = (1.0 - xi_old).min(1.0 - xi_old);
-                return (1.0 - aus).clamp(0.0, 1.0);
-            }
-            let g_old = self.g_cool(shape, t_old);
+        } else {
+            let g_old = *from.cool.get_or_insert_with(|| self.g_cool(shape, t_old));
             if g_old <= 0.0 {
                 return xi_old;
             }
             let aus = ((1.0 - xi_old) * self.g_cool(shape, t_new) / g_old).min(1.0 - xi_old);
             (1.0 - aus).clamp(0.0, 1.0)
-        } else {
-            xi_old
         }
     }
+
+    /// [`Self::phase_update`] where it needs neither branch's shape: no
+    /// change of temperature, or an end outside the band of the branch
+    /// taken (heating: at or above A_f, at or below A_s; cooling: at or
+    /// below M_f, at or above M_s); `None` inside it.
+    #[inline(always)]
+    fn phase_update_outside_bands(&self, t_old: f64, xi_old: f64, t_new: f64) -> Option<f64> {
+        if t_new > t_old {
+            if t_new >= self.austenite_finish_c {
+                return Some(0.0);
+            }
+            if t_new <= self.austenite_start_c {
+                // g_A(t_old) = g_A(t_new) = 1: ξ·1/1 = ξ.
+                return Some(xi_old.min(xi_old).clamp(0.0, 1.0));
+            }
+            None
+        } else if t_new < t_old {
+            if t_new <= self.martensite_finish_c {
+                return Some(1.0);
+            }
+            if t_new >= self.martensite_start_c {
+                // g_M(t_old) = g_M(t_new) = 1: (1 − ξ)·1/1 = 1 − ξ.
+                let aus = (1.0 - xi_old).min(1.0 - xi_old);
+                return Some((1.0 - aus).clamp(0.0, 1.0));
+            }
+            None
+        } else {
+            Some(xi_old)
+        }
+    }
+}
+
+/// The phase law's branch shapes at the start of a step, g_A(T_old) and
+/// g_M(T_old), once computed.
+#[derive(Clone, Copy, Debug, Default)]
+struct PhaseFrom {
+    heat: Option<f64>,
+    cool: Option<f64>,
 }
 
 /// Constants of the phase law's cosine branches, π/(A_f − A_s) and

@@ -391,6 +391,30 @@ impl WireSensor {
     /// `rng` drives stick events.
     #[inline(always)]
     pub fn advance_to_ideal(&mut self, ideal: f64, rng: &mut ChaCha8Rng) {
+        self.advance_to_ideal_with(ideal, |j, delta| {
+            if rng.gen::<f64>() < j.stick_per_mm * delta {
+                Some(rng.gen_range(j.stick_min_mm..=j.stick_max_mm))
+            } else {
+                None
+            }
+        });
+    }
+
+    /// [`Self::advance_to_ideal`] with the stick events from `stick`,
+    /// called (with the jamming parameters and the push `delta` in mm)
+    /// wherever the tip may start to stick: pushed, not stuck, and
+    /// `stick_per_mm > 0`; it returns the stick's push length (mm) if one
+    /// starts. Where it is called depends only on the path and on the
+    /// sticks before, not on the buckling gain or the lag ceilings, so
+    /// the sticks of one run along a path, recorded, replay that run
+    /// along the same path with other values of those
+    /// (identification's wire stage does).
+    #[inline(always)]
+    pub fn advance_to_ideal_with(
+        &mut self,
+        ideal: f64,
+        mut stick: impl FnMut(&JamParams, f64) -> Option<f64>,
+    ) {
         let g = &self.params.geometry;
         let delta = ideal - self.ideal_mm;
         self.ideal_mm = ideal;
@@ -408,8 +432,10 @@ impl WireSensor {
                     // buckle relaxes towards it at the same rate.
                     self.lag_mm = (self.lag_mm + grow).max(0.0);
                 }
-                if j.stick_per_mm > 0.0 && rng.gen::<f64>() < j.stick_per_mm * delta {
-                    self.stick_left_mm = rng.gen_range(j.stick_min_mm..=j.stick_max_mm);
+                if j.stick_per_mm > 0.0 {
+                    if let Some(length_mm) = stick(j, delta) {
+                        self.stick_left_mm = length_mm;
+                    }
                 }
             }
         } else if delta < 0.0 {

@@ -97,6 +97,31 @@ pub enum VeError {
         /// Why.
         error: Box<VeError>,
     },
+    /// The 3-element model overflowed on a table's sample: the parameters
+    /// and the input are too large together for f64.
+    #[error("{file}: the model overflowed at the sample at time_s = {time_s} (displacement {displacement}, force {force}): k1 = {k1:e}, k2 = {k2:e}, b = {b:e} and the input are too large together")]
+    Overflow {
+        /// The input's name.
+        file: String,
+        /// The sample's time (s).
+        time_s: f64,
+        /// Its displacement (m), input or result.
+        displacement: f64,
+        /// Its force (N), input or result.
+        force: f64,
+        /// k1 (N/m).
+        k1: f64,
+        /// k2 (N/m).
+        k2: f64,
+        /// b (N·s/m).
+        b: f64,
+    },
+    /// A fit's model force overflowed: the trial's numbers are too large.
+    #[error("the model's force overflowed (rms residual {} N): displacements and forces this large cannot be fitted", plant_common::short_number(*.rms_residual_n))]
+    FitOverflow {
+        /// The fit's rms residual (N), not finite.
+        rms_residual_n: f64,
+    },
     /// Two series that must line up do not.
     #[error("length mismatch: {what} has {got} entries, expected {expected}")]
     LengthMismatch {

@@ -11,6 +11,10 @@
 //! - [`identify`]: measuring it (the probe simulator that generates ground
 //!   truth, [`measure`]) and identifying its parameters from measurements
 //!   ([`fit`], [`estimate`]).
+//! - [`experiment`]: the experiments `softjoint viscoelastic` runs, built
+//!   from the two: the model on a user's table, a checked trial fit, and
+//!   the measured-object pipeline (DGFM, campaign, estimate, scripted
+//!   probe beside the exact reference).
 //!
 //! What is modelled: linear small-strain elasticity of a closed, star-
 //! shaped object resting on a support (Λu); the seed's 3-element model per
@@ -25,6 +29,7 @@
 //! Units: metres, newtons, pascals, seconds; names carry them.
 
 pub mod error;
+pub mod experiment;
 pub mod identify;
 pub mod io;
 pub mod model;

@@ -13,7 +13,7 @@
 //! (points).
 use crate::error::{ContourError, Result};
 use crate::identify::tracked::{Point, Signature, DUPLICATE_ANGLE_RAD, MIN_CONTOUR_POINTS};
-use plant_common::csv_input::{read_numeric, Table};
+use plant_common::csv_input::{read_numeric, Row, Table};
 use std::f64::consts::TAU;
 
 /// One frame of tracked contour data.
@@ -73,117 +73,31 @@ pub fn read_contour_csv(text: &str, file: &str) -> Result<ContourData> {
         .then(|| table.column("frame"))
         .transpose()
         .map_err(csv_error)?;
-    let signature = table.has("angle_rad") || table.has("radius");
-    let points = table.has("x") || table.has("y");
-    if signature == points {
-        return Err(ContourError::MalformedInput {
-            location: format!("{file}:{}", table.header_line),
-            reason: format!(
-                "expected the columns `angle_rad,radius` (optionally `centre_x,centre_y`) or `x,y`, each optionally with `frame`; the header has: {}",
-                table.columns.join(", ")
-            ),
-        });
-    }
-    let cols: Vec<usize> = if signature {
-        let mut c = vec![
-            table.column("angle_rad").map_err(csv_error)?,
-            table.column("radius").map_err(csv_error)?,
-        ];
-        if table.has("centre_x") || table.has("centre_y") {
-            c.push(table.column("centre_x").map_err(csv_error)?);
-            c.push(table.column("centre_y").map_err(csv_error)?);
-        }
-        c
-    } else {
-        vec![
-            table.column("x").map_err(csv_error)?,
-            table.column("y").map_err(csv_error)?,
-        ]
-    };
+    let layout = Layout::of(&table)?;
     // Group rows by frame, keeping file order within a frame (a stable
     // sort by frame number).
-    let key_of = |r: &plant_common::csv_input::Row| frame_col.map_or(0.0, |c| r.values[c]);
-    let mut sorted: Vec<&plant_common::csv_input::Row> = table.rows.iter().collect();
+    let key_of = |r: &Row| frame_col.map_or(0.0, |c| r.values[c]);
+    let mut sorted: Vec<&Row> = table.rows.iter().collect();
     sorted.sort_by(|a, b| key_of(a).total_cmp(&key_of(b)));
     let mut frames = Vec::new();
     for group in sorted.chunk_by(|a, b| key_of(a) == key_of(b)) {
-        let rows = group.to_vec();
-        let key = key_of(rows[0]);
+        let key = key_of(group[0]);
         let name = format!("{file}: frame {}", plant_common::short_number(key));
-        if rows.len() < MIN_CONTOUR_POINTS {
+        if group.len() < MIN_CONTOUR_POINTS {
             return Err(ContourError::TooFewPoints {
-                location: format!("{name} (line {})", rows[0].line),
-                got: rows.len(),
+                location: format!("{name} (line {})", group[0].line),
+                got: group.len(),
                 needed: MIN_CONTOUR_POINTS,
                 why: "a closed contour",
             });
         }
-        let data = if signature {
-            let angles: Vec<f64> = rows.iter().map(|r| r.values[cols[0]]).collect();
-            let radii: Vec<f64> = rows.iter().map(|r| r.values[cols[1]]).collect();
-            let centre = if cols.len() == 4 {
-                let c = (rows[0].values[cols[2]], rows[0].values[cols[3]]);
-                if let Some(r) = rows
-                    .iter()
-                    .find(|r| (r.values[cols[2]], r.values[cols[3]]) != c)
-                {
-                    return Err(table_error(
-                        &table,
-                        r.line,
-                        "the centre (centre_x, centre_y) changes within a frame",
-                    ));
-                }
-                c
-            } else {
-                (0.0, 0.0)
-            };
-            // Duplicate angles, named by line.
-            let mut order: Vec<usize> = (0..angles.len()).collect();
-            order.sort_by(|&a, &b| {
-                angles[a]
-                    .rem_euclid(TAU)
-                    .total_cmp(&angles[b].rem_euclid(TAU))
-            });
-            for w in 0..order.len() {
-                let (i, j) = (order[w], order[(w + 1) % order.len()]);
-                let mut gap = angles[j].rem_euclid(TAU) - angles[i].rem_euclid(TAU);
-                if w + 1 == order.len() {
-                    gap += TAU;
-                }
-                if gap.abs() < DUPLICATE_ANGLE_RAD {
-                    let (a, b) = (rows[i.min(j)].line, rows[i.max(j)].line);
-                    return Err(ContourError::DuplicateParameter {
-                        location: format!(
-                            "{file}:{b}: frame {} (same angle as line {a})",
-                            plant_common::short_number(key)
-                        ),
-                        axis: "angle",
-                        value: angles[i.max(j)],
-                        first: i.min(j),
-                        second: i.max(j),
-                    });
-                }
-            }
-            FrameData::Signature(Signature::new(&name, centre, &angles, &radii)?)
-        } else {
-            let pts: Vec<Point> = rows
-                .iter()
-                .map(|r| (r.values[cols[0]], r.values[cols[1]]))
-                .collect();
-            for k in 0..pts.len() {
-                let next = (k + 1) % pts.len();
-                if pts[k] == pts[next] {
-                    let (a, b) = (rows[k.min(next)].line, rows[k.max(next)].line);
-                    return Err(ContourError::DuplicateParameter {
-                        location: format!("{file}:{b}: frame {} (same point as line {a}; consecutive points must differ)", plant_common::short_number(key)),
-                        axis: "point",
-                        value: k as f64,
-                        first: k.min(next),
-                        second: k.max(next),
-                    });
-                }
-            }
-            FrameData::Points(pts)
+        let data = match layout {
+            Layout::Signature {
+                angle,
+                radius,
+                centre,
+            } => signature_frame(&table, group, key, &name, (angle, radius, centre))?,
+            Layout::Points { x, y } => points_frame(file, group, key, x, y)?,
         };
         frames.push((key, data));
     }
@@ -191,6 +105,141 @@ pub fn read_contour_csv(text: &str, file: &str) -> Result<ContourData> {
         file: file.to_string(),
         frames,
     })
+}
+
+/// Which layout a table has, as its column indices.
+#[derive(Clone, Copy)]
+enum Layout {
+    /// `angle_rad,radius`, optionally `centre_x,centre_y`.
+    Signature {
+        angle: usize,
+        radius: usize,
+        centre: Option<(usize, usize)>,
+    },
+    /// `x,y`.
+    Points { x: usize, y: usize },
+}
+
+impl Layout {
+    /// The layout the header names; an error if it names both or neither.
+    fn of(table: &Table) -> Result<Layout> {
+        let signature = table.has("angle_rad") || table.has("radius");
+        let points = table.has("x") || table.has("y");
+        if signature == points {
+            return Err(ContourError::MalformedInput {
+                location: format!("{}:{}", table.file, table.header_line),
+                reason: format!(
+                    "expected the columns `angle_rad,radius` (optionally `centre_x,centre_y`) or `x,y`, each optionally with `frame`; the header has: {}",
+                    table.columns.join(", ")
+                ),
+            });
+        }
+        let column = |name: &str| table.column(name).map_err(csv_error);
+        if signature {
+            let (angle, radius) = (column("angle_rad")?, column("radius")?);
+            let centre = if table.has("centre_x") || table.has("centre_y") {
+                Some((column("centre_x")?, column("centre_y")?))
+            } else {
+                None
+            };
+            Ok(Layout::Signature {
+                angle,
+                radius,
+                centre,
+            })
+        } else {
+            Ok(Layout::Points {
+                x: column("x")?,
+                y: column("y")?,
+            })
+        }
+    }
+}
+
+/// A frame of signature rows (`columns`: angle, radius and the centre's
+/// columns if any): one centre, no two points at one angle.
+fn signature_frame(
+    table: &Table,
+    rows: &[&Row],
+    key: f64,
+    name: &str,
+    columns: (usize, usize, Option<(usize, usize)>),
+) -> Result<FrameData> {
+    let (angle, radius, centre) = columns;
+    let angles: Vec<f64> = rows.iter().map(|r| r.values[angle]).collect();
+    let radii: Vec<f64> = rows.iter().map(|r| r.values[radius]).collect();
+    let centre = match centre {
+        Some((cx, cy)) => {
+            let c = (rows[0].values[cx], rows[0].values[cy]);
+            if let Some(r) = rows.iter().find(|r| (r.values[cx], r.values[cy]) != c) {
+                return Err(table_error(
+                    table,
+                    r.line,
+                    "the centre (centre_x, centre_y) changes within a frame",
+                ));
+            }
+            c
+        }
+        None => (0.0, 0.0),
+    };
+    check_distinct_angles(&table.file, rows, &angles, key)?;
+    Ok(FrameData::Signature(Signature::new(
+        name, centre, &angles, &radii,
+    )?))
+}
+
+/// No two of a frame's angles within [`DUPLICATE_ANGLE_RAD`] of each
+/// other (around the circle); the error names both lines.
+fn check_distinct_angles(file: &str, rows: &[&Row], angles: &[f64], key: f64) -> Result<()> {
+    let mut order: Vec<usize> = (0..angles.len()).collect();
+    order.sort_by(|&a, &b| {
+        angles[a]
+            .rem_euclid(TAU)
+            .total_cmp(&angles[b].rem_euclid(TAU))
+    });
+    for w in 0..order.len() {
+        let (i, j) = (order[w], order[(w + 1) % order.len()]);
+        let mut gap = angles[j].rem_euclid(TAU) - angles[i].rem_euclid(TAU);
+        if w + 1 == order.len() {
+            gap += TAU;
+        }
+        if gap.abs() < DUPLICATE_ANGLE_RAD {
+            let (a, b) = (rows[i.min(j)].line, rows[i.max(j)].line);
+            return Err(ContourError::DuplicateParameter {
+                location: format!(
+                    "{file}:{b}: frame {} (same angle as line {a})",
+                    plant_common::short_number(key)
+                ),
+                axis: "angle",
+                value: angles[i.max(j)],
+                first: i.min(j),
+                second: i.max(j),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A frame of point rows: consecutive points (around the contour) differ.
+fn points_frame(file: &str, rows: &[&Row], key: f64, x: usize, y: usize) -> Result<FrameData> {
+    let pts: Vec<Point> = rows.iter().map(|r| (r.values[x], r.values[y])).collect();
+    for k in 0..pts.len() {
+        let next = (k + 1) % pts.len();
+        if pts[k] == pts[next] {
+            let (a, b) = (rows[k.min(next)].line, rows[k.max(next)].line);
+            return Err(ContourError::DuplicateParameter {
+                location: format!(
+                    "{file}:{b}: frame {} (same point as line {a}; consecutive points must differ)",
+                    plant_common::short_number(key)
+                ),
+                axis: "point",
+                value: k as f64,
+                first: k.min(next),
+                second: k.max(next),
+            });
+        }
+    }
+    Ok(FrameData::Points(pts))
 }
 
 fn csv_error(e: plant_common::csv_input::CsvError) -> ContourError {

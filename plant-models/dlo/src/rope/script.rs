@@ -301,11 +301,68 @@ impl RopeScenario {
     /// Runs the scenario; `on_frame` sees every recorded frame as it comes
     /// (a progress bar, a streaming writer).
     pub fn run(&self, mut on_frame: impl FnMut(&Frame)) -> Result<RunResult> {
-        let mut rope = self.initial_rope()?;
+        let mut run = ScenarioRun::start(self)?;
+        let steps = run.out.steps;
+        let frame_every = ((self.frame_interval_s / run.dt).round() as usize).max(1);
+        let started = std::time::Instant::now();
+        for k in 0..=steps {
+            run.move_hands(k)?;
+            run.check_topology(k);
+            if k % frame_every == 0 {
+                let f = run.frame();
+                on_frame(&f);
+                run.out.frames.push(f);
+            }
+            if k == steps {
+                break;
+            }
+            run.rope.step()?;
+            run.record_step(k);
+        }
+        run.out.wall_s = started.elapsed().as_secs_f64();
+        run.out.hands = run.hands;
+        Ok(run.out)
+    }
+
+    /// The stated bound on segment overlap: 0.3 r (centre lines never
+    /// closer than 1.7 r; passing through would need 2r).
+    pub fn penetration_tolerance_m(&self) -> f64 {
+        0.3 * self.rope.radius_m
+    }
+}
+
+impl RunResult {
+    /// Wall time per step, µs (of the stepping alone).
+    pub fn step_time_us(&self) -> f64 {
+        1e6 * self.wall_s / self.steps.max(1) as f64
+    }
+}
+
+/// A scenario being run: the rope, where each hand is in its script, the
+/// checks still to come, and what has been recorded so far.
+struct ScenarioRun<'a> {
+    scenario: &'a RopeScenario,
+    rope: Rope,
+    dt: f64,
+    /// Next key of each hand (key actions run in time order).
+    next_key: Vec<usize>,
+    /// Key positions, resolved for `at_node` keys when the hand sets off.
+    resolved: Vec<Vec<V3>>,
+    /// Topology checks as step indices, in time order.
+    checks: Vec<(usize, &'a TopologyCheck)>,
+    next_check: usize,
+    /// Scratch for the internal-force sum.
+    internal: Vec<V3>,
+    hands: Vec<HandSummary>,
+    out: RunResult,
+}
+
+impl<'a> ScenarioRun<'a> {
+    fn start(scenario: &'a RopeScenario) -> Result<Self> {
+        let rope = scenario.initial_rope()?;
         let dt = rope.params.dt_s;
-        let steps = (self.duration_s / dt).round() as usize;
-        let frame_every = ((self.frame_interval_s / dt).round() as usize).max(1);
-        let mut hands: Vec<HandSummary> = self
+        let steps = (scenario.duration_s / dt).round() as usize;
+        let hands = scenario
             .hands
             .iter()
             .map(|h| HandSummary {
@@ -315,124 +372,140 @@ impl RopeScenario {
                 missed_grasps_s: Vec::new(),
             })
             .collect();
-        // Key actions in time order, as step indices.
-        let mut next_key = vec![0usize; self.hands.len()];
-        let mut checks: Vec<(usize, &TopologyCheck)> = self
+        let mut checks: Vec<(usize, &TopologyCheck)> = scenario
             .checks
             .iter()
             .map(|c| (((c.at_s / dt).round() as usize).min(steps), c))
             .collect();
         checks.sort_by_key(|c| c.0);
-        let mut out = RunResult {
-            frames: Vec::new(),
-            checks: Vec::new(),
-            hands: Vec::new(),
-            steps,
-            max_penetration_m: 0.0,
-            max_penetration_time_s: 0.0,
-            contact_steps: 0,
-            clamped_segments: 0,
-            max_internal_force_sum_n: 0.0,
-            wall_s: 0.0,
-        };
-        let frame = |rope: &Rope| Frame {
-            time_s: rope.time_s,
-            x: rope.x.clone(),
-            hands_m: rope.tools.iter().map(|t| t.position_m).collect(),
-            held: rope.tools.iter().map(|t| t.grasped).collect(),
-        };
-        // Key positions, resolved for `at_node` keys when the hand sets off.
-        let mut resolved: Vec<Vec<V3>> = self
+        let resolved = scenario
             .hands
             .iter()
             .map(|h| h.keys.iter().map(|k| v3(k.at_m)).collect())
             .collect();
-        let mut check_i = 0;
-        let mut internal = vec![V3::zeros(); rope.len()];
-        let started = std::time::Instant::now();
-        for k in 0..=steps {
-            let t = k as f64 * dt;
-            for (h, script) in self.hands.iter().enumerate() {
-                // A key aimed at a node follows it until the hand gets there.
-                if let Some(next) = script.keys.get(next_key[h]) {
-                    if let Some(node) = next.at_node {
-                        resolved[h][next_key[h]] = rope.x[node] + v3(next.at_m);
-                    }
-                }
-                let (pos, vel) = script.motion_resolved(t, &resolved[h]);
-                rope.tools[h].position_m = pos;
-                rope.tools[h].velocity_m_s = vel;
-                while let Some(key) = script.keys.get(next_key[h]) {
-                    if ((key.t_s / dt).round() as usize) > k {
-                        break;
-                    }
-                    next_key[h] += 1;
-                    match key.action {
-                        Some(Action::Grasp) => {
-                            // A named node must be within reach too: a
-                            // hand does not pull a point from afar.
-                            let node = match key.node {
-                                Some(n) => {
-                                    ((rope.x[n] - pos).norm() <= script.reach_m).then_some(n)
-                                }
-                                None => rope.nearest_node(pos, script.reach_m),
-                            };
-                            match node {
-                                Some(n) => rope.grasp(h, n)?,
-                                None => hands[h].missed_grasps_s.push(key.t_s),
-                            }
-                        }
-                        Some(Action::Release) => rope.tools[h].grasped = None,
-                        None => {}
-                    }
+        Ok(ScenarioRun {
+            scenario,
+            next_key: vec![0usize; scenario.hands.len()],
+            resolved,
+            checks,
+            next_check: 0,
+            internal: vec![V3::zeros(); rope.len()],
+            hands,
+            out: RunResult {
+                frames: Vec::new(),
+                checks: Vec::new(),
+                hands: Vec::new(),
+                steps,
+                max_penetration_m: 0.0,
+                max_penetration_time_s: 0.0,
+                contact_steps: 0,
+                clamped_segments: 0,
+                max_internal_force_sum_n: 0.0,
+                wall_s: 0.0,
+            },
+            rope,
+            dt,
+        })
+    }
+
+    /// Moves every hand to where its script has it at step `k`, and runs
+    /// the actions of the keys it has reached.
+    fn move_hands(&mut self, k: usize) -> Result<()> {
+        let t = k as f64 * self.dt;
+        for (h, script) in self.scenario.hands.iter().enumerate() {
+            // A key aimed at a node follows it until the hand gets there.
+            if let Some(next) = script.keys.get(self.next_key[h]) {
+                if let Some(node) = next.at_node {
+                    self.resolved[h][self.next_key[h]] = self.rope.x[node] + v3(next.at_m);
                 }
             }
-            while let Some(&(at, c)) = checks.get(check_i) {
-                if at != k {
+            let (pos, vel) = script.motion_resolved(t, &self.resolved[h]);
+            self.rope.tools[h].position_m = pos;
+            self.rope.tools[h].velocity_m_s = vel;
+            while let Some(key) = script.keys.get(self.next_key[h]) {
+                if ((key.t_s / self.dt).round() as usize) > k {
                     break;
                 }
-                check_i += 1;
-                out.checks.push(TopologyResult {
-                    label: c.label.clone(),
-                    time_s: rope.time_s,
-                    crossings: crossings(&rope.x, View::default()).len(),
-                    determinant: knot_determinant(&rope.x, View::default()),
-                });
-            }
-            if k % frame_every == 0 {
-                let f = frame(&rope);
-                on_frame(&f);
-                out.frames.push(f);
-            }
-            if k == steps {
-                break;
-            }
-            rope.step()?;
-            if k % 100 == 0 {
-                for f in internal.iter_mut() {
-                    *f = V3::zeros();
-                }
-                super::forces::add_internal_forces(&rope.params, &rope.x, &rope.v, &mut internal);
-                let sum: V3 = internal.iter().sum();
-                out.max_internal_force_sum_n = out.max_internal_force_sum_n.max(sum.norm());
-            }
-            if rope.stats.max_penetration_m > out.max_penetration_m {
-                out.max_penetration_m = rope.stats.max_penetration_m;
-                out.max_penetration_time_s = rope.time_s;
-            }
-            out.contact_steps += usize::from(rope.stats.contacts > 0);
-            out.clamped_segments += rope.stats.clamped_segments;
-            for (h, tool) in rope.tools.iter().enumerate() {
-                let f = tool.coupling_force_n.norm();
-                hands[h].max_coupling_force_n = hands[h].max_coupling_force_n.max(f);
-                hands[h].max_output_force_n = hands[h]
-                    .max_output_force_n
-                    .max(tool.output_force_n(&rope.params).norm());
+                self.next_key[h] += 1;
+                self.run_action(h, script, key, pos)?;
             }
         }
-        out.wall_s = started.elapsed().as_secs_f64();
-        out.hands = hands;
-        Ok(out)
+        Ok(())
+    }
+
+    /// The action of `key`, reached by hand `h` at `pos`.
+    fn run_action(&mut self, h: usize, script: &HandScript, key: &Key, pos: V3) -> Result<()> {
+        match key.action {
+            Some(Action::Grasp) => {
+                // A named node must be within reach too: a hand does not
+                // pull a point from afar.
+                let node = match key.node {
+                    Some(n) => ((self.rope.x[n] - pos).norm() <= script.reach_m).then_some(n),
+                    None => self.rope.nearest_node(pos, script.reach_m),
+                };
+                match node {
+                    Some(n) => self.rope.grasp(h, n)?,
+                    None => self.hands[h].missed_grasps_s.push(key.t_s),
+                }
+            }
+            Some(Action::Release) => self.rope.tools[h].grasped = None,
+            None => {}
+        }
+        Ok(())
+    }
+
+    /// Records the topology checks due at step `k`.
+    fn check_topology(&mut self, k: usize) {
+        while let Some(&(at, c)) = self.checks.get(self.next_check) {
+            if at != k {
+                break;
+            }
+            self.next_check += 1;
+            self.out.checks.push(TopologyResult {
+                label: c.label.clone(),
+                time_s: self.rope.time_s,
+                crossings: crossings(&self.rope.x, View::default()).len(),
+                determinant: knot_determinant(&self.rope.x, View::default()),
+            });
+        }
+    }
+
+    /// The rope and hands now.
+    fn frame(&self) -> Frame {
+        Frame {
+            time_s: self.rope.time_s,
+            x: self.rope.x.clone(),
+            hands_m: self.rope.tools.iter().map(|t| t.position_m).collect(),
+            held: self.rope.tools.iter().map(|t| t.grasped).collect(),
+        }
+    }
+
+    /// The run's figures after step `k`: internal-force sum (every 100
+    /// steps), deepest overlap, contacts, clamping, hand forces.
+    fn record_step(&mut self, k: usize) {
+        let (rope, out) = (&self.rope, &mut self.out);
+        if k % 100 == 0 {
+            for f in self.internal.iter_mut() {
+                *f = V3::zeros();
+            }
+            super::forces::add_internal_forces(&rope.params, &rope.x, &rope.v, &mut self.internal);
+            let sum: V3 = self.internal.iter().sum();
+            out.max_internal_force_sum_n = out.max_internal_force_sum_n.max(sum.norm());
+        }
+        if rope.stats.max_penetration_m > out.max_penetration_m {
+            out.max_penetration_m = rope.stats.max_penetration_m;
+            out.max_penetration_time_s = rope.time_s;
+        }
+        out.contact_steps += usize::from(rope.stats.contacts > 0);
+        out.clamped_segments += rope.stats.clamped_segments;
+        for (h, tool) in rope.tools.iter().enumerate() {
+            let f = tool.coupling_force_n.norm();
+            let hand = &mut self.hands[h];
+            hand.max_coupling_force_n = hand.max_coupling_force_n.max(f);
+            hand.max_output_force_n = hand
+                .max_output_force_n
+                .max(tool.output_force_n(&rope.params).norm());
+        }
     }
 }
 

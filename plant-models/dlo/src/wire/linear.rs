@@ -785,6 +785,27 @@ pub struct SequenceStep {
     pub knot: WireShape,
 }
 
+impl SequenceStep {
+    /// Whether the one-knot shape has the lower energy.
+    pub fn knot_is_lower(&self) -> bool {
+        self.knot.energy_j < self.free.energy_j
+    }
+
+    /// The shape of lower energy, as a name: `one_knot` or `knot_free`.
+    pub fn lower(&self) -> &'static str {
+        if self.knot_is_lower() {
+            "one_knot"
+        } else {
+            "knot_free"
+        }
+    }
+
+    /// Whether both solves converged.
+    pub fn converged(&self) -> bool {
+        self.free.solution.converged && self.knot.solution.converged
+    }
+}
+
 /// Both ends clamped in the natural orientation, x(L) − x(0) = (0, 0, l),
 /// optionally with one crossing (Eq. 21–24).
 pub fn clamped_problem(

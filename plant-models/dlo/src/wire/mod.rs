@@ -9,12 +9,15 @@
 //! - [`linear`]: the wire (Eq. 3–15, knots Eq. 21–24);
 //! - [`belt`]: the fishbone belt (Eq. 31–61);
 //! - [`strip`]: the fishbone belt on straight segments, developable
-//!   everywhere (the default belt solver).
+//!   everywhere (the default belt solver);
+//! - [`problem`]: a static problem as a file states it (one wire, one
+//!   belt, or the end-distance sequence) and its solution.
 pub mod basis;
 pub mod belt;
 pub mod frame;
 pub mod linear;
 pub mod optimize;
+pub mod problem;
 pub mod strip;
 
 pub use linear::{Constraint, WireParams, WireProblem, WireShape};

@@ -84,6 +84,68 @@ pub fn levenberg_marquardt<F>(f: F, x0: &[f64], opts: LmOptions) -> Result<LmRes
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
+    minimise(&f, x0, opts)?.finish(&f, opts)
+}
+
+/// Where the minimiser stopped, before the Jacobian there that the
+/// covariance needs ([`Minimum::finish`]): a caller with several starting
+/// points computes it only for the one it keeps.
+#[derive(Clone, Debug)]
+pub struct Minimum {
+    /// The minimiser.
+    pub x: Vec<f64>,
+    /// `‖r‖²` there.
+    pub cost: f64,
+    /// Residuals at `x`.
+    pub residuals: Vec<f64>,
+    /// Iterations taken.
+    pub iterations: usize,
+    /// Residual evaluations so far.
+    pub evaluations: usize,
+    /// Ran out of iterations (see [`LmResult::stopped_by_budget`]).
+    pub stopped_by_budget: bool,
+    /// The Jacobian at `x` where the minimiser already has it (it stopped
+    /// on a rejected step or on its budget, not just after a step).
+    jacobian: Option<Vec<Vec<f64>>>,
+}
+
+impl Minimum {
+    /// The result with the Jacobian at the minimiser and the covariance
+    /// from it (the Jacobian costs `n` evaluations unless known).
+    pub fn finish<F>(self, f: &F, opts: LmOptions) -> Result<LmResult, IdentifyError>
+    where
+        F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+    {
+        let n = self.x.len();
+        let m = self.residuals.len();
+        let (jac, evaluations) = match self.jacobian {
+            Some(jac) => (jac, self.evaluations),
+            None => (
+                jacobian(f, &self.x, &self.residuals, opts.step)?,
+                self.evaluations + n,
+            ),
+        };
+        let (std, correlation) = covariance(&jac, self.cost, m);
+        Ok(LmResult {
+            x: self.x,
+            cost: self.cost,
+            m,
+            iterations: self.iterations,
+            stopped_by_budget: self.stopped_by_budget,
+            evaluations,
+            std,
+            correlation,
+            residuals: self.residuals,
+            jacobian: jac,
+        })
+    }
+}
+
+/// The minimiser of [`levenberg_marquardt`], without the final Jacobian.
+pub fn minimise<F>(f: &F, x0: &[f64], opts: LmOptions) -> Result<Minimum, IdentifyError>
+where
+    F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
     let n = x0.len();
     let mut x = x0.to_vec();
     let mut r = f(&x)?;
@@ -98,85 +160,83 @@ where
     let mut evaluations = 1;
     let mut lambda = 1e-2;
     let mut iterations = 0;
-    let mut jac = jacobian(&f, &x, &r, opts.step)?;
+    let mut jac = jacobian(f, &x, &r, opts.step)?;
     evaluations += n;
+    let stop = |x, r, cost, iterations, evaluations, stopped_by_budget, jacobian| Minimum {
+        x,
+        cost,
+        residuals: r,
+        iterations,
+        evaluations,
+        stopped_by_budget,
+        jacobian,
+    };
     while iterations < opts.max_iterations {
         iterations += 1;
-        let jm = DMatrix::from_fn(m, n, |i, j| jac[j][i]);
-        let rv = DVector::from_column_slice(&r);
-        let jtj = jm.transpose() * &jm;
-        let g = jm.transpose() * rv;
-        let mut accepted = false;
-        for _ in 0..8 {
-            let mut a = jtj.clone();
-            for k in 0..n {
-                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
-            }
-            let Some(chol) = a.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let dx = chol.solve(&(-&g));
-            let trial: Vec<f64> = x.iter().zip(dx.iter()).map(|(a, b)| a + b).collect();
-            evaluations += 1;
-            match f(&trial) {
-                Ok(rt) if sq(&rt).is_finite() && sq(&rt) < cost => {
-                    let new_cost = sq(&rt);
-                    let decrease = (cost - new_cost) / cost.max(1e-300);
-                    x = trial;
-                    r = rt;
-                    cost = new_cost;
-                    lambda = (lambda / 10.0).max(1e-9);
-                    accepted = true;
-                    if decrease < opts.ftol {
-                        return finish(&f, x, r, cost, m, iterations, evaluations, false, opts);
-                    }
-                    break;
-                }
-                // A trial the plant refuses (unstable) counts as worse.
-                _ => lambda *= 10.0,
-            }
+        let Some((trial, rt, new_cost)) =
+            lm_step(f, &x, &r, cost, &jac, &mut lambda, &mut evaluations)
+        else {
+            // No step lowers the cost: a (local) optimum, where the
+            // Jacobian is the one just used.
+            return Ok(stop(x, r, cost, iterations, evaluations, false, Some(jac)));
+        };
+        let decrease = (cost - new_cost) / cost.max(1e-300);
+        x = trial;
+        r = rt;
+        cost = new_cost;
+        if decrease < opts.ftol {
+            return Ok(stop(x, r, cost, iterations, evaluations, false, None));
         }
-        if !accepted {
-            // No step lowers the cost: a (local) optimum.
-            return finish(&f, x, r, cost, m, iterations, evaluations, false, opts);
-        }
-        jac = jacobian(&f, &x, &r, opts.step)?;
+        jac = jacobian(f, &x, &r, opts.step)?;
         evaluations += n;
     }
-    finish(&f, x, r, cost, m, iterations, evaluations, true, opts)
+    Ok(stop(x, r, cost, iterations, evaluations, true, Some(jac)))
 }
 
-#[allow(clippy::too_many_arguments)]
-fn finish<F>(
+/// One Levenberg–Marquardt step from `x` with the Jacobian `jac`: λ grows
+/// tenfold per rejected trial (at most 8) and falls tenfold on
+/// acceptance; the accepted trial point, its residuals and cost.
+#[allow(clippy::type_complexity)] // (x, r, cost)
+fn lm_step<F>(
     f: &F,
-    x: Vec<f64>,
-    r: Vec<f64>,
+    x: &[f64],
+    r: &[f64],
     cost: f64,
-    m: usize,
-    iterations: usize,
-    evaluations: usize,
-    stopped_by_budget: bool,
-    opts: LmOptions,
-) -> Result<LmResult, IdentifyError>
+    jac: &[Vec<f64>],
+    lambda: &mut f64,
+    evaluations: &mut usize,
+) -> Option<(Vec<f64>, Vec<f64>, f64)>
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
-    let n = x.len();
-    let jac = jacobian(f, &x, &r, opts.step)?;
-    let (std, correlation) = covariance(&jac, cost, m);
-    Ok(LmResult {
-        x,
-        cost,
-        m,
-        iterations,
-        stopped_by_budget,
-        evaluations: evaluations + n,
-        std,
-        correlation,
-        residuals: r,
-        jacobian: jac,
-    })
+    let (m, n) = (r.len(), x.len());
+    let jm = DMatrix::from_fn(m, n, |i, j| jac[j][i]);
+    let rv = DVector::from_column_slice(r);
+    let jtj = jm.transpose() * &jm;
+    let g = jm.transpose() * rv;
+    for _ in 0..8 {
+        let mut a = jtj.clone();
+        for k in 0..n {
+            a[(k, k)] += *lambda * jtj[(k, k)].max(1e-12);
+        }
+        let Some(chol) = a.cholesky() else {
+            *lambda *= 10.0;
+            continue;
+        };
+        let dx = chol.solve(&(-&g));
+        let trial: Vec<f64> = x.iter().zip(dx.iter()).map(|(a, b)| a + b).collect();
+        *evaluations += 1;
+        match f(&trial) {
+            Ok(rt) if sq(&rt).is_finite() && sq(&rt) < cost => {
+                let new_cost = sq(&rt);
+                *lambda = (*lambda / 10.0).max(1e-9);
+                return Some((trial, rt, new_cost));
+            }
+            // A trial the plant refuses (unstable) counts as worse.
+            _ => *lambda *= 10.0,
+        }
+    }
+    None
 }
 
 /// Forward-difference Jacobian, one column per coordinate, in parallel.
@@ -200,6 +260,23 @@ where
             Ok(rp.iter().zip(r0).map(|(a, b)| (a - b) / h).collect())
         })
         .collect()
+}
+
+/// `(JᵀJ)⁺` of a Jacobian and which coordinates move along a direction
+/// it leaves undetermined: what [`systematic_shift_with`] and
+/// [`block_robust_std_with`] share, computed once for several of them.
+#[derive(Clone, Debug)]
+pub struct NormalInverse {
+    pinv: DMatrix<f64>,
+    undetermined: Vec<bool>,
+}
+
+impl NormalInverse {
+    /// Of the Jacobian `jac` (columns of `m` values).
+    pub fn new(jac: &[Vec<f64>], m: usize) -> Self {
+        let (pinv, undetermined) = normal_pinv(jac, m);
+        Self { pinv, undetermined }
+    }
 }
 
 /// `(JᵀJ)⁺` from the SVD and which coordinates move along a dropped
@@ -265,9 +342,13 @@ pub fn covariance(jac: &[Vec<f64>], cost: f64, m: usize) -> (Vec<f64>, Vec<f64>)
 /// every residual), which neither the white-noise nor the block-robust
 /// 1σ sees.
 pub fn systematic_shift(jac: &[Vec<f64>], shift: &[f64]) -> Vec<f64> {
+    systematic_shift_with(&NormalInverse::new(jac, shift.len()), jac, shift)
+}
+
+/// [`systematic_shift`] with `(JᵀJ)⁺` of `jac` given.
+pub fn systematic_shift_with(inverse: &NormalInverse, jac: &[Vec<f64>], shift: &[f64]) -> Vec<f64> {
     let n = jac.len();
-    let m = shift.len();
-    let (bread, undetermined) = normal_pinv(jac, m);
+    let (bread, undetermined) = (&inverse.pinv, &inverse.undetermined);
     let g = DVector::from_iterator(
         n,
         jac.iter()
@@ -291,6 +372,16 @@ pub fn systematic_shift(jac: &[Vec<f64>], shift: &[f64]) -> Vec<f64> {
 /// factor). ∞ where the Jacobian leaves a coordinate undetermined, or with
 /// fewer than two blocks.
 pub fn block_robust_std(jac: &[Vec<f64>], r: &[f64], block: &[usize]) -> Vec<f64> {
+    block_robust_std_with(&NormalInverse::new(jac, r.len()), jac, r, block)
+}
+
+/// [`block_robust_std`] with `(JᵀJ)⁺` of `jac` given.
+pub fn block_robust_std_with(
+    inverse: &NormalInverse,
+    jac: &[Vec<f64>],
+    r: &[f64],
+    block: &[usize],
+) -> Vec<f64> {
     let n = jac.len();
     let m = r.len();
     assert_eq!(block.len(), m, "one block index per residual");
@@ -310,9 +401,9 @@ pub fn block_robust_std(jac: &[Vec<f64>], r: &[f64], block: &[usize]) -> Vec<f64
         let gv = DVector::from_column_slice(g);
         meat += &gv * gv.transpose();
     }
-    let (bread, undetermined) = normal_pinv(jac, m);
+    let (bread, undetermined) = (&inverse.pinv, &inverse.undetermined);
     let factor = used as f64 / (used - 1) as f64 * (m - 1) as f64 / (m - n) as f64;
-    let cov = &bread * meat * &bread * factor;
+    let cov = bread * meat * bread * factor;
     (0..n)
         .map(|j| {
             if undetermined[j] {

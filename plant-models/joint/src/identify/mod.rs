@@ -431,6 +431,8 @@ where
 {
     let mut model = model.clone();
     let mut evaluations = 0;
+    // The pre-fit's cost at its result, which is the grid's first point.
+    let mut cost_at_model = None;
     let sponge = [Param::SpongeModulus, Param::SpongeDamping];
     if sponge.iter().all(|p| p.get(&model).is_finite()) {
         let base = model.clone();
@@ -445,6 +447,7 @@ where
         if let Ok(r) = lm::levenberg_marquardt(|x: &[f64]| residuals(&apply(x)), &x0, opts) {
             evaluations += r.evaluations;
             model = apply(&r.x);
+            cost_at_model = Some(r.cost);
         }
     }
     let h0 = Param::Convection.get(&model);
@@ -459,14 +462,18 @@ where
     }
     let costs: Vec<Option<f64>> = grid
         .par_iter()
-        .map(|m| {
-            residuals(m)
-                .ok()
-                .map(|r| r.iter().map(|x| x * x).sum::<f64>())
-                .filter(|c| c.is_finite())
+        .enumerate()
+        .map(|(k, m)| {
+            let cost = match cost_at_model.filter(|_| k == 0) {
+                Some(known) => Some(known),
+                None => residuals(m)
+                    .ok()
+                    .map(|r| r.iter().map(|x| x * x).sum::<f64>()),
+            };
+            cost.filter(|c| c.is_finite())
         })
         .collect();
-    evaluations += grid.len();
+    evaluations += grid.len() - usize::from(cost_at_model.is_some());
     let mut order: Vec<usize> = (0..grid.len()).filter(|&k| costs[k].is_some()).collect();
     order.sort_by(|&a, &b| {
         costs[a]
@@ -814,13 +821,19 @@ fn wire_stage(
 ) -> Result<(), IdentifyError> {
     let (log, map, fit_rows) = (part.log, part.map, part.rows);
     let paths = replay::replay_with_wire_paths(&found.model, log, map, fit_rows)?;
+    let sticks = replay::StickEvents::draw(
+        &found.model.wires,
+        &paths,
+        fit_rows,
+        opts.stick_realisations,
+    )?;
     let wire = |m: &PlaneModel| -> Result<Vec<f64>, IdentifyError> {
-        let expected =
-            replay::expected_wire_readings(&m.wires, &paths, fit_rows, opts.stick_realisations)?;
+        let expected = sticks.realisations(&m.wires, &paths)?;
         let mut out = Vec::with_capacity(map.sensors.len() * fit_rows);
         for (j, &s) in map.sensors.iter().enumerate() {
             out.extend(
                 expected[j]
+                    .0
                     .iter()
                     .enumerate()
                     .map(|(k, p)| (p - log.wire_mm[k][s]) / 0.01),
@@ -829,7 +842,7 @@ fn wire_stage(
         Ok(out)
     };
     let episodes = wire_episodes(part, &paths, &found.model.wires);
-    let systematic = wire_systematic(part, opts, &paths);
+    let systematic = wire_systematic(part, &paths, &sticks);
     Stage {
         name: "wire jamming",
         free: &[Param::JamGain, Param::JamMaxLag, Param::JamLagPerMm],
@@ -866,8 +879,8 @@ fn wire_episodes(part: &FitPart, paths: &Prediction, wires: &[WireSensorParams])
 /// add up to the variance of the mean's shift.
 fn wire_systematic<'a>(
     part: &'a FitPart,
-    opts: &'a IdentifyOptions,
     paths: &'a Prediction,
+    sticks: &'a replay::StickEvents,
 ) -> impl Fn(&PlaneModel) -> Result<Vec<Vec<f64>>, IdentifyError> + Sync + 'a {
     let (map, fit_rows) = (part.map, part.rows);
     move |m: &PlaneModel| -> Result<Vec<Vec<f64>>, IdentifyError> {
@@ -882,8 +895,7 @@ fn wire_systematic<'a>(
                     .collect()
             })
             .collect();
-        let sensors =
-            replay::wire_realisations(&m.wires, paths, fit_rows, opts.stick_realisations)?;
+        let sensors = sticks.realisations(&m.wires, paths)?;
         let k = sensors.first().map_or(0, |s| s.1.len());
         if k > 1 {
             let scale = 1.0 / (0.01 * ((k * (k - 1)) as f64).sqrt());

@@ -19,8 +19,12 @@
 //! on the twins; drawing one realisation of them (as before that) by up
 //! to +186 %. The mean over fixed streams is smooth in the jamming
 //! parameters: where a wire sticks depends only on its path and the
-//! stick rate and sizes, not on κ or the ceilings.
+//! stick rate and sizes, not on κ or the ceilings. For the same reason the
+//! wire stage draws the sticks once ([`StickEvents`]) and replays them for
+//! every candidate κ and ceilings, instead of drawing them anew from the
+//! streams each time (same readings, to the bit).
 
+use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::log::ExcitationLog;
@@ -174,41 +178,120 @@ pub fn wire_realisations(
     rows: usize,
     realisations: usize,
 ) -> Result<Vec<(Vec<f64>, Vec<Vec<f64>>)>, IdentifyError> {
-    let realisations = realisations.max(1);
-    use rayon::prelude::*;
-    let n = pred.substeps_per_row;
-    let mut out = Vec::with_capacity(wires.len());
-    for (j, (w, path)) in wires.iter().zip(&pred.wire_path_mm).enumerate() {
-        let rows = rows.min(path.len() / n.max(1));
-        let runs: Vec<Vec<f64>> = (0..realisations)
-            .into_par_iter()
-            .map(|r| {
-                let mut sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0)?;
-                let mut rng: ChaCha8Rng = plant_common::rng::stream(
-                    (r * 8 + j) as u64,
-                    plant_common::rng::IDENTIFY_STICKS,
-                );
-                let mut read = Vec::with_capacity(rows);
-                for k in 0..rows {
-                    read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
-                    for &ideal in &path[k * n..(k + 1) * n] {
-                        sensor.advance_to_ideal(ideal, &mut rng);
+    let sticks = StickEvents::draw(wires, pred, rows, realisations)?;
+    sticks.realisations(wires, pred)
+}
+
+/// The stick events of every realisation of [`wire_realisations`] along
+/// one set of paths, drawn once: where a wire sticks depends on its path
+/// and on the stick rate and sizes only, not on the buckling gain or the
+/// lag ceilings (see [`WireSensor::advance_to_ideal_with`]), so the wire
+/// stage, which fits those along fixed paths, draws the sticks once
+/// instead of once per evaluation. The readings are the same to the bit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StickEvents {
+    /// Rows covered.
+    rows: usize,
+    /// Per sensor: its (stick_per_mm, stick_min_mm, stick_max_mm), which
+    /// the events hold for.
+    stick_params: Vec<[f64; 3]>,
+    /// Per sensor, per realisation: (substep from the log's start, push
+    /// length of the stick in mm), in order.
+    events: Vec<Vec<Vec<(usize, f64)>>>,
+}
+
+fn stick_params(w: &WireSensorParams) -> [f64; 3] {
+    [w.jam.stick_per_mm, w.jam.stick_min_mm, w.jam.stick_max_mm]
+}
+
+impl StickEvents {
+    /// Runs `realisations` (at least one) of each of `wires` along the
+    /// paths of `pred` over rows `0..rows`, realisation r of sensor j
+    /// drawing its sticks from `rng::stream(r·8 + j, rng::IDENTIFY_STICKS)`,
+    /// and records where they stuck.
+    pub fn draw(
+        wires: &[WireSensorParams],
+        pred: &Prediction,
+        rows: usize,
+        realisations: usize,
+    ) -> Result<Self, IdentifyError> {
+        use rayon::prelude::*;
+        let n = pred.substeps_per_row;
+        let mut events = Vec::with_capacity(wires.len());
+        for (j, (w, path)) in wires.iter().zip(&pred.wire_path_mm).enumerate() {
+            let rows = rows.min(path.len() / n.max(1));
+            let runs: Vec<Vec<(usize, f64)>> = (0..realisations.max(1))
+                .into_par_iter()
+                .map(|r| {
+                    let mut sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0)?;
+                    let mut rng: ChaCha8Rng = plant_common::rng::stream(
+                        (r * 8 + j) as u64,
+                        plant_common::rng::IDENTIFY_STICKS,
+                    );
+                    let mut out = Vec::new();
+                    for (step, &ideal) in path[..rows * n].iter().enumerate() {
+                        sensor.advance_to_ideal_with(ideal, |jam, delta| {
+                            let stuck = (rng.gen::<f64>() < jam.stick_per_mm * delta)
+                                .then(|| rng.gen_range(jam.stick_min_mm..=jam.stick_max_mm));
+                            if let Some(length_mm) = stuck {
+                                out.push((step, length_mm));
+                            }
+                            stuck
+                        });
                     }
-                }
-                Ok(read)
-            })
-            .collect::<Result<_, IdentifyError>>()?;
-        let mut mean = vec![0.0; rows];
-        for run in &runs {
-            for (m, v) in mean.iter_mut().zip(run) {
-                *m += v;
-            }
+                    Ok(out)
+                })
+                .collect::<Result<_, IdentifyError>>()?;
+            events.push(runs);
         }
-        let k = realisations as f64;
-        mean.iter_mut().for_each(|m| *m /= k);
-        out.push((mean, runs));
+        Ok(Self {
+            rows,
+            stick_params: wires.iter().map(stick_params).collect(),
+            events,
+        })
     }
-    Ok(out)
+
+    /// [`wire_realisations`] of `wires` (which may differ from those the
+    /// events were drawn with in the buckling gain and the lag ceilings,
+    /// not in the stick rate and sizes) along the paths of `pred` the
+    /// events were drawn on: per sensor, (the mean, the realisations).
+    #[allow(clippy::type_complexity)] // (mean, runs) per sensor
+    pub fn realisations(
+        &self,
+        wires: &[WireSensorParams],
+        pred: &Prediction,
+    ) -> Result<Vec<(Vec<f64>, Vec<Vec<f64>>)>, IdentifyError> {
+        use rayon::prelude::*;
+        if wires
+            .iter()
+            .map(stick_params)
+            .ne(self.stick_params.iter().copied())
+        {
+            return Err(IdentifyError::Log(
+                "wire stick events drawn for another stick rate or size".into(),
+            ));
+        }
+        let n = pred.substeps_per_row;
+        let mut out = Vec::with_capacity(wires.len());
+        for ((w, path), runs) in wires.iter().zip(&pred.wire_path_mm).zip(&self.events) {
+            let rows = self.rows.min(path.len() / n.max(1));
+            let groups: Vec<Vec<Vec<f64>>> = runs
+                .par_chunks(LOCKSTEP_REALISATIONS)
+                .map(|group| lockstep_runs(w, &path[..rows * n], n, group))
+                .collect::<Result<_, IdentifyError>>()?;
+            let runs: Vec<Vec<f64>> = groups.into_iter().flatten().collect();
+            let mut mean = vec![0.0; rows];
+            for run in &runs {
+                for (m, v) in mean.iter_mut().zip(run) {
+                    *m += v;
+                }
+            }
+            let k = runs.len() as f64;
+            mean.iter_mut().for_each(|m| *m /= k);
+            out.push((mean, runs));
+        }
+        Ok(out)
+    }
 }
 
 fn replay_inner(
@@ -299,4 +382,100 @@ pub fn replay_thermal(
         }
     }
     Ok(out)
+}
+
+/// Realisations a thread runs side by side (see [`lockstep_runs`]).
+const LOCKSTEP_REALISATIONS: usize = 8;
+
+/// The readings (mm, at each row start) of one run of the sensor `w`
+/// along `path` (`n` substeps per row) per list of recorded sticks in
+/// `group`. The runs advance side by side, substep by substep: each is a
+/// chain of dependent operations (the lag), so that the processor can
+/// overlap several; each run's operations are those of running it alone.
+fn lockstep_runs(
+    w: &WireSensorParams,
+    path: &[f64],
+    n: usize,
+    group: &[Vec<(usize, f64)>],
+) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    let rows = path.len() / n.max(1);
+    let mut sensors = group
+        .iter()
+        .map(|_| WireSensor::new(w.clone(), 0.0, 0.0, 0.0))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut next: Vec<_> = group.iter().map(|e| e.iter().peekable()).collect();
+    let mut reads = vec![Vec::with_capacity(rows); group.len()];
+    for k in 0..rows {
+        for (read, sensor) in reads.iter_mut().zip(&sensors) {
+            read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
+        }
+        for (i, &ideal) in path[k * n..(k + 1) * n].iter().enumerate() {
+            let step = k * n + i;
+            for (sensor, next) in sensors.iter_mut().zip(&mut next) {
+                sensor.advance_to_ideal_with(ideal, |_, _| {
+                    next.next_if(|e| e.0 == step).map(|e| e.1)
+                });
+            }
+        }
+    }
+    Ok(reads)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sticks drawn once along a path and replayed with another buckling
+    /// gain and other lag ceilings give, to the bit, the runs of the
+    /// random sensor with those values drawing its sticks as it goes.
+    #[test]
+    fn recorded_sticks_replay_the_random_runs_with_other_jamming() {
+        let n = 10;
+        let rows = 400;
+        // Pushes and pulls of a few mm, with pauses.
+        let path: Vec<f64> = (0..rows * n)
+            .map(|s| {
+                let t = s as f64 * 1e-3;
+                0.137 + 1.5 * (0.8 * t).sin().max(-0.2) + 0.3 * (5.0 * t).sin()
+            })
+            .collect();
+        let pred = Prediction {
+            substeps_per_row: n,
+            substep_s: 1e-3,
+            wire_path_mm: vec![path.clone(), path.iter().map(|d| 0.5 - d).collect()],
+            ..Prediction::default()
+        };
+        let mut w = WireSensorParams::with_geometry(crate::WireGeometry::paper_2d());
+        w.jam.stick_per_mm = 4.0;
+        let drawn_with = vec![w; 2];
+        let sticks = StickEvents::draw(&drawn_with, &pred, rows, 5).unwrap();
+        assert!(sticks.events.iter().flatten().all(|e| !e.is_empty()));
+        let mut other = drawn_with.clone();
+        for w in &mut other {
+            w.jam.buckling_gain *= 1.7;
+            w.jam.max_lag_mm *= 0.6;
+            w.jam.max_lag_per_mm *= 1.4;
+        }
+        let replayed = sticks.realisations(&other, &pred).unwrap();
+        for (j, (w, path)) in other.iter().zip(&pred.wire_path_mm).enumerate() {
+            for r in 0..5 {
+                let mut sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0).unwrap();
+                let mut rng: ChaCha8Rng = plant_common::rng::stream(
+                    (r * 8 + j) as u64,
+                    plant_common::rng::IDENTIFY_STICKS,
+                );
+                let mut read = Vec::new();
+                for k in 0..rows {
+                    read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
+                    for &ideal in &path[k * n..(k + 1) * n] {
+                        sensor.advance_to_ideal(ideal, &mut rng);
+                    }
+                }
+                assert_eq!(replayed[j].1[r], read, "sensor {j}, realisation {r}");
+            }
+        }
+        // Another stick rate is refused: the events would not hold.
+        other[1].jam.stick_per_mm *= 2.0;
+        assert!(sticks.realisations(&other, &pred).is_err());
+    }
 }

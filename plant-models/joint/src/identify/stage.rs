@@ -6,6 +6,8 @@
 //! The stages' physics (which parameters, which residuals) is the
 //! caller's; this module owns only the fitting and the bookkeeping.
 
+use rayon::prelude::*;
+
 use super::lm::{self, LmOptions, LmResult};
 use super::{Estimate, IdentifyError, IdentifyOptions, Param, PlaneModel, StageReport};
 
@@ -103,6 +105,7 @@ where
         let mut iterations = 0;
         let mut evaluations = 0;
         let mut last: Option<LmResult> = None;
+        let mut kept = None;
         let mut best_start = 0;
         for pass in 0..3 {
             if active.is_empty() {
@@ -128,6 +131,7 @@ where
                 .collect();
             if bad.is_empty() {
                 last = Some(r);
+                kept = Some((sd, white));
                 break;
             }
             for &j in bad.iter().rev() {
@@ -155,14 +159,20 @@ where
             starts: self.starts.len().max(1),
             best_start,
         });
-        let (sd, white) = self.spread(&r, &found.model)?;
+        // The last pass's spread where it kept every parameter (the model
+        // is the one it was computed at), otherwise at the model now.
+        let (sd, white) = match kept {
+            Some(spread) => spread,
+            None => self.spread(&r, &found.model)?,
+        };
         self.report(found, prior, &active, &sd, &white, dropped);
         Ok(())
     }
 
     /// Fits `active` from each of `x0s` (coordinates around `base`) and
     /// keeps the lowest cost, the first on a tie; the first error when no
-    /// fit succeeded.
+    /// fit succeeded. Only the fit kept gets its final Jacobian (should it
+    /// fail there, the next best is kept).
     fn best_of(
         &self,
         base: &PlaneModel,
@@ -171,37 +181,58 @@ where
         lm_opts: LmOptions,
     ) -> Result<BestFit, IdentifyError> {
         let f = |x: &[f64]| (self.residuals)(&with_coords(base, active, x));
-        let mut best: Option<LmResult> = None;
-        let mut start = 0;
+        let mut minima: Vec<(usize, lm::Minimum)> = Vec::new();
         let mut iterations = 0;
         let mut evaluations = 0;
         let mut first_error = None;
-        for (k, x0) in x0s.iter().enumerate() {
-            match lm::levenberg_marquardt(f, x0, lm_opts) {
+        // The starts run in parallel; their results are taken in order.
+        let fits: Vec<Result<lm::Minimum, IdentifyError>> = x0s
+            .par_iter()
+            .map(|x0| lm::minimise(&f, x0, lm_opts))
+            .collect();
+        for (k, fit) in fits.into_iter().enumerate() {
+            match fit {
                 Ok(r) => {
                     iterations += r.iterations;
                     evaluations += r.evaluations;
-                    if best.as_ref().is_none_or(|b| r.cost < b.cost) {
-                        best = Some(r);
-                        start = k;
-                    }
+                    minima.push((k, r));
                 }
                 Err(e) => {
-                    first_error.get_or_insert(e);
+                    first_error.get_or_insert((k, e));
                 }
             }
         }
-        let Some(result) = best else {
-            return Err(first_error.unwrap_or_else(|| {
-                IdentifyError::Log(format!("stage {}: no starting point", self.name))
-            }));
-        };
-        Ok(BestFit {
-            result,
-            start,
-            iterations,
-            evaluations,
-        })
+        // The lowest cost, the first on a tie; one whose final Jacobian
+        // fails is no candidate, as if its fit had failed.
+        while let Some(best) = (0..minima.len()).reduce(|b, i| {
+            if minima[i].1.cost < minima[b].1.cost {
+                i
+            } else {
+                b
+            }
+        }) {
+            let (k, minimum) = minima.remove(best);
+            let before = minimum.evaluations;
+            match minimum.finish(&f, lm_opts) {
+                Ok(result) => {
+                    evaluations += result.evaluations - before;
+                    return Ok(BestFit {
+                        result,
+                        start: k,
+                        iterations,
+                        evaluations,
+                    });
+                }
+                Err(e) => {
+                    if first_error.as_ref().is_none_or(|(j, _)| k < *j) {
+                        first_error = Some((k, e));
+                    }
+                }
+            }
+        }
+        Err(first_error.map(|(_, e)| e).unwrap_or_else(|| {
+            IdentifyError::Log(format!("stage {}: no starting point", self.name))
+        }))
     }
 
     /// (1σ used, white-noise 1σ) per coordinate of the fit `r` at `at`.
@@ -209,10 +240,11 @@ where
         if self.blocks.len() != r.m {
             return Ok((r.std.clone(), r.std.clone()));
         }
-        let robust = lm::block_robust_std(&r.jacobian, &r.residuals, self.blocks);
+        let inverse = lm::NormalInverse::new(&r.jacobian, r.m);
+        let robust = lm::block_robust_std_with(&inverse, &r.jacobian, &r.residuals, self.blocks);
         let mut used: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
         for shift in (self.systematic)(at)?.iter().filter(|s| s.len() == r.m) {
-            let dx = lm::systematic_shift(&r.jacobian, shift);
+            let dx = lm::systematic_shift_with(&inverse, &r.jacobian, shift);
             for (u, d) in used.iter_mut().zip(dx) {
                 *u = u.hypot(d);
             }

@@ -398,6 +398,13 @@ pub const MAX_LN_UNCERTAINTY: f64 = 4.605_170_185_988_092; // ln 100
 pub const FIT_PARAMETERS: [&str; 3] = ["k1", "k2", "b"];
 
 impl TrialFit {
+    /// How far each of (k1, k2, b) could move before the fit changes by
+    /// its own misfit, as a factor (1.05 is ±5 %): `exp` of
+    /// [`TrialFit::ln_uncertainty`].
+    pub fn uncertainty_factor(&self) -> [f64; 3] {
+        self.ln_uncertainty.map(f64::exp)
+    }
+
     /// Refuses a fit whose parameters the trial does not determine: the
     /// minimiser ran out of evaluations, a parameter left f64 (0 or ∞
     /// after `exp`), or a parameter could change by more than a factor
