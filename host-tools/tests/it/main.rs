@@ -12,6 +12,7 @@ mod common;
 mod console_excite;
 mod contour_cli;
 mod dlo_cli;
+mod excite_stops;
 mod hil_qemu_cli;
 mod identify_cli;
 mod long_run_memory;
