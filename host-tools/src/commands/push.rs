@@ -342,7 +342,17 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             a.generations
         );
     }
-    check_out_dir(&a.out)?;
+    // Every file the calibration writes can be written: checked before
+    // the search, not after it.
+    host_tools::output::check_files_in(
+        &a.out,
+        &[
+            "params.json",
+            "generations.csv",
+            "mu_per_generation.svg",
+            "snapshots.svg",
+        ],
+    )?;
     let prep = prepare(&a.video, &a.model, a.json)?;
     let spec = CalibrateSpec {
         generations: a.generations,

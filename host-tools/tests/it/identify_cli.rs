@@ -15,7 +15,7 @@ fn write(path: &std::path::Path, text: &str) {
     std::fs::write(path, text).unwrap();
 }
 
-fn hidden_2d_file(dir: &std::path::Path) -> std::path::PathBuf {
+pub fn hidden_2d_file(dir: &std::path::Path) -> std::path::PathBuf {
     let p = dir.join("hidden.toml");
     PlantFile::new(PlantParams::TwoD(hidden::joint_2d(5)), vec![])
         .save(&p, "# hidden\n")

@@ -16,6 +16,7 @@ mod excite_stops;
 mod hil_qemu_cli;
 mod identify_cli;
 mod long_run_memory;
+mod long_searches;
 mod rheology_cli;
 mod tetmsd_cli;
 mod tissue_cli;
