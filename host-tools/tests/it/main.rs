@@ -1,5 +1,6 @@
 //! The integration tests of `host-tools`, one binary (each file under tests/
 //! would otherwise be a binary of its own to link).
+mod absurd_values;
 mod cli_bad_input;
 mod cli_board_messages;
 mod cli_console;

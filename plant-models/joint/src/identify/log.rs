@@ -283,6 +283,7 @@ impl ExcitationLog {
                     .into());
             }
         }
+        self.check_measured(t, k, line)?;
         if let Some(r) = &self.resistance_ohm {
             for (j, v) in r[k][..c].iter().enumerate() {
                 if *v <= 0.0 {
@@ -293,6 +294,64 @@ impl ExcitationLog {
                             "a coil resistance must be > 0",
                         )
                         .into());
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks row `k`'s measurements against what the joint can show
+    /// ([`MAX_ANGLE_DEG`], [`MAX_INSERTION_MM`], [`MAX_COIL_CURRENT_A`],
+    /// [`MAX_COIL_RESISTANCE_OHM`]): an outlier (a unit slip, a corrupted
+    /// value) is refused by line and column rather than fitted.
+    fn check_measured(&self, t: &Table, k: usize, line: usize) -> Result<(), IdentifyError> {
+        let (c, s) = (self.coils(), self.sensors());
+        let names = columns(self.planes, self.has_electrical());
+        let beyond = |col: &str, v: f64, limit: f64, unit: &str, what: &str| {
+            IdentifyError::from(t.error(
+                line,
+                Some(col),
+                format!(
+                    "{} {unit} is beyond {what} (|value| ≤ {} {unit})",
+                    plant_common::short_number(v),
+                    plant_common::short_number(limit)
+                ),
+            ))
+        };
+        let cam = &names[2 + c..2 + c + self.planes];
+        for (v, col) in self.cam_deg[k][..self.planes].iter().zip(cam) {
+            if v.abs() > MAX_ANGLE_DEG {
+                return Err(beyond(col, *v, MAX_ANGLE_DEG, "°", "any bend of the joint"));
+            }
+        }
+        let wires = &names[2 + c + self.planes..2 + c + self.planes + s];
+        for (v, col) in self.wire_mm[k][..s].iter().zip(wires) {
+            if v.abs() > MAX_INSERTION_MM {
+                return Err(beyond(
+                    col,
+                    *v,
+                    MAX_INSERTION_MM,
+                    "mm",
+                    "a wire's insertion",
+                ));
+            }
+        }
+        let electrical = &names[2 + c + self.planes + s..];
+        if let (Some(i), Some(r)) = (&self.current_a, &self.resistance_ohm) {
+            for (v, col) in i[k][..c].iter().zip(electrical) {
+                if v.abs() > MAX_COIL_CURRENT_A {
+                    return Err(beyond(col, *v, MAX_COIL_CURRENT_A, "A", "a coil's current"));
+                }
+            }
+            for (v, col) in r[k][..c].iter().zip(&electrical[c..]) {
+                if *v > MAX_COIL_RESISTANCE_OHM {
+                    return Err(beyond(
+                        col,
+                        *v,
+                        MAX_COIL_RESISTANCE_OHM,
+                        "Ω",
+                        "a coil's resistance",
+                    ));
                 }
             }
         }
@@ -316,6 +375,24 @@ impl ExcitationLog {
         }
     }
 }
+
+/// The largest joint angle a log or a calibration sweep may show (deg):
+/// the joint works within ±25° (the firmware's target limit) and its
+/// calibration sweep spans ±21°; past ±90° the link would fold back on its
+/// base, so such a value is a unit slip or a corrupted reading.
+pub const MAX_ANGLE_DEG: f64 = 90.0;
+
+/// The largest wire insertion a log or sweep may show (mm): the wires move
+/// −2…6 mm over the ±21° sweep; 100 mm is longer than the joint.
+pub const MAX_INSERTION_MM: f64 = 100.0;
+
+/// The largest coil current a log may show (A): the coils draw ≈ 0.5 A at
+/// the driver's full 5 V.
+pub const MAX_COIL_CURRENT_A: f64 = 20.0;
+
+/// The largest coil resistance a log may show (Ω): the coils measure
+/// ≈ 6 Ω.
+pub const MAX_COIL_RESISTANCE_OHM: f64 = 1000.0;
 
 /// Measurement noise a recorder adds to the electrical columns (a lab's
 /// current sense and coil-voltage tap). The twin tests use it; `sim`
