@@ -181,9 +181,26 @@ fn num(v: f64) -> Result<String> {
     }
 }
 
+/// Peak memory of `field --synthetic` per voxel of the twin (bytes) and
+/// besides it: measured as the maximum resident set of `softjoint tissue
+/// field --synthetic --dims 128x128x32` (77 MB) and `128x128x64` (137 MB),
+/// `/usr/bin/time -v`, ≈ 115 B a voxel over ≈ 17 MB; rounded up.
+const FIELD_BYTES_PER_VOXEL: u64 = 120;
+const FIELD_BYTES_BESIDES: u64 = 32_000_000;
+
 fn field(a: &FieldArgs) -> Result<()> {
     if a.grid_step == 0 {
         bail!("--grid-step must be at least 1");
+    }
+    if a.synthetic {
+        // Refused before the twin is allocated (1024³ aborted in the
+        // allocator with SIGABRT).
+        let voxels: u64 = a.dims.iter().map(|&d| d as u64).product();
+        let [nx, ny, nz] = a.dims;
+        host_tools::memory::check_fits(
+            &format!("--dims {nx}x{ny}x{nz} ({voxels} voxels)"),
+            voxels * FIELD_BYTES_PER_VOXEL + FIELD_BYTES_BESIDES,
+        )?;
     }
     let pair = load_pair(a)?;
     out_dir(&a.out_dir)?;

@@ -19,6 +19,7 @@ mod identify_cli;
 mod long_run_memory;
 mod long_searches;
 mod rheology_cli;
+mod sizes;
 mod tetmsd_cli;
 mod tissue_cli;
 mod visco_cli;
