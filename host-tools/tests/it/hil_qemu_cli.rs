@@ -31,7 +31,7 @@ fn image() -> PathBuf {
 const SCENARIO: &str = "[estimator]\nmethod = \"paper\"\n";
 
 /// Processes whose parent is `pid` (from /proc/*/stat).
-fn children(pid: u32) -> Vec<u32> {
+pub fn children(pid: u32) -> Vec<u32> {
     let mut out = Vec::new();
     for e in std::fs::read_dir("/proc").unwrap().flatten() {
         let Ok(p) = e.file_name().to_string_lossy().parse::<u32>() else {
@@ -50,7 +50,7 @@ fn children(pid: u32) -> Vec<u32> {
 }
 
 /// Whether `pid` still runs (a zombie waiting for its reaper does not).
-fn running(pid: u32) -> bool {
+pub fn running(pid: u32) -> bool {
     match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
         Ok(stat) => {
             let after = stat.rsplit_once(')').map_or("", |(_, a)| a);

@@ -1,6 +1,7 @@
 //! The integration tests of `host-tools`, one binary (each file under tests/
 //! would otherwise be a binary of its own to link).
 mod absurd_values;
+mod child_processes;
 mod cli_bad_input;
 mod cli_board_messages;
 mod cli_console;
