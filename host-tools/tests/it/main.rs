@@ -19,6 +19,7 @@ mod hil_qemu_cli;
 mod identify_cli;
 mod long_run_memory;
 mod long_searches;
+mod probe;
 mod rheology_cli;
 mod sizes;
 mod tetmsd_cli;
