@@ -386,6 +386,9 @@ impl RowSink for TraceFiles {
 pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
     let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
     let colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
+    // Each plane's targets in a colour of their own (α's and β's desired
+    // angles were one grey dashed line style, told apart only by order).
+    let desired = ["#555555", "#ff7f0e"];
     let column = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).collect::<Vec<_>>();
     let mut angle_series = Vec::new();
     for (p, a) in angles.iter().enumerate() {
@@ -406,7 +409,7 @@ pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
         ));
         angle_series.push(Series::over(
             format!("{a} desired"),
-            "#555555",
+            desired[p % desired.len()],
             true,
             &t,
             &column(&|r| r.desired_deg[p]),
@@ -453,6 +456,30 @@ mod tests {
             desired_deg: [0.0; 2],
             coil_volts: [0.0; 4],
             faults: 0,
+        }
+    }
+
+    /// In a 3D plot each plane's desired angle has its own line style,
+    /// and neither is the style of a true or estimated angle.
+    #[test]
+    fn each_planes_targets_have_a_line_style_of_their_own() {
+        let angles = ["alpha".to_string(), "beta".to_string()];
+        let rows: Vec<Row> = (0..50).map(row).collect();
+        let svg = plot_svg("t", &angles, &rows);
+        // The style of the line drawn just before a legend label.
+        let style = |label: &str| -> String {
+            let at = svg
+                .find(&format!(">{label}<"))
+                .unwrap_or_else(|| panic!("{label}"));
+            let line = svg[..at].rfind("<line").unwrap();
+            let stroke = svg[line..at].find("stroke=").unwrap() + line;
+            svg[stroke..at].split("/>").next().unwrap().to_string()
+        };
+        let (a, b) = (style("alpha desired"), style("beta desired"));
+        assert_ne!(a, b);
+        for other in ["alpha true", "alpha estimate", "beta true", "beta estimate"] {
+            assert_ne!(style(other), a, "{other}");
+            assert_ne!(style(other), b, "{other}");
         }
     }
 
