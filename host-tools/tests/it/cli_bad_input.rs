@@ -127,16 +127,33 @@ fn viscoelastic_simulate_refuses_to_write_an_overflowed_result() {
 
 /// A trial of values near 1e300 overflowed every model force: `fit --json`
 /// printed `"rms_residual_n": inf` (not even JSON) with the starting
-/// parameters as the "fit", and exit 0.
+/// parameters as the "fit", and exit 0. The command now refuses such
+/// values by line (beyond any trial of a soft material, issue 31); the
+/// fit's own overflow guard is checked on the values given to it directly.
 #[test]
 fn viscoelastic_fit_refuses_an_overflowed_fit() {
     let dir = scratch("visco_fit");
     let mut text = String::from("time_s,displacement,force\n");
+    let (mut t, mut u, mut f) = (Vec::new(), Vec::new(), Vec::new());
     for k in 0..21 {
         text.push_str(&format!("{k},{k}e300,{k}e300\n"));
+        t.push(f64::from(k));
+        u.push(f64::from(k) * 1e300);
+        f.push(f64::from(k) * 1e300);
     }
     let p = file(&dir, "big.csv", &text);
-    refused(&["viscoelastic", "fit", &p, "--json"], &[&p, "overflowed"]);
+    refused(
+        &["viscoelastic", "fit", &p, "--json"],
+        &[&format!("{p}:3"), "beyond a soft material's trial"],
+    );
+    let e = plant_viscoelastic::experiment::trial::fit_trial_checked(
+        &t,
+        &u,
+        &f,
+        plant_viscoelastic::fit::Weighting::Seed,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("overflowed"), "{e}");
 }
 
 /// `--duration-s 1e300` panicked with "capacity overflow"; `1e-9` ran zero
