@@ -210,7 +210,7 @@ impl LogSink for LogFile {
                 Ok::<(), crate::output::NonFinite>(())
             })?;
         }
-        Ok(())
+        self.rows.write_if_due()
     }
 }
 
@@ -265,6 +265,7 @@ where
     let mut rows = 0usize;
     let mut stopped_by = None;
     let mut ran = Ok(());
+    let mut last_piece = std::time::Instant::now();
     for _ in 0..steps {
         if let Some(signal) = stop.requested() {
             stopped_by = Some(signal);
@@ -285,7 +286,10 @@ where
             peak = peak.max(t);
         }
         rec.push(&obs, &x.coil_volts, &cl.plant.currents_a()[..C]);
-        if rec.complete_rows() >= LOG_PIECE_ROWS {
+        let due = rec.complete_rows() >= LOG_PIECE_ROWS
+            || (rec.complete_rows() > 0 && last_piece.elapsed() >= PIECE_INTERVAL);
+        if due {
+            last_piece = std::time::Instant::now();
             let piece = rec.take_rows();
             rows += piece.len();
             sink.rows(piece)?;
@@ -317,8 +321,11 @@ where
     })
 }
 
-/// Rows a session keeps before handing them to its sink (≈ 100 kB).
+/// Rows a session keeps before handing them to its sink (≈ 100 kB) …
 const LOG_PIECE_ROWS: usize = 512;
+/// … or the longest it keeps them (a slow lockstep session's rows reach
+/// the file at least this often).
+const PIECE_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Runs `plan` on the simulated joint of the run `spec` (its joint kind,
 /// seed, plant file and gains) under the core in process, the log's rows

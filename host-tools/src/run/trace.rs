@@ -188,6 +188,16 @@ impl RowFile {
         Ok(())
     }
 
+    /// Writes the waiting rows if the last write was at least
+    /// [`BLOCK_INTERVAL`] ago (a slow stream reaches the file at least
+    /// once a second however few rows it has).
+    pub fn write_if_due(&mut self) -> anyhow::Result<()> {
+        if self.last_write.elapsed() >= BLOCK_INTERVAL {
+            self.write_block()?;
+        }
+        Ok(())
+    }
+
     /// Writes the waiting rows as one block; a write that fails part-way
     /// is cut back to the last whole row.
     fn write_block(&mut self) -> anyhow::Result<()> {

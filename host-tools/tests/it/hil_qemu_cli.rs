@@ -259,11 +259,10 @@ fn hil_excite_stopped_by_a_signal_keeps_its_log_and_leaves_no_qemu() {
             qemu = children(child.id());
             !qemu.is_empty()
         });
-        // The header is written before QEMU starts; the rows go to the
-        // file in pieces, and a loaded host's lockstep may not have
-        // finished one yet: give the session a few seconds.
-        wait_for_bytes(&log, 10, &mut child);
-        std::thread::sleep(Duration::from_secs(4));
+        // The header is written before QEMU starts; rows reach the file
+        // at least once a second once the session runs.
+        let header = host_tools::joint::excite::log_columns(2).len() as u64 + 1;
+        wait_for_bytes(&log, header + 1, &mut child);
         common::kill(signal, child.id());
         let out = child.wait_with_output().unwrap();
         let err = stderr(&out);
