@@ -44,6 +44,28 @@ pub fn wait_for_bytes(path: &Path, bytes: u64, child: &mut Child) {
     }
 }
 
+/// Waits until `path` holds more than `rows` whole rows after its header.
+pub fn wait_for_rows(path: &Path, rows: usize, child: &mut Child) {
+    let until = Instant::now() + Duration::from_secs(120);
+    loop {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        if text.matches('\n').count() > rows + 1 {
+            return;
+        }
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "ended before {} held {rows} rows",
+            path.display()
+        );
+        assert!(
+            Instant::now() < until,
+            "{} never held {rows} rows",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 /// Checks that `log` reads back (identify's own reader) as `rows` whole,
 /// evenly spaced rows.
 pub fn assert_whole_log(log: &Path, rows: usize) {
