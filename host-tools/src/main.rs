@@ -26,10 +26,13 @@ fn main() -> ExitCode {
                 return ExitCode::from(141);
             }
             let _ = writeln!(std::io::stderr(), "error: {e:#}");
-            // A run cut short by a signal exits as the signal would (130
-            // for SIGINT), after its trace and summary were written.
-            match e.downcast_ref::<host_tools::run::summary::RunCutShort>() {
-                Some(cut) => ExitCode::from(cut.exit_code()),
+            // A run cut short or a command stopped by a signal exits as the
+            // signal would (130 for SIGINT), after what it kept was written.
+            if let Some(cut) = e.downcast_ref::<host_tools::run::summary::RunCutShort>() {
+                return ExitCode::from(cut.exit_code());
+            }
+            match e.downcast_ref::<host_tools::stop::Stopped>() {
+                Some(stopped) => ExitCode::from(stopped.exit_code()),
                 None => ExitCode::FAILURE,
             }
         }

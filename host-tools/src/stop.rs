@@ -1,19 +1,32 @@
-//! Ending a run when the user asks: SIGINT (Ctrl-C) and SIGTERM set a flag
-//! that the run loop reads every control period. The run then ends like
-//! any early end — its trace complete to the last row, a summary that says
-//! where and why it stopped — and the program exits with 128 + the signal
-//! number (130 for SIGINT, 143 for SIGTERM), as a shell reports a process
-//! ended by that signal. A second signal of the same kind ends the program
-//! at once. Only commands that read the flag install it ([`Stop::on_signals`]);
-//! the others keep the default (the signal ends them).
+//! Ending a run when the user asks, and ending what a command started
+//! with it.
+//!
+//! SIGINT (Ctrl-C), SIGTERM and SIGHUP (the terminal went away) set a flag
+//! that a long command reads at its clean points (every control period of
+//! a run, every log row of an excitation session, every candidate of a
+//! search). The command then ends like any early end — keeping what it has
+//! (a trace complete to the last row, the log so far, the best candidate
+//! and the search state so far) and saying where and why it stopped — and
+//! the program exits with 128 + the signal number (130 for SIGINT, 143 for
+//! SIGTERM, 129 for SIGHUP), as a shell reports a process ended by that
+//! signal. A second signal of the same kind ends the program at once. Only
+//! commands that read the flag install it ([`Stop::on_signals`]); the
+//! others keep the default (the signal ends them).
+//!
+//! A process a command starts (QEMU for `hil`, the two sites of `tetmsd
+//! pair`) dies with it ([`die_with_parent`]): it runs in its own process
+//! group, so a Ctrl-C in the terminal reaches `softjoint` alone, which ends
+//! it at a clean point; and on Linux it gets `PR_SET_PDEATHSIG` = SIGKILL,
+//! so even a `softjoint` killed with SIGKILL leaves none behind.
 //!
 //! Also here: SIGXFSZ (a file-size limit, `ulimit -f`) is turned into a
 //! failed write (`EFBIG`, reported with the file's name) instead of killing
 //! the program mid-write.
+use std::process::Command;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
-use signal_hook::consts::{SIGINT, SIGTERM, SIGXFSZ};
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGXFSZ};
 
 /// Whether, and by which signal, a run was asked to stop.
 #[derive(Clone, Debug, Default)]
@@ -30,22 +43,44 @@ pub enum StopSignal {
     /// SIGTERM (`kill`, a service manager).
     #[serde(rename = "SIGTERM")]
     Terminate,
+    /// SIGHUP (the terminal closed, an ssh session dropped).
+    #[serde(rename = "SIGHUP")]
+    Hangup,
 }
 
 impl StopSignal {
+    /// Every signal a run stops on.
+    pub const ALL: [StopSignal; 3] = [
+        StopSignal::Interrupt,
+        StopSignal::Terminate,
+        StopSignal::Hangup,
+    ];
+
     /// The name, e.g. `SIGINT`.
     pub fn name(self) -> &'static str {
         match self {
             StopSignal::Interrupt => "SIGINT",
             StopSignal::Terminate => "SIGTERM",
+            StopSignal::Hangup => "SIGHUP",
         }
     }
 
-    /// The exit status a shell gives a process ended by this signal.
+    /// The signal's number.
+    fn number(self) -> i32 {
+        match self {
+            StopSignal::Interrupt => SIGINT,
+            StopSignal::Terminate => SIGTERM,
+            StopSignal::Hangup => SIGHUP,
+        }
+    }
+
+    /// The exit status a shell gives a process ended by this signal
+    /// (128 + its number: 130, 143, 129).
     pub fn exit_code(self) -> u8 {
         match self {
             StopSignal::Interrupt => 130,
             StopSignal::Terminate => 143,
+            StopSignal::Hangup => 129,
         }
     }
 }
@@ -57,11 +92,12 @@ impl Stop {
         Self::default()
     }
 
-    /// A flag set by SIGINT and SIGTERM; a second one of either ends the
-    /// program at once with its status.
+    /// A flag set by SIGINT, SIGTERM and SIGHUP; a second one of the same
+    /// kind ends the program at once with its status.
     pub fn on_signals() -> anyhow::Result<Self> {
         let stop = Self::default();
-        for (signal, code) in [(SIGINT, 130), (SIGTERM, 143)] {
+        for s in StopSignal::ALL {
+            let (signal, code) = (s.number(), i32::from(s.exit_code()));
             let again = Arc::new(AtomicBool::new(false));
             // Order matters: the shutdown check sees the flag set by an
             // earlier signal before this one sets it.
@@ -81,12 +117,10 @@ impl Stop {
 
     /// Asks the run to stop as if `signal` had arrived.
     pub fn request(&self, signal: StopSignal) {
-        let s = match signal {
-            StopSignal::Interrupt => SIGINT,
-            StopSignal::Terminate => SIGTERM,
-        };
-        self.signal
-            .store(usize::try_from(s).unwrap_or(usize::MAX), Ordering::SeqCst);
+        self.signal.store(
+            usize::try_from(signal.number()).unwrap_or(usize::MAX),
+            Ordering::SeqCst,
+        );
     }
 
     /// The signal that asked the run to stop, if one did.
@@ -95,7 +129,62 @@ impl Stop {
         match self.signal.load(Ordering::Relaxed) {
             0 => None,
             s if s == SIGTERM as usize => Some(StopSignal::Terminate),
+            s if s == SIGHUP as usize => Some(StopSignal::Hangup),
             _ => Some(StopSignal::Interrupt),
+        }
+    }
+}
+
+/// A command stopped by a signal at a clean point, as an error: what it
+/// kept is written (and said) first; the program then exits with
+/// [`Stopped::exit_code`].
+#[derive(Clone, Debug, thiserror::Error)]
+#[error("stopped by {}: {what}", signal.name())]
+pub struct Stopped {
+    /// The signal.
+    pub signal: StopSignal,
+    /// Where it stopped and what it kept, for a person.
+    pub what: String,
+}
+
+impl Stopped {
+    /// 128 + the signal's number.
+    pub fn exit_code(&self) -> u8 {
+        self.signal.exit_code()
+    }
+}
+
+/// Makes `cmd`'s process die with this thread (Linux: `PR_SET_PDEATHSIG`
+/// = SIGKILL; the signal follows the *thread* that starts the process, so
+/// start it from the thread that outlives it) and puts it in its own
+/// process group (a Ctrl-C in the terminal reaches `softjoint`, which ends
+/// the process at a clean point, not the process under it).
+pub fn die_with_parent(cmd: &mut Command) {
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt as _;
+        cmd.process_group(0);
+    }
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt as _;
+        let parent = std::process::id();
+        // SAFETY: the closure runs in the forked child before exec and only
+        // calls prctl and getppid, both async-signal-safe; it allocates
+        // nothing and touches no lock.
+        #[allow(unsafe_code)]
+        unsafe {
+            cmd.pre_exec(move || {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL, 0, 0, 0) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                // The parent may have died before prctl: then no signal
+                // would come.
+                if u32::try_from(libc::getppid()).ok() != Some(parent) {
+                    return Err(std::io::Error::other("parent exited while starting"));
+                }
+                Ok(())
+            });
         }
     }
 }

@@ -16,13 +16,15 @@
 //! writes before the host connects, so the host speaks first.
 //!
 //! QEMU dies with its parent however the parent ends: it is dropped (and
-//! killed) when `softjoint` returns, including after SIGINT/SIGTERM (which
-//! end the run cleanly, `crate::stop`); it runs in its own process group,
+//! killed) when `softjoint` returns, including after SIGINT, SIGTERM or
+//! SIGHUP (which end the run cleanly, `crate::stop`); it runs in its own
+//! process group,
 //! so a Ctrl-C in the terminal reaches `softjoint` (which ends the run and
 //! then QEMU) rather than killing QEMU under a running lockstep; and on
 //! Linux it gets `PR_SET_PDEATHSIG` = SIGKILL, so even a `softjoint` killed
-//! with SIGKILL leaves no QEMU behind. (The death signal follows the
-//! *thread* that started QEMU: start it from the thread that uses it.)
+//! with SIGKILL leaves no QEMU behind (`crate::stop::die_with_parent`; the
+//! death signal follows the *thread* that started QEMU: start it from the
+//! thread that uses it).
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -182,38 +184,6 @@ pub fn describe_exit(status: ExitStatus) -> String {
     }
 }
 
-/// Makes `cmd`'s process die with this thread (Linux: `PR_SET_PDEATHSIG`)
-/// and puts it in its own process group.
-fn die_with_parent(cmd: &mut Command) {
-    #[cfg(unix)]
-    {
-        use std::os::unix::process::CommandExt as _;
-        cmd.process_group(0);
-    }
-    #[cfg(target_os = "linux")]
-    {
-        use std::os::unix::process::CommandExt as _;
-        let parent = std::process::id();
-        // SAFETY: the closure runs in the forked child before exec and only
-        // calls prctl and getppid, both async-signal-safe; it allocates
-        // nothing and touches no lock.
-        #[allow(unsafe_code)]
-        unsafe {
-            cmd.pre_exec(move || {
-                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL, 0, 0, 0) != 0 {
-                    return Err(std::io::Error::last_os_error());
-                }
-                // The parent may have died before prctl: then no signal
-                // would come.
-                if u32::try_from(libc::getppid()).ok() != Some(parent) {
-                    return Err(std::io::Error::other("parent exited while starting qemu"));
-                }
-                Ok(())
-            });
-        }
-    }
-}
-
 impl Qemu {
     /// Starts `qemu-system-arm` (the `board`'s machine, semihosting on,
     /// the protocol UART on a Unix socket) with `image`, and waits until the
@@ -269,7 +239,7 @@ impl Qemu {
             cmd.arg("-qmp")
                 .arg(format!("unix:{},server=on,wait=off", q.display()));
         }
-        die_with_parent(&mut cmd);
+        crate::stop::die_with_parent(&mut cmd);
         cmd.arg("-kernel")
             .arg(image)
             .stdin(Stdio::null())

@@ -104,7 +104,13 @@ pub fn run(args: HilArgs) -> anyhow::Result<()> {
         ..HilOptions::default()
     };
     let stop = Stop::on_signals()?;
-    // Output paths are checked (the CSV created) before QEMU starts.
+    let plan = args.excite.plan(&scenario)?;
+    // Output paths are checked (the CSV or the log created) before QEMU
+    // starts.
+    let mut log = match &plan {
+        Some(_) => Some(args.excite.open_log(scenario.planes())?),
+        None => None,
+    };
     let mut files = args
         .output
         .open_trace(JointSpec::of(&scenario).angle_names())?;
@@ -126,16 +132,13 @@ pub fn run(args: HilArgs) -> anyhow::Result<()> {
         }
     };
     let mut link = Link::new(port);
-    if let Some(plan) = args.excite.plan(&scenario)? {
-        let (log, summary) = host_tools::joint::excite::run_hil(
-            &plan,
-            &spec,
-            &mut link,
-            opts,
-            !args.excite.no_electrical,
+    if let (Some(plan), Some(mut log)) = (plan, log.take()) {
+        let electrical = !args.excite.no_electrical;
+        let session = host_tools::joint::excite::run_hil(
+            &plan, &spec, &mut link, opts, electrical, &mut log, &stop,
         )
-        .map_err(|e| name_the_board(e, &label, args.baud))?;
-        return args.excite.finish(&log, &summary);
+        .map_err(|e| name_the_board(e, &label, args.baud));
+        return args.excite.finish(log, session);
     }
     let progress = args.output.progress("lockstep steps");
     let ctx = host_tools::run::sim::RunContext {

@@ -168,6 +168,12 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
             plant_common::short_number(a.fit_fraction)
         );
     }
+    // The plant file and the plot can be written: checked before the
+    // fit, not after it.
+    output::check_file(&a.output)?;
+    if let Some(p) = &a.plot {
+        output::check_file(p)?;
+    }
     let mut log = excite::read_log(&a.log)?;
     match a.angles {
         AngleSource::BoardEstimate => angles_from_board_estimates(&mut log, &a.log)?,

@@ -342,7 +342,17 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             a.generations
         );
     }
-    check_out_dir(&a.out)?;
+    // Every file the calibration writes can be written: checked before
+    // the search, not after it.
+    host_tools::output::check_files_in(
+        &a.out,
+        &[
+            "params.json",
+            "generations.csv",
+            "mu_per_generation.svg",
+            "snapshots.svg",
+        ],
+    )?;
     let prep = prepare(&a.video, &a.model, a.json)?;
     let spec = CalibrateSpec {
         generations: a.generations,
@@ -526,7 +536,33 @@ fn load_video(v: &VideoArgs, json: bool) -> Result<Video> {
 /// minutes (issue 12); 8 px is the default.
 const MIN_REF_ELEMENT_PX: f64 = 2.0;
 
+/// Peak memory of the model per square of its `--nx × --ny` mesh (bytes)
+/// and besides it: the maximum resident set of `softjoint push simulate`
+/// at `--nx 200 --ny 100` (28 MB) and `--nx 400 --ny 200` (59 MB) over
+/// its 17 MB at the start (VmHWM of /proc/PID/status), ≈ 530–600 B a
+/// square; rounded up.
+const MODEL_BYTES_PER_SQUARE: u64 = 700;
+const MODEL_BYTES_BESIDES: u64 = 32_000_000;
+
+/// The mesh's size checked before any work (the ground truth is seconds
+/// of finite elements): each side within the model's 1..=2000 squares,
+/// and the memory the mesh needs within the memory there is.
+fn check_grid(m: &ModelArgs) -> Result<()> {
+    let max = plant_pushing::mesh::MAX_SQUARES_PER_SIDE;
+    for (flag, n) in [("--nx", m.nx), ("--ny", m.ny)] {
+        if !(1..=max).contains(&n) {
+            bail!("{flag} {n}: must be 1..={max} squares");
+        }
+    }
+    let squares = (m.nx * m.ny) as u64;
+    host_tools::memory::check_fits(
+        &format!("--nx {} --ny {} ({squares} squares)", m.nx, m.ny),
+        squares * MODEL_BYTES_PER_SQUARE + MODEL_BYTES_BESIDES,
+    )
+}
+
 fn prepare(v: &VideoArgs, m: &ModelArgs, json: bool) -> Result<PreparedVideo> {
+    check_grid(m)?;
     let video = load_video(v, json)?;
     PreparedVideo::new(
         video,

@@ -327,7 +327,19 @@ fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result
     Ok(())
 }
 
+/// The files `calibrate` writes in its output directory.
+const CALIBRATION_FILES: [&str; 5] = [
+    "params.toml",
+    "generations.csv",
+    "s_per_generation.svg",
+    "force.svg",
+    "sections.svg",
+];
+
 fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    // Every file the calibration writes can be written: checked before
+    // the search, not after it.
+    output::check_files_in(&a.out, &CALIBRATION_FILES)?;
     let file = ScenarioFile::load(a.scenario.as_deref())?;
     let scenario = file.scenario();
     let set = ParamSet::from_count(a.params).map_err(|e| anyhow::anyhow!("--params: {e}"))?;

@@ -4,11 +4,13 @@ use std::path::PathBuf;
 
 use clap::Args;
 use host_tools::files::scenario::Scenario;
+use host_tools::joint::excite::{self, LogFile, SessionSummary};
 use host_tools::run::joint::JointSpec;
 use host_tools::run::spec::RunSpec;
 use host_tools::run::summary::RunCutShort;
 use host_tools::run::sweep::calibration_sweep;
 use host_tools::run::{report, sim};
+use host_tools::stop::{Stop, Stopped};
 use host_tools::{out, outln, output};
 
 #[derive(Args)]
@@ -60,21 +62,55 @@ impl ExciteArgs {
             .transpose()
     }
 
-    /// Writes the log and prints what the session saw.
-    pub fn finish(
-        &self,
-        log: &plant_joint::identify::ExcitationLog,
-        summary: &host_tools::joint::excite::SessionSummary,
-    ) -> anyhow::Result<()> {
+    /// Creates the log file (`planes` angles) before the session, so a
+    /// path that cannot be written is refused before any work.
+    pub fn open_log(&self, planes: usize) -> anyhow::Result<LogFile> {
         let path = self
             .log
             .as_ref()
             .ok_or_else(|| anyhow::anyhow!("--excite needs --log"))?;
-        host_tools::joint::excite::write_log(path, log)?;
+        LogFile::create(path, planes, !self.no_electrical)
+    }
+
+    /// Ends the session's log: writes its last rows and prints what the
+    /// session saw; a session stopped by a signal (its rows up to there in
+    /// the log) or one that failed (the rows before the failure kept) is
+    /// an error that says how many rows the log holds.
+    pub fn finish(
+        &self,
+        log: LogFile,
+        session: anyhow::Result<SessionSummary>,
+    ) -> anyhow::Result<()> {
+        let path = log.path().to_path_buf();
+        let written = log.finish();
+        let summary = match session {
+            Ok(s) => s,
+            Err(e) => {
+                let kept = match written {
+                    Ok(rows) => format!("the log {} holds its first {rows} rows", path.display()),
+                    Err(w) => format!("{w:#}"),
+                };
+                return Err(e.context(kept));
+            }
+        };
+        let rows = written?;
+        if let Some(signal) = summary.stopped_by {
+            return Err(Stopped {
+                signal,
+                what: format!(
+                    "{} stopped at t = {:.2} s of {} s; the log {} holds its {rows} rows up to there",
+                    summary.plan,
+                    summary.duration_s,
+                    plant_common::short_number(summary.planned_s),
+                    path.display()
+                ),
+            }
+            .into());
+        }
         outln!(
             "{}: {} rows ({} s) written to {}; peak coil {:.1} °C, budget peak rise {:.0} K, faults seen: [{}]",
             summary.plan,
-            summary.rows,
+            rows,
             summary.duration_s,
             path.display(),
             summary.peak_coil_temperature_c,
@@ -100,10 +136,12 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         None => e,
     };
     if let Some(plan) = args.excite.plan(&scenario)? {
+        let stop = Stop::on_signals()?;
         let spec = RunSpec::resolve(&scenario).map_err(in_scenario)?;
-        let (log, summary) =
-            host_tools::joint::excite::run_sim(&plan, &spec, !args.excite.no_electrical)?;
-        return args.excite.finish(&log, &summary);
+        let mut log = args.excite.open_log(scenario.planes())?;
+        let electrical = !args.excite.no_electrical;
+        let session = excite::run_sim(&plan, &spec, electrical, &mut log, &stop);
+        return args.excite.finish(log, session);
     }
     let joint = JointSpec::of(&scenario);
     if let Some(path) = &args.calibration_sweep {
@@ -114,7 +152,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<()> {
         outln!("{} sweep rows written to {}", rows.len(), path.display());
         return Ok(());
     }
-    let stop = host_tools::stop::Stop::on_signals()?;
+    let stop = Stop::on_signals()?;
     // Output paths are checked (the CSV created) before the run and before
     // any fitted law's sweep.
     let mut files = args.output.open_trace(joint.angle_names())?;

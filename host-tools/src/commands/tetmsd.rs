@@ -473,13 +473,25 @@ fn virtual_pair(scenario: &Scenario, name: &str) -> Result<PairOutcome> {
 }
 
 /// Two child processes `softjoint tetmsd site`, over UDP on loopback.
+///
+/// The sites die with this process however it ends (their own process
+/// group and `PR_SET_PDEATHSIG`, `host_tools::stop::die_with_parent`, as
+/// `hil` does for QEMU): a SIGTERM, Ctrl-C, SIGHUP or SIGKILL to `pair`
+/// leaves no site running under PID 1. The scenario file they read is
+/// removed as soon as both have reported their port (each reads it before
+/// it binds), so it is not left in the temporary directory for the length
+/// of the run either.
 fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairOutcome> {
     let exe = std::env::current_exe().context("cannot find the softjoint binary")?;
     let file = std::env::temp_dir().join(format!("softjoint-tetmsd-{}.toml", std::process::id()));
     output::write_toml(&file, "", scenario)?;
     let result = (|| {
-        let mut children = spawn_sites(&exe, &file, spin_us, rt_priority)?;
-        let readers = introduce_sites(&mut children)?;
+        let spawned = spawn_sites(&exe, &file, spin_us, rt_priority);
+        let mut children = spawned?;
+        let introduced = introduce_sites(&mut children);
+        // Both sites have read the scenario (or failed): the file goes.
+        std::fs::remove_file(&file).ok();
+        let readers = introduced?;
         let [r0, r1] = collect_reports(children, readers)?;
         Ok(PairOutcome {
             mode: "processes",
@@ -496,7 +508,9 @@ fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairO
 fn spawn_sites(exe: &Path, file: &Path, spin_us: u64, rt_priority: u8) -> Result<Vec<Child>> {
     let mut children = Vec::new();
     for s in 0..2 {
-        let child = Command::new(exe)
+        let mut cmd = Command::new(exe);
+        host_tools::stop::die_with_parent(&mut cmd);
+        let child = cmd
             .args([
                 "tetmsd",
                 "site",

@@ -181,20 +181,41 @@ fn num(v: f64) -> Result<String> {
     }
 }
 
+/// Peak memory of `field --synthetic` per voxel of the twin (bytes) and
+/// besides it: measured as the maximum resident set of `softjoint tissue
+/// field --synthetic --dims 128x128x32` (77 MB) and `128x128x64` (137 MB),
+/// `/usr/bin/time -v`, ≈ 115 B a voxel over ≈ 17 MB; rounded up.
+const FIELD_BYTES_PER_VOXEL: u64 = 120;
+const FIELD_BYTES_BESIDES: u64 = 32_000_000;
+
 fn field(a: &FieldArgs) -> Result<()> {
     if a.grid_step == 0 {
         bail!("--grid-step must be at least 1");
     }
+    if a.synthetic {
+        // Refused before the twin is allocated (1024³ aborted in the
+        // allocator with SIGABRT).
+        let voxels: u64 = a.dims.iter().map(|&d| d as u64).product();
+        let [nx, ny, nz] = a.dims;
+        host_tools::memory::check_fits(
+            &format!("--dims {nx}x{ny}x{nz} ({voxels} voxels)"),
+            voxels * FIELD_BYTES_PER_VOXEL + FIELD_BYTES_BESIDES,
+        )?;
+    }
     let pair = load_pair(a)?;
+    if a.write_volumes && pair.twin().is_none() {
+        bail!("--write-volumes writes the synthetic pair: use it with --synthetic");
+    }
     out_dir(&a.out_dir)?;
+    let mut written: Vec<String> = Vec::new();
     if a.write_volumes {
-        if pair.twin().is_none() {
-            bail!("--write-volumes writes the synthetic pair: use it with --synthetic");
+        for (name, v) in [
+            ("initial.nii.gz", pair.initial()),
+            ("deformed.nii.gz", pair.deformed()),
+        ] {
+            v.write_nifti(&a.out_dir.join(name))?;
+            written.push(name.into());
         }
-        pair.initial()
-            .write_nifti(&a.out_dir.join("initial.nii.gz"))?;
-        pair.deformed()
-            .write_nifti(&a.out_dir.join("deformed.nii.gz"))?;
     }
     let params = FieldParams {
         features_initial: a.features_initial,
@@ -206,18 +227,16 @@ fn field(a: &FieldArgs) -> Result<()> {
         bail!("--features-initial and --features-deformed must be at least 4");
     }
     let outcome = experiment::run(&pair, &params, &a.matching.variants())?;
-    write_field_files(&a.out_dir, &pair, &outcome, a.grid_step)?;
-    let summary = field_summary(pair.initial(), &outcome)?;
+    written.extend(write_field_files(&a.out_dir, &pair, &outcome, a.grid_step)?);
+    written.push("summary.json".into());
+    let summary = field_summary(pair.initial(), &outcome)?.field("files", &written)?;
     output::write_json(&a.out_dir.join("summary.json"), &summary)?;
     if a.json {
         output::print_json(&summary)?;
         return Ok(());
     }
     print_field_table(pair.initial(), &outcome)?;
-    outln!(
-        "wrote matches.csv, field.csv, mid_slice.svg, summary.json to {}",
-        a.out_dir.display()
-    );
+    outln!("wrote {} to {}", written.join(", "), a.out_dir.display());
     Ok(())
 }
 
@@ -244,15 +263,18 @@ fn load_pair(a: &FieldArgs) -> Result<VolumePair> {
     }
 }
 
-/// matches.csv (every variant), and field.csv and mid_slice.svg (the
-/// first variant's dense field, every `grid_step` voxels).
+/// matches.csv (every variant), field.csv (the first variant's dense
+/// field, every `grid_step` voxels) and, with more than one variant,
+/// field_<variant>.csv for each of the others, and mid_slice.svg (the
+/// first variant's); returns the names written, in order.
 fn write_field_files(
     dir: &Path,
     pair: &VolumePair,
     outcome: &FieldOutcome,
     grid_step: usize,
-) -> Result<()> {
+) -> Result<Vec<String>> {
     let first = &outcome.variants[0];
+    let mut names = vec!["matches.csv".to_string(), "field.csv".to_string()];
     write(
         &dir.join("matches.csv"),
         &matches_csv(outcome, pair.twin())?,
@@ -261,6 +283,11 @@ fn write_field_files(
         &dir.join("field.csv"),
         &dense_csv(pair.initial(), first, grid_step)?,
     )?;
+    for v in &outcome.variants[1..] {
+        let name = format!("field_{}.csv", v.consistency.name());
+        write(&dir.join(&name), &dense_csv(pair.initial(), v, grid_step)?)?;
+        names.push(name);
+    }
     let svg = mid_slice_picture(
         pair.initial(),
         &first.measured,
@@ -268,7 +295,9 @@ fn write_field_files(
         pair.twin(),
         grid_step,
     );
-    write(&dir.join("mid_slice.svg"), &svg)
+    write(&dir.join("mid_slice.svg"), &svg)?;
+    names.push("mid_slice.svg".into());
+    Ok(names)
 }
 
 /// Every variant's matches with their displacement (and, on a twin, the

@@ -9,6 +9,7 @@ use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::files::JointKind;
 use host_tools::joint::tune;
 use host_tools::output;
+use host_tools::stop::{Stop, StopSignal, Stopped};
 
 /// The arguments of `tune`.
 #[derive(Args)]
@@ -42,27 +43,69 @@ pub struct TuneArgs {
     /// the held-out steps (the file and the output say so).
     #[arg(long)]
     allow_unproven: bool,
+    /// Go on with a search stopped by a signal (Ctrl-C, SIGTERM, SIGHUP),
+    /// from the search state it wrote: its scored candidates are not run
+    /// again. Same plant file, --plants, --seed and --search-v-offset;
+    /// --candidates may be more (the candidates are one seeded sequence).
+    /// A search stopped again writes its state back to this file.
+    #[arg(long, value_name = "STATE")]
+    resume: Option<PathBuf>,
+}
+
+impl TuneArgs {
+    fn request(&self) -> tune::TuneRequest {
+        tune::TuneRequest {
+            candidates: self.candidates as usize,
+            plants: self.plants as usize,
+            seed: self.seed,
+            search_v_offset: self.search_v_offset,
+        }
+    }
+
+    /// Where a stopped search writes its state: the file it resumed from,
+    /// or beside the gains file (`gains.toml` → `gains.search.toml`).
+    fn state_path(&self) -> PathBuf {
+        match &self.resume {
+            Some(p) => p.clone(),
+            None => self.output.with_extension("search.toml"),
+        }
+    }
+
+    /// The scored candidates of the search resumed, checked against this
+    /// one.
+    fn resumed(&self, plant_bytes: &[u8]) -> anyhow::Result<Vec<tune::Scored>> {
+        let Some(path) = &self.resume else {
+            return Ok(Vec::new());
+        };
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read --resume {}", path.display()))?;
+        let state: tune::SearchState =
+            host_tools::input::from_toml(&text, &path.display().to_string())?;
+        state
+            .check_resumes(plant_bytes, self.request())
+            .map_err(|e| anyhow::anyhow!("--resume {}: {e}", path.display()))?;
+        Ok(state.scored)
+    }
 }
 
 /// Runs `tune`.
 pub fn run(a: TuneArgs) -> anyhow::Result<()> {
     let file = PlantFile::load(&a.plant)?;
-    let joint = match file.params()? {
-        PlantParams::TwoD(_) => JointKind::TwoD,
-        PlantParams::ThreeD(_) => JointKind::ThreeD,
+    let plant_bytes =
+        std::fs::read(&a.plant).with_context(|| format!("cannot read {}", a.plant.display()))?;
+    let (joint, coils) = match file.params()? {
+        PlantParams::TwoD(_) => (JointKind::TwoD, 2),
+        PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
     };
-    let go = || {
-        tune::tune(
-            &file,
-            a.candidates as usize,
-            a.plants as usize,
-            a.seed,
-            a.search_v_offset,
-            !a.json,
-        )
-    };
+    let done = a.resumed(&plant_bytes)?;
+    // The gains file and the state file can be written: checked before
+    // the search, not after it.
+    output::check_file(&a.output)?;
+    output::check_file(&a.state_path())?;
+    let stop = Stop::on_signals()?;
+    let go = || tune::tune(&file, a.request(), !a.json, &stop, &done);
     let started = std::time::Instant::now();
-    let r = match a.threads {
+    let outcome = match a.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n as usize)
             .build()
@@ -71,6 +114,19 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
         None => go(),
     }
     .map_err(|e| e.context(format!("tuning on {}", a.plant.display())))?;
+    let r = match outcome {
+        tune::TuneOutcome::Done(r) => r,
+        tune::TuneOutcome::Stopped(signal, scored) => {
+            let state = tune::SearchState::new(
+                &a.plant.display().to_string(),
+                &plant_bytes,
+                a.request(),
+                coils,
+                scored,
+            );
+            return Err(stopped(&a, signal, &state));
+        }
+    };
     let wall = started.elapsed().as_secs_f64();
     let g = GainsFile {
         joint,
@@ -143,4 +199,45 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
         host_tools::outln!("gains written to {}", a.output.display());
     }
     Ok(())
+}
+
+/// Writes a stopped search's state and says what it kept, as the error
+/// the program exits with (130, 143, 129); no gains file is written (the
+/// search did not finish).
+fn stopped(a: &TuneArgs, signal: StopSignal, state: &tune::SearchState) -> anyhow::Error {
+    let path = a.state_path();
+    if let Err(e) = output::write_toml(
+        &path,
+        "# Written by `softjoint tune` when stopped: the candidates scored so far.\n# `softjoint tune PLANT --resume THIS_FILE` goes on from here.\n",
+        state,
+    ) {
+        return e.context(format!("stopped by {}; the search state was lost", signal.name()));
+    }
+    let best = match &state.best {
+        Some(b) => format!(
+            "best so far: candidate {} (robust cost {:.3}, K_P {:?} V/°, K_I {:.3} V/(°·s))",
+            b.index,
+            b.robust_cost,
+            b.gains
+                .kp_v_per_deg
+                .iter()
+                .map(|k| (k * 1000.0).round() / 1000.0)
+                .collect::<Vec<_>>(),
+            b.gains.ki_v_per_deg_s
+        ),
+        None => "none scored yet".into(),
+    };
+    Stopped {
+        signal,
+        what: format!(
+            "{} of {} candidates scored, {best}; search state in {} (`softjoint tune {} --resume {}` goes on from there); {} not written",
+            state.scored.len(),
+            a.candidates,
+            path.display(),
+            a.plant.display(),
+            path.display(),
+            a.output.display()
+        ),
+    }
+    .into()
 }

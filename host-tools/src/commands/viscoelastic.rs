@@ -18,7 +18,7 @@ use plant_viscoelastic::experiment::trial::{
     fit_trial_checked, simulate_table, ThreeElementParams, Trace,
 };
 use plant_viscoelastic::fit::{simulate_force, TrialFit, Weighting};
-use plant_viscoelastic::io::{read_columns, read_probe_script, read_table};
+use plant_viscoelastic::io::{read_columns, read_probe_script, read_table, Columns};
 use plant_viscoelastic::object::{ProbeEvent, HAPTIC_PERIOD_S};
 use plant_viscoelastic::Vec3;
 use plant_viscoelastic::{Dgfm, SurfaceMesh};
@@ -177,6 +177,44 @@ fn trace_csv(trace: &Trace) -> String {
     s
 }
 
+/// A trial's forces and displacements within what a trial of a soft
+/// material records, and a stiffness scale (largest force over largest
+/// displacement) a fit can represent: a force a million times too large,
+/// or displacements in the wrong unit, are refused by line, not fitted to
+/// a stiffness of `inf`.
+fn check_trial_ranges(c: &Columns, name: &str) -> Result<()> {
+    use plant_viscoelastic::io::{check_magnitude, MAX_TRIAL_DISPLACEMENT_M, MAX_TRIAL_FORCE_N};
+    check_magnitude(
+        c,
+        name,
+        "force",
+        MAX_TRIAL_FORCE_N,
+        "N",
+        "a soft material's trial",
+    )?;
+    check_magnitude(
+        c,
+        name,
+        "displacement",
+        MAX_TRIAL_DISPLACEMENT_M,
+        "m",
+        "a soft material's trial",
+    )?;
+    let peak = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (f, u) = (peak(&c.values[2]), peak(&c.values[1]));
+    // Steel in contact is ≈ 1e9 N/m; a soft object is many decades below.
+    let stiffness = f / u;
+    if f > 0.0 && stiffness > 1e12 {
+        bail!(
+            "{name}: forces up to {} N against displacements of at most {} m (a stiffness of {} N/m) — beyond any soft material; is the displacement column in metres?",
+            plant_common::short_number(f),
+            plant_common::short_number(u),
+            plant_common::short_number(stiffness)
+        );
+    }
+    Ok(())
+}
+
 fn fit(a: &FitArgs) -> Result<()> {
     let text = read_text(&a.input)?;
     let name = a.input.display().to_string();
@@ -186,6 +224,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         &["time_s", "displacement", "force"],
         Some("time_s"),
     )?;
+    check_trial_ranges(&c, &name)?;
     let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
     let weighting = if a.uniform {
         Weighting::Uniform
@@ -272,6 +311,8 @@ fn object(a: &ObjectArgs) -> Result<()> {
     let phase =
         host_tools::progress::spinner(&format!("building the DGFM of {n} vertices (FEM)"), false);
     let dgfm = object_dgfm(mesh)?;
+    // The script is read (and its forces checked) before the campaign.
+    let script = Script::load(a.script.as_deref(), &dgfm)?;
     // Measure (simulated), fit, estimate and spread, as in seed §4.
     phase.set_message("simulating and fitting the probe campaign");
     let campaign = Campaign::simulate(&dgfm, a.probe_every, a.seed)?;
@@ -279,7 +320,6 @@ fn object(a: &ObjectArgs) -> Result<()> {
         write_trials(dir, &campaign)?;
     }
     let identified = campaign.identify(&dgfm, a.tensor)?;
-    let script = Script::load(a.script.as_deref(), &dgfm)?;
     // The haptic device runs the firmware's real-time update (seed §5);
     // the plant's exact reference runs the same script beside it.
     phase.set_message("running the probe script at 1 kHz");

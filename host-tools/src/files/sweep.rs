@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Context};
+use plant_joint::identify::log::{MAX_ANGLE_DEG, MAX_INSERTION_MM};
 
 /// One calibration sample: insertions (mm) and reference angles (deg).
 #[derive(Clone, Debug, PartialEq)]
@@ -89,6 +90,31 @@ fn parse_sweep_named(text: &str, file: &str) -> anyhow::Result<Vec<SweepRow>> {
                         )
                     )
                 );
+            }
+        }
+        // An outlier (a unit slip, a corrupted reading) is refused by row
+        // rather than fitted: one row at 1e30° made `a` = 5e25.
+        let bounds = [
+            (&d_cols, MAX_INSERTION_MM, "mm", "a wire's insertion"),
+            (&a_cols, MAX_ANGLE_DEG, "°", "any bend of the joint"),
+        ];
+        for (cols, limit, unit, what) in bounds {
+            for &c in cols.iter() {
+                let v = row.values[c];
+                if v.abs() > limit {
+                    bail!(
+                        "{}",
+                        table.error(
+                            row.line,
+                            Some(&table.columns[c]),
+                            format!(
+                                "{} {unit} is beyond {what} (|value| ≤ {} {unit})",
+                                plant_common::short_number(v),
+                                plant_common::short_number(limit)
+                            )
+                        )
+                    );
+                }
             }
         }
         rows.push(SweepRow {

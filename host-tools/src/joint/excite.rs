@@ -10,6 +10,7 @@
 //! firmware's default thermal budget (its own coil model and trip rise),
 //! so a plan that would trip the board's supervisor is refused by name.
 
+use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{bail, Context};
@@ -22,9 +23,12 @@ use plant_joint::identify::{
 use plant_joint::PlantError;
 use serde::Serialize;
 
+use crate::output::check_number;
 use crate::run::joint::{CoreLoopTask, SimJoint};
 use crate::run::spec::RunSpec;
 use crate::run::summary::{fault_names, CutCause, CutShort, RunCutShort};
+use crate::run::trace::RowFile;
+use crate::stop::{Stop, StopSignal};
 
 /// Reads a plan (TOML) and checks it for a joint with `planes` angles and
 /// against the thermal budget; errors name the file and the entry.
@@ -119,23 +123,121 @@ pub struct SessionSummary {
     pub plan: String,
     /// Log rows.
     pub rows: usize,
-    /// Simulated seconds.
+    /// Simulated seconds the log covers (the plan's, unless stopped early).
     pub duration_s: f64,
+    /// Seconds the plan asked for.
+    pub planned_s: f64,
     /// Supervisor faults seen (the board's own; drives bypass its outputs).
     pub faults_seen: Vec<String>,
     /// Peak coil temperature of the simulated joint (°C).
     pub peak_coil_temperature_c: f64,
     /// Largest modelled rise of the firmware's budget over the drives (K).
     pub budget_peak_rise_k: f64,
+    /// The signal that stopped the session before the plan's end (its log
+    /// then holds the rows up to there), if one did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped_by: Option<StopSignal>,
 }
 
-/// Runs `plan` through `cl` and records the log.
+/// Where a session's log rows go as they complete: a file streamed as the
+/// session runs ([`LogFile`]) or a log kept in memory (tests, library
+/// callers that compare logs).
+pub trait LogSink {
+    /// Takes the next rows of the session (`piece`'s row times go on from
+    /// the rows taken before).
+    fn rows(&mut self, piece: ExcitationLog) -> anyhow::Result<()>;
+}
+
+impl LogSink for ExcitationLog {
+    fn rows(&mut self, piece: ExcitationLog) -> anyhow::Result<()> {
+        self.append(piece);
+        Ok(())
+    }
+}
+
+/// A session's log written as it is recorded (the columns and decimals of
+/// [`log_csv`], each value checked finite first): memory stays flat
+/// however long the plan, and a session that ends early — a signal, a
+/// failed link — leaves its rows on disk up to its last whole row. Like
+/// the run trace, the one kind of result that is not written atomically
+/// (it would have to be kept whole until the end).
+pub struct LogFile {
+    rows: RowFile,
+    cols: Vec<String>,
+    places: Vec<usize>,
+}
+
+impl LogFile {
+    /// Creates (or truncates) `path` and writes the header of a log with
+    /// `planes` angles (and the electrical columns if `electrical`): a path
+    /// that cannot be written is refused before the session.
+    pub fn create(path: &Path, planes: usize, electrical: bool) -> anyhow::Result<Self> {
+        let cols = columns(planes, electrical);
+        let places = cols.iter().map(|c| log_decimals(c)).collect();
+        let rows = RowFile::create(path, &format!("{}\n", cols.join(",")))?;
+        Ok(Self { rows, cols, places })
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        self.rows.path()
+    }
+
+    /// Writes what is waiting and returns the rows in the file.
+    pub fn finish(self) -> anyhow::Result<u64> {
+        self.rows.finish()
+    }
+}
+
+impl LogSink for LogFile {
+    fn rows(&mut self, piece: ExcitationLog) -> anyhow::Result<()> {
+        for k in 0..piece.len() {
+            let r = piece.row(k);
+            let (cols, places) = (&self.cols, &self.places);
+            self.rows.row(|s, path, line| {
+                // Every value checked before any is written: a refused row
+                // leaves nothing of itself.
+                for (v, c) in r.iter().zip(cols) {
+                    check_number(path, line, || c.clone(), *v)?;
+                }
+                for (i, (v, d)) in r.iter().zip(places).enumerate() {
+                    if i > 0 {
+                        s.push(',');
+                    }
+                    let _ = write!(s, "{v:.d$}", d = *d);
+                }
+                s.push('\n');
+                Ok::<(), crate::output::NonFinite>(())
+            })?;
+        }
+        self.rows.write_if_due()
+    }
+}
+
+/// Decimals of a log column (ms times, 0.1 mV, 0.1 m°, µm, 10 µA, 0.1 mΩ).
+fn log_decimals(name: &str) -> usize {
+    if name == "t_s" || name == "cam_capture_s" || name.starts_with('d') {
+        3
+    } else if name.starts_with('i') {
+        5
+    } else {
+        4
+    }
+}
+
+/// Runs `plan` through `cl`, handing `sink` the log's rows as they
+/// complete. `stop` is read every control period: a stop request ends the
+/// session there (the rows recorded up to it handed on, a partial last row
+/// dropped) and the summary says which signal. A failure mid-session hands
+/// on the whole rows recorded before it, then returns the error.
 pub fn run_loop<Pl, Ctl, const P: usize, const S: usize, const C: usize>(
     plan: &ExcitationPlan,
     cl: &mut ClosedLoop<Pl, Ctl, P, S, C>,
     electrical: bool,
     seed: u64,
-) -> anyhow::Result<(ExcitationLog, SessionSummary)>
+    sink: &mut dyn LogSink,
+    stop: &Stop,
+) -> anyhow::Result<SessionSummary>
 where
     Pl: Plant<P, S, C> + SimJoint,
     Ctl: Controller<P, S>,
@@ -160,43 +262,87 @@ where
     let steps = (plan.duration_s / period_s).round() as u64;
     let mut faults = 0u16;
     let mut peak = f64::NEG_INFINITY;
+    let mut rows = 0usize;
+    let mut stopped_by = None;
+    let mut ran = Ok(());
+    let mut last_piece = std::time::Instant::now();
     for _ in 0..steps {
+        if let Some(signal) = stop.requested() {
+            stopped_by = Some(signal);
+            break;
+        }
         let obs = cl.plant.observation();
         let mut sample = None;
-        cl.run(1, &mut schedule, |x| -> anyhow::Result<()> {
+        ran = cl.run(1, &mut schedule, |x| -> anyhow::Result<()> {
             sample = Some(*x);
             Ok(())
-        })?;
-        let x = sample.context("the loop ran no period")?;
+        });
+        let Some(x) = sample.filter(|_| ran.is_ok()) else {
+            ran = ran.and_then(|()| Err(anyhow::anyhow!("the loop ran no period")));
+            break;
+        };
         faults |= x.faults;
         for t in x.coil_temperatures_c {
             peak = peak.max(t);
         }
         rec.push(&obs, &x.coil_volts, &cl.plant.currents_a()[..C]);
+        let due = rec.complete_rows() >= LOG_PIECE_ROWS
+            || (rec.complete_rows() > 0 && last_piece.elapsed() >= PIECE_INTERVAL);
+        if due {
+            last_piece = std::time::Instant::now();
+            let piece = rec.take_rows();
+            rows += piece.len();
+            sink.rows(piece)?;
+        }
     }
-    let log = rec.finish();
-    let summary = SessionSummary {
+    // On a failure, the whole rows before it (its partial row dropped).
+    let last = if ran.is_ok() {
+        rec.finish()
+    } else {
+        rec.take_rows()
+    };
+    rows += last.len();
+    sink.rows(last)?;
+    ran?;
+    let dt = f64::from(plan.log_interval_ms) * 1e-3;
+    Ok(SessionSummary {
         plan: plan.name.clone(),
-        rows: log.len(),
-        duration_s: plan.duration_s,
+        rows,
+        duration_s: if stopped_by.is_some() {
+            rows as f64 * dt
+        } else {
+            plan.duration_s
+        },
+        planned_s: plan.duration_s,
         faults_seen: fault_names(faults),
         peak_coil_temperature_c: peak,
         budget_peak_rise_k: budget,
-    };
-    Ok((log, summary))
+        stopped_by,
+    })
 }
 
+/// Rows a session keeps before handing them to its sink (≈ 100 kB) …
+const LOG_PIECE_ROWS: usize = 512;
+/// … or the longest it keeps them (a slow lockstep session's rows reach
+/// the file at least this often).
+const PIECE_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
+
 /// Runs `plan` on the simulated joint of the run `spec` (its joint kind,
-/// seed, plant file and gains) under the core in process.
+/// seed, plant file and gains) under the core in process, the log's rows
+/// to `sink` as they complete; `stop` ends it early.
 pub fn run_sim(
     plan: &ExcitationPlan,
     spec: &RunSpec,
     electrical: bool,
-) -> anyhow::Result<(ExcitationLog, SessionSummary)> {
+    sink: &mut dyn LogSink,
+    stop: &Stop,
+) -> anyhow::Result<SessionSummary> {
     spec.core_loop(Session {
         plan,
         electrical,
         seed: spec.seed(),
+        sink,
+        stop,
     })
 }
 
@@ -205,10 +351,12 @@ struct Session<'a> {
     plan: &'a ExcitationPlan,
     electrical: bool,
     seed: u64,
+    sink: &'a mut dyn LogSink,
+    stop: &'a Stop,
 }
 
 impl CoreLoopTask for Session<'_> {
-    type Output = (ExcitationLog, SessionSummary);
+    type Output = SessionSummary;
 
     fn run<Pl, const P: usize, const S: usize, const C: usize>(
         self,
@@ -217,7 +365,14 @@ impl CoreLoopTask for Session<'_> {
     where
         Pl: Plant<P, S, C> + SimJoint,
     {
-        run_loop(self.plan, cl, self.electrical, self.seed)
+        run_loop(
+            self.plan,
+            cl,
+            self.electrical,
+            self.seed,
+            self.sink,
+            self.stop,
+        )
     }
 }
 
@@ -227,16 +382,7 @@ pub fn log_csv(log: &ExcitationLog) -> String {
     let (cols, rows) = log.to_rows();
     let mut out = cols.join(",");
     out.push('\n');
-    let decimals = |name: &str| -> usize {
-        if name == "t_s" || name == "cam_capture_s" || name.starts_with('d') {
-            3
-        } else if name.starts_with('i') {
-            5
-        } else {
-            4
-        }
-    };
-    let places: Vec<usize> = cols.iter().map(|c| decimals(c)).collect();
+    let places: Vec<usize> = cols.iter().map(|c| log_decimals(c)).collect();
     for r in rows {
         let line: Vec<String> = r
             .iter()
@@ -295,19 +441,24 @@ pub fn log_columns(planes: usize) -> String {
 
 /// Runs `plan` in lockstep with the board on `link` (the 3D joint of
 /// the run `spec`, wire feedback): the board's controller holds, the host
-/// forces the drives onto the simulated coils.
+/// forces the drives onto the simulated coils. The log's rows go to
+/// `sink` as they complete; `stop` ends the session early (the board still
+/// leaves lockstep).
 pub fn run_hil<Po: crate::board::link::Port>(
     plan: &ExcitationPlan,
     spec: &RunSpec,
     link: &mut crate::board::link::Link<Po>,
     opts: crate::board::hil::HilOptions,
     electrical: bool,
-) -> anyhow::Result<(ExcitationLog, SessionSummary)> {
+    sink: &mut dyn LogSink,
+    stop: &Stop,
+) -> anyhow::Result<SessionSummary> {
     let setup = crate::board::hil::lockstep_setup(spec, &opts)?;
     let plant = spec.joint.plant_3d()?;
     let board = crate::board::controller::BoardController::start(link, setup)?;
     let mut cl = ClosedLoop::new(plant, board, spec.period_us())?;
-    let out = run_loop(plan, &mut cl, electrical, spec.seed())?;
+    let out = run_loop(plan, &mut cl, electrical, spec.seed(), sink, stop)?;
+    // Stopped early or not, the board leaves lockstep.
     cl.controller.finish()?;
     Ok(out)
 }

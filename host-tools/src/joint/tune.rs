@@ -32,6 +32,11 @@
 //!   winner beats or ties the paper's gains there when its robust cost is
 //!   at most the paper's plus [`HELDOUT_TIE`]; `softjoint tune` refuses
 //!   to recommend it otherwise.
+//! - **Stopping and resuming**: a signal stops the search between
+//!   candidates; the candidates scored so far and the best of them are a
+//!   [`SearchState`], from which a resumed search scores only the others
+//!   (its result is the one the search would have given unbroken: each
+//!   candidate's score depends only on its gains, the plants and the seed).
 
 use anyhow::{bail, Context};
 use hal_sim::{ClosedLoop, CoreController, Plant, Sample};
@@ -50,6 +55,8 @@ use crate::run::joint::{CoreLoopTask, SimJoint};
 use crate::run::record::Trace;
 use crate::run::schedule::RunSchedule;
 use crate::run::spec::RunSpec;
+use crate::stop::{Stop, StopSignal};
+use serde::{Deserialize, Serialize};
 
 /// The range `--search-v-offset` draws v_offset from (V): the paper's
 /// 1.7 V ± 0.5 V.
@@ -498,52 +505,235 @@ pub fn heldout(
     })
 }
 
-/// Searches `n_candidates` gains (with v_offset when `search_v_offset`)
-/// on `n_plants` plants of `file`, in parallel; `progress` shows a bar on
-/// standard error.
+/// What a search is asked: its counts, seed and whether v_offset is
+/// searched.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TuneRequest {
+    /// Candidate gain sets (the first is the paper's).
+    pub candidates: usize,
+    /// Plants per candidate.
+    pub plants: usize,
+    /// Seed of the candidates and the plant draws.
+    pub seed: u64,
+    /// Search v_offset too.
+    pub search_v_offset: bool,
+}
+
+/// One candidate scored: its index in the seeded sequence and its score
+/// (`None`: its runs failed, a plant went unstable).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scored {
+    /// Index in the candidate sequence (0: the paper's gains).
+    pub index: usize,
+    /// Its score; absent if its runs failed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub score: Option<Score>,
+}
+
+/// How a search ended.
+pub enum TuneOutcome {
+    /// Every candidate scored.
+    Done(TuneResult),
+    /// Stopped by a signal at a clean point (between candidates): the
+    /// candidates scored so far, those given to resume from included, in
+    /// index order.
+    Stopped(StopSignal, Vec<Scored>),
+}
+
+/// Searches `req.candidates` gains on `req.plants` plants of `file`, in
+/// parallel, skipping the candidates already scored in `done` (a search
+/// resumed: the candidates are the same seeded sequence, so their scores
+/// hold). `stop` is read before each candidate: once asked, no new
+/// candidate starts and the search returns what it scored. `progress`
+/// shows a bar on standard error.
 pub fn tune(
     file: &PlantFile,
-    n_candidates: usize,
-    n_plants: usize,
-    seed: u64,
-    search_v_offset: bool,
+    req: TuneRequest,
     progress: bool,
-) -> anyhow::Result<TuneResult> {
+    stop: &Stop,
+    done: &[Scored],
+) -> anyhow::Result<TuneOutcome> {
     let params = file.params()?;
     let (joint, coils) = match params {
         PlantParams::TwoD(_) => (JointKind::TwoD, 2),
         PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
     };
-    let plants = sample_plants(file, n_plants.max(1), seed)?;
-    let cands = candidates(coils, n_candidates.max(1), seed, search_v_offset);
-    let bar = crate::progress::counter("tune", "candidates", Some(cands.len() as u64), !progress);
-    let scores: Vec<Option<Score>> = cands
+    let plants = sample_plants(file, req.plants.max(1), req.seed)?;
+    let cands = candidates(coils, req.candidates.max(1), req.seed, req.search_v_offset);
+    let mut known: Vec<Option<Option<Score>>> = vec![None; cands.len()];
+    for d in done.iter().filter(|d| d.index < cands.len()) {
+        known[d.index] = Some(d.score.clone());
+    }
+    let todo = known.iter().filter(|k| k.is_none()).count();
+    let bar = crate::progress::counter("tune", "candidates", Some(todo as u64), !progress);
+    let fresh: Vec<Option<Option<Score>>> = cands
         .par_iter()
-        .map(|g| {
-            let s = score(joint, g, &plants, seed).ok();
+        .zip(&known)
+        .map(|(g, k)| {
+            if k.is_some() || stop.requested().is_some() {
+                return None;
+            }
+            let s = score(joint, g, &plants, req.seed).ok();
             bar.inc(1);
-            s
+            Some(s)
         })
         .collect();
     bar.finish_and_clear();
+    let scores: Vec<Option<Option<Score>>> =
+        known.into_iter().zip(fresh).map(|(k, f)| k.or(f)).collect();
+    if let Some(signal) = stop.requested() {
+        if scores.iter().any(Option::is_none) {
+            let scored = scores
+                .into_iter()
+                .enumerate()
+                .filter_map(|(index, s)| s.map(|score| Scored { index, score }))
+                .collect();
+            return Ok(TuneOutcome::Stopped(signal, scored));
+        }
+    }
+    let scores: Vec<Option<Score>> = scores.into_iter().map(Option::flatten).collect();
     let failed = scores.iter().filter(|s| s.is_none()).count();
     let paper = scores[0]
         .clone()
         .context("the paper's gains failed on the identified plant")?;
-    let (i, best) = scores
-        .iter()
-        .enumerate()
-        .filter_map(|(i, s)| s.as_ref().map(|s| (i, s)))
-        .min_by(|a, b| a.1.robust.total_cmp(&b.1.robust).then(a.0.cmp(&b.0)))
-        .context("no candidate could be scored")?;
-    let heldout = heldout(file, &cands[i], n_plants, seed)?;
-    Ok(TuneResult {
+    let (i, best) = best_of(
+        scores
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| s.as_ref().map(|s| (i, s))),
+    )
+    .context("no candidate could be scored")?;
+    let heldout = heldout(file, &cands[i], req.plants, req.seed)?;
+    Ok(TuneOutcome::Done(TuneResult {
         best: cands[i].clone(),
         score: best.clone(),
         paper,
         failed,
         heldout,
-    })
+    }))
+}
+
+/// The lowest robust cost (the lower index on a tie).
+fn best_of<'a>(scores: impl Iterator<Item = (usize, &'a Score)>) -> Option<(usize, &'a Score)> {
+    scores.min_by(|a, b| a.1.robust.total_cmp(&b.1.robust).then(a.0.cmp(&b.0)))
+}
+
+/// A search stopped by a signal, written so that `softjoint tune
+/// --resume` goes on from it: what it was asked (the plant file, by name
+/// and by a hash of its text, the plants, seed and v_offset switch), the
+/// candidates scored, and the best so far with its gains (for a person;
+/// the resumed search ranks them again).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchState {
+    /// The plant file searched on.
+    pub plant_file: String,
+    /// FNV-1a (64 bits, hex) of the plant file's bytes: a resumed search
+    /// must be on the same plant.
+    pub plant_fnv1a: String,
+    /// Candidates the stopped search was asked for.
+    pub candidates: usize,
+    /// Plants per candidate.
+    pub plants: usize,
+    /// Seed.
+    pub seed: u64,
+    /// Whether v_offset was searched.
+    pub search_v_offset: bool,
+    /// The best candidate so far (absent if none was scored).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub best: Option<BestSoFar>,
+    /// The candidates scored, in index order.
+    #[serde(default)]
+    pub scored: Vec<Scored>,
+}
+
+/// The best candidate of a stopped search.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BestSoFar {
+    /// Its index in the candidate sequence.
+    pub index: usize,
+    /// Its gains.
+    pub gains: Gains,
+    /// Its robust cost.
+    pub robust_cost: f64,
+}
+
+impl SearchState {
+    /// The state of a search of `req` on `plant_file` (whose bytes are
+    /// `plant_bytes`) that scored `scored`.
+    pub fn new(
+        plant_file: &str,
+        plant_bytes: &[u8],
+        req: TuneRequest,
+        coils: usize,
+        scored: Vec<Scored>,
+    ) -> Self {
+        let best = best_of(
+            scored
+                .iter()
+                .filter_map(|s| s.score.as_ref().map(|sc| (s.index, sc))),
+        )
+        .map(|(index, sc)| BestSoFar {
+            index,
+            gains: candidates(coils, index + 1, req.seed, req.search_v_offset)[index].clone(),
+            robust_cost: sc.robust,
+        });
+        Self {
+            plant_file: plant_file.to_string(),
+            plant_fnv1a: fnv1a_hex(plant_bytes),
+            candidates: req.candidates,
+            plants: req.plants,
+            seed: req.seed,
+            search_v_offset: req.search_v_offset,
+            best,
+            scored,
+        }
+    }
+
+    /// Checks that `req` on a plant file with bytes `plant_bytes` goes on
+    /// with this search (the candidate count may differ: the candidates
+    /// are one seeded sequence, so a longer search extends a shorter one);
+    /// the error names what differs.
+    pub fn check_resumes(&self, plant_bytes: &[u8], req: TuneRequest) -> Result<(), String> {
+        if self.plant_fnv1a != fnv1a_hex(plant_bytes) {
+            return Err(format!(
+                "it is a search on another plant file (or {} has changed since)",
+                self.plant_file
+            ));
+        }
+        let differs = |flag: &str, was: String, now: String| {
+            Err(format!(
+                "it is a search with {flag} {was}, this one asks {now}: scores would not compare"
+            ))
+        };
+        if self.plants != req.plants {
+            return differs("--plants", self.plants.to_string(), req.plants.to_string());
+        }
+        if self.seed != req.seed {
+            return differs("--seed", self.seed.to_string(), req.seed.to_string());
+        }
+        if self.search_v_offset != req.search_v_offset {
+            let with = |b: bool| if b { "with" } else { "without" };
+            return Err(format!(
+                "it is a search {} --search-v-offset, this one is {} it: its candidates are other gains",
+                with(self.search_v_offset),
+                with(req.search_v_offset)
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// FNV-1a, 64 bits, as 16 hex digits: a fingerprint of a file's bytes.
+fn fnv1a_hex(bytes: &[u8]) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in bytes {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{h:016x}")
 }
 
 #[cfg(test)]
@@ -563,6 +753,16 @@ mod tests {
         assert!(h.score.robust > h.paper.robust, "{h:?}");
         let h = heldout(&file, &Gains::paper(4), 1, 1).unwrap();
         assert!(h.beats_or_ties_paper, "{h:?}");
+    }
+
+    /// FNV-1a against the published test vectors (the FNV authors' list:
+    /// "" → cbf29ce484222325, "a" → af63dc4c8601ec8c, "foobar" →
+    /// 85944171f73967e8).
+    #[test]
+    fn the_plant_fingerprint_is_fnv1a() {
+        assert_eq!(fnv1a_hex(b""), "cbf29ce484222325");
+        assert_eq!(fnv1a_hex(b"a"), "af63dc4c8601ec8c");
+        assert_eq!(fnv1a_hex(b"foobar"), "85944171f73967e8");
     }
 
     /// `--search-v-offset` adds v_offset to the draws without changing the

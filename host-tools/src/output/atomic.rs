@@ -291,6 +291,26 @@ pub fn check_dir(dir: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Checks that `path` can be written (as [`AtomicFile::create`] would,
+/// leaving nothing behind and the file as it was), before the long work
+/// whose result goes there rather than after it.
+pub fn check_file(path: &Path) -> anyhow::Result<()> {
+    drop(AtomicFile::create(path)?);
+    Ok(())
+}
+
+/// Checks, before the long work, that `dir` can be made or written and
+/// that each of `names` in it could be ([`check_file`]).
+pub fn check_files_in(dir: &Path, names: &[&str]) -> anyhow::Result<()> {
+    check_dir(dir)?;
+    if dir.is_dir() {
+        for n in names {
+            check_file(&dir.join(n))?;
+        }
+    }
+    Ok(())
+}
+
 /// Creates the output directory `dir` (and its parents).
 pub fn create_dir(dir: &Path) -> anyhow::Result<()> {
     fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))

@@ -45,7 +45,7 @@ use serde::Serialize;
 mod atomic;
 pub mod finite;
 
-pub use atomic::{check_dir, create_dir, AtomicFile};
+pub use atomic::{check_dir, check_file, check_files_in, create_dir, AtomicFile};
 
 /// A write to standard output failed.
 #[derive(Debug, thiserror::Error)]

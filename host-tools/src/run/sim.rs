@@ -91,7 +91,7 @@ impl<K: RowSink> CoreLoopTask for InProcess<'_, K> {
 /// What a run reads besides its specification: the stop flag and the progress
 /// bar (hidden unless a person watches).
 pub struct RunContext<'a> {
-    /// Set by SIGINT/SIGTERM (or a caller).
+    /// Set by SIGINT/SIGTERM/SIGHUP (or a caller).
     pub stop: &'a Stop,
     /// Advanced every few thousand steps.
     pub progress: &'a indicatif::ProgressBar,

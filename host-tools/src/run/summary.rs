@@ -80,7 +80,7 @@ pub enum CutCause {
     Controller,
     /// A trace file could not be written.
     Output,
-    /// SIGINT or SIGTERM.
+    /// SIGINT, SIGTERM or SIGHUP.
     Signal,
 }
 

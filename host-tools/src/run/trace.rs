@@ -114,11 +114,15 @@ pub fn push_csv_row(
     Ok(())
 }
 
-/// A CSV trace written as the run goes.
-pub struct CsvStream {
+/// A CSV file written as its rows arrive: the header at once (so a path
+/// that cannot be written is refused before any work), then blocks of
+/// whole rows of about [`BLOCK_BYTES`] (and at least once a second), each
+/// block one `write`; a write that fails part-way is cut back to the last
+/// whole row. The run trace ([`CsvStream`]) and an excitation session's
+/// log (`crate::joint::excite`) stream through it.
+pub struct RowFile {
     path: PathBuf,
     file: File,
-    angles: Vec<String>,
     pending: String,
     pending_rows: u64,
     /// Bytes in the file, all of them whole rows (and the header).
@@ -128,9 +132,9 @@ pub struct CsvStream {
     last_write: Instant,
 }
 
-impl CsvStream {
-    /// Creates (or truncates) `path` and writes the header for `angles`.
-    pub fn create(path: &Path, angles: &[String]) -> anyhow::Result<Self> {
+impl RowFile {
+    /// Creates (or truncates) `path` and writes `header` (a line).
+    pub fn create(path: &Path, header: &str) -> anyhow::Result<Self> {
         if path.is_dir() {
             anyhow::bail!("cannot write {}: it is a directory", path.display());
         }
@@ -139,8 +143,7 @@ impl CsvStream {
         let mut s = Self {
             path: path.to_path_buf(),
             file,
-            angles: angles.to_vec(),
-            pending: csv_header(angles),
+            pending: header.to_string(),
             pending_rows: 0,
             committed_bytes: 0,
             committed_rows: 0,
@@ -150,9 +153,49 @@ impl CsvStream {
         Ok(s)
     }
 
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The line number the next row gets (the header is line 1).
+    pub fn next_line(&self) -> u64 {
+        self.committed_rows + self.pending_rows + 2
+    }
+
     /// Rows in the file so far (not counting those still waiting).
     pub fn rows_written(&self) -> u64 {
         self.committed_rows
+    }
+
+    /// Appends one row: `push` is given the waiting text, the file's path
+    /// and the row's line number (for its messages), and appends the
+    /// row's text (a line) or refuses it, appending nothing, with an error
+    /// that ends the stream's run.
+    #[inline]
+    pub fn row<E: Into<anyhow::Error>>(
+        &mut self,
+        push: impl FnOnce(&mut String, &Path, u64) -> Result<(), E>,
+    ) -> anyhow::Result<()> {
+        let line = self.next_line();
+        push(&mut self.pending, &self.path, line).map_err(Into::into)?;
+        self.pending_rows += 1;
+        if self.pending.len() >= BLOCK_BYTES
+            || (self.pending_rows % 256 == 0 && self.last_write.elapsed() >= BLOCK_INTERVAL)
+        {
+            self.write_block()?;
+        }
+        Ok(())
+    }
+
+    /// Writes the waiting rows if the last write was at least
+    /// [`BLOCK_INTERVAL`] ago (a slow stream reaches the file at least
+    /// once a second however few rows it has).
+    pub fn write_if_due(&mut self) -> anyhow::Result<()> {
+        if self.last_write.elapsed() >= BLOCK_INTERVAL {
+            self.write_block()?;
+        }
+        Ok(())
     }
 
     /// Writes the waiting rows as one block; a write that fails part-way
@@ -184,19 +227,38 @@ impl CsvStream {
     }
 }
 
+/// A CSV trace written as the run goes.
+pub struct CsvStream {
+    rows: RowFile,
+    angles: Vec<String>,
+}
+
+impl CsvStream {
+    /// Creates (or truncates) `path` and writes the header for `angles`.
+    pub fn create(path: &Path, angles: &[String]) -> anyhow::Result<Self> {
+        Ok(Self {
+            rows: RowFile::create(path, &csv_header(angles))?,
+            angles: angles.to_vec(),
+        })
+    }
+
+    /// Rows in the file so far (not counting those still waiting).
+    pub fn rows_written(&self) -> u64 {
+        self.rows.rows_written()
+    }
+
+    /// Writes what is waiting and returns the rows in the file.
+    pub fn finish(self) -> anyhow::Result<u64> {
+        self.rows.finish()
+    }
+}
+
 impl RowSink for CsvStream {
     #[inline]
     fn row(&mut self, row: &Row) -> anyhow::Result<()> {
-        // The header is line 1.
-        let line = self.committed_rows + self.pending_rows + 2;
-        push_csv_row(&mut self.pending, &self.path, line, &self.angles, row)?;
-        self.pending_rows += 1;
-        if self.pending.len() >= BLOCK_BYTES
-            || (self.pending_rows % 256 == 0 && self.last_write.elapsed() >= BLOCK_INTERVAL)
-        {
-            self.write_block()?;
-        }
-        Ok(())
+        let angles = &self.angles;
+        self.rows
+            .row(|s, path, line| push_csv_row(s, path, line, angles, row))
     }
 }
 
@@ -300,7 +362,7 @@ impl TraceFiles {
     ) -> anyhow::Result<Option<TraceFileReport>> {
         let mut report = None;
         if let Some(csv) = self.csv {
-            let path = csv.path.clone();
+            let path = csv.rows.path().to_path_buf();
             let rows = csv.finish()?;
             report = Some(TraceFileReport {
                 csv: path,
@@ -334,6 +396,9 @@ impl RowSink for TraceFiles {
 pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
     let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
     let colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
+    // Each plane's targets in a colour of their own (α's and β's desired
+    // angles were one grey dashed line style, told apart only by order).
+    let desired = ["#555555", "#ff7f0e"];
     let column = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).collect::<Vec<_>>();
     let mut angle_series = Vec::new();
     for (p, a) in angles.iter().enumerate() {
@@ -354,7 +419,7 @@ pub fn plot_svg(title: &str, angles: &[String], rows: &[Row]) -> String {
         ));
         angle_series.push(Series::over(
             format!("{a} desired"),
-            "#555555",
+            desired[p % desired.len()],
             true,
             &t,
             &column(&|r| r.desired_deg[p]),
@@ -401,6 +466,30 @@ mod tests {
             desired_deg: [0.0; 2],
             coil_volts: [0.0; 4],
             faults: 0,
+        }
+    }
+
+    /// In a 3D plot each plane's desired angle has its own line style,
+    /// and neither is the style of a true or estimated angle.
+    #[test]
+    fn each_planes_targets_have_a_line_style_of_their_own() {
+        let angles = ["alpha".to_string(), "beta".to_string()];
+        let rows: Vec<Row> = (0..50).map(row).collect();
+        let svg = plot_svg("t", &angles, &rows);
+        // The style of the line drawn just before a legend label.
+        let style = |label: &str| -> String {
+            let at = svg
+                .find(&format!(">{label}<"))
+                .unwrap_or_else(|| panic!("{label}"));
+            let line = svg[..at].rfind("<line").unwrap();
+            let stroke = svg[line..at].find("stroke=").unwrap() + line;
+            svg[stroke..at].split("/>").next().unwrap().to_string()
+        };
+        let (a, b) = (style("alpha desired"), style("beta desired"));
+        assert_ne!(a, b);
+        for other in ["alpha true", "alpha estimate", "beta true", "beta estimate"] {
+            assert_ne!(style(other), a, "{other}");
+            assert_ne!(style(other), b, "{other}");
         }
     }
 

@@ -3,7 +3,7 @@
 //! names the bad field, flag or line, and never with a panic.
 use crate::common;
 
-use common::{file, refused, scratch, softjoint};
+use common::{file, refused, s, scratch, softjoint};
 use std::process::Command;
 
 /// A duration shorter than half a control period rounded to zero steps:
@@ -127,16 +127,33 @@ fn viscoelastic_simulate_refuses_to_write_an_overflowed_result() {
 
 /// A trial of values near 1e300 overflowed every model force: `fit --json`
 /// printed `"rms_residual_n": inf` (not even JSON) with the starting
-/// parameters as the "fit", and exit 0.
+/// parameters as the "fit", and exit 0. The command now refuses such
+/// values by line (beyond any trial of a soft material, issue 31); the
+/// fit's own overflow guard is checked on the values given to it directly.
 #[test]
 fn viscoelastic_fit_refuses_an_overflowed_fit() {
     let dir = scratch("visco_fit");
     let mut text = String::from("time_s,displacement,force\n");
+    let (mut t, mut u, mut f) = (Vec::new(), Vec::new(), Vec::new());
     for k in 0..21 {
         text.push_str(&format!("{k},{k}e300,{k}e300\n"));
+        t.push(f64::from(k));
+        u.push(f64::from(k) * 1e300);
+        f.push(f64::from(k) * 1e300);
     }
     let p = file(&dir, "big.csv", &text);
-    refused(&["viscoelastic", "fit", &p, "--json"], &[&p, "overflowed"]);
+    refused(
+        &["viscoelastic", "fit", &p, "--json"],
+        &[&format!("{p}:3"), "beyond a soft material's trial"],
+    );
+    let e = plant_viscoelastic::experiment::trial::fit_trial_checked(
+        &t,
+        &u,
+        &f,
+        plant_viscoelastic::fit::Weighting::Seed,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("overflowed"), "{e}");
 }
 
 /// `--duration-s 1e300` panicked with "capacity overflow"; `1e-9` ran zero
@@ -499,41 +516,76 @@ fn calibrate_names_the_line_of_an_angle_the_firmware_cannot_hold() {
 
 /// Angles the firmware can hold, but so steep over a 0.2 mm sweep that the
 /// quadratic's coefficients cannot be held in f32: the error said `theta:
-/// invalid single law`, naming neither the fit nor the reason.
+/// invalid single law`, naming neither the fit nor the reason. The sweep
+/// reader now refuses such angles by row (beyond any bend of the joint), so
+/// the fit's own guard is checked on rows given to it directly.
 #[test]
 fn calibrate_says_which_fit_failed_and_why() {
-    let dir = scratch("cal_steep");
-    let mut text = String::from("d_mm,theta_deg\n");
-    for i in 0..21 {
-        let d = (f64::from(i) - 10.0) * 0.01;
-        text.push_str(&format!("{d},{:e}\n", 3e40 * d * d + 1e30 * d));
-    }
-    let p = file(&dir, "steep.csv", &text);
-    refused(
-        &["calibrate", "wire", &p],
-        &[&p, "theta", "single-sensor quadratic", "field `a`", "f32"],
+    use host_tools::files::sweep::SweepRow;
+    let rows: Vec<SweepRow> = (0..21)
+        .map(|i| {
+            let d = (f64::from(i) - 10.0) * 0.01;
+            SweepRow {
+                d_mm: vec![d],
+                angle_deg: vec![3e40 * d * d + 1e30 * d],
+            }
+        })
+        .collect();
+    let e = format!(
+        "{:#}",
+        host_tools::joint::calibrate::fit(&rows).unwrap_err()
     );
+    for n in ["theta", "single-sensor quadratic", "field `a`", "f32"] {
+        assert!(e.contains(n), "lacks `{n}`: {e}");
+    }
 }
 
 /// Angles spanning ±2e20° (each one within f32) made the 0.1° threshold
 /// search loop forever: `th += 0.1` no longer changes a number that large.
+/// (Refused by row by the sweep reader now; the search's own guard is
+/// checked on rows given to it directly.)
 #[test]
 fn calibrate_refuses_a_threshold_search_it_could_never_finish() {
-    let dir = scratch("cal_span");
-    let mut text = String::from("d1_mm,d2_mm,d3_mm,d4_mm,alpha_deg,beta_deg\n");
-    for i in 0..40 {
-        let x = (f64::from(i) - 20.0) * 0.1;
-        text.push_str(&format!(
-            "{},{},{x},{x},{:e},{}\n",
-            -x,
-            -x,
-            x * 1e20,
-            5.0 * x
-        ));
-    }
-    let p = file(&dir, "span.csv", &text);
-    refused(
-        &["calibrate", "wire", &p],
-        &[&p, "alpha", "threshold search", "alpha_deg"],
+    use host_tools::files::sweep::SweepRow;
+    let rows: Vec<SweepRow> = (0..40)
+        .map(|i| {
+            let x = (f64::from(i) - 20.0) * 0.1;
+            SweepRow {
+                d_mm: vec![-x, -x, x, x],
+                angle_deg: vec![x * 1e20, 5.0 * x],
+            }
+        })
+        .collect();
+    let e = format!(
+        "{:#}",
+        host_tools::joint::calibrate::fit(&rows).unwrap_err()
     );
+    for n in ["alpha", "threshold search", "alpha_deg"] {
+        assert!(e.contains(n), "lacks `{n}`: {e}");
+    }
+}
+
+/// One sweep row at 1e30° among good ones gave a calibration with
+/// a = 5e25, exit 0; it is refused by its line and column, and no
+/// calibration file is written.
+#[test]
+fn calibrate_refuses_an_outlier_row_by_its_line() {
+    let dir = scratch("cal_outlier");
+    let mut text = String::from("d_mm,theta_deg\n");
+    for i in 0..21 {
+        let d = (f64::from(i) - 10.0) * 0.3;
+        let deg = if i == 7 { 1e30 } else { 7.0 * d };
+        text.push_str(&format!("{d},{deg}\n"));
+    }
+    let p = file(&dir, "sweep.csv", &text);
+    let out = dir.join("cal.toml");
+    refused(
+        &["calibrate", "wire", &p, "-o", s(&out)],
+        &[
+            &format!("{p}:9"),
+            "theta_deg",
+            "beyond any bend of the joint",
+        ],
+    );
+    assert!(!out.exists());
 }

@@ -89,6 +89,17 @@ fn sigterm_ends_a_run_the_same_way_with_143() {
     assert_complete_trace(&dir.join("trace.csv"), summary["steps"].as_u64().unwrap());
 }
 
+/// SIGHUP (the terminal closed, an ssh session dropped) ends a run like
+/// SIGINT and SIGTERM: whole rows to the last, exit 129 (it used to kill
+/// the run with a half-written last row).
+#[test]
+fn sighup_ends_a_run_the_same_way_with_129() {
+    let (code, summary, dir) = interrupted("-HUP", "sighup");
+    assert_eq!(code, Some(129));
+    assert_eq!(summary["cut_short"]["signal"], "SIGHUP", "{summary}");
+    assert_complete_trace(&dir.join("trace.csv"), summary["steps"].as_u64().unwrap());
+}
+
 /// A plant that goes unstable mid-run (a weight far beyond the joint) ends
 /// the run there: the trace holds every step before, the summary and the
 /// exit status say so.

@@ -199,6 +199,17 @@ fn bad_solve_problems_are_refused_with_names() {
         &["dlo", "solve", &neg, "--out", s(&out)],
         &["w.toml", "length_m"],
     );
+    // The range is stated (`harmonics` = 40 said "outside its allowed
+    // range").
+    let many = file(
+        &dir,
+        "h.toml",
+        &twist.replace("harmonics = 4\n", "harmonics = 40\n"),
+    );
+    refused(
+        &["dlo", "solve", &many, "--out", s(&out)],
+        &["h.toml", "`harmonics` = 40: must be within 0..=12"],
+    );
     let seq = file(
         &dir,
         "s.toml",

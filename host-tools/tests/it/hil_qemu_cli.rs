@@ -31,7 +31,7 @@ fn image() -> PathBuf {
 const SCENARIO: &str = "[estimator]\nmethod = \"paper\"\n";
 
 /// Processes whose parent is `pid` (from /proc/*/stat).
-fn children(pid: u32) -> Vec<u32> {
+pub fn children(pid: u32) -> Vec<u32> {
     let mut out = Vec::new();
     for e in std::fs::read_dir("/proc").unwrap().flatten() {
         let Ok(p) = e.file_name().to_string_lossy().parse::<u32>() else {
@@ -50,7 +50,7 @@ fn children(pid: u32) -> Vec<u32> {
 }
 
 /// Whether `pid` still runs (a zombie waiting for its reaper does not).
-fn running(pid: u32) -> bool {
+pub fn running(pid: u32) -> bool {
     match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
         Ok(stat) => {
             let after = stat.rsplit_once(')').map_or("", |(_, a)| a);
@@ -224,6 +224,62 @@ fn sigkill_and_sigint_to_hil_leave_no_qemu_behind() {
             &format!("QEMU gone after kill {signal} of hil"),
             Duration::from_secs(5),
             || !running(qemu),
+        );
+    }
+}
+
+/// `hil --excite` stopped by SIGTERM, SIGINT (one Ctrl-C) or SIGHUP: the
+/// session stops at a clean point, the board leaves lockstep, the log holds
+/// its whole rows up to there, the exit status is the signal's and no QEMU
+/// is left (it used to run to the plan's end on SIGTERM and on the first
+/// Ctrl-C, exit 0).
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em image; run by scripts/test-all.sh"]
+fn hil_excite_stopped_by_a_signal_keeps_its_log_and_leaves_no_qemu() {
+    use crate::excite_stops::{assert_whole_log, wait_for_rows, HOUR_PLAN};
+    for (signal, code, name) in [
+        ("-TERM", 143, "SIGTERM"),
+        ("-INT", 130, "SIGINT"),
+        ("-HUP", 129, "SIGHUP"),
+    ] {
+        let dir = scratch("hil-excite-stop");
+        let scen = file(&dir, "s.toml", SCENARIO);
+        let plan = file(&dir, "plan.toml", HOUR_PLAN);
+        let log = dir.join("log.csv");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+            .args(["hil", &scen, "--excite", &plan, "--log", s(&log)])
+            .args(["--timeout-ms", "1000", "--image"])
+            .arg(image())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut qemu = Vec::new();
+        wait_until("QEMU started", Duration::from_secs(30), || {
+            qemu = children(child.id());
+            !qemu.is_empty()
+        });
+        // The header is written before QEMU starts; rows reach the file
+        // at least once a second once the session runs (identify's reader
+        // takes a log of at least 10 rows).
+        wait_for_rows(&log, 12, &mut child);
+        common::kill(signal, child.id());
+        let out = child.wait_with_output().unwrap();
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(code), "{signal}: {err}");
+        assert!(err.contains(&format!("stopped by {name}")), "{err}");
+        let rows: usize = err
+            .split("holds its ")
+            .nth(1)
+            .and_then(|a| a.split_whitespace().next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{err}"));
+        assert!(rows > 0, "{rows} rows: {err}");
+        assert_whole_log(&log, rows);
+        wait_until(
+            "QEMU gone after hil --excite ended",
+            Duration::from_secs(5),
+            || !running(qemu[0]),
         );
     }
 }

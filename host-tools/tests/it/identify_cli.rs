@@ -9,13 +9,13 @@ use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::files::JointKind;
 use host_tools::joint::tune;
 use host_tools::run::spec::RunSpec;
-use plant_joint::identify::{hidden, ExcitationPlan};
+use plant_joint::identify::{hidden, ExcitationLog, ExcitationPlan};
 
 fn write(path: &std::path::Path, text: &str) {
     std::fs::write(path, text).unwrap();
 }
 
-fn hidden_2d_file(dir: &std::path::Path) -> std::path::PathBuf {
+pub fn hidden_2d_file(dir: &std::path::Path) -> std::path::PathBuf {
     let p = dir.join("hidden.toml");
     PlantFile::new(PlantParams::TwoD(hidden::joint_2d(5)), vec![])
         .save(&p, "# hidden\n")
@@ -412,7 +412,10 @@ fn the_plan_through_hil_logs_what_sim_logs() {
         ..Scenario::default()
     };
     let spec = RunSpec::resolve(&s).unwrap();
-    let (sim_log, sim_summary) = host_tools::joint::excite::run_sim(&plan, &spec, true).unwrap();
+    let no_stop = host_tools::stop::Stop::never();
+    let mut sim_log = ExcitationLog::default();
+    let sim_summary =
+        host_tools::joint::excite::run_sim(&plan, &spec, true, &mut sim_log, &no_stop).unwrap();
     let (board, host_end) = PtyBoard::start().expect("pty pair");
     let mut link = Link::new(host_end);
     // The pty board's clock is the host's: a loaded host needs a link
@@ -421,8 +424,17 @@ fn the_plan_through_hil_logs_what_sim_logs() {
         link_timeout_ms: Some(2000),
         ..HilOptions::default()
     };
-    let (hil_log, hil_summary) =
-        host_tools::joint::excite::run_hil(&plan, &spec, &mut link, opts, true).unwrap();
+    let mut hil_log = ExcitationLog::default();
+    let hil_summary = host_tools::joint::excite::run_hil(
+        &plan,
+        &spec,
+        &mut link,
+        opts,
+        true,
+        &mut hil_log,
+        &no_stop,
+    )
+    .unwrap();
     drop(board);
     assert_eq!(hil_log.len(), 300);
     assert_eq!(hil_summary.faults_seen, sim_summary.faults_seen);

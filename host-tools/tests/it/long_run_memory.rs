@@ -113,3 +113,63 @@ fn a_two_hour_run_with_a_csv_trace_peaks_under_50_mb() {
     assert!(peak > 1.0, "the child's resident set was never read");
     assert!(peak < 50.0, "peak RSS {peak:.1} MB for a 2-hour run");
 }
+
+/// `sim --excite` streams its log: a half-hour session at a 10 ms row
+/// interval (180,000 rows) peaks far below what keeping it whole took
+/// (88 MB at main 3919059, `/usr/bin/time -v softjoint sim … --excite`;
+/// 17 MB streamed).
+#[test]
+#[cfg(target_os = "linux")]
+fn a_half_hour_excitation_session_peaks_under_40_mb() {
+    use crate::excite_stops::{HOUR_PLAN, SCENARIO_2D};
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("s.toml");
+    std::fs::write(&scenario, SCENARIO_2D).unwrap();
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, HOUR_PLAN.replace("3600", "1800")).unwrap();
+    let log = dir.path().join("log.csv");
+    let made = Command::new("mkfifo").arg(&log).status().expect("mkfifo");
+    assert!(made.success(), "mkfifo {}", log.display());
+    let drain = {
+        let log = log.clone();
+        std::thread::spawn(move || {
+            let mut f = std::fs::File::open(log).expect("open the FIFO");
+            let mut text = Vec::new();
+            f.read_to_end(&mut text).expect("reading the log FIFO");
+            let lines = text.iter().filter(|b| **b == b'\n').count();
+            (text.len(), lines)
+        })
+    };
+    let mut child = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .arg("sim")
+        .arg(&scenario)
+        .arg("--excite")
+        .arg(&plan)
+        .arg("--log")
+        .arg(&log)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("softjoint sim --excite");
+    let mut peak = 0.0f64;
+    let status = loop {
+        if let Some(mb) = peak_rss_mb(child.id()) {
+            peak = peak.max(mb);
+        }
+        match child.try_wait().expect("waiting for softjoint") {
+            Some(status) => break status,
+            None => std::thread::sleep(Duration::from_millis(20)),
+        }
+    };
+    let out = child.wait_with_output().expect("its output");
+    assert!(
+        status.success(),
+        "{status}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (bytes, lines) = drain.join().unwrap();
+    assert_eq!(lines, 180_001, "header and 180,000 rows");
+    println!("peak RSS of `softjoint sim --excite` {peak:.1} MB, {bytes} bytes of log");
+    assert!(peak > 1.0, "the child's resident set was never read");
+    assert!(peak < 40.0, "peak RSS {peak:.1} MB for a half-hour session");
+}

@@ -1,5 +1,7 @@
 //! The integration tests of `host-tools`, one binary (each file under tests/
 //! would otherwise be a binary of its own to link).
+mod absurd_values;
+mod child_processes;
 mod cli_bad_input;
 mod cli_board_messages;
 mod cli_console;
@@ -13,10 +15,14 @@ mod conform_suite;
 mod console_excite;
 mod contour_cli;
 mod dlo_cli;
+mod excite_stops;
 mod hil_qemu_cli;
 mod identify_cli;
 mod long_run_memory;
+mod long_searches;
+mod probe;
 mod rheology_cli;
+mod sizes;
 mod tetmsd_cli;
 mod tetmsd_sites;
 mod tissue_cli;

@@ -47,6 +47,39 @@ fn field_on_a_small_twin_writes_tables_a_picture_and_errors_against_the_truth() 
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
+    // --matching all: a dense field per matching (field.csv for the
+    // first only before), and the summary lists every file written
+    // (--write-volumes' two were not listed).
+    let files: Vec<&str> = v["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert_eq!(
+        files,
+        [
+            "initial.nii.gz",
+            "deformed.nii.gz",
+            "matches.csv",
+            "field.csv",
+            "field_strength.csv",
+            "field_as-printed.csv",
+            "mid_slice.svg",
+            "summary.json"
+        ]
+    );
+    for (f, name) in [
+        ("field.csv", "direction"),
+        ("field_strength.csv", "strength"),
+        ("field_as-printed.csv", "as-printed"),
+    ] {
+        let text = std::fs::read_to_string(out.join(f)).unwrap();
+        assert!(
+            text.starts_with(&format!("# dense field of `{name}` matching")),
+            "{f}"
+        );
+    }
     let csv = std::fs::read_to_string(out.join("matches.csv")).unwrap();
     assert!(csv
         .starts_with("matching,x_mm,y_mm,z_mm,dx_mm,dy_mm,dz_mm,correlation,strength,true_dx_mm"));

@@ -16,6 +16,15 @@ pub enum DloError {
         value: f64,
         reason: &'static str,
     },
+    /// A named scalar parameter is finite but outside its range, which the
+    /// message states.
+    #[error("invalid parameter `{name}` = {}: must be within {}..={}", short_number(*value), short_number(*min), short_number(*max))]
+    OutOfRange {
+        name: String,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
     /// A scenario item (a grasp, a waypoint, a constraint) is inconsistent.
     #[error("invalid scenario: {0}")]
     InvalidScenario(String),
@@ -57,9 +66,38 @@ pub(crate) fn check_non_negative(name: &str, value: f64) -> Result<f64> {
 
 /// Checks that `value` is finite and inside `[min, max]`.
 pub(crate) fn check_range(name: &str, value: f64, min: f64, max: f64) -> Result<f64> {
-    plant_common::check::in_range(value, min, max).map_err(|reason| DloError::InvalidParameter {
-        name: name.to_string(),
-        value,
-        reason,
+    plant_common::check::in_range(value, min, max).map_err(|reason| {
+        if value.is_finite() {
+            // The range itself, not only that there is one (`harmonics`
+            // = 40 said "outside its allowed range").
+            DloError::OutOfRange {
+                name: name.to_string(),
+                value,
+                min,
+                max,
+            }
+        } else {
+            DloError::InvalidParameter {
+                name: name.to_string(),
+                value,
+                reason,
+            }
+        }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_value_out_of_range_is_told_the_range() {
+        let e = check_range("harmonics", 40.0, 0.0, 12.0).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "invalid parameter `harmonics` = 40: must be within 0..=12"
+        );
+        let e = check_range("harmonics", f64::NAN, 0.0, 12.0).unwrap_err();
+        assert!(e.to_string().contains("must be a finite number"), "{e}");
+    }
 }

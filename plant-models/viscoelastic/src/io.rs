@@ -41,6 +41,50 @@ impl Columns {
     }
 }
 
+/// The largest force a probe script may apply (N). The seed's haptic
+/// probe presses a soft object with a few newtons, and no hand-held or
+/// robot-finger probe of a deformable object reaches a kilonewton; the
+/// bound refuses typos and unit slips (µN, dyn) before a run divides by
+/// them, not forces a probe can make.
+pub const MAX_PROBE_FORCE_N: f64 = 1e3;
+
+/// The largest force a creep/relaxation trial may record (N): indentation
+/// and compression trials of soft materials (tissue, food, gels) stay
+/// below a few hundred newtons; 10 kN is a bench press's load cell.
+pub const MAX_TRIAL_FORCE_N: f64 = 1e4;
+
+/// The largest displacement a trial may record (m): a soft sample a metre
+/// thick compressed through itself.
+pub const MAX_TRIAL_DISPLACEMENT_M: f64 = 1.0;
+
+/// Refuses a value of column `name` whose magnitude exceeds `limit`
+/// (`unit`), naming the file, line and column and what the bound is for
+/// (`what`).
+pub fn check_magnitude(
+    cols: &Columns,
+    file: &str,
+    name: &str,
+    limit: f64,
+    unit: &str,
+    what: &str,
+) -> Result<()> {
+    let values = cols.get(name).unwrap_or(&[]);
+    for (v, line) in values.iter().zip(&cols.lines) {
+        if v.abs() > limit {
+            return Err(VeError::Parse {
+                file: file.to_string(),
+                line: *line,
+                reason: format!(
+                    "column `{name}`: {} {unit} is beyond {what} (|{name}| ≤ {} {unit}); is it in another unit?",
+                    plant_common::short_number(*v),
+                    plant_common::short_number(limit)
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Reads CSV `text` (`file` names it in errors) as a numeric table.
 pub fn read_table(text: &str, file: &str) -> Result<Table> {
     Ok(read_numeric(text, file)?)
@@ -119,6 +163,16 @@ pub fn read_probe_script(text: &str, file: &str, mesh_vertices: usize) -> Result
         &["time_s", "vertex", "fx_n", "fy_n", "fz_n"],
         Some("time_s"),
     )?;
+    for axis in ["fx_n", "fy_n", "fz_n"] {
+        check_magnitude(
+            &cols,
+            file,
+            axis,
+            MAX_PROBE_FORCE_N,
+            "N",
+            "any probe's force",
+        )?;
+    }
     let get = |n: &str| cols.get(n).unwrap_or(&[]);
     let (t, v, fx, fy, fz) = (
         get("time_s"),

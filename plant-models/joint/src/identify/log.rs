@@ -124,22 +124,45 @@ impl ExcitationLog {
     /// them).
     pub fn to_rows(&self) -> (Vec<String>, Vec<Vec<f64>>) {
         let cols = columns(self.planes, self.has_electrical());
-        let (c, s) = (self.coils(), self.sensors());
-        let rows = (0..self.len())
-            .map(|k| {
-                let mut r = vec![self.t_s[k]];
-                r.extend_from_slice(&self.volts[k][..c]);
-                r.push(self.cam_capture_s[k]);
-                r.extend_from_slice(&self.cam_deg[k][..self.planes]);
-                r.extend_from_slice(&self.wire_mm[k][..s]);
-                if let (Some(i), Some(rr)) = (&self.current_a, &self.resistance_ohm) {
-                    r.extend_from_slice(&i[k][..c]);
-                    r.extend_from_slice(&rr[k][..c]);
-                }
-                r
-            })
-            .collect();
+        let rows = (0..self.len()).map(|k| self.row(k)).collect();
         (cols, rows)
+    }
+
+    /// Row `k` as CSV fields, in the order of [`columns`] (panics if `k`
+    /// is not a row).
+    pub fn row(&self, k: usize) -> Vec<f64> {
+        let (c, s) = (self.coils(), self.sensors());
+        let mut r = vec![self.t_s[k]];
+        r.extend_from_slice(&self.volts[k][..c]);
+        r.push(self.cam_capture_s[k]);
+        r.extend_from_slice(&self.cam_deg[k][..self.planes]);
+        r.extend_from_slice(&self.wire_mm[k][..s]);
+        if let (Some(i), Some(rr)) = (&self.current_a, &self.resistance_ohm) {
+            r.extend_from_slice(&i[k][..c]);
+            r.extend_from_slice(&rr[k][..c]);
+        }
+        r
+    }
+
+    /// Appends the rows of `more` (the next rows of the same session, as
+    /// [`LogRecorder::take_rows`] hands them out); an empty log without
+    /// angles takes `more` as it is.
+    pub fn append(&mut self, more: ExcitationLog) {
+        if self.planes == 0 && self.is_empty() {
+            *self = more;
+            return;
+        }
+        self.t_s.extend(more.t_s);
+        self.volts.extend(more.volts);
+        self.cam_capture_s.extend(more.cam_capture_s);
+        self.cam_deg.extend(more.cam_deg);
+        self.wire_mm.extend(more.wire_mm);
+        if let (Some(a), Some(b)) = (self.current_a.as_mut(), more.current_a) {
+            a.extend(b);
+        }
+        if let (Some(a), Some(b)) = (self.resistance_ohm.as_mut(), more.resistance_ohm) {
+            a.extend(b);
+        }
     }
 
     /// Reads a log from a CSV table (read with `csv_input::read_numeric`):
@@ -260,6 +283,7 @@ impl ExcitationLog {
                     .into());
             }
         }
+        self.check_measured(t, k, line)?;
         if let Some(r) = &self.resistance_ohm {
             for (j, v) in r[k][..c].iter().enumerate() {
                 if *v <= 0.0 {
@@ -270,6 +294,64 @@ impl ExcitationLog {
                             "a coil resistance must be > 0",
                         )
                         .into());
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks row `k`'s measurements against what the joint can show
+    /// ([`MAX_ANGLE_DEG`], [`MAX_INSERTION_MM`], [`MAX_COIL_CURRENT_A`],
+    /// [`MAX_COIL_RESISTANCE_OHM`]): an outlier (a unit slip, a corrupted
+    /// value) is refused by line and column rather than fitted.
+    fn check_measured(&self, t: &Table, k: usize, line: usize) -> Result<(), IdentifyError> {
+        let (c, s) = (self.coils(), self.sensors());
+        let names = columns(self.planes, self.has_electrical());
+        let beyond = |col: &str, v: f64, limit: f64, unit: &str, what: &str| {
+            IdentifyError::from(t.error(
+                line,
+                Some(col),
+                format!(
+                    "{} {unit} is beyond {what} (|value| ≤ {} {unit})",
+                    plant_common::short_number(v),
+                    plant_common::short_number(limit)
+                ),
+            ))
+        };
+        let cam = &names[2 + c..2 + c + self.planes];
+        for (v, col) in self.cam_deg[k][..self.planes].iter().zip(cam) {
+            if v.abs() > MAX_ANGLE_DEG {
+                return Err(beyond(col, *v, MAX_ANGLE_DEG, "°", "any bend of the joint"));
+            }
+        }
+        let wires = &names[2 + c + self.planes..2 + c + self.planes + s];
+        for (v, col) in self.wire_mm[k][..s].iter().zip(wires) {
+            if v.abs() > MAX_INSERTION_MM {
+                return Err(beyond(
+                    col,
+                    *v,
+                    MAX_INSERTION_MM,
+                    "mm",
+                    "a wire's insertion",
+                ));
+            }
+        }
+        let electrical = &names[2 + c + self.planes + s..];
+        if let (Some(i), Some(r)) = (&self.current_a, &self.resistance_ohm) {
+            for (v, col) in i[k][..c].iter().zip(electrical) {
+                if v.abs() > MAX_COIL_CURRENT_A {
+                    return Err(beyond(col, *v, MAX_COIL_CURRENT_A, "A", "a coil's current"));
+                }
+            }
+            for (v, col) in r[k][..c].iter().zip(&electrical[c..]) {
+                if *v > MAX_COIL_RESISTANCE_OHM {
+                    return Err(beyond(
+                        col,
+                        *v,
+                        MAX_COIL_RESISTANCE_OHM,
+                        "Ω",
+                        "a coil's resistance",
+                    ));
                 }
             }
         }
@@ -293,6 +375,24 @@ impl ExcitationLog {
         }
     }
 }
+
+/// The largest joint angle a log or a calibration sweep may show (deg):
+/// the joint works within ±25° (the firmware's target limit) and its
+/// calibration sweep spans ±21°; past ±90° the link would fold back on its
+/// base, so such a value is a unit slip or a corrupted reading.
+pub const MAX_ANGLE_DEG: f64 = 90.0;
+
+/// The largest wire insertion a log or sweep may show (mm): the wires move
+/// −2…6 mm over the ±21° sweep; 100 mm is longer than the joint.
+pub const MAX_INSERTION_MM: f64 = 100.0;
+
+/// The largest coil current a log may show (A): the coils draw ≈ 0.5 A at
+/// the driver's full 5 V.
+pub const MAX_COIL_CURRENT_A: f64 = 20.0;
+
+/// The largest coil resistance a log may show (Ω): the coils measure
+/// ≈ 6 Ω.
+pub const MAX_COIL_RESISTANCE_OHM: f64 = 1000.0;
 
 /// Measurement noise a recorder adds to the electrical columns (a lab's
 /// current sense and coil-voltage tap). The twin tests use it; `sim`
@@ -320,6 +420,8 @@ pub struct Observation {
 #[derive(Clone, Debug)]
 pub struct LogRecorder {
     log: ExcitationLog,
+    /// Rows already handed out by [`LogRecorder::take_rows`].
+    rows_taken: usize,
     periods_per_row: usize,
     in_row: usize,
     volt_sum: [f64; 4],
@@ -349,6 +451,7 @@ impl LogRecorder {
                 resistance_ohm: electrical.then(Vec::new),
                 ..Default::default()
             },
+            rows_taken: 0,
             periods_per_row: periods_per_row.max(1),
             in_row: 0,
             volt_sum: [0.0; 4],
@@ -366,7 +469,7 @@ impl LogRecorder {
             self.last_camera = c;
         }
         if self.in_row == 0 {
-            let k = self.log.t_s.len();
+            let k = self.rows_taken + self.log.t_s.len();
             self.log.t_s.push(k as f64 * self.log.period_s);
             self.log.cam_capture_s.push(self.last_camera.0);
             self.log.cam_deg.push(self.last_camera.1);
@@ -410,7 +513,36 @@ impl LogRecorder {
         self.in_row = 0;
     }
 
-    /// The log; a partial last row is dropped.
+    /// Complete rows recorded and not yet taken.
+    pub fn complete_rows(&self) -> usize {
+        self.log.volts.len()
+    }
+
+    /// Takes the complete rows recorded so far, leaving the row being
+    /// recorded: a session streams its log to disk in pieces instead of
+    /// keeping it whole. Row times go on across takes, and the pieces
+    /// appended ([`ExcitationLog::append`]) are the log [`Self::finish`]
+    /// would have given.
+    pub fn take_rows(&mut self) -> ExcitationLog {
+        let n = self.log.volts.len();
+        let log = &mut self.log;
+        // The row being recorded: its start-of-row columns, no inputs yet.
+        let partial = ExcitationLog {
+            planes: log.planes,
+            period_s: log.period_s,
+            t_s: log.t_s.split_off(n),
+            volts: Vec::new(),
+            cam_capture_s: log.cam_capture_s.split_off(n),
+            cam_deg: log.cam_deg.split_off(n),
+            wire_mm: log.wire_mm.split_off(n),
+            current_a: log.current_a.as_ref().map(|_| Vec::new()),
+            resistance_ohm: log.resistance_ohm.as_mut().map(|r| r.split_off(n)),
+        };
+        self.rows_taken += n;
+        std::mem::replace(log, partial)
+    }
+
+    /// The log (the rows not taken yet); a partial last row is dropped.
     pub fn finish(mut self) -> ExcitationLog {
         if self.in_row > 0 {
             let k = self.log.volts.len();
@@ -423,5 +555,58 @@ impl LogRecorder {
             }
         }
         self.log
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng as _;
+
+    /// A recorder fed 3 ms control periods, 4 per row, with made-up but
+    /// varying observations and noisy electrical columns.
+    fn feed(rec: &mut LogRecorder, from: usize, to: usize) {
+        for k in from..to {
+            let x = k as f64;
+            let obs = Observation {
+                camera: (k % 11 == 0).then_some((x * 3e-3, [x.sin(), x.cos()])),
+                wire_mm: [x * 1e-3, -x * 1e-3, 0.5, 0.25],
+                resistance_ohm: [10.0 + x * 1e-4; 4],
+            };
+            rec.push(
+                &obs,
+                &[1.0 + (x * 0.1).sin(), 0.5, 0.0, 2.0],
+                &[0.1, 0.2, 0.3, x * 1e-3],
+            );
+        }
+    }
+
+    fn recorder() -> LogRecorder {
+        let noise = ElectricalNoise {
+            current_a: 0.01,
+            resistance_ohm: 0.05,
+        };
+        LogRecorder::new(2, 3e-3, 4, true, noise, ChaCha8Rng::seed_from_u64(5))
+    }
+
+    /// Rows taken in pieces (at row boundaries and in the middle of a
+    /// row) and appended are the log of a recorder never taken from, value
+    /// for value, its partial last row dropped alike.
+    #[test]
+    fn rows_taken_in_pieces_are_the_whole_log() {
+        let mut whole = recorder();
+        feed(&mut whole, 0, 1003);
+        let whole = whole.finish();
+        assert_eq!(whole.len(), 250);
+        let mut rec = recorder();
+        let mut pieces = ExcitationLog::default();
+        for (from, to) in [(0, 8), (8, 8), (8, 13), (13, 402), (402, 1003)] {
+            feed(&mut rec, from, to);
+            assert_eq!(rec.complete_rows(), to / 4 - pieces.len(), "at {to}");
+            pieces.append(rec.take_rows());
+        }
+        pieces.append(rec.finish());
+        assert_eq!(pieces, whole);
+        assert_eq!(pieces.t_s[249], 249.0 * 12e-3);
     }
 }

@@ -194,7 +194,7 @@ impl Volume {
         };
         let obj = ReaderOptions::new()
             .read_file(path)
-            .map_err(|e| file_err(e.to_string()))?;
+            .map_err(|e| file_err(nifti_reason(&e)))?;
         let header = obj.header().clone();
         let volume = obj.into_volume();
         let dim: Vec<usize> = volume.dim().iter().map(|&d| usize::from(d)).collect();
@@ -258,7 +258,7 @@ impl Volume {
             .write_nifti(&array)
             .map_err(|e| TissueError::VolumeFile {
                 path: name,
-                reason: e.to_string(),
+                reason: nifti_reason(&e),
             })
     }
 }
@@ -314,8 +314,30 @@ pub(crate) fn blur_axis(data: &mut [f32], dims: [usize; 3], axis: usize, sigma: 
     }
 }
 
+/// A NIfTI error in words: the nifti crate shows an I/O error in its
+/// debug form (`Io(Os { code: 2, kind: NotFound, … })`), so that one is
+/// taken apart here.
+fn nifti_reason(e: &nifti::error::NiftiError) -> String {
+    match e {
+        nifti::error::NiftiError::Io(io) => io.to_string(),
+        other => other.to_string(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
+
+    /// A missing file is said in words, not as `Io(Os { … })`.
+    #[test]
+    fn a_missing_volume_file_is_named_in_words() {
+        let e = Volume::read_nifti(Path::new("/nonexistent/a.nii"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent/a.nii"), "{e}");
+        assert!(e.contains("No such file or directory"), "{e}");
+        assert!(!e.contains("Io(") && !e.contains("Os {"), "{e}");
+    }
+
     use super::*;
 
     fn ramp(dims: [usize; 3]) -> Volume {
