@@ -98,6 +98,12 @@ impl PtyBoard {
     ) -> serialport::Result<(Self, TTYPort)> {
         // pair() returns (master, slave); only the slave has a device path.
         let (board, mut host) = TTYPort::pair()?;
+        // serialport opens both ends without close-on-exec: a process
+        // another thread starts meanwhile would inherit them, and with
+        // them the host end's lock, and a program opening the port later
+        // (`softjoint console --port`) would find it locked.
+        close_on_exec(&board)?;
+        close_on_exec(&host)?;
         host.set_exclusive(false)?;
         let host_path = host.name().unwrap_or_default();
         let faults = Arc::new(Mutex::new(BoardFaults::default()));
@@ -128,6 +134,23 @@ impl Drop for PtyBoard {
             let _ = t.join();
         }
     }
+}
+
+/// Marks `port`'s descriptor close-on-exec.
+pub fn close_on_exec(port: &TTYPort) -> serialport::Result<()> {
+    use std::os::fd::AsRawFd as _;
+    let fd = port.as_raw_fd();
+    // SAFETY: fcntl on a descriptor `port` owns and keeps open, with
+    // integer arguments only; no memory is passed.
+    #[allow(unsafe_code)]
+    let ok = unsafe {
+        let flags = libc::fcntl(fd, libc::F_GETFD);
+        flags >= 0 && libc::fcntl(fd, libc::F_SETFD, flags | libc::FD_CLOEXEC) >= 0
+    };
+    if !ok {
+        return Err(std::io::Error::last_os_error().into());
+    }
+    Ok(())
 }
 
 /// The plant's wire counts as the board's sensors read them.

@@ -25,6 +25,8 @@ fn console(port: &str, args: &[&str]) -> std::process::Output {
 /// A pty with nobody on the far end; the returned master keeps it open.
 fn silent_port() -> (TTYPort, String) {
     let (master, slave) = TTYPort::pair().expect("pty pair");
+    // Not inherited by the processes other tests start meanwhile.
+    host_tools::board::pty::close_on_exec(&master).expect("close-on-exec");
     let path = slave.name().expect("pty name");
     drop(slave);
     (master, path)
