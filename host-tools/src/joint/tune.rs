@@ -534,7 +534,7 @@ pub struct Scored {
 /// How a search ended.
 pub enum TuneOutcome {
     /// Every candidate scored.
-    Done(TuneResult),
+    Done(Box<TuneResult>),
     /// Stopped by a signal at a clean point (between candidates): the
     /// candidates scored so far, those given to resume from included, in
     /// index order.
@@ -605,13 +605,13 @@ pub fn tune(
     )
     .context("no candidate could be scored")?;
     let heldout = heldout(file, &cands[i], req.plants, req.seed)?;
-    Ok(TuneOutcome::Done(TuneResult {
+    Ok(TuneOutcome::Done(Box::new(TuneResult {
         best: cands[i].clone(),
         score: best.clone(),
         paper,
         failed,
         heldout,
-    }))
+    })))
 }
 
 /// The lowest robust cost (the lower index on a tie).
