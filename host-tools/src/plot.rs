@@ -716,6 +716,15 @@ pub struct ViewPanel {
     pub markers: Vec<((f64, f64), String, String)>,
 }
 
+/// A panel title's font size: 13 px, or smaller so that the title stays
+/// within `width_px` (bold sans-serif glyphs average about 0.6 em), so a
+/// long title (a shape marked UNVERIFIED, say) never runs into the next
+/// panel's.
+fn title_font_px(title: &str, width_px: f64) -> f64 {
+    let chars = title.chars().count().max(1) as f64;
+    (width_px / (0.6 * chars)).clamp(8.0, 13.0)
+}
+
 /// Panels in a grid of `columns`, each `size_px` square, all at one scale
 /// (the largest extent of any panel, padded), equal aspect; a scale bar
 /// says how long `scale_bar` world units are.
@@ -847,7 +856,7 @@ impl ViewFrame {
         svg.text_styled(
             ox + 6.0,
             oy + 16.0,
-            13.0,
+            title_font_px(&p.title, size_px - 10.0),
             Anchor::Start,
             r#"font-weight="bold""#,
             &p.title,
@@ -898,6 +907,18 @@ impl ViewFrame {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_long_panel_title_shrinks_to_its_panel_and_a_short_one_keeps_13_px() {
+        let short = "0.60L one-knot ∥y 3.55e-2 J ✓";
+        assert_eq!(title_font_px(short, 270.0), 13.0);
+        let long = "0.10L knot-free ∥y 3.65e-2 J UNVERIFIED";
+        let px = title_font_px(long, 270.0);
+        assert!(
+            px < 13.0 && px * 0.6 * long.chars().count() as f64 <= 270.0 + 1e-9,
+            "{px}"
+        );
+    }
+
     use super::*;
 
     #[test]
