@@ -96,16 +96,7 @@ impl PtyBoard {
         plant: Option<Joint3d>,
         seeded: &[SeededFault],
     ) -> serialport::Result<(Self, TTYPort)> {
-        // pair() returns (master, slave); only the slave has a device path.
-        let (board, mut host) = TTYPort::pair()?;
-        // serialport opens both ends without close-on-exec: a process
-        // another thread starts meanwhile would inherit them, and with
-        // them the host end's lock, and a program opening the port later
-        // (`softjoint console --port`) would find it locked.
-        close_on_exec(&board)?;
-        close_on_exec(&host)?;
-        host.set_exclusive(false)?;
-        let host_path = host.name().unwrap_or_default();
+        let (board, host, host_path) = pty_pair()?;
         let faults = Arc::new(Mutex::new(BoardFaults::default()));
         let state = Arc::new(Mutex::new(BoardState::default()));
         let stop = Arc::new(AtomicBool::new(false));
@@ -136,21 +127,80 @@ impl Drop for PtyBoard {
     }
 }
 
-/// Marks `port`'s descriptor close-on-exec.
-pub fn close_on_exec(port: &TTYPort) -> serialport::Result<()> {
+/// A pseudo-terminal pair in raw mode: `(master, slave, slave's path)`.
+///
+/// Both descriptors are opened close-on-exec, in the same system call that
+/// creates them. `TTYPort::pair` opens them without it, so a process that
+/// another thread starts before they could be marked inherits them, and with
+/// them every lock later taken on them: a test's board then stays locked for
+/// as long as that unrelated process lives, and `softjoint console --port`
+/// fails with "Unable to acquire exclusive lock" (seen in CI). No lock is
+/// taken here; a program opening the slave's path takes its own.
+pub fn pty_pair() -> serialport::Result<(TTYPort, TTYPort, String)> {
+    use std::os::fd::{FromRawFd as _, IntoRawFd as _, OwnedFd};
+    let last = || serialport::Error::from(std::io::Error::last_os_error());
+    // SAFETY: libc calls on descriptors owned here (each wrapped in an
+    // OwnedFd as soon as it exists, so it is closed on every error path);
+    // the only memory passed is `name` with its true length and a termios
+    // value initialised by tcgetattr before it is read.
+    #[allow(unsafe_code)]
+    unsafe {
+        let m = libc::posix_openpt(libc::O_RDWR | libc::O_NOCTTY | libc::O_CLOEXEC);
+        if m < 0 {
+            return Err(last());
+        }
+        let master = OwnedFd::from_raw_fd(m);
+        if libc::grantpt(m) != 0 || libc::unlockpt(m) != 0 {
+            return Err(last());
+        }
+        let mut name = [0 as libc::c_char; 128];
+        if libc::ptsname_r(m, name.as_mut_ptr(), name.len()) != 0 {
+            return Err(last());
+        }
+        let s = libc::open(
+            name.as_ptr(),
+            libc::O_RDWR | libc::O_NOCTTY | libc::O_CLOEXEC,
+        );
+        if s < 0 {
+            return Err(last());
+        }
+        let slave = OwnedFd::from_raw_fd(s);
+        let mut t = std::mem::MaybeUninit::<libc::termios>::uninit();
+        if libc::tcgetattr(s, t.as_mut_ptr()) != 0 {
+            return Err(last());
+        }
+        let mut t = t.assume_init();
+        libc::cfmakeraw(&mut t);
+        if libc::tcsetattr(s, libc::TCSANOW, &t) != 0 {
+            return Err(last());
+        }
+        let path = std::ffi::CStr::from_ptr(name.as_ptr())
+            .to_string_lossy()
+            .into_owned();
+        // from_raw_fd would take an exclusive flock and TIOCEXCL on each
+        // end; neither is wanted (the slave's path is opened again by the
+        // program under test), so both are released at once.
+        let master = TTYPort::from_raw_fd(master.into_raw_fd());
+        let mut slave = TTYPort::from_raw_fd(slave.into_raw_fd());
+        unlock(&master);
+        unlock(&slave);
+        let _ = slave.set_timeout(Duration::from_millis(100));
+        Ok((master, slave, path))
+    }
+}
+
+/// Drops whatever exclusivity `TTYPort::from_raw_fd` took on `port`: the
+/// terminal's TIOCEXCL and the descriptor's flock.
+fn unlock(port: &TTYPort) {
     use std::os::fd::AsRawFd as _;
     let fd = port.as_raw_fd();
-    // SAFETY: fcntl on a descriptor `port` owns and keeps open, with
-    // integer arguments only; no memory is passed.
+    // SAFETY: ioctl and flock on a descriptor `port` owns and keeps open,
+    // with integer arguments only.
     #[allow(unsafe_code)]
-    let ok = unsafe {
-        let flags = libc::fcntl(fd, libc::F_GETFD);
-        flags >= 0 && libc::fcntl(fd, libc::F_SETFD, flags | libc::FD_CLOEXEC) >= 0
-    };
-    if !ok {
-        return Err(std::io::Error::last_os_error().into());
+    unsafe {
+        libc::ioctl(fd, libc::TIOCNXCL);
+        libc::flock(fd, libc::LOCK_UN);
     }
-    Ok(())
 }
 
 /// The plant's wire counts as the board's sensors read them.

@@ -9,7 +9,7 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use serialport::{SerialPort, TTYPort};
+use serialport::TTYPort;
 
 /// Tests take turns: serialport opens ptys without close-on-exec.
 static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -24,10 +24,9 @@ fn console(port: &str, args: &[&str]) -> std::process::Output {
 
 /// A pty with nobody on the far end; the returned master keeps it open.
 fn silent_port() -> (TTYPort, String) {
-    let (master, slave) = TTYPort::pair().expect("pty pair");
-    // Not inherited by the processes other tests start meanwhile.
-    host_tools::board::pty::close_on_exec(&master).expect("close-on-exec");
-    let path = slave.name().expect("pty name");
+    // Opened close-on-exec: not inherited by the processes other tests
+    // start meanwhile.
+    let (master, slave, path) = host_tools::board::pty::pty_pair().expect("pty pair");
     drop(slave);
     (master, path)
 }

@@ -174,3 +174,64 @@ fn a_console_script_from_windows_runs() {
     assert!(out.status.success(), "{}", common::stderr(&out));
     assert!(common::stdout(&out).contains("protocol and schema match"));
 }
+
+/// The board's pty is created close-on-exec (no window in which a process
+/// another test starts inherits it) and holds no lock: while a long-lived
+/// process started right after it runs, a console still opens the port.
+/// With `TTYPort::pair` plus a later `close_on_exec`, a process spawned in
+/// between kept the host end's flock and the console failed with "Unable
+/// to acquire exclusive lock" (CI, stop 36).
+#[test]
+fn the_boards_pty_is_not_inherited_nor_locked() {
+    use std::os::fd::AsRawFd as _;
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (board, host_end) = PtyBoard::start().expect("pty pair");
+    let flags = unsafe_free_fd_flags(host_end.as_raw_fd());
+    assert!(
+        flags & libc::FD_CLOEXEC != 0,
+        "host end inheritable: {flags:#x}"
+    );
+    // A child started now must not see the host end's descriptor.
+    let fd = host_end.as_raw_fd();
+    let mut child = std::process::Command::new("sh")
+        .args(["-c", &format!("readlink /proc/$$/fd/{fd}; sleep 2")])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("sh");
+    // What an inherited copy would be: a second descriptor on the same
+    // open file, alive after the test's own is closed. Had the host end
+    // kept a lock, the copy would keep it and the console would fail.
+    let copy = host_end.try_clone_native().expect("dup");
+    drop(host_end);
+    let out = console_within(
+        &board.host_path,
+        &["status"],
+        std::time::Duration::from_secs(10),
+    );
+    let _ = child.kill();
+    let child_out = child.wait_with_output().expect("sh output");
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    drop(copy);
+    let seen = String::from_utf8_lossy(&child_out.stdout).to_string();
+    assert!(
+        !seen.contains(&board.host_path),
+        "the child inherited the pty: {seen}"
+    );
+}
+
+/// `fcntl(fd, F_GETFD)` through /proc: the descriptor's close-on-exec flag
+/// without unsafe code in a test.
+fn unsafe_free_fd_flags(fd: i32) -> i32 {
+    let info = std::fs::read_to_string(format!("/proc/self/fdinfo/{fd}")).expect("fdinfo");
+    let flags = info
+        .lines()
+        .find_map(|l| l.strip_prefix("flags:"))
+        .map(|v| i32::from_str_radix(v.trim(), 8).expect("octal flags"))
+        .expect("flags line");
+    // O_CLOEXEC is reported in the open flags; map it to FD_CLOEXEC.
+    if flags & libc::O_CLOEXEC != 0 {
+        libc::FD_CLOEXEC
+    } else {
+        0
+    }
+}

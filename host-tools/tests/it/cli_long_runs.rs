@@ -275,8 +275,7 @@ fn a_calibration_write_that_fails_leaves_the_previous_file_intact() {
 fn stderr_on_a_terminal(args: &[&str]) -> String {
     use serialport::SerialPort as _;
     use std::io::Read as _;
-    let (mut master, slave) = serialport::TTYPort::pair().expect("pty pair");
-    let slave_path = slave.name().expect("pty name");
+    let (mut master, slave, slave_path) = host_tools::board::pty::pty_pair().expect("pty pair");
     let term = std::fs::OpenOptions::new()
         .read(true)
         .write(true)
