@@ -80,7 +80,10 @@ pub struct LockstepSetup {
     /// Link-loss timeout to set (ms of the board's clock); `None` keeps the
     /// board's own.
     pub link_timeout_ms: Option<u16>,
-    /// Wait for each lockstep reply (per attempt).
+    /// Wait for each lockstep reply (per attempt), and for each
+    /// configuration request's when longer than [`CMD_TIMEOUT`]: a host
+    /// given more time for a slow link or a loaded machine gets it for
+    /// every request of the run, not only the steps.
     pub timeout: Duration,
     /// Attempts per step before giving up.
     pub attempts: u32,
@@ -94,6 +97,14 @@ pub struct LockstepSetup {
     /// afresh, so the run is not the run it would have been; the count is
     /// in [`BoardController::restarts`].
     pub resume_after_restart: bool,
+}
+
+impl LockstepSetup {
+    /// The wait per attempt of a configuration request: [`CMD_TIMEOUT`],
+    /// or the lockstep timeout if that is longer.
+    pub fn command_timeout(&self) -> Duration {
+        self.timeout.max(CMD_TIMEOUT)
+    }
 }
 
 /// Why a lockstep step failed, by what a user must do about it.
@@ -137,7 +148,8 @@ pub enum BoardError {
 /// before: stale sensors in free-running mode, an earlier link loss), `Arm`.
 fn configure<P: Port>(link: &mut Link<P>, setup: &LockstepSetup) -> anyhow::Result<()> {
     handshake(link)?;
-    link.command(&Disarm {}.into(), CMD_TIMEOUT, CMD_ATTEMPTS)?;
+    let wait = setup.command_timeout();
+    link.command(&Disarm {}.into(), wait, CMD_ATTEMPTS)?;
     for (plane, (g, law)) in (0u8..).zip(setup.gains.iter().zip(setup.laws)) {
         link.command(
             &SetGains {
@@ -149,35 +161,27 @@ fn configure<P: Port>(link: &mut Link<P>, setup: &LockstepSetup) -> anyhow::Resu
                 v_offset_v: g.v_offset_v(),
             }
             .into(),
-            CMD_TIMEOUT,
+            wait,
             CMD_ATTEMPTS,
         )?;
-        link.command(
-            &SetCalibration { plane, law }.into(),
-            CMD_TIMEOUT,
-            CMD_ATTEMPTS,
-        )?;
+        link.command(&SetCalibration { plane, law }.into(), wait, CMD_ATTEMPTS)?;
     }
     if let Some(timeout_ms) = setup.link_timeout_ms {
-        link.command(
-            &SetLinkTimeout { timeout_ms }.into(),
-            CMD_TIMEOUT,
-            CMD_ATTEMPTS,
-        )?;
+        link.command(&SetLinkTimeout { timeout_ms }.into(), wait, CMD_ATTEMPTS)?;
     }
     link.command(
         &HilStart {
             period_us: setup.period_us,
         }
         .into(),
-        CMD_TIMEOUT,
+        wait,
         CMD_ATTEMPTS,
     )?;
-    match link.command(&ClearFaults {}.into(), CMD_TIMEOUT, CMD_ATTEMPTS) {
+    match link.command(&ClearFaults {}.into(), wait, CMD_ATTEMPTS) {
         Ok(()) | Err(LinkError::Refused { .. }) => {}
         Err(e) => return Err(e.into()),
     }
-    link.command(&Arm {}.into(), CMD_TIMEOUT, CMD_ATTEMPTS)?;
+    link.command(&Arm {}.into(), wait, CMD_ATTEMPTS)?;
     Ok(())
 }
 
@@ -232,7 +236,7 @@ impl<'a, P: Port> BoardController<'a, P> {
             self.link
                 .command(
                     &SetTarget { plane, target_deg }.into(),
-                    CMD_TIMEOUT,
+                    self.setup.command_timeout(),
                     CMD_ATTEMPTS,
                 )
                 .map_err(|e| again(e.to_string()))?;
@@ -248,9 +252,11 @@ impl<'a, P: Port> BoardController<'a, P> {
 
     /// Disarms the board and reads its counters.
     pub fn finish(self) -> Result<Status, LinkError> {
-        let _ = self
-            .link
-            .command(&Disarm {}.into(), CMD_TIMEOUT, CMD_ATTEMPTS);
+        let _ = self.link.command(
+            &Disarm {}.into(),
+            self.setup.command_timeout(),
+            CMD_ATTEMPTS,
+        );
         status(self.link)
     }
 }
@@ -264,7 +270,7 @@ impl<P: Port> Controller<2, 4> for BoardController<'_, P> {
             target_deg: desired_deg,
         };
         self.link
-            .command(&msg.into(), CMD_TIMEOUT, CMD_ATTEMPTS)
+            .command(&msg.into(), self.setup.command_timeout(), CMD_ATTEMPTS)
             .map_err(BoardError::Link)?;
         if let Some(t) = self.targets_deg.get_mut(plane) {
             *t = desired_deg;
