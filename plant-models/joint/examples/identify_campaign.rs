@@ -11,65 +11,27 @@
 //! - the **verdicts**: planes verified and unverified, with the first
 //!   reason of each unverified one.
 //!
-//! The distribution (per plane, independent, seeded by the twin's
-//! number through `rng::stream(twin, rng::IDENTIFY_SAMPLE)`): the
-//! driver's turn-on uniform in 1.5–2.1 V (the plausible range of a
-//! ULN2003 stage's input threshold, across the standard plan's 1.85 and
-//! 1.9 V levels), its transconductance × U(0.8, 1.2), h × U(0.8, 1.2),
-//! the four transformation temperatures shifted together by U(−5, +5) K,
-//! the Clausius–Clapeyron slope U(0.03, 0.14) K/MPa, the sponge's modulus
-//! and damping × U(0.8, 1.2) each; camera noise 0.05°, the twins' current
-//! and resistance noise (2 mA, 0.02 Ω), jamming at the defaults.
+//! The distribution is `identify::hidden::campaign_joint_3d`'s (its doc
+//! comment): per plane the driver's turn-on uniform in 1.5–2.1 V, g, h,
+//! the sponge's modulus and damping × U(0.8, 1.2), the temperatures
+//! shifted by U(±5) K, the slope U(0.03, 0.14) K/MPa; camera noise 0.05°,
+//! the twins' current and resistance noise (2 mA, 0.02 Ω), jamming at the
+//! defaults. Twins FIRST..FIRST + TWINS (default 0..20); the tests use
+//! twins from 100 on, never the campaign's.
 //!
-//! `cargo run --release -p plant-joint --example identify_campaign -- [TWINS] [SECONDS]`
+//! `cargo run --release -p plant-joint --example identify_campaign -- [TWINS] [SECONDS] [FIRST]`
 //! (default 20 twins of the 240 s plan; ≈ 15–40 s of CPU per twin).
 //! Exits 1 when a wrong parameter is called identifiable on a verified
 //! plane, 2 on a bad argument or a failed identification.
 use plant_joint::identify::{
-    self, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel, PlaneReport,
+    self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel, PlaneReport,
 };
-use plant_joint::{Joint3dParams, PlaneParams, SupportParams};
-use rand::Rng;
+use plant_joint::Joint3dParams;
 
 const NOISE: ElectricalNoise = ElectricalNoise {
     current_a: 0.002,
     resistance_ohm: 0.02,
 };
-
-/// One plane drawn from the campaign's distribution (module docs).
-fn draw_plane(mut p: PlaneParams, rng: &mut impl Rng) -> PlaneParams {
-    let mut f = |lo: f64, hi: f64| lo + (hi - lo) * rng.gen::<f64>();
-    p.driver.turn_on_v = f(1.5, 2.1);
-    p.driver.transconductance_a_v *= f(0.8, 1.2);
-    p.coil.convection_w_m2_k *= f(0.8, 1.2);
-    let dt = f(-5.0, 5.0);
-    for t in [
-        &mut p.coil.austenite_start_c,
-        &mut p.coil.austenite_finish_c,
-        &mut p.coil.martensite_start_c,
-        &mut p.coil.martensite_finish_c,
-    ] {
-        *t += dt;
-    }
-    p.coil.stress_shift_k_per_mpa = f(0.03, 0.14);
-    let (e, d) = (f(0.8, 1.2), f(0.8, 1.2));
-    if let SupportParams::Cartilage(c) = &mut p.support {
-        c.youngs_modulus_pa *= e;
-        c.rayleigh_damping_s *= d;
-    }
-    p
-}
-
-/// The hidden joint of twin `k`.
-fn hidden(k: u64) -> Joint3dParams {
-    let mut rng = plant_common::rng::stream(k, plant_common::rng::IDENTIFY_SAMPLE);
-    let mut p = Joint3dParams::default();
-    p.alpha = draw_plane(p.alpha, &mut rng);
-    p.beta = draw_plane(p.beta, &mut rng);
-    p.camera.angle_noise_deg = 0.05;
-    p.sim.seed = 1000 + k;
-    p
-}
 
 /// Tallies over planes.
 #[derive(Default)]
@@ -93,7 +55,16 @@ impl Tally {
             self.within_1 += usize::from(z <= 1.0);
             self.within_2 += usize::from(z <= 2.0);
             if z > 3.0 && e.verified && r.verdict.verified {
-                wrong.push(format!("{} {:.1}σ", e.field, z));
+                wrong.push(format!(
+                    "{} {:.1}σ ({} stage: fitted {:.5e}, truth {:.5e}, 1σ {:.3e}, white 1σ {:.3e})",
+                    e.field,
+                    z,
+                    e.stage,
+                    e.fitted,
+                    e.param.get(truth),
+                    e.std,
+                    e.white_std
+                ));
             }
         }
         self.wrong_called_identifiable += usize::from(!wrong.is_empty());
@@ -126,10 +97,11 @@ fn main() {
     };
     let twins = parse(1, 20.0) as u64;
     let seconds = parse(2, 240.0);
+    let first = parse(3, 0.0) as u64;
     let plan = ExcitationPlan::standard(2, seconds, false);
     let mut tallies = [Tally::default(), Tally::default()];
-    for k in 0..twins {
-        let h = hidden(k);
+    for k in first..first + twins {
+        let h = hidden::campaign_joint_3d(k);
         let run = twin::record_3d(&h, &plan, true, NOISE).and_then(|log| {
             identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
         });

@@ -33,6 +33,7 @@ pub(super) struct Found {
 /// block-robust one over the log segments `blocks` (one index per
 /// residual; [`lm::block_robust_std`]), so residuals correlated in time
 /// or a segment the model fits badly widen it, combined in quadrature
+/// (and with the 1σ of `resampled`, whichever is largest; see there)
 /// with the shift each of `systematic(model at the fit)` would cause (one
 /// change of every residual per 1σ of an error the data cannot average
 /// out; [`lm::systematic_shift`]). With `starts` (models that differ from
@@ -51,13 +52,38 @@ pub(super) struct Stage<'a, F> {
     pub blocks: &'a [usize],
     /// Errors the data cannot average out.
     pub systematic: &'a Systematic<'a>,
+    /// Draws of the data's own randomness that the model averages over
+    /// (the wire stage: the log's one draw of stick events), for the
+    /// model at the fit: each a change of every residual, scaled so that
+    /// the squared shifts they cause add up to the estimate's variance
+    /// from that randomness (a linearised parametric bootstrap). Their
+    /// 1σ is a third estimate of the log's noise beside the white-noise
+    /// and the block-robust one, and the largest of the three is used.
+    pub resampled: &'a Systematic<'a>,
     /// Starting points of the first fit (empty: the model found so far).
     pub starts: &'a [PlaneModel],
-    /// Whether `blocks` are in time order across all residuals, so that
-    /// the halves of the log can be checked against each other
-    /// ([`verify::halves`]); the wire stage's lag episodes are numbered
-    /// sensor after sensor and are not.
-    pub halves: bool,
+    /// Each residual's log segment in time order across all residuals
+    /// (None: no halves check), so that the halves of the log can be
+    /// checked against each other ([`verify::halves`]). The thermal and
+    /// mechanics stages pass `blocks`; the wire stage's lag episodes are
+    /// numbered sensor after sensor, so it passes the rows' fixed-time
+    /// segments instead.
+    pub halves: Option<&'a [usize]>,
+}
+
+/// The 1σ of a fit's coordinates.
+struct Spread {
+    /// The 1σ reported: `statistical` combined in quadrature with the
+    /// shifts of the systematic errors.
+    used: Vec<f64>,
+    /// The white-noise (Gauss–Newton) 1σ.
+    white: Vec<f64>,
+    /// The largest of the white-noise, the block-robust and the resampled
+    /// 1σ ([`Stage::resampled`]): the noise
+    /// of this log alone, which the checks of the data against
+    /// themselves (halves, starts) judge by. A systematic error is common
+    /// to both halves and to every start, so it does not widen them.
+    statistical: Vec<f64>,
 }
 
 /// A parameter the log did not determine: its fit before it was put back.
@@ -134,14 +160,15 @@ where
             }
             let r = fit.result;
             *model = with_coords(&base, &active, &r.x);
-            let (sd, white) = self.spread(&r, model)?;
-            let reasons = self.undetermined(&active, &r, &sd, &white, &fit.others);
+            let spread = self.spread(&r, model)?;
+            let (sd, white) = (&spread.used, &spread.white);
+            let reasons = self.undetermined(&active, &r, &spread, &fit.others);
             let bad: Vec<usize> = (0..active.len())
                 .filter(|&j| reasons[j].is_some())
                 .collect();
             if bad.is_empty() {
                 last = Some(r);
-                kept = Some((sd, white));
+                kept = Some(spread);
                 break;
             }
             for &j in bad.iter().rev() {
@@ -172,11 +199,11 @@ where
         });
         // The last pass's spread where it kept every parameter (the model
         // is the one it was computed at), otherwise at the model now.
-        let (sd, white) = match kept {
+        let spread = match kept {
             Some(spread) => spread,
             None => self.spread(&r, &found.model)?,
         };
-        self.report(found, prior, &active, &sd, &white, dropped);
+        self.report(found, prior, &active, &spread.used, &spread.white, dropped);
         Ok(())
     }
 
@@ -248,26 +275,32 @@ where
         }))
     }
 
-    /// Why each of `active` is not determined by the fit `r` (1σ used
-    /// `sd`, white-noise `white`, in coordinates), None where it is: its
-    /// 1σ above the parameter's threshold; the halves of the log
-    /// disagreeing on it ([`verify::halves`]); another start's equally
-    /// good minimum far from it ([`verify::starts_disagree`]).
+    /// Why each of `active` is not determined by the fit `r` (its 1σ
+    /// `spread`, in coordinates), None where it is: its 1σ used above the
+    /// parameter's threshold; the halves of the log disagreeing on it
+    /// ([`verify::halves`]); another start's equally good minimum far
+    /// from it ([`verify::starts_disagree`]). The last two judge by the
+    /// statistical 1σ ([`Spread`]).
     fn undetermined(
         &self,
         active: &[Param],
         r: &LmResult,
-        sd: &[f64],
-        white: &[f64],
+        spread: &Spread,
         others: &[(Vec<f64>, f64)],
     ) -> Vec<Option<String>> {
-        let ratio: Vec<f64> = sd.iter().zip(white).map(|(s, w)| s / w).collect();
-        let halves = if self.halves && self.blocks.len() == r.m {
-            verify::halves(&r.jacobian, &r.residuals, self.blocks, &ratio)
+        let sd = &spread.used;
+        let ratio: Vec<f64> = spread
+            .statistical
+            .iter()
+            .zip(&spread.white)
+            .map(|(s, w)| s / w)
+            .collect();
+        let halves = if let Some(segments) = self.halves.filter(|b| b.len() == r.m) {
+            verify::halves(&r.jacobian, &r.residuals, segments, &ratio)
         } else {
             vec![(0.0, 0.0, 0.0); active.len()]
         };
-        let starts = verify::starts_disagree(&r.x, r.cost, others, sd, r.m);
+        let starts = verify::starts_disagree(&r.x, r.cost, others, &spread.statistical, r.m);
         let short = plant_common::short_number;
         (0..active.len())
             .map(|j| {
@@ -311,21 +344,40 @@ where
             .collect()
     }
 
-    /// (1σ used, white-noise 1σ) per coordinate of the fit `r` at `at`.
-    fn spread(&self, r: &LmResult, at: &PlaneModel) -> Result<(Vec<f64>, Vec<f64>), IdentifyError> {
+    /// The 1σ of each coordinate of the fit `r` at `at`.
+    fn spread(&self, r: &LmResult, at: &PlaneModel) -> Result<Spread, IdentifyError> {
         if self.blocks.len() != r.m {
-            return Ok((r.std.clone(), r.std.clone()));
+            return Ok(Spread {
+                used: r.std.clone(),
+                white: r.std.clone(),
+                statistical: r.std.clone(),
+            });
         }
         let inverse = lm::NormalInverse::new(&r.jacobian, r.m);
         let robust = lm::block_robust_std_with(&inverse, &r.jacobian, &r.residuals, self.blocks);
-        let mut used: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
+        let mut statistical: Vec<f64> = r.std.iter().zip(&robust).map(|(w, b)| w.max(*b)).collect();
+        let mut drawn = vec![0.0f64; statistical.len()];
+        for draw in (self.resampled)(at)?.iter().filter(|s| s.len() == r.m) {
+            let dx = lm::systematic_shift_with(&inverse, &r.jacobian, draw);
+            for (d, x) in drawn.iter_mut().zip(dx) {
+                *d = d.hypot(x);
+            }
+        }
+        for (s, d) in statistical.iter_mut().zip(drawn) {
+            *s = s.max(d);
+        }
+        let mut used = statistical.clone();
         for shift in (self.systematic)(at)?.iter().filter(|s| s.len() == r.m) {
             let dx = lm::systematic_shift_with(&inverse, &r.jacobian, shift);
             for (u, d) in used.iter_mut().zip(dx) {
                 *u = u.hypot(d);
             }
         }
-        Ok((used, r.std.clone()))
+        Ok(Spread {
+            used,
+            white: r.std.clone(),
+            statistical,
+        })
     }
 
     /// Adds the stage's estimates to `found`: the parameters it

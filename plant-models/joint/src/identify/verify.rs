@@ -13,7 +13,10 @@
 //!   white-noise one); a parameter whose halves differ by more than
 //!   [`HALVES_MAX_Z`] of that is not determined by the log, whatever its
 //!   curvature. A half that does not determine a parameter (its own 1σ
-//!   infinite) cannot disagree: the check passes it.
+//!   infinite) cannot disagree: the check passes it. Every stage has it:
+//!   the thermal and mechanics stages split their 10 s segments, the wire
+//!   stage its rows' fixed-time segments (its lag episodes, numbered
+//!   sensor after sensor, are not in time order).
 //! - **Starts** ([`starts_disagree`]): a stage fitted from several starting
 //!   points has several minima; one whose cost is within
 //!   [`STARTS_MAX_DELTA_CHI2`] (in units of the best fit's residual

@@ -506,3 +506,51 @@ fn a_fit_far_above_the_noise_is_unverified() {
         r.verdict.failures
     );
 }
+
+/// Issue 28's campaign distribution (`hidden::campaign_joint_3d`), twin
+/// 107 — outside the campaign's twins 0..20, which no test uses. β's
+/// driver turns on at 1.835 V, so the 240 s plan's 1.9 V level carries
+/// only ≈ 0.08 A and its 1.85 V level ≈ 0.02 A, right at the
+/// regression's lower cut. Before the regression chose its rows by the
+/// input (`identify::regression`), it chose them by the noisy current:
+/// of the 1.85 V rows it kept those whose noise lifted them above 20 mA,
+/// and β's g came out 1.137 against 1.187 A/V (−4.2 %), **−28σ** by its
+/// own 1σ, on a plane called verified with g identifiable. Now every
+/// parameter a verified plane calls identifiable lies within 3σ of the
+/// truth, and β's g is among them (the plane stays verified: the fix
+/// corrects the estimate instead of giving up on it).
+#[test]
+#[ignore = "a 240 s 3D log: ≈ 15–40 s optimised; CI runs it in the ci-opt build (scripts/test-all.sh)"]
+fn a_campaign_twin_whose_g_was_28_sigma_off_is_now_within_its_sigma() {
+    let hidden = hidden::campaign_joint_3d(107);
+    let plan = ExcitationPlan::standard(2, 240.0, false);
+    let log = twin::record_3d(&hidden, &plan, true, NOISE).unwrap();
+    let (_, reports) =
+        identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
+            .unwrap();
+    let truths = [
+        truth(&hidden.alpha, &hidden.wires[0]),
+        truth(&hidden.beta, &hidden.wires[1]),
+    ];
+    for (r, t) in reports.iter().zip(&truths) {
+        print_estimates(r, t);
+        eprintln!("{}: {:?}", r.plane, r.verdict.failures);
+    }
+    let wrong: Vec<String> = reports
+        .iter()
+        .zip(&truths)
+        .flat_map(|(r, t)| wrong_but_called_identifiable(r, t, 3.0))
+        .collect();
+    assert!(wrong.is_empty(), "{wrong:#?}");
+    let beta = &reports[1];
+    assert!(beta.verdict.verified, "{:?}", beta.verdict.failures);
+    let g = beta.estimate(Param::Transconductance).unwrap();
+    assert!(g.identifiable && g.verified, "{g:?}");
+    let z = (g.fitted - hidden.beta.driver.transconductance_a_v) / g.std;
+    assert!(
+        z.abs() <= 3.0,
+        "g {} ± {} is {z:+.1}σ from the truth",
+        g.fitted,
+        g.std
+    );
+}
