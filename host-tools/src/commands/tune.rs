@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use host_tools::files::gains::{GainsFile, Tuning};
 use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::files::JointKind;
 use host_tools::joint::tune;
@@ -128,20 +127,7 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
         }
     };
     let wall = started.elapsed().as_secs_f64();
-    let g = GainsFile {
-        joint,
-        controller: r.best.clone(),
-        tuning: Some(Tuning {
-            plant_file: a.plant.display().to_string(),
-            candidates: a.candidates as usize,
-            plants: a.plants as usize,
-            seed: a.seed,
-            score: r.score.clone(),
-            paper: r.paper.clone(),
-            v_offset_searched: a.search_v_offset,
-            heldout: Some(r.heldout.clone()),
-        }),
-    };
+    let g = r.gains_file(&a.plant.display().to_string(), joint, a.request());
     let proven = r.heldout.beats_or_ties_paper;
     let verdict = format!(
         "held-out steps {:?} on {} plants drawn anew: tuned robust cost {:.3}, paper {:.3}: {}",

@@ -1,0 +1,159 @@
+"""Sweeps on a real Ray cluster: two raylets started as separate
+processes (`ray start --head`, then `ray start --address`), one CPU each.
+A short tune and a short rheology calibration on it give the results of
+the program run on this machine; a worker process killed mid-sweep (Ray
+retries its task) changes nothing; Ctrl-C on the driver cancels the
+sweep's tasks."""
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import tomllib
+
+import pytest
+
+ray = pytest.importorskip("ray", reason="the Ray stage needs `pip install ray`")
+
+import softjoint  # noqa: E402
+from softjoint import ray_sweep  # noqa: E402
+from conftest import cli_json, run_cli  # noqa: E402
+
+PLANT = "scenarios/identify/plant.toml"
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def ray_bin():
+    return os.path.join(os.path.dirname(sys.executable), "ray")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """Two raylets, each `ray start --block` in a process group of its
+    own; torn down by signalling those groups only."""
+    port = free_port()
+    address = f"127.0.0.1:{port}"
+    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
+    common = ["--num-cpus", "1", "--block", "--disable-usage-stats"]
+    procs = [subprocess.Popen(
+        [ray_bin(), "start", "--head", "--port", str(port), "--include-dashboard", "false",
+         "--dashboard-agent-listen-port", str(free_port()), *common],
+        env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.time() + 60
+        while True:
+            up = subprocess.run([ray_bin(), "status", "--address", address], capture_output=True)
+            if up.returncode == 0:
+                break
+            assert time.time() < deadline, "the head did not come up in 60 s"
+            time.sleep(0.5)
+        procs.append(subprocess.Popen(
+            [ray_bin(), "start", "--address", address,
+             "--dashboard-agent-listen-port", str(free_port()), *common],
+            env=env, start_new_session=True, stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL))
+        ray.init(address=address, log_to_driver=False)
+        while sum(1 for n in ray.nodes() if n["Alive"]) < 2:
+            assert time.time() < deadline, "the second raylet did not join in 60 s"
+            time.sleep(0.2)
+        yield address
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+        for p in reversed(procs):
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        for p in procs:
+            try:
+                p.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                pass
+            # What `ray start` left in its group (it waits for its
+            # processes' graceful exit for tens of seconds).
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def cli_tune(softjoint_bin, repo, tmp_path, candidates, plants, seed):
+    out = tmp_path / f"cli-{candidates}-{plants}-{seed}.toml"
+    run_cli(softjoint_bin, "tune", PLANT, "--candidates", candidates, "--plants", plants,
+            "--seed", seed, "--search-v-offset", "--allow-unproven", "-o", out, cwd=repo)
+    return tomllib.loads(out.read_text())
+
+
+def test_two_raylets_tune_as_the_program_does(cluster, softjoint_bin, repo, tmp_path):
+    assert sum(1 for n in ray.nodes() if n["Alive"]) == 2
+    plant = softjoint.PlantFile.from_text((repo / PLANT).read_text(), PLANT)
+    got = ray_sweep.tune(plant, 9, 2, seed=5, search_v_offset=True)
+    assert got["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 9, 2, 5)
+
+
+def test_two_raylets_calibrate_the_lattice_as_the_program_does(cluster, softjoint_bin, data, tmp_path):
+    scen = data / "rheology-small.toml"
+    cli = cli_json(softjoint_bin, "rheology", "calibrate", scen, "--evaluations", 40,
+                   "--seed", 3, "--out", tmp_path / "o", "--json")
+    got = ray_sweep.rheology_calibrate(str(scen), None, 4, "ga", 40, 3, unit=3)
+    for d in (cli, got):
+        d.pop("elapsed_s")
+        d.pop("out", None)
+    assert got == cli
+
+
+def unit_workers():
+    """Pids of Ray workers running a tune unit now (Ray titles a worker
+    process by the task it runs)."""
+    ps = subprocess.run(["ps", "-eo", "pid=,args="], capture_output=True, text=True).stdout
+    return [int(line.split()[0]) for line in ps.splitlines() if "ray::_tune_unit" in line]
+
+
+def test_a_worker_killed_mid_sweep_changes_nothing(cluster, softjoint_bin, repo, tmp_path):
+    plant = softjoint.PlantFile.from_text((repo / PLANT).read_text(), PLANT)
+    result = {}
+    t = threading.Thread(target=lambda: result.update(
+        ray_sweep.tune(plant, 12, 2, seed=7, search_v_offset=True)))
+    t.start()
+    killed = None
+    deadline = time.time() + 60
+    while killed is None and t.is_alive() and time.time() < deadline:
+        pids = unit_workers()
+        if pids:
+            os.kill(pids[0], signal.SIGKILL)
+            killed = pids[0]
+        time.sleep(0.05)
+    assert killed is not None, "no worker was seen running a unit"
+    assert t.is_alive(), "the sweep was still going when its worker was killed"
+    t.join(120)
+    assert not t.is_alive()
+    assert result["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 12, 2, 7)
+
+
+def test_ctrl_c_cancels_the_sweeps_tasks(cluster, repo):
+    p = subprocess.Popen(
+        [sys.executable, "-m", "softjoint.ray_sweep", "tune", PLANT, "--candidates", "200",
+         "--plants", "2", "--seed", "1", "--address", cluster],
+        cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not unit_workers():
+        assert time.time() < deadline and p.poll() is None, "no unit started"
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err
+    assert "cancelled" in err
+    # The cluster's workers stop running the sweep's units.
+    deadline = time.time() + 20
+    while unit_workers():
+        assert time.time() < deadline, "units still running 20 s after Ctrl-C"
+        time.sleep(0.2)
