@@ -99,4 +99,21 @@ cargo test "${targets[@]}" -- --ignored qemu_conform:: qemu_hil:: --test-threads
 step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images (one at a time: they signal process groups)"
 cargo test "${targets[@]}" -- --ignored hil_qemu_cli:: --test-threads 1
 
+# The Python package (issue 33), in a virtual environment of its own
+# under target/: the wheel built from the workspace crate python/ in the
+# ci-opt profile into the workspace's target directory, its pytest suite
+# compared with the program built above (SOFTJOINT_BIN), and a local Ray
+# cluster of two raylets (separate `ray start` processes) that the tests
+# start and stop: a tune and a rheology calibration equal to the
+# program's, a worker killed mid-sweep, Ctrl-C.
+step "the Python package: wheel (maturin, ci-opt), pytest against the program, two Ray raylets"
+venv=target/python-venv
+[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+"$venv/bin/pip" install -q --disable-pip-version-check maturin numpy pytest ray
+"$venv/bin/maturin" build -m python/Cargo.toml --profile ci-opt --locked \
+    -i "$venv/bin/python" --out target/wheels
+"$venv/bin/pip" install -q --disable-pip-version-check --force-reinstall --no-deps \
+    target/wheels/softjoint-0.1.0-*.whl
+SOFTJOINT_BIN=target/ci-opt/softjoint "$venv/bin/python" -m pytest -q python/tests
+
 finish

@@ -27,7 +27,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
+import socket
+import subprocess
 import sys
+import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import ray
@@ -72,6 +76,83 @@ def _rheology_unit(spec: Tuple[Optional[str], Optional[Tuple[str, str]], int, st
     text, measured, params, name = spec
     problem = _cached(("rheology",) + spec, lambda: RheologyProblem(text, measured, params, name))
     return problem.scores(genes)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class LocalCluster:
+    """A Ray cluster of ``raylets`` raylets on this machine, each a
+    ``ray start --block`` process in a process group of its own (the
+    head first, the others joining it), ``cpus`` CPUs each. Used as a
+    context manager; leaving it signals those process groups only (not
+    ``ray stop``, which would end every Ray process of the machine)."""
+
+    def __init__(self, raylets: int = 2, cpus: int = 1, timeout_s: float = 60.0):
+        self.raylets, self.cpus, self.timeout_s = raylets, cpus, timeout_s
+        self.address = f"127.0.0.1:{_free_port()}"
+        self._procs: List[subprocess.Popen] = []
+
+    def _start(self, *args: str) -> None:
+        ray_bin = os.path.join(os.path.dirname(sys.executable), "ray")
+        self._procs.append(subprocess.Popen(
+            [ray_bin, "start", *args, "--num-cpus", str(self.cpus), "--block",
+             "--disable-usage-stats", "--dashboard-agent-listen-port", str(_free_port())],
+            env=dict(os.environ, RAY_USAGE_STATS_ENABLED="0"), start_new_session=True,
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+
+    def _alive(self) -> int:
+        return sum(1 for n in ray.nodes() if n["Alive"])
+
+    def __enter__(self) -> "LocalCluster":
+        deadline = time.time() + self.timeout_s
+        try:
+            self._start("--head", "--port", self.address.split(":")[1],
+                        "--include-dashboard", "false")
+            while True:
+                try:
+                    ray.init(address=self.address, log_to_driver=False)
+                    break
+                except ConnectionError:
+                    if time.time() > deadline:
+                        raise
+                    time.sleep(0.5)
+            for _ in range(self.raylets - 1):
+                self._start("--address", self.address)
+            while self._alive() < self.raylets:
+                if time.time() > deadline:
+                    raise TimeoutError(f"{self._alive()} of {self.raylets} raylets up "
+                                       f"after {self.timeout_s} s")
+                time.sleep(0.2)
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if ray.is_initialized():
+            ray.shutdown()
+        for p in reversed(self._procs):
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        for p in self._procs:
+            try:
+                p.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                pass
+            # What `ray start` left in its group (it waits tens of seconds
+            # for its processes' graceful exit).
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            p.wait()
+        self._procs.clear()
 
 
 def connect(address: Optional[str] = None) -> None:

@@ -23,9 +23,30 @@ def read_csv(path):
     return cols
 
 
-@pytest.mark.parametrize("scenario", [None, "scenarios/bench2d.toml"])
-def test_simulate_gives_the_cli_trace_and_summary(softjoint_bin, repo, tmp_path, scenario):
-    path = None if scenario is None else repo / scenario
+TWO_D = """name = "2d, camera, a step and back"
+joint = "2d"
+duration_s = 8.0
+feedback = "camera"
+[estimator]
+method = "paper"
+[[targets]]
+t_s = 0.0
+deg = [0.0]
+[[targets]]
+t_s = 1.0
+deg = [8.0]
+[[targets]]
+t_s = 5.0
+deg = [-3.0]
+"""
+
+
+@pytest.mark.parametrize("scenario", ["default", "2d"])
+def test_simulate_gives_the_cli_trace_and_summary(softjoint_bin, tmp_path, scenario):
+    path = None
+    if scenario == "2d":
+        path = tmp_path / "two_d.toml"
+        path.write_text(TWO_D)
     csv_path = tmp_path / "trace.csv"
     args = ["sim"] + ([path] if path else []) + ["--csv", csv_path, "--json"]
     summary = cli_json(softjoint_bin, *args)
@@ -83,12 +104,12 @@ def test_tune_cost_is_the_cli_tunes_cost_of_the_same_candidate(softjoint_bin, re
 def test_the_tune_sweep_gives_the_cli_gains_whatever_the_unit_size(softjoint_bin, repo, tmp_path):
     plant_path = repo / "scenarios/identify/plant.toml"
     out = tmp_path / "g.toml"
-    run_cli(softjoint_bin, "tune", plant_path, "--candidates", 5, "--plants", 2, "--seed", 5,
+    run_cli(softjoint_bin, "tune", plant_path, "--candidates", 4, "--plants", 2, "--seed", 5,
             "--search-v-offset", "--allow-unproven", "-o", out, "--json")
     want = tomllib.loads(out.read_text())
     plant = softjoint.load_plant(plant_path)
-    for unit in (1, 2, 5):
-        got = softjoint.tune(plant, 5, 2, seed=5, search_v_offset=True, unit=unit)
+    for unit in (1, 3):
+        got = softjoint.tune(plant, 4, 2, seed=5, search_v_offset=True, unit=unit)
         assert got["gains"] == want, f"units of {unit}"
 
 

@@ -7,7 +7,6 @@ sweep's tasks."""
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -25,65 +24,12 @@ from conftest import cli_json, run_cli  # noqa: E402
 PLANT = "scenarios/identify/plant.toml"
 
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def ray_bin():
-    return os.path.join(os.path.dirname(sys.executable), "ray")
-
-
 @pytest.fixture(scope="module")
 def cluster():
-    """Two raylets, each `ray start --block` in a process group of its
-    own; torn down by signalling those groups only."""
-    port = free_port()
-    address = f"127.0.0.1:{port}"
-    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
-    common = ["--num-cpus", "1", "--block", "--disable-usage-stats"]
-    procs = [subprocess.Popen(
-        [ray_bin(), "start", "--head", "--port", str(port), "--include-dashboard", "false",
-         "--dashboard-agent-listen-port", str(free_port()), *common],
-        env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        deadline = time.time() + 60
-        while True:
-            up = subprocess.run([ray_bin(), "status", "--address", address], capture_output=True)
-            if up.returncode == 0:
-                break
-            assert time.time() < deadline, "the head did not come up in 60 s"
-            time.sleep(0.5)
-        procs.append(subprocess.Popen(
-            [ray_bin(), "start", "--address", address,
-             "--dashboard-agent-listen-port", str(free_port()), *common],
-            env=env, start_new_session=True, stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL))
-        ray.init(address=address, log_to_driver=False)
-        while sum(1 for n in ray.nodes() if n["Alive"]) < 2:
-            assert time.time() < deadline, "the second raylet did not join in 60 s"
-            time.sleep(0.2)
-        yield address
-    finally:
-        if ray.is_initialized():
-            ray.shutdown()
-        for p in reversed(procs):
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-        for p in procs:
-            try:
-                p.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                pass
-            # What `ray start` left in its group (it waits for its
-            # processes' graceful exit for tens of seconds).
-            try:
-                os.killpg(p.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+    """Two raylets as separate `ray start` processes, one CPU each."""
+    with ray_sweep.LocalCluster(raylets=2, cpus=1, timeout_s=180) as c:
+        assert sum(1 for n in ray.nodes() if n["Alive"]) == 2
+        yield c.address
 
 
 def cli_tune(softjoint_bin, repo, tmp_path, candidates, plants, seed):
@@ -122,7 +68,7 @@ def test_a_worker_killed_mid_sweep_changes_nothing(cluster, softjoint_bin, repo,
     plant = softjoint.PlantFile.from_text((repo / PLANT).read_text(), PLANT)
     result = {}
     t = threading.Thread(target=lambda: result.update(
-        ray_sweep.tune(plant, 12, 2, seed=7, search_v_offset=True)))
+        ray_sweep.tune(plant, 8, 2, seed=7, search_v_offset=True)))
     t.start()
     killed = None
     deadline = time.time() + 60
@@ -136,7 +82,7 @@ def test_a_worker_killed_mid_sweep_changes_nothing(cluster, softjoint_bin, repo,
     assert t.is_alive(), "the sweep was still going when its worker was killed"
     t.join(120)
     assert not t.is_alive()
-    assert result["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 12, 2, 7)
+    assert result["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 8, 2, 7)
 
 
 def test_ctrl_c_cancels_the_sweeps_tasks(cluster, repo):
