@@ -142,11 +142,12 @@ class LocalCluster:
                 pass
         for p in self._procs:
             try:
-                p.wait(timeout=5)
+                p.wait(timeout=1)
             except subprocess.TimeoutExpired:
                 pass
             # What `ray start` left in its group (it waits tens of seconds
-            # for its processes' graceful exit).
+            # for its processes' graceful exit; the cluster is ours and
+            # holds nothing to keep).
             try:
                 os.killpg(p.pid, signal.SIGKILL)
             except ProcessLookupError:

@@ -42,8 +42,8 @@ def cli_tune(softjoint_bin, repo, tmp_path, candidates, plants, seed):
 def test_two_raylets_tune_as_the_program_does(cluster, softjoint_bin, repo, tmp_path):
     assert sum(1 for n in ray.nodes() if n["Alive"]) == 2
     plant = softjoint.PlantFile.from_text((repo / PLANT).read_text(), PLANT)
-    got = ray_sweep.tune(plant, 9, 2, seed=5, search_v_offset=True)
-    assert got["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 9, 2, 5)
+    got = ray_sweep.tune(plant, 6, 2, seed=5, search_v_offset=True)
+    assert got["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 6, 2, 5)
 
 
 def test_two_raylets_calibrate_the_lattice_as_the_program_does(cluster, softjoint_bin, data, tmp_path):

@@ -551,11 +551,12 @@ pub enum TuneOutcome {
 }
 
 /// Candidates per work unit. One candidate is `plants` closed-loop runs
-/// of 25 s (≈ 0.35 CPU-s per run in the release build, 7 s for 20
-/// plants), and a Ray task costs ≈ 1–3 ms (docs/benchmarks.md, issue
-/// 33): a unit of 2 candidates keeps the task overhead far below 1 % of
-/// its work while 1,000 candidates still give 500 units to spread, and a
-/// stop or a lost worker costs at most 2 candidates' work.
+/// of 25 s: 21 ms a run in the release build (issue 33: 1,000 × 20 in
+/// ≈ 7 CPU-minutes), 0.19 s in the Python wheel's `ci-opt` build, so
+/// 0.8–8 s for a unit of two candidates of 20 plants, against 0.7–0.9 ms
+/// a Ray task costs (5.7 ms under heavy load; docs/benchmarks.md, "Sweeps
+/// on Ray"): under 1 % of overhead, 500 units for 1,000 candidates to spread over workers, and
+/// a stop or a lost worker costs at most two candidates' work.
 pub const UNIT_CANDIDATES: usize = 2;
 
 /// A work unit of a search: candidates `start..end` of the seeded
@@ -638,14 +639,14 @@ impl TuneSweep {
             self.req.search_v_offset,
         );
         let mut out = Vec::new();
-        for index in unit.start..unit.end.min(cands.len()) {
+        for (index, gains) in cands.iter().enumerate().skip(unit.start) {
             if skip(index) {
                 continue;
             }
             if stop.requested().is_some() {
                 break;
             }
-            let score = score(self.joint, &cands[index], &self.plants, self.req.seed).ok();
+            let score = score(self.joint, gains, &self.plants, self.req.seed).ok();
             out.push(Scored { index, score });
         }
         out

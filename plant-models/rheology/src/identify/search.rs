@@ -31,12 +31,15 @@ pub trait BatchObjective {
     fn scores(&mut self, batch: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String>;
 }
 
-/// Candidates per work unit. One rheology simulation of the paper's
-/// block is ≈ 0.4 CPU-s and a Ray task costs ≈ 1–3 ms
-/// (docs/benchmarks.md, issue 33): units of 4 keep the overhead under
-/// 1 % of the work and still give a generation of 40 children ten units
-/// to spread over workers.
-pub const UNIT_CANDIDATES: usize = 4;
+/// Candidates per work unit: one. An evaluation of the paper's block is
+/// ≈ 0.12 CPU-s (issue 33: 10,000 in ≈ 20 CPU-minutes) and a Ray task
+/// costs 0.7–0.9 ms on this project's 2-core machine (5.7 ms under a
+/// load of 13–22; docs/benchmarks.md, "Sweeps on Ray"), so a unit of one
+/// keeps the overhead near 1 % (5 % under that load), while a GA
+/// generation of 40 children still spreads over 40 workers: with units
+/// of 4 it could not use more than 10 (simulated there: 5.0× on 8
+/// workers against 7.9× with units of 1).
+pub const UNIT_CANDIDATES: usize = 1;
 
 /// The work units of a batch of `n` candidates: consecutive index ranges
 /// of `unit` candidates (the last may be shorter), in order.
