@@ -178,6 +178,18 @@ def _gather(refs: Sequence[ray.ObjectRef], on_done: Optional[Callable[[int, int]
         raise
 
 
+def tune_units(sweep: TuneSweep, plant: PlantFile, address: Optional[str] = None,
+               unit: int = TUNE_UNIT_CANDIDATES,
+               on_progress: Optional[Callable[[int, int], None]] = None) -> List[str]:
+    """Runs ``sweep``'s units (on ``plant``) as Ray tasks; returns their
+    results for ``sweep.reduce`` or ``sweep.merge``."""
+    connect(address)
+    req = sweep.request()
+    spec = ray.put((plant.text, plant.name) + tuple(req))
+    refs = [_tune_unit.remote(spec, u) for u in sweep.units(unit)]
+    return _gather(refs, on_progress)
+
+
 def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
          search_v_offset: bool = False, address: Optional[str] = None,
          unit: int = TUNE_UNIT_CANDIDATES,
@@ -185,11 +197,8 @@ def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
     """``softjoint tune`` with its units as Ray tasks; returns what
     ``softjoint.tune`` returns (the gains file as a dict under
     ``gains``)."""
-    connect(address)
     sweep = TuneSweep(plant, candidates, plants, seed, search_v_offset)
-    spec = ray.put((plant.text, plant.name, candidates, plants, seed, search_v_offset))
-    refs = [_tune_unit.remote(spec, u) for u in sweep.units(unit)]
-    return json.loads(sweep.reduce(_gather(refs, on_progress)))
+    return json.loads(sweep.reduce(tune_units(sweep, plant, address, unit, on_progress)))
 
 
 def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] = None,
@@ -228,6 +237,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     t.add_argument("--search-v-offset", action="store_true")
     t.add_argument("--address", default=None)
     t.add_argument("--unit", type=int, default=TUNE_UNIT_CANDIDATES)
+    t.add_argument("--units-out", help="write the scored candidates here (TOML) for "
+                   "`softjoint tune --ray` to reduce, instead of reducing")
     r = sub.add_parser("rheology", help="softjoint rheology calibrate with its batches on Ray")
     r.add_argument("scenario", nargs="?")
     r.add_argument("--measured")
@@ -239,6 +250,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     r.add_argument("--unit", type=int, default=RHEOLOGY_UNIT_CANDIDATES)
     a = p.parse_args(argv)
     try:
+        if a.command == "tune" and a.units_out:
+            plant = load_plant(a.plant)
+            sweep = TuneSweep(plant, a.candidates, a.plants, a.seed, a.search_v_offset)
+            merged = sweep.merge(tune_units(sweep, plant, a.address, a.unit))
+            with open(a.units_out, "w", encoding="utf-8") as f:
+                f.write(merged)
+            return 0
         if a.command == "tune":
             out = tune(load_plant(a.plant), a.candidates, a.plants, a.seed,
                        a.search_v_offset, a.address, a.unit)

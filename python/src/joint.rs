@@ -336,6 +336,12 @@ impl PyTuneSweep {
         })
     }
 
+    /// The request: `(candidates, plants, seed, search_v_offset)`.
+    fn request(&self) -> (usize, usize, u64, bool) {
+        let r = self.sweep.request();
+        (r.candidates, r.plants, r.seed, r.search_v_offset)
+    }
+
     /// The work units of `size` candidates as `(index, start, end)`.
     #[pyo3(signature = (size=tune::UNIT_CANDIDATES))]
     fn units(&self, size: usize) -> Vec<(usize, usize, usize)> {
@@ -363,6 +369,21 @@ impl PyTuneSweep {
             scored,
         })
         .map_err(|e| SweepError::new_err(format!("unit {index}: {e}")))
+    }
+
+    /// The units' results (any order) merged into one scored-candidates
+    /// file (`host_tools::joint::tune::ScoredFile`, TOML) for `softjoint
+    /// tune --ray` to reduce.
+    fn merge(&self, units: Vec<String>) -> PyResult<String> {
+        let mut scored = Vec::new();
+        for (k, text) in units.iter().enumerate() {
+            let u: UnitScores = toml::from_str(text)
+                .map_err(|e| SweepError::new_err(format!("unit result {k}: {e}")))?;
+            scored.extend(u.scored);
+        }
+        scored.sort_by_key(|s| s.index);
+        toml::to_string(&tune::ScoredFile { scored })
+            .map_err(|e| SweepError::new_err(format!("the merged units: {e}")))
     }
 
     /// The reduction of the units' results (any order): returns the

@@ -46,6 +46,26 @@ def test_two_raylets_tune_as_the_program_does(cluster, softjoint_bin, repo, tmp_
     assert got["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 6, 2, 5)
 
 
+def test_the_programs_tune_with_ray_writes_the_gains_of_its_own_run(cluster, softjoint_bin, repo, tmp_path):
+    out = tmp_path / "ray.toml"
+    env = dict(os.environ, SOFTJOINT_PYTHON=sys.executable)
+    p = subprocess.run([softjoint_bin, "tune", PLANT, "--candidates", "6", "--plants", "2",
+                        "--seed", "5", "--search-v-offset", "--allow-unproven", "--ray", cluster,
+                        "-o", str(out)], cwd=repo, env=env, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert not (tmp_path / "ray.ray-units.toml").exists(), "its scratch file is removed"
+    assert tomllib.loads(out.read_text()) == cli_tune(softjoint_bin, repo, tmp_path, 6, 2, 5)
+    # A driver that fails (here one that only exits 1) is an error naming
+    # the cluster, and nothing is written.
+    bad = subprocess.run([softjoint_bin, "tune", PLANT, "--candidates", "2", "--plants", "1",
+                          "--ray", cluster, "-o", str(tmp_path / "no.toml")],
+                         cwd=repo, env=dict(env, SOFTJOINT_PYTHON="false"),
+                         capture_output=True, text=True)
+    assert bad.returncode == 1
+    assert f"the sweep on Ray at {cluster} failed" in bad.stderr
+    assert not (tmp_path / "no.toml").exists()
+
+
 def test_two_raylets_calibrate_the_lattice_as_the_program_does(cluster, softjoint_bin, data, tmp_path):
     scen = data / "rheology-small.toml"
     cli = cli_json(softjoint_bin, "rheology", "calibrate", scen, "--evaluations", 40,

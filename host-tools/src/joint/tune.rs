@@ -40,8 +40,9 @@
 //! - **Work units** (issue 33): a search is a [`TuneSweep`] cut into
 //!   [`TuneUnit`]s of [`UNIT_CANDIDATES`] consecutive candidates. A unit
 //!   is a pure function of the sweep (plant file, counts, seed) and its
-//!   index: it draws the seeded candidate sequence up to its end and
-//!   scores its own slice on the sweep's plants. The reduction
+//!   index: the sweep draws the seeded candidate sequence and the plants
+//!   once (wherever it is set up: each Ray worker does it for itself),
+//!   and the unit scores its own slice of the candidates on the plants. The reduction
 //!   ([`TuneSweep::reduce`]) ranks the scored candidates by index and
 //!   scores the winner on the held-out steps. `softjoint tune` runs the
 //!   units on this machine's threads, the Python package's Ray driver on
@@ -559,6 +560,17 @@ pub enum TuneOutcome {
 /// a stop or a lost worker costs at most two candidates' work.
 pub const UNIT_CANDIDATES: usize = 2;
 
+/// The scored candidates of a sweep's units as a file: what the Python
+/// package's Ray driver hands back to `softjoint tune --ray` for the
+/// reduction (TOML: Rust's float text reads back as the same bits).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScoredFile {
+    /// The candidates scored, in any order.
+    #[serde(default)]
+    pub scored: Vec<Scored>,
+}
+
 /// A work unit of a search: candidates `start..end` of the seeded
 /// sequence (unit `index` of [`TuneSweep::units`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -578,8 +590,9 @@ pub struct TuneSweep {
     file: PlantFile,
     req: TuneRequest,
     joint: JointKind,
-    coils: usize,
     plants: Vec<PlantParams>,
+    /// The seeded candidate sequence, drawn once.
+    cands: Vec<Gains>,
 }
 
 impl TuneSweep {
@@ -591,12 +604,13 @@ impl TuneSweep {
             PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
         };
         let plants = sample_plants(file, req.plants.max(1), req.seed)?;
+        let cands = candidates(coils, req.candidates.max(1), req.seed, req.search_v_offset);
         Ok(Self {
             file: file.clone(),
             req,
             joint,
-            coils,
             plants,
+            cands,
         })
     }
 
@@ -632,14 +646,9 @@ impl TuneSweep {
         skip: &dyn Fn(usize) -> bool,
         stop: &Stop,
     ) -> Vec<Scored> {
-        let cands = candidates(
-            self.coils,
-            unit.end,
-            self.req.seed,
-            self.req.search_v_offset,
-        );
+        let end = unit.end.min(self.cands.len());
         let mut out = Vec::new();
-        for (index, gains) in cands.iter().enumerate().skip(unit.start) {
+        for (index, gains) in self.cands.iter().enumerate().take(end).skip(unit.start) {
             if skip(index) {
                 continue;
             }
@@ -684,8 +693,7 @@ impl TuneSweep {
                 .filter_map(|(i, s)| s.map(|s| (i, s))),
         )
         .context("no candidate could be scored")?;
-        let gains =
-            candidates(self.coils, i + 1, self.req.seed, self.req.search_v_offset).swap_remove(i);
+        let gains = self.cands[i].clone();
         let heldout = heldout(&self.file, &gains, self.req.plants, self.req.seed)?;
         Ok(TuneResult {
             best: gains,
