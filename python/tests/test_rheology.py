@@ -72,3 +72,24 @@ def test_rheology_errors_are_typed(data):
         problem.calibrate("ga", 30, 1, lambda batch: [1.0])
     with pytest.raises(softjoint.InputError, match="nope"):
         softjoint.rheology_problem(data / "nope.toml")
+
+
+def test_an_unstable_lattice_is_an_unstable_error_with_the_programs_words(softjoint_bin, data, tmp_path):
+    """The paper's explicit Euler at 10 ms blows the small lattice up: the
+    program exits 1 naming the step and the node, the objective raises
+    UnstableError with the same words, and the search's scores count it
+    as +inf (an unstable candidate), not NaN."""
+    scen = tmp_path / "explicit.toml"
+    scen.write_text((data / "rheology-small.toml").read_text().replace(
+        "[model]\ndt_ms = 10.0", "[model]\ndt_ms = 10.0\nintegrator = \"explicit_euler\"", 1))
+    cli = run_cli(softjoint_bin, "rheology", "simulate", scen, "--out", tmp_path / "o", "--json",
+                  ok=False)
+    assert cli.returncode == 1
+    said = cli.stderr.strip().splitlines()[-1]
+    assert "unstable at t =" in said
+    problem = softjoint.rheology_problem(scen, None, 4)
+    defaults = [500.0, 2000.0, 2000.0, 0.5]  # the scenario's, the paper's defaults
+    with pytest.raises(softjoint.UnstableError) as e:
+        problem.objective(defaults)
+    assert str(e.value) in said
+    assert problem.scores([defaults]) == [float("inf")]
