@@ -225,6 +225,19 @@ def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] =
     return json.loads(problem.calibrate(method, evaluations, seed, evaluate_batch))
 
 
+def _progress() -> Optional[Callable[[int, int], None]]:
+    """A line on standard error, units done of all, when it is a
+    terminal (as the program's progress bars)."""
+    if not sys.stderr.isatty():
+        return None
+
+    def show(done: int, total: int) -> None:
+        end = "\n" if done == total else ""
+        print(f"\rtune on Ray: {done}/{total} units", end=end, file=sys.stderr, flush=True)
+
+    return show
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     p = argparse.ArgumentParser(prog="python -m softjoint.ray_sweep",
                                 description="softjoint sweeps on a Ray cluster")
@@ -253,13 +266,13 @@ def main(argv: Optional[List[str]] = None) -> int:
         if a.command == "tune" and a.units_out:
             plant = load_plant(a.plant)
             sweep = TuneSweep(plant, a.candidates, a.plants, a.seed, a.search_v_offset)
-            merged = sweep.merge(tune_units(sweep, plant, a.address, a.unit))
+            merged = sweep.merge(tune_units(sweep, plant, a.address, a.unit, _progress()))
             with open(a.units_out, "w", encoding="utf-8") as f:
                 f.write(merged)
             return 0
         if a.command == "tune":
             out = tune(load_plant(a.plant), a.candidates, a.plants, a.seed,
-                       a.search_v_offset, a.address, a.unit)
+                       a.search_v_offset, a.address, a.unit, _progress())
         else:
             out = rheology_calibrate(a.scenario, a.measured, a.params, a.method,
                                      a.evaluations, a.seed, a.address, a.unit)

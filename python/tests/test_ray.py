@@ -49,8 +49,12 @@ def cli_tune(softjoint_bin, repo, tmp_path, candidates, plants, seed):
 def test_two_raylets_tune_as_the_program_does(cluster, softjoint_bin, repo, tmp_path):
     assert sum(1 for n in ray.nodes() if n["Alive"]) == 2
     plant = softjoint.PlantFile.from_text((repo / PLANT).read_text(), PLANT)
-    got = ray_sweep.tune(plant, 6, 2, seed=5, search_v_offset=True)
+    seen = []
+    got = ray_sweep.tune(plant, 6, 2, seed=5, search_v_offset=True,
+                         on_progress=lambda done, total: seen.append((done, total)))
     assert got["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 6, 2, 5)
+    # Progress: one report per unit done, of the 3 units of 2 candidates.
+    assert seen == [(1, 3), (2, 3), (3, 3)]
 
 
 def test_the_programs_tune_with_ray_writes_the_gains_of_its_own_run(cluster, softjoint_bin, repo, tmp_path):
