@@ -17,28 +17,22 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::files::rheology::ScenarioFile;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::{out, outln, progress};
 use indicatif::ProgressBar;
-use plant_rheology::contact::ContactParams;
 use plant_rheology::identify::calibrate::CalibrationSettings;
 use plant_rheology::identify::experiment::{
     self, CalibrationReport, CalibrationSpec, Event, LatticePush, ReferencePush, ScoreSummary,
     UnseenPush,
 };
-use plant_rheology::identify::ga::GaSettings;
 use plant_rheology::identify::measurement::Measurement;
-use plant_rheology::identify::ra::RaSettings;
 use plant_rheology::identify::reference::ReferenceConfig;
 use plant_rheology::identify::search::{Budget, HistoryRow, Method};
 use plant_rheology::lattice::{mid_section, surface_nodes, V3};
 use plant_rheology::params::{LatticeParams, ParamSet};
-use plant_rheology::scenario::{
-    push_schedule_mm, BlockSpec, Frame, MeasureSpec, ModelSpec, Objective, ParamsSpec, PlateSpec,
-    Run, Scenario,
-};
-use serde::{Deserialize, Serialize};
+use plant_rheology::scenario::{push_schedule_mm, Frame, ParamsSpec, Run, Scenario};
 
 /// Arguments of `softjoint rheology`.
 #[derive(Args)]
@@ -155,58 +149,6 @@ struct CalibrateArgs {
     /// Print a machine-readable summary (and no progress bar).
     #[arg(long)]
     json: bool,
-}
-
-/// The scenario file: the lattice's scenario, the reference block that
-/// stands in for measurements, and the search settings.
-#[derive(Clone, Debug, Default, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-struct ScenarioFile {
-    block: BlockSpec,
-    model: ModelSpec,
-    contact: ContactParams,
-    plate: PlateSpec,
-    measure: MeasureSpec,
-    objective: Objective,
-    reference: ReferenceConfig,
-    ga: GaSettings,
-    ra: RaSettings,
-}
-
-impl ScenarioFile {
-    fn scenario(&self) -> Scenario {
-        Scenario {
-            block: self.block.clone(),
-            model: self.model.clone(),
-            contact: self.contact,
-            plate: self.plate.clone(),
-            measure: self.measure.clone(),
-            objective: self.objective,
-        }
-    }
-
-    fn load(path: Option<&Path>) -> Result<Self> {
-        let Some(path) = path else {
-            return Ok(Self::default());
-        };
-        let text = fs::read_to_string(path)
-            .with_context(|| format!("cannot read scenario {}", path.display()))?;
-        let file: ScenarioFile = toml::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
-        file.scenario()
-            .validate()
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        file.reference
-            .validate()
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        file.ga
-            .validate()
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        file.ra
-            .validate()
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        Ok(file)
-    }
 }
 
 pub fn run(args: RheologyArgs) -> Result<()> {

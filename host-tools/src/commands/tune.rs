@@ -2,9 +2,8 @@
 //! robust over its uncertainty.
 use std::path::PathBuf;
 
-use anyhow::Context;
+use anyhow::{bail, Context};
 use clap::Args;
-use host_tools::files::gains::{GainsFile, Tuning};
 use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::files::JointKind;
 use host_tools::joint::tune;
@@ -29,6 +28,13 @@ pub struct TuneArgs {
     /// Worker threads (default: all cores).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u64).range(1..=1024))]
     threads: Option<u64>,
+    /// Run the search's units as tasks on the Ray cluster at this address
+    /// (through the Python package's driver, `python3 -m
+    /// softjoint.ray_sweep`; $SOFTJOINT_PYTHON names another Python). The
+    /// reduction, the held-out check and the files are this program's:
+    /// the result is the one without --ray.
+    #[arg(long, value_name = "ADDRESS", conflicts_with_all = ["resume", "threads"])]
+    ray: Option<String>,
     /// Write the gains file here.
     #[arg(short, long, default_value = "gains.toml")]
     output: PathBuf,
@@ -105,13 +111,14 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
     let stop = Stop::on_signals()?;
     let go = || tune::tune(&file, a.request(), !a.json, &stop, &done);
     let started = std::time::Instant::now();
-    let outcome = match a.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
+    let outcome = match (&a.ray, a.threads) {
+        (Some(address), _) => on_ray(&a, &file, address, &stop),
+        (None, Some(n)) => rayon::ThreadPoolBuilder::new()
             .num_threads(n as usize)
             .build()
             .context("worker threads")?
             .install(go),
-        None => go(),
+        (None, None) => go(),
     }
     .map_err(|e| e.context(format!("tuning on {}", a.plant.display())))?;
     let r = match outcome {
@@ -128,20 +135,7 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
         }
     };
     let wall = started.elapsed().as_secs_f64();
-    let g = GainsFile {
-        joint,
-        controller: r.best.clone(),
-        tuning: Some(Tuning {
-            plant_file: a.plant.display().to_string(),
-            candidates: a.candidates as usize,
-            plants: a.plants as usize,
-            seed: a.seed,
-            score: r.score.clone(),
-            paper: r.paper.clone(),
-            v_offset_searched: a.search_v_offset,
-            heldout: Some(r.heldout.clone()),
-        }),
-    };
+    let g = r.gains_file(&a.plant.display().to_string(), joint, a.request());
     let proven = r.heldout.beats_or_ties_paper;
     let verdict = format!(
         "held-out steps {:?} on {} plants drawn anew: tuned robust cost {:.3}, paper {:.3}: {}",
@@ -199,6 +193,52 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
         host_tools::outln!("gains written to {}", a.output.display());
     }
     Ok(())
+}
+
+/// The search's units run on the Ray cluster at `address` by the Python
+/// package's driver, which writes the scored candidates to a file beside
+/// the gains file; reduced here. A signal stops the driver too (it
+/// cancels the cluster's tasks); the candidates it scored are not kept.
+fn on_ray(
+    a: &TuneArgs,
+    file: &PlantFile,
+    address: &str,
+    stop: &Stop,
+) -> anyhow::Result<tune::TuneOutcome> {
+    let units = a.output.with_extension("ray-units.toml");
+    output::check_file(&units)?;
+    let python = std::env::var_os("SOFTJOINT_PYTHON").unwrap_or_else(|| "python3".into());
+    let mut cmd = std::process::Command::new(&python);
+    cmd.args(["-m", "softjoint.ray_sweep", "tune"])
+        .arg(&a.plant)
+        .args(["--candidates", &a.candidates.to_string()])
+        .args(["--plants", &a.plants.to_string()])
+        .args(["--seed", &a.seed.to_string()])
+        .args(["--address", address, "--units-out"])
+        .arg(&units)
+        .stdout(std::process::Stdio::null());
+    if a.search_v_offset {
+        cmd.arg("--search-v-offset");
+    }
+    let who = format!("{} -m softjoint.ray_sweep", python.to_string_lossy());
+    let status = cmd.status().with_context(|| {
+        format!("cannot run {who} (the Python package, python/README.md, and ray installed?)")
+    })?;
+    let read = std::fs::read_to_string(&units);
+    let _ = std::fs::remove_file(&units);
+    if let Some(signal) = stop.requested() {
+        return Ok(tune::TuneOutcome::Stopped(signal, Vec::new()));
+    }
+    if !status.success() {
+        bail!("the sweep on Ray at {address} failed: {who} exited with {status} (its message is above)");
+    }
+    let text = read.with_context(|| format!("{who} wrote no {}", units.display()))?;
+    let scored: tune::ScoredFile =
+        host_tools::input::from_toml(&text, &units.display().to_string())?;
+    let sweep = tune::TuneSweep::new(file, a.request())?;
+    Ok(tune::TuneOutcome::Done(Box::new(
+        sweep.reduce(&scored.scored)?,
+    )))
 }
 
 /// Writes a stopped search's state and says what it kept, as the error

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 pub mod calibration;
 pub mod gains;
 pub mod plant;
+pub mod rheology;
 pub mod scenario;
 pub mod sweep;
 

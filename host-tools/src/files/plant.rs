@@ -86,7 +86,14 @@ impl PlantFile {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read plant file {}", path.display()))?;
-        let f: PlantFile = crate::input::from_toml(&text, &path.display().to_string())?;
+        Self::from_text(&text, &path.display().to_string())
+    }
+
+    /// Reads and checks a plant file's text; errors name `name` (the
+    /// file's path, as [`PlantFile::load`] gives it) and the field.
+    pub fn from_text(text: &str, name: &str) -> anyhow::Result<Self> {
+        let path = Path::new(name);
+        let f: PlantFile = crate::input::from_toml(text, name)?;
         let checked = match f.params() {
             Ok(PlantParams::TwoD(p)) => p.validate().map_err(|e| e.to_string()),
             Ok(PlantParams::ThreeD(p)) => p.validate().map_err(|e| e.to_string()),

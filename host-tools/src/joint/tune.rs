@@ -37,6 +37,16 @@
 //!   [`SearchState`], from which a resumed search scores only the others
 //!   (its result is the one the search would have given unbroken: each
 //!   candidate's score depends only on its gains, the plants and the seed).
+//! - **Work units** (issue 33): a search is a [`TuneSweep`] cut into
+//!   [`TuneUnit`]s of [`UNIT_CANDIDATES`] consecutive candidates. A unit
+//!   is a pure function of the sweep (plant file, counts, seed) and its
+//!   index: the sweep draws the seeded candidate sequence and the plants
+//!   once (wherever it is set up: each Ray worker does it for itself),
+//!   and the unit scores its own slice of the candidates on the plants. The reduction
+//!   ([`TuneSweep::reduce`]) ranks the scored candidates by index and
+//!   scores the winner on the held-out steps. `softjoint tune` runs the
+//!   units on this machine's threads, the Python package's Ray driver on
+//!   a cluster's workers: the same units, so the same result.
 
 use anyhow::{bail, Context};
 use hal_sim::{ClosedLoop, CoreController, Plant, Sample};
@@ -47,7 +57,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
-use crate::files::gains::{paper_v_offset, Gains, HeldOut, RunCost, Score};
+use crate::files::gains::{paper_v_offset, Gains, GainsFile, HeldOut, RunCost, Score, Tuning};
 use crate::files::plant::{PlantFile, PlantParams, Uncertainty};
 use crate::files::scenario::{EstimatorMethod, FeedbackKind, Scenario, TargetStep};
 use crate::files::JointKind;
@@ -541,12 +551,167 @@ pub enum TuneOutcome {
     Stopped(StopSignal, Vec<Scored>),
 }
 
+/// Candidates per work unit. One candidate is `plants` closed-loop runs
+/// of 25 s: 21 ms a run in the release build (issue 33: 1,000 × 20 in
+/// ≈ 7 CPU-minutes), 0.19 s in the Python wheel's `ci-opt` build, so
+/// 0.8–8 s for a unit of two candidates of 20 plants, against 0.7–0.9 ms
+/// a Ray task costs (5.7 ms under heavy load; docs/benchmarks.md, "Sweeps
+/// on Ray"): under 1 % of overhead, 500 units for 1,000 candidates to spread over workers, and
+/// a stop or a lost worker costs at most two candidates' work.
+pub const UNIT_CANDIDATES: usize = 2;
+
+/// The scored candidates of a sweep's units as a file: what the Python
+/// package's Ray driver hands back to `softjoint tune --ray` for the
+/// reduction (TOML: Rust's float text reads back as the same bits).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScoredFile {
+    /// The candidates scored, in any order.
+    #[serde(default)]
+    pub scored: Vec<Scored>,
+}
+
+/// A work unit of a search: candidates `start..end` of the seeded
+/// sequence (unit `index` of [`TuneSweep::units`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TuneUnit {
+    /// The unit's index.
+    pub index: usize,
+    /// Its first candidate.
+    pub start: usize,
+    /// One past its last candidate.
+    pub end: usize,
+}
+
+/// A search as data: what every unit needs (the plant file, the request,
+/// the plants drawn from the file's uncertainty), the units, and the
+/// reduction.
+pub struct TuneSweep {
+    file: PlantFile,
+    req: TuneRequest,
+    joint: JointKind,
+    plants: Vec<PlantParams>,
+    /// The seeded candidate sequence, drawn once.
+    cands: Vec<Gains>,
+}
+
+impl TuneSweep {
+    /// The sweep of `req` on `file` (its plants drawn, seeded by
+    /// `req.seed`).
+    pub fn new(file: &PlantFile, req: TuneRequest) -> anyhow::Result<Self> {
+        let (joint, coils) = match file.params()? {
+            PlantParams::TwoD(_) => (JointKind::TwoD, 2),
+            PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
+        };
+        let plants = sample_plants(file, req.plants.max(1), req.seed)?;
+        let cands = candidates(coils, req.candidates.max(1), req.seed, req.search_v_offset);
+        Ok(Self {
+            file: file.clone(),
+            req,
+            joint,
+            plants,
+            cands,
+        })
+    }
+
+    /// The request.
+    pub fn request(&self) -> TuneRequest {
+        self.req
+    }
+
+    /// The joint's kind.
+    pub fn joint(&self) -> JointKind {
+        self.joint
+    }
+
+    /// The units of `size` candidates (the last may be shorter), in order.
+    pub fn units(&self, size: usize) -> Vec<TuneUnit> {
+        let (n, size) = (self.req.candidates.max(1), size.max(1));
+        (0..n.div_ceil(size))
+            .map(|index| TuneUnit {
+                index,
+                start: index * size,
+                end: ((index + 1) * size).min(n),
+            })
+            .collect()
+    }
+
+    /// Scores the unit's candidates in order, except those `skip` names
+    /// (scored already: a resumed search); `stop` is read before each
+    /// candidate and, once asked, the rest are left out. A candidate
+    /// whose runs fail (a plant gone unstable) has no score.
+    pub fn run_unit(
+        &self,
+        unit: TuneUnit,
+        skip: &dyn Fn(usize) -> bool,
+        stop: &Stop,
+    ) -> Vec<Scored> {
+        let end = unit.end.min(self.cands.len());
+        let mut out = Vec::new();
+        for (index, gains) in self.cands.iter().enumerate().take(end).skip(unit.start) {
+            if skip(index) {
+                continue;
+            }
+            if stop.requested().is_some() {
+                break;
+            }
+            let score = score(self.joint, gains, &self.plants, self.req.seed).ok();
+            out.push(Scored { index, score });
+        }
+        out
+    }
+
+    /// The reduction: every candidate's score (by index, in any order;
+    /// one per candidate) to the best of them, the paper's, the failures
+    /// and the held-out check. The result depends only on the scores, not
+    /// on where or in which order they were made.
+    pub fn reduce(&self, scored: &[Scored]) -> anyhow::Result<TuneResult> {
+        let n = self.req.candidates.max(1);
+        let mut scores: Vec<Option<&Option<Score>>> = vec![None; n];
+        for s in scored {
+            match scores.get_mut(s.index) {
+                Some(slot @ None) => *slot = Some(&s.score),
+                Some(Some(_)) => bail!("candidate {} was scored twice", s.index),
+                None => bail!("candidate {} is not one of the {n} searched", s.index),
+            }
+        }
+        if let Some(missing) = scores.iter().position(Option::is_none) {
+            bail!("candidate {missing} was not scored");
+        }
+        let scores: Vec<Option<&Score>> = scores
+            .into_iter()
+            .map(|s| s.and_then(Option::as_ref))
+            .collect();
+        let failed = scores.iter().filter(|s| s.is_none()).count();
+        let paper = scores[0]
+            .cloned()
+            .context("the paper's gains failed on the identified plant")?;
+        let (i, best) = best_of(
+            scores
+                .iter()
+                .enumerate()
+                .filter_map(|(i, s)| s.map(|s| (i, s))),
+        )
+        .context("no candidate could be scored")?;
+        let gains = self.cands[i].clone();
+        let heldout = heldout(&self.file, &gains, self.req.plants, self.req.seed)?;
+        Ok(TuneResult {
+            best: gains,
+            score: best.clone(),
+            paper,
+            failed,
+            heldout,
+        })
+    }
+}
+
 /// Searches `req.candidates` gains on `req.plants` plants of `file`, in
 /// parallel, skipping the candidates already scored in `done` (a search
 /// resumed: the candidates are the same seeded sequence, so their scores
-/// hold). `stop` is read before each candidate: once asked, no new
-/// candidate starts and the search returns what it scored. `progress`
-/// shows a bar on standard error.
+/// hold). The search is a [`TuneSweep`]: its units run on this process's
+/// threads (rayon), then its reduction. `stop` is read before each
+/// candidate: once asked, no new candidate starts and the search returns
+/// what it scored. `progress` shows a bar on standard error.
 pub fn tune(
     file: &PlantFile,
     req: TuneRequest,
@@ -554,64 +719,60 @@ pub fn tune(
     stop: &Stop,
     done: &[Scored],
 ) -> anyhow::Result<TuneOutcome> {
-    let params = file.params()?;
-    let (joint, coils) = match params {
-        PlantParams::TwoD(_) => (JointKind::TwoD, 2),
-        PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
-    };
-    let plants = sample_plants(file, req.plants.max(1), req.seed)?;
-    let cands = candidates(coils, req.candidates.max(1), req.seed, req.search_v_offset);
-    let mut known: Vec<Option<Option<Score>>> = vec![None; cands.len()];
-    for d in done.iter().filter(|d| d.index < cands.len()) {
+    let sweep = TuneSweep::new(file, req)?;
+    let n = req.candidates.max(1);
+    let mut known: Vec<Option<Option<Score>>> = vec![None; n];
+    for d in done.iter().filter(|d| d.index < n) {
         known[d.index] = Some(d.score.clone());
     }
     let todo = known.iter().filter(|k| k.is_none()).count();
     let bar = crate::progress::counter("tune", "candidates", Some(todo as u64), !progress);
-    let fresh: Vec<Option<Option<Score>>> = cands
-        .par_iter()
-        .zip(&known)
-        .map(|(g, k)| {
-            if k.is_some() || stop.requested().is_some() {
-                return None;
-            }
-            let s = score(joint, g, &plants, req.seed).ok();
-            bar.inc(1);
-            Some(s)
+    let skip = |i: usize| known[i].is_some();
+    let fresh: Vec<Scored> = sweep
+        .units(UNIT_CANDIDATES)
+        .into_par_iter()
+        .flat_map_iter(|u| {
+            let s = sweep.run_unit(u, &skip, stop);
+            bar.inc(s.len() as u64);
+            s
         })
         .collect();
     bar.finish_and_clear();
-    let scores: Vec<Option<Option<Score>>> =
-        known.into_iter().zip(fresh).map(|(k, f)| k.or(f)).collect();
+    let mut scored: Vec<Scored> = known
+        .into_iter()
+        .enumerate()
+        .filter_map(|(index, k)| k.map(|score| Scored { index, score }))
+        .collect();
+    scored.extend(fresh);
+    scored.sort_by_key(|s| s.index);
     if let Some(signal) = stop.requested() {
-        if scores.iter().any(Option::is_none) {
-            let scored = scores
-                .into_iter()
-                .enumerate()
-                .filter_map(|(index, s)| s.map(|score| Scored { index, score }))
-                .collect();
+        if scored.len() < n {
             return Ok(TuneOutcome::Stopped(signal, scored));
         }
     }
-    let scores: Vec<Option<Score>> = scores.into_iter().map(Option::flatten).collect();
-    let failed = scores.iter().filter(|s| s.is_none()).count();
-    let paper = scores[0]
-        .clone()
-        .context("the paper's gains failed on the identified plant")?;
-    let (i, best) = best_of(
-        scores
-            .iter()
-            .enumerate()
-            .filter_map(|(i, s)| s.as_ref().map(|s| (i, s))),
-    )
-    .context("no candidate could be scored")?;
-    let heldout = heldout(file, &cands[i], req.plants, req.seed)?;
-    Ok(TuneOutcome::Done(Box::new(TuneResult {
-        best: cands[i].clone(),
-        score: best.clone(),
-        paper,
-        failed,
-        heldout,
-    })))
+    Ok(TuneOutcome::Done(Box::new(sweep.reduce(&scored)?)))
+}
+
+impl TuneResult {
+    /// The gains file of this result of `req` on the plant file named
+    /// `plant_file` (what `softjoint tune` writes, and the Python
+    /// package's sweeps return).
+    pub fn gains_file(&self, plant_file: &str, joint: JointKind, req: TuneRequest) -> GainsFile {
+        GainsFile {
+            joint,
+            controller: self.best.clone(),
+            tuning: Some(Tuning {
+                plant_file: plant_file.to_string(),
+                candidates: req.candidates,
+                plants: req.plants,
+                seed: req.seed,
+                score: self.score.clone(),
+                paper: self.paper.clone(),
+                v_offset_searched: req.search_v_offset,
+                heldout: Some(self.heldout.clone()),
+            }),
+        }
+    }
 }
 
 /// The lowest robust cost (the lower index on a tie).
@@ -753,6 +914,53 @@ mod tests {
         assert!(h.score.robust > h.paper.robust, "{h:?}");
         let h = heldout(&file, &Gains::paper(4), 1, 1).unwrap();
         assert!(h.beats_or_ties_paper, "{h:?}");
+    }
+
+    /// A sweep's units, of any size and reduced in any order, give what
+    /// the search gives, and each unit's scores are the candidates'
+    /// scores made one by one with [`score`] (the search before the
+    /// units).
+    #[test]
+    fn units_of_any_size_in_any_order_reduce_to_the_search() {
+        let file = PlantFile::new(PlantParams::TwoD(Joint2dParams::default()), vec![]);
+        let req = TuneRequest {
+            candidates: 3,
+            plants: 1,
+            seed: 9,
+            search_v_offset: true,
+        };
+        let sweep = TuneSweep::new(&file, req).unwrap();
+        let plants = sample_plants(&file, 1, 9).unwrap();
+        let one_by_one: Vec<Scored> = candidates(2, 3, 9, true)
+            .iter()
+            .enumerate()
+            .map(|(index, g)| Scored {
+                index,
+                score: score(JointKind::TwoD, g, &plants, 9).ok(),
+            })
+            .collect();
+        let mut by_units: Vec<Scored> = sweep
+            .units(2)
+            .into_iter()
+            .rev()
+            .flat_map(|u| sweep.run_unit(u, &|_| false, &Stop::never()))
+            .collect();
+        assert_eq!(sweep.units(2).len(), 2);
+        by_units.sort_by_key(|s| s.index);
+        assert_eq!(by_units, one_by_one);
+        let mut reversed = one_by_one.clone();
+        reversed.reverse();
+        let reduced = sweep.reduce(&reversed).unwrap();
+        let TuneOutcome::Done(searched) = tune(&file, req, false, &Stop::never(), &[]).unwrap()
+        else {
+            panic!("not stopped")
+        };
+        let name = "p.toml";
+        assert_eq!(
+            reduced.gains_file(name, JointKind::TwoD, req),
+            searched.gains_file(name, JointKind::TwoD, req)
+        );
+        assert_eq!(reduced.failed, searched.failed);
     }
 
     /// FNV-1a against the published test vectors (the FNV authors' list:

@@ -85,18 +85,7 @@ pub fn push_csv_row(
     angles: &[String],
     r: &Row,
 ) -> Result<(), NonFinite> {
-    let check = |column: &dyn Fn() -> String, v: f64| check_number(file, line, column, v);
-    check(&|| "t_s".into(), r.t_s)?;
-    for (p, a) in angles.iter().enumerate() {
-        check(&|| format!("{a}_true_deg"), r.true_deg[p])?;
-        if !r.estimate_deg[p].is_nan() {
-            check(&|| format!("{a}_estimate_deg"), r.estimate_deg[p])?;
-        }
-        check(&|| format!("{a}_desired_deg"), r.desired_deg[p])?;
-    }
-    for (c, v) in r.coil_volts.iter().take(2 * angles.len()).enumerate() {
-        check(&|| format!("v{}_V", c + 1), *v)?;
-    }
+    check_row(file, line, angles, r)?;
     let _ = write!(s, "{:.4}", r.t_s);
     for p in 0..angles.len() {
         let _ = write!(
@@ -111,6 +100,28 @@ pub fn push_csv_row(
         let _ = write!(s, ",{v:.3}");
     }
     let _ = writeln!(s, ",{}", r.faults);
+    Ok(())
+}
+
+/// Checks every value of a row that goes into the columns of
+/// [`csv_header`] (`crate::output::check_number`): a non-finite value is
+/// refused, naming `file` (or whatever the row goes to), the row's `line`
+/// and its column. A missing angle estimate (NaN: the controller has none
+/// yet) is allowed. The CSV trace and the Python package's arrays hold
+/// their rows to this one check.
+pub fn check_row(file: &Path, line: u64, angles: &[String], r: &Row) -> Result<(), NonFinite> {
+    let check = |column: &dyn Fn() -> String, v: f64| check_number(file, line, column, v);
+    check(&|| "t_s".into(), r.t_s)?;
+    for (p, a) in angles.iter().enumerate() {
+        check(&|| format!("{a}_true_deg"), r.true_deg[p])?;
+        if !r.estimate_deg[p].is_nan() {
+            check(&|| format!("{a}_estimate_deg"), r.estimate_deg[p])?;
+        }
+        check(&|| format!("{a}_desired_deg"), r.desired_deg[p])?;
+    }
+    for (c, v) in r.coil_volts.iter().take(2 * angles.len()).enumerate() {
+        check(&|| format!("v{}_V", c + 1), *v)?;
+    }
     Ok(())
 }
 

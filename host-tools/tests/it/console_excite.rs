@@ -93,7 +93,7 @@ to_s = 8.0
 "#;
 
 #[test]
-#[ignore = "real time (the pty board steps the plant by the wall clock and sends telemetry at 100 Hz): tests sharing the CPU make it lose frames, so CI runs it with the other ignored checks, alone in its binary (scripts/test-all.sh)"]
+#[ignore = "real time (the pty board steps the plant by the wall clock and sends telemetry at 100 Hz): tests sharing the CPU make it lose frames, so CI runs it one at a time after the other ignored checks (scripts/test-all.sh)"]
 fn a_plan_runs_on_a_plant_backed_board_and_logs_what_identify_reads() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (board, port) = board();
@@ -185,7 +185,7 @@ fn a_plan_runs_on_a_plant_backed_board_and_logs_what_identify_reads() {
 /// Ctrl-C during a session: the board is disarmed, the rows recorded up
 /// to there are written, and the program exits as SIGINT would (130).
 #[test]
-#[ignore = "real time (the pty board steps the plant by the wall clock and sends telemetry at 100 Hz): tests sharing the CPU make it lose frames, so CI runs it with the other ignored checks, alone in its binary (scripts/test-all.sh)"]
+#[ignore = "real time (the pty board steps the plant by the wall clock and sends telemetry at 100 Hz): tests sharing the CPU make it lose frames, so CI runs it one at a time after the other ignored checks (scripts/test-all.sh)"]
 fn ctrl_c_disarms_the_board_and_keeps_the_rows() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (board, port) = board();

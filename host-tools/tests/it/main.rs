@@ -23,6 +23,7 @@ mod long_searches;
 mod probe;
 mod rheology_cli;
 mod sizes;
+mod sweep_units;
 mod tetmsd_cli;
 mod tetmsd_sites;
 mod tissue_cli;

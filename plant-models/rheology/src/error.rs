@@ -20,6 +20,10 @@ pub enum RheologyError {
     /// Input data (a CSV file, a series of frames) is malformed.
     #[error("{location}: {reason}")]
     MalformedInput { location: String, reason: String },
+    /// The objective of a search could not score a batch (a remote worker
+    /// lost for good, a cancelled sweep); the search stops there.
+    #[error("the search's objective failed: {reason}")]
+    Evaluation { reason: String },
     /// A simulation became unstable; the run stops at the named step.
     #[error("unstable at t = {} s (step {step}): {kind}", plant_common::short_number(*.time_s))]
     Unstable {

@@ -8,7 +8,9 @@ use crate::identify::ga::{self, GaSettings};
 use crate::identify::measurement::Measurement;
 use crate::identify::objective::{score, Score};
 use crate::identify::ra::{self, RaSettings};
-use crate::identify::search::{self, Budget, Method, Progress, SearchResult};
+use crate::identify::search::{
+    self, BatchObjective, Budget, Local, Method, Progress, SearchResult, UNIT_CANDIDATES,
+};
 use crate::model::lattice::Lattice;
 use crate::model::params::{LatticeParams, ParamSet};
 use crate::model::scenario::{lattice_sim, run, Run, Scenario};
@@ -134,33 +136,51 @@ pub struct Calibration {
     pub best_params: LatticeParams,
 }
 
-/// Runs the chosen search on `problem`.
+/// Runs the chosen search on `problem`, scoring on this process's
+/// threads.
 pub fn calibrate(
     problem: &Problem,
     settings: &CalibrationSettings,
     on_progress: &mut dyn FnMut(&Progress),
 ) -> Result<Calibration> {
-    let ranges = problem.set.ranges();
     let f = |g: &[f64]| problem.s_of_genes(g);
+    let mut local = Local {
+        f: &f,
+        unit: UNIT_CANDIDATES,
+    };
+    calibrate_with(problem, settings, &mut local, on_progress)
+}
+
+/// Runs the chosen search on `problem` with its batches scored by
+/// `objective`, which must score a gene vector as
+/// [`Problem::s_of_genes`] does (the Python package's Ray driver scores
+/// them on a cluster's workers, each with the same problem).
+pub fn calibrate_with(
+    problem: &Problem,
+    settings: &CalibrationSettings,
+    objective: &mut dyn BatchObjective,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<Calibration> {
+    let ranges = problem.set.ranges();
     let search = match settings.method {
-        Method::Ga => ga::run(
-            &f,
+        Method::Ga => ga::run_with(
+            objective,
             &ranges,
             &settings.ga,
             settings.budget,
             settings.seed,
             on_progress,
         )?,
-        Method::Ra => ra::run(
-            &f,
+        Method::Ra => ra::run_with(
+            objective,
             &ranges,
             &settings.ra,
             settings.budget,
             settings.seed,
             on_progress,
         )?,
-        Method::Uniform => search::uniform(
-            &f,
+        Method::Uniform => search::uniform_with(
+            objective,
             &ranges,
             settings.budget,
             settings.seed,

@@ -16,11 +16,13 @@ use std::time::Instant;
 use serde::{Serialize, Serializer};
 
 use crate::error::Result;
-use crate::identify::calibrate::{calibrate, Calibration, CalibrationSettings, Problem};
+use crate::identify::calibrate::{calibrate_with, Calibration, CalibrationSettings, Problem};
 use crate::identify::measurement::Measurement;
 use crate::identify::objective::{score, Score};
 use crate::identify::reference::{record_push, ReferenceConfig, ReferenceRun};
-use crate::identify::search::{Method, Progress, SearchResult};
+use crate::identify::search::{
+    BatchObjective, Local, Method, Progress, SearchResult, UNIT_CANDIDATES,
+};
 use crate::model::lattice::Lattice;
 use crate::model::params::{LatticeParams, ParamSet};
 use crate::model::scenario::{lattice_sim, push_schedule_mm, run, Run, Scenario};
@@ -340,6 +342,22 @@ pub fn calibrate_push(
     spec: &CalibrationSpec,
     on_event: &mut dyn FnMut(Event),
 ) -> Result<CalibrationReport> {
+    let problem = calibration_problem(spec, on_event)?;
+    let f = |g: &[f64]| problem.s_of_genes(g);
+    let mut local = Local {
+        f: &f,
+        unit: UNIT_CANDIDATES,
+    };
+    calibrate_problem(spec, problem.clone(), &mut local, on_event)
+}
+
+/// The problem a calibration of `spec` solves: the scenario against its
+/// measured push, or against a recording of the reference block made now
+/// (seeded: the same recording wherever it is made).
+pub fn calibration_problem(
+    spec: &CalibrationSpec,
+    on_event: &mut dyn FnMut(Event),
+) -> Result<Problem> {
     let sc = &spec.scenario;
     let measurement = match &spec.measured {
         Some(m) => m.clone(),
@@ -350,13 +368,24 @@ pub fn calibrate_push(
             record_push(sc, &spec.reference)?.measurement
         }
     };
-    let problem = Problem::new(sc.clone(), spec.set, measurement)?;
+    Problem::new(sc.clone(), spec.set, measurement)
+}
+
+/// [`calibrate_push`] on `problem` (from [`calibration_problem`]) with the
+/// search's batches scored by `objective`.
+pub fn calibrate_problem(
+    spec: &CalibrationSpec,
+    problem: Problem,
+    objective: &mut dyn BatchObjective,
+    on_event: &mut dyn FnMut(Event),
+) -> Result<CalibrationReport> {
+    let sc = &spec.scenario;
     let defaults = sc.model.params.resolve()?;
     let (default_score, default_run) = problem.score(&defaults)?;
     let Calibration {
         search,
         best_params,
-    } = calibrate(&problem, &spec.settings, &mut |p| {
+    } = calibrate_with(&problem, &spec.settings, objective, &mut |p| {
         on_event(Event::Search(p))
     })?;
     let (best_score, calibrated_run) = problem.score(&best_params)?;

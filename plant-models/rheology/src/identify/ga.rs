@@ -19,7 +19,9 @@ use rand::Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{check_range, Result};
-use crate::identify::search::{Budget, Method, Progress, SearchResult, Tracker};
+use crate::identify::search::{
+    BatchObjective, Budget, Local, Method, Progress, SearchResult, Tracker, UNIT_CANDIDATES,
+};
 use crate::params::ParamRange;
 
 /// Settings of the GA.
@@ -76,7 +78,7 @@ fn to_unit(g: &Genome, bits: u32) -> Vec<f64> {
     g.iter().map(|&v| v as f64 / top).collect()
 }
 
-/// Runs the GA minimising `f` over `ranges`.
+/// Runs the GA minimising `f` over `ranges` on this process's threads.
 pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
     f: &F,
     ranges: &[ParamRange],
@@ -85,8 +87,25 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
     seed: u64,
     on_progress: &mut dyn FnMut(&Progress),
 ) -> Result<SearchResult> {
+    let mut local = Local {
+        f,
+        unit: UNIT_CANDIDATES,
+    };
+    run_with(&mut local, ranges, settings, budget, seed, on_progress)
+}
+
+/// The GA with each generation's population scored by `objective`; the
+/// draws, selection, crossing and mutation stay here (the driver).
+pub fn run_with(
+    objective: &mut dyn BatchObjective,
+    ranges: &[ParamRange],
+    settings: &GaSettings,
+    budget: Budget,
+    seed: u64,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<SearchResult> {
     settings.validate()?;
-    let mut tr = Tracker::new(f, ranges, budget, on_progress)?;
+    let mut tr = Tracker::new(objective, ranges, budget, on_progress)?;
     let mut rng = plant_common::rng::stream(seed, plant_common::rng::RHEOLOGY_SEARCH);
     let bits = settings.bits_per_gene;
     let mask = ((1u64 << bits) - 1) as u32;
@@ -150,7 +169,7 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
         tr.record(generation, &scores);
         pop.extend(children.into_iter().zip(scores));
     }
-    Ok(tr.finish(Method::Ga))
+    tr.finish(Method::Ga)
 }
 
 #[cfg(test)]
@@ -223,6 +242,64 @@ mod tests {
         assert_ne!(a.best_genes, c.best_genes);
         // Best S never rises.
         assert!(a.history.windows(2).all(|w| w[1].best_s <= w[0].best_s));
+    }
+
+    /// Scores one at a time, in order, on this thread: the reference the
+    /// parallel units are held to.
+    struct Serial<'a>(&'a dyn Fn(&[f64]) -> f64, usize);
+
+    impl BatchObjective for Serial<'_> {
+        fn scores(&mut self, batch: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String> {
+            self.1 += 1;
+            Ok(batch.iter().map(|g| (self.0)(g)).collect())
+        }
+    }
+
+    /// Where and in which units a generation is scored does not change
+    /// the search: serial, units of 1, 3 and 50 give the same result; a
+    /// failing objective ends it with its reason.
+    #[test]
+    fn the_ga_does_not_depend_on_its_units() {
+        let f = |g: &[f64]| g.iter().map(|x| (x - 1.0).powi(2)).sum::<f64>();
+        let r = ranges(3);
+        let run_on = |obj: &mut dyn BatchObjective| {
+            let mut res = run_with(
+                obj,
+                &r,
+                &GaSettings::default(),
+                Budget::evaluations(330),
+                5,
+                &mut |_| {},
+            )
+            .unwrap();
+            res.elapsed_s = 0.0;
+            for h in &mut res.history {
+                h.elapsed_s = 0.0;
+            }
+            res
+        };
+        let mut serial = Serial(&f, 0);
+        let want = run_on(&mut serial);
+        assert_eq!(serial.1, want.history.len(), "one batch per generation");
+        for unit in [1, 3, 50] {
+            assert_eq!(run_on(&mut Local { f: &f, unit }), want, "units of {unit}");
+        }
+        struct Lost;
+        impl BatchObjective for Lost {
+            fn scores(&mut self, _: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String> {
+                Err("worker lost".into())
+            }
+        }
+        let e = run_with(
+            &mut Lost,
+            &r,
+            &GaSettings::default(),
+            Budget::evaluations(100),
+            5,
+            &mut |_| {},
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("worker lost"), "{e}");
     }
 
     #[test]

@@ -19,7 +19,9 @@ use rand::Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{check_range, Result};
-use crate::identify::search::{Budget, Method, Progress, SearchResult, Tracker};
+use crate::identify::search::{
+    BatchObjective, Budget, Local, Method, Progress, SearchResult, Tracker, UNIT_CANDIDATES,
+};
 use crate::params::ParamRange;
 
 /// Settings of RA.
@@ -66,8 +68,24 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
     seed: u64,
     on_progress: &mut dyn FnMut(&Progress),
 ) -> Result<SearchResult> {
+    let mut local = Local {
+        f,
+        unit: UNIT_CANDIDATES,
+    };
+    run_with(&mut local, ranges, settings, budget, seed, on_progress)
+}
+
+/// RA with its probes scored by `objective`.
+pub fn run_with(
+    objective: &mut dyn BatchObjective,
+    ranges: &[ParamRange],
+    settings: &RaSettings,
+    budget: Budget,
+    seed: u64,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<SearchResult> {
     settings.validate()?;
-    let mut tr = Tracker::new(f, ranges, budget, on_progress)?;
+    let mut tr = Tracker::new(objective, ranges, budget, on_progress)?;
     let mut rng = plant_common::rng::stream(seed, plant_common::rng::RHEOLOGY_SEARCH);
     let dim = tr.dim();
     let mut u: Vec<f64> = (0..dim).map(|_| rng.gen::<f64>()).collect();
@@ -148,10 +166,10 @@ pub fn run<F: Fn(&[f64]) -> f64 + Sync>(
     if tr_history_empty(&tr) {
         tr.record(cycle + 1, &[]);
     }
-    Ok(tr.finish(Method::Ra))
+    tr.finish(Method::Ra)
 }
 
-fn tr_history_empty<F: Fn(&[f64]) -> f64 + Sync>(tr: &Tracker<'_, F>) -> bool {
+fn tr_history_empty(tr: &Tracker<'_>) -> bool {
     tr.history_len() == 0
 }
 

@@ -3,17 +3,70 @@
 //! that a seeded search does not depend on the number of threads), the
 //! best-so-far record and a history row per generation or cycle.
 //!
+//! A batch is scored through a [`BatchObjective`]: on this process's
+//! threads ([`Local`]), or anywhere else a caller sends it (the Python
+//! package's Ray driver). A batch is cut into work units of consecutive
+//! candidates ([`units`]); the scores come back in candidate order and
+//! the search's random draws and selection stay here, so where the units
+//! run cannot change the result.
+//!
 //! Candidates are gene vectors in the units of [`ParamRange`]; the
 //! searches work in the unit cube `u ∈ [0, 1]^p` (`gene = min + u·(max −
 //! min)`, linear as the paper's intervals are printed). A candidate whose
 //! simulation is unstable (or whose score is NaN) scores +∞ and is counted.
+use std::ops::Range;
 use std::time::Instant;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::error::{bad_setting, Result};
+use crate::error::{bad_setting, Result, RheologyError};
 use crate::params::ParamRange;
+
+/// Scores batches of gene vectors (in the units of [`ParamRange`]).
+pub trait BatchObjective {
+    /// S of each gene vector of `batch`, in order; a non-finite S counts
+    /// as an unstable candidate. An error (a remote worker that could not
+    /// be reached, a cancelled sweep) ends the search with that error.
+    fn scores(&mut self, batch: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String>;
+}
+
+/// Candidates per work unit: one. An evaluation of the paper's block is
+/// ≈ 0.12 CPU-s (issue 33: 10,000 in ≈ 20 CPU-minutes) and a Ray task
+/// costs 0.7–0.9 ms on this project's 2-core machine (5.7 ms under a
+/// load of 13–22; docs/benchmarks.md, "Sweeps on Ray"), so a unit of one
+/// keeps the overhead near 1 % (5 % under that load), while a GA
+/// generation of 40 children still spreads over 40 workers: with units
+/// of 4 it could not use more than 10 (simulated there: 5.0× on 8
+/// workers against 7.9× with units of 1).
+pub const UNIT_CANDIDATES: usize = 1;
+
+/// The work units of a batch of `n` candidates: consecutive index ranges
+/// of `unit` candidates (the last may be shorter), in order.
+pub fn units(n: usize, unit: usize) -> Vec<Range<usize>> {
+    let unit = unit.max(1);
+    (0..n.div_ceil(unit))
+        .map(|k| k * unit..((k + 1) * unit).min(n))
+        .collect()
+}
+
+/// The objective `f` scored on this process's threads: one rayon task per
+/// work unit of `unit` candidates, each scored in order.
+pub struct Local<'a, F> {
+    pub f: &'a F,
+    pub unit: usize,
+}
+
+impl<F: Fn(&[f64]) -> f64 + Sync> BatchObjective for Local<'_, F> {
+    fn scores(&mut self, batch: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String> {
+        let f = self.f;
+        let per_unit: Vec<Vec<f64>> = units(batch.len(), self.unit)
+            .into_par_iter()
+            .map(|r| batch[r].iter().map(|g| f(g)).collect())
+            .collect();
+        Ok(per_unit.concat())
+    }
+}
 
 /// When a search stops: after this many evaluations and/or this much wall
 /// time (whichever comes first; at least one must be set).
@@ -113,9 +166,12 @@ pub struct SearchResult {
     pub stopped_by: &'static str,
 }
 
-/// Book-keeping of a running search.
-pub(crate) struct Tracker<'a, F> {
-    f: &'a F,
+/// Book-keeping of a running search. An objective that fails ends the
+/// search: [`Tracker::allowed`] says 0 from then on, [`Tracker::evaluate`]
+/// scores nothing, and [`Tracker::finish`] returns the failure.
+pub(crate) struct Tracker<'a> {
+    objective: &'a mut dyn BatchObjective,
+    failed: Option<String>,
     ranges: &'a [ParamRange],
     budget: Budget,
     start: Instant,
@@ -127,9 +183,9 @@ pub(crate) struct Tracker<'a, F> {
     stopped_by: &'static str,
 }
 
-impl<'a, F: Fn(&[f64]) -> f64 + Sync> Tracker<'a, F> {
+impl<'a> Tracker<'a> {
     pub(crate) fn new(
-        f: &'a F,
+        objective: &'a mut dyn BatchObjective,
         ranges: &'a [ParamRange],
         budget: Budget,
         on_progress: &'a mut dyn FnMut(&Progress),
@@ -139,7 +195,8 @@ impl<'a, F: Fn(&[f64]) -> f64 + Sync> Tracker<'a, F> {
             return Err(bad_setting("params", "nothing to search"));
         }
         Ok(Self {
-            f,
+            objective,
+            failed: None,
             ranges,
             budget,
             start: Instant::now(),
@@ -165,6 +222,9 @@ impl<'a, F: Fn(&[f64]) -> f64 + Sync> Tracker<'a, F> {
     /// How many of `want` evaluations the budget still allows (0 when
     /// spent).
     pub(crate) fn allowed(&mut self, want: usize) -> usize {
+        if self.failed.is_some() {
+            return 0;
+        }
         if let Some(s) = self.budget.max_seconds {
             if self.start.elapsed().as_secs_f64() >= s {
                 self.stopped_by = "wall time";
@@ -185,22 +245,29 @@ impl<'a, F: Fn(&[f64]) -> f64 + Sync> Tracker<'a, F> {
             .collect()
     }
 
-    /// Scores unit-cube points in parallel (at most what the budget
-    /// allows: the returned vector may be shorter than `batch`).
+    /// Scores unit-cube points through the objective (at most what the
+    /// budget allows: the returned vector may be shorter than `batch`,
+    /// and empty once the objective has failed).
     pub(crate) fn evaluate(&mut self, batch: &[Vec<f64>]) -> Vec<f64> {
         let n = self.allowed(batch.len());
         let genes: Vec<Vec<f64>> = batch[..n].iter().map(|u| self.genes(u)).collect();
-        let f = self.f;
-        let scores: Vec<f64> = genes
-            .par_iter()
-            .map(|g| {
-                let s = f(g);
-                if s.is_finite() {
-                    s
-                } else {
-                    f64::INFINITY
-                }
-            })
+        let scores = match self.objective.scores(&genes) {
+            Ok(s) if s.len() == n => s,
+            Ok(s) => {
+                self.failed = Some(format!(
+                    "the objective returned {} scores for {n} candidates",
+                    s.len()
+                ));
+                return Vec::new();
+            }
+            Err(e) => {
+                self.failed = Some(e);
+                return Vec::new();
+            }
+        };
+        let scores: Vec<f64> = scores
+            .into_iter()
+            .map(|s| if s.is_finite() { s } else { f64::INFINITY })
             .collect();
         self.evaluations += n;
         for (g, &s) in genes.into_iter().zip(&scores) {
@@ -237,13 +304,16 @@ impl<'a, F: Fn(&[f64]) -> f64 + Sync> Tracker<'a, F> {
         });
     }
 
-    pub(crate) fn finish(self, method: Method) -> SearchResult {
+    pub(crate) fn finish(self, method: Method) -> Result<SearchResult> {
+        if let Some(reason) = self.failed {
+            return Err(RheologyError::Evaluation { reason });
+        }
         let best_genes = if self.best.0.is_empty() {
             self.genes(&vec![0.5; self.dim()])
         } else {
             self.best.0.clone()
         };
-        SearchResult {
+        Ok(SearchResult {
             method,
             best_genes,
             best_s: self.best.1,
@@ -252,7 +322,7 @@ impl<'a, F: Fn(&[f64]) -> f64 + Sync> Tracker<'a, F> {
             history: self.history,
             elapsed_s: self.start.elapsed().as_secs_f64(),
             stopped_by: self.stopped_by,
-        }
+        })
     }
 }
 
@@ -265,8 +335,24 @@ pub fn uniform<F: Fn(&[f64]) -> f64 + Sync>(
     batch: usize,
     on_progress: &mut dyn FnMut(&Progress),
 ) -> Result<SearchResult> {
+    let mut local = Local {
+        f,
+        unit: UNIT_CANDIDATES,
+    };
+    uniform_with(&mut local, ranges, budget, seed, batch, on_progress)
+}
+
+/// [`uniform`] with its batches scored by `objective`.
+pub fn uniform_with(
+    objective: &mut dyn BatchObjective,
+    ranges: &[ParamRange],
+    budget: Budget,
+    seed: u64,
+    batch: usize,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<SearchResult> {
     use rand::Rng;
-    let mut tr = Tracker::new(f, ranges, budget, on_progress)?;
+    let mut tr = Tracker::new(objective, ranges, budget, on_progress)?;
     let mut rng = plant_common::rng::stream(seed, plant_common::rng::RHEOLOGY_SEARCH);
     let batch = batch.max(1);
     let mut generation = 0;
@@ -278,5 +364,5 @@ pub fn uniform<F: Fn(&[f64]) -> f64 + Sync>(
         generation += 1;
         tr.record(generation, &scores);
     }
-    Ok(tr.finish(Method::Uniform))
+    tr.finish(Method::Uniform)
 }

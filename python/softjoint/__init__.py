@@ -1,0 +1,177 @@
+"""softjoint from Python: the joint's closed loop, tuning costs, the
+rheology objective, and sweeps as work units.
+
+Every function hands its inputs to the Rust code the ``softjoint``
+program runs (host-tools, plant-rheology) through the native module
+``softjoint._native``; nothing is modelled again here. Results pass the
+program's own output checks: a trace or summary holding a NaN or an
+infinite number raises :class:`NonFiniteError` instead of being returned.
+Errors are exceptions derived from :class:`SoftjointError` that carry the
+Rust error's message (the file, field or argument it names).
+
+The sweeps (``tune``, rheology calibration) are deterministic work units
+and a reduction: :class:`TuneSweep` gives the units and reduces their
+results; ``softjoint.ray_sweep`` runs the units as Ray tasks. Where the
+units run does not change the result.
+
+Left out so far: identification, the push, viscoelastic, rope and
+contour systems, and writing plant or gains files from Python.
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence, Union
+
+import numpy as np
+
+from . import _native
+from ._native import (
+    RHEOLOGY_UNIT_CANDIDATES,
+    TUNE_UNIT_CANDIDATES,
+    InputError,
+    NonFiniteError,
+    PlantFile,
+    RheologyProblem,
+    RunCutShortError,
+    Scenario,
+    SoftjointError,
+    SweepError,
+    TuneSweep,
+    UnstableError,
+    rheology_units,
+)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+__all__ = [
+    "RHEOLOGY_UNIT_CANDIDATES",
+    "TUNE_UNIT_CANDIDATES",
+    "Gains",
+    "InputError",
+    "NonFiniteError",
+    "PlantFile",
+    "RheologyProblem",
+    "RunCutShortError",
+    "Scenario",
+    "SoftjointError",
+    "SweepError",
+    "Trace",
+    "TuneSweep",
+    "UnstableError",
+    "load_plant",
+    "load_scenario",
+    "rheology_problem",
+    "rheology_units",
+    "simulate",
+    "tune",
+    "tune_cost",
+]
+
+
+def load_scenario(path: Optional[PathLike] = None) -> Scenario:
+    """The joint scenario in ``path`` (TOML, as ``softjoint sim`` reads
+    it), or the built-in default without one."""
+    return Scenario.default() if path is None else Scenario.load(os.fspath(path))
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A closed-loop run: ``columns`` holds one NumPy array per column of
+    ``softjoint sim --csv`` (``t_s``, ``<angle>_true_deg``,
+    ``<angle>_estimate_deg`` — NaN where the CSV has an empty field, the
+    controller having no estimate yet — ``<angle>_desired_deg``,
+    ``v1_V``…, ``faults``), ``summary`` the ``--json`` summary."""
+
+    columns: Dict[str, np.ndarray]
+    summary: dict = field(repr=False)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def __len__(self) -> int:
+        return len(self.columns["t_s"])
+
+
+def simulate(scenario: Union[Scenario, PathLike, None] = None) -> Trace:
+    """Runs the joint's scenario (a :class:`Scenario`, a path, or the
+    built-in default) under the firmware core, as ``softjoint sim`` does.
+
+    Raises :class:`RunCutShortError` if the run ends early,
+    :class:`NonFiniteError` for a non-finite value, :class:`InputError`
+    for a scenario the program refuses."""
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    columns, summary = _native.simulate(scenario)
+    return Trace(columns=dict(columns), summary=json.loads(summary))
+
+
+def load_plant(path: PathLike) -> PlantFile:
+    """A plant file (``softjoint identify joint`` writes one)."""
+    return PlantFile.load(os.fspath(path))
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Controller gains as a gains file's ``[controller]`` table."""
+
+    kp_v_per_deg: Sequence[float]
+    ki_v_per_deg_s: float = 0.0
+    integral_limit_v: float = 1.0
+    v_offset_v: float = 1.7
+
+    @staticmethod
+    def candidate(plant: PlantFile, index: int, seed: int = 1,
+                  search_v_offset: bool = False) -> "Gains":
+        """Candidate ``index`` of ``softjoint tune``'s seeded sequence
+        (0: the paper's gains)."""
+        kp, ki, lim, off = _native.candidate_gains(plant, index, seed, search_v_offset)
+        return Gains(list(kp), ki, lim, off)
+
+
+def tune_cost(plant: PlantFile, gains: Optional[Gains] = None, plant_index: int = 0,
+              plants: int = 1, seed: int = 1) -> dict:
+    """The cost of one run of ``softjoint tune``'s step test with
+    ``gains`` (default: the paper's) on plant ``plant_index`` of the
+    ``plants`` a search with ``seed`` draws (0: the identified plant), as
+    the gains file's ``RunCost`` fields (``cost``, ``settling_s``,
+    ``overshoot_deg``, …)."""
+    g = gains if gains is not None else Gains.candidate(plant, 0, seed)
+    text = _native.tune_cost(plant, list(g.kp_v_per_deg), g.ki_v_per_deg_s,
+                             g.integral_limit_v, g.v_offset_v, plant_index, plants, seed)
+    return json.loads(text)
+
+
+def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
+         search_v_offset: bool = False, unit: int = TUNE_UNIT_CANDIDATES) -> dict:
+    """``softjoint tune`` in this process, unit after unit: the same units
+    and reduction the Ray driver runs. Returns ``gains`` (the gains file
+    as a dict), ``failed_candidates`` and ``heldout_beats_or_ties_paper``."""
+    sweep = TuneSweep(plant, candidates, plants, seed, search_v_offset)
+    results = [sweep.run_unit(*u) for u in sweep.units(unit)]
+    return json.loads(sweep.reduce(results))
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise InputError(f"cannot read {path}: {e}") from e
+
+
+def rheology_problem(scenario: Optional[PathLike] = None, measured: Optional[PathLike] = None,
+                     params: int = 4) -> RheologyProblem:
+    """The problem of ``softjoint rheology calibrate [SCENARIO]
+    [--measured DIR] --params N``: the scenario file (default: the
+    built-in one) against the measured push in ``measured`` (its
+    ``surface_points.csv`` and ``forces.csv``), or, without one, against
+    the reference block pushed and recorded as the scenario says."""
+    text = None if scenario is None else _read(Path(scenario))
+    m = None
+    if measured is not None:
+        d = Path(measured)
+        m = (_read(d / "surface_points.csv"), _read(d / "forces.csv"))
+    name = "scenario" if scenario is None else os.fspath(scenario)
+    return RheologyProblem(text, m, params, name)

@@ -1,0 +1,99 @@
+"""Type stubs of the native module (python/src/*.rs): the workspace's Rust
+code behind the `softjoint` package."""
+from os import PathLike
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+TUNE_UNIT_CANDIDATES: int
+RHEOLOGY_UNIT_CANDIDATES: int
+
+class SoftjointError(Exception):
+    """Any error of the package; its message is the Rust error's."""
+
+class InputError(SoftjointError):
+    """A scenario, plant file, measurement or argument was refused."""
+
+class NonFiniteError(SoftjointError):
+    """A result held a NaN or infinite number (the program's output checks)."""
+
+class RunCutShortError(SoftjointError):
+    """A closed-loop run ended before its end."""
+
+class UnstableError(SoftjointError):
+    """A simulation became unstable."""
+
+class SweepError(SoftjointError):
+    """A sweep's units do not add up, or its objective failed."""
+
+class Scenario:
+    @staticmethod
+    def default() -> Scenario: ...
+    @staticmethod
+    def load(path: Union[str, PathLike[str]]) -> Scenario: ...
+    @property
+    def name(self) -> str: ...
+    def to_toml(self) -> str: ...
+    def columns(self) -> List[str]: ...
+
+def simulate(scenario: Scenario) -> Tuple[Dict[str, np.ndarray], str]: ...
+
+class PlantFile:
+    @staticmethod
+    def load(path: Union[str, PathLike[str]]) -> PlantFile: ...
+    @staticmethod
+    def from_text(text: str, name: str) -> PlantFile: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def text(self) -> str: ...
+
+def candidate_gains(
+    plant: PlantFile, index: int, seed: int = 1, search_v_offset: bool = False
+) -> Tuple[List[float], float, float, float]: ...
+def tune_cost(
+    plant: PlantFile,
+    kp_v_per_deg: Sequence[float],
+    ki_v_per_deg_s: float,
+    integral_limit_v: float,
+    v_offset_v: float,
+    plant_index: int = 0,
+    plants: int = 1,
+    seed: int = 1,
+) -> str: ...
+
+class TuneSweep:
+    def __init__(
+        self,
+        plant: PlantFile,
+        candidates: int,
+        plants: int,
+        seed: int = 1,
+        search_v_offset: bool = False,
+    ) -> None: ...
+    def request(self) -> Tuple[int, int, int, bool]: ...
+    def units(self, size: int = ...) -> List[Tuple[int, int, int]]: ...
+    def run_unit(self, index: int, start: int, end: int) -> str: ...
+    def merge(self, units: List[str]) -> str: ...
+    def reduce(self, units: List[str]) -> str: ...
+
+def rheology_units(n: int, size: int = ...) -> List[Tuple[int, int]]: ...
+
+class RheologyProblem:
+    def __init__(
+        self,
+        scenario_text: Optional[str] = None,
+        measured: Optional[Tuple[str, str]] = None,
+        params: int = 4,
+        scenario_name: str = "scenario",
+    ) -> None: ...
+    def ranges(self) -> List[Tuple[str, float, float]]: ...
+    def objective(self, genes: Sequence[float]) -> float: ...
+    def scores(self, batch: List[List[float]]) -> List[float]: ...
+    def calibrate(
+        self,
+        method: str = "ga",
+        evaluations: int = 1000,
+        seed: int = 1,
+        evaluate_batch: Optional[Callable[[List[List[float]]], List[float]]] = None,
+    ) -> str: ...

@@ -1,0 +1,288 @@
+"""Sweeps on a Ray cluster: the work units of ``softjoint tune`` and of a
+rheology calibration as Ray tasks, the reduction on the driver.
+
+The units are the ones the one-machine program runs (``TuneSweep.units``,
+``rheology_units``), each a pure function of the sweep and its index, so
+the result is the one ``softjoint tune`` / ``softjoint rheology
+calibrate`` gives for the same seed, bit for bit, however many workers
+run them and whichever of them is lost on the way. Placement and retries
+are Ray's: every task may be retried (``max_retries``) when its worker
+dies; nothing here schedules. For the GA each generation's population is
+fanned out and the selection stays on the driver (in Rust).
+
+Ctrl-C on the driver cancels the sweep's tasks on the cluster
+(``ray.cancel(force=True)``) and raises KeyboardInterrupt.
+
+Each worker builds a sweep's problem once (the plant's drawn plants, the
+rheology measurement or the reference block's recording, seeded) and
+keeps it for the sweep's next units.
+
+Command line (what ``softjoint tune --ray ADDRESS`` runs)::
+
+    python -m softjoint.ray_sweep tune PLANT --candidates N --plants N \\
+        --seed S [--search-v-offset] --address ADDRESS
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+
+import ray
+
+from . import (
+    RHEOLOGY_UNIT_CANDIDATES,
+    TUNE_UNIT_CANDIDATES,
+    PlantFile,
+    RheologyProblem,
+    TuneSweep,
+    load_plant,
+    rheology_problem,
+    rheology_units,
+)
+
+#: Retries of a task whose worker died (Ray's own mechanism).
+MAX_RETRIES = 3
+
+# A worker's sweeps, by their specification (kept for the sweep's units).
+_cache: Dict[Tuple[Any, ...], Any] = {}
+
+
+def _cached(key: Tuple[Any, ...], make: Callable[[], Any]) -> Any:
+    if key not in _cache:
+        if len(_cache) > 8:
+            _cache.clear()
+        _cache[key] = make()
+    return _cache[key]
+
+
+@ray.remote(max_retries=MAX_RETRIES)
+def _tune_unit(spec: Tuple[str, str, int, int, int, bool], unit: Tuple[int, int, int]) -> str:
+    text, name, candidates, plants, seed, svo = spec
+    sweep = _cached(("tune",) + spec, lambda: TuneSweep(
+        PlantFile.from_text(text, name), candidates, plants, seed, svo))
+    return sweep.run_unit(*unit)
+
+
+@ray.remote(max_retries=MAX_RETRIES)
+def _rheology_unit(spec: Tuple[Optional[str], Optional[Tuple[str, str]], int, str],
+                   genes: List[List[float]]) -> List[float]:
+    text, measured, params, name = spec
+    problem = _cached(("rheology",) + spec, lambda: RheologyProblem(text, measured, params, name))
+    return problem.scores(genes)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class LocalCluster:
+    """A Ray cluster of ``raylets`` raylets on this machine, each a
+    ``ray start --block`` process in a process group of its own (the
+    head first, the others joining it), ``cpus`` CPUs each. Used as a
+    context manager; leaving it signals those process groups only (not
+    ``ray stop``, which would end every Ray process of the machine)."""
+
+    def __init__(self, raylets: int = 2, cpus: int = 1, timeout_s: float = 60.0):
+        self.raylets, self.cpus, self.timeout_s = raylets, cpus, timeout_s
+        self.address = f"127.0.0.1:{_free_port()}"
+        self._procs: List[subprocess.Popen] = []
+
+    def _start(self, *args: str) -> None:
+        ray_bin = os.path.join(os.path.dirname(sys.executable), "ray")
+        self._procs.append(subprocess.Popen(
+            [ray_bin, "start", *args, "--num-cpus", str(self.cpus), "--block",
+             "--disable-usage-stats", "--dashboard-agent-listen-port", str(_free_port())],
+            env=dict(os.environ, RAY_USAGE_STATS_ENABLED="0"), start_new_session=True,
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+
+    def _alive(self) -> int:
+        return sum(1 for n in ray.nodes() if n["Alive"])
+
+    def __enter__(self) -> "LocalCluster":
+        deadline = time.time() + self.timeout_s
+        try:
+            self._start("--head", "--port", self.address.split(":")[1],
+                        "--include-dashboard", "false")
+            while True:
+                try:
+                    ray.init(address=self.address, log_to_driver=False)
+                    break
+                except ConnectionError:
+                    if time.time() > deadline:
+                        raise
+                    time.sleep(0.5)
+            for _ in range(self.raylets - 1):
+                self._start("--address", self.address)
+            while self._alive() < self.raylets:
+                if time.time() > deadline:
+                    raise TimeoutError(f"{self._alive()} of {self.raylets} raylets up "
+                                       f"after {self.timeout_s} s")
+                time.sleep(0.2)
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if ray.is_initialized():
+            ray.shutdown()
+        for p in reversed(self._procs):
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        for p in self._procs:
+            try:
+                p.wait(timeout=1)
+            except subprocess.TimeoutExpired:
+                pass
+            # What `ray start` left in its group (it waits tens of seconds
+            # for its processes' graceful exit; the cluster is ours and
+            # holds nothing to keep).
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            p.wait()
+        self._procs.clear()
+
+
+def connect(address: Optional[str] = None) -> None:
+    """Joins the cluster at ``address`` (``None``: ``RAY_ADDRESS`` or a
+    local one) unless this process is already connected."""
+    if not ray.is_initialized():
+        ray.init(address=address, log_to_driver=False, include_dashboard=False)
+
+
+def _gather(refs: Sequence[ray.ObjectRef], on_done: Optional[Callable[[int, int], None]] = None) -> list:
+    """The tasks' results in submission order; Ctrl-C cancels them."""
+    try:
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            if on_done is not None:
+                on_done(len(refs) - len(pending), len(refs))
+        return ray.get(list(refs))
+    except KeyboardInterrupt:
+        for r in refs:
+            ray.cancel(r, force=True)
+        raise
+
+
+def tune_units(sweep: TuneSweep, plant: PlantFile, address: Optional[str] = None,
+               unit: int = TUNE_UNIT_CANDIDATES,
+               on_progress: Optional[Callable[[int, int], None]] = None) -> List[str]:
+    """Runs ``sweep``'s units (on ``plant``) as Ray tasks; returns their
+    results for ``sweep.reduce`` or ``sweep.merge``."""
+    connect(address)
+    req = sweep.request()
+    spec = ray.put((plant.text, plant.name) + tuple(req))
+    refs = [_tune_unit.remote(spec, u) for u in sweep.units(unit)]
+    return _gather(refs, on_progress)
+
+
+def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
+         search_v_offset: bool = False, address: Optional[str] = None,
+         unit: int = TUNE_UNIT_CANDIDATES,
+         on_progress: Optional[Callable[[int, int], None]] = None) -> dict:
+    """``softjoint tune`` with its units as Ray tasks; returns what
+    ``softjoint.tune`` returns (the gains file as a dict under
+    ``gains``)."""
+    sweep = TuneSweep(plant, candidates, plants, seed, search_v_offset)
+    return json.loads(sweep.reduce(tune_units(sweep, plant, address, unit, on_progress)))
+
+
+def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] = None,
+                       params: int = 4, method: str = "ga", evaluations: int = 1000,
+                       seed: int = 1, address: Optional[str] = None,
+                       unit: int = RHEOLOGY_UNIT_CANDIDATES) -> dict:
+    """``softjoint rheology calibrate`` with each batch the search asks
+    for (a GA generation, RA's probes) cut into units and run as Ray
+    tasks; returns its ``--json`` summary as a dict."""
+    connect(address)
+    problem = rheology_problem(scenario, measured, params)
+    text = None if scenario is None else open(scenario, encoding="utf-8").read()
+    m = None
+    if measured is not None:
+        m = tuple(open(os.path.join(measured, f), encoding="utf-8").read()
+                  for f in ("surface_points.csv", "forces.csv"))
+    name = "scenario" if scenario is None else os.fspath(scenario)
+    spec = ray.put((text, m, params, name))
+
+    def evaluate_batch(batch: List[List[float]]) -> List[float]:
+        refs = [_rheology_unit.remote(spec, batch[a:b]) for a, b in rheology_units(len(batch), unit)]
+        return [s for part in _gather(refs) for s in part]
+
+    return json.loads(problem.calibrate(method, evaluations, seed, evaluate_batch))
+
+
+def _progress() -> Optional[Callable[[int, int], None]]:
+    """A line on standard error, units done of all, when it is a
+    terminal (as the program's progress bars)."""
+    if not sys.stderr.isatty():
+        return None
+
+    def show(done: int, total: int) -> None:
+        end = "\n" if done == total else ""
+        print(f"\rtune on Ray: {done}/{total} units", end=end, file=sys.stderr, flush=True)
+
+    return show
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m softjoint.ray_sweep",
+                                description="softjoint sweeps on a Ray cluster")
+    sub = p.add_subparsers(dest="command", required=True)
+    t = sub.add_parser("tune", help="softjoint tune with its units on Ray")
+    t.add_argument("plant")
+    t.add_argument("--candidates", type=int, default=1000)
+    t.add_argument("--plants", type=int, default=20)
+    t.add_argument("--seed", type=int, default=1)
+    t.add_argument("--search-v-offset", action="store_true")
+    t.add_argument("--address", default=None)
+    t.add_argument("--unit", type=int, default=TUNE_UNIT_CANDIDATES)
+    t.add_argument("--units-out", help="write the scored candidates here (TOML) for "
+                   "`softjoint tune --ray` to reduce, instead of reducing")
+    r = sub.add_parser("rheology", help="softjoint rheology calibrate with its batches on Ray")
+    r.add_argument("scenario", nargs="?")
+    r.add_argument("--measured")
+    r.add_argument("--params", type=int, default=4)
+    r.add_argument("--method", default="ga", choices=["ga", "ra", "uniform"])
+    r.add_argument("--evaluations", type=int, default=1000)
+    r.add_argument("--seed", type=int, default=1)
+    r.add_argument("--address", default=None)
+    r.add_argument("--unit", type=int, default=RHEOLOGY_UNIT_CANDIDATES)
+    a = p.parse_args(argv)
+    try:
+        if a.command == "tune" and a.units_out:
+            plant = load_plant(a.plant)
+            sweep = TuneSweep(plant, a.candidates, a.plants, a.seed, a.search_v_offset)
+            merged = sweep.merge(tune_units(sweep, plant, a.address, a.unit, _progress()))
+            with open(a.units_out, "w", encoding="utf-8") as f:
+                f.write(merged)
+            return 0
+        if a.command == "tune":
+            out = tune(load_plant(a.plant), a.candidates, a.plants, a.seed,
+                       a.search_v_offset, a.address, a.unit, _progress())
+        else:
+            out = rheology_calibrate(a.scenario, a.measured, a.params, a.method,
+                                     a.evaluations, a.seed, a.address, a.unit)
+    except KeyboardInterrupt:
+        print("stopped: the sweep's tasks on the cluster were cancelled", file=sys.stderr)
+        return 130
+    json.dump(out, sys.stdout, indent=2, sort_keys=True)
+    print()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

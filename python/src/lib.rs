@@ -1,0 +1,31 @@
+//! `softjoint._native`: the Python package's door into the workspace's
+//! own code. Every function here hands its inputs to host-tools or
+//! plant-rheology — the code the `softjoint` program runs — and hands
+//! their results back: the joint's closed loop with its trace as NumPy
+//! arrays, the tuning cost of one candidate on one plant, the rheology
+//! objective, and the sweeps (`tune`, rheology calibration) as work units
+//! and a reduction. Nothing is modelled here.
+//!
+//! Errors: every Rust error becomes a Python exception of the hierarchy
+//! in [`errors`], carrying the error's whole message (its context chain,
+//! as the program prints it). Results pass the program's own output
+//! checks: a trace row with a non-finite value, or a summary with one,
+//! raises `NonFiniteError` instead of handing back a NaN.
+//!
+//! Left out (issue 33 goes on): plant and gains files written from
+//! Python, identification, push, viscoelastic, rope and contour fits.
+
+use pyo3::prelude::*;
+
+mod errors;
+mod joint;
+mod rheology;
+
+/// The module.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    errors::register(m)?;
+    joint::register(m)?;
+    rheology::register(m)?;
+    Ok(())
+}
