@@ -67,7 +67,7 @@ def timed(f):
 
 def measure(args):
     plant = softjoint.load_plant(REPO / "scenarios/identify/plant.toml")
-    scen = str(REPO / "scenarios/rheology-small.toml")
+    scen = str(REPO / "scenarios/rheology/small.toml")
     out = {}
     # Work per unit, in this process.
     sweep = softjoint.TuneSweep(plant, 2, args.plants, 1)

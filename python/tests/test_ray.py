@@ -78,7 +78,7 @@ def test_the_programs_tune_with_ray_writes_the_gains_of_its_own_run(cluster, sof
 
 
 def test_two_raylets_calibrate_the_lattice_as_the_program_does(cluster, softjoint_bin, data, tmp_path):
-    scen = data / "rheology-small.toml"
+    scen = data / "rheology/small.toml"
     cli = cli_json(softjoint_bin, "rheology", "calibrate", scen, "--evaluations", 40,
                    "--seed", 3, "--out", tmp_path / "o", "--json")
     got = ray_sweep.rheology_calibrate(str(scen), None, 4, "ga", 40, 3, unit=3)

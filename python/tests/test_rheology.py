@@ -14,7 +14,7 @@ def measured(softjoint_bin, data, tmp_path_factory):
     """A measured push: the reference block of the small scenario, pushed
     and recorded by the program."""
     d = tmp_path_factory.mktemp("measured")
-    run_cli(softjoint_bin, "rheology", "simulate", data / "rheology-small.toml",
+    run_cli(softjoint_bin, "rheology", "simulate", data / "rheology/small.toml",
             "--model", "reference", "--out", d, "--json")
     return d
 
@@ -23,9 +23,9 @@ def test_the_objective_is_the_clis_score(softjoint_bin, data, measured, tmp_path
     params = tmp_path / "params.toml"
     params.write_text("[all]\nk_gf_per_cm2 = 800.0\nc1_gfs_per_cm2 = 5000.0\n"
                       "c2_gfs_per_cm2 = 9000.0\na = 0.45\n")
-    cli = cli_json(softjoint_bin, "rheology", "simulate", data / "rheology-small.toml",
+    cli = cli_json(softjoint_bin, "rheology", "simulate", data / "rheology/small.toml",
                    "--params", params, "--measured", measured, "--out", tmp_path / "o", "--json")
-    problem = softjoint.rheology_problem(data / "rheology-small.toml", measured, 4)
+    problem = softjoint.rheology_problem(data / "rheology/small.toml", measured, 4)
     assert [r[0] for r in problem.ranges()] == [
         "all.k_gf_per_cm2", "all.c1_gfs_per_cm2", "all.c2_gfs_per_cm2", "all.a"]
     assert problem.objective(GENES) == cli["score"]["s"]
@@ -34,7 +34,7 @@ def test_the_objective_is_the_clis_score(softjoint_bin, data, measured, tmp_path
 
 @pytest.mark.parametrize("with_measured", [True, False])
 def test_a_calibration_is_the_clis(softjoint_bin, data, measured, tmp_path, with_measured):
-    scen = data / "rheology-small.toml"
+    scen = data / "rheology/small.toml"
     extra = ["--measured", measured] if with_measured else []
     cli = cli_json(softjoint_bin, "rheology", "calibrate", scen, *extra, "--evaluations", 30,
                    "--seed", 3, "--out", tmp_path / "o", "--json")
@@ -55,8 +55,8 @@ def test_a_calibration_is_the_clis(softjoint_bin, data, measured, tmp_path, with
 
 def test_rheology_errors_are_typed(data):
     with pytest.raises(softjoint.InputError, match="4, 8 or 16"):
-        softjoint.rheology_problem(data / "rheology-small.toml", None, 5)
-    problem = softjoint.rheology_problem(data / "rheology-small.toml", None, 4)
+        softjoint.rheology_problem(data / "rheology/small.toml", None, 5)
+    problem = softjoint.rheology_problem(data / "rheology/small.toml", None, 4)
     with pytest.raises(softjoint.InputError, match="expected 4 values"):
         problem.objective([1.0, 2.0])
     with pytest.raises(softjoint.InputError, match="method"):
@@ -80,7 +80,7 @@ def test_an_unstable_lattice_is_an_unstable_error_with_the_programs_words(softjo
     UnstableError with the same words, and the search's scores count it
     as +inf (an unstable candidate), not NaN."""
     scen = tmp_path / "explicit.toml"
-    scen.write_text((data / "rheology-small.toml").read_text().replace(
+    scen.write_text((data / "rheology/small.toml").read_text().replace(
         "[model]\ndt_ms = 10.0", "[model]\ndt_ms = 10.0\nintegrator = \"explicit_euler\"", 1))
     cli = run_cli(softjoint_bin, "rheology", "simulate", scen, "--out", tmp_path / "o", "--json",
                   ok=False)

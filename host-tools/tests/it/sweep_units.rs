@@ -9,7 +9,7 @@
 //! ```text
 //! softjoint tune scenarios/identify/plant.toml --candidates 9 --plants 2 --seed 5 \
 //!     --search-v-offset --allow-unproven -o tune-9x2-seed5.before-units.toml
-//! softjoint rheology calibrate scenarios/rheology-small.toml --evaluations 40 \
+//! softjoint rheology calibrate scenarios/rheology/small.toml --evaluations 40 \
 //!     --seed 3 [--method ra] --out DIR --json
 //! ```
 use std::path::Path;
@@ -79,7 +79,7 @@ fn rheology_calibration_on_units_reports_what_it_did_before() {
         let o = softjoint_at_root(&[
             "rheology",
             "calibrate",
-            "scenarios/rheology-small.toml",
+            "scenarios/rheology/small.toml",
             "--method",
             method,
             "--evaluations",
