@@ -39,7 +39,7 @@ as_root() {
 # The images' target, and the three the core library is held to (issue
 # 32): Cortex-M0+ (no FPU), Cortex-M33, RISC-V.
 core_targets=(thumbv6m-none-eabi thumbv8m.main-none-eabihf riscv32imac-unknown-none-elf)
-step "install: thumbv7em-none-eabihf and the core's targets (${core_targets[*]}), clippy, qemu-system-arm"
+step "install: thumbv7em-none-eabihf and the core's targets (${core_targets[*]}), clippy, qemu-system-arm, python3-venv"
 for t in thumbv7em-none-eabihf "${core_targets[@]}"; do
     rustup target list --installed | grep -qx "$t" || rustup target add "$t"
 done
@@ -50,6 +50,13 @@ if ! command -v qemu-system-arm >/dev/null; then
     # other machines, speech data) are hundreds of MB this suite never uses.
     as_root env DEBIAN_FRONTEND=noninteractive \
         apt-get install -y --no-install-recommends qemu-system-arm
+fi
+# The Python stage's virtual environment needs venv and ensurepip, which
+# Debian ships apart (python3-venv).
+if ! python3 -c 'import ensurepip, venv' 2>/dev/null; then
+    as_root apt-get update
+    as_root env DEBIAN_FRONTEND=noninteractive \
+        apt-get install -y --no-install-recommends python3-venv
 fi
 qemu-system-arm --version | head -1
 

@@ -181,10 +181,9 @@ pub fn pty_pair() -> serialport::Result<(TTYPort, TTYPort, String)> {
         // end; neither is wanted (the slave's path is opened again by the
         // program under test), so both are released at once.
         let master = TTYPort::from_raw_fd(master.into_raw_fd());
-        let mut slave = TTYPort::from_raw_fd(slave.into_raw_fd());
+        let slave = TTYPort::from_raw_fd(slave.into_raw_fd());
         unlock(&master);
         unlock(&slave);
-        let _ = slave.set_timeout(Duration::from_millis(100));
         Ok((master, slave, path))
     }
 }
