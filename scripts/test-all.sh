@@ -16,19 +16,36 @@ started=$(date +%s)
 stage_started=$started
 stage_name=""
 stages=""
+# CPU seconds (user + system) of every finished child so far, from bash's
+# `times`: a stage's CPU beside its wall time shows whether it waits (on
+# QEMU, ptys, the network) or computes, which is what decides whether
+# running it beside another stage can gain anything on 2 cores.
+cpu_file=$(mktemp)
+read_cpu() {
+    # `times` in this shell, not in a command substitution's subshell
+    # (whose children's times start at zero).
+    times >"$cpu_file"
+    cpu_now=$(awk 'NR == 2 { split($0, f, /[ ms]+/); print int(f[1] * 60 + f[2] + f[3] * 60 + f[4]) }' "$cpu_file")
+}
+read_cpu
+cpu_started=$cpu_now
 step() {
     local now
     now=$(date +%s)
+    read_cpu
     if [ -n "$stage_name" ]; then
-        stages+=$(printf '%5d s  %s\n' $((now - stage_started)) "$stage_name")$'\n'
+        stages+=$(printf '%5d s %6d CPU-s  %s\n' $((now - stage_started)) $((cpu_now - cpu_started)) "$stage_name")$'\n'
     fi
     stage_name="$1"
     stage_started=$now
+    cpu_started=$cpu_now
     printf '\n==> [%d s] %s\n' $((now - started)) "$*"
 }
 finish() {
     step "done"
-    printf '\nstage times:\n%s%5d s  in all\n' "$stages" $(($(date +%s) - started))
+    printf '\nstage times (wall, and CPU of the stage'"'"'s processes):\n%s%5d s %6d CPU-s  in all\n' \
+        "$stages" $(($(date +%s) - started)) "$cpu_now"
+    rm -f "$cpu_file"
 }
 
 as_root() {
