@@ -77,41 +77,72 @@ if ! python3 -c 'import ensurepip, venv' 2>/dev/null; then
 fi
 qemu-system-arm --version | head -1
 
-step "firmware images: thumbv7em with and without defmt, the step probe, the STM32F4 board images"
-cargo build -p firmware --release --target thumbv7em-none-eabihf --locked --bins
-cargo build -p firmware --release --target thumbv7em-none-eabihf --features defmt --locked
-# Built from its directory: its .cargo/config.toml sets the thumb target,
-# the shared target/ directory and the probe-rs runner.
-(cd firmware/stm32f4 && cargo build --release --locked)
-llvm-size target/thumbv7em-none-eabihf/release/softjoint-fw \
-    target/thumbv7em-none-eabihf/release/step-probe \
-    target/thumbv7em-none-eabihf/release/softjoint-stm32f4 \
-    target/thumbv7em-none-eabihf/release/softjoint-stm32f4-qemu 2>/dev/null || true
+# Background jobs (the lints and images, the pip install, the joint's
+# twins) are killed if the script stops early.
+bg_pids=()
+trap 'for p in "${bg_pids[@]}"; do kill "$p" 2>/dev/null || true; done' EXIT
+# Waits for background job $1 whose output went to file $2, prints that
+# output under the heading $3 and fails the script if the job failed.
+wait_job() {
+    local rc=0
+    wait "$1" || rc=$?
+    printf -- '--- %s ---\n' "$3"
+    cat "$2"
+    rm -f "$2"
+    if [ "$rc" -ne 0 ]; then
+        echo "$3: failed (exit $rc)" >&2
+        exit 1
+    fi
+}
 
-step "clippy -D warnings: host (every crate, every target) and thumb"
-cargo clippy --workspace --all-targets --locked -- -D warnings
-cargo clippy -p firmware --target thumbv7em-none-eabihf --lib --bins --locked -- -D warnings
-cargo clippy -p firmware --target thumbv7em-none-eabihf --features defmt --lib --bins --locked -- -D warnings
-(cd firmware/stm32f4 && cargo clippy --release --lib --bins --locked -- -D warnings)
-
-step "the core library on ${core_targets[*]}: build and clippy -D warnings (the library only; the per-target images and their figures: docs/benchmarks.md)"
-for t in "${core_targets[@]}"; do
-    cargo build -p firmware --lib --target "$t" --locked
-    cargo clippy -p firmware --lib --target "$t" --locked -- -D warnings
-done
-
-step "the core's 3D control step in the Cortex-M4F image under QEMU"
-timeout 60 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -icount shift=0 \
-    -semihosting-config enable=on,target=native \
-    -kernel target/thumbv7em-none-eabihf/release/step-probe
-echo "step-probe exited 0 (every output bounded, no fault)"
+# The images, clippy and the core's other targets build in cargo's
+# `release` and `dev` build directories while the host tests build in
+# `ci-opt`'s: cargo locks each apart, so the two run at once and fill each
+# other's idle time (a build's serial tail, linking one binary at a time).
+# The images are needed from the #[ignore]d stage on, the lints only for
+# the verdict.
+step "in parallel: the host tests' build (profile ci-opt); the firmware images, clippy -D warnings on host and thumb, the core on ${core_targets[*]}, the control step under QEMU"
+lint_log=$(mktemp)
+(
+    set -euo pipefail
+    # Below the host build (the longer path) and the host tests (some keep
+    # time), above the joint's twins.
+    renice -n 10 -p "$BASHPID" >/dev/null
+    echo "== firmware images: thumbv7em with and without defmt, the step probe, the STM32F4 board images"
+    cargo build -p firmware --release --target thumbv7em-none-eabihf --locked --bins
+    cargo build -p firmware --release --target thumbv7em-none-eabihf --features defmt --locked
+    # Built from its directory: its .cargo/config.toml sets the thumb
+    # target, the shared target/ directory and the probe-rs runner.
+    (cd firmware/stm32f4 && cargo build --release --locked)
+    llvm-size target/thumbv7em-none-eabihf/release/softjoint-fw \
+        target/thumbv7em-none-eabihf/release/step-probe \
+        target/thumbv7em-none-eabihf/release/softjoint-stm32f4 \
+        target/thumbv7em-none-eabihf/release/softjoint-stm32f4-qemu 2>/dev/null || true
+    echo "== the core's 3D control step in the Cortex-M4F image under QEMU"
+    timeout 60 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -icount shift=0 \
+        -semihosting-config enable=on,target=native \
+        -kernel target/thumbv7em-none-eabihf/release/step-probe
+    echo "step-probe exited 0 (every output bounded, no fault)"
+    echo "== clippy -D warnings: host (every crate, every target) and thumb"
+    cargo clippy --workspace --all-targets --locked -- -D warnings
+    cargo clippy -p firmware --target thumbv7em-none-eabihf --lib --bins --locked -- -D warnings
+    cargo clippy -p firmware --target thumbv7em-none-eabihf --features defmt --lib --bins --locked -- -D warnings
+    (cd firmware/stm32f4 && cargo clippy --release --lib --bins --locked -- -D warnings)
+    echo "== the core library on ${core_targets[*]}: build and clippy -D warnings (the library only; the per-target images and their figures: docs/benchmarks.md)"
+    for t in "${core_targets[@]}"; do
+        cargo build -p firmware --lib --target "$t" --locked
+        cargo clippy -p firmware --lib --target "$t" --locked -- -D warnings
+    done
+) >"$lint_log" 2>&1 &
+lint_pid=$!
+bg_pids+=("$lint_pid")
 
 # Libraries, binaries and integration tests: one build. (Examples are
-# checked by clippy above; the crates have no doc tests.)
+# checked by clippy; the crates have no doc tests.)
 targets=(--workspace --lib --bins --tests --locked --profile ci-opt)
 
-# The Python stage's packages (issue 33) download and unpack while the host
-# tests build: the install is mostly waiting on the network and the disk.
+# The Python stage's packages (issue 33) download and unpack meanwhile:
+# the install is mostly waiting on the network and the disk.
 venv=target/python-venv
 pip_log=$(mktemp)
 (
@@ -119,20 +150,18 @@ pip_log=$(mktemp)
     "$venv/bin/pip" install -q --disable-pip-version-check maturin numpy pytest ray
 ) >"$pip_log" 2>&1 &
 pip_pid=$!
+bg_pids+=("$pip_pid")
 
-step "build the host tests (profile ci-opt)"
 cargo test "${targets[@]}" --no-run
 
-step "tests: unit, property, closed-loop, pty and CLI (host)"
-cargo test "${targets[@]}"
-
-step "the checks that need the optimised build or QEMU (every #[ignore]d test): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; the 10-minute identification twins; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image"
-# The joint's identification twins are long and CPU-bound, while the QEMU
-# checks mostly wait on round trips: the twins run beside the rest, from
-# their binaries directly (a second cargo would wait for the first's lock
-# on the build directory for as long as its tests run).
-# Their paths come from the workspace build above (built alone, plant-joint
-# would resolve other features and build again).
+# The joint's identification twins (#[ignore]d: ten-minute logs, minutes
+# of CPU on both cores, waiting on nothing) start now, from their binaries
+# (a second cargo would wait for the lock on the build directory while
+# another cargo runs tests), at the lowest priority: they take the CPU
+# time the other stages leave (the CLI tests wait on their children, the
+# QEMU checks on round trips, the Python tests on Ray) without slowing
+# the checks that keep time. Their paths come from the workspace build
+# (built alone, plant-joint would resolve other features and build again).
 mapfile -t joint_tests < <(cargo test "${targets[@]}" --no-run --message-format=json 2>/dev/null |
     python3 -c '
 import json, sys
@@ -145,34 +174,28 @@ for line in sys.stdin:
 joint_log=$(mktemp)
 (
     cd plant-models/joint
-    for t in "${joint_tests[@]}"; do "$t" --ignored || exit 1; done
+    for t in "${joint_tests[@]}"; do nice -n 19 "$t" --ignored || exit 1; done
 ) >"$joint_log" 2>&1 &
 joint_pid=$!
-trap 'kill "$joint_pid" 2>/dev/null || true' EXIT
-rest=0
-cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite:: || rest=$?
-joint=0
-wait "$joint_pid" || joint=$?
-trap - EXIT
-echo "--- plant-joint's ignored checks (run beside the others) ---"
-cat "$joint_log"
-rm -f "$joint_log"
-if [ "$rest" -ne 0 ] || [ "$joint" -ne 0 ]; then
-    echo "ignored checks failed: plant-joint exit $joint, the others exit $rest" >&2
-    exit 1
-fi
-step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images (one at a time: they signal process groups); the console's excitation session on a real-time pty board"
-# With them, the console's excitation session on a pty board that steps its
-# plant by the wall clock: it loses telemetry beside the joint twins.
-cargo test "${targets[@]}" -- --ignored hil_qemu_cli:: console_excite:: --test-threads 1
+bg_pids+=("$joint_pid")
+
+step "tests: unit, property, closed-loop, pty and CLI (host; the joint's twins at low priority beside them)"
+cargo test "${targets[@]}"
+
+step "the firmware images, clippy and the core's targets (if still running)"
+wait_job "$lint_pid" "$lint_log" "firmware images, clippy, the core's targets"
+
+step "the checks that need the optimised build or QEMU (every #[ignore]d test but the joint's twins): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image"
+cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite::
 
 # The Python package (issue 33), in a virtual environment of its own
 # under target/: the wheel built from the workspace crate python/ in the
-# ci-opt profile into the workspace's target directory, its pytest suite
-# compared with the program built above (SOFTJOINT_BIN), and a local Ray
-# cluster of two raylets (separate `ray start` processes) that the tests
-# start and stop: a tune and a rheology calibration equal to the
-# program's, a worker killed mid-sweep, Ctrl-C.
+# ci-opt profile into the workspace's target directory (python/Cargo.toml
+# asks for the workspace build's features, so only pyo3's chain and the
+# module compile), its pytest suite compared with the program built above
+# (SOFTJOINT_BIN), and a local Ray cluster of two raylets (separate `ray
+# start` processes) that the tests start and stop: a tune and a rheology
+# calibration equal to the program's, a worker killed mid-sweep, Ctrl-C.
 step "the Python package: wheel (maturin, ci-opt), pytest against the program, two Ray raylets"
 if ! wait "$pip_pid"; then
     cat "$pip_log" >&2
@@ -186,4 +209,14 @@ rm -f "$pip_log"
     target/wheels/softjoint-0.1.0-*.whl
 SOFTJOINT_BIN=target/ci-opt/softjoint "$venv/bin/python" -m pytest -q python/tests
 
+step "the joint's identification twins: the 10-minute logs, the off-plan, true-prior and campaign twins (if still running)"
+wait_job "$joint_pid" "$joint_log" "plant-joint's #[ignore]d checks"
+
+step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images (one at a time: they signal process groups); the console's excitation session on a real-time pty board"
+# With them, the console's excitation session on a pty board that steps its
+# plant by the wall clock: it lost telemetry beside the joint twins, so it
+# runs after them.
+cargo test "${targets[@]}" -- --ignored hil_qemu_cli:: console_excite:: --test-threads 1
+
+trap - EXIT
 finish
