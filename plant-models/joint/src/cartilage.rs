@@ -47,7 +47,8 @@ pub struct CartilageParams {
     /// Depth out of the plane (m). Estimate: square pad, 22 mm.
     pub depth_m: f64,
     /// Number of columns across the width. 8 resolves the pressure
-    /// distribution well enough for a shifting centre; more costs time.
+    /// distribution well enough for a shifting centre (the step's cost
+    /// does not grow with it: the columns are summed by moments).
     pub columns: usize,
     /// Stiffness ratio r = k2/k1 (instantaneous over delayed spring).
     /// Estimate: 3 — foams are several times stiffer at impact than relaxed.
