@@ -290,19 +290,32 @@ impl SmaParams {
     /// with the step and squeezed 80 % of the heating transformation into
     /// the first 2.5 K of the 10 K A_s–A_f band.)
     ///
-    /// The residual `T − t_sensible − (ΔH/c)(ξ(T) − ξ_old)` is strictly
-    /// increasing in `T` and changes sign between `t_old` and `t_sensible`
-    /// (the latent heat slows a temperature change but cannot reverse it),
-    /// so the root is bracketed; it is found by the Illinois variant of
-    /// regula falsi to 1e-9 K.
+    /// The residual `r(T) = T − t_sensible − (ΔH/c)(ξ(T) − ξ_old)` is
+    /// strictly increasing in `T` and changes sign between `t_old` and
+    /// `t_sensible` (the latent heat slows a temperature change but cannot
+    /// reverse it), so the root is bracketed; it is found by the Illinois
+    /// variant of regula falsi to [`LATENT_HEAT_TOLERANCE_K`]. Since ξ(T)
+    /// never rises with `T` (on either branch, and across `t_old` where
+    /// they meet at ξ_old), `r` rises at least as fast as `T`: |T − T*| ≤
+    /// |r(T)| for the root T*, so the search stops at the first iterate
+    /// whose residual is within the tolerance (or once the bracket is).
     pub fn settle_latent_heat(&self, t_old: f64, xi_old: f64, t_sensible: f64) -> (f64, f64) {
-        self.settle_latent_heat_with(&self.phase_shape(), t_old, xi_old, t_sensible, [0.0; 2])
+        self.settle_latent_heat_with(
+            &self.phase_shape(),
+            t_old,
+            xi_old,
+            t_sensible,
+            [0.0; 2],
+            &mut ShapeCache::default(),
+        )
     }
 
     /// [`Self::settle_latent_heat`] with the branch constants precomputed.
     /// Most steps end outside the transformation bands with ξ unchanged:
     /// that is settled here, inline, and only the rest goes to
     /// [`Self::settle_latent_heat_solve`] (which finds the same ξ first).
+    /// `cache` carries the branch shapes at the temperature a search ended
+    /// at to the next step, which starts there.
     #[inline(always)]
     fn settle_latent_heat_with(
         &self,
@@ -311,16 +324,21 @@ impl SmaParams {
         xi_old: f64,
         t_sensible: f64,
         shift_k: [f64; 2],
+        cache: &mut ShapeCache,
     ) -> (f64, f64) {
         let outside =
             self.phase_update_outside_bands(t_old - shift_k[0], xi_old, t_sensible - shift_k[1]);
         match outside {
             Some(xi) if xi == xi_old || self.latent_rise_k() == 0.0 => (t_sensible, xi),
-            _ => self.settle_latent_heat_solve(shape, t_old, xi_old, t_sensible, shift_k),
+            _ => self.settle_latent_heat_solve(shape, t_old, xi_old, t_sensible, shift_k, cache),
         }
     }
 
-    /// [`Self::settle_latent_heat_with`] in full.
+    /// [`Self::settle_latent_heat_with`] in full: the search, starting
+    /// from the branch shapes at the step's start if `cache` holds them
+    /// (a search ended there), and leaving those at its end in `cache`.
+    /// The shapes are functions of the effective temperature alone, so a
+    /// cached one is, to the bit, what evaluating it again would give.
     #[inline(never)]
     fn settle_latent_heat_solve(
         &self,
@@ -329,7 +347,29 @@ impl SmaParams {
         xi_old: f64,
         t_sensible: f64,
         shift_k: [f64; 2],
+        cache: &mut ShapeCache,
     ) -> (f64, f64) {
+        let t_from = t_old - shift_k[0];
+        let from = cache.at(t_from);
+        let (t, xi, at) =
+            self.settle_latent_heat_search(shape, from, t_old, xi_old, t_sensible, shift_k);
+        cache.store(t - shift_k[1], at);
+        (t, xi)
+    }
+
+    /// [`Self::settle_latent_heat_solve`]'s search, from the branch shapes
+    /// `from` at the step's start (those known); returns the temperature,
+    /// ξ there and the branch shapes evaluated there.
+    #[inline(always)]
+    fn settle_latent_heat_search(
+        &self,
+        shape: &PhaseShape,
+        mut from: PhaseFrom,
+        t_old: f64,
+        xi_old: f64,
+        t_sensible: f64,
+        shift_k: [f64; 2],
+    ) -> (f64, f64, PhaseFrom) {
         // The phase law on the effective temperature T − s·σ: `shift_k` is
         // s·σ at the start and at the end of the step ([0, 0] without the
         // stress dependence, where the subtractions are exact). Every
@@ -337,40 +377,45 @@ impl SmaParams {
         // shapes there are computed once (`from`), and each temperature's
         // ξ is kept with its residual rather than evaluated again: the
         // same operations on the same values as evaluating afresh.
-        let mut from = PhaseFrom::default();
         let mut xi_at = |t: f64| {
-            self.phase_update_from(shape, &mut from, t_old - shift_k[0], xi_old, t - shift_k[1])
+            let mut at = PhaseFrom::default();
+            let t_to = t - shift_k[1];
+            let xi =
+                self.phase_update_from(shape, &mut from, t_old - shift_k[0], xi_old, t_to, &mut at);
+            (xi, at)
         };
-        let xi_sensible = xi_at(t_sensible);
+        let (xi_sensible, at_sensible) = xi_at(t_sensible);
         let l = self.latent_rise_k();
         if xi_sensible == xi_old || l == 0.0 {
-            return (t_sensible, xi_sensible);
+            return (t_sensible, xi_sensible, at_sensible);
         }
         let residual = |t: f64, xi: f64| t - t_sensible - l * (xi - xi_old);
         // Bracket [lo, hi] with residual(lo) < 0 < residual(hi).
-        let (mut lo, mut hi, xi_lo, xi_hi) = if t_sensible > t_old {
-            (t_old, t_sensible, xi_at(t_old), xi_sensible)
+        let ((mut lo, xi_lo, at_lo), (mut hi, xi_hi, at_hi)) = if t_sensible > t_old {
+            let (xi, at) = xi_at(t_old);
+            ((t_old, xi, at), (t_sensible, xi_sensible, at_sensible))
         } else {
-            (t_sensible, t_old, xi_sensible, xi_at(t_old))
+            let (xi, at) = xi_at(t_old);
+            ((t_sensible, xi_sensible, at_sensible), (t_old, xi, at))
         };
         let (mut r_lo, mut r_hi) = (residual(lo, xi_lo), residual(hi, xi_hi));
         if r_lo >= 0.0 {
-            return (lo, xi_lo);
+            return (lo, xi_lo, at_lo);
         }
         if r_hi <= 0.0 {
-            return (hi, xi_hi);
+            return (hi, xi_hi, at_hi);
         }
         let mut side = 0i8;
         let mut t = 0.5 * (lo + hi);
-        let mut xi = xi_old;
+        let (mut xi, mut at) = (xi_old, PhaseFrom::default());
         for _ in 0..60 {
             t = (lo * r_hi - hi * r_lo) / (r_hi - r_lo);
             if !(t > lo && t < hi) {
                 t = 0.5 * (lo + hi);
             }
-            xi = xi_at(t);
+            (xi, at) = xi_at(t);
             let r = residual(t, xi);
-            if r == 0.0 || hi - lo < 1e-9 {
+            if r.abs() <= LATENT_HEAT_TOLERANCE_K || hi - lo < LATENT_HEAT_TOLERANCE_K {
                 break;
             }
             if r < 0.0 {
@@ -389,7 +434,7 @@ impl SmaParams {
                 side = 1;
             }
         }
-        (t, xi)
+        (t, xi, at)
     }
 
     /// One Liang–Rogers phase update from (`t_old`, `xi_old`) to `t_new`.
@@ -404,12 +449,21 @@ impl SmaParams {
     /// bit-identical.
     #[inline]
     fn phase_update_with(&self, shape: &PhaseShape, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
-        self.phase_update_from(shape, &mut PhaseFrom::default(), t_old, xi_old, t_new)
+        let mut at = PhaseFrom::default();
+        self.phase_update_from(
+            shape,
+            &mut PhaseFrom::default(),
+            t_old,
+            xi_old,
+            t_new,
+            &mut at,
+        )
     }
 
     /// [`Self::phase_update_with`] keeping g_A(`t_old`) and g_M(`t_old`)
     /// in `from` once computed, for several updates from the same
-    /// (`t_old`, `xi_old`).
+    /// (`t_old`, `xi_old`); the shape it evaluates at `t_new` (if any)
+    /// goes to `at`.
     #[inline(always)]
     fn phase_update_from(
         &self,
@@ -418,6 +472,7 @@ impl SmaParams {
         t_old: f64,
         xi_old: f64,
         t_new: f64,
+        at: &mut PhaseFrom,
     ) -> f64 {
         if let Some(xi) = self.phase_update_outside_bands(t_old, xi_old, t_new) {
             return xi;
@@ -427,15 +482,17 @@ impl SmaParams {
             if g_old <= 0.0 {
                 return xi_old;
             }
-            (xi_old * self.g_heat(shape, t_new) / g_old)
-                .min(xi_old)
-                .clamp(0.0, 1.0)
+            let g_new = self.g_heat(shape, t_new);
+            at.heat = Some(g_new);
+            (xi_old * g_new / g_old).min(xi_old).clamp(0.0, 1.0)
         } else {
             let g_old = *from.cool.get_or_insert_with(|| self.g_cool(shape, t_old));
             if g_old <= 0.0 {
                 return xi_old;
             }
-            let aus = ((1.0 - xi_old) * self.g_cool(shape, t_new) / g_old).min(1.0 - xi_old);
+            let g_new = self.g_cool(shape, t_new);
+            at.cool = Some(g_new);
+            let aus = ((1.0 - xi_old) * g_new / g_old).min(1.0 - xi_old);
             (1.0 - aus).clamp(0.0, 1.0)
         }
     }
@@ -471,12 +528,49 @@ impl SmaParams {
     }
 }
 
+/// Accuracy of the temperature that settles the latent heat
+/// ([`SmaParams::settle_latent_heat`]): within this of the exact root (K).
+pub const LATENT_HEAT_TOLERANCE_K: f64 = 1e-9;
+
 /// The phase law's branch shapes at the start of a step, g_A(T_old) and
 /// g_M(T_old), once computed.
 #[derive(Clone, Copy, Debug, Default)]
 struct PhaseFrom {
     heat: Option<f64>,
     cool: Option<f64>,
+}
+
+/// The branch shapes at one effective temperature, kept by a coil from
+/// the end of one latent-heat search for the next step, which starts at
+/// that temperature. A cache, not state: coils that differ only in it are
+/// equal.
+#[derive(Clone, Copy, Debug, Default)]
+struct ShapeCache {
+    /// The effective temperature (its bits) and the shapes there.
+    held: Option<(u64, PhaseFrom)>,
+}
+
+impl ShapeCache {
+    /// The shapes held for `t_eff`, or none.
+    #[inline(always)]
+    fn at(&self, t_eff: f64) -> PhaseFrom {
+        match self.held {
+            Some((bits, from)) if bits == t_eff.to_bits() => from,
+            _ => PhaseFrom::default(),
+        }
+    }
+
+    /// Holds `shapes`, those at `t_eff`.
+    #[inline(always)]
+    fn store(&mut self, t_eff: f64, shapes: PhaseFrom) {
+        self.held = Some((t_eff.to_bits(), shapes));
+    }
+}
+
+impl PartialEq for ShapeCache {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 /// Constants of the phase law's cosine branches, π/(A_f − A_s) and
@@ -508,6 +602,8 @@ pub struct SmaCoil {
     /// shift of the transformation temperatures.
     shift_k: f64,
     next_shift_k: f64,
+    /// The branch shapes where the last latent-heat search ended.
+    shape_cache: ShapeCache,
 }
 
 /// The phase-mixed coil properties at one martensite fraction.
@@ -549,6 +645,7 @@ impl SmaCoil {
             current_a: 0.0,
             shift_k: 0.0,
             next_shift_k: 0.0,
+            shape_cache: ShapeCache::default(),
             params,
         };
         coil.refresh_mix();
@@ -688,6 +785,7 @@ impl SmaCoil {
                 xi_old,
                 t_sensible,
                 shift,
+                &mut self.shape_cache,
             );
             self.temperature_c = t_new;
             if xi_new != xi_old {
@@ -957,6 +1055,199 @@ mod tests {
             assert_eq!((t - t_old).signum(), (t_sensible - t_old).signum());
             assert!((t - t_old).abs() <= (t_sensible - t_old).abs());
         }
+    }
+
+    /// A coil carrying the branch shapes from one search to the next
+    /// step is, to the bit, a coil that evaluates them afresh every step:
+    /// heating through A_s–A_f and cooling through M_s–M_f at 1 ms with
+    /// the stress shift on, against the same steps through
+    /// `settle_latent_heat_with` with an empty cache each time.
+    #[test]
+    fn carried_branch_shapes_change_no_bit() {
+        let p = SmaParams {
+            stress_shift_k_per_mpa: 0.05,
+            ..SmaParams::default()
+        };
+        let mut c = SmaCoil::new(p.clone()).unwrap();
+        let (mut t, mut xi) = (p.ambient_c, 1.0);
+        let (g, mc) = (p.conductance_w_k(), p.heat_capacity_j_k());
+        let decay = (-1e-3 * g / mc).exp();
+        let mut shift = [0.0; 2];
+        let mut searched = 0;
+        for k in 0..60_000 {
+            let i = if k < 30_000 { 0.3 } else { 0.0 };
+            let tension = 1.0 + 0.5 * (k as f64 * 1e-3).sin();
+            c.set_tension_for_phase(tension);
+            c.step(1e-3, i, false);
+            let r = xi * p.resistance_ohm(1.0) + (1.0 - xi) * p.resistance_ohm(0.0);
+            let t_eq = p.ambient_c + if i == 0.0 { 0.0 } else { i * i * r / g };
+            let t_sensible = t_eq + (t - t_eq) * decay;
+            shift = [shift[1], 0.05 * tension / p.wire_area_m2() * 1e-6];
+            let shape = p.phase_shape();
+            let (t2, xi2) = p.settle_latent_heat_with(
+                &shape,
+                t,
+                xi,
+                t_sensible,
+                shift,
+                &mut ShapeCache::default(),
+            );
+            searched += usize::from(xi2 != xi);
+            (t, xi) = (t2, xi2);
+            assert_eq!(c.temperature_c().to_bits(), t.to_bits(), "step {k}");
+            assert_eq!(c.martensite_fraction().to_bits(), xi.to_bits(), "step {k}");
+        }
+        assert!(searched > 5000, "only {searched} steps transform");
+    }
+
+    /// The settled temperature by bisection of the energy balance on the
+    /// phase law as first written, to a bracket of 1e-13 K: a reference
+    /// that shares no code with the solver.
+    fn settle_by_bisection(
+        p: &SmaParams,
+        t_old: f64,
+        xi_old: f64,
+        t_sensible: f64,
+        shift_k: [f64; 2],
+    ) -> f64 {
+        let l = p.latent_heat_j_kg / p.specific_heat_j_kg_k;
+        let r = |t: f64| {
+            let xi = phase_update_reference(p, t_old - shift_k[0], xi_old, t - shift_k[1]);
+            t - t_sensible - l * (xi - xi_old)
+        };
+        let (mut lo, mut hi) = (t_old.min(t_sensible), t_old.max(t_sensible));
+        if r(lo) >= 0.0 {
+            return lo;
+        }
+        if r(hi) <= 0.0 {
+            return hi;
+        }
+        while hi - lo > 1e-13 {
+            let mid = 0.5 * (lo + hi);
+            if mid <= lo || mid >= hi {
+                break;
+            }
+            if r(mid) < 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
+    /// The solver before it stopped on the residual: Illinois until the
+    /// bracket is < 1e-9 K (the code of 2b453f0, on the reference law).
+    fn settle_to_bracket(
+        p: &SmaParams,
+        t_old: f64,
+        xi_old: f64,
+        t_sensible: f64,
+        shift_k: [f64; 2],
+    ) -> f64 {
+        let l = p.latent_heat_j_kg / p.specific_heat_j_kg_k;
+        let r = |t: f64| {
+            let xi = phase_update_reference(p, t_old - shift_k[0], xi_old, t - shift_k[1]);
+            t - t_sensible - l * (xi - xi_old)
+        };
+        let (mut lo, mut hi) = (t_old.min(t_sensible), t_old.max(t_sensible));
+        let (mut r_lo, mut r_hi) = (r(lo), r(hi));
+        if r_lo >= 0.0 {
+            return lo;
+        }
+        if r_hi <= 0.0 {
+            return hi;
+        }
+        let (mut side, mut t) = (0i8, lo);
+        for _ in 0..60 {
+            t = (lo * r_hi - hi * r_lo) / (r_hi - r_lo);
+            if !(t > lo && t < hi) {
+                t = 0.5 * (lo + hi);
+            }
+            let rt = r(t);
+            if rt == 0.0 || hi - lo < 1e-9 {
+                break;
+            }
+            if rt < 0.0 {
+                (lo, r_lo) = (t, rt);
+                if side == -1 {
+                    r_hi *= 0.5;
+                }
+                side = -1;
+            } else {
+                (hi, r_hi) = (t, rt);
+                if side == 1 {
+                    r_lo *= 0.5;
+                }
+                side = 1;
+            }
+        }
+        t
+    }
+
+    /// The latent-heat search stopping on its residual lands within
+    /// [`LATENT_HEAT_TOLERANCE_K`] of a bisection to 1e-13 K over a sweep
+    /// of the states a coil can be in, in and around both bands, on and off
+    /// their branches (minor loops), steps from 1e-4 K to 3 K both ways,
+    /// with and without a stress shift; its ξ is the phase law's at the
+    /// temperature returned; and it moves the answer by at most twice the
+    /// tolerance from the search it replaced.
+    #[test]
+    fn latent_heat_search_is_within_its_tolerance_of_a_bisection() {
+        let p = SmaParams::default();
+        let shape = p.phase_shape();
+        let (mut worst_ref, mut worst_old, mut solved) = (0.0f64, 0.0f64, 0);
+        for i in 0..=80 {
+            let t_old = 38.0 + 0.5 * i as f64;
+            let on_branch = [p.g_heat(&shape, t_old), 1.0 - p.g_cool(&shape, t_old)];
+            for xi_old in [0.05, 0.3, 0.6, 0.95, 1.0, on_branch[0], on_branch[1]] {
+                for dt in [
+                    1e-4, 1e-3, 1e-2, 0.1, 1.0, 3.0, -1e-4, -1e-3, -1e-2, -0.1, -1.0, -3.0,
+                ] {
+                    for shift_k in [[0.0, 0.0], [2.0, 2.003], [1.5, 1.4]] {
+                        // No coil reaches these (fully martensite below
+                        // M_f, fully austenite above A_f); from them ξ(T)
+                        // jumps at t_old and the balance has no root.
+                        let t_eff = t_old - shift_k[0];
+                        if (t_eff <= p.martensite_finish_c && xi_old < 1.0)
+                            || (t_eff >= p.austenite_finish_c && xi_old > 0.0)
+                        {
+                            continue;
+                        }
+                        let t_sensible = t_old + dt;
+                        let (t, xi) = p.settle_latent_heat_with(
+                            &shape,
+                            t_old,
+                            xi_old,
+                            t_sensible,
+                            shift_k,
+                            &mut ShapeCache::default(),
+                        );
+                        let t_ref = settle_by_bisection(&p, t_old, xi_old, t_sensible, shift_k);
+                        let t_prev = settle_to_bracket(&p, t_old, xi_old, t_sensible, shift_k);
+                        let xi_law =
+                            phase_update_reference(&p, t_old - shift_k[0], xi_old, t - shift_k[1]);
+                        assert!(
+                            (xi - xi_law).abs() <= 1e-12,
+                            "{t_old}, {xi_old}, {t_sensible}, {shift_k:?}: ξ {xi} vs {xi_law}"
+                        );
+                        worst_ref = worst_ref.max((t - t_ref).abs());
+                        worst_old = worst_old.max((t - t_prev).abs());
+                        solved += usize::from(xi != xi_old);
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "{solved} transforming steps; max |T − bisection| {worst_ref:.2e} K, \
+             max |T − previous search| {worst_old:.2e} K"
+        );
+        assert!(solved > 2000, "only {solved} steps transform");
+        assert!(
+            worst_ref <= LATENT_HEAT_TOLERANCE_K + 1e-12,
+            "{worst_ref:e}"
+        );
+        assert!(worst_old <= 2.0 * LATENT_HEAT_TOLERANCE_K, "{worst_old:e}");
     }
 
     #[test]
