@@ -80,7 +80,14 @@ qemu-system-arm --version | head -1
 # Background jobs (the lints and images, the pip install, the joint's
 # twins) are killed if the script stops early.
 bg_pids=()
-trap 'for p in "${bg_pids[@]}"; do kill "$p" 2>/dev/null || true; done' EXIT
+# A failed run prints its stage table too (where the time went up to the
+# failure).
+on_exit() {
+    local rc=$?
+    for p in "${bg_pids[@]}"; do kill "$p" 2>/dev/null || true; done
+    [ "$rc" -eq 0 ] || { finish; echo "failed in the stage above \"done\" (exit $rc)" >&2; }
+}
+trap on_exit EXIT
 # Waits for background job $1 whose output went to file $2, prints that
 # output under the heading $3 and fails the script if the job failed.
 wait_job() {
