@@ -108,7 +108,7 @@ wait_job() {
 # other's idle time (a build's serial tail, linking one binary at a time).
 # The images are needed from the #[ignore]d stage on, the lints only for
 # the verdict.
-step "in parallel: the host tests' build (profile ci-opt); the firmware images, clippy -D warnings on host and thumb, the core on ${core_targets[*]}, the control step under QEMU"
+step "in parallel: the host tests' build (profile ci-opt), and at lower priority the firmware images, clippy -D warnings on host and thumb, the core on ${core_targets[*]}, the control step under QEMU"
 lint_log=$(mktemp)
 (
     set -euo pipefail
@@ -161,14 +161,22 @@ bg_pids+=("$pip_pid")
 
 cargo test "${targets[@]}" --no-run
 
+# The lints and images (if still running) before the host tests: the
+# host tests include pty boards and sessions that keep time, and run
+# alone.
+wait_job "$lint_pid" "$lint_log" "firmware images, clippy, the core's targets"
+
+step "tests: unit, property, closed-loop, pty and CLI (host)"
+cargo test "${targets[@]}"
+
 # The joint's identification twins (#[ignore]d: ten-minute logs, minutes
 # of CPU on both cores, waiting on nothing) start now, from their binaries
 # (a second cargo would wait for the lock on the build directory while
 # another cargo runs tests), at the lowest priority: they take the CPU
-# time the other stages leave (the CLI tests wait on their children, the
-# QEMU checks on round trips, the Python tests on Ray) without slowing
-# the checks that keep time. Their paths come from the workspace build
-# (built alone, plant-joint would resolve other features and build again).
+# time the next stages leave (the QEMU checks wait on round trips, the
+# Python tests on Ray) without slowing the checks that keep time. Their
+# paths come from the workspace build (built alone, plant-joint would
+# resolve other features and build again).
 mapfile -t joint_tests < <(cargo test "${targets[@]}" --no-run --message-format=json 2>/dev/null |
     python3 -c '
 import json, sys
@@ -185,12 +193,6 @@ joint_log=$(mktemp)
 ) >"$joint_log" 2>&1 &
 joint_pid=$!
 bg_pids+=("$joint_pid")
-
-step "tests: unit, property, closed-loop, pty and CLI (host; the joint's twins at low priority beside them)"
-cargo test "${targets[@]}"
-
-step "the firmware images, clippy and the core's targets (if still running)"
-wait_job "$lint_pid" "$lint_log" "firmware images, clippy, the core's targets"
 
 step "the checks that need the optimised build or QEMU (every #[ignore]d test but the joint's twins): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image"
 cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite::
