@@ -656,8 +656,7 @@ mod tests {
                 ..JamParams::default()
             },
         ] {
-            let mut s = WireSensor::new(WireSensorParams::with_geometry(g.clone()), 0.0, 0.0, 0.0)
-                .unwrap();
+            let mut s = WireSensor::new(WireSensorParams::with_geometry(g), 0.0, 0.0, 0.0).unwrap();
             s.params.jam = jam.clone();
             let (mut ideal, mut lag, mut left) = (rest_mm, 0.0, 0.0);
             let mut steps = 0;
@@ -665,7 +664,15 @@ mod tests {
                 // Pushes and pulls of varied sizes, around and below rest.
                 let next = rest_mm + 1.5 * (i as f64 * 0.003).sin() + 0.01 * rng.gen::<f64>();
                 let stick = (rng.gen::<f64>() < 0.05).then(|| rng.gen_range(0.02..0.3));
-                jam_law_inline(&jam, rest_mm, next, next - ideal, &mut lag, &mut left, stick);
+                jam_law_inline(
+                    &jam,
+                    rest_mm,
+                    next,
+                    next - ideal,
+                    &mut lag,
+                    &mut left,
+                    stick,
+                );
                 ideal = next;
                 s.advance_to_ideal_with(next, |_, _| stick);
                 assert_eq!(s.lag_mm().to_bits(), lag.to_bits(), "step {i}");
