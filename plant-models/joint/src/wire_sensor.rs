@@ -243,6 +243,13 @@ impl JamParams {
         }
     }
 
+    /// The buckling lag's ceiling (mm) at the ideal insertion `ideal_mm`,
+    /// for a wire whose rest insertion is `rest_mm`: e₀ + e₁·(d − d_rest)⁺.
+    #[inline(always)]
+    pub fn ceiling_mm(&self, ideal_mm: f64, rest_mm: f64) -> f64 {
+        self.max_lag_mm + self.max_lag_per_mm * (ideal_mm - rest_mm).max(0.0)
+    }
+
     fn validate(&self, prefix: &str) -> Result<(), PlantError> {
         for (name, v) in [
             ("buckling_gain", self.buckling_gain),
@@ -317,14 +324,71 @@ fn round_to_count(v: f64) -> i64 {
     (v + 0.5f64.copysign(v)) as i64
 }
 
+/// The jamming state of one wire: how far its tip lags the ideal
+/// insertion, and how much more push a present stick holds it for. The
+/// sensor ([`WireSensor`]) keeps one; identification's wire stage
+/// ([`crate::identify`]) replays many side by side along one path,
+/// sharing the path's push and lag ceiling at each substep.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct JamState {
+    /// Lag of the tip behind the ideal insertion (mm, ≥ 0).
+    pub lag_mm: f64,
+    /// Push left before a present stick slips (mm; 0 when not stuck).
+    pub stick_left_mm: f64,
+}
+
+impl JamState {
+    /// One push of `delta` mm (negative: a pull) under the jamming `j`,
+    /// `e_max` being [`JamParams::ceiling_mm`] at the new insertion.
+    /// Stuck, a push all goes into the lag; free, the buckle grows towards
+    /// the ceiling and `stick` (called with `j` and `delta` wherever a
+    /// stick may start: pushed, not stuck, `stick_per_mm > 0`) says
+    /// whether a stick starts and for how much push. A pull unsticks the
+    /// tip and takes up the lag first; a slip drops the lag to the ceiling.
+    #[inline(always)]
+    pub fn advance(
+        &mut self,
+        j: &JamParams,
+        delta: f64,
+        e_max: f64,
+        stick: impl FnOnce(&JamParams, f64) -> Option<f64>,
+    ) {
+        if delta > 0.0 {
+            if self.stick_left_mm > 0.0 {
+                self.lag_mm += delta;
+                self.stick_left_mm -= delta;
+            } else {
+                if e_max > 0.0 {
+                    let grow = j.buckling_gain * delta * (1.0 - self.lag_mm / e_max);
+                    // Above the ceiling (after a slip from a stick) the
+                    // buckle relaxes towards it at the same rate.
+                    self.lag_mm = (self.lag_mm + grow).max(0.0);
+                }
+                if j.stick_per_mm > 0.0 {
+                    if let Some(length_mm) = stick(j, delta) {
+                        self.stick_left_mm = length_mm;
+                    }
+                }
+            }
+        } else if delta < 0.0 {
+            self.stick_left_mm = 0.0;
+            self.lag_mm = (self.lag_mm + delta).max(0.0);
+        }
+        if self.stick_left_mm <= 0.0 {
+            // Slip: the stuck tip jumps back to the buckling ceiling.
+            self.lag_mm = self.lag_mm.min(e_max.max(0.0));
+            self.stick_left_mm = 0.0;
+        }
+    }
+}
+
 /// One wire sensor's state.
 #[derive(Clone, Debug)]
 pub struct WireSensor {
     params: WireSensorParams,
     ref_length_mm: f64,
     ideal_mm: f64,
-    lag_mm: f64,
-    stick_left_mm: f64,
+    jam: JamState,
     counts: i64,
 }
 
@@ -345,8 +409,7 @@ impl WireSensor {
             params,
             ref_length_mm,
             ideal_mm,
-            lag_mm: 0.0,
-            stick_left_mm: 0.0,
+            jam: JamState::default(),
             counts,
         })
     }
@@ -413,42 +476,14 @@ impl WireSensor {
     pub fn advance_to_ideal_with(
         &mut self,
         ideal: f64,
-        mut stick: impl FnMut(&JamParams, f64) -> Option<f64>,
+        stick: impl FnMut(&JamParams, f64) -> Option<f64>,
     ) {
-        let g = &self.params.geometry;
         let delta = ideal - self.ideal_mm;
         self.ideal_mm = ideal;
         let j = &self.params.jam;
-        if delta > 0.0 {
-            if self.stick_left_mm > 0.0 {
-                self.lag_mm += delta;
-                self.stick_left_mm -= delta;
-            } else {
-                let e_max =
-                    j.max_lag_mm + j.max_lag_per_mm * (ideal - g.insertion_at_rest_mm).max(0.0);
-                if e_max > 0.0 {
-                    let grow = j.buckling_gain * delta * (1.0 - self.lag_mm / e_max);
-                    // Above the ceiling (after a slip from a stick) the
-                    // buckle relaxes towards it at the same rate.
-                    self.lag_mm = (self.lag_mm + grow).max(0.0);
-                }
-                if j.stick_per_mm > 0.0 {
-                    if let Some(length_mm) = stick(j, delta) {
-                        self.stick_left_mm = length_mm;
-                    }
-                }
-            }
-        } else if delta < 0.0 {
-            self.stick_left_mm = 0.0;
-            self.lag_mm = (self.lag_mm + delta).max(0.0);
-        }
-        if self.stick_left_mm <= 0.0 {
-            // Slip: the stuck tip jumps back to the buckling ceiling.
-            let e_max = j.max_lag_mm + j.max_lag_per_mm * (ideal - g.insertion_at_rest_mm).max(0.0);
-            self.lag_mm = self.lag_mm.min(e_max.max(0.0));
-            self.stick_left_mm = 0.0;
-        }
-        self.counts = round_to_count((self.ideal_mm - self.lag_mm) / self.params.mm_per_count);
+        let e_max = j.ceiling_mm(ideal, self.params.geometry.insertion_at_rest_mm);
+        self.jam.advance(j, delta, e_max, stick);
+        self.counts = round_to_count((self.ideal_mm - self.jam.lag_mm) / self.params.mm_per_count);
     }
 
     /// Pulse-coder count (signed; grows as the wire goes in).
@@ -468,7 +503,7 @@ impl WireSensor {
 
     /// Present jamming lag (mm).
     pub fn lag_mm(&self) -> f64 {
-        self.lag_mm
+        self.jam.lag_mm
     }
 }
 
@@ -563,5 +598,87 @@ mod tests {
         let before = s.counts();
         s.update(0.0, 0.0, (-14.9f64).to_radians(), &mut rng);
         assert_eq!(s.counts(), before);
+    }
+
+    /// The jamming law as it was written inside the sensor before it
+    /// moved into [`JamState::advance`] (the ceiling computed where it is
+    /// used, twice): the moved law must give the same lag to the bit.
+    fn jam_law_inline(
+        j: &JamParams,
+        rest_mm: f64,
+        ideal: f64,
+        delta: f64,
+        lag_mm: &mut f64,
+        stick_left_mm: &mut f64,
+        stick: Option<f64>,
+    ) {
+        if delta > 0.0 {
+            if *stick_left_mm > 0.0 {
+                *lag_mm += delta;
+                *stick_left_mm -= delta;
+            } else {
+                let e_max = j.max_lag_mm + j.max_lag_per_mm * (ideal - rest_mm).max(0.0);
+                if e_max > 0.0 {
+                    let grow = j.buckling_gain * delta * (1.0 - *lag_mm / e_max);
+                    *lag_mm = (*lag_mm + grow).max(0.0);
+                }
+                if j.stick_per_mm > 0.0 {
+                    if let Some(length_mm) = stick {
+                        *stick_left_mm = length_mm;
+                    }
+                }
+            }
+        } else if delta < 0.0 {
+            *stick_left_mm = 0.0;
+            *lag_mm = (*lag_mm + delta).max(0.0);
+        }
+        if *stick_left_mm <= 0.0 {
+            let e_max = j.max_lag_mm + j.max_lag_per_mm * (ideal - rest_mm).max(0.0);
+            *lag_mm = lag_mm.min(e_max.max(0.0));
+            *stick_left_mm = 0.0;
+        }
+    }
+
+    #[test]
+    fn moved_jam_law_changes_no_bit() {
+        let g = WireGeometry::paper_2d();
+        let rest_mm = g.insertion_at_rest_mm;
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for jam in [
+            JamParams::default(),
+            JamParams {
+                stick_per_mm: 20.0,
+                ..JamParams::default()
+            },
+            JamParams {
+                max_lag_mm: 0.0,
+                max_lag_per_mm: 0.0,
+                ..JamParams::default()
+            },
+        ] {
+            let mut s = WireSensor::new(WireSensorParams::with_geometry(g), 0.0, 0.0, 0.0).unwrap();
+            s.params.jam = jam.clone();
+            let (mut ideal, mut lag, mut left) = (rest_mm, 0.0, 0.0);
+            let mut steps = 0;
+            for i in 0..20_000 {
+                // Pushes and pulls of varied sizes, around and below rest.
+                let next = rest_mm + 1.5 * (i as f64 * 0.003).sin() + 0.01 * rng.gen::<f64>();
+                let stick = (rng.gen::<f64>() < 0.05).then(|| rng.gen_range(0.02..0.3));
+                jam_law_inline(
+                    &jam,
+                    rest_mm,
+                    next,
+                    next - ideal,
+                    &mut lag,
+                    &mut left,
+                    stick,
+                );
+                ideal = next;
+                s.advance_to_ideal_with(next, |_, _| stick);
+                assert_eq!(s.lag_mm().to_bits(), lag.to_bits(), "step {i}");
+                steps += usize::from(lag > 0.0);
+            }
+            assert!(steps > 500, "the lag was non-zero in {steps} steps only");
+        }
     }
 }

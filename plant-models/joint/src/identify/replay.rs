@@ -29,6 +29,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::log::ExcitationLog;
 use super::IdentifyError;
+use crate::wire_sensor::JamState;
 use crate::{PlanarJoint, PlaneParams, SmaCoil, SmaParams, WireSensor, WireSensorParams};
 use plant_common::three_element::StepLength;
 
@@ -391,28 +392,38 @@ const LOCKSTEP_REALISATIONS: usize = 8;
 /// along `path` (`n` substeps per row) per list of recorded sticks in
 /// `group`. The runs advance side by side, substep by substep: each is a
 /// chain of dependent operations (the lag), so that the processor can
-/// overlap several; each run's operations are those of running it alone.
+/// overlap several; each run's operations are those of running it alone
+/// ([`WireSensor::advance_to_ideal_with`]: the same [`JamState::advance`]),
+/// except that what all runs share is found once per substep — the push
+/// and the lag ceiling, which depend on the path only — and the counts,
+/// which the readings here do not use, are not rounded. The readings are
+/// the same to the bit.
 fn lockstep_runs(
     w: &WireSensorParams,
     path: &[f64],
     n: usize,
     group: &[Vec<(usize, f64)>],
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    // Validated as the sensor would be; its state starts at rest.
+    let sensor = WireSensor::new(w.clone(), 0.0, 0.0, 0.0)?;
+    let rest_mm = w.geometry.insertion_at_rest_mm;
+    let mut ideal_mm = sensor.ideal_insertion_mm();
+    let j = &w.jam;
     let rows = path.len() / n.max(1);
-    let mut sensors = group
-        .iter()
-        .map(|_| WireSensor::new(w.clone(), 0.0, 0.0, 0.0))
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut states = vec![JamState::default(); group.len()];
     let mut next: Vec<_> = group.iter().map(|e| e.iter().peekable()).collect();
     let mut reads = vec![Vec::with_capacity(rows); group.len()];
     for k in 0..rows {
-        for (read, sensor) in reads.iter_mut().zip(&sensors) {
-            read.push(sensor.ideal_insertion_mm() - sensor.lag_mm());
+        for (read, state) in reads.iter_mut().zip(&states) {
+            read.push(ideal_mm - state.lag_mm);
         }
         for (i, &ideal) in path[k * n..(k + 1) * n].iter().enumerate() {
             let step = k * n + i;
-            for (sensor, next) in sensors.iter_mut().zip(&mut next) {
-                sensor.advance_to_ideal_with(ideal, |_, _| {
+            let delta = ideal - ideal_mm;
+            ideal_mm = ideal;
+            let e_max = j.ceiling_mm(ideal, rest_mm);
+            for (state, next) in states.iter_mut().zip(&mut next) {
+                state.advance(j, delta, e_max, |_, _| {
                     next.next_if(|e| e.0 == step).map(|e| e.1)
                 });
             }
