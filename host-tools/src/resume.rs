@@ -127,7 +127,11 @@ impl Scores {
 
     /// Every candidate scored so far, in the order they came in (a copy).
     pub fn snapshot(&self) -> Vec<Scored> {
-        self.index.lock().unwrap_or_else(|e| e.into_inner()).1.clone()
+        self.index
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .1
+            .clone()
     }
 
     /// Every candidate scored so far, in the order they came in.
@@ -180,7 +184,10 @@ mod tests {
         ];
         let s = Scores::new(stop.clone(), kept);
         assert_eq!(s.score(&[1.0, 2.0], |_| panic!("run again")), Some(3.0));
-        assert!(s.score(&[0.1, 0.2], |_| panic!("run again")).unwrap().is_nan());
+        assert!(s
+            .score(&[0.1, 0.2], |_| panic!("run again"))
+            .unwrap()
+            .is_nan());
         assert_eq!(s.score(&[5.0, 6.0], |g| g[0] + g[1]), Some(11.0));
         assert_eq!(s.score(&[5.0, 6.0], |_| panic!("run again")), Some(11.0));
         stop.request(StopSignal::Terminate);

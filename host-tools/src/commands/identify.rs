@@ -2,6 +2,7 @@
 //! recording, and the plans to record one.
 use std::fmt::Write as _;
 use std::path::PathBuf;
+use std::sync::atomic::AtomicUsize;
 
 use anyhow::{bail, Context};
 use clap::{Args, Subcommand, ValueEnum};
@@ -9,8 +10,9 @@ use host_tools::files::plant::{PlantFile, PlantParams, Uncertainty};
 use host_tools::joint::excite;
 use host_tools::output;
 use host_tools::plot::{line_charts, Chart, Series};
+use host_tools::stop::{Stop, Stopped};
 use plant_joint::identify::{
-    self, ExcitationPlan, IdentifyOptions, LmOptions, PlaneReport, NEVER_FITTED,
+    self, ExcitationPlan, IdentifyOptions, LmOptions, PlaneReport, StopFlag, NEVER_FITTED,
 };
 use plant_joint::{Joint2dParams, Joint3dParams};
 
@@ -190,15 +192,27 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         Some(p) => Some(PlantFile::load(p)?.params()?),
         None => None,
     };
+    // A signal stops the fit between iterations of its minimiser; nothing
+    // is written then (a fit cut short is no plant).
+    let stop = Stop::on_signals()?;
+    let flag: &'static AtomicUsize = Box::leak(Box::new(stop.flag()));
     let opts = IdentifyOptions {
         fit_fraction: a.fit_fraction,
         lm: LmOptions {
             max_iterations: a.max_iterations as usize,
+            stop: Some(StopFlag(flag)),
             ..LmOptions::default()
         },
         ..IdentifyOptions::default()
     };
-    let what = |e: identify::IdentifyError| anyhow::anyhow!("{}: {e}", a.log.display());
+    let what = |e: identify::IdentifyError| match stop.requested() {
+        Some(signal) => Stopped {
+            signal,
+            what: stopped_fit(&a),
+        }
+        .into(),
+        None => anyhow::anyhow!("{}: {e}", a.log.display()),
+    };
     let (params, reports) = match (log.planes, prior) {
         (1, None) => {
             let (p, r) =
@@ -224,6 +238,14 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
             if log.planes == 1 { "2D" } else { "3D" }
         ),
     };
+    if let Some(signal) = stop.requested() {
+        // Late in the fit: a stage may have been cut short.
+        return Err(Stopped {
+            signal,
+            what: stopped_fit(&a),
+        }
+        .into());
+    }
     let uncertainty = uncertainties(&reports);
     let unverified = unverified(&reports);
     let mut header = format!(
@@ -276,6 +298,20 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// What a fit stopped by a signal says: nothing written, how to fit again.
+fn stopped_fit(a: &JointArgs) -> String {
+    let plot = a
+        .plot
+        .as_ref()
+        .map(|p| format!(" nor {}", p.display()))
+        .unwrap_or_default();
+    format!(
+        "the fit of {} was cut short, so nothing was written (neither {}{plot}); run it again to fit from the start (a fit keeps no state to resume from)",
+        a.log.display(),
+        a.output.display()
+    )
 }
 
 /// The 1σ of every parameter identified and verified, for the plant file.

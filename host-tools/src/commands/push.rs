@@ -529,8 +529,7 @@ impl CalibrateArgs {
         };
         let text = fs::read_to_string(path)
             .with_context(|| format!("cannot read --resume {}", path.display()))?;
-        let st: PushSearchState =
-            host_tools::input::from_toml(&text, &path.display().to_string())?;
+        let st: PushSearchState = host_tools::input::from_toml(&text, &path.display().to_string())?;
         let refuse = |why: String| anyhow::anyhow!("--resume {}: {why}", path.display());
         if st.problem_fnv1a != fingerprint {
             return Err(refuse(

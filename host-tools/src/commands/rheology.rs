@@ -341,10 +341,9 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         f: &f,
         scores: &scores,
     };
-    let result =
-        experiment::calibrate_problem(&spec, problem.clone(), &mut objective, &mut |e| {
-            watch.event(e)
-        });
+    let result = experiment::calibrate_problem(&spec, problem.clone(), &mut objective, &mut |e| {
+        watch.event(e)
+    });
     watch.finish();
     let report = match (result, stop.requested()) {
         (Ok(report), _) => report,
@@ -442,10 +441,7 @@ struct Resumable<'a, F> {
 impl<F: Fn(&[f64]) -> f64 + Sync> BatchObjective for Resumable<'_, F> {
     fn scores(&mut self, batch: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String> {
         let f = self.f;
-        let got: Vec<Option<f64>> = batch
-            .par_iter()
-            .map(|g| self.scores.score(g, f))
-            .collect();
+        let got: Vec<Option<f64>> = batch.par_iter().map(|g| self.scores.score(g, f)).collect();
         got.into_iter()
             .collect::<Option<Vec<f64>>>()
             .ok_or_else(|| "stopped by a signal".into())

@@ -61,11 +61,11 @@ use crate::files::gains::{paper_v_offset, Gains, GainsFile, HeldOut, RunCost, Sc
 use crate::files::plant::{PlantFile, PlantParams, Uncertainty};
 use crate::files::scenario::{EstimatorMethod, FeedbackKind, Scenario, TargetStep};
 use crate::files::JointKind;
+use crate::resume::fnv1a_hex;
 use crate::run::joint::{CoreLoopTask, SimJoint};
 use crate::run::record::Trace;
 use crate::run::schedule::RunSchedule;
 use crate::run::spec::RunSpec;
-use crate::resume::fnv1a_hex;
 use crate::stop::{Stop, StopSignal};
 use serde::{Deserialize, Serialize};
 

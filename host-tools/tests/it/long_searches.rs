@@ -427,15 +427,15 @@ fn a_stopped_rheology_calibration_keeps_its_best_and_resumes_to_the_result_of_an
     let o = signalled(&args(&resumed), after, "-HUP");
     let second = assert_stopped_calibration(&o, 129, "SIGHUP", &out, "params.toml", true);
     let (a, b) = (scored(&first), scored(&second));
-    assert!(b.len() > a.len(), "the resumed search simulated nothing new");
+    assert!(
+        b.len() > a.len(),
+        "the resumed search simulated nothing new"
+    );
     assert_eq!(b[..a.len()], a[..]);
     // A resume that asks another search is refused by name.
     let mut other = resumed.clone();
     other.extend(["--seed".into(), "2".into()]);
-    assert_refused(
-        &softjoint(&args(&other)),
-        "--seed 1, this one asks 2",
-    );
+    assert_refused(&softjoint(&args(&other)), "--seed 1, this one asks 2");
     // Resumed to the end of a search a little longer than the stopped
     // one: the very parameters and history of the same search unbroken.
     let n = (second["evaluations"].as_integer().unwrap() + 24).to_string();
@@ -446,7 +446,10 @@ fn a_stopped_rheology_calibration_keeps_its_best_and_resumes_to_the_result_of_an
     let j: serde_json::Value = serde_json::from_str(&common::stdout(&o)).unwrap();
     // Every candidate kept lies on the path of the first n evaluations
     // (the stopped search's, up to its last batch): each is taken back.
-    assert!(j["resumed_candidates"].as_u64().unwrap() >= b.len() as u64, "{j}");
+    assert!(
+        j["resumed_candidates"].as_u64().unwrap() >= b.len() as u64,
+        "{j}"
+    );
     let straight = dir.join("straight");
     timed(&args(&calibrate(&n, &straight)));
     assert_eq!(
@@ -525,4 +528,57 @@ fn a_stopped_push_calibration_keeps_its_best_and_resumes_to_the_result_of_an_unb
             "{f}"
         );
     }
+}
+
+#[test]
+fn a_stopped_identification_ends_at_once_and_writes_nothing() {
+    let dir = scratch("identify-stop");
+    let plan_text = softjoint(&["identify", "plan", "--joint", "2d", "--duration-s", "300"]);
+    common::ok(&plan_text);
+    let plan = dir.join("plan.toml");
+    std::fs::write(&plan, &plan_text.stdout).unwrap();
+    let scen = common::file(&dir, "s.toml", crate::excite_stops::SCENARIO_2D);
+    let log = dir.join("log.csv");
+    common::ok(&softjoint(&[
+        "sim",
+        &scen,
+        "--excite",
+        s(&plan),
+        "--log",
+        s(&log),
+    ]));
+    let before = names(&dir);
+    let (plant, plot) = (dir.join("p.toml"), dir.join("fit.svg"));
+    // A fit of a 5-minute log, a thousand iterations a stage (tens of
+    // seconds even optimised), stopped a second in.
+    let started = Instant::now();
+    let o = signalled(
+        &[
+            "identify",
+            "joint",
+            s(&log),
+            "--max-iterations",
+            "1000",
+            "-o",
+            s(&plant),
+            "--plot",
+            s(&plot),
+        ],
+        Duration::from_secs(1),
+        "-INT",
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "{err}");
+    assert!(
+        err.contains("stopped by SIGINT") && err.contains("nothing was written"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    // Within one replay of the log, not at the end of the fit.
+    assert!(
+        started.elapsed() < Duration::from_secs(20),
+        "{:?}",
+        started.elapsed()
+    );
+    assert_eq!(names(&dir), before, "files left by a stopped fit");
 }
