@@ -37,12 +37,16 @@ pub struct Scored {
     pub score: Option<f64>,
 }
 
+/// The candidates scored, in the order they came in, and where each one's
+/// genes (as bits) are in that list.
+type Kept = (HashMap<Vec<u64>, usize>, Vec<Scored>);
+
 /// The scores of a search so far: those of the search it resumes, then
 /// each one simulated here, in the order they came in.
 pub struct Scores {
     stop: Stop,
     /// Genes (as bits) → index in `scored`.
-    index: Mutex<(HashMap<Vec<u64>, usize>, Vec<Scored>)>,
+    index: Mutex<Kept>,
     /// How many of `scored` came from the resumed search.
     resumed: usize,
     /// Candidates answered (a search may ask for one twice), taken from

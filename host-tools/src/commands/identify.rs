@@ -22,6 +22,10 @@ pub enum IdentifyCommand {
     /// --excite`): thermal, driver, transformation temperatures and their
     /// stress slope, sponge, link inertia, wire jamming; with uncertainties,
     /// the parameters the log does not determine, and a held-out check.
+    ///
+    /// Ctrl-C, SIGTERM or SIGHUP stops the fit within one replay of the
+    /// log and writes nothing (no plant file, no plot: a fit cut short is
+    /// no plant); exit 130, 143 or 129.
     Joint(JointArgs),
     /// Print an excitation plan (TOML) to start from: the standard plan
     /// (steps, pulses, ramps, co-contraction, optional holds), within the

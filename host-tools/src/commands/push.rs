@@ -3,6 +3,8 @@
 //! * `simulate` — record a push of the ground-truth block (or read one from
 //!   CSV), run the mass-spring model on it and score every frame;
 //! * `calibrate` — Algorithm 5 on a training push, with a progress bar;
+//!   stopped by a signal it keeps its best and its scores so far, and
+//!   `--resume` goes on from them (host_tools::resume);
 //! * `classify` — which of several calibrated models predicts a push best.
 //!
 //! Every command writes CSV and SVG pictures into `--out` and prints either
@@ -48,6 +50,12 @@ enum PushCommand {
     /// Run the mass-spring model on one push and score it frame by frame.
     Simulate(SimulateArgs),
     /// Learn the model's parameters from a training push (Algorithm 5).
+    ///
+    /// Ctrl-C, SIGTERM or SIGHUP stops the search between simulations
+    /// (exit 130, 143, 129): no result file is written, but the best
+    /// candidate so far and every candidate simulated are kept in
+    /// OUT/params.search.toml, from which --resume goes on to the result
+    /// of the search never stopped.
     Calibrate(CalibrateArgs),
     /// Decide which calibrated material model explains a push best.
     Classify(ClassifyArgs),

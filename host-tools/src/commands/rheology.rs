@@ -7,7 +7,9 @@
 //! * `calibrate` — learn the lattice's parameters from a measured push (a
 //!   directory of CSV files, or a push of the reference block generated on
 //!   the spot) by the paper's GA or RA, with a progress bar, and check the
-//!   result on a push the calibration did not see.
+//!   result on a push the calibration did not see; stopped by a signal it
+//!   keeps its best and its scores so far, and `--resume` goes on from
+//!   them (host_tools::resume).
 //!
 //! The physics lives in `plant_rheology`; this is argument
 //! handling, files, pictures and reports.
@@ -50,6 +52,12 @@ enum RheologyCommand {
     /// Push the lattice (or the reference block) as the scenario says.
     Simulate(SimulateArgs),
     /// Learn the lattice's parameters from a measured push (GA or RA).
+    ///
+    /// Ctrl-C, SIGTERM or SIGHUP stops the search between simulations
+    /// (exit 130, 143, 129): no result file is written, but the best
+    /// candidate so far and every candidate simulated are kept in
+    /// OUT/params.search.toml, from which --resume goes on to the result
+    /// of the search never stopped.
     Calibrate(CalibrateArgs),
 }
 
