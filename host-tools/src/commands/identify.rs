@@ -168,6 +168,10 @@ pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
 }
 
 fn joint(a: JointArgs) -> anyhow::Result<()> {
+    // A signal stops the fit within one replay of the log; nothing is
+    // written then (a fit cut short is no plant). Caught from the start,
+    // so a signal while the log is read stops the fit as it begins.
+    let stop = Stop::on_signals()?;
     if !(a.fit_fraction.is_finite() && (0.2..=1.0).contains(&a.fit_fraction)) {
         bail!(
             "--fit-fraction must be in 0.2..=1, got {}",
@@ -196,9 +200,6 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         Some(p) => Some(PlantFile::load(p)?.params()?),
         None => None,
     };
-    // A signal stops the fit between iterations of its minimiser; nothing
-    // is written then (a fit cut short is no plant).
-    let stop = Stop::on_signals()?;
     let flag: &'static AtomicUsize = Box::leak(Box::new(stop.flag()));
     let opts = IdentifyOptions {
         fit_fraction: a.fit_fraction,

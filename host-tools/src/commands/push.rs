@@ -367,6 +367,9 @@ const CALIBRATION_FILES: [&str; 4] = [
 const STATE_FILE: &str = "params.search.toml";
 
 fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    // A signal stops the search at its next simulation (one that comes
+    // while the push is prepared stops it before the first).
+    let stop = Stop::on_signals()?;
     if !(1..=MAX_GENERATIONS).contains(&a.generations) {
         bail!(
             "--generations must be 1..={MAX_GENERATIONS} (Table III: 30), got {}",
@@ -388,8 +391,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         sim: sim_config(&a.model),
     };
     let fingerprint = push_fingerprint(&a, &prep, &spec);
-    let resumed = a.resumed(&fingerprint)?;
-    let stop = Stop::on_signals()?;
+    let (resumed, evaluations_before) = a.resumed(&fingerprint)?;
     let scores = Scores::new(stop.clone(), resumed);
     let bar = progress::counter(
         "calibrating",
@@ -411,7 +413,10 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         (Ok(Some(report)), _) => report,
         (Ok(None) | Err(_), Some(signal)) => {
             bar.finish_and_clear();
-            let state = PushSearchState::new(&a, fingerprint, spec.score, &scores);
+            let mut state = PushSearchState::new(&a, fingerprint, spec.score, &scores);
+            // A resumed search stopped while retracing is no further on
+            // than the search it resumed.
+            state.evaluations = state.evaluations.max(evaluations_before);
             return Err(push_stopped(&a, signal, &state_path, &state, spec.score));
         }
         (Ok(None), None) => bail!("the search stopped though no signal asked it to"),
@@ -529,11 +534,11 @@ impl CalibrateArgs {
         }
     }
 
-    /// The candidates scored by the calibration resumed, checked against
-    /// this one.
-    fn resumed(&self, fingerprint: &str) -> Result<Vec<Scored>> {
+    /// The candidates scored by the calibration resumed and its
+    /// evaluations, checked against this one.
+    fn resumed(&self, fingerprint: &str) -> Result<(Vec<Scored>, usize)> {
         let Some(path) = &self.resume else {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), 0));
         };
         let text = fs::read_to_string(path)
             .with_context(|| format!("cannot read --resume {}", path.display()))?;
@@ -559,7 +564,7 @@ impl CalibrateArgs {
         if st.scored.iter().any(|s| s.genes.len() != 8) {
             return Err(refuse("every `scored` entry needs the eight genes".into()));
         }
-        Ok(st.scored)
+        Ok((st.scored, st.evaluations))
     }
 }
 

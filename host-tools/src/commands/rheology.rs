@@ -304,6 +304,9 @@ const CALIBRATION_FILES: [&str; 5] = [
 const STATE_FILE: &str = "params.search.toml";
 
 fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    // A signal stops the search at its next simulation (one that comes
+    // while the measurement is made stops it before the first).
+    let stop = Stop::on_signals()?;
     // Every file the calibration writes, and the search state a stop
     // writes, can be written: checked before the search, not after it.
     output::check_files_in(&a.out, &CALIBRATION_FILES)?;
@@ -318,7 +321,11 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     let unseen = unseen_push(&a, &scenario)?;
     let measured = a.measured.as_deref().map(load_measurement).transpose()?;
     let fingerprint = problem_fingerprint(&a, &file)?;
-    let (resumed, seconds_before) = a.resumed(&fingerprint)?;
+    let Resumed {
+        scored: resumed,
+        seconds_spent: seconds_before,
+        evaluations: evaluations_before,
+    } = a.resumed(&fingerprint)?;
     if let Some(s) = &mut budget.max_seconds {
         // The wall-time budget is the whole search's, stopped runs too.
         *s = (*s - seconds_before).max(1e-9);
@@ -340,7 +347,6 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         json: a.json,
         counter: None,
     };
-    let stop = Stop::on_signals()?;
     let scores = Scores::new(stop.clone(), resumed);
     let problem = experiment::calibration_problem(&spec, &mut |e| watch.event(e))?;
     let started = std::time::Instant::now();
@@ -363,7 +369,9 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
                 params: set.len(),
                 seed: a.seed,
                 seconds_spent: seconds_before + started.elapsed().as_secs_f64(),
-                evaluations: scores.answered(),
+                // A resumed search stopped while retracing is no
+                // further on than the search it resumed.
+                evaluations: scores.answered().max(evaluations_before),
                 best: None,
                 scored: scores.into_scored(),
             }
@@ -374,11 +382,24 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     };
     write_calibration(&a.out, &spec, &report)?;
     if a.json {
-        JsonObject::of(&report)?
-            .field("out", &a.out)?
-            .field("resumed_candidates", &scores.replayed())?
-            .field("simulated_candidates", &scores.simulated())?
-            .print()?;
+        let mut j = JsonObject::of(&report)?.field("out", &a.out)?;
+        if let Some(r) = &a.resume {
+            #[derive(Serialize)]
+            struct Resumed<'a> {
+                from: &'a Path,
+                candidates_taken: usize,
+                simulated: usize,
+            }
+            j = j.field(
+                "resumed",
+                &Resumed {
+                    from: r,
+                    candidates_taken: scores.replayed(),
+                    simulated: scores.simulated(),
+                },
+            )?;
+        }
+        j.print()?;
     } else {
         calibration_text(&a, set, &report, &scores)?;
     }
@@ -517,11 +538,14 @@ impl CalibrateArgs {
         }
     }
 
-    /// The candidates scored by the calibration resumed, and the time it
-    /// spent, checked against this one.
-    fn resumed(&self, fingerprint: &str) -> Result<(Vec<Scored>, f64)> {
+    /// What the calibration resumed kept, checked against this one.
+    fn resumed(&self, fingerprint: &str) -> Result<Resumed> {
         let Some(path) = &self.resume else {
-            return Ok((Vec::new(), 0.0));
+            return Ok(Resumed {
+                scored: Vec::new(),
+                seconds_spent: 0.0,
+                evaluations: 0,
+            });
         };
         let text = fs::read_to_string(path)
             .with_context(|| format!("cannot read --resume {}", path.display()))?;
@@ -551,8 +575,19 @@ impl CalibrateArgs {
         if !(st.seconds_spent.is_finite() && st.seconds_spent >= 0.0) {
             return Err(refuse("`seconds_spent` must be a time ≥ 0".into()));
         }
-        Ok((st.scored, st.seconds_spent))
+        Ok(Resumed {
+            scored: st.scored,
+            seconds_spent: st.seconds_spent,
+            evaluations: st.evaluations,
+        })
     }
+}
+
+/// What a resumed calibration takes from the state it resumes.
+struct Resumed {
+    scored: Vec<Scored>,
+    seconds_spent: f64,
+    evaluations: usize,
 }
 
 /// The scenario's name for the state file.
