@@ -210,39 +210,7 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         },
         ..IdentifyOptions::default()
     };
-    let what = |e: identify::IdentifyError| match stop.requested() {
-        Some(signal) => Stopped {
-            signal,
-            what: stopped_fit(&a),
-        }
-        .into(),
-        None => anyhow::anyhow!("{}: {e}", a.log.display()),
-    };
-    let (params, reports) = match (log.planes, prior) {
-        (1, None) => {
-            let (p, r) =
-                identify::identify_2d(&log, &Joint2dParams::default(), &opts).map_err(what)?;
-            (PlantParams::TwoD(p), r)
-        }
-        (1, Some(PlantParams::TwoD(prior))) => {
-            let (p, r) = identify::identify_2d(&log, &prior, &opts).map_err(what)?;
-            (PlantParams::TwoD(p), r)
-        }
-        (2, None) => {
-            let (p, r) =
-                identify::identify_3d(&log, &Joint3dParams::default(), &opts).map_err(what)?;
-            (PlantParams::ThreeD(p), r)
-        }
-        (2, Some(PlantParams::ThreeD(prior))) => {
-            let (p, r) = identify::identify_3d(&log, &prior, &opts).map_err(what)?;
-            (PlantParams::ThreeD(p), r)
-        }
-        _ => bail!(
-            "{}: a {} log, but --prior is a plant file for the other joint",
-            a.log.display(),
-            if log.planes == 1 { "2D" } else { "3D" }
-        ),
-    };
+    let (params, reports) = fit(&a, &log, prior, &opts, &stop)?;
     if let Some(signal) = stop.requested() {
         // Late in the fit: a stage may have been cut short.
         return Err(Stopped {
@@ -303,6 +271,51 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The fit of `log` from `prior` (the defaults without one); a fit a
+/// signal stopped is the error [`Stopped`].
+fn fit(
+    a: &JointArgs,
+    log: &identify::ExcitationLog,
+    prior: Option<PlantParams>,
+    opts: &IdentifyOptions,
+    stop: &Stop,
+) -> anyhow::Result<(PlantParams, Vec<PlaneReport>)> {
+    let what = |e: identify::IdentifyError| match stop.requested() {
+        Some(signal) => Stopped {
+            signal,
+            what: stopped_fit(a),
+        }
+        .into(),
+        None => anyhow::anyhow!("{}: {e}", a.log.display()),
+    };
+    let (params, reports) = match (log.planes, prior) {
+        (1, None) => {
+            let (p, r) =
+                identify::identify_2d(log, &Joint2dParams::default(), opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (1, Some(PlantParams::TwoD(prior))) => {
+            let (p, r) = identify::identify_2d(log, &prior, opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (2, None) => {
+            let (p, r) =
+                identify::identify_3d(log, &Joint3dParams::default(), opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        (2, Some(PlantParams::ThreeD(prior))) => {
+            let (p, r) = identify::identify_3d(log, &prior, opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        _ => bail!(
+            "{}: a {} log, but --prior is a plant file for the other joint",
+            a.log.display(),
+            if log.planes == 1 { "2D" } else { "3D" }
+        ),
+    };
+    Ok((params, reports))
 }
 
 /// What a fit stopped by a signal says: nothing written, how to fit again.

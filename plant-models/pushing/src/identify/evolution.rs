@@ -261,6 +261,25 @@ where
     )
 }
 
+/// Scores the candidates of `pop` without a score yet, in parallel (NaN
+/// ranks as −∞); how many, or `None` if `fitness` refused one (then no
+/// score is set).
+fn score_new<F>(pop: &[[f64; 8]], scores: &mut [Option<f64>], fitness: &F) -> Option<usize>
+where
+    F: Fn(&MaterialParams) -> Option<f64> + Sync,
+{
+    let todo: Vec<usize> = (0..pop.len()).filter(|&i| scores[i].is_none()).collect();
+    let fresh: Vec<Option<f64>> = todo
+        .par_iter()
+        .map(|&i| fitness(&MaterialParams::from_array(pop[i])))
+        .collect();
+    let fresh = fresh.into_iter().collect::<Option<Vec<f64>>>()?;
+    for (&i, s) in todo.iter().zip(fresh) {
+        scores[i] = Some(if s.is_nan() { f64::NEG_INFINITY } else { s });
+    }
+    Some(todo.len())
+}
+
 /// [`calibrate`] with a fitness that may refuse to score (`None`: the
 /// caller asks the search to stop, e.g. on a signal). The search then
 /// ends after the generation it was scoring, with `Ok(None)`; what was
@@ -290,18 +309,10 @@ where
     let mut best: Option<([f64; 8], f64)> = None;
     for g in 1..=settings.generations {
         // Line 6: run the simulations not run yet, in parallel.
-        let todo: Vec<usize> = (0..n).filter(|&i| scores[i].is_none()).collect();
-        let fresh: Vec<Option<f64>> = todo
-            .par_iter()
-            .map(|&i| fitness(&MaterialParams::from_array(pop[i])))
-            .collect();
-        let Some(fresh) = fresh.into_iter().collect::<Option<Vec<f64>>>() else {
+        let Some(fresh) = score_new(&pop, &mut scores, &fitness) else {
             return Ok(None);
         };
-        evaluations += todo.len();
-        for (i, s) in todo.into_iter().zip(fresh) {
-            scores[i] = Some(if s.is_nan() { f64::NEG_INFINITY } else { s });
-        }
+        evaluations += fresh;
         let mut order: Vec<usize> = (0..n).collect();
         order.sort_by(|&a, &b| {
             scores[b]
