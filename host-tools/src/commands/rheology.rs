@@ -164,7 +164,8 @@ struct CalibrateArgs {
     /// Go on with a calibration stopped by a signal (Ctrl-C, SIGTERM,
     /// SIGHUP) from the search state it wrote (OUT/params.search.toml):
     /// the candidates it simulated are not simulated again, and the search
-    /// ends where it would have ended unbroken (same result files). Same
+    /// ends where it would have ended unbroken (the same params.toml, and
+    /// generations.csv but for its wall-time column). Same
     /// scenario, --measured, --method, --params and --seed; the budget may
     /// be larger (a --seconds budget counts the stopped runs' time). A
     /// calibration stopped again writes its state back to this file.
