@@ -500,7 +500,7 @@ fn a_stopped_push_calibration_keeps_its_best_and_resumes_to_the_result_of_an_unb
     // A small mesh on a recorded push (no ground truth made per run).
     let grid = ["--nx", "4", "--ny", "2", "--cell-px", "16"];
     let recorded = dir.join("recorded");
-    let mut sim = vec!["push", "simulate", "--ref-element-px", "16"];
+    let mut sim = vec!["push", "simulate", "--ref-element-px", "32"];
     sim.extend(grid);
     sim.extend(["--out", s(&recorded)]);
     common::ok(&softjoint(&sim));
@@ -514,14 +514,14 @@ fn a_stopped_push_calibration_keeps_its_best_and_resumes_to_the_result_of_an_unb
         v.extend(["--generations", generations, "--out", s(out)].map(String::from));
         v
     };
-    // The generations of one search of about 1.5 s (σ falls over them, so
+    // The generations of one search of about 1 s (σ falls over them, so
     // the stopped, resumed and unbroken searches all ask the same count),
     // from the time of 1 and 31 generations (20 to 200 of them); the
     // signal comes 40 % of the way into the search.
     let one = timed(&args(&calibrate("1", &dir.join("warm"))));
     let more = timed(&args(&calibrate("31", &dir.join("warm"))));
-    let per_generation = (more.saturating_sub(one) / 30).max(Duration::from_millis(1));
-    let mut generations = (1.5 / per_generation.as_secs_f64()).clamp(20.0, 200.0) as u32;
+    let mut per_generation = (more.saturating_sub(one) / 30).max(Duration::from_millis(1));
+    let mut generations = (1.0 / per_generation.as_secs_f64()).clamp(20.0, 200.0) as u32;
     // SIGTERM: exit 143, the state in the output directory, no params.json.
     let out = dir.join("stopped");
     let mut attempt = 1;
@@ -533,18 +533,24 @@ fn a_stopped_push_calibration_keeps_its_best_and_resumes_to_the_result_of_an_unb
             after,
             "-TERM",
         );
-        let missed = match &o {
-            // The search ended before the signal, or during the work
-            // after it: a longer search.
-            None => true,
-            Some(_) if out.join("params.json").exists() => true,
-            Some(_) => stopped_before_the_search(&out),
+        // The search ended before the signal, or during the work after
+        // it: a search twice as long, the signal at the same time. The
+        // signal came before the search: the signal later.
+        let (ended_early, too_soon) = match &o {
+            None => (true, false),
+            Some(_) if out.join("params.json").exists() => (true, false),
+            Some(_) => (false, stopped_before_the_search(&out)),
         };
-        if !missed || attempt == ATTEMPTS {
+        if !(ended_early || too_soon) || attempt == ATTEMPTS {
             break o.expect("the search ended before the signal");
         }
         attempt += 1;
-        generations *= 2;
+        if ended_early {
+            generations *= 2;
+            per_generation /= 2;
+        } else {
+            per_generation *= 2;
+        }
     };
     let generations = generations.to_string();
     let first = assert_stopped_calibration(&o, 143, "SIGTERM", &out, "params.json", false);
