@@ -3,7 +3,7 @@
 //! ([`board`]), the joint's calibration, excitation and tuning ([`joint`]),
 //! and what every command shares: checked output ([`output`]), pictures
 //! ([`plot`]), input parsing ([`input`]), progress bars ([`progress`]),
-//! signals ([`stop`]) and sizes checked against memory ([`memory`]).
+//! signals ([`stop`]), a stopped search's scores ([`resume`]) and sizes checked against memory ([`memory`]).
 
 pub mod board;
 pub mod files;
@@ -13,6 +13,7 @@ pub mod memory;
 pub mod output;
 pub mod plot;
 pub mod progress;
+pub mod resume;
 pub mod run;
 pub mod stop;
 pub mod visco_core;

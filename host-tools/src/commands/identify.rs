@@ -2,6 +2,7 @@
 //! recording, and the plans to record one.
 use std::fmt::Write as _;
 use std::path::PathBuf;
+use std::sync::atomic::AtomicUsize;
 
 use anyhow::{bail, Context};
 use clap::{Args, Subcommand, ValueEnum};
@@ -9,8 +10,9 @@ use host_tools::files::plant::{PlantFile, PlantParams, Uncertainty};
 use host_tools::joint::excite;
 use host_tools::output;
 use host_tools::plot::{line_charts, Chart, Series};
+use host_tools::stop::{Stop, Stopped};
 use plant_joint::identify::{
-    self, ExcitationPlan, IdentifyOptions, LmOptions, PlaneReport, NEVER_FITTED,
+    self, ExcitationPlan, IdentifyOptions, LmOptions, PlaneReport, StopFlag, NEVER_FITTED,
 };
 use plant_joint::{Joint2dParams, Joint3dParams};
 
@@ -20,6 +22,10 @@ pub enum IdentifyCommand {
     /// --excite`): thermal, driver, transformation temperatures and their
     /// stress slope, sponge, link inertia, wire jamming; with uncertainties,
     /// the parameters the log does not determine, and a held-out check.
+    ///
+    /// Ctrl-C, SIGTERM or SIGHUP stops the fit within one replay of the
+    /// log and writes nothing (no plant file, no plot: a fit cut short is
+    /// no plant); exit 130, 143 or 129.
     Joint(JointArgs),
     /// Print an excitation plan (TOML) to start from: the standard plan
     /// (steps, pulses, ramps, co-contraction, optional holds), within the
@@ -162,6 +168,10 @@ pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
 }
 
 fn joint(a: JointArgs) -> anyhow::Result<()> {
+    // A signal stops the fit within one replay of the log; nothing is
+    // written then (a fit cut short is no plant). Caught from the start,
+    // so a signal while the log is read stops the fit as it begins.
+    let stop = Stop::on_signals()?;
     if !(a.fit_fraction.is_finite() && (0.2..=1.0).contains(&a.fit_fraction)) {
         bail!(
             "--fit-fraction must be in 0.2..=1, got {}",
@@ -190,40 +200,25 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         Some(p) => Some(PlantFile::load(p)?.params()?),
         None => None,
     };
+    let flag: &'static AtomicUsize = Box::leak(Box::new(stop.flag()));
     let opts = IdentifyOptions {
         fit_fraction: a.fit_fraction,
         lm: LmOptions {
             max_iterations: a.max_iterations as usize,
+            stop: Some(StopFlag(flag)),
             ..LmOptions::default()
         },
         ..IdentifyOptions::default()
     };
-    let what = |e: identify::IdentifyError| anyhow::anyhow!("{}: {e}", a.log.display());
-    let (params, reports) = match (log.planes, prior) {
-        (1, None) => {
-            let (p, r) =
-                identify::identify_2d(&log, &Joint2dParams::default(), &opts).map_err(what)?;
-            (PlantParams::TwoD(p), r)
+    let (params, reports) = fit(&a, &log, prior, &opts, &stop)?;
+    if let Some(signal) = stop.requested() {
+        // Late in the fit: a stage may have been cut short.
+        return Err(Stopped {
+            signal,
+            what: stopped_fit(&a),
         }
-        (1, Some(PlantParams::TwoD(prior))) => {
-            let (p, r) = identify::identify_2d(&log, &prior, &opts).map_err(what)?;
-            (PlantParams::TwoD(p), r)
-        }
-        (2, None) => {
-            let (p, r) =
-                identify::identify_3d(&log, &Joint3dParams::default(), &opts).map_err(what)?;
-            (PlantParams::ThreeD(p), r)
-        }
-        (2, Some(PlantParams::ThreeD(prior))) => {
-            let (p, r) = identify::identify_3d(&log, &prior, &opts).map_err(what)?;
-            (PlantParams::ThreeD(p), r)
-        }
-        _ => bail!(
-            "{}: a {} log, but --prior is a plant file for the other joint",
-            a.log.display(),
-            if log.planes == 1 { "2D" } else { "3D" }
-        ),
-    };
+        .into());
+    }
     let uncertainty = uncertainties(&reports);
     let unverified = unverified(&reports);
     let mut header = format!(
@@ -276,6 +271,65 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The fit of `log` from `prior` (the defaults without one); a fit a
+/// signal stopped is the error [`Stopped`].
+fn fit(
+    a: &JointArgs,
+    log: &identify::ExcitationLog,
+    prior: Option<PlantParams>,
+    opts: &IdentifyOptions,
+    stop: &Stop,
+) -> anyhow::Result<(PlantParams, Vec<PlaneReport>)> {
+    let what = |e: identify::IdentifyError| match stop.requested() {
+        Some(signal) => Stopped {
+            signal,
+            what: stopped_fit(a),
+        }
+        .into(),
+        None => anyhow::anyhow!("{}: {e}", a.log.display()),
+    };
+    let (params, reports) = match (log.planes, prior) {
+        (1, None) => {
+            let (p, r) =
+                identify::identify_2d(log, &Joint2dParams::default(), opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (1, Some(PlantParams::TwoD(prior))) => {
+            let (p, r) = identify::identify_2d(log, &prior, opts).map_err(what)?;
+            (PlantParams::TwoD(p), r)
+        }
+        (2, None) => {
+            let (p, r) =
+                identify::identify_3d(log, &Joint3dParams::default(), opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        (2, Some(PlantParams::ThreeD(prior))) => {
+            let (p, r) = identify::identify_3d(log, &prior, opts).map_err(what)?;
+            (PlantParams::ThreeD(p), r)
+        }
+        _ => bail!(
+            "{}: a {} log, but --prior is a plant file for the other joint",
+            a.log.display(),
+            if log.planes == 1 { "2D" } else { "3D" }
+        ),
+    };
+    Ok((params, reports))
+}
+
+/// What a fit stopped by a signal says: nothing written, how to fit again.
+fn stopped_fit(a: &JointArgs) -> String {
+    let plot = a
+        .plot
+        .as_ref()
+        .map(|p| format!(" nor {}", p.display()))
+        .unwrap_or_default();
+    format!(
+        "the fit of {} was cut short, so nothing was written (neither {}{plot}); run it again to fit from the start (a fit keeps no state to resume from)",
+        a.log.display(),
+        a.output.display()
+    )
 }
 
 /// The 1σ of every parameter identified and verified, for the plant file.

@@ -3,6 +3,8 @@
 //! * `simulate` — record a push of the ground-truth block (or read one from
 //!   CSV), run the mass-spring model on it and score every frame;
 //! * `calibrate` — Algorithm 5 on a training push, with a progress bar;
+//!   stopped by a signal it keeps its best and its scores so far, and
+//!   `--resume` goes on from them (host_tools::resume);
 //! * `classify` — which of several calibrated models predicts a push best.
 //!
 //! Every command writes CSV and SVG pictures into `--out` and prints either
@@ -17,6 +19,8 @@ use clap::{Args, Subcommand, ValueEnum};
 use host_tools::input::from_json;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use host_tools::resume::{best_of, fnv1a_hex, Scored, Scores};
+use host_tools::stop::{Stop, StopSignal, Stopped};
 use host_tools::{outln, progress};
 use plant_pushing::classify::MaterialModel;
 use plant_pushing::contour_score::ReachZone;
@@ -33,6 +37,7 @@ use plant_pushing::scenario::{PushScenario, PushSite};
 use plant_pushing::sim::{DrivingMode, Integrator, SimConfig};
 use plant_pushing::video_csv::{parse_video_csv, write_video_csv};
 use plant_pushing::V2;
+use serde::{Deserialize, Serialize};
 
 #[derive(Args)]
 pub struct PushArgs {
@@ -45,6 +50,12 @@ enum PushCommand {
     /// Run the mass-spring model on one push and score it frame by frame.
     Simulate(SimulateArgs),
     /// Learn the model's parameters from a training push (Algorithm 5).
+    ///
+    /// Ctrl-C, SIGTERM or SIGHUP stops the search between simulations
+    /// (exit 130, 143, 129): no result file is written, but the best
+    /// candidate so far and every candidate simulated are kept in
+    /// OUT/params.search.toml, from which --resume goes on to the result
+    /// of the search never stopped.
     Calibrate(CalibrateArgs),
     /// Decide which calibrated material model explains a push best.
     Classify(ClassifyArgs),
@@ -235,6 +246,14 @@ struct CalibrateArgs {
     /// Print a machine-readable summary.
     #[arg(long)]
     json: bool,
+    /// Go on with a calibration stopped by a signal (Ctrl-C, SIGTERM,
+    /// SIGHUP) from the search state it wrote (OUT/params.search.toml):
+    /// the candidates it simulated are not simulated again, and the search
+    /// ends where it would have ended unbroken (same params.json). Same
+    /// push, model options, --score, --generations and --seed. A
+    /// calibration stopped again writes its state back to this file.
+    #[arg(long, value_name = "STATE")]
+    resume: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -335,24 +354,35 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
 /// is already hours of work.
 const MAX_GENERATIONS: usize = 10_000;
 
+/// The files `calibrate` writes in its output directory.
+const CALIBRATION_FILES: [&str; 4] = [
+    "params.json",
+    "generations.csv",
+    "mu_per_generation.svg",
+    "snapshots.svg",
+];
+
+/// Where a stopped calibration writes its search state, in its output
+/// directory (`params.json` → `params.search.toml`, as `tune` does).
+const STATE_FILE: &str = "params.search.toml";
+
 fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
+    // A signal stops the search at its next simulation (one that comes
+    // while the push is prepared stops it before the first).
+    let stop = Stop::on_signals()?;
     if !(1..=MAX_GENERATIONS).contains(&a.generations) {
         bail!(
             "--generations must be 1..={MAX_GENERATIONS} (Table III: 30), got {}",
             a.generations
         );
     }
-    // Every file the calibration writes can be written: checked before
-    // the search, not after it.
-    host_tools::output::check_files_in(
-        &a.out,
-        &[
-            "params.json",
-            "generations.csv",
-            "mu_per_generation.svg",
-            "snapshots.svg",
-        ],
-    )?;
+    // Every file the calibration writes, and the search state a stop
+    // writes, can be written: checked before the search, not after it.
+    host_tools::output::check_files_in(&a.out, &CALIBRATION_FILES)?;
+    let state_path = a.state_path();
+    if a.resume.is_some() || a.out.is_dir() {
+        output::check_file(&state_path)?;
+    }
     let prep = prepare(&a.video, &a.model, a.json)?;
     let spec = CalibrateSpec {
         generations: a.generations,
@@ -360,19 +390,38 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         score: a.score.into(),
         sim: sim_config(&a.model),
     };
+    let fingerprint = push_fingerprint(&a, &prep, &spec);
+    let (resumed, evaluations_before) = a.resumed(&fingerprint)?;
+    let scores = Scores::new(stop.clone(), resumed);
     let bar = progress::counter(
         "calibrating",
         "generations",
         Some(a.generations as u64),
         a.json,
     );
-    let report = experiment::calibrate(&prep, &spec, &mut |g| {
+    let layer = |p: &MaterialParams, run: &dyn Fn(&MaterialParams) -> f64| {
+        scores.score(&p.to_array(), |_| run(p))
+    };
+    let found = experiment::calibrate_until(&prep, &spec, &layer, &mut |g| {
         bar.set_message(match spec.score {
             ScoreKind::F => format!("best μ(F) {:.4}", g.best),
             ScoreKind::Contour => format!("best contour distance {:.2} px", -g.best),
         });
         bar.inc(1);
-    })?;
+    });
+    let report = match (found, stop.requested()) {
+        (Ok(Some(report)), _) => report,
+        (Ok(None) | Err(_), Some(signal)) => {
+            bar.finish_and_clear();
+            let mut state = PushSearchState::new(&a, fingerprint, spec.score, &scores);
+            // A resumed search stopped while retracing is no further on
+            // than the search it resumed.
+            state.evaluations = state.evaluations.max(evaluations_before);
+            return Err(push_stopped(&a, signal, &state_path, &state, spec.score));
+        }
+        (Ok(None), None) => bail!("the search stopped though no signal asked it to"),
+        (Err(e), None) => return Err(e.into()),
+    };
     bar.finish_and_clear();
     out_dir(&a.out)?;
     write_calibration(&a.out, &prep, (a.model.nx, a.model.ny), &report)?;
@@ -391,11 +440,192 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         report.evaluations
     );
     outln!("{}", report.best_params);
+    if let Some(r) = &a.resume {
+        outln!(
+            "resumed from {}: {} candidates' scores taken from it, {} simulated now",
+            r.display(),
+            scores.replayed(),
+            scores.simulated()
+        );
+    }
     outln!(
         "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
         a.out.display()
     );
-    Ok(())
+    match stop.requested() {
+        // The search had ended when the signal came: its files are whole.
+        Some(signal) => Err(Stopped {
+            signal,
+            what: format!(
+                "after the search had finished; every result file written to {}",
+                a.out.display()
+            ),
+        }
+        .into()),
+        None => Ok(()),
+    }
+}
+
+/// A `push calibrate` stopped by a signal: what it had simulated, to
+/// resume from (`--resume`), and the best candidate so far.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PushSearchState {
+    /// FNV-1a of the problem: the push (its tracked contours and forces),
+    /// the material, site, grid, raster and simulator settings, the score.
+    problem_fnv1a: String,
+    /// --generations (σ falls over them: another count is another search).
+    generations: usize,
+    seed: u64,
+    /// Candidates the search had been given scores for (one asked twice
+    /// counts twice, is simulated once).
+    evaluations: usize,
+    /// The best candidate so far (absent if none scored).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    best: Option<PushBest>,
+    /// Every candidate simulated, in the order they came in: genes are
+    /// k_length, k_damping, k_area, k_angle, max_force, yield_strain,
+    /// creep, max_alpha; the score is the search's fitness (μ(F), or minus
+    /// the contour distance in px), absent when not finite.
+    #[serde(default)]
+    scored: Vec<Scored>,
+}
+
+/// The best candidate of a stopped `push calibrate`.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PushBest {
+    /// Its score in the score's own terms: μ(F), or the contour distance
+    /// in px.
+    score: f64,
+    /// Its parameters, as params.json names them.
+    params: MaterialParams,
+}
+
+impl PushSearchState {
+    fn new(a: &CalibrateArgs, problem_fnv1a: String, kind: ScoreKind, scores: &Scores) -> Self {
+        let evaluations = scores.answered();
+        let scored = scores.snapshot();
+        let best = best_of(&scored, |x, y| x > y).and_then(|b| {
+            let genes = <[f64; 8]>::try_from(b.genes.as_slice()).ok()?;
+            Some(PushBest {
+                score: kind.in_own_terms(b.score?),
+                params: MaterialParams::from_array(genes),
+            })
+        });
+        Self {
+            problem_fnv1a,
+            generations: a.generations,
+            seed: a.seed,
+            evaluations,
+            best,
+            scored,
+        }
+    }
+}
+
+impl CalibrateArgs {
+    /// Where a stopped calibration writes its state: the file it resumed
+    /// from, or [`STATE_FILE`] in the output directory.
+    fn state_path(&self) -> PathBuf {
+        match &self.resume {
+            Some(p) => p.clone(),
+            None => self.out.join(STATE_FILE),
+        }
+    }
+
+    /// The candidates scored by the calibration resumed and its
+    /// evaluations, checked against this one.
+    fn resumed(&self, fingerprint: &str) -> Result<(Vec<Scored>, usize)> {
+        let Some(path) = &self.resume else {
+            return Ok((Vec::new(), 0));
+        };
+        let text = fs::read_to_string(path)
+            .with_context(|| format!("cannot read --resume {}", path.display()))?;
+        let st: PushSearchState = host_tools::input::from_toml(&text, &path.display().to_string())?;
+        let refuse = |why: String| anyhow::anyhow!("--resume {}: {why}", path.display());
+        if st.problem_fnv1a != fingerprint {
+            return Err(refuse(
+                "it is a calibration of another problem (the push, the model options or --score differ, or the --video file changed since)".into(),
+            ));
+        }
+        if st.generations != self.generations {
+            return Err(refuse(format!(
+                "it is a calibration with --generations {}, this one asks {} (σ falls over the generations: another count is another search)",
+                st.generations, self.generations
+            )));
+        }
+        if st.seed != self.seed {
+            return Err(refuse(format!(
+                "it is a calibration with --seed {}, this one asks {}",
+                st.seed, self.seed
+            )));
+        }
+        if st.scored.iter().any(|s| s.genes.len() != 8) {
+            return Err(refuse("every `scored` entry needs the eight genes".into()));
+        }
+        Ok((st.scored, st.evaluations))
+    }
+}
+
+/// FNV-1a of what the search's scores depend on: the push, the material,
+/// site, grid, raster and simulator settings and the score.
+fn push_fingerprint(a: &CalibrateArgs, prep: &PreparedVideo, spec: &CalibrateSpec) -> String {
+    let mut text = write_video_csv(&prep.video);
+    let _ = write!(
+        text,
+        "\nmaterial {} site {} nx {} ny {} cell_px {:?} sim {:?} score {}",
+        a.video.material.label(),
+        PushSite::from(a.video.site).name(),
+        a.model.nx,
+        a.model.ny,
+        a.model.cell_px,
+        spec.sim,
+        spec.score.name()
+    );
+    fnv1a_hex(text.as_bytes())
+}
+
+/// Writes a stopped calibration's state and says what it kept, as the
+/// error the program exits with (130, 143, 129); no result file is
+/// written (the search did not finish).
+fn push_stopped(
+    a: &CalibrateArgs,
+    signal: StopSignal,
+    path: &Path,
+    state: &PushSearchState,
+    kind: ScoreKind,
+) -> anyhow::Error {
+    if let Err(e) = out_dir(&a.out).and_then(|()| {
+        output::write_toml(
+            path,
+            "# Written by `softjoint push calibrate` when stopped: the candidates simulated so far\n# and the best of them. `softjoint push calibrate … --resume THIS_FILE` goes on from here.\n",
+            state,
+        )
+    }) {
+        return e.context(format!(
+            "stopped by {}; the search state was lost",
+            signal.name()
+        ));
+    }
+    let best = match (&state.best, kind) {
+        (Some(b), ScoreKind::F) => format!("best so far μ(F) {:.4}", b.score),
+        (Some(b), ScoreKind::Contour) => {
+            format!("best so far contour distance {:.2} px", b.score)
+        }
+        (None, _) => "none scored yet".into(),
+    };
+    Stopped {
+        signal,
+        what: format!(
+            "{} evaluations ({} candidates simulated), {best}; search state in {} (`softjoint push calibrate … --resume {}` with the same options goes on from there); params.json and the other result files not written",
+            state.evaluations,
+            state.scored.len(),
+            path.display(),
+            path.display(),
+        ),
+    }
+    .into()
 }
 
 fn classify_cmd(a: ClassifyArgs) -> Result<()> {
@@ -1290,6 +1520,7 @@ mod tests {
                 },
                 out: dir.join(name),
                 json: true,
+                resume: None,
             })
             .unwrap();
             let p = load_params(&dir.join(name).join("params.json")).unwrap();
@@ -1352,7 +1583,8 @@ mod tests {
             seed: 3,
             score: ScoreArg::F,
             out: dir.join("z"),
-            json: true
+            json: true,
+            resume: None,
         })
         .is_err());
     }

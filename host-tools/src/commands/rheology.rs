@@ -7,7 +7,9 @@
 //! * `calibrate` — learn the lattice's parameters from a measured push (a
 //!   directory of CSV files, or a push of the reference block generated on
 //!   the spot) by the paper's GA or RA, with a progress bar, and check the
-//!   result on a push the calibration did not see.
+//!   result on a push the calibration did not see; stopped by a signal it
+//!   keeps its best and its scores so far, and `--resume` goes on from
+//!   them (host_tools::resume).
 //!
 //! The physics lives in `plant_rheology`; this is argument
 //! handling, files, pictures and reports.
@@ -20,6 +22,8 @@ use clap::{Args, Subcommand, ValueEnum};
 use host_tools::files::rheology::ScenarioFile;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use host_tools::resume::{best_of, fnv1a_hex, Scored, Scores};
+use host_tools::stop::{Stop, StopSignal, Stopped};
 use host_tools::{out, outln, progress};
 use indicatif::ProgressBar;
 use plant_rheology::identify::calibrate::CalibrationSettings;
@@ -29,10 +33,12 @@ use plant_rheology::identify::experiment::{
 };
 use plant_rheology::identify::measurement::Measurement;
 use plant_rheology::identify::reference::ReferenceConfig;
-use plant_rheology::identify::search::{Budget, HistoryRow, Method};
+use plant_rheology::identify::search::{BatchObjective, Budget, HistoryRow, Method};
 use plant_rheology::lattice::{mid_section, surface_nodes, V3};
 use plant_rheology::params::{LatticeParams, ParamSet};
 use plant_rheology::scenario::{push_schedule_mm, Frame, ParamsSpec, Run, Scenario};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// Arguments of `softjoint rheology`.
 #[derive(Args)]
@@ -46,6 +52,12 @@ enum RheologyCommand {
     /// Push the lattice (or the reference block) as the scenario says.
     Simulate(SimulateArgs),
     /// Learn the lattice's parameters from a measured push (GA or RA).
+    ///
+    /// Ctrl-C, SIGTERM or SIGHUP stops the search between simulations
+    /// (exit 130, 143, 129): no result file is written, but the best
+    /// candidate so far and every candidate simulated are kept in
+    /// OUT/params.search.toml, from which --resume goes on to the result
+    /// of the search never stopped.
     Calibrate(CalibrateArgs),
 }
 
@@ -149,6 +161,16 @@ struct CalibrateArgs {
     /// Print a machine-readable summary (and no progress bar).
     #[arg(long)]
     json: bool,
+    /// Go on with a calibration stopped by a signal (Ctrl-C, SIGTERM,
+    /// SIGHUP) from the search state it wrote (OUT/params.search.toml):
+    /// the candidates it simulated are not simulated again, and the search
+    /// ends where it would have ended unbroken (the same params.toml, and
+    /// generations.csv but for its wall-time column). Same
+    /// scenario, --measured, --method, --params and --seed; the budget may
+    /// be larger (a --seconds budget counts the stopped runs' time). A
+    /// calibration stopped again writes its state back to this file.
+    #[arg(long, value_name = "STATE")]
+    resume: Option<PathBuf>,
 }
 
 pub fn run(args: RheologyArgs) -> Result<()> {
@@ -278,16 +300,37 @@ const CALIBRATION_FILES: [&str; 5] = [
     "sections.svg",
 ];
 
+/// Where a stopped calibration writes its search state, in its output
+/// directory (`params.toml` → `params.search.toml`, as `tune` does).
+const STATE_FILE: &str = "params.search.toml";
+
 fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
-    // Every file the calibration writes can be written: checked before
-    // the search, not after it.
+    // A signal stops the search at its next simulation (one that comes
+    // while the measurement is made stops it before the first).
+    let stop = Stop::on_signals()?;
+    // Every file the calibration writes, and the search state a stop
+    // writes, can be written: checked before the search, not after it.
     output::check_files_in(&a.out, &CALIBRATION_FILES)?;
+    let state_path = a.state_path();
+    if a.resume.is_some() || a.out.is_dir() {
+        output::check_file(&state_path)?;
+    }
     let file = ScenarioFile::load(a.scenario.as_deref())?;
     let scenario = file.scenario();
     let set = ParamSet::from_count(a.params).map_err(|e| anyhow::anyhow!("--params: {e}"))?;
-    let budget = budget(&a)?;
+    let mut budget = budget(&a)?;
     let unseen = unseen_push(&a, &scenario)?;
     let measured = a.measured.as_deref().map(load_measurement).transpose()?;
+    let fingerprint = problem_fingerprint(&a, &file)?;
+    let Resumed {
+        scored: resumed,
+        seconds_spent: seconds_before,
+        evaluations: evaluations_before,
+    } = a.resumed(&fingerprint)?;
+    if let Some(s) = &mut budget.max_seconds {
+        // The wall-time budget is the whole search's, stopped runs too.
+        *s = (*s - seconds_before).max(1e-9);
+    }
     let mut settings = CalibrationSettings::new(a.method.into(), budget, a.seed);
     settings.ga = file.ga;
     settings.ra = file.ra;
@@ -305,12 +348,83 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         json: a.json,
         counter: None,
     };
-    let report = experiment::calibrate_push(&spec, &mut |e| watch.event(e))?;
+    let scores = Scores::new(stop.clone(), resumed);
+    let problem = experiment::calibration_problem(&spec, &mut |e| watch.event(e))?;
+    let started = std::time::Instant::now();
+    let f = |g: &[f64]| problem.s_of_genes(g);
+    let mut objective = Resumable {
+        f: &f,
+        scores: &scores,
+    };
+    let result = experiment::calibrate_problem(&spec, problem.clone(), &mut objective, &mut |e| {
+        watch.event(e)
+    });
     watch.finish();
+    let report = match (result, stop.requested()) {
+        (Ok(report), _) => report,
+        (Err(_), Some(signal)) => {
+            let state = CalibrationState {
+                scenario: scenario_name(&a),
+                problem_fnv1a: fingerprint,
+                method: settings.method,
+                params: set.len(),
+                seed: a.seed,
+                seconds_spent: seconds_before + started.elapsed().as_secs_f64(),
+                // A resumed search stopped while retracing is no
+                // further on than the search it resumed.
+                evaluations: scores.answered().max(evaluations_before),
+                best: None,
+                scored: scores.into_scored(),
+            }
+            .with_best(set)?;
+            return Err(stopped(&a, signal, &state_path, &state));
+        }
+        (Err(e), None) => return Err(e.into()),
+    };
     write_calibration(&a.out, &spec, &report)?;
     if a.json {
-        return JsonObject::of(&report)?.field("out", &a.out)?.print();
+        let mut j = JsonObject::of(&report)?.field("out", &a.out)?;
+        if let Some(r) = &a.resume {
+            #[derive(Serialize)]
+            struct Resumed<'a> {
+                from: &'a Path,
+                candidates_taken: usize,
+                simulated: usize,
+            }
+            j = j.field(
+                "resumed",
+                &Resumed {
+                    from: r,
+                    candidates_taken: scores.replayed(),
+                    simulated: scores.simulated(),
+                },
+            )?;
+        }
+        j.print()?;
+    } else {
+        calibration_text(&a, set, &report, &scores)?;
     }
+    match stop.requested() {
+        // The search had ended when the signal came: its files are whole.
+        Some(signal) => Err(Stopped {
+            signal,
+            what: format!(
+                "after the search had finished; every result file written to {}",
+                a.out.display()
+            ),
+        }
+        .into()),
+        None => Ok(()),
+    }
+}
+
+/// The calibration's report for a person.
+fn calibration_text(
+    a: &CalibrateArgs,
+    set: ParamSet,
+    report: &CalibrationReport,
+    scores: &Scores,
+) -> Result<()> {
     outln!(
         "{} on {} parameters: {} simulations in {:.1} s ({} unstable), stopped by {}",
         report.method.name(),
@@ -320,6 +434,14 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         report.unstable,
         report.stopped_by
     );
+    if let Some(r) = &a.resume {
+        outln!(
+            "resumed from {}: {} candidates' scores taken from it, {} simulated now",
+            r.display(),
+            scores.replayed(),
+            scores.simulated()
+        );
+    }
     outln!("defaults:   {}", score_text(&report.default));
     outln!("calibrated: {}", score_text(&report.calibrated));
     for (r, g) in set.ranges().iter().zip(&report.search.best_genes) {
@@ -335,6 +457,204 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         a.out.display()
     );
     Ok(())
+}
+
+/// The search's objective with its scores kept ([`Scores`]): a candidate
+/// scored before (a resumed search) is not simulated again, and none is
+/// simulated once a signal asks the search to stop (the batch then fails,
+/// which ends the search).
+struct Resumable<'a, F> {
+    f: &'a F,
+    scores: &'a Scores,
+}
+
+impl<F: Fn(&[f64]) -> f64 + Sync> BatchObjective for Resumable<'_, F> {
+    fn scores(&mut self, batch: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String> {
+        let f = self.f;
+        let got: Vec<Option<f64>> = batch.par_iter().map(|g| self.scores.score(g, f)).collect();
+        got.into_iter()
+            .collect::<Option<Vec<f64>>>()
+            .ok_or_else(|| "stopped by a signal".into())
+    }
+}
+
+/// A calibration stopped by a signal: what it had simulated, to resume
+/// from (`--resume`), and the best candidate so far.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CalibrationState {
+    /// The scenario file searched on (or the built-in scenario).
+    scenario: String,
+    /// FNV-1a of the problem: the scenario as read (its defaults filled
+    /// in), the measured push's files, the parameter count.
+    problem_fnv1a: String,
+    method: Method,
+    params: usize,
+    seed: u64,
+    /// Wall time the stopped runs spent (s), for a --seconds budget.
+    seconds_spent: f64,
+    /// Candidates the search had been given scores for (one asked twice
+    /// counts twice, is simulated once): its evaluations so far.
+    evaluations: usize,
+    /// The best candidate so far (absent if none was stable).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    best: Option<BestSoFar>,
+    /// Every candidate simulated, in the order they came in (genes in the
+    /// units of the parameter ranges; score S absent when unstable).
+    #[serde(default)]
+    scored: Vec<Scored>,
+}
+
+/// The best candidate of a stopped calibration.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BestSoFar {
+    /// Its S.
+    s: f64,
+    /// Its parameters, as `params.toml` holds them.
+    params: ParamsSpec,
+}
+
+impl CalibrationState {
+    /// The state with its best candidate filled in.
+    fn with_best(mut self, set: ParamSet) -> Result<Self> {
+        self.best = match best_of(&self.scored, |a, b| a < b) {
+            Some(b) => Some(BestSoFar {
+                s: b.score.unwrap_or(f64::INFINITY),
+                params: params_spec(&set.to_lattice(&b.genes)?),
+            }),
+            None => None,
+        };
+        Ok(self)
+    }
+}
+
+impl CalibrateArgs {
+    /// Where a stopped calibration writes its state: the file it resumed
+    /// from, or [`STATE_FILE`] in the output directory.
+    fn state_path(&self) -> PathBuf {
+        match &self.resume {
+            Some(p) => p.clone(),
+            None => self.out.join(STATE_FILE),
+        }
+    }
+
+    /// What the calibration resumed kept, checked against this one.
+    fn resumed(&self, fingerprint: &str) -> Result<Resumed> {
+        let Some(path) = &self.resume else {
+            return Ok(Resumed {
+                scored: Vec::new(),
+                seconds_spent: 0.0,
+                evaluations: 0,
+            });
+        };
+        let text = fs::read_to_string(path)
+            .with_context(|| format!("cannot read --resume {}", path.display()))?;
+        let st: CalibrationState =
+            host_tools::input::from_toml(&text, &path.display().to_string())?;
+        let refuse = |why: String| anyhow::anyhow!("--resume {}: {why}", path.display());
+        if st.problem_fnv1a != fingerprint {
+            return Err(refuse(format!(
+                "it is a calibration of another problem (scenario, --measured or --params differ from {}'s, or a file changed since)",
+                st.scenario
+            )));
+        }
+        let method: Method = self.method.into();
+        if st.method != method {
+            return Err(refuse(format!(
+                "it is a calibration with --method {}, this one asks {}",
+                st.method.name(),
+                method.name()
+            )));
+        }
+        if st.seed != self.seed {
+            return Err(refuse(format!(
+                "it is a calibration with --seed {}, this one asks {}",
+                st.seed, self.seed
+            )));
+        }
+        if !(st.seconds_spent.is_finite() && st.seconds_spent >= 0.0) {
+            return Err(refuse("`seconds_spent` must be a time ≥ 0".into()));
+        }
+        Ok(Resumed {
+            scored: st.scored,
+            seconds_spent: st.seconds_spent,
+            evaluations: st.evaluations,
+        })
+    }
+}
+
+/// What a resumed calibration takes from the state it resumes.
+struct Resumed {
+    scored: Vec<Scored>,
+    seconds_spent: f64,
+    evaluations: usize,
+}
+
+/// The scenario's name for the state file.
+fn scenario_name(a: &CalibrateArgs) -> String {
+    match &a.scenario {
+        Some(p) => p.display().to_string(),
+        None => "(the built-in scenario)".into(),
+    }
+}
+
+/// FNV-1a of what the search's scores depend on: the scenario as read
+/// (defaults filled in), the measured push's files and the parameter
+/// count.
+fn problem_fingerprint(a: &CalibrateArgs, file: &ScenarioFile) -> Result<String> {
+    let mut bytes = toml::to_string(file)?.into_bytes();
+    bytes.extend(format!("\nparams = {}\n", a.params).as_bytes());
+    if let Some(dir) = &a.measured {
+        for name in ["surface_points.csv", "forces.csv"] {
+            let p = dir.join(name);
+            bytes.extend(fs::read(&p).with_context(|| format!("cannot read {}", p.display()))?);
+        }
+    }
+    Ok(fnv1a_hex(&bytes))
+}
+
+/// Writes a stopped calibration's state and says what it kept, as the
+/// error the program exits with (130, 143, 129); no result file is
+/// written (the search did not finish).
+fn stopped(
+    a: &CalibrateArgs,
+    signal: StopSignal,
+    path: &Path,
+    state: &CalibrationState,
+) -> anyhow::Error {
+    if let Err(e) = output::create_dir(&a.out).and_then(|()| {
+        output::write_toml(
+            path,
+            "# Written by `softjoint rheology calibrate` when stopped: the candidates simulated so far\n# and the best of them. `softjoint rheology calibrate … --resume THIS_FILE` goes on from here.\n",
+            state,
+        )
+    }) {
+        return e.context(format!(
+            "stopped by {}; the search state was lost",
+            signal.name()
+        ));
+    }
+    let best = match &state.best {
+        Some(b) => format!("best so far S = {:.3}", b.s),
+        None => "no stable candidate yet".into(),
+    };
+    let scenario = a
+        .scenario
+        .as_ref()
+        .map(|p| format!(" {}", p.display()))
+        .unwrap_or_default();
+    Stopped {
+        signal,
+        what: format!(
+            "{} evaluations ({} candidates simulated), {best}; search state in {} (`softjoint rheology calibrate{scenario} … --resume {}` with the same options goes on from there); params.toml and the other result files not written",
+            state.evaluations,
+            state.scored.len(),
+            path.display(),
+            path.display(),
+        ),
+    }
+    .into()
 }
 
 /// The search's budget from `--evaluations` and `--seconds` (1000

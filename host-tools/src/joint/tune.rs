@@ -61,6 +61,7 @@ use crate::files::gains::{paper_v_offset, Gains, GainsFile, HeldOut, RunCost, Sc
 use crate::files::plant::{PlantFile, PlantParams, Uncertainty};
 use crate::files::scenario::{EstimatorMethod, FeedbackKind, Scenario, TargetStep};
 use crate::files::JointKind;
+use crate::resume::fnv1a_hex;
 use crate::run::joint::{CoreLoopTask, SimJoint};
 use crate::run::record::Trace;
 use crate::run::schedule::RunSchedule;
@@ -885,16 +886,6 @@ impl SearchState {
         }
         Ok(())
     }
-}
-
-/// FNV-1a, 64 bits, as 16 hex digits: a fingerprint of a file's bytes.
-fn fnv1a_hex(bytes: &[u8]) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in bytes {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    format!("{h:016x}")
 }
 
 #[cfg(test)]

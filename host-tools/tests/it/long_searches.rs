@@ -268,3 +268,375 @@ fn a_stopped_tune_keeps_its_best_and_resumes_to_the_gains_of_an_unbroken_search(
         std::fs::read_to_string(&straight).unwrap()
     );
 }
+
+/// Borrowed arguments.
+fn args(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}
+
+/// Runs `softjoint args` to its end (exit 0); how long it took.
+fn timed(args: &[&str]) -> Duration {
+    let t = Instant::now();
+    common::ok(&softjoint(args));
+    t.elapsed()
+}
+
+/// Starts `softjoint args`, sends `signal` after `after` (the search
+/// still running then) and returns its output.
+fn signalled(args: &[&str], after: Duration, signal: &str) -> Output {
+    try_signalled(args, after, signal).expect("the search ended before the signal")
+}
+
+/// [`signalled`], or `None` when the program ended before the signal.
+fn try_signalled(args: &[&str], after: Duration, signal: &str) -> Option<Output> {
+    let mut child = start(args);
+    std::thread::sleep(after);
+    if child.try_wait().unwrap().is_some() {
+        return None;
+    }
+    common::kill(signal, child.id());
+    Some(child.wait_with_output().unwrap())
+}
+
+/// How many times a timed stop is tried: a machine under load may be
+/// slower or faster than the times measured just before (the signal
+/// then comes before the search or after it), so a stop that missed the
+/// search is tried again with the signal later or the search longer.
+const ATTEMPTS: u32 = 4;
+
+/// Whether `out` holds a search state with no candidate in it (the
+/// signal came before the search).
+fn stopped_before_the_search(out: &Path) -> bool {
+    let path = out.join("params.search.toml");
+    path.exists() && scored(&toml_state(&path)).is_empty()
+}
+
+/// A stopped calibration's state file, as TOML.
+fn toml_state(path: &Path) -> toml::Table {
+    let text = std::fs::read_to_string(path).expect("search state written");
+    toml::from_str(&text).unwrap()
+}
+
+/// The `scored` list of a state: (genes, score) in the order they came in.
+fn scored(state: &toml::Table) -> Vec<(Vec<f64>, Option<f64>)> {
+    state["scored"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            let genes = e["genes"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|g| g.as_float().unwrap())
+                .collect();
+            (genes, e.get("score").and_then(|v| v.as_float()))
+        })
+        .collect()
+}
+
+/// `generations.csv` without its wall-time column (the last).
+fn generations_without_time(path: &Path) -> Vec<String> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| l.rsplit_once(',').map_or(l, |(head, _)| head).to_string())
+        .collect()
+}
+
+/// The checks every stopped calibration passes: exit status, the message,
+/// no result file, a state whose best is the best of its scores
+/// (`lower_is_better` for S, higher for μ(F)). Returns the state.
+fn assert_stopped_calibration(
+    o: &Output,
+    code: i32,
+    signal: &str,
+    out: &Path,
+    result_file: &str,
+    lower_is_better: bool,
+) -> toml::Table {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(code), "{err}");
+    assert!(
+        err.contains(&format!("stopped by {signal}"))
+            && err.contains("--resume")
+            && err.contains("best so far"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        !out.join(result_file).exists(),
+        "a result file from an unfinished search"
+    );
+    let state = toml_state(&out.join("params.search.toml"));
+    let list = scored(&state);
+    assert!(!list.is_empty(), "stopped before any candidate: {err}");
+    let evaluations = state["evaluations"].as_integer().unwrap() as usize;
+    assert!(evaluations >= list.len(), "{evaluations} < {}", list.len());
+    assert!(err.contains(&format!(
+        "{evaluations} evaluations ({} candidates simulated)",
+        list.len()
+    )));
+    let scores = list.iter().filter_map(|(_, s)| *s);
+    let want = if lower_is_better {
+        scores.fold(f64::INFINITY, f64::min)
+    } else {
+        scores.fold(f64::NEG_INFINITY, f64::max)
+    };
+    let best = state["best"].as_table().expect("a best candidate");
+    let got = best
+        .get("s")
+        .or(best.get("score"))
+        .and_then(|v| v.as_float())
+        .unwrap();
+    // μ(F) is kept as the search's fitness; S as it is.
+    assert_eq!(got, want, "best so far is not the best of the scores");
+    state
+}
+
+/// The repository's small rheology scenario (a 3 × 3 × 3 lattice).
+const SMALL_RHEOLOGY: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../scenarios/rheology/small.toml"
+);
+
+#[test]
+fn a_stopped_rheology_calibration_keeps_its_best_and_resumes_to_the_result_of_an_unbroken_one() {
+    let dir = scratch("rheology-stop");
+    let measured = dir.join("measured");
+    common::ok(&softjoint(&[
+        "rheology",
+        "simulate",
+        SMALL_RHEOLOGY,
+        "--model",
+        "reference",
+        "--out",
+        s(&measured),
+    ]));
+    let calibrate = |evaluations: &str, out: &Path| -> Vec<String> {
+        [
+            "rheology",
+            "calibrate",
+            SMALL_RHEOLOGY,
+            "--measured",
+            s(&measured),
+            "--evaluations",
+            evaluations,
+            "--out",
+            s(out),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    // What comes before the search (and after it), timed on a search of
+    // one candidate: the signal comes half a second into the search.
+    let warm = timed(&args(&calibrate("1", &dir.join("warm"))));
+    let mut after = warm + Duration::from_millis(500);
+    // Ctrl-C: exit 130, the state in the output directory, no params.toml.
+    let out = dir.join("stopped");
+    let mut o = signalled(&args(&calibrate("1000000", &out)), after, "-INT");
+    for _ in 1..ATTEMPTS {
+        if !stopped_before_the_search(&out) {
+            break;
+        }
+        after *= 2;
+        o = signalled(&args(&calibrate("1000000", &out)), after, "-INT");
+    }
+    let first = assert_stopped_calibration(&o, 130, "SIGINT", &out, "params.toml", true);
+    let state_path = out.join("params.search.toml");
+    let a = scored(&first);
+    // Resumed, then SIGHUP: exit 129, the state file updated in place,
+    // its candidates first, in order, and more after them.
+    let mut resumed = calibrate("1000000", &out);
+    resumed.extend(["--resume".into(), s(&state_path).into()]);
+    let mut o = signalled(&args(&resumed), after, "-HUP");
+    for _ in 1..ATTEMPTS {
+        if state_path.exists() && scored(&toml_state(&state_path)).len() > a.len() {
+            break;
+        }
+        after *= 2;
+        o = signalled(&args(&resumed), after, "-HUP");
+    }
+    let second = assert_stopped_calibration(&o, 129, "SIGHUP", &out, "params.toml", true);
+    let b = scored(&second);
+    assert!(
+        b.len() > a.len(),
+        "the resumed search simulated nothing new"
+    );
+    assert_eq!(b[..a.len()], a[..]);
+    // A resume that asks another search is refused by name.
+    let mut other = resumed.clone();
+    other.extend(["--seed".into(), "2".into()]);
+    assert_refused(&softjoint(&args(&other)), "--seed 1, this one asks 2");
+    // Resumed to the end of a search a little longer than the stopped
+    // one: the very parameters and history of the same search unbroken.
+    let n = (second["evaluations"].as_integer().unwrap() + 24).to_string();
+    let mut to_end = calibrate(&n, &out);
+    to_end.extend(["--resume".into(), s(&state_path).into(), "--json".into()]);
+    let o = softjoint(&args(&to_end));
+    common::ok(&o);
+    let j: serde_json::Value = serde_json::from_str(&common::stdout(&o)).unwrap();
+    // Every candidate kept lies on the path of the first n evaluations
+    // (the stopped search's, up to its last batch): each is taken back.
+    assert!(
+        j["resumed"]["candidates_taken"].as_u64().unwrap() >= b.len() as u64,
+        "{j}"
+    );
+    let straight = dir.join("straight");
+    timed(&args(&calibrate(&n, &straight)));
+    assert_eq!(
+        std::fs::read_to_string(out.join("params.toml")).unwrap(),
+        std::fs::read_to_string(straight.join("params.toml")).unwrap()
+    );
+    assert_eq!(
+        generations_without_time(&out.join("generations.csv")),
+        generations_without_time(&straight.join("generations.csv"))
+    );
+}
+
+#[test]
+fn a_stopped_push_calibration_keeps_its_best_and_resumes_to_the_result_of_an_unbroken_one() {
+    let dir = scratch("push-stop");
+    // A small mesh on a recorded push (no ground truth made per run).
+    let grid = ["--nx", "4", "--ny", "2", "--cell-px", "16"];
+    let recorded = dir.join("recorded");
+    let mut sim = vec!["push", "simulate", "--ref-element-px", "32"];
+    sim.extend(grid);
+    sim.extend(["--out", s(&recorded)]);
+    common::ok(&softjoint(&sim));
+    let video = recorded.join("video.csv");
+    let calibrate = |generations: &str, out: &Path| -> Vec<String> {
+        let mut v: Vec<String> = ["push", "calibrate", "--video", s(&video)]
+            .into_iter()
+            .chain(grid)
+            .map(String::from)
+            .collect();
+        v.extend(["--generations", generations, "--out", s(out)].map(String::from));
+        v
+    };
+    // The generations of one search of about 1 s (σ falls over them, so
+    // the stopped, resumed and unbroken searches all ask the same count),
+    // from the time of 1 and 31 generations (20 to 200 of them); the
+    // signal comes 40 % of the way into the search.
+    let one = timed(&args(&calibrate("1", &dir.join("warm"))));
+    let more = timed(&args(&calibrate("31", &dir.join("warm"))));
+    let mut per_generation = (more.saturating_sub(one) / 30).max(Duration::from_millis(1));
+    let mut generations = (1.0 / per_generation.as_secs_f64()).clamp(20.0, 200.0) as u32;
+    // SIGTERM: exit 143, the state in the output directory, no params.json.
+    let out = dir.join("stopped");
+    let mut attempt = 1;
+    let o = loop {
+        let _ = std::fs::remove_dir_all(&out);
+        let after = one + per_generation * (generations * 2 / 5);
+        let o = try_signalled(
+            &args(&calibrate(&generations.to_string(), &out)),
+            after,
+            "-TERM",
+        );
+        // The search ended before the signal, or during the work after
+        // it: a search twice as long, the signal at the same time. The
+        // signal came before the search: the signal later.
+        let (ended_early, too_soon) = match &o {
+            None => (true, false),
+            Some(_) if out.join("params.json").exists() => (true, false),
+            Some(_) => (false, stopped_before_the_search(&out)),
+        };
+        if !(ended_early || too_soon) || attempt == ATTEMPTS {
+            break o.expect("the search ended before the signal");
+        }
+        attempt += 1;
+        if ended_early {
+            generations *= 2;
+            per_generation /= 2;
+        } else {
+            per_generation *= 2;
+        }
+    };
+    let generations = generations.to_string();
+    let first = assert_stopped_calibration(&o, 143, "SIGTERM", &out, "params.json", false);
+    let state_path = out.join("params.search.toml");
+    // Another --generations is another search: refused by name.
+    let mut other = calibrate("7", &out);
+    other.extend(["--resume".into(), s(&state_path).into()]);
+    assert_refused(
+        &softjoint(&args(&other)),
+        &format!("--generations {generations}, this one asks 7"),
+    );
+    // Resumed to the end: the very parameters and history of the same
+    // search unbroken, every candidate kept taken back, none run again.
+    let mut to_end = calibrate(&generations, &out);
+    to_end.extend(["--resume".into(), s(&state_path).into()]);
+    let o = softjoint(&args(&to_end));
+    common::ok(&o);
+    let kept = scored(&first).len();
+    let text = common::stdout(&o);
+    let taken: usize = text
+        .split_once(": ")
+        .and_then(|_| text.split(" candidates' scores taken from it").next())
+        .and_then(|head| head.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no resume line: {text}"));
+    assert!(taken >= kept, "{taken} < {kept}: {text}");
+    let straight = dir.join("straight");
+    timed(&args(&calibrate(&generations, &straight)));
+    for f in ["params.json", "generations.csv"] {
+        assert_eq!(
+            std::fs::read_to_string(out.join(f)).unwrap(),
+            std::fs::read_to_string(straight.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+}
+
+#[test]
+fn a_stopped_identification_ends_at_once_and_writes_nothing() {
+    let dir = scratch("identify-stop");
+    let plan_text = softjoint(&["identify", "plan", "--joint", "2d", "--duration-s", "300"]);
+    common::ok(&plan_text);
+    let plan = dir.join("plan.toml");
+    std::fs::write(&plan, &plan_text.stdout).unwrap();
+    let scen = common::file(&dir, "s.toml", crate::excite_stops::SCENARIO_2D);
+    let log = dir.join("log.csv");
+    common::ok(&softjoint(&[
+        "sim",
+        &scen,
+        "--excite",
+        s(&plan),
+        "--log",
+        s(&log),
+    ]));
+    let before = names(&dir);
+    let (plant, plot) = (dir.join("p.toml"), dir.join("fit.svg"));
+    // A fit of a 5-minute log, a thousand iterations a stage (tens of
+    // seconds even optimised), stopped a second in.
+    let started = Instant::now();
+    let o = signalled(
+        &[
+            "identify",
+            "joint",
+            s(&log),
+            "--max-iterations",
+            "1000",
+            "-o",
+            s(&plant),
+            "--plot",
+            s(&plot),
+        ],
+        Duration::from_secs(1),
+        "-INT",
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "{err}");
+    assert!(
+        err.contains("stopped by SIGINT") && err.contains("nothing was written"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    // Within one replay of the log, not at the end of the fit.
+    assert!(
+        started.elapsed() < Duration::from_secs(20),
+        "{:?}",
+        started.elapsed()
+    );
+    assert_eq!(names(&dir), before, "files left by a stopped fit");
+}

@@ -22,6 +22,8 @@
 //! fits badly, widen it.
 
 use nalgebra::{DMatrix, DVector};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use rayon::prelude::*;
 
 use super::IdentifyError;
@@ -36,6 +38,10 @@ pub struct LmOptions {
     pub ftol: f64,
     /// Forward-difference step per coordinate.
     pub step: f64,
+    /// A flag the caller sets (non-zero) to end the fit: read before
+    /// each iteration and each Jacobian, it ends the minimiser with
+    /// [`IdentifyError::Stopped`] (a program's Ctrl-C).
+    pub stop: Option<StopFlag>,
 }
 
 impl Default for LmOptions {
@@ -44,6 +50,47 @@ impl Default for LmOptions {
             max_iterations: 100,
             ftol: 1e-4,
             step: 1e-3,
+            stop: None,
+        }
+    }
+}
+
+/// A flag that asks a fit to stop when it holds a non-zero value (e.g.
+/// the number of the signal that asked); two flags are equal when they
+/// are the same flag.
+#[derive(Clone, Copy, Debug)]
+pub struct StopFlag(pub &'static AtomicUsize);
+
+impl PartialEq for StopFlag {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self.0, other.0)
+    }
+}
+
+impl LmOptions {
+    /// `f` that first checks whether the caller asked the fit to stop
+    /// (then [`IdentifyError::Stopped`], `f` not run): a stop ends a fit
+    /// within one evaluation, however many a Jacobian or a step needs.
+    fn stoppable<'a, F>(
+        &'a self,
+        f: &'a F,
+    ) -> impl Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync + 'a
+    where
+        F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+    {
+        move |x| {
+            self.check_stop()?;
+            f(x)
+        }
+    }
+
+    /// An error if the caller asked the fit to stop.
+    fn check_stop(&self) -> Result<(), IdentifyError> {
+        match self.stop {
+            Some(StopFlag(flag)) if flag.load(Ordering::Relaxed) != 0 => {
+                Err(IdentifyError::Stopped)
+            }
+            _ => Ok(()),
         }
     }
 }
@@ -121,7 +168,7 @@ impl Minimum {
         let (jac, evaluations) = match self.jacobian {
             Some(jac) => (jac, self.evaluations),
             None => (
-                jacobian(f, &self.x, &self.residuals, opts.step)?,
+                jacobian(&opts.stoppable(f), &self.x, &self.residuals, opts.step)?,
                 self.evaluations + n,
             ),
         };
@@ -146,6 +193,7 @@ pub fn minimise<F>(f: &F, x0: &[f64], opts: LmOptions) -> Result<Minimum, Identi
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
+    let f = &opts.stoppable(f);
     let n = x0.len();
     let mut x = x0.to_vec();
     let mut r = f(&x)?;
@@ -160,6 +208,7 @@ where
     let mut evaluations = 1;
     let mut lambda = 1e-2;
     let mut iterations = 0;
+    opts.check_stop()?;
     let mut jac = jacobian(f, &x, &r, opts.step)?;
     evaluations += n;
     let stop = |x, r, cost, iterations, evaluations, stopped_by_budget, jacobian| Minimum {
@@ -172,9 +221,10 @@ where
         jacobian,
     };
     while iterations < opts.max_iterations {
+        opts.check_stop()?;
         iterations += 1;
         let Some((trial, rt, new_cost)) =
-            lm_step(f, &x, &r, cost, &jac, &mut lambda, &mut evaluations)
+            lm_step(f, &x, &r, cost, &jac, &mut lambda, &mut evaluations)?
         else {
             // No step lowers the cost: a (local) optimum, where the
             // Jacobian is the one just used.
@@ -187,6 +237,7 @@ where
         if decrease < opts.ftol {
             return Ok(stop(x, r, cost, iterations, evaluations, false, None));
         }
+        opts.check_stop()?;
         jac = jacobian(f, &x, &r, opts.step)?;
         evaluations += n;
     }
@@ -205,7 +256,7 @@ fn lm_step<F>(
     jac: &[Vec<f64>],
     lambda: &mut f64,
     evaluations: &mut usize,
-) -> Option<(Vec<f64>, Vec<f64>, f64)>
+) -> Result<Option<(Vec<f64>, Vec<f64>, f64)>, IdentifyError>
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
@@ -230,13 +281,15 @@ where
             Ok(rt) if sq(&rt).is_finite() && sq(&rt) < cost => {
                 let new_cost = sq(&rt);
                 *lambda = (*lambda / 10.0).max(1e-9);
-                return Some((trial, rt, new_cost));
+                return Ok(Some((trial, rt, new_cost)));
             }
+            // The caller stopped the fit: no step is taken.
+            Err(IdentifyError::Stopped) => return Err(IdentifyError::Stopped),
             // A trial the plant refuses (unstable) counts as worse.
             _ => *lambda *= 10.0,
         }
     }
-    None
+    Ok(None)
 }
 
 /// Forward-difference Jacobian, one column per coordinate, in parallel.
@@ -501,6 +554,7 @@ mod tests {
         };
         let opts = |max_iterations| LmOptions {
             max_iterations,
+            stop: None,
             ftol: 1e-12,
             step: 1e-7,
         };
@@ -570,5 +624,32 @@ mod tests {
             .collect();
         let (_, w, r) = fit(&y);
         assert!((r / w - 1.0).abs() < 0.35, "robust {r} vs white {w}");
+    }
+
+    #[test]
+    fn a_stop_ends_the_fit_within_one_evaluation() {
+        use std::sync::atomic::AtomicUsize;
+        // A fit that would take several iterations; the flag is set during
+        // the 4th evaluation (the first step's trial, after the start and
+        // the two Jacobian columns), and no evaluation may start after it.
+        let flag: &'static AtomicUsize = Box::leak(Box::new(AtomicUsize::new(0)));
+        let calls = AtomicUsize::new(0);
+        let t: Vec<f64> = (0..20).map(f64::from).collect();
+        let f = |x: &[f64]| -> Result<Vec<f64>, IdentifyError> {
+            if calls.fetch_add(1, Ordering::SeqCst) + 1 == 4 {
+                flag.store(15, Ordering::SeqCst);
+            }
+            Ok(t.iter().map(|t| (x[0] * t).sin() + x[1] - 0.3).collect())
+        };
+        let opts = LmOptions {
+            stop: Some(StopFlag(flag)),
+            ..LmOptions::default()
+        };
+        let e = levenberg_marquardt(f, &[0.9, 0.0], opts).unwrap_err();
+        assert!(matches!(e, IdentifyError::Stopped), "{e}");
+        assert_eq!(calls.load(Ordering::SeqCst), 4);
+        // Unset, the same fit runs on.
+        flag.store(0, Ordering::SeqCst);
+        assert!(levenberg_marquardt(f, &[0.9, 0.0], opts).is_ok());
     }
 }

@@ -76,7 +76,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::{Joint2dParams, Joint3dParams, PlaneParams, PlantError, WireSensorParams};
-pub use lm::{LmOptions, LmResult};
+pub use lm::{LmOptions, LmResult, StopFlag};
 pub use log::{ElectricalNoise, ExcitationLog, LogRecorder, Observation};
 pub use params::{Param, Scale};
 pub use plan::ExcitationPlan;
@@ -110,6 +110,9 @@ pub enum IdentifyError {
         /// Parameters.
         parameters: usize,
     },
+    /// The caller asked the fit to stop ([`LmOptions::stop`]).
+    #[error("the fit was stopped before it finished")]
+    Stopped,
 }
 
 impl From<PlantError> for IdentifyError {

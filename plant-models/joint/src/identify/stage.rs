@@ -228,6 +228,14 @@ where
             .par_iter()
             .map(|x0| lm::minimise(&f, x0, lm_opts))
             .collect();
+        // A fit the caller stopped ends the stage: the other starts' best
+        // is not the stage's answer.
+        if fits
+            .iter()
+            .any(|f| matches!(f, Err(IdentifyError::Stopped)))
+        {
+            return Err(IdentifyError::Stopped);
+        }
         for (k, fit) in fits.into_iter().enumerate() {
             match fit {
                 Ok(r) => {

@@ -247,10 +247,52 @@ pub fn calibrate<F>(
     settings: &EvolutionSettings,
     ranges: &[ParamRange; 8],
     fitness: F,
-    mut on_generation: impl FnMut(&GenerationReport),
+    on_generation: impl FnMut(&GenerationReport),
 ) -> Result<CalibrationResult>
 where
     F: Fn(&MaterialParams) -> f64 + Sync,
+{
+    calibrate_until(settings, ranges, |p| Some(fitness(p)), on_generation)?.ok_or(
+        PushError::InvalidParameter {
+            name: "generations",
+            value: 0.0,
+            reason: "the search stopped without being asked to",
+        },
+    )
+}
+
+/// Scores the candidates of `pop` without a score yet, in parallel (NaN
+/// ranks as −∞); how many, or `None` if `fitness` refused one (then no
+/// score is set).
+fn score_new<F>(pop: &[[f64; 8]], scores: &mut [Option<f64>], fitness: &F) -> Option<usize>
+where
+    F: Fn(&MaterialParams) -> Option<f64> + Sync,
+{
+    let todo: Vec<usize> = (0..pop.len()).filter(|&i| scores[i].is_none()).collect();
+    let fresh: Vec<Option<f64>> = todo
+        .par_iter()
+        .map(|&i| fitness(&MaterialParams::from_array(pop[i])))
+        .collect();
+    let fresh = fresh.into_iter().collect::<Option<Vec<f64>>>()?;
+    for (&i, s) in todo.iter().zip(fresh) {
+        scores[i] = Some(if s.is_nan() { f64::NEG_INFINITY } else { s });
+    }
+    Some(todo.len())
+}
+
+/// [`calibrate`] with a fitness that may refuse to score (`None`: the
+/// caller asks the search to stop, e.g. on a signal). The search then
+/// ends after the generation it was scoring, with `Ok(None)`; what was
+/// scored is the caller's to keep (the draws depend only on the seed and
+/// the scores, so a search given the same scores retraces this one).
+pub fn calibrate_until<F>(
+    settings: &EvolutionSettings,
+    ranges: &[ParamRange; 8],
+    fitness: F,
+    mut on_generation: impl FnMut(&GenerationReport),
+) -> Result<Option<CalibrationResult>>
+where
+    F: Fn(&MaterialParams) -> Option<f64> + Sync,
 {
     settings.validate()?;
     check_ranges(ranges)?;
@@ -267,15 +309,10 @@ where
     let mut best: Option<([f64; 8], f64)> = None;
     for g in 1..=settings.generations {
         // Line 6: run the simulations not run yet, in parallel.
-        let todo: Vec<usize> = (0..n).filter(|&i| scores[i].is_none()).collect();
-        let fresh: Vec<f64> = todo
-            .par_iter()
-            .map(|&i| fitness(&MaterialParams::from_array(pop[i])))
-            .collect();
-        evaluations += todo.len();
-        for (i, s) in todo.into_iter().zip(fresh) {
-            scores[i] = Some(if s.is_nan() { f64::NEG_INFINITY } else { s });
-        }
+        let Some(fresh) = score_new(&pop, &mut scores, &fitness) else {
+            return Ok(None);
+        };
+        evaluations += fresh;
         let mut order: Vec<usize> = (0..n).collect();
         order.sort_by(|&a, &b| {
             scores[b]
@@ -354,10 +391,10 @@ where
         value: 0.0,
         reason: "nothing evaluated",
     })?;
-    Ok(CalibrationResult {
+    Ok(Some(CalibrationResult {
         best_params: MaterialParams::from_array(p),
         best_score: s,
         history,
         evaluations,
-    })
+    }))
 }

@@ -22,7 +22,7 @@ use crate::contour_score::{
     classify_by_contour, score_contour_run, skill, still_block_contour_score, still_config,
     track_video, ContourScore, ContourTarget, ReachZone, TrackingOptions,
 };
-use crate::error::Result;
+use crate::error::{PushError, Result};
 use crate::evaluate::{score_run, score_run_observed, simulate_frames, PreparedVideo};
 use crate::evolution::{self, CalibrationResult, EvolutionSettings, GenerationReport};
 use crate::force_regression::{ForcePredictor, DEFAULT_ERROR_THRESHOLD};
@@ -347,23 +347,49 @@ pub fn calibrate(
     spec: &CalibrateSpec,
     on_generation: &mut dyn FnMut(&GenerationReport),
 ) -> Result<CalibrateReport> {
+    let report = calibrate_until(prep, spec, &|p, run| Some(run(p)), on_generation)?;
+    report.ok_or(PushError::InvalidParameter {
+        name: "generations",
+        value: 0.0,
+        reason: "the search stopped without being asked to",
+    })
+}
+
+/// A fitness as the caller wraps it: given a candidate and the fitness
+/// that simulates it, its score, or `None` to stop the search (a caller
+/// may take a score kept from a stopped search instead of simulating).
+pub type FitnessLayer<'a> =
+    dyn Fn(&MaterialParams, &dyn Fn(&MaterialParams) -> f64) -> Option<f64> + Sync + 'a;
+
+/// [`calibrate`] with each candidate scored through `layer`: `Ok(None)`
+/// when it stopped the search (nothing after the search is run).
+pub fn calibrate_until(
+    prep: &PreparedVideo,
+    spec: &CalibrateSpec,
+    layer: &FitnessLayer,
+    on_generation: &mut dyn FnMut(&GenerationReport),
+) -> Result<Option<CalibrateReport>> {
     let mut tracking = Tracking::of(prep)?;
     let mut settings = EvolutionSettings::table_iii(spec.seed);
     settings.generations = spec.generations;
     let forces = &prep.video.forces_n;
-    let result = evolution::calibrate(
+    let fitness = |p: &MaterialParams| match spec.score {
+        ScoreKind::F => score_run(prep, forces, p, &spec.sim)
+            .map(|s| s.mean_f)
+            .unwrap_or(f64::NAN),
+        ScoreKind::Contour => score_contour_run(prep, &tracking.target, forces, p, &spec.sim)
+            .map(|s| -s.mean_px)
+            .unwrap_or(f64::NAN),
+    };
+    let found = evolution::calibrate_until(
         &settings,
         &evolution::TABLE_III_RANGES,
-        |p| match spec.score {
-            ScoreKind::F => score_run(prep, forces, p, &spec.sim)
-                .map(|s| s.mean_f)
-                .unwrap_or(f64::NAN),
-            ScoreKind::Contour => score_contour_run(prep, &tracking.target, forces, p, &spec.sim)
-                .map(|s| -s.mean_px)
-                .unwrap_or(f64::NAN),
-        },
+        |p| layer(p, &fitness),
         |g| on_generation(g),
     )?;
+    let Some(result) = found else {
+        return Ok(None);
+    };
     let best = &result.best_params;
     let score = score_run(prep, forces, best, &spec.sim)?;
     let contour = score_contour_run(prep, &tracking.target, forces, best, &spec.sim)?;
@@ -403,7 +429,7 @@ pub fn calibrate(
             tracking
         },
     };
-    Ok(report)
+    Ok(Some(report))
 }
 
 /// Which material model explains a push best; the `Serialize` form is
