@@ -82,9 +82,15 @@ qemu-system-arm --version | head -1
 bg_pids=()
 # A failed run prints its stage table too (where the time went up to the
 # failure).
+kill_tree() {
+    local c
+    for c in $(cat /proc/"$1"/task/*/children 2>/dev/null); do kill_tree "$c"; done
+    kill "$1" 2>/dev/null || true
+}
 on_exit() {
     local rc=$?
-    for p in "${bg_pids[@]}"; do kill "$p" 2>/dev/null || true; done
+    # The jobs' processes too (a test binary outlives its subshell).
+    for p in "${bg_pids[@]}"; do kill_tree "$p"; done
     [ "$rc" -eq 0 ] || { finish; echo "failed in the stage above \"done\" (exit $rc)" >&2; }
 }
 trap on_exit EXIT
