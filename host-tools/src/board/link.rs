@@ -77,12 +77,25 @@ impl From<io::Error> for LinkError {
 /// Whether an I/O error means the other end of the line went away
 /// (serialport reports a pty whose master closed as `BrokenPipe`; a read
 /// of a hung-up tty gives `EIO` or end of file).
+///
+/// serialport's wait for a readable or writable port reports a poll that
+/// came back with an error event but no hang-up event as a bare "I/O
+/// error" of kind `Other` (its `EIO` text, without the OS code): on a
+/// tty that is the line hung up too, seen a moment before the hang-up
+/// event (once in a clean CI run, `link_failures::a_line_that_closes_…`).
 pub fn is_hang_up(e: &io::Error) -> bool {
     matches!(
         e.kind(),
         io::ErrorKind::BrokenPipe | io::ErrorKind::UnexpectedEof | io::ErrorKind::ConnectionReset
     ) || e.raw_os_error() == Some(5) // EIO
+        || (e.kind() == io::ErrorKind::Other
+            && e.raw_os_error().is_none()
+            && e.to_string() == SERIALPORT_POLL_ERROR)
 }
+
+/// The text of serialport's poll error without a hang-up event (nix's
+/// description of `EIO`).
+const SERIALPORT_POLL_ERROR: &str = "I/O error";
 
 /// Most telemetry frames kept for [`Link::recv_until`] while requests wait
 /// (2 s of a 500 Hz stream); older ones are dropped and counted.
@@ -414,6 +427,24 @@ mod tests {
     use super::*;
     use firmware::protocol::{kind, Ack, Arm};
     use std::os::unix::net::UnixListener;
+
+    /// The hang-up errors, and serialport's poll error event among them;
+    /// other I/O errors are not.
+    #[test]
+    fn a_poll_error_event_is_a_hang_up_and_other_errors_are_not() {
+        let poll_error = io::Error::other("I/O error");
+        assert!(is_hang_up(&poll_error));
+        assert!(matches!(LinkError::from(poll_error), LinkError::PortClosed));
+        assert!(is_hang_up(&io::Error::from_raw_os_error(5)));
+        assert!(is_hang_up(&io::Error::from(io::ErrorKind::BrokenPipe)));
+        for e in [
+            io::Error::other("device busy"),
+            io::Error::from_raw_os_error(13),
+            io::Error::from(io::ErrorKind::TimedOut),
+        ] {
+            assert!(!is_hang_up(&e), "{e}");
+        }
+    }
 
     /// `open_port("unix:PATH")` talks to a Unix socket as QEMU serves its
     /// UART: a request is answered through it, and a far end that closes
