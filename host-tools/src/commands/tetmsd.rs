@@ -481,9 +481,15 @@ fn virtual_pair(scenario: &Scenario, name: &str) -> Result<PairOutcome> {
 /// removed as soon as both have reported their port (each reads it before
 /// it binds), so it is not left in the temporary directory for the length
 /// of the run either.
+///
+/// SIGINT, SIGTERM and SIGHUP end `pair` at once with 130, 143 or 129
+/// (the sites with it, no report written), whatever their disposition was
+/// when it started: a job a script starts in the background starts with
+/// SIGINT ignored, and `kill -INT` then did nothing for the run's length.
 fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairOutcome> {
     let exe = std::env::current_exe().context("cannot find the softjoint binary")?;
     let file = std::env::temp_dir().join(format!("softjoint-tetmsd-{}.toml", std::process::id()));
+    end_on_signals(file.clone())?;
     output::write_toml(&file, "", scenario)?;
     let result = (|| {
         let spawned = spawn_sites(&exe, &file, spin_us, rt_priority);
@@ -502,6 +508,25 @@ fn processes(scenario: &Scenario, spin_us: u64, rt_priority: u8) -> Result<PairO
     })();
     std::fs::remove_file(&file).ok();
     result
+}
+
+/// Ends the process on SIGINT, SIGTERM or SIGHUP with the signal's
+/// status, removing the sites' scenario `file`; the sites die with it
+/// (`PR_SET_PDEATHSIG`). A watcher thread polls the stop flag every 20 ms.
+fn end_on_signals(file: PathBuf) -> Result<()> {
+    let stop = host_tools::stop::Stop::on_signals()?;
+    std::thread::spawn(move || loop {
+        if let Some(s) = stop.requested() {
+            std::fs::remove_file(&file).ok();
+            eprintln!(
+                "stopped by {}: the sites ended with it, no report written",
+                s.name()
+            );
+            std::process::exit(i32::from(s.exit_code()));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    });
+    Ok(())
 }
 
 /// Starts `softjoint tetmsd site` for sites 0 and 1 on the scenario `file`.

@@ -46,7 +46,17 @@ fn tetmsd_pair_sites_die_with_it_and_leave_no_scenario_file() {
             "{signal}: a site ended early"
         );
         common::kill(signal, pair.id());
-        let _ = pair.wait();
+        let status = pair.wait().unwrap();
+        // INT, TERM and HUP end it through its handler (also when it was
+        // started with SIGINT ignored, as a background job is) with the
+        // signal's status; KILL is a kill.
+        let want = match signal {
+            "-INT" => Some(130),
+            "-TERM" => Some(143),
+            "-HUP" => Some(129),
+            _ => None,
+        };
+        assert_eq!(status.code(), want, "{signal}: {status}");
         wait_until(
             &format!("sites gone after kill {signal} of pair"),
             Duration::from_secs(5),
