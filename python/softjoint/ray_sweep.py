@@ -239,6 +239,11 @@ def _progress() -> Optional[Callable[[int, int], None]]:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
+    # Ctrl-C cancels the sweep's tasks (below) also when this process was
+    # started with SIGINT ignored, as a job a script starts in the
+    # background is: Python then installs no KeyboardInterrupt handler of
+    # its own, and SIGINT did nothing while the sweep ran to its end.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     p = argparse.ArgumentParser(prog="python -m softjoint.ray_sweep",
                                 description="softjoint sweeps on a Ray cluster")
     sub = p.add_subparsers(dest="command", required=True)
