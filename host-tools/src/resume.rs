@@ -23,7 +23,7 @@ use std::sync::Mutex;
 
 use serde::{Deserialize, Serialize};
 
-use crate::stop::Stop;
+use crate::stop::{Stop, Stopped};
 
 /// One candidate a search scored.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -166,6 +166,23 @@ pub fn fnv1a_hex(bytes: &[u8]) -> String {
         h = h.wrapping_mul(0x0000_0100_0000_01b3);
     }
     format!("{h:016x}")
+}
+
+/// The end of a search whose result files are all written: `Ok`, or, if a
+/// signal came after the search had finished, the stop (exit 130/143/129)
+/// saying that every file in `out` is whole.
+pub fn finished_or_stopped(stop: &Stop, out: &std::path::Path) -> anyhow::Result<()> {
+    match stop.requested() {
+        Some(signal) => Err(Stopped {
+            signal,
+            what: format!(
+                "after the search had finished; every result file written to {}",
+                out.display()
+            ),
+        }
+        .into()),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]

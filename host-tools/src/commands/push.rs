@@ -452,18 +452,8 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",
         a.out.display()
     );
-    match stop.requested() {
-        // The search had ended when the signal came: its files are whole.
-        Some(signal) => Err(Stopped {
-            signal,
-            what: format!(
-                "after the search had finished; every result file written to {}",
-                a.out.display()
-            ),
-        }
-        .into()),
-        None => Ok(()),
-    }
+    // The search had ended when a signal came: its files are whole.
+    host_tools::resume::finished_or_stopped(&stop, &a.out)
 }
 
 /// A `push calibrate` stopped by a signal: what it had simulated, to

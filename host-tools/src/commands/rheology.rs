@@ -404,18 +404,8 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     } else {
         calibration_text(&a, set, &report, &scores)?;
     }
-    match stop.requested() {
-        // The search had ended when the signal came: its files are whole.
-        Some(signal) => Err(Stopped {
-            signal,
-            what: format!(
-                "after the search had finished; every result file written to {}",
-                a.out.display()
-            ),
-        }
-        .into()),
-        None => Ok(()),
-    }
+    // The search had ended when a signal came: its files are whole.
+    host_tools::resume::finished_or_stopped(&stop, &a.out)
 }
 
 /// The calibration's report for a person.
