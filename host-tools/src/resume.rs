@@ -129,6 +129,17 @@ impl Scores {
         self.simulated.load(Ordering::Relaxed)
     }
 
+    /// The line a resumed search prints: where from, and how many scores
+    /// it took from there against how many it simulated now.
+    pub fn resumed_line(&self, from: &std::path::Path) -> String {
+        format!(
+            "resumed from {}: {} candidates' scores taken from it, {} simulated now",
+            from.display(),
+            self.replayed(),
+            self.simulated()
+        )
+    }
+
     /// Every candidate scored so far, in the order they came in (a copy).
     pub fn snapshot(&self) -> Vec<Scored> {
         self.index

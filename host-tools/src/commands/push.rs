@@ -441,12 +441,7 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     );
     outln!("{}", report.best_params);
     if let Some(r) = &a.resume {
-        outln!(
-            "resumed from {}: {} candidates' scores taken from it, {} simulated now",
-            r.display(),
-            scores.replayed(),
-            scores.simulated()
-        );
+        outln!("{}", scores.resumed_line(r));
     }
     outln!(
         "wrote params.json, generations.csv, mu_per_generation.svg, snapshots.svg to {}",

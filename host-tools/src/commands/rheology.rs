@@ -425,12 +425,7 @@ fn calibration_text(
         report.stopped_by
     );
     if let Some(r) = &a.resume {
-        outln!(
-            "resumed from {}: {} candidates' scores taken from it, {} simulated now",
-            r.display(),
-            scores.replayed(),
-            scores.simulated()
-        );
+        outln!("{}", scores.resumed_line(r));
     }
     outln!("defaults:   {}", score_text(&report.default));
     outln!("calibrated: {}", score_text(&report.calibrated));

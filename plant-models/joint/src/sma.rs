@@ -1100,6 +1100,22 @@ mod tests {
         assert!(searched > 5000, "only {searched} steps transform");
     }
 
+    /// The energy balance's residual T − t_sensible − (ΔH/c)(ξ(T) − ξ_old)
+    /// on the phase law as first written: the two reference solvers' function.
+    fn balance_residual(
+        p: &SmaParams,
+        t_old: f64,
+        xi_old: f64,
+        t_sensible: f64,
+        shift_k: [f64; 2],
+    ) -> impl Fn(f64) -> f64 + '_ {
+        let l = p.latent_heat_j_kg / p.specific_heat_j_kg_k;
+        move |t: f64| {
+            let xi = phase_update_reference(p, t_old - shift_k[0], xi_old, t - shift_k[1]);
+            t - t_sensible - l * (xi - xi_old)
+        }
+    }
+
     /// The settled temperature by bisection of the energy balance on the
     /// phase law as first written, to a bracket of 1e-13 K: a reference
     /// that shares no code with the solver.
@@ -1110,11 +1126,7 @@ mod tests {
         t_sensible: f64,
         shift_k: [f64; 2],
     ) -> f64 {
-        let l = p.latent_heat_j_kg / p.specific_heat_j_kg_k;
-        let r = |t: f64| {
-            let xi = phase_update_reference(p, t_old - shift_k[0], xi_old, t - shift_k[1]);
-            t - t_sensible - l * (xi - xi_old)
-        };
+        let r = balance_residual(p, t_old, xi_old, t_sensible, shift_k);
         let (mut lo, mut hi) = (t_old.min(t_sensible), t_old.max(t_sensible));
         if r(lo) >= 0.0 {
             return lo;
@@ -1145,11 +1157,7 @@ mod tests {
         t_sensible: f64,
         shift_k: [f64; 2],
     ) -> f64 {
-        let l = p.latent_heat_j_kg / p.specific_heat_j_kg_k;
-        let r = |t: f64| {
-            let xi = phase_update_reference(p, t_old - shift_k[0], xi_old, t - shift_k[1]);
-            t - t_sensible - l * (xi - xi_old)
-        };
+        let r = balance_residual(p, t_old, xi_old, t_sensible, shift_k);
         let (mut lo, mut hi) = (t_old.min(t_sensible), t_old.max(t_sensible));
         let (mut r_lo, mut r_hi) = (r(lo), r(hi));
         if r_lo >= 0.0 {
