@@ -901,6 +901,19 @@ mod tests {
             bow.energy_j,
             s.energy_j
         );
+        // The bow's answer is the planar clamped–clamped elastica (β = 0):
+        // by elliptic integrals (k = 0.53648, scipy.special in a script,
+        // and tests/it/elastica_ref.rs) U = 32 K(E − (1 − k²)K) R_f/L_u =
+        // 12.8470 and the mid deflection k/K = 0.31431 L_u. Measured on 30
+        // segments: 12.942 (0.74 % high, the 30-segment chain) and
+        // 0.31493 (0.2 %).
+        assert!(
+            (bow.energy_j / 12.847024 - 1.0).abs() < 0.01,
+            "{}",
+            bow.energy_j
+        );
+        let mid = bow.spine_m[c.segments / 2].x;
+        assert!((mid - 0.314313).abs() < 0.01 * 0.314313, "{mid}");
     }
 
     /// The paper's belt, verified (issue 29), and the same belt with R_f

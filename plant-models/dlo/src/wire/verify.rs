@@ -3,7 +3,8 @@
 //! residual), it is a minimum and not a saddle (the Hessian of the
 //! Lagrangian on the tangent space of the active constraints has no
 //! negative eigenvalue), a wire stays out of itself, and a solve on a
-//! discretisation twice as fine does not move the answer by more than a
+//! second discretisation (twice as fine for a wire and a Ritz belt, half
+//! as fine for a segment belt) does not move the answer by more than a
 //! stated tolerance. Wires ([`super::linear`]) and belts ([`super::belt`])
 //! share these checks; a belt has no self-contact model, so its
 //! self-overlap is not reported rather than reported as zero.
@@ -28,7 +29,8 @@ pub const KKT_TOLERANCE: f64 = 1e-5;
 /// Smallest reduced-Hessian eigenvalue accepted, relative to the largest.
 pub const STABILITY_TOLERANCE: f64 = 1e-6;
 /// Largest change of the energy (relative) or of any point (in units of the
-/// length) accepted between the asked discretisation and one twice as fine.
+/// length) accepted between the asked discretisation and the second one
+/// (twice as fine; half as fine for a segment belt).
 pub const DISCRETISATION_TOLERANCE: f64 = 1e-2;
 /// Deepest self-overlap accepted, as a share of the wire's diameter 2r.
 pub const SELF_CONTACT_TOLERANCE: f64 = 0.05;
@@ -53,7 +55,8 @@ pub struct Checks {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub self_overlap: Option<f64>,
     pub self_overlap_tolerance: f64,
-    /// Relative energy change to a discretisation twice as fine, and the
+    /// Relative energy change to the second discretisation (twice as fine;
+    /// N/2 segments for a segment belt), and the
     /// largest change of a point there (units of the length). A wire's
     /// points are compared by their distances to either end, blind to the
     /// rigid turns that leave its problem unchanged; a belt, clamped in
@@ -64,7 +67,8 @@ pub struct Checks {
     pub discretisation_energy: Option<f64>,
     pub discretisation_position: Option<f64>,
     pub discretisation_tolerance: f64,
-    /// The solve twice as fine did not pass its own checks, so the
+    /// The solve on the second discretisation did not pass its own checks
+    /// (the name is the wire's, where it is twice as fine), so the
     /// discretisation error is unknown (a failure).
     pub fine_solve_failed: bool,
 }
