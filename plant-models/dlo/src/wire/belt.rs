@@ -359,7 +359,7 @@ fn polished(problem: &CompiledStrip, sol: Solution, settings: &Settings) -> Solu
 /// multiplier method's own multipliers, after ρ has grown to 1e9, can be
 /// far from these, and the polish's Hessian of the Lagrangian, which
 /// depends on them, then sends its first Newton step astray.
-fn least_squares_multipliers(problem: &CompiledStrip, sol: &Solution, tolerance: f64) -> Solution {
+fn least_squares_multipliers<P: Problem>(problem: &P, sol: &Solution, tolerance: f64) -> Solution {
     use nalgebra::{DMatrix, DVector};
     let (n, kinds) = (problem.vars(), problem.kinds());
     let m = kinds.len();
