@@ -189,6 +189,22 @@ pub fn die_with_parent(cmd: &mut Command) {
     }
 }
 
+/// Sends SIGINT to `child` (a process started with [`die_with_parent`],
+/// out of the terminal's process group, that ends at a clean point on
+/// Ctrl-C): how a command passes its own stop on. Call it only while the
+/// child is not yet waited for (`try_wait` saw it running).
+pub fn interrupt(child: &std::process::Child) {
+    #[cfg(unix)]
+    if let Ok(pid) = i32::try_from(child.id()) {
+        // SAFETY: kill(2) on a child not reaped yet: the pid is still
+        // this child's, and kill touches no memory of ours.
+        #[allow(unsafe_code)]
+        unsafe {
+            libc::kill(pid, libc::SIGINT);
+        }
+    }
+}
+
 /// Makes a file-size limit (`ulimit -f`) fail the write that exceeds it
 /// with `EFBIG` instead of killing the program (SIGXFSZ's default), so the
 /// write is reported with its file's name and a partial temporary file is

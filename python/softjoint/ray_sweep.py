@@ -7,11 +7,25 @@ the result is the one ``softjoint tune`` / ``softjoint rheology
 calibrate`` gives for the same seed, bit for bit, however many workers
 run them and whichever of them is lost on the way. Placement and retries
 are Ray's: every task may be retried (``max_retries``) when its worker
-dies; nothing here schedules. For the GA each generation's population is
+dies; the driver only keeps at most twice the cluster's CPUs of tasks
+submitted at once (see ``_gather``). For the GA each generation's population is
 fanned out and the selection stays on the driver (in Rust).
 
-Ctrl-C on the driver cancels the sweep's tasks on the cluster
-(``ray.cancel(force=True)``) and raises KeyboardInterrupt.
+Ctrl-C on the driver stops submitting the sweep's tasks and raises
+:class:`SweepStopped` (a KeyboardInterrupt) with the results of the
+units that had finished; the few tasks in flight (at most twice the
+cluster's CPUs) end with the driver's job when it exits, or run out, one
+unit each, in a session that goes on. They are not cancelled one by one:
+see ``_gather``. A
+tune keeps them as ``softjoint tune`` keeps a stopped search: a search
+state file (``TuneSweep.write_state``: the best so far, every candidate
+scored), written at the start (an empty one), as units finish (at most
+once a second) and at the stop, which ``softjoint tune PLANT --resume
+FILE`` goes on from; a sweep that finishes removes it. What is left
+out: the units in flight at the stop are lost (at most
+``TUNE_UNIT_CANDIDATES`` candidates' work each); resuming on Ray
+(``--resume`` with ``--ray``) is not offered, the program resumes on this
+machine.
 
 Each worker builds a sweep's problem once (the plant's drawn plants, the
 rheology measurement or the reference block's recording, seeded) and
@@ -20,7 +34,7 @@ keeps it for the sweep's next units.
 Command line (what ``softjoint tune --ray ADDRESS`` runs)::
 
     python -m softjoint.ray_sweep tune PLANT --candidates N --plants N \\
-        --seed S [--search-v-offset] --address ADDRESS
+        --seed S [--search-v-offset] --address ADDRESS [--state FILE]
 """
 from __future__ import annotations
 
@@ -163,42 +177,119 @@ def connect(address: Optional[str] = None) -> None:
         ray.init(address=address, log_to_driver=False, include_dashboard=False)
 
 
-def _gather(refs: Sequence[ray.ObjectRef], on_done: Optional[Callable[[int, int], None]] = None) -> list:
-    """The tasks' results in submission order; Ctrl-C cancels them."""
+class SweepStopped(KeyboardInterrupt):
+    """Ctrl-C stopped a sweep: no more of its tasks are submitted;
+    ``finished`` holds the results of the units that had finished, in
+    submission order, and ``units`` how many units the sweep had. A tune
+    that wrote its search state sets ``state``: ``(path, candidates
+    scored, best candidate's index, its robust cost)``."""
+
+    def __init__(self, finished: list, units: int):
+        super().__init__()
+        self.finished, self.units = finished, units
+        self.state: Optional[Tuple[str, int, Optional[int], Optional[float]]] = None
+
+
+def _in_flight() -> int:
+    """Tasks a sweep keeps submitted at once: twice the cluster's CPUs
+    (each worker has its next task at hand), at least 2."""
+    return max(2, 2 * int(ray.cluster_resources().get("CPU", 1)))
+
+
+def _gather(tasks: Sequence[Callable[[], ray.ObjectRef]],
+            on_done: Optional[Callable[[int, int], None]] = None,
+            on_result: Optional[Callable[[list], None]] = None) -> list:
+    """Submits ``tasks`` (each a call that submits one task), at most
+    :func:`_in_flight` at once, and returns their results in submission
+    order, each taken as its task finishes (``on_result`` is given those
+    so far, in order). Ctrl-C stops submitting and raises
+    :class:`SweepStopped` with the results so far; the tasks in flight
+    are left to end with the driver's job (at most :func:`_in_flight`,
+    one unit each).
+
+    Why not cancel them (``ray.cancel``, as this did before): a cancel
+    that meets a finishing task's reply trips a check in Ray's core
+    worker ("Tried to complete task that was not pending", the race of
+    ray-project/ray#54798) and the driver exits 1 instead of 130: 3 of 6
+    stops 6 s into a sweep with Ray 2.60.0, 6 of 10 with the tasks
+    windowed; without a cancel, 0 of 10, the workers idle within 1.3 s
+    of the stop. Why a window: so that what is left running after a stop
+    is a few units, not the whole sweep."""
+    finished: Dict[int, Any] = {}
+    running: Dict[ray.ObjectRef, int] = {}
     try:
-        pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
+        window, submitted = _in_flight(), 0
+        while submitted < len(tasks) or running:
+            while submitted < len(tasks) and len(running) < window:
+                running[tasks[submitted]()] = submitted
+                submitted += 1
+            done, _ = ray.wait(list(running), num_returns=1)
+            for r in done:
+                finished[running.pop(r)] = ray.get(r)
             if on_done is not None:
-                on_done(len(refs) - len(pending), len(refs))
-        return ray.get(list(refs))
+                on_done(len(finished), len(tasks))
+            if on_result is not None:
+                on_result([finished[k] for k in sorted(finished)])
+        return [finished[k] for k in range(len(tasks))]
     except KeyboardInterrupt:
-        for r in refs:
-            ray.cancel(r, force=True)
-        raise
+        raise SweepStopped([finished[k] for k in sorted(finished)], len(tasks)) from None
+
+
+class _StateWriter:
+    """Writes a tune's search state (``TuneSweep.write_state``) at once
+    (an empty one: a path that cannot be written is refused before the
+    sweep), then as its units finish, at most once every ``every_s``
+    seconds, and at a stop; ``held`` is what the last write holds."""
+
+    def __init__(self, sweep: TuneSweep, path: str, every_s: float = 1.0):
+        self.sweep, self.path, self.every_s = sweep, path, every_s
+        self.held = sweep.write_state([], path)
+        self.last = time.monotonic()
+
+    def __call__(self, finished: List[str], now: bool = False) -> None:
+        if now or time.monotonic() - self.last >= self.every_s:
+            self.held = self.sweep.write_state(finished, self.path)
+            self.last = time.monotonic()
 
 
 def tune_units(sweep: TuneSweep, plant: PlantFile, address: Optional[str] = None,
                unit: int = TUNE_UNIT_CANDIDATES,
-               on_progress: Optional[Callable[[int, int], None]] = None) -> List[str]:
+               on_progress: Optional[Callable[[int, int], None]] = None,
+               on_result: Optional[Callable[[List[str]], None]] = None) -> List[str]:
     """Runs ``sweep``'s units (on ``plant``) as Ray tasks; returns their
-    results for ``sweep.reduce`` or ``sweep.merge``."""
+    results for ``sweep.reduce`` or ``sweep.merge``. ``on_result`` is
+    given the results finished so far as each unit finishes; Ctrl-C
+    raises :class:`SweepStopped` with them."""
     connect(address)
     req = sweep.request()
     spec = ray.put((plant.text, plant.name) + tuple(req))
-    refs = [_tune_unit.remote(spec, u) for u in sweep.units(unit)]
-    return _gather(refs, on_progress)
+    tasks = [lambda u=u: _tune_unit.remote(spec, u) for u in sweep.units(unit)]
+    return _gather(tasks, on_progress, on_result)
 
 
 def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
          search_v_offset: bool = False, address: Optional[str] = None,
          unit: int = TUNE_UNIT_CANDIDATES,
-         on_progress: Optional[Callable[[int, int], None]] = None) -> dict:
+         on_progress: Optional[Callable[[int, int], None]] = None,
+         state: Optional[str] = None) -> dict:
     """``softjoint tune`` with its units as Ray tasks; returns what
     ``softjoint.tune`` returns (the gains file as a dict under
-    ``gains``)."""
+    ``gains``). With ``state``, the search state (the file ``softjoint
+    tune`` writes when stopped) is written there as units finish and at a
+    Ctrl-C, which then raises :class:`SweepStopped`; a sweep that
+    finishes removes the file it wrote (it has nothing left to resume)."""
     sweep = TuneSweep(plant, candidates, plants, seed, search_v_offset)
-    return json.loads(sweep.reduce(tune_units(sweep, plant, address, unit, on_progress)))
+    writer = None if state is None else _StateWriter(sweep, state)
+    try:
+        results = tune_units(sweep, plant, address, unit, on_progress, writer)
+    except SweepStopped as stopped:
+        if writer is not None:
+            writer(stopped.finished, now=True)
+            stopped.state = (writer.path,) + tuple(writer.held)
+        raise
+    if writer is not None:
+        os.remove(writer.path)
+    return json.loads(sweep.reduce(results))
 
 
 def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] = None,
@@ -219,8 +310,9 @@ def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] =
     spec = ray.put((text, m, params, name))
 
     def evaluate_batch(batch: List[List[float]]) -> List[float]:
-        refs = [_rheology_unit.remote(spec, batch[a:b]) for a, b in rheology_units(len(batch), unit)]
-        return [s for part in _gather(refs) for s in part]
+        tasks = [lambda a=a, b=b: _rheology_unit.remote(spec, batch[a:b])
+                 for a, b in rheology_units(len(batch), unit)]
+        return [s for part in _gather(tasks) for s in part]
 
     return json.loads(problem.calibrate(method, evaluations, seed, evaluate_batch))
 
@@ -238,8 +330,30 @@ def _progress() -> Optional[Callable[[int, int], None]]:
     return show
 
 
+def _write_text(path: str, text: str) -> None:
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(text)
+
+
+def _kept(a: argparse.Namespace, e: KeyboardInterrupt) -> str:
+    """What a stopped sweep kept, for its message."""
+    if not isinstance(e, SweepStopped) or a.command != "tune":
+        return ""
+    units = f"; {len(e.finished)} of {e.units} units had finished"
+    if a.units_out:
+        return f"{units}, their candidates in {a.units_out}"
+    if e.state is None:
+        return units
+    path, scored, index, cost = e.state
+    best = ("none scored yet" if index is None else
+            f"best so far: candidate {index} (robust cost {cost:.3f})")
+    return (f"{units} ({scored} of {a.candidates} candidates scored), {best}; "
+            f"search state in {path} (`softjoint tune {a.plant} --resume {path}` goes on "
+            "from there)")
+
+
 def main(argv: Optional[List[str]] = None) -> int:
-    # Ctrl-C cancels the sweep's tasks (below) also when this process was
+    # Ctrl-C stops the sweep (below) also when this process was
     # started with SIGINT ignored, as a job a script starts in the
     # background is: Python then installs no KeyboardInterrupt handler of
     # its own, and SIGINT did nothing while the sweep ran to its end.
@@ -256,7 +370,12 @@ def main(argv: Optional[List[str]] = None) -> int:
     t.add_argument("--address", default=None)
     t.add_argument("--unit", type=int, default=TUNE_UNIT_CANDIDATES)
     t.add_argument("--units-out", help="write the scored candidates here (TOML) for "
-                   "`softjoint tune --ray` to reduce, instead of reducing")
+                   "`softjoint tune --ray` to reduce, instead of reducing (stopped: those of "
+                   "the units that finished)")
+    t.add_argument("--state", default="gains.search.toml",
+                   help="the search state, written as units finish and on Ctrl-C (what "
+                   "`softjoint tune` writes when stopped; `softjoint tune PLANT --resume "
+                   "FILE` goes on from it); removed when the sweep finishes")
     r = sub.add_parser("rheology", help="softjoint rheology calibrate with its batches on Ray")
     r.add_argument("scenario", nargs="?")
     r.add_argument("--measured")
@@ -271,18 +390,23 @@ def main(argv: Optional[List[str]] = None) -> int:
         if a.command == "tune" and a.units_out:
             plant = load_plant(a.plant)
             sweep = TuneSweep(plant, a.candidates, a.plants, a.seed, a.search_v_offset)
-            merged = sweep.merge(tune_units(sweep, plant, a.address, a.unit, _progress()))
-            with open(a.units_out, "w", encoding="utf-8") as f:
-                f.write(merged)
+            try:
+                results = tune_units(sweep, plant, a.address, a.unit, _progress())
+            except SweepStopped as stopped:
+                # The units that finished, for the program's search state.
+                _write_text(a.units_out, sweep.merge(stopped.finished))
+                raise
+            _write_text(a.units_out, sweep.merge(results))
             return 0
         if a.command == "tune":
             out = tune(load_plant(a.plant), a.candidates, a.plants, a.seed,
-                       a.search_v_offset, a.address, a.unit, _progress())
+                       a.search_v_offset, a.address, a.unit, _progress(), state=a.state)
         else:
             out = rheology_calibrate(a.scenario, a.measured, a.params, a.method,
                                      a.evaluations, a.seed, a.address, a.unit)
-    except KeyboardInterrupt:
-        print("stopped: the sweep's tasks on the cluster were cancelled", file=sys.stderr)
+    except KeyboardInterrupt as e:
+        print(f"stopped: no more of the sweep's tasks submitted{_kept(a, e)}",
+              file=sys.stderr)
         return 130
     json.dump(out, sys.stdout, indent=2, sort_keys=True)
     print()

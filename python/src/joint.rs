@@ -307,6 +307,37 @@ struct UnitScores {
 pub struct PyTuneSweep {
     sweep: TuneSweep,
     plant_name: String,
+    /// The plant file's text (a search state's fingerprint is of it).
+    plant_text: String,
+}
+
+/// The scored candidates of units' results (any order), in index order.
+fn scored_of(units: &[String]) -> PyResult<Vec<Scored>> {
+    let mut scored = Vec::new();
+    for (k, text) in units.iter().enumerate() {
+        let u: UnitScores = toml::from_str(text)
+            .map_err(|e| SweepError::new_err(format!("unit result {k}: {e}")))?;
+        scored.extend(u.scored);
+    }
+    scored.sort_by_key(|s| s.index);
+    Ok(scored)
+}
+
+impl PyTuneSweep {
+    /// The search state of the units' results (see `state`).
+    fn search_state(&self, units: &[String]) -> PyResult<tune::SearchState> {
+        let coils = match self.sweep.joint() {
+            JointKind::TwoD => 2,
+            JointKind::ThreeD => 4,
+        };
+        Ok(tune::SearchState::new(
+            &self.plant_name,
+            self.plant_text.as_bytes(),
+            self.sweep.request(),
+            coils,
+            scored_of(units)?,
+        ))
+    }
 }
 
 #[pymethods]
@@ -333,6 +364,7 @@ impl PyTuneSweep {
         Ok(Self {
             sweep,
             plant_name: plant.name.clone(),
+            plant_text: plant.text.clone(),
         })
     }
 
@@ -375,28 +407,47 @@ impl PyTuneSweep {
     /// file (`host_tools::joint::tune::ScoredFile`, TOML) for `softjoint
     /// tune --ray` to reduce.
     fn merge(&self, units: Vec<String>) -> PyResult<String> {
-        let mut scored = Vec::new();
-        for (k, text) in units.iter().enumerate() {
-            let u: UnitScores = toml::from_str(text)
-                .map_err(|e| SweepError::new_err(format!("unit result {k}: {e}")))?;
-            scored.extend(u.scored);
-        }
-        scored.sort_by_key(|s| s.index);
+        let scored = scored_of(&units)?;
         toml::to_string(&tune::ScoredFile { scored })
             .map_err(|e| SweepError::new_err(format!("the merged units: {e}")))
+    }
+
+    /// The search state of a sweep stopped with these units' results
+    /// (any order) finished, as TOML: the file `softjoint tune` writes
+    /// when stopped (`host_tools::joint::tune::SearchState`: the plant
+    /// file's name and fingerprint, the request, the best so far with its
+    /// gains, every candidate scored), which `softjoint tune PLANT
+    /// --resume FILE` goes on from.
+    fn state(&self, units: Vec<String>) -> PyResult<String> {
+        let state = self.search_state(&units)?;
+        output::toml("the search state", tune::STATE_HEADER, &state).map_err(to_py)
+    }
+
+    /// Writes [`state`](Self::state) to `path` as the program writes its
+    /// files (atomically: a file is replaced whole or not at all; a
+    /// symbolic link is followed, a device or FIFO written through).
+    /// Returns what it holds for a message: `(candidates scored, best
+    /// candidate's index, its robust cost)` (`None`s: none scored).
+    fn write_state(
+        &self,
+        units: Vec<String>,
+        path: PathBuf,
+    ) -> PyResult<(usize, Option<usize>, Option<f64>)> {
+        let state = self.search_state(&units)?;
+        output::write_toml(&path, tune::STATE_HEADER, &state).map_err(to_py)?;
+        let best = state.best.as_ref();
+        Ok((
+            state.scored.len(),
+            best.map(|b| b.index),
+            best.map(|b| b.robust_cost),
+        ))
     }
 
     /// The reduction of the units' results (any order): returns the
     /// `--json` output of `softjoint tune` without its wall time, as text
     /// (`gains`, `failed_candidates`, `heldout_beats_or_ties_paper`).
     fn reduce(&self, py: Python<'_>, units: Vec<String>) -> PyResult<String> {
-        let mut scored = Vec::new();
-        for (k, text) in units.iter().enumerate() {
-            let u: UnitScores = toml::from_str(text)
-                .map_err(|e| SweepError::new_err(format!("unit result {k}: {e}")))?;
-            scored.extend(u.scored);
-        }
-        scored.sort_by_key(|s| s.index);
+        let scored = scored_of(&units)?;
         let sweep = &self.sweep;
         let r = py
             .detach(|| sweep.reduce(&scored))

@@ -2,8 +2,8 @@
 processes (`ray start --head`, then `ray start --address`), one CPU each.
 A short tune and a short rheology calibration on it give the results of
 the program run on this machine; a worker process killed mid-sweep (Ray
-retries its task) changes nothing; Ctrl-C on the driver cancels the
-sweep's tasks."""
+retries its task) changes nothing; Ctrl-C on the driver stops the
+sweep (exit 130, the finished units kept)."""
 import json
 import os
 import signal
@@ -116,21 +116,102 @@ def test_a_worker_killed_mid_sweep_changes_nothing(cluster, softjoint_bin, repo,
     assert result["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 8, 2, 7)
 
 
-def test_ctrl_c_cancels_the_sweeps_tasks(cluster, repo):
+def wait_for_units_to_go(timeout_s=20):
+    """Waits until the cluster's workers run no tune unit."""
+    deadline = time.time() + timeout_s
+    while unit_workers():
+        assert time.time() < deadline, f"units still running {timeout_s} s on"
+        time.sleep(0.2)
+
+
+def check_state(state, candidates, repo):
+    """A stopped search's state as `softjoint tune` writes it: whole
+    units (of two candidates) scored, fewer than asked, and the best so
+    far the scored candidate of lowest robust cost, with its gains."""
+    assert set(state) - {"best"} == {"plant_file", "plant_fnv1a", "candidates", "plants",
+                                     "seed", "search_v_offset", "scored"}
+    assert state["candidates"] == candidates
+    indices = [c["index"] for c in state["scored"]]
+    assert indices == sorted(indices) and len(indices) < candidates
+    assert all(i ^ 1 in indices for i in indices), f"a unit kept in part: {indices}"
+    scored = [c for c in state["scored"] if "score" in c]
+    if scored:
+        best = min(scored, key=lambda c: (c["score"]["robust"], c["index"]))
+        assert state["best"]["index"] == best["index"]
+        assert state["best"]["robust_cost"] == best["score"]["robust"]
+        plant = softjoint.load_plant(repo / state["plant_file"])
+        g = softjoint.Gains.candidate(plant, best["index"], state["seed"],
+                                      state["search_v_offset"])
+        assert state["best"]["gains"] == {
+            "kp_v_per_deg": list(g.kp_v_per_deg), "ki_v_per_deg_s": g.ki_v_per_deg_s,
+            "integral_limit_v": g.integral_limit_v, "v_offset_v": g.v_offset_v}
+    return indices
+
+
+def test_ctrl_c_cancels_the_sweeps_tasks_and_keeps_the_finished_units(cluster, softjoint_bin, repo,
+                                                                      tmp_path):
+    """Ctrl-C on the driver: it exits 130, the cluster's workers stop
+    running the sweep's units, and the units that finished are kept in the state file `softjoint tune` writes when
+    stopped, from which the program resumes to the result of an unbroken
+    search. Before, a stopped Ray sweep kept nothing."""
+    state_path = tmp_path / "ray.search.toml"
     p = subprocess.Popen(
         [sys.executable, "-m", "softjoint.ray_sweep", "tune", PLANT, "--candidates", "200",
-         "--plants", "2", "--seed", "1", "--address", cluster],
+         "--plants", "2", "--seed", "5", "--search-v-offset", "--address", cluster,
+         "--state", str(state_path)],
         cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 60
-    while not unit_workers():
-        assert time.time() < deadline and p.poll() is None, "no unit started"
+    # The state is written as units finish: stop once the first three
+    # units (candidates 0-5) are in it.
+    deadline = time.time() + 120
+    while not (state_path.exists()
+               and {0, 1, 2, 3, 4, 5} <= {c["index"] for c in
+                                          tomllib.loads(state_path.read_text())["scored"]}):
+        assert time.time() < deadline and p.poll() is None, "no units finished"
         time.sleep(0.05)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130, err
-    assert "cancelled" in err
+    state = tomllib.loads(state_path.read_text())
+    indices = check_state(state, 200, repo)
+    assert f"search state in {state_path}" in err, err
+    assert f"{len(indices)} of 200 candidates scored" in err, err
+    assert f"best so far: candidate {state['best']['index']} " in err, err
     # The cluster's workers stop running the sweep's units.
-    deadline = time.time() + 20
-    while unit_workers():
-        assert time.time() < deadline, "units still running 20 s after Ctrl-C"
-        time.sleep(0.2)
+    wait_for_units_to_go()
+    # The program goes on from it (here to the first 6 candidates, all
+    # in the state: their scores are the unbroken search's, bit for bit).
+    out = tmp_path / "resumed.toml"
+    run_cli(softjoint_bin, "tune", PLANT, "--candidates", 6, "--plants", 2, "--seed", 5,
+            "--search-v-offset", "--allow-unproven", "--resume", state_path, "-o", out, cwd=repo)
+    assert tomllib.loads(out.read_text()) == cli_tune(softjoint_bin, repo, tmp_path, 6, 2, 5)
+
+
+def test_the_programs_tune_with_ray_stopped_keeps_the_finished_units(cluster, softjoint_bin, repo,
+                                                                     tmp_path):
+    """SIGTERM to `softjoint tune --ray` alone (not its process group):
+    the program passes the stop to its driver, which stops the sweep
+    and hands back the units that finished; the program writes them as
+    its search state and exits 143. Before, the driver never heard of
+    the signal and ran the whole sweep, and the state kept nothing."""
+    wait_for_units_to_go()
+    out = tmp_path / "g.toml"
+    env = dict(os.environ, SOFTJOINT_PYTHON=sys.executable)
+    p = subprocess.Popen([softjoint_bin, "tune", PLANT, "--candidates", "400", "--plants", "2",
+                          "--seed", "5", "--search-v-offset", "--ray", cluster, "-o", str(out)],
+                         cwd=repo, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True)
+    deadline = time.time() + 60
+    while not unit_workers():
+        assert time.time() < deadline and p.poll() is None, "no unit started"
+        time.sleep(0.05)
+    time.sleep(1.5)
+    p.send_signal(signal.SIGTERM)
+    # 400 candidates on two workers take minutes; a stop, seconds.
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 143, err
+    state_path = tmp_path / "g.search.toml"
+    state = tomllib.loads(state_path.read_text())
+    indices = check_state(state, 400, repo)
+    assert f"{len(indices)} of 400 candidates scored" in err, err
+    assert not out.exists() and not (tmp_path / "g.ray-units.toml").exists()
+    wait_for_units_to_go()

@@ -417,41 +417,53 @@ fn drive_planes(mask: u8) -> String {
 }
 
 /// `excite PLAN --log LOG`: the plan on the board (3D, free-running), the
-/// log written with the board's estimates and fault byte as extra columns
-/// (whatever was recorded, also when the session ended early).
+/// log written with the board's estimates and fault byte as extra columns.
+/// The rows go to a temporary file beside LOG as they arrive (memory stays
+/// flat however long the plan) and replace LOG at the end, also when the
+/// session ended early (a signal, a lost link, a refusal): whatever was
+/// recorded is kept, and a session with no row leaves LOG as it was.
 fn excite_on_board<P: Port>(link: &mut Link<P>, plan: &Path, log: &Path) -> anyhow::Result<()> {
+    use host_tools::joint::excite::{run_board, LogFile};
     let plan = host_tools::joint::excite::load_plan(plan, 2)?;
-    // The log's file is checked before the board moves.
-    output::check_dir(
-        log.parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new(".")),
-    )?;
+    // The log's file is opened before the board moves.
+    let mut file = LogFile::create_board(log)?;
     let stop = Stop::on_signals()?;
-    let run = host_tools::joint::excite::run_board(&plan, link, &stop);
+    let run = run_board(&plan, link, &stop, &mut file);
     let s = &run.summary;
-    if s.rows > 0 {
-        let csv = host_tools::joint::excite::board_log_csv(&run.log, &run.extras);
-        output::write_csv(log, &csv)?;
-    }
+    // Renamed over LOG only with rows in it; dropped, it leaves LOG alone.
+    let kept = (s.rows > 0).then(|| file.finish());
+    let (where_to, kept) = match kept {
+        None => ("nothing written".to_string(), Ok(())),
+        Some(Ok(_)) => (log.display().to_string(), Ok(())),
+        Some(Err(e)) => ("nothing written".to_string(), Err(e)),
+    };
     outln!(
-        "excite `{}`: {} rows ({} s of {} s) to {}; {} rows filled (telemetry lost); faults seen [{}]; peak coil inputs {} mV",
+        "excite `{}`: {} rows ({} s of {} s) to {where_to}; {} rows filled (telemetry lost); faults seen [{}]; peak coil inputs {} mV",
         s.plan,
         s.rows,
         short_number(s.recorded_s),
         short_number(s.planned_s),
-        if s.rows > 0 { log.display().to_string() } else { "nothing written".into() },
         s.rows_filled,
         s.faults_seen.join(","),
         s.peak_coil_mv.map(|m| m.to_string()).join("/")
     );
-    match run.error {
-        None => Ok(()),
-        Some(e) => Err(e.context(format!(
-            "the session ended at t = {} s of {} s (the board is disarmed; the log holds the rows up to there)",
-            short_number(s.recorded_s),
-            short_number(s.planned_s)
-        ))),
+    let held = if s.rows > 0 && kept.is_ok() {
+        format!("{} holds its {} rows up to there", log.display(), s.rows)
+    } else {
+        format!("nothing was written to {}", log.display())
+    };
+    match (run.error, kept) {
+        (None, kept) => kept,
+        (Some(e), kept) => {
+            if let Err(k) = kept {
+                eprintln!("error: {k:#}");
+            }
+            Err(e.context(format!(
+                "the session ended at t = {} s of {} s (the board is disarmed; {held})",
+                short_number(s.recorded_s),
+                short_number(s.planned_s)
+            )))
+        }
     }
 }
 

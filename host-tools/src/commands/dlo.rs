@@ -396,16 +396,9 @@ fn unverified(solution: &StaticSolution) -> Option<String> {
         StaticSolution::Wire { shape, .. } => why("the wire".into(), shape.checks.failures())
             .into_iter()
             .collect(),
-        StaticSolution::Belt { shape, .. } => why(
-            "the belt".into(),
-            if shape.solution.converged {
-                Vec::new()
-            } else {
-                vec!["constraints"]
-            },
-        )
-        .into_iter()
-        .collect(),
+        StaticSolution::Belt { shape, .. } => why("the belt".into(), shape.checks.failures())
+            .into_iter()
+            .collect(),
         StaticSolution::Sequence { steps, .. } => steps
             .iter()
             .flat_map(|st| {
@@ -434,20 +427,14 @@ fn solution_files(solution: &StaticSolution) -> (String, String) {
             let note = (!failures.is_empty()).then(|| "UNVERIFIED".to_string());
             let panels = three_views("wire", &shape.x_m, *radius_m, note);
             let mut svg = plot::panel_grid(&panels, 3, 320.0, (0.1, "0.1 m"), false);
-            if !failures.is_empty() {
-                // Bottom right, beside the scale bar: why it is unverified.
-                svg.text_styled(
-                    3.0 * 320.0 - 10.0,
-                    320.0 + 22.0 + 18.0 + 24.0 - 8.0,
-                    14.0,
-                    plot::Anchor::End,
-                    r##"fill="#d62728" font-weight="bold""##,
-                    &format!("UNVERIFIED: fails {}", failures.join(", ")),
-                );
-            }
+            unverified_note(&mut svg, &failures);
             (wire_csv(&[("wire", None, shape)]), svg.finish())
         }
-        StaticSolution::Belt { shape, .. } => (belt_csv(shape), belt_views(shape).finish()),
+        StaticSolution::Belt { shape, .. } => {
+            let mut svg = belt_views(shape);
+            unverified_note(&mut svg, &shape.checks.failures());
+            (belt_csv(shape), svg.finish())
+        }
         StaticSolution::Sequence { steps, radius_m } => {
             let rows: Vec<(&str, Option<f64>, &WireShape)> = steps
                 .iter()
@@ -461,6 +448,22 @@ fn solution_files(solution: &StaticSolution) -> (String, String) {
             (wire_csv(&rows), sequence_views(steps, *radius_m).finish())
         }
     }
+}
+
+/// Bottom right of a row of three 320-px panels, beside the scale bar, in
+/// red: why the answer is unverified (nothing when `failures` is empty).
+fn unverified_note(svg: &mut plot::Svg, failures: &[&str]) {
+    if failures.is_empty() {
+        return;
+    }
+    svg.text_styled(
+        3.0 * 320.0 - 10.0,
+        320.0 + 22.0 + 18.0 + 24.0 - 8.0,
+        14.0,
+        plot::Anchor::End,
+        r##"fill="#d62728" font-weight="bold""##,
+        &format!("UNVERIFIED: fails {}", failures.join(", ")),
+    );
 }
 
 /// The summary of a solve (without its time and file names): energies and
@@ -513,7 +516,10 @@ fn belt_json(shape: &BeltShape, method: BeltMethod) -> Result<JsonObject> {
         .field("highest_spine_point_m", &[top.x, top.y, top.z])?
         .field("paper_highest_point_lu", &[0.3, 0.4, -0.01])?
         .field("max_violation", &shape.max_violation)?
-        .field("converged", &shape.solution.converged)
+        .field("converged", &shape.verified())?
+        .field("status", status(shape.verified()))?
+        .field("failed_checks", &shape.checks.failures())?
+        .field("checks", &shape.checks)
 }
 
 fn sequence_step_json(st: &SequenceStep) -> Result<JsonObject> {
@@ -656,6 +662,7 @@ fn belt_views(b: &BeltShape) -> plot::Svg {
         ("(c) side", ("z", "x"), |p| (p.z, p.x)),
     ];
     let top = b.highest_m;
+    let mark = if b.verified() { "" } else { " · UNVERIFIED" };
     let panels: Vec<ViewPanel> = views
         .iter()
         .map(|(name, axes, proj)| {
@@ -685,9 +692,9 @@ fn belt_views(b: &BeltShape) -> plot::Svg {
             }
             ViewPanel {
                 title: if name.starts_with("(a)") {
-                    format!("belt {name} · orange: paper's top")
+                    format!("belt {name} · orange: paper's top{mark}")
                 } else {
-                    format!("belt {name}")
+                    format!("belt {name}{mark}")
                 },
                 axes: (format!("{} (m)", axes.0), format!("{} (m)", axes.1)),
                 strokes,

@@ -198,7 +198,10 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
 /// The search's units run on the Ray cluster at `address` by the Python
 /// package's driver, which writes the scored candidates to a file beside
 /// the gains file; reduced here. A signal stops the driver too (it
-/// cancels the cluster's tasks); the candidates it scored are not kept.
+/// cancels the cluster's tasks and writes the candidates of the units
+/// that had finished): those are the stopped search's, kept in its state
+/// file like a search on this machine's (`--resume` goes on from it
+/// without `--ray`).
 fn on_ray(
     a: &TuneArgs,
     file: &PlantFile,
@@ -221,23 +224,51 @@ fn on_ray(
         cmd.arg("--search-v-offset");
     }
     let who = format!("{} -m softjoint.ray_sweep", python.to_string_lossy());
-    let status = cmd.status().with_context(|| {
+    // The driver dies with this program and is out of the terminal's
+    // process group: a signal to this program reaches it as SIGINT, sent
+    // from here (`kill -TERM` on this program alone reached no driver,
+    // which ran its whole sweep while this program waited).
+    host_tools::stop::die_with_parent(&mut cmd);
+    let mut child = cmd.spawn().with_context(|| {
         format!("cannot run {who} (the Python package, python/README.md, and ray installed?)")
     })?;
+    let mut told = false;
+    let status = loop {
+        if let Some(status) = child
+            .try_wait()
+            .with_context(|| format!("waiting for {who}"))?
+        {
+            break status;
+        }
+        if !told && stop.requested().is_some() {
+            told = true;
+            host_tools::stop::interrupt(&child);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
     let read = std::fs::read_to_string(&units);
     let _ = std::fs::remove_file(&units);
+    let scored = |text: &str| -> anyhow::Result<Vec<tune::Scored>> {
+        let file: tune::ScoredFile =
+            host_tools::input::from_toml(text, &units.display().to_string())?;
+        Ok(file.scored)
+    };
     if let Some(signal) = stop.requested() {
-        return Ok(tune::TuneOutcome::Stopped(signal, Vec::new()));
+        // The units finished before the stop, if the driver got to write
+        // them.
+        let kept = match &read {
+            Ok(text) => scored(text)?,
+            Err(_) => Vec::new(),
+        };
+        return Ok(tune::TuneOutcome::Stopped(signal, kept));
     }
     if !status.success() {
         bail!("the sweep on Ray at {address} failed: {who} exited with {status} (its message is above)");
     }
     let text = read.with_context(|| format!("{who} wrote no {}", units.display()))?;
-    let scored: tune::ScoredFile =
-        host_tools::input::from_toml(&text, &units.display().to_string())?;
     let sweep = tune::TuneSweep::new(file, a.request())?;
     Ok(tune::TuneOutcome::Done(Box::new(
-        sweep.reduce(&scored.scored)?,
+        sweep.reduce(&scored(&text)?)?,
     )))
 }
 
@@ -246,12 +277,11 @@ fn on_ray(
 /// search did not finish).
 fn stopped(a: &TuneArgs, signal: StopSignal, state: &tune::SearchState) -> anyhow::Error {
     let path = a.state_path();
-    if let Err(e) = output::write_toml(
-        &path,
-        "# Written by `softjoint tune` when stopped: the candidates scored so far.\n# `softjoint tune PLANT --resume THIS_FILE` goes on from here.\n",
-        state,
-    ) {
-        return e.context(format!("stopped by {}; the search state was lost", signal.name()));
+    if let Err(e) = output::write_toml(&path, tune::STATE_HEADER, state) {
+        return e.context(format!(
+            "stopped by {}; the search state was lost",
+            signal.name()
+        ));
     }
     let best = match &state.best {
         Some(b) => format!(

@@ -158,9 +158,16 @@ impl LogSink for ExcitationLog {
 /// A session's log written as it is recorded (the columns and decimals of
 /// [`log_csv`], each value checked finite first): memory stays flat
 /// however long the plan, and a session that ends early — a signal, a
-/// failed link — leaves its rows on disk up to its last whole row. Like
-/// the run trace, the one kind of result that is not written atomically
-/// (it would have to be kept whole until the end).
+/// failed link — leaves its rows on disk up to its last whole row.
+///
+/// A `sim`/`hil` session's log ([`LogFile::create`]) is, like the run
+/// trace, written straight to its path as the rows come. A board
+/// session's ([`LogFile::create_board`]) streams into a temporary file
+/// beside its path that [`LogFile::finish`] renames over it
+/// (`run::trace::RowFile::create_atomic`): a session that records no row
+/// leaves the previous log as it was. Not covered: a `softjoint` killed
+/// with SIGKILL leaves that temporary file (`.NAME.PID-N.tmp`, the rows
+/// up to its last block) instead of the log.
 pub struct LogFile {
     rows: RowFile,
     cols: Vec<String>,
@@ -178,38 +185,79 @@ impl LogFile {
         Ok(Self { rows, cols, places })
     }
 
+    /// Opens `path` for a board session's log (the columns of
+    /// [`board_log_csv`]): the rows go to a temporary file beside it as
+    /// they come, renamed over it by [`finish`](Self::finish); dropped
+    /// unfinished, the log leaves `path` as it was. A path that cannot be
+    /// written is refused here, before the board moves.
+    pub fn create_board(path: &Path) -> anyhow::Result<Self> {
+        let mut cols = columns(2, false);
+        let places = cols.iter().map(|c| log_decimals(c)).collect();
+        cols.extend(BOARD_COLUMNS.map(String::from));
+        let rows = RowFile::create_atomic(path, &format!("{}\n", cols.join(",")))?;
+        Ok(Self { rows, cols, places })
+    }
+
     /// The file's path.
     pub fn path(&self) -> &Path {
         self.rows.path()
     }
 
-    /// Writes what is waiting and returns the rows in the file.
+    /// Writes what is waiting and returns the rows in the file (a board
+    /// session's log: renamed over its path).
     pub fn finish(self) -> anyhow::Result<u64> {
         self.rows.finish()
+    }
+
+    /// Appends one row: `r` in the log's columns, then (a board log) the
+    /// board's estimates (NaN: none, an empty field) and fault byte. Every
+    /// value is checked before any is written: a refused row leaves
+    /// nothing of itself.
+    fn push(&mut self, r: &[f64], board: Option<([f64; 2], u8)>) -> anyhow::Result<()> {
+        let (cols, places) = (&self.cols, &self.places);
+        self.rows.row(|s, path, line| {
+            for (v, c) in r.iter().zip(cols) {
+                check_number(path, line, || c.clone(), *v)?;
+            }
+            if let Some((estimate_deg, _)) = board {
+                for (e, c) in estimate_deg.iter().zip(BOARD_COLUMNS) {
+                    if !e.is_nan() {
+                        check_number(path, line, || c.to_string(), *e)?;
+                    }
+                }
+            }
+            for (i, (v, d)) in r.iter().zip(places).enumerate() {
+                if i > 0 {
+                    s.push(',');
+                }
+                let _ = write!(s, "{v:.d$}", d = *d);
+            }
+            if let Some((e, faults)) = board {
+                let _ = write!(
+                    s,
+                    ",{},{},{faults}",
+                    crate::output::estimate_field(e[0], 3),
+                    crate::output::estimate_field(e[1], 3)
+                );
+            }
+            s.push('\n');
+            Ok::<(), crate::output::NonFinite>(())
+        })
     }
 }
 
 impl LogSink for LogFile {
     fn rows(&mut self, piece: ExcitationLog) -> anyhow::Result<()> {
         for k in 0..piece.len() {
-            let r = piece.row(k);
-            let (cols, places) = (&self.cols, &self.places);
-            self.rows.row(|s, path, line| {
-                // Every value checked before any is written: a refused row
-                // leaves nothing of itself.
-                for (v, c) in r.iter().zip(cols) {
-                    check_number(path, line, || c.clone(), *v)?;
-                }
-                for (i, (v, d)) in r.iter().zip(places).enumerate() {
-                    if i > 0 {
-                        s.push(',');
-                    }
-                    let _ = write!(s, "{v:.d$}", d = *d);
-                }
-                s.push('\n');
-                Ok::<(), crate::output::NonFinite>(())
-            })?;
+            self.push(&piece.row(k), None)?;
         }
+        self.rows.write_if_due()
+    }
+}
+
+impl BoardLogSink for LogFile {
+    fn board_row(&mut self, row: &BoardRow) -> anyhow::Result<()> {
+        self.push(&row.log_fields(), Some((row.estimate_deg, row.faults)))?;
         self.rows.write_if_due()
     }
 }
@@ -395,17 +443,22 @@ pub fn log_csv(log: &ExcitationLog) -> String {
     out
 }
 
-/// A board session's log as CSV: the columns of [`log_csv`] (what
-/// `identify joint` reads) and the board's estimates and fault byte
-/// (`est_alpha_deg`, `est_beta_deg`, `faults`; an estimate is empty where
-/// the board had none).
+/// The columns a board session's log has beyond [`log_csv`]'s.
+const BOARD_COLUMNS: [&str; 3] = ["est_alpha_deg", "est_beta_deg", "faults"];
+
+/// A board session's log as CSV, formatted whole: the columns of
+/// [`log_csv`] (what `identify joint` reads) and the board's estimates and
+/// fault byte (`est_alpha_deg`, `est_beta_deg`, `faults`; an estimate is
+/// empty where the board had none). `console excite` streams the same
+/// text row by row ([`LogFile::create_board`]); this is the form for a
+/// [`BoardLog`] kept in memory.
 pub fn board_log_csv(log: &ExcitationLog, extras: &BoardExtras) -> String {
     let base = log_csv(log);
     let mut out = String::with_capacity(base.len() * 5 / 4);
     for (k, line) in base.lines().enumerate() {
         out.push_str(line);
         match k.checked_sub(1) {
-            None => out.push_str(",est_alpha_deg,est_beta_deg,faults"),
+            None => out.push_str(&format!(",{}", BOARD_COLUMNS.join(","))),
             Some(r) => {
                 let e = extras.estimate_deg.get(r).copied().unwrap_or([f64::NAN; 2]);
                 out.push_str(&format!(
@@ -469,6 +522,42 @@ pub fn run_hil<Po: crate::board::link::Port>(
 /// cable) before the board unpowers it.
 pub const BOARD_DRIVE_HOLD_MS: u16 = 250;
 
+/// One row of a board session's log: row `k` at `t_s = k·Δ` of the
+/// board's clock, its wires and the board's estimates and faults from
+/// frame k, its driver inputs from frame k+1 (see [`BoardRecorder`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoardRow {
+    /// Row time from the session's first frame (s).
+    pub t_s: f64,
+    /// Driver input per coil over the row's interval (V), coils 1–4.
+    pub volts: [f64; 4],
+    /// Wire insertions (mm), sensors 1–4.
+    pub wire_mm: [f64; 4],
+    /// The board's estimates (α, β) (deg; NaN: none yet).
+    pub estimate_deg: [f64; 2],
+    /// The board's fault byte.
+    pub faults: u8,
+}
+
+impl BoardRow {
+    /// The row in the columns of a 3D log without electrical columns
+    /// (`identify::log::columns(2, false)`): no camera (capture time −1).
+    fn log_fields(&self) -> [f64; 12] {
+        let [v1, v2, v3, v4] = self.volts;
+        let [d1, d2, d3, d4] = self.wire_mm;
+        [self.t_s, v1, v2, v3, v4, -1.0, 0.0, 0.0, d1, d2, d3, d4]
+    }
+}
+
+/// Where a board session's rows go as they complete: its log file
+/// ([`LogFile::create_board`], what `console excite` writes) or a
+/// [`BoardLog`] in memory.
+pub trait BoardLogSink {
+    /// Takes the session's next row; an error ends the session there (the
+    /// board disarmed, the rows taken before kept).
+    fn board_row(&mut self, row: &BoardRow) -> anyhow::Result<()>;
+}
+
 /// What a board session recorded besides the log: the board's own angle
 /// estimates and fault flags per row.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -477,6 +566,43 @@ pub struct BoardExtras {
     pub estimate_deg: Vec<[f64; 2]>,
     /// The board's fault byte per row.
     pub faults: Vec<u8>,
+}
+
+/// A board session's rows kept in memory (tests, library callers that
+/// compare logs); [`board_log_csv`] formats it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoardLog {
+    /// The log rows.
+    pub log: ExcitationLog,
+    /// The board's estimates and faults per row.
+    pub extras: BoardExtras,
+}
+
+impl BoardLog {
+    /// Empty, for a session of `plan` (its rows every `log_interval_ms`).
+    pub fn new(plan: &ExcitationPlan) -> Self {
+        Self {
+            log: ExcitationLog {
+                planes: 2,
+                period_s: f64::from(plan.log_interval_ms) * 1e-3,
+                ..Default::default()
+            },
+            extras: BoardExtras::default(),
+        }
+    }
+}
+
+impl BoardLogSink for BoardLog {
+    fn board_row(&mut self, row: &BoardRow) -> anyhow::Result<()> {
+        self.log.t_s.push(row.t_s);
+        self.log.volts.push(row.volts);
+        self.log.cam_capture_s.push(-1.0);
+        self.log.cam_deg.push([0.0; 2]);
+        self.log.wire_mm.push(row.wire_mm);
+        self.extras.estimate_deg.push(row.estimate_deg);
+        self.extras.faults.push(row.faults);
+        Ok(())
+    }
 }
 
 /// A summary of a session recorded on a board.
@@ -501,13 +627,9 @@ pub struct BoardSessionSummary {
     pub ended_early: Option<String>,
 }
 
-/// The result of a board session: what was recorded (always, up to where
-/// it stopped) and how it ended.
+/// How a board session ended (its rows went to its sink as they came,
+/// up to where it stopped).
 pub struct BoardRun {
-    /// The log rows recorded.
-    pub log: ExcitationLog,
-    /// The board's estimates and faults per row.
-    pub extras: BoardExtras,
     /// The summary.
     pub summary: BoardSessionSummary,
     /// Why the session failed or was stopped (`None`: the plan ran to its
@@ -515,30 +637,58 @@ pub struct BoardRun {
     pub error: Option<anyhow::Error>,
 }
 
-/// Builds the log from telemetry frames. Row k is at `k·Δ` of the board's
-/// clock from the first frame; its wires and estimates are frame k's, its
-/// driver inputs frame k+1's: the board reports the inputs it has set, and
-/// those of frame k+1 are the ones the host's commands for interval k set
-/// (sent on frame k's arrival), so they held over `[t_k, t_(k+1))` up to
-/// the link's latency.
-struct BoardRecorder {
+/// Builds the log from telemetry frames, handing each row to its sink as
+/// soon as it is known: it keeps one frame, not the session. Row k is at
+/// `k·Δ` of the board's clock from the first frame; its wires and
+/// estimates are frame k's, its driver inputs frame k+1's: the board
+/// reports the inputs it has set, and those of frame k+1 are the ones the
+/// host's commands for interval k set (sent on frame k's arrival), so they
+/// held over `[t_k, t_(k+1))` up to the link's latency.
+struct BoardRecorder<'s> {
     interval_ms: u32,
     max_rows: usize,
     t0_ms: Option<u32>,
-    frames: Vec<firmware::protocol::Telemetry>,
+    /// Frames taken (arrived or filled).
+    frames: usize,
+    /// The last of them.
+    last: Option<firmware::protocol::Telemetry>,
+    /// Rows handed to `sink`.
+    rows: usize,
     filled: usize,
+    /// Fault flags and peak coil inputs over every frame taken.
+    faults: u16,
+    peak_mv: [u16; 4],
     coder: firmware::estimate::PulseCoder,
+    sink: &'s mut dyn BoardLogSink,
 }
 
-impl BoardRecorder {
+impl<'s> BoardRecorder<'s> {
+    /// A recorder of `max_rows` rows every `interval_ms`, handing them to
+    /// `sink`.
+    fn new(interval_ms: u32, max_rows: usize, sink: &'s mut dyn BoardLogSink) -> Self {
+        Self {
+            interval_ms,
+            max_rows,
+            t0_ms: None,
+            frames: 0,
+            last: None,
+            rows: 0,
+            filled: 0,
+            faults: 0,
+            peak_mv: [0; 4],
+            coder: firmware::estimate::PulseCoder::default(),
+            sink,
+        }
+    }
+
     /// Takes a frame; returns its row index, or `None` for a frame that
     /// repeats a row already taken. An error names a frame without a
-    /// sensor reading.
+    /// sensor reading, or is the sink's.
     fn push(&mut self, t: &firmware::protocol::Telemetry) -> anyhow::Result<Option<usize>> {
         let t0 = *self.t0_ms.get_or_insert(t.time_ms);
         let rel = t.time_ms.wrapping_sub(t0);
         let k = ((rel + self.interval_ms / 2) / self.interval_ms) as usize;
-        if k < self.frames.len() {
+        if k < self.frames {
             return Ok(None);
         }
         if let Some(s) = t.counts.iter().position(|c| *c == i32::MIN) {
@@ -548,44 +698,40 @@ impl BoardRecorder {
                 t.time_ms
             );
         }
-        while self.frames.len() < k {
+        while self.frames < k {
             // A frame that did not arrive: hold the previous one.
-            let last = *self.frames.last().context("no first frame")?;
-            self.frames.push(last);
+            let last = self.last.context("no first frame")?;
+            self.take(last)?;
             self.filled += 1;
         }
-        self.frames.push(*t);
+        self.take(*t)?;
         Ok(Some(k))
     }
 
-    fn done(&self) -> bool {
-        self.frames.len() > self.max_rows
+    /// Takes the next frame: the previous frame's row is now known (up to
+    /// the plan's rows) and goes to the sink.
+    fn take(&mut self, next: firmware::protocol::Telemetry) -> anyhow::Result<()> {
+        if let Some(now) = self.last.filter(|_| self.rows < self.max_rows) {
+            self.sink.board_row(&BoardRow {
+                t_s: self.rows as f64 * f64::from(self.interval_ms) * 1e-3,
+                volts: next.coil_mv.map(firmware::protocol::millivolts_to_volts),
+                wire_mm: now.counts.map(|c| f64::from(self.coder.insertion_mm(c))),
+                estimate_deg: now.estimate_deg.map(f64::from),
+                faults: now.faults,
+            })?;
+            self.rows += 1;
+        }
+        self.faults |= u16::from(next.faults);
+        for (p, v) in self.peak_mv.iter_mut().zip(next.coil_mv) {
+            *p = (*p).max(v);
+        }
+        self.last = Some(next);
+        self.frames += 1;
+        Ok(())
     }
 
-    /// The log of the rows whose inputs are known (every frame but the
-    /// last).
-    fn finish(&self) -> (ExcitationLog, BoardExtras, usize) {
-        let rows = self.frames.len().saturating_sub(1).min(self.max_rows);
-        let dt = f64::from(self.interval_ms) * 1e-3;
-        let mut log = ExcitationLog {
-            planes: 2,
-            period_s: dt,
-            ..Default::default()
-        };
-        let mut extras = BoardExtras::default();
-        for (k, pair) in self.frames.windows(2).take(rows).enumerate() {
-            let (now, next) = (&pair[0], &pair[1]);
-            log.t_s.push(k as f64 * dt);
-            log.volts
-                .push(next.coil_mv.map(firmware::protocol::millivolts_to_volts));
-            log.cam_capture_s.push(-1.0);
-            log.cam_deg.push([0.0; 2]);
-            log.wire_mm
-                .push(now.counts.map(|c| f64::from(self.coder.insertion_mm(c))));
-            extras.estimate_deg.push(now.estimate_deg.map(f64::from));
-            extras.faults.push(now.faults);
-        }
-        (log, extras, rows)
+    fn done(&self) -> bool {
+        self.frames > self.max_rows
     }
 }
 
@@ -595,23 +741,18 @@ impl BoardRecorder {
 /// telemetry (one frame per log interval: the host answers each frame
 /// with the commands for the interval it starts). The board's supervisor
 /// has the last word: a refused command (a coil over its thermal budget,
-/// a latched fault) ends the session by name. The board is disarmed at the
-/// end, on an error and when `stop` is asked; what was recorded up to
-/// there is returned either way.
+/// a latched fault) ends the session by name. Each row goes to `sink` as
+/// soon as it is known (memory stays flat however long the plan). The
+/// board is disarmed at the end, on an error and when `stop` is asked;
+/// the rows up to there are the sink's either way.
 pub fn run_board<Po: crate::board::link::Port>(
     plan: &ExcitationPlan,
     link: &mut crate::board::link::Link<Po>,
     stop: &crate::stop::Stop,
+    sink: &mut dyn BoardLogSink,
 ) -> BoardRun {
     let max_rows = (plan.duration_s * 1e3 / f64::from(plan.log_interval_ms)).round() as usize;
-    let mut rec = BoardRecorder {
-        interval_ms: plan.log_interval_ms,
-        max_rows,
-        t0_ms: None,
-        frames: Vec::new(),
-        filled: 0,
-        coder: firmware::estimate::PulseCoder::default(),
-    };
+    let mut rec = BoardRecorder::new(plan.log_interval_ms, max_rows, sink);
     let result = drive_board(plan, link, stop, &mut rec);
     // Outputs off whatever happened; a failure here is reported too.
     let off = link
@@ -632,32 +773,18 @@ pub fn run_board<Po: crate::board::link::Port>(
         (Err(e), _) => Some(e),
         (Ok(()), Err(e)) => Some(anyhow::Error::new(e).context("disarming the board at the end")),
     };
-    let (log, extras, rows) = rec.finish();
-    let mut faults = 0u16;
-    let mut peak = [0u16; 4];
-    for f in rec.frames.iter().take(rows + 1) {
-        faults |= u16::from(f.faults);
-        for (p, v) in peak.iter_mut().zip(f.coil_mv) {
-            *p = (*p).max(v);
-        }
-    }
     let dt = f64::from(plan.log_interval_ms) * 1e-3;
     let summary = BoardSessionSummary {
         plan: plan.name.clone(),
-        rows,
-        recorded_s: rows as f64 * dt,
+        rows: rec.rows,
+        recorded_s: rec.rows as f64 * dt,
         planned_s: plan.duration_s,
         rows_filled: rec.filled,
-        faults_seen: fault_names(faults),
-        peak_coil_mv: peak,
+        faults_seen: fault_names(rec.faults),
+        peak_coil_mv: rec.peak_mv,
         ended_early: error.as_ref().map(|e| format!("{e:#}")),
     };
-    BoardRun {
-        log,
-        extras,
-        summary,
-        error,
-    }
+    BoardRun { summary, error }
 }
 
 /// The commands of interval `[t, t + Δ)`: a `Drive` for the planes not
@@ -728,7 +855,7 @@ fn drive_board<Po: crate::board::link::Port>(
     plan: &ExcitationPlan,
     link: &mut crate::board::link::Link<Po>,
     stop: &crate::stop::Stop,
-    rec: &mut BoardRecorder,
+    rec: &mut BoardRecorder<'_>,
 ) -> anyhow::Result<()> {
     use crate::board::controller::{CMD_ATTEMPTS, CMD_TIMEOUT};
     use firmware::protocol::{Arm, ClearFaults, HilStop, Message, SetTelemetry};
@@ -763,9 +890,9 @@ fn drive_board<Po: crate::board::link::Port>(
     while !rec.done() {
         if let Some(signal) = stop.requested() {
             // Exits as the signal would (130 for SIGINT), after the log.
-            let at_t_s = rec.frames.len().saturating_sub(1) as f64 * dt;
+            let at_t_s = rec.frames.saturating_sub(1) as f64 * dt;
             return Err(RunCutShort(CutShort {
-                at_step: rec.frames.len().saturating_sub(1) as u64,
+                at_step: rec.frames.saturating_sub(1) as u64,
                 at_t_s,
                 cause: CutCause::Signal,
                 reason: format!(
@@ -780,7 +907,7 @@ fn drive_board<Po: crate::board::link::Port>(
         let Some(m) = link.recv_until(deadline)? else {
             bail!(
                 "the board's telemetry stopped at t = {:.2} s of the plan (nothing for {} ms)",
-                rec.frames.len() as f64 * dt,
+                rec.frames as f64 * dt,
                 quiet.as_millis()
             );
         };
@@ -799,4 +926,111 @@ fn drive_board<Po: crate::board::link::Port>(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firmware::protocol::Telemetry;
+
+    /// Frame `k` of a made-up 10 ms stream: inputs, counts and estimates
+    /// that differ from frame to frame (no estimate in the first three).
+    fn frame(k: u32) -> Telemetry {
+        let i = k as i32;
+        Telemetry {
+            time_ms: 5_000 + 10 * k,
+            estimate_deg: if k < 3 {
+                [f32::NAN; 2]
+            } else {
+                [0.01 * k as f32, -0.02 * k as f32]
+            },
+            coil_mv: [(k % 3000) as u16, 1900, (7 * k % 5000) as u16, 0],
+            counts: [1000 + i, 2000 - i, 3000 + 2 * i, 4000],
+            faults: u8::from(k == 700),
+        }
+    }
+
+    /// Feeds `frames` (frame 500 lost on the way) to a recorder of 1,000
+    /// rows into `sink`; returns (rows, filled).
+    fn feed(sink: &mut dyn BoardLogSink, frames: u32) -> (usize, usize) {
+        let mut rec = BoardRecorder::new(10, 1000, sink);
+        for k in (0..frames).filter(|k| *k != 500) {
+            rec.push(&frame(k)).unwrap();
+        }
+        (rec.rows, rec.filled)
+    }
+
+    /// The temporary files beside `dir`'s log.
+    fn temporaries(dir: &Path) -> Vec<std::path::PathBuf> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "tmp"))
+            .collect()
+    }
+
+    /// `console excite` kept a board session's whole log in memory and
+    /// wrote it at the end. Now each row goes to the log's temporary file
+    /// as it is known (the recorder keeps one frame): most rows are on disk
+    /// while the session runs, the previous log is untouched until the
+    /// end, and the file renamed over it is the whole log formatted at
+    /// once (`board_log_csv`, the writer it replaces). A session dropped
+    /// with no end leaves the previous log and no temporary file.
+    #[test]
+    fn a_board_sessions_rows_reach_the_disk_as_they_come_and_replace_the_log_at_the_end() {
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
+        let path = dir.join("board.csv");
+        std::fs::write(&path, "the previous log\n").unwrap();
+
+        let mut file = LogFile::create_board(&path).unwrap();
+        // 801 frames: 800 rows, ≈ 95 kB, more than one 64 kB block.
+        assert_eq!(feed(&mut file, 801), (800, 1));
+        let temps = temporaries(dir);
+        assert_eq!(temps.len(), 1, "{temps:?}");
+        let on_disk = std::fs::read_to_string(&temps[0]).unwrap().lines().count();
+        assert!(
+            on_disk > 400,
+            "{on_disk} lines on disk before the end of the session"
+        );
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            "the previous log\n"
+        );
+        assert_eq!(file.finish().unwrap(), 800);
+        assert!(temporaries(dir).is_empty());
+
+        let plan: ExcitationPlan =
+            toml::from_str("name = \"n\"\nduration_s = 10.0\nlog_interval_ms = 10\n").unwrap();
+        let mut whole = BoardLog::new(&plan);
+        feed(&mut whole, 801);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text, board_log_csv(&whole.log, &whole.extras));
+        // Row k: frame k's wires and estimates, frame k+1's inputs; the
+        // lost frame 500 holds frame 499: row 500 has row 499's wires and
+        // estimates, and row 499 frame 499's inputs (as row 498).
+        let coder = firmware::estimate::PulseCoder::default();
+        let line = |k: usize| text.lines().nth(k + 1).unwrap().to_string();
+        let fields = |k: usize| line(k).split(',').map(str::to_string).collect::<Vec<_>>();
+        let f = fields(10);
+        assert_eq!(f[0], "0.100");
+        assert_eq!(f[1], "0.0110"); // frame 11's 11 mV
+        let d1 = f64::from(coder.insertion_mm(1010));
+        assert_eq!(f[8], format!("{d1:.3}"));
+        assert_eq!(fields(0)[12], ""); // no estimate yet
+        assert_eq!(f[12], format!("{:.3}", f64::from(0.01 * 10f32)));
+        assert_eq!(fields(499)[5..], fields(500)[5..]);
+        assert_ne!(fields(498)[8], fields(499)[8]);
+        assert_eq!(fields(498)[1], "0.4990");
+        assert_eq!(fields(499)[1], "0.4990");
+        assert_eq!(fields(500)[1], "0.5010");
+        assert_eq!(fields(700)[14], "1");
+
+        // A session dropped before its end: the previous log stays.
+        let mut file = LogFile::create_board(&path).unwrap();
+        feed(&mut file, 801);
+        drop(file);
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), text);
+        assert!(temporaries(dir).is_empty());
+    }
 }

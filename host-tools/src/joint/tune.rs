@@ -781,6 +781,9 @@ fn best_of<'a>(scores: impl Iterator<Item = (usize, &'a Score)>) -> Option<(usiz
     scores.min_by(|a, b| a.1.robust.total_cmp(&b.1.robust).then(a.0.cmp(&b.0)))
 }
 
+/// The comment lines a search state file starts with.
+pub const STATE_HEADER: &str = "# Written by `softjoint tune` when stopped: the candidates scored so far.\n# `softjoint tune PLANT --resume THIS_FILE` goes on from here.\n";
+
 /// A search stopped by a signal, written so that `softjoint tune
 /// --resume` goes on from it: what it was asked (the plant file, by name
 /// and by a hash of its text, the plants, seed and v_offset switch), the

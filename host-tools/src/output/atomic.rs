@@ -184,6 +184,28 @@ impl AtomicFile {
         self.commit(text.as_bytes())
     }
 
+    /// The file a streaming writer appends to before
+    /// [`keep_streamed`](Self::keep_streamed): the temporary file, the
+    /// device, or the FIFO (opened here, at the first write). Crate-private
+    /// like [`commit`](Self::commit): the one streaming writer,
+    /// `run::trace::RowFile`, checks every value before it writes it.
+    pub(crate) fn streamed(&mut self) -> io::Result<&mut File> {
+        if self.file.is_none() {
+            if let How::Fifo { path } = &self.how {
+                self.file = Some(fs::OpenOptions::new().write(true).open(path)?);
+            }
+        }
+        self.file
+            .as_mut()
+            .ok_or_else(|| io::Error::other("the file was already committed"))
+    }
+
+    /// Keeps what was written through [`streamed`](Self::streamed):
+    /// flushed to disk and renamed over the target, as a commit does.
+    pub(crate) fn keep_streamed(self) -> anyhow::Result<()> {
+        self.commit(&[])
+    }
+
     /// Writes `bytes` (already checked by the caller): into the temporary
     /// file, flushed to disk and renamed over the target (keeping the
     /// target's permissions if it existed), or through to the device or
@@ -200,10 +222,14 @@ impl AtomicFile {
                     .map_err(fail)
             }
             How::Fifo { path } => {
-                let mut file = fs::OpenOptions::new()
-                    .write(true)
-                    .open(&*path)
-                    .map_err(fail)?;
+                let mut file = match file {
+                    // Opened already by a stream's first write.
+                    Some(file) => file,
+                    None => fs::OpenOptions::new()
+                        .write(true)
+                        .open(&*path)
+                        .map_err(fail)?,
+                };
                 file.write_all(bytes)
                     .and_then(|()| file.flush())
                     .map_err(fail)

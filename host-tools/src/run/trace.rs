@@ -131,9 +131,17 @@ pub fn check_row(file: &Path, line: u64, angles: &[String], r: &Row) -> Result<(
 /// block one `write`; a write that fails part-way is cut back to the last
 /// whole row. The run trace ([`CsvStream`]) and an excitation session's
 /// log (`crate::joint::excite`) stream through it.
+///
+/// Two ways to the target: straight into it ([`RowFile::create`]: the
+/// rows are at the path as the run goes, the `sim`/`hil` traces and
+/// logs), or into [`AtomicFile`]'s temporary file beside it, renamed over
+/// it by [`RowFile::finish`] ([`RowFile::create_atomic`]: the console's
+/// board sessions, whose previous log stays as it was until a session has
+/// rows to replace it with; dropped unfinished, the temporary file goes
+/// and the target is untouched).
 pub struct RowFile {
     path: PathBuf,
-    file: File,
+    out: RowOut,
     pending: String,
     pending_rows: u64,
     /// Bytes in the file, all of them whole rows (and the header).
@@ -141,6 +149,23 @@ pub struct RowFile {
     /// Rows in the file.
     committed_rows: u64,
     last_write: Instant,
+}
+
+/// Where a [`RowFile`]'s blocks go.
+enum RowOut {
+    /// The target itself.
+    Direct(File),
+    /// An atomic file's stream, kept (renamed over the target) at the end.
+    Atomic(AtomicFile),
+}
+
+impl RowOut {
+    fn file(&mut self) -> std::io::Result<&mut File> {
+        match self {
+            RowOut::Direct(f) => Ok(f),
+            RowOut::Atomic(a) => a.streamed(),
+        }
+    }
 }
 
 impl RowFile {
@@ -151,17 +176,30 @@ impl RowFile {
         }
         let file = File::create(path)
             .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-        let mut s = Self {
+        let mut s = Self::over(path, RowOut::Direct(file), header);
+        s.write_block()?;
+        Ok(s)
+    }
+
+    /// Opens `path` as an [`AtomicFile`] (refused by name here if it
+    /// cannot be written) and streams `header` and the rows into its
+    /// temporary file; [`finish`](Self::finish) renames it over `path`. A
+    /// device is written through; a FIFO is opened at the first block.
+    pub fn create_atomic(path: &Path, header: &str) -> anyhow::Result<Self> {
+        let file = AtomicFile::create(path)?;
+        Ok(Self::over(path, RowOut::Atomic(file), header))
+    }
+
+    fn over(path: &Path, out: RowOut, header: &str) -> Self {
+        Self {
             path: path.to_path_buf(),
-            file,
+            out,
             pending: header.to_string(),
             pending_rows: 0,
             committed_bytes: 0,
             committed_rows: 0,
             last_write: Instant::now(),
-        };
-        s.write_block()?;
-        Ok(s)
+        }
     }
 
     /// The file's path.
@@ -216,8 +254,12 @@ impl RowFile {
         if self.pending.is_empty() {
             return Ok(());
         }
-        if let Err(e) = self.file.write_all(self.pending.as_bytes()) {
-            let _ = self.file.set_len(self.committed_bytes);
+        let file = self
+            .out
+            .file()
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", self.path.display()))?;
+        if let Err(e) = file.write_all(self.pending.as_bytes()) {
+            let _ = file.set_len(self.committed_bytes);
             anyhow::bail!(
                 "cannot write {}: {e} (it holds the first {} rows)",
                 self.path.display(),
@@ -231,9 +273,13 @@ impl RowFile {
         Ok(())
     }
 
-    /// Writes what is waiting and returns the rows in the file.
+    /// Writes what is waiting (an atomic file: and renames it over its
+    /// target) and returns the rows in the file.
     pub fn finish(mut self) -> anyhow::Result<u64> {
         self.write_block()?;
+        if let RowOut::Atomic(file) = self.out {
+            file.keep_streamed()?;
+        }
         Ok(self.committed_rows)
     }
 }
@@ -478,6 +524,77 @@ mod tests {
             coil_volts: [0.0; 4],
             faults: 0,
         }
+    }
+
+    /// Rows of `n` lines of `k,` text into `f`.
+    fn fill(f: &mut RowFile, n: u64) {
+        for k in 0..n {
+            f.row(|s, _, _| {
+                s.push_str(&format!("{k}\n"));
+                Ok::<(), NonFinite>(())
+            })
+            .unwrap();
+        }
+    }
+
+    /// An atomic row file streams into a temporary file beside a regular
+    /// target and renames it over the target at the end (dropped before,
+    /// it leaves the target); a symbolic link is followed and kept; a
+    /// FIFO is written through, never replaced.
+    #[test]
+    fn an_atomic_row_file_replaces_a_file_follows_a_link_and_writes_through_a_fifo() {
+        let dir = tempfile::tempdir().unwrap();
+        let names = || {
+            let mut n: Vec<String> = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            n.sort();
+            n
+        };
+        let real = dir.path().join("real.csv");
+        std::fs::write(&real, "old\n").unwrap();
+        let link = dir.path().join("link.csv");
+        std::os::unix::fs::symlink("real.csv", &link).unwrap();
+        let mut f = RowFile::create_atomic(&link, "k\n").unwrap();
+        fill(&mut f, 3);
+        drop(f);
+        assert_eq!(std::fs::read_to_string(&real).unwrap(), "old\n");
+        assert_eq!(names(), ["link.csv", "real.csv"]);
+        let mut f = RowFile::create_atomic(&link, "k\n").unwrap();
+        // 20,000 rows: more than one block on disk before the end.
+        fill(&mut f, 20_000);
+        assert!(f.rows_written() > 0 && names().len() == 3, "{:?}", names());
+        assert_eq!(std::fs::read_to_string(&real).unwrap(), "old\n");
+        assert_eq!(f.finish().unwrap(), 20_000);
+        let text = std::fs::read_to_string(&real).unwrap();
+        assert!(text.starts_with("k\n0\n1\n") && text.ends_with("\n19999\n"));
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(names(), ["link.csv", "real.csv"]);
+
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let mut f = RowFile::create_atomic(&fifo, "k\n").unwrap();
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+        };
+        fill(&mut f, 2);
+        assert_eq!(f.finish().unwrap(), 2);
+        assert_eq!(reader.join().unwrap(), "k\n0\n1\n");
+        use std::os::unix::fs::FileTypeExt as _;
+        assert!(std::fs::symlink_metadata(&fifo)
+            .unwrap()
+            .file_type()
+            .is_fifo());
+        assert_eq!(names(), ["link.csv", "pipe", "real.csv"]);
     }
 
     /// In a 3D plot each plane's desired angle has its own line style,

@@ -640,3 +640,92 @@ fn a_stopped_identification_ends_at_once_and_writes_nothing() {
     );
     assert_eq!(names(&dir), before, "files left by a stopped fit");
 }
+
+/// A stand-in for `python3 -m softjoint.ray_sweep` (the real driver
+/// needs Ray; python/tests/test_ray.py stops it on a cluster): it notes
+/// that it runs, waits, and on SIGINT hands back the units it "finished"
+/// (`driver.sh.units`: candidate 0 failed, candidate 1 scored) as the
+/// real one does, exit 130.
+const FAKE_DRIVER: &str = r#"#!/bin/sh
+while [ $# -gt 0 ]; do
+    if [ "$1" = --units-out ]; then units=$2; fi
+    shift
+done
+trap 'cat "$0.units" > "$units"; exit 130' INT
+touch "$0.started"
+while :; do sleep 0.05; done
+"#;
+
+const FAKE_UNITS: &str = "[[scored]]
+index = 0
+
+[[scored]]
+index = 1
+
+[scored.score]
+mean = 2.5
+std = 0.5
+robust = 3.0
+
+[scored.score.nominal]
+settling_s = 1.0
+overshoot_deg = 0.1
+steady_state_error_deg = 0.01
+peak_coil_c = 40.0
+budget_margin_k = 50.0
+fault = false
+cost = 2.5
+";
+
+/// SIGTERM to `tune --ray` alone (not its process group): the program
+/// passes the stop on to its driver as SIGINT, and writes the units the
+/// driver finished as its search state (best so far, resumable), exit
+/// 143, at once. On main before this, the driver never heard of the
+/// signal (the program waited out its whole sweep, here a minute's
+/// sleep) and the state kept nothing.
+#[test]
+fn a_stopped_tune_on_ray_stops_its_driver_and_keeps_the_units_it_finished() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = scratch("tune-ray-stop");
+    let plant = crate::identify_cli::hidden_2d_file(&dir);
+    let driver = dir.join("driver.sh");
+    std::fs::write(&driver, FAKE_DRIVER).unwrap();
+    std::fs::set_permissions(&driver, std::fs::Permissions::from_mode(0o755)).unwrap();
+    std::fs::write(dir.join("driver.sh.units"), FAKE_UNITS).unwrap();
+    let gains = dir.join("g.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(["tune", s(&plant), "--candidates", "4", "--plants", "1"])
+        .args(["--ray", "127.0.0.1:1", "-o", s(&gains)])
+        .env("SOFTJOINT_PYTHON", &driver)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("softjoint starts");
+    let until = Instant::now() + Duration::from_secs(20);
+    while !dir.join("driver.sh.started").exists() {
+        assert!(Instant::now() < until, "the driver never started");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    common::kill("-TERM", child.id());
+    let until = Instant::now() + Duration::from_secs(20);
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > until {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("tune --ray still running 20 s after SIGTERM: its driver was not stopped");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(143), "{err}");
+    assert!(
+        err.contains("stopped by SIGTERM: 2 of 4 candidates scored, best so far: candidate 1 (robust cost 3.000"),
+        "{err}"
+    );
+    let kept = state(&dir.join("g.search.toml"));
+    let units: host_tools::joint::tune::ScoredFile = toml::from_str(FAKE_UNITS).unwrap();
+    assert_eq!(kept.scored, units.scored);
+    assert_eq!(kept.best.as_ref().map(|b| b.index), Some(1));
+    assert!(!gains.exists() && !dir.join("g.ray-units.toml").exists());
+}

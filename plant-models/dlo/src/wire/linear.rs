@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use super::basis::{self, Basis};
 use super::frame::rotation_and_partials;
 use super::optimize::{self, Kind, Problem, Settings, Solution};
-use super::verify::{self, Checks, Penalised};
+use super::verify::{Checks, Penalised};
 use crate::error::{check_non_negative, check_positive, check_range, DloError, Result};
 
 type V3 = Vector3<f64>;
@@ -749,7 +749,6 @@ impl Compiled {
             problem: self,
             weight: sol.rho,
         };
-        let (kkt, curvature) = verify::first_and_second_order(&p, sol, tolerance);
         let reach = 2.0 * self.p.wire.radius_m;
         let overlap = if self.p.self_contact && reach > 0.0 {
             ((reach - min_self_distance_m) / reach).max(0.0)
@@ -757,18 +756,8 @@ impl Compiled {
             0.0
         };
         Checks {
-            violation: sol.max_violation,
-            violation_tolerance: tolerance,
-            kkt_residual: kkt,
-            kkt_tolerance: verify::KKT_TOLERANCE,
-            min_curvature: curvature,
-            stability_tolerance: verify::STABILITY_TOLERANCE,
-            self_overlap: overlap,
-            self_overlap_tolerance: verify::SELF_CONTACT_TOLERANCE,
-            discretisation_energy: None,
-            discretisation_position: None,
-            discretisation_tolerance: verify::DISCRETISATION_TOLERANCE,
-            fine_solve_failed: false,
+            self_overlap: Some(overlap),
+            ..Checks::at(&p, sol, sol.max_violation, tolerance)
         }
     }
 

@@ -68,7 +68,7 @@ impl StaticProblem {
                 radius_m: problem.wire.radius_m,
             },
             StaticProblem::Belt { problem } => StaticSolution::Belt {
-                shape: problem.solve(&belt_settings())?,
+                shape: problem.solve_verified(&belt_settings())?,
                 method: problem.method,
             },
             StaticProblem::Sequence {

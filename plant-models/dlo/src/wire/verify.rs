@@ -2,9 +2,12 @@
 //! (issue 29): the constraints hold, the point is stationary (the KKT
 //! residual), it is a minimum and not a saddle (the Hessian of the
 //! Lagrangian on the tangent space of the active constraints has no
-//! negative eigenvalue), the wire stays out of itself, and a solve on a
-//! discretisation twice as fine does not move the answer by more than a
-//! stated tolerance.
+//! negative eigenvalue), a wire stays out of itself, and a solve on a
+//! second discretisation (twice as fine for a wire and a Ritz belt, half
+//! as fine for a segment belt) does not move the answer by more than a
+//! stated tolerance. Wires ([`super::linear`]) and belts ([`super::belt`])
+//! share these checks; a belt has no self-contact model, so its
+//! self-overlap is not reported rather than reported as zero.
 //!
 //! Every check is a number with the tolerance it is held to, so a report
 //! can say how far from converged an answer is; [`Checks::failures`] names
@@ -26,7 +29,8 @@ pub const KKT_TOLERANCE: f64 = 1e-5;
 /// Smallest reduced-Hessian eigenvalue accepted, relative to the largest.
 pub const STABILITY_TOLERANCE: f64 = 1e-6;
 /// Largest change of the energy (relative) or of any point (in units of the
-/// length) accepted between the asked discretisation and one twice as fine.
+/// length) accepted between the asked discretisation and the second one
+/// (twice as fine; half as fine for a segment belt).
 pub const DISCRETISATION_TOLERANCE: f64 = 1e-2;
 /// Deepest self-overlap accepted, as a share of the wire's diameter 2r.
 pub const SELF_CONTACT_TOLERANCE: f64 = 0.05;
@@ -46,23 +50,52 @@ pub struct Checks {
     pub min_curvature: f64,
     pub stability_tolerance: f64,
     /// Deepest self-overlap as a share of 2r (0 when there is none or the
-    /// problem does not keep the wire out of itself).
-    pub self_overlap: f64,
+    /// wire is not kept out of itself); `None` for a belt, which has no
+    /// self-contact model (nothing is checked, so nothing is reported).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub self_overlap: Option<f64>,
     pub self_overlap_tolerance: f64,
-    /// Relative energy change to a discretisation twice as fine, and the
-    /// largest change of a point's distance to either end there (units of
-    /// L; blind to the rigid turns that leave the problem unchanged); `None` when that solve
+    /// Relative energy change to the second discretisation (twice as fine;
+    /// N/2 segments for a segment belt), and the
+    /// largest change of a point there (units of the length). A wire's
+    /// points are compared by their distances to either end, blind to the
+    /// rigid turns that leave its problem unchanged; a belt, clamped in
+    /// position and orientation at both ends, has no such turn, and its
+    /// spine and edge points are compared directly. `None` when that solve
     /// was not made (a sequence step) or failed its own checks
     /// (`fine_solve_failed`).
     pub discretisation_energy: Option<f64>,
     pub discretisation_position: Option<f64>,
     pub discretisation_tolerance: f64,
-    /// The solve twice as fine did not pass its own checks, so the
+    /// The solve on the second discretisation did not pass its own checks
+    /// (the name is the wire's, where it is twice as fine), so the
     /// discretisation error is unknown (a failure).
     pub fine_solve_failed: bool,
 }
 
 impl Checks {
+    /// The checks of `sol` that can be made on `problem` at its own
+    /// discretisation: the constraints (`violation` against `tolerance`),
+    /// stationarity and stability. Self-contact is not checked and the
+    /// discretisation not yet estimated; the caller adds them.
+    pub fn at<P: Problem>(problem: &P, sol: &Solution, violation: f64, tolerance: f64) -> Self {
+        let (kkt, curvature) = first_and_second_order(problem, sol, tolerance);
+        Checks {
+            violation,
+            violation_tolerance: tolerance,
+            kkt_residual: kkt,
+            kkt_tolerance: KKT_TOLERANCE,
+            min_curvature: curvature,
+            stability_tolerance: STABILITY_TOLERANCE,
+            self_overlap: None,
+            self_overlap_tolerance: SELF_CONTACT_TOLERANCE,
+            discretisation_energy: None,
+            discretisation_position: None,
+            discretisation_tolerance: DISCRETISATION_TOLERANCE,
+            fine_solve_failed: false,
+        }
+    }
+
     /// The names of the checks that fail; empty when the answer is verified.
     pub fn failures(&self) -> Vec<&'static str> {
         let mut f = Vec::new();
@@ -77,7 +110,10 @@ impl Checks {
         if !within(-self.min_curvature, self.stability_tolerance) {
             f.push("stability (saddle)");
         }
-        if !within(self.self_overlap, self.self_overlap_tolerance) {
+        if !self
+            .self_overlap
+            .is_none_or(|v| within(v, self.self_overlap_tolerance))
+        {
             f.push("self-contact");
         }
         let fine = |v: Option<f64>| v.is_none_or(|v| within(v, self.discretisation_tolerance));
