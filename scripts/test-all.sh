@@ -189,18 +189,32 @@ pip_log=$(mktemp)
 pip_pid=$!
 bg_pids+=("$pip_pid")
 
+# The examples and benches too, so that clippy sees every target (they
+# are not run here: the examples are the long experiments of
+# docs/experiments.md, the benches docs/benchmarks.md's figures).
+cargo test "${targets[@]}" --examples --benches --no-run
+
+# The lints and images (if still running) before the host tests: the
+# host tests include pty boards and sessions that keep time, and run
+# alone.
+wait_job "$lint_pid" "$lint_log" "firmware images, clippy, the core's targets"
+
+step "tests: unit, property, closed-loop, pty and CLI (host)"
+cargo test "${targets[@]}"
+
 # The joint's identification twins (#[ignore]d: ten-minute logs, minutes
-# of CPU on both cores, waiting on nothing) start as soon as their
-# binaries exist, from those binaries (a second cargo would wait for the
-# lock on the build directory while another cargo builds or runs tests),
-# under SCHED_IDLE: they run only on a core nothing else wants, and a
-# waking test preempts them at once, so they take the time the other
-# stages leave (the lints' serial tail, the pty tests' waits, the QEMU
-# round trips, the Python tests' Ray) without slowing the checks that keep
-# time. (At nice 19 beside the host tests they would still take a share;
-# beside the lints at nice 10, three pty tests once lost telemetry.)
-# Their paths come from the workspace build (built alone, plant-joint
-# would resolve other features and build again).
+# of CPU on both cores, waiting on nothing) start now, from their binaries
+# (a second cargo would wait for the lock on the build directory while
+# another cargo runs tests), at the lowest priority: they take the CPU
+# time the next stages leave (the QEMU checks wait on round trips, the
+# Python tests on Ray) without slowing the checks that keep time. Not
+# beside the host tests: on this 2-core machine, with another build
+# running at nice 10, the pty conformance suite (`conform_suite::`) failed
+# in 4 of 6 runs with the twins beside it under SCHED_IDLE and in 2 of 6 at
+# nice 19 (a reply or a telemetry frame late by seconds), and in none of 6
+# with that build alone. Their paths come from the
+# workspace build (built alone, plant-joint would resolve other features
+# and build again).
 mapfile -t joint_tests < <(cargo test "${targets[@]}" --no-run --message-format=json 2>/dev/null |
     python3 -c '
 import json, sys
@@ -213,23 +227,10 @@ for line in sys.stdin:
 joint_log=$(mktemp)
 (
     cd plant-models/joint
-    for t in "${joint_tests[@]}"; do chrt --idle 0 "$t" --ignored || exit 1; done
+    for t in "${joint_tests[@]}"; do nice -n 19 "$t" --ignored || exit 1; done
 ) >"$joint_log" 2>&1 &
 joint_pid=$!
 bg_pids+=("$joint_pid")
-
-# The examples and benches too, so that clippy sees every target (they
-# are not run here: the examples are the long experiments of
-# docs/experiments.md, the benches docs/benchmarks.md's figures).
-cargo test "${targets[@]}" --examples --benches --no-run
-
-# The lints and images (if still running) before the host tests: the
-# host tests include pty boards and sessions that keep time, and run
-# alone (but for the twins, which yield to them).
-wait_job "$lint_pid" "$lint_log" "firmware images, clippy, the core's targets"
-
-step "tests: unit, property, closed-loop, pty and CLI (host)"
-cargo test "${targets[@]}"
 
 step "the checks that need the optimised build or QEMU (every #[ignore]d test but the joint's twins): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image"
 cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite::
