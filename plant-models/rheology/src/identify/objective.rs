@@ -134,7 +134,13 @@ pub fn score(
 /// error naming the weight whose term (or the sum) is not finite.
 fn weighted(obj: &Objective, sc: &Score) -> Result<f64> {
     let terms = [
-        ("shape_per_cm", obj.shape_per_cm, "S_shape", sc.shape_cm, "cm"),
+        (
+            "shape_per_cm",
+            obj.shape_per_cm,
+            "S_shape",
+            sc.shape_cm,
+            "cm",
+        ),
         ("force_per_n", obj.force_per_n, "S_force", sc.force_n, "N"),
     ];
     let mut s = 0.0;

@@ -207,14 +207,21 @@ fn a_shape_weight_for_which_s_can_overflow_is_refused_and_one_that_cannot_gives_
     let e = Problem::new(sc.clone(), ParamSet::Four, m.clone())
         .unwrap_err()
         .to_string();
-    assert!(e.contains("`objective.shape_per_cm`") && e.contains("1e308"), "{e}");
+    assert!(
+        e.contains("`objective.shape_per_cm`") && e.contains("1e308"),
+        "{e}"
+    );
     // The largest weight the bound allows: accepted, and a stable run's S
     // is finite and within weight × bound.
     sc.objective.shape_per_cm = f64::MAX / bound / 2.0;
     let problem = Problem::new(sc, ParamSet::Four, m).unwrap();
     let (s, run) = problem.score(&LatticeParams::paper_default()).unwrap();
     assert!(run.instability.is_none());
-    assert!(s.shape_cm > 0.0 && s.shape_cm <= bound, "{} vs {bound}", s.shape_cm);
+    assert!(
+        s.shape_cm > 0.0 && s.shape_cm <= bound,
+        "{} vs {bound}",
+        s.shape_cm
+    );
     assert!(s.s.is_finite() && s.s > 0.0, "{}", s.s);
 }
 
