@@ -48,29 +48,25 @@ def test_a_plant_that_fails_mid_run_is_a_run_cut_short_error_with_the_programs_w
     assert cli.stderr.strip().splitlines()[-1] == f"error: {msg}"
 
 
-def test_an_objective_that_overflows_is_a_non_finite_error_not_an_inf(softjoint_bin, data, tmp_path):
-    """A stable push scored with a shape weight of 1e308 per cm: S =
-    1e308 · S_shape is past the largest double. `objective` refuses it by
-    name (the output checks) instead of handing back inf; `scores`, the
-    searches' form, counts it as +inf (a candidate to drop)."""
+def test_a_weight_for_which_the_objective_can_overflow_is_refused_by_name(softjoint_bin, data, tmp_path):
+    """A shape weight of 1e308 per cm: S = 1e308 · S_shape is past the
+    largest double for a stable run (issue 31: the program printed `s:
+    null` and its searches counted such runs as unstable). The problem
+    refuses the weight by name when it meets the measured push, as the
+    program does, before any run; no inf is handed back."""
     small = data / "rheology/small.toml"
     measured = tmp_path / "measured"
     run_cli(softjoint_bin, "rheology", "simulate", small, "--model", "reference",
             "--out", measured, "--json")
     scen = tmp_path / "heavy_weight.toml"
     scen.write_text(small.read_text() + "\n[objective]\nshape_per_cm = 1e308\n")
-    cli = json.loads(run_cli(softjoint_bin, "rheology", "simulate", scen, "--measured", measured,
-                             "--out", tmp_path / "o", "--json").stdout)
-    # The program's run of the same lattice: stable, S_shape finite, and
-    # the weighted S overflows (the closed form, in Python's doubles).
-    assert cli["instability"] is None
-    shape_cm = cli["score"]["shape_cm"]
-    assert 0.0 < shape_cm < float("inf")
-    assert 1e308 * shape_cm == float("inf")
-    problem = softjoint.rheology_problem(scen, measured, 4)
-    defaults = [500.0, 2000.0, 2000.0, 0.5]  # the scenario's, the paper's defaults
-    with pytest.raises(softjoint.NonFiniteError) as e:
-        problem.objective(defaults)
+    cli = run_cli(softjoint_bin, "rheology", "simulate", scen, "--measured", measured,
+                  "--out", tmp_path / "o", "--json", ok=False)
+    assert cli.returncode == 1, cli.stdout
+    with pytest.raises(softjoint.InputError) as e:
+        softjoint.rheology_problem(scen, measured, 4)
     assert isinstance(e.value, softjoint.SoftjointError)
-    assert "the objective S" in str(e.value) and "`inf`" in str(e.value)
-    assert problem.scores([defaults]) == [float("inf")]
+    msg = str(e.value)
+    assert "`objective.shape_per_cm` = 1e308" in msg and "overflows" in msg
+    # The program's words, after the file it names.
+    assert cli.stderr.strip().splitlines()[-1] == f"error: {scen}: {msg}"
