@@ -4,8 +4,10 @@ rheology objective, and sweeps as work units.
 Every function hands its inputs to the Rust code the ``softjoint``
 program runs (host-tools, plant-rheology) through the native module
 ``softjoint._native``; nothing is modelled again here. Results pass the
-program's own output checks: a trace or summary holding a NaN or an
-infinite number raises :class:`NonFiniteError` instead of being returned.
+program's own output checks: a summary or objective holding a NaN or an
+infinite number raises :class:`NonFiniteError` instead of being returned
+(a trace row that would hold one cuts the run short there:
+:class:`RunCutShortError`, as ``softjoint sim`` exits 1).
 Errors are exceptions derived from :class:`SoftjointError` that carry the
 Rust error's message (the file, field or argument it names).
 
@@ -99,9 +101,11 @@ def simulate(scenario: Union[Scenario, PathLike, None] = None) -> Trace:
     """Runs the joint's scenario (a :class:`Scenario`, a path, or the
     built-in default) under the firmware core, as ``softjoint sim`` does.
 
-    Raises :class:`RunCutShortError` if the run ends early,
-    :class:`NonFiniteError` for a non-finite value, :class:`InputError`
-    for a scenario the program refuses."""
+    Raises :class:`RunCutShortError` if the run ends early (the plant
+    went unstable, or a trace row failed its finite check; the message
+    names the step and the cause), :class:`NonFiniteError` for a
+    non-finite summary, :class:`InputError` for a scenario the program
+    refuses."""
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     columns, summary = _native.simulate(scenario)

@@ -118,8 +118,9 @@ impl RowSink for CheckedRows {
 /// `softjoint sim`) and returns `(columns, summary_json)`: a dict of
 /// NumPy arrays named as the CSV trace's columns (a missing estimate is
 /// NaN where the CSV has an empty field; `faults` is uint16) and the
-/// `--json` summary as text. A run that ends early raises
-/// RunCutShortError; a non-finite value raises NonFiniteError.
+/// `--json` summary as text. A run that ends early (the plant's
+/// instability checks, a trace row that fails its finite check) raises
+/// RunCutShortError; a non-finite summary raises NonFiniteError.
 #[pyfunction]
 fn simulate<'py>(py: Python<'py>, scenario: &PyScenario) -> PyResult<(Bound<'py, PyDict>, String)> {
     let in_scenario = |e: anyhow::Error| match &scenario.path {

@@ -9,8 +9,12 @@
 //! Errors: every Rust error becomes a Python exception of the hierarchy
 //! in [`errors`], carrying the error's whole message (its context chain,
 //! as the program prints it). Results pass the program's own output
-//! checks: a trace row with a non-finite value, or a summary with one,
-//! raises `NonFiniteError` instead of handing back a NaN.
+//! checks: a summary or objective with a non-finite value raises
+//! `NonFiniteError` instead of handing back a NaN or an infinity. A
+//! trace row that fails its check cuts the run short there
+//! (`RunCutShortError`, with the check's words, as `softjoint sim` exits
+//! 1 with "run cut short"); the joint's plant stops a run whose state
+//! goes non-finite before any row holds it.
 //!
 //! Left out (issue 33 goes on): plant and gains files written from
 //! Python, identification, push, viscoelastic, rope and contour fits.

@@ -91,5 +91,6 @@ def test_an_unstable_lattice_is_an_unstable_error_with_the_programs_words(softjo
     defaults = [500.0, 2000.0, 2000.0, 0.5]  # the scenario's, the paper's defaults
     with pytest.raises(softjoint.UnstableError) as e:
         problem.objective(defaults)
+    assert isinstance(e.value, softjoint.SoftjointError)
     assert str(e.value) in said
     assert problem.scores([defaults]) == [float("inf")]

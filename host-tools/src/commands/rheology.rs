@@ -37,6 +37,7 @@ use plant_rheology::identify::search::{BatchObjective, Budget, HistoryRow, Metho
 use plant_rheology::lattice::{mid_section, surface_nodes, V3};
 use plant_rheology::params::{LatticeParams, ParamSet};
 use plant_rheology::scenario::{push_schedule_mm, Frame, ParamsSpec, Run, Scenario};
+use plant_rheology::RheologyError;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -254,7 +255,8 @@ fn simulate_lattice(a: &SimulateArgs, sc: &Scenario, sections: &[f64]) -> Result
     if let Some(m) = &measured {
         check_times("measured frame", &m.frame_times_s(), sc.plate.end_s)?;
     }
-    let push = experiment::push_lattice(sc, measured.as_ref(), sections)?;
+    let push = experiment::push_lattice(sc, measured.as_ref(), sections)
+        .map_err(|e| in_scenario(a.scenario.as_deref(), e))?;
     let nodes = push.lattice.nodes;
     let title = format!(
         "lattice {}×{}×{}, model {} ({} volume condition)",
@@ -349,7 +351,8 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         counter: None,
     };
     let scores = Scores::new(stop.clone(), resumed);
-    let problem = experiment::calibration_problem(&spec, &mut |e| watch.event(e))?;
+    let problem = experiment::calibration_problem(&spec, &mut |e| watch.event(e))
+        .map_err(|e| in_scenario(a.scenario.as_deref(), e))?;
     let started = std::time::Instant::now();
     let f = |g: &[f64]| problem.s_of_genes(g);
     let mut objective = Resumable {
@@ -574,6 +577,21 @@ struct Resumed {
     scored: Vec<Scored>,
     seconds_spent: f64,
     evaluations: usize,
+}
+
+/// An error of the rheology model, with the scenario file named in front
+/// when it is about one of its `[objective]` weights (refused only once
+/// the measured push is known, after the file was read).
+fn in_scenario(scenario: Option<&Path>, e: RheologyError) -> anyhow::Error {
+    let objective = matches!(
+        &e,
+        RheologyError::InvalidParameter { name, .. } | RheologyError::InvalidSetting { name, .. }
+            if name.starts_with("objective")
+    );
+    match scenario {
+        Some(p) if objective => anyhow::Error::new(e).context(p.display().to_string()),
+        _ => e.into(),
+    }
 }
 
 /// The scenario's name for the state file.

@@ -312,3 +312,64 @@ fn bad_input_is_refused_with_the_file_field_line_or_flag() {
         &["p.toml", "k_gf_per_cm2"],
     );
 }
+
+#[test]
+fn an_objective_weight_for_which_s_can_overflow_is_refused_by_file_and_field() {
+    // Issue 31: `shape_per_cm = 1e308` made a stable run's S = ∞:
+    // simulate printed `"s": null` with exit 0, and calibrate counted
+    // every stable candidate as unstable. Refused before any run.
+    let dir = scratch("rheology-heavy-weight");
+    let sc = file(
+        &dir,
+        "heavy.toml",
+        &format!("{SMALL}\n[objective]\nshape_per_cm = 1e308\n"),
+    );
+    let meas = dir.join("meas");
+    std::fs::create_dir_all(&meas).unwrap();
+    let points: String = (0..8).map(|i| format!("0,0.5,{i}.5,4.5,3\n")).collect();
+    file(
+        &meas,
+        "surface_points.csv",
+        &format!("frame,time_s,x_cm,y_cm,z_cm\n{points}"),
+    );
+    file(&meas, "forces.csv", "time_s,force_n\n0.1,1\n0.2,2\n");
+    let needles = [
+        "heavy.toml",
+        "`objective.shape_per_cm` = 1e308",
+        "overflows",
+    ];
+    let out = dir.join("o");
+    refused(
+        &[
+            "rheology",
+            "simulate",
+            &sc,
+            "--measured",
+            s(&meas),
+            "--out",
+            s(&out),
+            "--json",
+        ],
+        &needles,
+    );
+    refused(
+        &[
+            "rheology",
+            "calibrate",
+            &sc,
+            "--measured",
+            s(&meas),
+            "--evaluations",
+            "8",
+            "--out",
+            s(&out),
+        ],
+        &needles,
+    );
+    // The output folder is made before the run (its path checked first);
+    // nothing is written in it.
+    let written: Vec<_> = std::fs::read_dir(&out)
+        .map(|d| d.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    assert!(written.is_empty(), "a refused run wrote {written:?}");
+}

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{bad_setting, Result};
 use crate::identify::ga::{self, GaSettings};
 use crate::identify::measurement::Measurement;
-use crate::identify::objective::{score, Score};
+use crate::identify::objective::{check_weights, score, Score};
 use crate::identify::ra::{self, RaSettings};
 use crate::identify::search::{
     self, BatchObjective, Budget, Local, Method, Progress, SearchResult, UNIT_CANDIDATES,
@@ -60,6 +60,7 @@ impl Problem {
             }
         }
         let lattice = scenario.lattice()?;
+        check_weights(&lattice, &measurement, &scenario.objective)?;
         let frame_times = measurement.frame_times_s();
         Ok(Self {
             scenario,
@@ -91,7 +92,7 @@ impl Problem {
             &self.measurement,
             &self.scenario.objective,
             self.scenario.measure.force_window_s,
-        );
+        )?;
         Ok((s, r))
     }
 

@@ -18,7 +18,7 @@ use serde::{Serialize, Serializer};
 use crate::error::Result;
 use crate::identify::calibrate::{calibrate_with, Calibration, CalibrationSettings, Problem};
 use crate::identify::measurement::Measurement;
-use crate::identify::objective::{score, Score};
+use crate::identify::objective::{check_weights, score, Score};
 use crate::identify::reference::{record_push, ReferenceConfig, ReferenceRun};
 use crate::identify::search::{
     BatchObjective, Local, Method, Progress, SearchResult, UNIT_CANDIDATES,
@@ -128,21 +128,24 @@ pub fn push_lattice(
     let params = scenario.model.params.resolve()?;
     let mut frame_times = merge_times(&scenario.measure.frame_times_s, sections_s);
     if let Some(m) = measured {
+        check_weights(&lattice, m, &scenario.objective)?;
         frame_times = merge_times(&frame_times, &m.frame_times_s());
     }
     let mut sim = lattice_sim(scenario, &lattice, &params)?;
     let started = Instant::now();
     let r = run(&mut sim, scenario.plate.end_s, &frame_times);
     let wall_s = started.elapsed().as_secs_f64();
-    let score = measured.map(|m| {
-        score(
-            &lattice.surface,
-            &r,
-            m,
-            &scenario.objective,
-            scenario.measure.force_window_s,
-        )
-    });
+    let score = measured
+        .map(|m| {
+            score(
+                &lattice.surface,
+                &r,
+                m,
+                &scenario.objective,
+                scenario.measure.force_window_s,
+            )
+        })
+        .transpose()?;
     let peak = r
         .plate_force_n
         .iter()

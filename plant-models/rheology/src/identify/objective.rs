@@ -14,10 +14,12 @@
 //! the paper's Lin–Canny search (L1736, L2229), not an approximation.
 use serde::Serialize;
 
+use crate::error::{Result, RheologyError};
 use crate::identify::measurement::{ForceSample, Measurement};
-use crate::model::lattice::V3;
+use crate::model::lattice::{Lattice, V3};
 pub use crate::model::scenario::Objective;
 use crate::model::scenario::Run;
+use crate::model::sim::escape_sphere;
 
 /// S and its parts.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -44,16 +46,52 @@ impl Score {
     }
 }
 
+/// The largest S_shape (cm) a stable run of `lattice` can score against
+/// `m`: every node of a stable run stays inside the escape sphere (centre
+/// c, radius R; checked each step), so a point p lies at most |p − c| + R
+/// from the nearest surface triangle (no further than from any of its
+/// corners). The sum of that over the measured points, in cm.
+pub fn shape_cm_bound(lattice: &Lattice, m: &Measurement) -> f64 {
+    let (centre, escape_m) = escape_sphere(lattice);
+    m.frames
+        .iter()
+        .flat_map(|f| &f.points_m)
+        .map(|p| 100.0 * ((*p - centre).norm() + escape_m))
+        .sum()
+}
+
+/// Refuses a shape weight for which S can overflow a double against this
+/// measurement: `shape_per_cm` × [`shape_cm_bound`] must be finite, so
+/// that a stable run's S_shape term always is (issue 31: 1e308 per cm
+/// gave S = ∞, a stable run reported as unstable). The force term has no
+/// such bound before a run (the model's force is bounded only by its
+/// stability); [`score`] refuses it if it overflows.
+pub fn check_weights(lattice: &Lattice, m: &Measurement, obj: &Objective) -> Result<()> {
+    if obj.shape_per_cm > 0.0 && !(obj.shape_per_cm * shape_cm_bound(lattice, m)).is_finite() {
+        return Err(RheologyError::InvalidParameter {
+            name: "objective.shape_per_cm".into(),
+            value: obj.shape_per_cm,
+            reason: "times the largest S_shape a stable run can have against the measured \
+                     points (each at its distance from the block plus the escape distance) \
+                     overflows a double; lower the weight",
+        });
+    }
+    Ok(())
+}
+
 /// Scores a model run against a measurement, forces over the keeping
 /// period `force_window_s`. Frames are matched by time (the model's frame
-/// nearest each measured one); a run that stopped early scores +∞.
+/// nearest each measured one); a run that stopped early scores +∞. A
+/// stable run whose weighted S is not finite is an error naming the
+/// weight of the term that overflowed, never an S of +∞ (which would read
+/// as an unstable run).
 pub fn score(
     surface: &[[u32; 3]],
     run: &Run,
     m: &Measurement,
     obj: &Objective,
     force_window_s: [f64; 2],
-) -> Score {
+) -> Result<Score> {
     let mut out = Score {
         s: f64::INFINITY,
         shape_cm: 0.0,
@@ -62,7 +100,7 @@ pub fn score(
         samples: 0,
     };
     if run.instability.is_some() || run.t_s.is_empty() {
-        return out;
+        return Ok(out);
     }
     if obj.shape_per_cm > 0.0 {
         let mut grid = TriangleGrid::default();
@@ -72,7 +110,7 @@ pub fn score(
                     .abs()
                     .total_cmp(&(b.t_s - frame.t_s).abs())
             }) else {
-                return out;
+                return Ok(out);
             };
             grid.build(surface, &model.positions_m);
             for p in &frame.points_m {
@@ -88,11 +126,48 @@ pub fn score(
             out.samples += 1;
         }
     }
-    out.s = obj.shape_per_cm * out.shape_cm + obj.force_per_n * out.force_n;
-    if !out.s.is_finite() {
-        out.s = f64::INFINITY;
+    out.s = weighted(obj, &out)?;
+    Ok(out)
+}
+
+/// S = shape_per_cm·S_shape + force_per_n·S_force of a stable run, or an
+/// error naming the weight whose term (or the sum) is not finite.
+fn weighted(obj: &Objective, sc: &Score) -> Result<f64> {
+    let terms = [
+        (
+            "shape_per_cm",
+            obj.shape_per_cm,
+            "S_shape",
+            sc.shape_cm,
+            "cm",
+        ),
+        ("force_per_n", obj.force_per_n, "S_force", sc.force_n, "N"),
+    ];
+    let mut s = 0.0;
+    for (name, w, term, value, unit) in terms {
+        let part = w * value;
+        if !part.is_finite() {
+            return Err(RheologyError::InvalidSetting {
+                name: format!("objective.{name}"),
+                reason: format!(
+                    "{name} × {term} = {} × {} {unit} is not a finite number (the run was \
+                     stable); lower the weight",
+                    plant_common::short_number(w),
+                    plant_common::short_number(value)
+                ),
+            });
+        }
+        s += part;
     }
-    out
+    if !s.is_finite() {
+        return Err(RheologyError::InvalidSetting {
+            name: "objective".into(),
+            reason: "shape_per_cm·S_shape + force_per_n·S_force overflows a double (the run \
+                     was stable); lower the weights"
+                .into(),
+        });
+    }
+    Ok(s)
 }
 
 /// The model's plate force at a sample's time (linear between steps).

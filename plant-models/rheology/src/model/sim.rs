@@ -222,10 +222,7 @@ impl<'a> LatticeSim<'a> {
         }
         let n = lattice.masses();
         let x = lattice.rest_m.clone();
-        let (lo, hi) = x.iter().fold(
-            (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY)),
-            |(lo, hi), p| (lo.inf(p), hi.sup(p)),
-        );
+        let (centre, escape_m) = escape_sphere(lattice);
         let volume0 = lattice.volume_m3(&x);
         let ne = lattice.elements.len();
         Ok(Self {
@@ -244,8 +241,8 @@ impl<'a> LatticeSim<'a> {
             steps: 0,
             volume0,
             volume: volume0,
-            escape_m: 10.0 * (hi - lo).norm().max(lattice.voxel_edge_m),
-            centre: (lo + hi) / 2.0,
+            escape_m,
+            centre,
             x,
             dir: vec![V3::zeros(); ne],
             f0: vec![0.0; ne],
@@ -572,4 +569,19 @@ impl<'a> LatticeSim<'a> {
         }
         Ok(())
     }
+}
+
+/// The sphere a stable run stays in: its centre (the middle of the rest
+/// lattice's bounding box) and radius, the escape distance (10 × the box's
+/// diagonal, at least a voxel edge; m). Every step checks each node
+/// against it, so every recorded frame of a stable run lies inside.
+pub fn escape_sphere(lattice: &Lattice) -> (V3, f64) {
+    let (lo, hi) = lattice.rest_m.iter().fold(
+        (V3::repeat(f64::INFINITY), V3::repeat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    );
+    (
+        (lo + hi) / 2.0,
+        10.0 * (hi - lo).norm().max(lattice.voxel_edge_m),
+    )
 }

@@ -160,3 +160,85 @@ fn a_measurement_with_fewer_surface_points_than_parameters_is_refused_with_the_m
         assert!(Problem::new(sc.clone(), set, with_points(need)).is_ok());
     }
 }
+
+/// A measurement of `n` points in one frame at 1 s and force samples of
+/// `force_n` over the keeping period of `small_scenario(…, 0.5)`.
+fn hand_measurement(n: usize, force_n: f64) -> Measurement {
+    use plant_rheology::identify::measurement::{ForceSample, PointFrame};
+    use plant_rheology::lattice::V3;
+    Measurement {
+        frames: vec![PointFrame {
+            t_s: 1.0,
+            points_m: (0..n)
+                .map(|i| V3::new(0.005 * i as f64, 0.045, 0.03))
+                .collect(),
+        }],
+        forces: (0..5)
+            .map(|k| ForceSample {
+                t_s: 0.5 + 0.25 * k as f64,
+                force_n,
+            })
+            .collect(),
+    }
+}
+
+#[test]
+fn a_shape_weight_for_which_s_can_overflow_is_refused_and_one_that_cannot_gives_a_finite_s() {
+    // Issue 31: shape_per_cm = 1e308 made a stable run's S = ∞, reported
+    // as unstable. The bound: every node of a stable run stays within the
+    // escape sphere, so no point is further from the surface than from
+    // the sphere's centre plus its radius.
+    use plant_rheology::identify::objective::shape_cm_bound;
+    let mut sc = small_scenario([4, 3, 4], 8.0, 0.5);
+    let m = hand_measurement(8, 0.0);
+    let lattice = sc.lattice().unwrap();
+    let bound = shape_cm_bound(&lattice, &m);
+    // The closed form: centre (3, 2, 3) cm, radius 10 × the 6 × 4 × 6 cm
+    // box's diagonal.
+    let radius_cm = 10.0 * (36.0f64 + 16.0 + 36.0).sqrt();
+    let want: f64 = (0..8)
+        .map(|i| {
+            let p = [0.5 * i as f64 - 3.0, 4.5 - 2.0, 0.0];
+            (p[0] * p[0] + p[1] * p[1]).sqrt() + radius_cm
+        })
+        .sum();
+    assert!((bound - want).abs() < 1e-9 * want, "{bound} vs {want}");
+    sc.objective.shape_per_cm = 1e308;
+    let e = Problem::new(sc.clone(), ParamSet::Four, m.clone())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("`objective.shape_per_cm`") && e.contains("1e308"),
+        "{e}"
+    );
+    // The largest weight the bound allows: accepted, and a stable run's S
+    // is finite and within weight × bound.
+    sc.objective.shape_per_cm = f64::MAX / bound / 2.0;
+    let problem = Problem::new(sc, ParamSet::Four, m).unwrap();
+    let (s, run) = problem.score(&LatticeParams::paper_default()).unwrap();
+    assert!(run.instability.is_none());
+    assert!(
+        s.shape_cm > 0.0 && s.shape_cm <= bound,
+        "{} vs {bound}",
+        s.shape_cm
+    );
+    assert!(s.s.is_finite() && s.s > 0.0, "{}", s.s);
+}
+
+#[test]
+fn a_force_term_that_overflows_on_a_stable_run_is_an_error_naming_its_weight_not_an_infinite_s() {
+    // The force term has no bound before a run: a stable run whose
+    // force_per_n × S_force overflows is refused by name, not scored +∞
+    // (which the searches count as an unstable candidate).
+    let mut sc = small_scenario([4, 3, 4], 8.0, 0.5);
+    sc.objective.shape_per_cm = 0.0;
+    sc.objective.force_per_n = 1e308;
+    let problem = Problem::new(sc, ParamSet::Four, hand_measurement(8, 1e3)).unwrap();
+    let defaults = LatticeParams::paper_default();
+    assert!(problem.run(&defaults).unwrap().instability.is_none());
+    let e = problem.score(&defaults).unwrap_err().to_string();
+    assert!(
+        e.contains("`objective.force_per_n`") && e.contains("S_force") && e.contains("stable"),
+        "{e}"
+    );
+}
