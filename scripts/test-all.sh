@@ -108,13 +108,38 @@ wait_job() {
     fi
 }
 
+# Clippy runs as the compiler of the host build itself: cargo's
+# RUSTC_WORKSPACE_WRAPPER is what `cargo clippy` sets, but on a build
+# (not a check) every workspace crate is linted and compiled in one pass,
+# and the dependencies are compiled once, not also checked apart (a separate
+# `cargo clippy --workspace --all-targets` cost ≈ 150 CPU-s of 1,360, the
+# lints themselves next to nothing). CLIPPY_ARGS carries `-D warnings` the
+# way cargo-clippy hands it to clippy-driver. Exported for every host cargo
+# and maturin below: the wrapper is part of cargo's fingerprints, so a host
+# build without it would compile the workspace again. The firmware images
+# are built without it (clippy-driver turns MIR optimisations off, and the
+# images' sizes are figures).
+clippy_driver="$(rustc --print sysroot)/bin/clippy-driver"
+clippy_args="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
+# The wrapper must deny a lint, or the suite would pass with clippy's
+# warnings printed and ignored: a one-line crate it must refuse.
+lint_probe=$(mktemp -d)
+printf 'pub fn n(v: &Vec<u8>) -> usize { v.len() }\n' >"$lint_probe/probe.rs"
+if CLIPPY_ARGS="$clippy_args" "$clippy_driver" rustc --crate-type lib --edition 2021 \
+    --emit=metadata --out-dir "$lint_probe" "$lint_probe/probe.rs" >/dev/null 2>&1; then
+    echo "clippy-driver with CLIPPY_ARGS=$clippy_args did not deny clippy::ptr_arg: the lint stage would check nothing" >&2
+    exit 1
+fi
+rm -rf "$lint_probe"
+with_clippy() { RUSTC_WORKSPACE_WRAPPER="$clippy_driver" CLIPPY_ARGS="$clippy_args" "$@"; }
+
 # The images, clippy and the core's other targets build in cargo's
 # `release` and `dev` build directories while the host tests build in
 # `ci-opt`'s: cargo locks each apart, so the two run at once and fill each
 # other's idle time (a build's serial tail, linking one binary at a time).
 # The images are needed from the #[ignore]d stage on, the lints only for
 # the verdict.
-step "in parallel: the host tests' build (profile ci-opt), and at lower priority the firmware images, clippy -D warnings on host and thumb, the core on ${core_targets[*]}, the control step under QEMU"
+step "in parallel: the host tests', examples' and benches' build (profile ci-opt, clippy -D warnings as it builds), and at lower priority the firmware images, clippy -D warnings on thumb, the core on ${core_targets[*]}, the control step under QEMU"
 lint_log=$(mktemp)
 (
     set -euo pipefail
@@ -136,23 +161,22 @@ lint_log=$(mktemp)
         -semihosting-config enable=on,target=native \
         -kernel target/thumbv7em-none-eabihf/release/step-probe
     echo "step-probe exited 0 (every output bounded, no fault)"
-    echo "== clippy -D warnings: host (every crate, every target) and thumb"
-    cargo clippy --workspace --all-targets --locked -- -D warnings
+    echo "== clippy -D warnings on thumb (the host's is the host build's compiler)"
     cargo clippy -p firmware --target thumbv7em-none-eabihf --lib --bins --locked -- -D warnings
     cargo clippy -p firmware --target thumbv7em-none-eabihf --features defmt --lib --bins --locked -- -D warnings
     (cd firmware/stm32f4 && cargo clippy --release --lib --bins --locked -- -D warnings)
-    echo "== the core library on ${core_targets[*]}: build and clippy -D warnings (the library only; the per-target images and their figures: docs/benchmarks.md)"
+    echo "== the core library on ${core_targets[*]}: built with clippy -D warnings as its compiler (the library only; the per-target images and their figures: docs/benchmarks.md)"
     for t in "${core_targets[@]}"; do
-        cargo build -p firmware --lib --target "$t" --locked
-        cargo clippy -p firmware --lib --target "$t" --locked -- -D warnings
+        with_clippy cargo build -p firmware --lib --target "$t" --locked
     done
 ) >"$lint_log" 2>&1 &
 lint_pid=$!
 bg_pids+=("$lint_pid")
 
-# Libraries, binaries and integration tests: one build. (Examples are
-# checked by clippy; the crates have no doc tests.)
+# Libraries, binaries and integration tests: one build. (The crates have
+# no doc tests.)
 targets=(--workspace --lib --bins --tests --locked --profile ci-opt)
+export RUSTC_WORKSPACE_WRAPPER="$clippy_driver" CLIPPY_ARGS="$clippy_args"
 
 # The Python stage's packages (issue 33) download and unpack meanwhile:
 # the install is mostly waiting on the network and the disk.
@@ -165,7 +189,10 @@ pip_log=$(mktemp)
 pip_pid=$!
 bg_pids+=("$pip_pid")
 
-cargo test "${targets[@]}" --no-run
+# The examples and benches too, so that clippy sees every target (they
+# are not run here: the examples are the long experiments of
+# docs/experiments.md, the benches docs/benchmarks.md's figures).
+cargo test "${targets[@]}" --examples --benches --no-run
 
 # The lints and images (if still running) before the host tests: the
 # host tests include pty boards and sessions that keep time, and run
@@ -180,9 +207,14 @@ cargo test "${targets[@]}"
 # (a second cargo would wait for the lock on the build directory while
 # another cargo runs tests), at the lowest priority: they take the CPU
 # time the next stages leave (the QEMU checks wait on round trips, the
-# Python tests on Ray) without slowing the checks that keep time. Their
-# paths come from the workspace build (built alone, plant-joint would
-# resolve other features and build again).
+# Python tests on Ray) without slowing the checks that keep time. Not
+# beside the host tests: on this 2-core machine, with another build
+# running at nice 10, the pty conformance suite (`conform_suite::`) failed
+# in 4 of 6 runs with the twins beside it under SCHED_IDLE and in 2 of 6 at
+# nice 19 (a reply or a telemetry frame late by seconds), and in none of 6
+# with that build alone. Their paths come from the
+# workspace build (built alone, plant-joint would resolve other features
+# and build again).
 mapfile -t joint_tests < <(cargo test "${targets[@]}" --no-run --message-format=json 2>/dev/null |
     python3 -c '
 import json, sys

@@ -12,7 +12,7 @@
 
 use plant_joint::identify::{
     self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, LmOptions, Param,
-    PlaneModel, PlaneReport,
+    PlaneMap, PlaneModel, PlaneReport,
 };
 use plant_joint::{Joint2dParams, Joint3dParams, PlaneParams, WireSensorParams};
 use std::sync::OnceLock;
@@ -336,24 +336,40 @@ fn ten_minute_twin_2d_without_electrical_columns() {
 /// inertia comes out 18 times the truth there with a white-noise 1σ of
 /// 8.1 %, which passes the 15 % threshold (the call before the
 /// block-robust 1σ); the block-robust 1σ is 18.5 %. The README's twin,
-/// recorded by `sim`, is alike: 17 times, 8.5 % and 19 %.
+/// recorded by `sim`, is alike: 17 times, 8.5 % and 19 %. β alone is
+/// identified, as `identify_3d` does it (each plane from the same log on
+/// its own): α's is half the CPU of this check and the 3D twin of seed 11
+/// holds α to the same tolerances.
 #[test]
 #[ignore = "10-minute log: minutes in a debug build; CI runs it optimised (scripts/test-all.sh, profile ci-opt)"]
 fn ten_minute_twin_3d_seed_7_names_the_inertia_not_identifiable() {
-    let planes = identify_3d_twin(7, ElectricalNoise::default());
-    let (beta, beta_truth) = &planes[1];
+    let hidden = hidden::joint_3d(7);
+    let plan = ExcitationPlan::standard(2, 600.0, false);
+    let log = twin::record_3d(&hidden, &plan, true, ElectricalNoise::default()).unwrap();
+    let prior = Joint3dParams::default();
+    let opts = IdentifyOptions::default();
+    let map = PlaneMap::of(2, 1);
+    let model = PlaneModel {
+        plane: prior.beta.clone(),
+        wires: map
+            .sensors
+            .iter()
+            .map(|&s| prior.wires[s].clone())
+            .collect(),
+        settle_s: prior.sim.settle_s,
+        substep_s: opts.substep_s,
+    };
+    let (_, beta) = identify::identify_plane(&log, map, model, "beta", &opts).unwrap();
+    let beta_truth = truth(&hidden.beta, &hidden.wires[1]);
     let inertia = beta.estimate(Param::LinkInertia).unwrap();
     eprintln!(
         "beta inertia fitted {:.3e} (truth {:.3e}), 1σ {:.3e}, white {:.3e}",
         inertia.fitted,
-        Param::LinkInertia.get(beta_truth),
+        Param::LinkInertia.get(&beta_truth),
         inertia.std,
         inertia.white_std
     );
-    let fails: Vec<String> = planes
-        .iter()
-        .flat_map(|(r, t)| standard_fails(r, t))
-        .collect();
+    let fails = standard_fails(&beta, &beta_truth);
     assert!(fails.is_empty(), "{fails:#?}");
 }
 
