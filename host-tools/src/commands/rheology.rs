@@ -200,7 +200,9 @@ fn simulate_cmd(a: SimulateArgs) -> Result<()> {
     if sections.is_empty() || sections.len() > 12 {
         bail!("--section-times: give 1 to 12 times");
     }
-    output::create_dir(&a.out)?;
+    // The folder is checked now and made only when there is something to
+    // write in it: a refused scenario leaves no empty folder behind.
+    output::check_dir(&a.out)?;
     match a.model {
         ModelArg::Reference => {
             if a.measured.is_some() || a.params.is_some() {
@@ -801,6 +803,7 @@ fn write_reference(
     push: &ReferencePush,
     sections: &[f64],
 ) -> Result<()> {
+    output::create_dir(out)?;
     let r = &push.run;
     write(
         &out.join("forces.csv"),
@@ -838,6 +841,7 @@ fn write_lattice(
     sections: &[f64],
     title: &str,
 ) -> Result<()> {
+    output::create_dir(out)?;
     let r = &push.run;
     write(
         &out.join("forces.csv"),
