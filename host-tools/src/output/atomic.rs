@@ -342,6 +342,21 @@ pub fn create_dir(dir: &Path) -> anyhow::Result<()> {
     fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))
 }
 
+/// Test support: a FIFO at `path` (in the test's own temporary folder,
+/// never the machine's /dev), and a thread that reads it to its end.
+#[cfg(test)]
+pub(crate) fn fifo_and_reader(path: &Path) -> std::thread::JoinHandle<String> {
+    let made = std::process::Command::new("mkfifo")
+        .arg(path)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let path = path.to_path_buf();
+    // Opening a FIFO to read waits for its writer, so the reader can start
+    // before the file under test is opened.
+    std::thread::spawn(move || fs::read_to_string(path).unwrap())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -444,16 +459,8 @@ mod tests {
     fn a_fifo_is_written_through_not_replaced() {
         let dir = tempfile::tempdir().unwrap();
         let fifo = dir.path().join("pipe");
-        let made = std::process::Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .unwrap();
-        assert!(made.success());
+        let reader = fifo_and_reader(&fifo);
         let pending = AtomicFile::create(&fifo).unwrap();
-        let reader = {
-            let fifo = fifo.clone();
-            std::thread::spawn(move || fs::read_to_string(fifo).unwrap())
-        };
         pending.commit_csv("a\n1\n").unwrap();
         assert_eq!(reader.join().unwrap(), "a\n1\n");
         assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());

@@ -45,6 +45,8 @@ use serde::Serialize;
 mod atomic;
 pub mod finite;
 
+#[cfg(test)]
+pub(crate) use atomic::fifo_and_reader;
 pub use atomic::{check_dir, check_file, check_files_in, create_dir, AtomicFile};
 
 /// A write to standard output failed.

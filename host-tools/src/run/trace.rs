@@ -576,16 +576,8 @@ mod tests {
         assert_eq!(names(), ["link.csv", "real.csv"]);
 
         let fifo = dir.path().join("pipe");
-        let made = std::process::Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .unwrap();
-        assert!(made.success());
+        let reader = crate::output::fifo_and_reader(&fifo);
         let mut f = RowFile::create_atomic(&fifo, "k\n").unwrap();
-        let reader = {
-            let fifo = fifo.clone();
-            std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
-        };
         fill(&mut f, 2);
         assert_eq!(f.finish().unwrap(), 2);
         assert_eq!(reader.join().unwrap(), "k\n0\n1\n");
