@@ -195,26 +195,26 @@ bg_pids+=("$pip_pid")
 cargo test "${targets[@]}" --examples --benches --no-run
 
 # The lints and images (if still running) before the host tests: the
-# host tests include pty boards and sessions that keep time, and run
-# alone.
+# host tests include pty boards and sessions that keep time, and nothing
+# but the twins at the lowest priority runs beside them.
 wait_job "$lint_pid" "$lint_log" "firmware images, clippy, the core's targets"
-
-step "tests: unit, property, closed-loop, pty and CLI (host)"
-cargo test "${targets[@]}"
 
 # The joint's identification twins (#[ignore]d: ten-minute logs, minutes
 # of CPU on both cores, waiting on nothing) start now, from their binaries
 # (a second cargo would wait for the lock on the build directory while
 # another cargo runs tests), at the lowest priority: they take the CPU
-# time the next stages leave (the QEMU checks wait on round trips, the
-# Python tests on Ray) without slowing the checks that keep time. Not
-# beside the host tests: on this 2-core machine, with another build
-# running at nice 10, the pty conformance suite (`conform_suite::`) failed
-# in 4 of 6 runs with the twins beside it under SCHED_IDLE and in 2 of 6 at
-# nice 19 (a reply or a telemetry frame late by seconds), and in none of 6
-# with that build alone. Their paths come from the
-# workspace build (built alone, plant-joint would resolve other features
-# and build again).
+# time the next stages leave (the host tests wait on ptys and child
+# programs for half their time, the QEMU checks on round trips, the
+# Python tests on Ray) without slowing the checks that keep time much.
+# Beside the host tests only once nothing else competes: on this 2-core
+# machine, with the lint build still running at nice 10 beside both, the
+# pty conformance suite (`conform_suite::`) failed in 4 of 6 runs with the
+# twins under SCHED_IDLE and in 2 of 6 at nice 19 (a reply or a telemetry
+# frame late by seconds); with the lints finished first and the twins at
+# nice 19 it passed in every run (the host tests 89 s alone, 95 s beside
+# them, while the twins got ≈ 60 CPU-s they would otherwise have taken at
+# the end). Their paths come from the workspace build (built alone,
+# plant-joint would resolve other features and build again).
 mapfile -t joint_tests < <(cargo test "${targets[@]}" --no-run --message-format=json 2>/dev/null |
     python3 -c '
 import json, sys
@@ -231,6 +231,9 @@ joint_log=$(mktemp)
 ) >"$joint_log" 2>&1 &
 joint_pid=$!
 bg_pids+=("$joint_pid")
+
+step "tests: unit, property, closed-loop, pty and CLI (host; the joint's twins beside them at nice 19)"
+cargo test "${targets[@]}"
 
 step "the checks that need the optimised build or QEMU (every #[ignore]d test but the joint's twins): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image"
 cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite::
@@ -256,14 +259,17 @@ rm -f "$pip_log"
     target/wheels/softjoint-0.1.0-*.whl
 SOFTJOINT_BIN=target/ci-opt/softjoint "$venv/bin/python" -m pytest -q python/tests
 
+step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images (one at a time: they signal process groups); the console's excitation session on a real-time pty board (the joint's twins beside them at nice 19, if still running)"
+# With them, the console's excitation session on a pty board that steps its
+# plant by the wall clock. It once lost telemetry beside the joint twins
+# (in an earlier order of this script, with more running); beside the
+# twins alone at nice 19 it passed in 3 of 3 runs here, so the twins now
+# fill this stage's idle core (≈ 30 CPU-s of 46) instead of running on
+# alone before it.
+cargo test "${targets[@]}" -- --ignored hil_qemu_cli:: console_excite:: --test-threads 1
+
 step "the joint's identification twins: the 10-minute logs, the off-plan, true-prior and campaign twins (if still running)"
 wait_job "$joint_pid" "$joint_log" "plant-joint's #[ignore]d checks"
-
-step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or killed, bad images (one at a time: they signal process groups); the console's excitation session on a real-time pty board"
-# With them, the console's excitation session on a pty board that steps its
-# plant by the wall clock: it lost telemetry beside the joint twins, so it
-# runs after them.
-cargo test "${targets[@]}" -- --ignored hil_qemu_cli:: console_excite:: --test-threads 1
 
 trap - EXIT
 finish
