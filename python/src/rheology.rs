@@ -170,14 +170,20 @@ impl PyRheologyProblem {
 
     /// S of each gene list as the searches score them: +inf for genes the
     /// model refuses or that make it unstable (the search counts them).
-    /// This is the work of one unit.
-    fn scores(&self, py: Python<'_>, batch: Vec<Vec<f64>>) -> Vec<f64> {
+    /// This is the work of one unit. InputError, naming the weight, if a
+    /// stable run's S is not a finite number (a weight too large for the
+    /// measurement, not an unstable candidate).
+    fn scores(&self, py: Python<'_>, batch: Vec<Vec<f64>>) -> PyResult<Vec<f64>> {
         let problem = &self.problem;
-        py.detach(|| {
+        let s = py.detach(|| {
             let f = |g: &[f64]| problem.s_of_genes(g);
             let mut local = Local { f: &f, unit: 1 };
             local.scores(&batch).unwrap_or_default()
-        })
+        });
+        match problem.objective_failure() {
+            Some(e) => Err(rheology_to_py(Some(e), e.to_string())),
+            None => Ok(s),
+        }
     }
 
     /// Calibrates as `softjoint rheology calibrate --method METHOD

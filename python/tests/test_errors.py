@@ -70,3 +70,24 @@ def test_a_weight_for_which_the_objective_can_overflow_is_refused_by_name(softjo
     assert "`objective.shape_per_cm` = 1e308" in msg and "overflows" in msg
     # The program's words, after the file it names.
     assert cli.stderr.strip().splitlines()[-1] == f"error: {scen}: {msg}"
+
+def test_a_force_term_that_overflows_in_a_batch_raises_by_name_not_inf(softjoint_bin, data, tmp_path):
+    """The force term has no bound before a run: with force_per_n = 1e308
+    a stable run's S overflows. A batch (the work a Ray worker does) raises
+    InputError naming the weight, so the driver's search stops with it,
+    instead of handing back +inf, which the search counts as an unstable
+    candidate (issue 31)."""
+    small = data / "rheology/small.toml"
+    measured = tmp_path / "measured"
+    run_cli(softjoint_bin, "rheology", "simulate", small, "--model", "reference",
+            "--out", measured, "--json")
+    scen = tmp_path / "heavy_force.toml"
+    scen.write_text(small.read_text() + "\n[objective]\nshape_per_cm = 0\nforce_per_n = 1e308\n")
+    p = softjoint.rheology_problem(scen, measured, 4)
+    # Points inside the ranges; the block is stable at most of them, and one
+    # stable run is enough.
+    batch = [[lo + f * (hi - lo) for _, lo, hi in p.ranges()] for f in (0.25, 0.5, 0.75)]
+    with pytest.raises(softjoint.InputError) as e:
+        p.scores(batch)
+    msg = str(e.value)
+    assert "`objective.force_per_n`" in msg and "S_force" in msg and "stable" in msg

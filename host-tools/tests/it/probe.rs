@@ -514,6 +514,38 @@ fn cases() -> Vec<Case> {
                 false,
             )
         },
+        refuse(
+            "5",
+            "rheology: a shape weight of 1e308 per cm (S past the largest double)",
+            &[
+                "rheology",
+                "simulate",
+                "$F/heavy_shape.toml",
+                "--measured",
+                "$F/meas",
+                "--out",
+                "$D/rheology",
+            ],
+            "`objective.shape_per_cm` = 1e308",
+            true,
+        ),
+        refuse(
+            "5",
+            "rheology calibrate: a force weight of 1e308 per N (the term overflows on a stable run)",
+            &[
+                "rheology",
+                "calibrate",
+                "$F/heavy_force.toml",
+                "--measured",
+                "$F/meas",
+                "--evaluations",
+                "8",
+                "--out",
+                "$D/rheology",
+            ],
+            "`objective.force_per_n`",
+            true,
+        ),
     ]
 }
 
@@ -597,6 +629,24 @@ fn fixtures(dir: &Path) {
         Vec::new(),
     );
     w("state.toml", &toml::to_string(&st).unwrap());
+    // A measured push for the rheology scenario (eight surface points, two
+    // force samples of 1 kN in the force window).
+    let small = crate::rheology_cli::SMALL;
+    w(
+        "heavy_shape.toml",
+        &format!("{small}\n[objective]\nshape_per_cm = 1e308\n"),
+    );
+    w(
+        "heavy_force.toml",
+        &format!("{small}\n[objective]\nshape_per_cm = 0\nforce_per_n = 1e308\n"),
+    );
+    std::fs::create_dir_all(dir.join("meas")).unwrap();
+    let points: String = (0..8).map(|i| format!("0,0.5,{i}.5,4.5,3\n")).collect();
+    w(
+        "meas/surface_points.csv",
+        &format!("frame,time_s,x_cm,y_cm,z_cm\n{points}"),
+    );
+    w("meas/forces.csv", "time_s,force_n\n0.6,1000\n1.0,1000\n");
 }
 
 #[test]

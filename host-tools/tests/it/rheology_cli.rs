@@ -9,7 +9,7 @@ use common::{file, ok, refused, s, scratch, softjoint, stdout};
 
 /// A small, fast scenario (debug build): a 4 × 3 × 4 lattice at 20 ms,
 /// a 2 s push, a 2 × 2 × 2-cube reference.
-const SMALL: &str = r#"
+pub(crate) const SMALL: &str = r#"
 [block]
 size_cm = [6.0, 4.0, 6.0]
 mass_g = 172.8

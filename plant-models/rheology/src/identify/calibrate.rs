@@ -1,9 +1,11 @@
 //! Calibration of a lattice from a measured push: the problem (a scenario
 //! that says which lattice and push, a parameter set, a measurement, the
 //! objective S) and the run of one of the searches on it.
+use std::sync::{Arc, OnceLock};
+
 use serde::{Deserialize, Serialize};
 
-use crate::error::{bad_setting, Result};
+use crate::error::{bad_setting, Result, RheologyError};
 use crate::identify::ga::{self, GaSettings};
 use crate::identify::measurement::Measurement;
 use crate::identify::objective::{check_weights, score, Score};
@@ -24,6 +26,10 @@ pub struct Problem {
     pub measurement: Measurement,
     lattice: Lattice,
     frame_times: Vec<f64>,
+    /// The first stable run whose weighted S was not a finite number
+    /// while a search scored it ([`Self::s_of_genes`]); shared by the
+    /// problem's clones, so that the search that scored it ends with it.
+    objective_failure: Arc<OnceLock<RheologyError>>,
 }
 
 impl Problem {
@@ -68,6 +74,7 @@ impl Problem {
             measurement,
             lattice,
             frame_times,
+            objective_failure: Arc::default(),
         })
     }
 
@@ -97,13 +104,54 @@ impl Problem {
     }
 
     /// S of a gene vector (+∞ for parameters the model refuses or that
-    /// make it unstable).
+    /// make it unstable). A stable run whose weighted S is not a finite
+    /// number is not an unstable candidate but a weight too large for this
+    /// measurement: it scores +∞ here too, and the error naming the weight
+    /// is kept ([`Self::objective_failure`]), which ends the search that
+    /// asked ([`calibrate_with`]).
     pub fn s_of_genes(&self, genes: &[f64]) -> f64 {
-        self.set
-            .to_lattice(genes)
-            .and_then(|p| self.score(&p))
-            .map(|(s, _)| s.s)
-            .unwrap_or(f64::INFINITY)
+        let Ok(run) = self.set.to_lattice(genes).and_then(|p| self.run(&p)) else {
+            return f64::INFINITY;
+        };
+        match score(
+            &self.lattice.surface,
+            &run,
+            &self.measurement,
+            &self.scenario.objective,
+            self.scenario.measure.force_window_s,
+        ) {
+            Ok(s) => s.s,
+            Err(e) => {
+                // The first one is kept; the others say the same of the
+                // same weight.
+                let _ = self.objective_failure.set(e);
+                f64::INFINITY
+            }
+        }
+    }
+
+    /// The error of the first stable run [`Self::s_of_genes`] could not
+    /// score (the weight whose term overflowed), if any.
+    pub fn objective_failure(&self) -> Option<&RheologyError> {
+        self.objective_failure.get()
+    }
+}
+
+/// `inner`, ending the search at the first batch in which a stable
+/// candidate's S overflowed ([`Problem::objective_failure`]) instead of
+/// counting that candidate as unstable.
+struct Checked<'a> {
+    inner: &'a mut dyn BatchObjective,
+    problem: &'a Problem,
+}
+
+impl BatchObjective for Checked<'_> {
+    fn scores(&mut self, batch: &[Vec<f64>]) -> std::result::Result<Vec<f64>, String> {
+        let s = self.inner.scores(batch)?;
+        match self.problem.objective_failure() {
+            Some(e) => Err(e.to_string()),
+            None => Ok(s),
+        }
     }
 }
 
@@ -163,7 +211,11 @@ pub fn calibrate_with(
     on_progress: &mut dyn FnMut(&Progress),
 ) -> Result<Calibration> {
     let ranges = problem.set.ranges();
-    let search = match settings.method {
+    let objective = &mut Checked {
+        inner: objective,
+        problem,
+    };
+    let outcome = match settings.method {
         Method::Ga => ga::run_with(
             objective,
             &ranges,
@@ -171,7 +223,7 @@ pub fn calibrate_with(
             settings.budget,
             settings.seed,
             on_progress,
-        )?,
+        ),
         Method::Ra => ra::run_with(
             objective,
             &ranges,
@@ -179,7 +231,7 @@ pub fn calibrate_with(
             settings.budget,
             settings.seed,
             on_progress,
-        )?,
+        ),
         Method::Uniform => search::uniform_with(
             objective,
             &ranges,
@@ -187,8 +239,14 @@ pub fn calibrate_with(
             settings.seed,
             settings.ga.population,
             on_progress,
-        )?,
+        ),
     };
+    // Reported as what it is: the weight and the term, not "the search's
+    // objective failed".
+    if let Some(e) = problem.objective_failure() {
+        return Err(e.clone());
+    }
+    let search = outcome?;
     let best_params = problem.set.to_lattice(&search.best_genes)?;
     Ok(Calibration {
         search,

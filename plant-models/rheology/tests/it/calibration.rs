@@ -242,3 +242,30 @@ fn a_force_term_that_overflows_on_a_stable_run_is_an_error_naming_its_weight_not
         "{e}"
     );
 }
+
+#[test]
+fn a_search_that_meets_a_force_term_overflow_ends_there_naming_the_weight() {
+    // Issue 31: in a search, a stable candidate whose force_per_n × S_force
+    // overflowed scored +∞ and was counted as unstable; the calibration
+    // ended "successfully" with every candidate unstable. Now the search
+    // ends at the batch that met it, with the error that names the weight.
+    let mut sc = small_scenario([4, 3, 4], 8.0, 0.5);
+    sc.objective.shape_per_cm = 0.0;
+    sc.objective.force_per_n = 1e308;
+    let problem = Problem::new(sc, ParamSet::Four, hand_measurement(8, 1e3)).unwrap();
+    let settings = CalibrationSettings::new(Method::Uniform, Budget::evaluations(400), 1);
+    let mut scored = 0;
+    let e = calibrate(&problem, &settings, &mut |p| scored = p.evaluations)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("`objective.force_per_n`") && e.contains("S_force") && e.contains("stable"),
+        "{e}"
+    );
+    assert!(problem.objective_failure().is_some());
+    // Stopped at the first batch (one population), not after the budget.
+    assert!(
+        scored <= settings.ga.population,
+        "{scored} candidates scored"
+    );
+}
