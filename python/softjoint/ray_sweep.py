@@ -180,8 +180,17 @@ class LocalCluster:
 
 def connect(address: Optional[str] = None) -> None:
     """Joins the cluster at ``address`` (``None``: ``RAY_ADDRESS`` or a
-    local one) unless this process is already connected."""
+    local one) unless this process is already connected. A ``HOST:PORT``
+    address that takes no TCP connection within 10 s is a ConnectionError
+    naming it (``ray.init`` waited on such an address for over ten
+    minutes, Ray 2.x: a program running this driver seemed to hang)."""
     if not ray.is_initialized():
+        host, _, port = (address or "").rpartition(":")
+        if host and "/" not in host and port.isdigit():
+            try:
+                socket.create_connection((host, int(port)), timeout=10).close()
+            except OSError as e:
+                raise ConnectionError(f"no Ray cluster at {address}: {e}") from None
         ray.init(address=address, log_to_driver=False, include_dashboard=False)
 
 

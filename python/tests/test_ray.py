@@ -275,6 +275,17 @@ def test_the_programs_calibration_with_ray_writes_the_files_of_its_own_run(clust
     assert without_times(json.loads(p.stdout)) == local["summary"]
     assert calibration_files(out) == local["files"]
     assert not (out / "params.search.toml").exists()
+    # No cluster at the address: an error naming the driver and what it
+    # said, at once (ray.init waited on such an address for minutes).
+    nowhere = f"127.0.0.1:{ray_sweep._free_port()}"
+    bad = subprocess.run([softjoint_bin, "rheology", "calibrate", SMALL, *CALIBRATION, "--ray",
+                          nowhere, "--out", str(tmp_path / "bad")], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 1, bad.stderr
+    assert (f"the Ray driver ({sys.executable} -m softjoint.ray_sweep rheology-serve, cluster at "
+            f"{nowhere}): it ended without answering a batch of 8 (exit status: 1); it said: "
+            f"ConnectionError: no Ray cluster at {nowhere}") in bad.stderr, bad.stderr
+    assert not (tmp_path / "bad" / "params.toml").exists()
 
 
 # Stands in for Python as $SOFTJOINT_PYTHON: runs the real driver with
