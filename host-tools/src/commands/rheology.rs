@@ -9,7 +9,9 @@
 //!   the spot) by the paper's GA or RA, with a progress bar, and check the
 //!   result on a push the calibration did not see; stopped by a signal it
 //!   keeps its best and its scores so far, and `--resume` goes on from
-//!   them (host_tools::resume).
+//!   them (host_tools::resume); with `--ray ADDRESS` each batch of the
+//!   search is scored on a Ray cluster (`ray`: the search, its progress
+//!   and its files stay here).
 //!
 //! The physics lives in `plant_rheology`; this is argument
 //! handling, files, pictures and reports.
