@@ -165,16 +165,13 @@ impl Driver {
     /// The scores of `batch`, or why there are none: a stop, or a
     /// driver that ended or answered garbage (then it is ended too).
     pub fn scores(&mut self, batch: &[Vec<f64>]) -> Result<Vec<f64>, String> {
-        let sent = serde_json::to_string(batch)
-            .map_err(|e| e.to_string())
-            .and_then(|mut line| {
-                line.push('\n');
-                let input = self.input.as_mut().ok_or("its input is closed")?;
-                input
-                    .write_all(line.as_bytes())
-                    .and_then(|()| input.flush())
-                    .map_err(|e| format!("sending it a batch: {e}"))
-            });
+        let sent = batch_line(batch).and_then(|line| {
+            let input = self.input.as_mut().ok_or("its input is closed")?;
+            input
+                .write_all(line.as_bytes())
+                .and_then(|()| input.flush())
+                .map_err(|e| format!("sending it a batch: {e}"))
+        });
         if let Err(why) = sent {
             return Err(self.failed(&why, DYING));
         }
@@ -252,6 +249,21 @@ impl Drop for Driver {
     fn drop(&mut self) {
         self.end(EXIT_GRACE);
     }
+}
+
+/// A batch as the line sent: a JSON array of gene arrays, each gene the
+/// shortest decimal that reads back as the same `f64` (Rust's `{:?}`:
+/// `0.1`, `1e-7`, `2.0`), after `output`'s check that every gene is
+/// finite (JSON has no word for the others).
+fn batch_line(batch: &[Vec<f64>]) -> Result<String, String> {
+    host_tools::output::check_value("the batch sent to the Ray driver", &batch)
+        .map_err(|e| format!("{e:#}"))?;
+    let genes = |g: &Vec<f64>| {
+        let each: Vec<String> = g.iter().map(|x| format!("{x:?}")).collect();
+        format!("[{}]", each.join(","))
+    };
+    let rows: Vec<String> = batch.iter().map(genes).collect();
+    Ok(format!("[{}]\n", rows.join(",")))
 }
 
 /// `s` cut to at most `n` characters.
@@ -344,6 +356,19 @@ mod tests {
             let e = parse_scores(line, 3).unwrap_err();
             assert!(e.contains(why), "{line}: {e}");
         }
+    }
+
+    #[test]
+    fn a_batch_is_one_line_of_exact_decimals_and_only_finite_genes_go() {
+        let x = 0.300_000_000_000_000_04_f64;
+        let line = batch_line(&[vec![x, 1e-7, 2.0], vec![-1.5e300]]).unwrap();
+        assert_eq!(line, "[[0.30000000000000004,1e-7,2.0],[-1.5e300]]\n");
+        assert_eq!(
+            "0.30000000000000004".parse::<f64>().unwrap().to_bits(),
+            x.to_bits()
+        );
+        let e = batch_line(&[vec![1.0, f64::NAN]]).unwrap_err();
+        assert!(e.contains("the batch sent to the Ray driver"), "{e}");
     }
 
     /// A stand-in driver: `sh -c SCRIPT`.
