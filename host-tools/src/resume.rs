@@ -113,6 +113,77 @@ impl Scores {
         Some(s)
     }
 
+    /// The scores of `batch`, as [`Self::score`] gives each one, with the
+    /// candidates not kept yet scored all at once by `run` (each once,
+    /// in the order they first come in `batch`; it must give one score
+    /// per gene vector): how a batch sent elsewhere (a Ray cluster) keeps
+    /// its scores. `Ok(None)` when a stop is asked before the batch (then
+    /// nothing is run); `run`'s error, and then nothing of this batch is
+    /// kept.
+    pub fn score_batch(
+        &self,
+        batch: &[Vec<f64>],
+        run: impl FnOnce(&[Vec<f64>]) -> Result<Vec<f64>, String>,
+    ) -> Result<Option<Vec<f64>>, String> {
+        if self.stop.requested().is_some() {
+            return Ok(None);
+        }
+        // Each candidate's score if kept, else the index of its genes
+        // among those to run.
+        let mut new: HashMap<Vec<u64>, usize> = HashMap::new();
+        let mut to_run: Vec<Vec<f64>> = Vec::new();
+        let mut replayed = 0;
+        let slots: Vec<Result<f64, usize>> = {
+            let guard = self.index.lock().unwrap_or_else(|e| e.into_inner());
+            batch
+                .iter()
+                .map(|g| {
+                    let k = key(g);
+                    if let Some(&i) = guard.0.get(&k) {
+                        replayed += usize::from(i < self.resumed);
+                        return Ok(guard.1[i].score.unwrap_or(f64::NAN));
+                    }
+                    Err(*new.entry(k).or_insert_with(|| {
+                        to_run.push(g.clone());
+                        to_run.len() - 1
+                    }))
+                })
+                .collect()
+        };
+        let fresh = if to_run.is_empty() {
+            Vec::new()
+        } else {
+            run(&to_run)?
+        };
+        if fresh.len() != to_run.len() {
+            return Err(format!(
+                "{} scores came back for {} candidates",
+                fresh.len(),
+                to_run.len()
+            ));
+        }
+        self.answered.fetch_add(batch.len(), Ordering::Relaxed);
+        self.replayed.fetch_add(replayed, Ordering::Relaxed);
+        self.simulated.fetch_add(to_run.len(), Ordering::Relaxed);
+        let mut guard = self.index.lock().unwrap_or_else(|e| e.into_inner());
+        let (map, scored) = &mut *guard;
+        for (genes, &s) in to_run.iter().zip(&fresh) {
+            map.entry(key(genes)).or_insert_with(|| {
+                scored.push(Scored {
+                    genes: genes.clone(),
+                    score: s.is_finite().then_some(s),
+                });
+                scored.len() - 1
+            });
+        }
+        Ok(Some(
+            slots
+                .into_iter()
+                .map(|slot| slot.unwrap_or_else(|i| fresh[i]))
+                .collect(),
+        ))
+    }
+
     /// Candidates answered so far (a candidate the search asks for twice
     /// counts twice; it is simulated once).
     pub fn answered(&self) -> usize {
@@ -232,5 +303,47 @@ mod tests {
         assert_eq!(best.score, Some(3.0));
         let best = best_of(&all, |a, b| a > b).unwrap();
         assert_eq!(best.score, Some(11.0));
+    }
+
+    #[test]
+    fn a_batch_runs_only_the_candidates_not_kept_each_once() {
+        let stop = Stop::never();
+        let kept = vec![Scored {
+            genes: vec![1.0],
+            score: Some(3.0),
+        }];
+        let s = Scores::new(stop.clone(), kept);
+        let batch = [vec![2.0], vec![1.0], vec![2.0], vec![4.0]];
+        let mut ran = Vec::new();
+        let got = s
+            .score_batch(&batch, |b| {
+                ran = b.to_vec();
+                Ok(vec![f64::INFINITY, 16.0])
+            })
+            .unwrap()
+            .unwrap();
+        assert_eq!(ran, [vec![2.0], vec![4.0]]);
+        assert_eq!(got, [f64::INFINITY, 3.0, f64::INFINITY, 16.0]);
+        assert_eq!((s.answered(), s.replayed(), s.simulated()), (4, 1, 2));
+        // Kept now: an unstable one comes back as NaN, as from `score`.
+        let again = s
+            .score_batch(&[vec![2.0], vec![4.0]], |_| Err("run again".into()))
+            .unwrap()
+            .unwrap();
+        assert!(again[0].is_nan() && again[1] == 16.0);
+        // A run that fails or miscounts keeps nothing of its batch.
+        let e = s.score_batch(&[vec![5.0]], |_| Err("lost".into()));
+        assert_eq!(e, Err("lost".into()));
+        let e = s.score_batch(&[vec![5.0], vec![6.0]], |_| Ok(vec![1.0]));
+        assert_eq!(e, Err("1 scores came back for 2 candidates".into()));
+        stop.request(StopSignal::Interrupt);
+        assert_eq!(
+            s.score_batch(&[vec![7.0]], |_| panic!("run after a stop")),
+            Ok(None)
+        );
+        let all = s.into_scored();
+        let genes: Vec<_> = all.iter().map(|k| k.genes.clone()).collect();
+        assert_eq!(genes, [vec![1.0], vec![2.0], vec![4.0]]);
+        assert_eq!(all[1].score, None);
     }
 }

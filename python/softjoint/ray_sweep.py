@@ -35,11 +35,19 @@ Command line (what ``softjoint tune --ray ADDRESS`` runs)::
 
     python -m softjoint.ray_sweep tune PLANT --candidates N --plants N \\
         --seed S [--search-v-offset] --address ADDRESS [--state FILE]
+
+and what ``softjoint rheology calibrate --ray ADDRESS`` runs, which
+scores the batches the program's search sends it, one JSON line each way
+(:func:`rheology_serve`)::
+
+    python -m softjoint.ray_sweep rheology-serve [SCENARIO] [--measured DIR] \\
+        --params N --address ADDRESS
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import signal
 import socket
@@ -172,8 +180,17 @@ class LocalCluster:
 
 def connect(address: Optional[str] = None) -> None:
     """Joins the cluster at ``address`` (``None``: ``RAY_ADDRESS`` or a
-    local one) unless this process is already connected."""
+    local one) unless this process is already connected. A ``HOST:PORT``
+    address that takes no TCP connection within 10 s is a ConnectionError
+    naming it (``ray.init`` waited on such an address for over ten
+    minutes, Ray 2.x: a program running this driver seemed to hang)."""
     if not ray.is_initialized():
+        host, _, port = (address or "").rpartition(":")
+        if host and "/" not in host and port.isdigit():
+            try:
+                socket.create_connection((host, int(port)), timeout=10).close()
+            except OSError as e:
+                raise ConnectionError(f"no Ray cluster at {address}: {e}") from None
         ray.init(address=address, log_to_driver=False, include_dashboard=False)
 
 
@@ -301,6 +318,23 @@ def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] =
     tasks; returns its ``--json`` summary as a dict."""
     connect(address)
     problem = rheology_problem(scenario, measured, params)
+    evaluate_batch = rheology_batches(scenario, measured, params, unit)
+    return json.loads(problem.calibrate(method, evaluations, seed, evaluate_batch))
+
+
+def rheology_batches(scenario: Optional[str] = None, measured: Optional[str] = None,
+                     params: int = 4, unit: int = RHEOLOGY_UNIT_CANDIDATES
+                     ) -> Callable[[List[List[float]]], List[float]]:
+    """The scorer of a rheology calibration's batches on the cluster this
+    process is connected to: a batch (a list of gene lists) is cut into
+    units of ``unit`` gene vectors (``rheology_units``), each a
+    ``_rheology_unit`` task on a worker that builds the problem of
+    ``scenario``, ``measured`` and ``params`` once (as
+    ``RheologyProblem.scores`` scores them: +inf for an unstable
+    candidate); the scores come back in batch order. A task that failed
+    for good (an InputError a worker raised, a worker lost more than
+    ``MAX_RETRIES`` times) raises here; Ctrl-C raises
+    :class:`SweepStopped`."""
     text = None if scenario is None else open(scenario, encoding="utf-8").read()
     m = None
     if measured is not None:
@@ -314,7 +348,38 @@ def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] =
                  for a, b in rheology_units(len(batch), unit)]
         return [s for part in _gather(tasks) for s in part]
 
-    return json.loads(problem.calibrate(method, evaluations, seed, evaluate_batch))
+    return evaluate_batch
+
+
+def _batch_of(line: str) -> List[List[float]]:
+    """A batch as ``rheology-serve`` reads it: a JSON array of arrays of
+    finite numbers; ValueError naming what is wrong otherwise."""
+    batch = json.loads(line)
+    if not isinstance(batch, list) or not all(
+            isinstance(g, list) and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                        and math.isfinite(x) for x in g) for g in batch):
+        raise ValueError(f"a batch must be a JSON array of arrays of finite numbers, got {line[:200]!r}")
+    return [[float(x) for x in g] for g in batch]
+
+
+def rheology_serve(scenario: Optional[str], measured: Optional[str], params: int,
+                   address: Optional[str], unit: int, batches: Any, answers: Any) -> None:
+    """What ``softjoint rheology calibrate --ray ADDRESS`` runs: joins the
+    cluster, then for each line of ``batches`` (a batch: a JSON array of
+    gene arrays) scores it on Ray as :func:`rheology_batches` does and
+    writes one line to ``answers``: a JSON array of the scores in batch
+    order, ``null`` for a score that is not finite (an unstable candidate;
+    the program reads it as +inf, which is how the search counts any
+    non-finite S), flushed. Returns at the end of ``batches``. The search,
+    its draws, its progress and its files are the program's."""
+    connect(address)
+    evaluate_batch = rheology_batches(scenario, measured, params, unit)
+    for line in batches:
+        if not line.strip():
+            continue
+        scores = evaluate_batch(_batch_of(line))
+        answers.write(json.dumps([s if math.isfinite(s) else None for s in scores]) + "\n")
+        answers.flush()
 
 
 def _progress() -> Optional[Callable[[int, int], None]]:
@@ -385,7 +450,17 @@ def main(argv: Optional[List[str]] = None) -> int:
     r.add_argument("--seed", type=int, default=1)
     r.add_argument("--address", default=None)
     r.add_argument("--unit", type=int, default=RHEOLOGY_UNIT_CANDIDATES)
+    v = sub.add_parser("rheology-serve", help="score the batches of `softjoint rheology "
+                       "calibrate --ray` on Ray: one JSON line in (a batch of gene arrays), "
+                       "one JSON line out (its scores, null for +inf), until end of input")
+    v.add_argument("scenario", nargs="?")
+    v.add_argument("--measured")
+    v.add_argument("--params", type=int, default=4)
+    v.add_argument("--address", default=None)
+    v.add_argument("--unit", type=int, default=RHEOLOGY_UNIT_CANDIDATES)
     a = p.parse_args(argv)
+    if a.command == "rheology-serve":
+        return _serve(a)
     try:
         if a.command == "tune" and a.units_out:
             plant = load_plant(a.plant)
@@ -410,6 +485,28 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 130
     json.dump(out, sys.stdout, indent=2, sort_keys=True)
     print()
+    return 0
+
+
+def _serve(a: argparse.Namespace) -> int:
+    """``rheology-serve``: the answers go to the standard output this
+    process was given, and everything else written to file descriptor 1
+    (Ray's own messages, a stray print) to standard error, so that no line
+    but an answer reaches the program. A failure is said on standard
+    error (what a worker raised, without Ray's traceback) and exits 1;
+    Ctrl-C stops submitting and exits 130."""
+    answers = os.fdopen(os.dup(1), "w", encoding="utf-8")
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
+    try:
+        rheology_serve(a.scenario, a.measured, a.params, a.address, a.unit, sys.stdin, answers)
+    except KeyboardInterrupt:
+        print("stopped: no more of the batch's tasks submitted", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001 - said to the program, which ends the search
+        cause = getattr(e, "cause", None) or e
+        print(f"{type(cause).__name__}: {cause}", file=sys.stderr)
+        return 1
     return 0
 
 

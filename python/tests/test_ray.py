@@ -215,3 +215,135 @@ def test_the_programs_tune_with_ray_stopped_keeps_the_finished_units(cluster, so
     assert f"{len(indices)} of 400 candidates scored" in err, err
     assert not out.exists() and not (tmp_path / "g.ray-units.toml").exists()
     wait_for_units_to_go()
+
+
+# `softjoint rheology calibrate --ray`: the program's search with its
+# batches scored on the cluster by `ray_sweep rheology-serve`.
+
+SMALL = "scenarios/rheology/small.toml"
+# A GA of two generations of the small scenario's 8 individuals.
+CALIBRATION = ["--method", "ga", "--evaluations", "16", "--seed", "4"]
+
+
+def without_times(v):
+    """A calibration's JSON summary without its wall times (`elapsed_s`,
+    at every depth) and its output directory."""
+    if isinstance(v, dict):
+        return {k: without_times(x) for k, x in v.items() if k not in ("elapsed_s", "out")}
+    if isinstance(v, list):
+        return [without_times(x) for x in v]
+    return v
+
+
+def calibration_files(out):
+    """What a calibration writes to `out`, as bytes, `generations.csv`
+    without its wall-time column (the last)."""
+    files = {f: (out / f).read_bytes() for f in
+             ("params.toml", "s_per_generation.svg", "force.svg", "sections.svg")}
+    rows = (out / "generations.csv").read_text().splitlines()
+    assert rows[0].endswith(",elapsed_s")
+    files["generations.csv"] = [r.rsplit(",", 1)[0] for r in rows]
+    return files
+
+
+_local = {}
+
+
+def local_calibration(softjoint_bin, repo, tmp_path):
+    """The program's calibration (CALIBRATION) on this machine: its
+    summary and files (run once)."""
+    if not _local:
+        out = tmp_path / "local"
+        summary = cli_json(softjoint_bin, "rheology", "calibrate", SMALL, *CALIBRATION,
+                           "--out", out, "--json", cwd=repo)
+        _local.update(summary=without_times(summary), files=calibration_files(out))
+    return _local
+
+
+def test_the_programs_calibration_with_ray_writes_the_files_of_its_own_run(cluster, softjoint_bin,
+                                                                          repo, tmp_path):
+    """The files (params, charts, generations but for their wall times)
+    and the summary of `rheology calibrate --ray` are those of the same
+    calibration without it, byte for byte."""
+    out = tmp_path / "ray"
+    env = dict(os.environ, SOFTJOINT_PYTHON=sys.executable)
+    p = subprocess.run([softjoint_bin, "rheology", "calibrate", SMALL, *CALIBRATION, "--ray",
+                        cluster, "--out", str(out), "--json"], cwd=repo, env=env,
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    local = local_calibration(softjoint_bin, repo, tmp_path)
+    assert without_times(json.loads(p.stdout)) == local["summary"]
+    assert calibration_files(out) == local["files"]
+    assert not (out / "params.search.toml").exists()
+    # No cluster at the address: an error naming the driver and what it
+    # said, at once (ray.init waited on such an address for minutes).
+    nowhere = f"127.0.0.1:{ray_sweep._free_port()}"
+    bad = subprocess.run([softjoint_bin, "rheology", "calibrate", SMALL, *CALIBRATION, "--ray",
+                          nowhere, "--out", str(tmp_path / "bad")], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 1, bad.stderr
+    assert (f"the Ray driver ({sys.executable} -m softjoint.ray_sweep rheology-serve, cluster at "
+            f"{nowhere}): it ended without answering a batch of 8 (exit status: 1); it said: "
+            f"ConnectionError: no Ray cluster at {nowhere}") in bad.stderr, bad.stderr
+    assert not (tmp_path / "bad" / "params.toml").exists()
+
+
+# Stands in for Python as $SOFTJOINT_PYTHON: runs the real driver with
+# the same arguments, passes its answers on and touches TAP_DIR/answer-N
+# after the N-th, and passes SIGINT on to it; exits with its status.
+TAP = r'''
+import os, signal, subprocess, sys, threading
+child = subprocess.Popen([os.environ["TAP_PYTHON"]] + sys.argv[1:], stdout=subprocess.PIPE)
+signal.signal(signal.SIGINT, lambda *_: child.send_signal(signal.SIGINT))
+def answers():
+    for n, line in enumerate(child.stdout, 1):
+        sys.stdout.buffer.write(line)
+        sys.stdout.buffer.flush()
+        open(os.path.join(os.environ["TAP_DIR"], f"answer-{n}"), "w").close()
+threading.Thread(target=answers, daemon=True).start()
+rc = child.wait()
+sys.exit(rc if rc >= 0 else 128 - rc)
+'''
+
+
+def test_the_programs_calibration_with_ray_stopped_keeps_its_state(cluster, softjoint_bin, repo,
+                                                                  tmp_path):
+    """SIGINT to `rheology calibrate --ray` once its driver has answered
+    a batch: exit 130, the scored batches kept in the search state (the
+    batch in flight lost), from which the program goes on without --ray
+    to the files of the calibration never stopped."""
+    tap = tmp_path / "tap.py"
+    tap.write_text(TAP)
+    wrapper = tmp_path / "python"
+    wrapper.write_text(f"#!/bin/sh\nexec {sys.executable} {tap} \"$@\"\n")
+    wrapper.chmod(0o755)
+    env = dict(os.environ, SOFTJOINT_PYTHON=str(wrapper), TAP_PYTHON=sys.executable,
+               TAP_DIR=str(tmp_path))
+    out = tmp_path / "stopped"
+    p = subprocess.Popen([softjoint_bin, "rheology", "calibrate", SMALL, "--method", "ga",
+                          "--evaluations", "400", "--seed", "4", "--ray", cluster, "--out",
+                          str(out)], cwd=repo, env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (tmp_path / "answer-1").exists():
+        assert time.time() < deadline and p.poll() is None, "no batch was answered"
+        time.sleep(0.02)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err
+    state_path = out / "params.search.toml"
+    assert f"search state in {state_path}" in err, err
+    state = tomllib.loads(state_path.read_text())
+    # The batches answered: at least the first generation (8).
+    answered = len(list(tmp_path.glob("answer-*")))
+    assert state["evaluations"] >= len(state["scored"]) >= 8, (answered, state)
+    assert (state["method"], state["seed"], state["params"]) == ("ga", 4, 4)
+    assert not (out / "params.toml").exists()
+    resumed = cli_json(softjoint_bin, "rheology", "calibrate", SMALL, *CALIBRATION, "--resume",
+                       state_path, "--out", out, "--json", cwd=repo)
+    # The state's scores are taken, not simulated again (the first
+    # generation's at least), and the result is the unbroken search's.
+    assert resumed["resumed"]["candidates_taken"] >= 8, (answered, resumed)
+    assert without_times(resumed) == without_times(
+        dict(local_calibration(softjoint_bin, repo, tmp_path)["summary"], resumed=resumed["resumed"]))
+    assert calibration_files(out) == local_calibration(softjoint_bin, repo, tmp_path)["files"]

@@ -9,7 +9,9 @@
 //!   the spot) by the paper's GA or RA, with a progress bar, and check the
 //!   result on a push the calibration did not see; stopped by a signal it
 //!   keeps its best and its scores so far, and `--resume` goes on from
-//!   them (host_tools::resume).
+//!   them (host_tools::resume); with `--ray ADDRESS` each batch of the
+//!   search is scored on a Ray cluster (`ray`: the search, its progress
+//!   and its files stay here).
 //!
 //! The physics lives in `plant_rheology`; this is argument
 //! handling, files, pictures and reports.
@@ -26,7 +28,7 @@ use host_tools::resume::{best_of, fnv1a_hex, Scored, Scores};
 use host_tools::stop::{Stop, StopSignal, Stopped};
 use host_tools::{out, outln, progress};
 use indicatif::ProgressBar;
-use plant_rheology::identify::calibrate::CalibrationSettings;
+use plant_rheology::identify::calibrate::{CalibrationSettings, Problem};
 use plant_rheology::identify::experiment::{
     self, CalibrationReport, CalibrationSpec, Event, LatticePush, ReferencePush, ScoreSummary,
     UnseenPush,
@@ -40,6 +42,8 @@ use plant_rheology::scenario::{push_schedule_mm, Frame, ParamsSpec, Run, Scenari
 use plant_rheology::RheologyError;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+
+mod ray;
 
 /// Arguments of `softjoint rheology`.
 #[derive(Args)]
@@ -172,6 +176,16 @@ struct CalibrateArgs {
     /// calibration stopped again writes its state back to this file.
     #[arg(long, value_name = "STATE")]
     resume: Option<PathBuf>,
+    /// Score each batch of the search (a GA generation, RA's probes) on
+    /// the Ray cluster at this address, one task per candidate, through
+    /// the Python package's driver (`python3 -m softjoint.ray_sweep
+    /// rheology-serve`; $SOFTJOINT_PYTHON names another Python). The
+    /// search, its progress, a stop's search state and every file are
+    /// this program's: the files are those of the same calibration
+    /// without --ray, and --resume goes on with or without it. A stop
+    /// loses the batch in flight.
+    #[arg(long, value_name = "ADDRESS")]
+    ray: Option<String>,
 }
 
 pub fn run(args: RheologyArgs) -> Result<()> {
@@ -353,18 +367,21 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
         counter: None,
     };
     let scores = Scores::new(stop.clone(), resumed);
+    // Started before the problem is built: it joins the cluster meanwhile.
+    let driver = a.ray.as_deref().map(|address| {
+        let (cmd, who) = ray::driver_command(&ray::Problem {
+            scenario: a.scenario.as_deref(),
+            measured: a.measured.as_deref(),
+            params: a.params,
+            address,
+        });
+        ray::Driver::start(cmd, who, stop.clone())
+    });
+    let driver = driver.transpose()?;
     let problem = experiment::calibration_problem(&spec, &mut |e| watch.event(e))
         .map_err(|e| in_scenario(a.scenario.as_deref(), e))?;
     let started = std::time::Instant::now();
-    let f = |g: &[f64]| problem.s_of_genes(g);
-    let mut objective = Resumable {
-        f: &f,
-        scores: &scores,
-    };
-    let result = experiment::calibrate_problem(&spec, problem.clone(), &mut objective, &mut |e| {
-        watch.event(e)
-    });
-    watch.finish();
+    let result = search(&spec, &problem, &scores, driver, &mut watch);
     let report = match (result, stop.requested()) {
         (Ok(report), _) => report,
         (Err(_), Some(signal)) => {
@@ -411,6 +428,34 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     }
     // The search had ended when a signal came: its files are whole.
     host_tools::resume::finished_or_stopped(&stop, &a.out)
+}
+
+/// The search on `problem`, each batch scored on this process's threads,
+/// or by `driver` on a Ray cluster; the scores kept in `scores` either way.
+fn search(
+    spec: &CalibrationSpec,
+    problem: &Problem,
+    scores: &Scores,
+    driver: Option<ray::Driver>,
+    watch: &mut Watch,
+) -> plant_rheology::Result<CalibrationReport> {
+    let f = |g: &[f64]| problem.s_of_genes(g);
+    let mut local;
+    let mut on_ray;
+    let objective: &mut dyn BatchObjective = match driver {
+        Some(driver) => {
+            on_ray = ray::OnRay { driver, scores };
+            &mut on_ray
+        }
+        None => {
+            local = Resumable { f: &f, scores };
+            &mut local
+        }
+    };
+    let result =
+        experiment::calibrate_problem(spec, problem.clone(), objective, &mut |e| watch.event(e));
+    watch.finish();
+    result
 }
 
 /// The calibration's report for a person.
