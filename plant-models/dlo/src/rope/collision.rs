@@ -62,12 +62,24 @@ struct Node {
     children: Option<(usize, usize)>,
     /// Leaf: its segment.
     segment: usize,
+    /// The segments under the node: `first..=last` (a contiguous run of
+    /// the chain, since each level merges neighbours).
+    first: usize,
+    last: usize,
 }
 
-/// The sphere tree over the rope's segments, rebuilt every step (O(N)).
+/// The sphere tree over the rope's segments. Its shape depends only on the
+/// number of segments, so it is laid out once and then refitted every step
+/// (each sphere recomputed bottom-up from the points, O(N)); the spheres
+/// are the ones a fresh build gives, bit for bit.
 #[derive(Debug, Clone, Default)]
 pub struct Bvh {
+    /// Leaves first (segment order), then each level's merged nodes; a
+    /// node's children come before it.
     nodes: Vec<Node>,
+    root: Option<usize>,
+    /// Segments the shape was laid out for.
+    leaves: usize,
     level: Vec<usize>,
     next: Vec<usize>,
     stack: Vec<(usize, usize)>,
@@ -90,23 +102,45 @@ pub struct Contact {
     pub normal: V3,
 }
 
+/// The sphere of segment `i` (points i, i+1): centre at its midpoint,
+/// radius l/2 + r.
+fn leaf_sphere(x: &[V3], i: usize, radius_m: f64) -> Sphere {
+    Sphere {
+        centre: 0.5 * (x[i] + x[i + 1]),
+        radius: 0.5 * (x[i + 1] - x[i]).norm() + radius_m,
+    }
+}
+
 impl Bvh {
-    /// Builds the tree bottom-up: leaves are the segments' spheres (centre
-    /// at the midpoint, radius l/2 + r), each level merges neighbours in
-    /// pairs (an odd one is carried up).
+    /// Fits the tree to the points: leaves are the segments' spheres, each
+    /// level merges neighbours in pairs (an odd one is carried up). The
+    /// shape is laid out when the number of segments changes; otherwise
+    /// only the spheres are recomputed, in the same order.
     pub fn build(&mut self, x: &[V3], radius_m: f64) {
+        let segments = x.len().saturating_sub(1);
+        if self.root.is_none() || self.leaves != segments {
+            self.lay_out(x, radius_m);
+            return;
+        }
+        for k in 0..self.nodes.len() {
+            self.nodes[k].sphere = match self.nodes[k].children {
+                None => leaf_sphere(x, self.nodes[k].segment, radius_m),
+                Some((l, r)) => self.nodes[l].sphere.merge(&self.nodes[r].sphere),
+            };
+        }
+    }
+
+    /// Builds the tree from scratch (shape and spheres).
+    fn lay_out(&mut self, x: &[V3], radius_m: f64) {
         self.nodes.clear();
         self.level.clear();
         for i in 0..x.len().saturating_sub(1) {
-            let centre = 0.5 * (x[i] + x[i + 1]);
-            let sphere = Sphere {
-                centre,
-                radius: 0.5 * (x[i + 1] - x[i]).norm() + radius_m,
-            };
             self.nodes.push(Node {
-                sphere,
+                sphere: leaf_sphere(x, i, radius_m),
                 children: None,
                 segment: i,
+                first: i,
+                last: i,
             });
             self.level.push(i);
         }
@@ -119,6 +153,8 @@ impl Bvh {
                         sphere,
                         children: Some((l, r)),
                         segment: usize::MAX,
+                        first: self.nodes[l].first,
+                        last: self.nodes[r].last,
                     });
                     self.next.push(self.nodes.len() - 1);
                 } else {
@@ -127,12 +163,38 @@ impl Bvh {
             }
             std::mem::swap(&mut self.level, &mut self.next);
         }
+        self.root = self.level.first().copied();
+        self.leaves = x.len().saturating_sub(1);
+    }
+
+    /// Whether some segment under `ia` and some other under `ib` are at
+    /// least `gap` apart along the chain. Two distinct nodes met in the
+    /// search cover disjoint runs, so the farthest pair spans from the
+    /// earlier run's first segment to the later run's last.
+    fn reaches(&self, ia: usize, ib: usize, gap: usize) -> bool {
+        let (a, b) = (&self.nodes[ia], &self.nodes[ib]);
+        let span = if a.first <= b.first {
+            b.last - a.first
+        } else {
+            a.last - b.first
+        };
+        span >= gap
+    }
+
+    /// Pushes the pair (ia, ib) unless every segment pair under it is
+    /// excluded by the index gap (then it holds no contact).
+    fn push_pair(&mut self, ia: usize, ib: usize, gap: usize) {
+        if self.reaches(ia, ib, gap) {
+            self.stack.push((ia, ib));
+        }
     }
 
     /// Every pair of segments at least `index_gap` apart along the chain
     /// (j ≥ i + index_gap; see [`contact_index_gap`]) whose centre lines are
     /// closer than `2·radius_m`, found by exploring two copies of the tree
-    /// from the top down (L1330). Appends to `out`.
+    /// from the top down (L1330). A pair of nodes all of whose segment
+    /// pairs lie within the gap is not explored (it cannot hold a contact);
+    /// the contacts are appended to `out` in the order of the full search.
     pub fn self_contacts(
         &mut self,
         x: &[V3],
@@ -140,17 +202,20 @@ impl Bvh {
         index_gap: usize,
         out: &mut Vec<Contact>,
     ) {
-        let Some(&root) = self.level.first() else {
+        let Some(root) = self.root else {
             return;
         };
+        let gap = index_gap.max(2);
         self.stack.clear();
-        self.stack.push((root, root));
+        self.push_pair(root, root, gap);
         let reach = 2.0 * radius_m;
         while let Some((ia, ib)) = self.stack.pop() {
             let (na, nb) = (self.nodes[ia], self.nodes[ib]);
             if ia == ib {
                 if let Some((l, r)) = na.children {
-                    self.stack.extend([(l, l), (l, r), (r, r)]);
+                    self.push_pair(l, l, gap);
+                    self.push_pair(l, r, gap);
+                    self.push_pair(r, r, gap);
                 }
                 continue;
             }
@@ -163,41 +228,59 @@ impl Bvh {
                     // No segment collides with itself, its immediate
                     // neighbours (L1333), or segments within reach along
                     // the chain (`contact_index_gap`).
-                    if j < i + index_gap.max(2) {
+                    if j < i + gap {
                         continue;
                     }
-                    let (a, b, ca, cb) = closest_points(x[i], x[i + 1], x[j], x[j + 1]);
-                    let d = ca - cb;
-                    let s = d.norm();
-                    if s < reach {
-                        let normal = if s > 1e-12 {
-                            d / s
-                        } else {
-                            // Centre lines touch: any direction normal to
-                            // segment a separates them.
-                            any_normal(x[i + 1] - x[i])
-                        };
-                        out.push(Contact {
-                            seg_a: i,
-                            seg_b: j,
-                            a,
-                            b,
-                            distance_m: s,
-                            normal,
-                        });
+                    if let Some(c) = segment_contact(x, i, j, reach) {
+                        out.push(c);
                     }
                 }
-                (Some((l, r)), None) => self.stack.extend([(l, ib), (r, ib)]),
-                (None, Some((l, r))) => self.stack.extend([(ia, l), (ia, r)]),
+                (Some((l, r)), None) => {
+                    self.push_pair(l, ib, gap);
+                    self.push_pair(r, ib, gap);
+                }
+                (None, Some((l, r))) => {
+                    self.push_pair(ia, l, gap);
+                    self.push_pair(ia, r, gap);
+                }
                 (Some((al, ar)), Some((bl, br))) => {
                     if na.sphere.radius >= nb.sphere.radius {
-                        self.stack.extend([(al, ib), (ar, ib)]);
+                        self.push_pair(al, ib, gap);
+                        self.push_pair(ar, ib, gap);
                     } else {
-                        self.stack.extend([(ia, bl), (ia, br)]);
+                        self.push_pair(ia, bl, gap);
+                        self.push_pair(ia, br, gap);
                     }
                 }
             }
         }
+    }
+}
+
+/// The contact of segments i and j (points i, i+1 and j, j+1) if their
+/// centre lines are closer than `reach_m`.
+fn segment_contact(x: &[V3], i: usize, j: usize, reach_m: f64) -> Option<Contact> {
+    let (a, b, ca, cb) = closest_points(x[i], x[i + 1], x[j], x[j + 1]);
+    let d = ca - cb;
+    let s = d.norm();
+    if s < reach_m {
+        let normal = if s > 1e-12 {
+            d / s
+        } else {
+            // Centre lines touch: any direction normal to segment a
+            // separates them.
+            any_normal(x[i + 1] - x[i])
+        };
+        Some(Contact {
+            seg_a: i,
+            seg_b: j,
+            a,
+            b,
+            distance_m: s,
+            normal,
+        })
+    } else {
+        None
     }
 }
 
@@ -309,6 +392,163 @@ mod tests {
         );
         assert!((a - 0.75).abs() < 1e-12 && (b - 0.5).abs() < 1e-12);
         assert!((ca - cb).norm() - 0.3 < 1e-12);
+    }
+
+    /// Points along a closed-form curve f(t), t = 0, dt, 2dt, …
+    fn curve(n: usize, dt: f64, f: impl Fn(f64) -> V3) -> Vec<V3> {
+        (0..n).map(|k| f(k as f64 * dt)).collect()
+    }
+
+    /// A random walk of `n` points with steps of length about `step_m`,
+    /// turning sharply (a crumpled ball with many self-contacts), from a
+    /// fixed-seed linear congruential generator.
+    fn random_walk(n: usize, step_m: f64, seed: u64) -> Vec<V3> {
+        let mut state = seed;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut p = V3::zeros();
+        let mut x = vec![p];
+        for _ in 1..n {
+            let d = V3::new(uniform(), uniform(), uniform());
+            p += d.normalize() * step_m * (0.5 + 0.5 * uniform().abs());
+            x.push(p);
+        }
+        x
+    }
+
+    /// The test configurations: random crumpled walks, a tight helix
+    /// (each turn touches the next), a trefoil knot with close crossings,
+    /// a straight chain and a chain folded back on itself.
+    fn configurations() -> Vec<(&'static str, Vec<V3>)> {
+        vec![
+            ("walk 60", random_walk(60, 0.1, 1)),
+            ("walk 120", random_walk(120, 0.08, 7)),
+            ("walk 33", random_walk(33, 0.05, 34)),
+            (
+                "helix",
+                curve(90, 0.35, |t| {
+                    V3::new(0.2 * t.cos(), 0.2 * t.sin(), 0.012 * t)
+                }),
+            ),
+            (
+                "trefoil",
+                curve(80, std::f64::consts::TAU / 79.0, |t| {
+                    V3::new(
+                        t.sin() + 2.0 * (2.0 * t).sin(),
+                        t.cos() - 2.0 * (2.0 * t).cos(),
+                        -(3.0 * t).sin(),
+                    ) * 0.06
+                }),
+            ),
+            ("straight", curve(51, 0.102, |t| V3::new(0.0, 0.0, -t))),
+            (
+                "folded",
+                curve(50, 0.1, |t| {
+                    if t < 2.45 {
+                        V3::new(t, 0.0, 0.0)
+                    } else {
+                        V3::new(4.9 - t, 0.07, 0.0)
+                    }
+                }),
+            ),
+        ]
+    }
+
+    /// All pairs i < j with j ≥ i + max(gap, 2) closer than 2r, by
+    /// enumeration (no tree), in (i, j) order.
+    fn brute_force(x: &[V3], r: f64, gap: usize) -> Vec<(usize, usize)> {
+        let mut want = Vec::new();
+        for i in 0..x.len() - 1 {
+            for j in i + gap.max(2)..x.len() - 1 {
+                let (_, _, ca, cb) = closest_points(x[i], x[i + 1], x[j], x[j + 1]);
+                if (ca - cb).norm() < 2.0 * r {
+                    want.push((i, j));
+                }
+            }
+        }
+        want
+    }
+
+    /// The search without the index-gap pruning (every pair of nodes is
+    /// explored as before issue 34), written recursively in the order the
+    /// stack search pops: for a node with itself (r, r), (l, r), (l, l);
+    /// for a split, the right child first.
+    fn unpruned(
+        bvh: &Bvh,
+        x: &[V3],
+        r: f64,
+        gap: usize,
+        ia: usize,
+        ib: usize,
+        out: &mut Vec<Contact>,
+    ) {
+        let (na, nb) = (bvh.nodes[ia], bvh.nodes[ib]);
+        if ia == ib {
+            if let Some((cl, cr)) = na.children {
+                unpruned(bvh, x, r, gap, cr, cr, out);
+                unpruned(bvh, x, r, gap, cl, cr, out);
+                unpruned(bvh, x, r, gap, cl, cl, out);
+            }
+            return;
+        }
+        if !na.sphere.overlaps(&nb.sphere) {
+            return;
+        }
+        match (na.children, nb.children) {
+            (None, None) => {
+                let (i, j) = (na.segment.min(nb.segment), na.segment.max(nb.segment));
+                if j >= i + gap.max(2) {
+                    out.extend(segment_contact(x, i, j, 2.0 * r));
+                }
+            }
+            (Some((al, ar)), _)
+                if nb.children.is_none() || na.sphere.radius >= nb.sphere.radius =>
+            {
+                unpruned(bvh, x, r, gap, ar, ib, out);
+                unpruned(bvh, x, r, gap, al, ib, out);
+            }
+            (_, Some((bl, br))) => {
+                unpruned(bvh, x, r, gap, ia, br, out);
+                unpruned(bvh, x, r, gap, ia, bl, out);
+            }
+            (Some(_), None) => unreachable!("handled by the guard above"),
+        }
+    }
+
+    #[test]
+    fn pruned_search_finds_the_brute_force_pairs_in_the_unpruned_order() {
+        let r = 0.05;
+        let mut many = 0;
+        // One tree refitted through every configuration of a length, as
+        // the rope uses it; its spheres must equal a fresh build's.
+        let mut bvh = Bvh::default();
+        for (name, x) in configurations() {
+            let mut fresh = Bvh::default();
+            fresh.build(&x, r);
+            bvh.build(&x.iter().map(|p| p * 1.5).collect::<Vec<_>>(), r);
+            bvh.build(&x, r);
+            for (a, b) in bvh.nodes.iter().zip(&fresh.nodes) {
+                let same = a.sphere.centre == b.sphere.centre && a.sphere.radius == b.sphere.radius;
+                assert!(same && a.children == b.children, "{name}: refit differs");
+            }
+            for gap in [2, 3, 5] {
+                let mut got = Vec::new();
+                bvh.self_contacts(&x, r, gap, &mut got);
+                let mut pairs: Vec<_> = got.iter().map(|c| (c.seg_a, c.seg_b)).collect();
+                pairs.sort_unstable();
+                assert_eq!(pairs, brute_force(&x, r, gap), "{name}, gap {gap}");
+                let mut order = Vec::new();
+                let root = bvh.root.unwrap();
+                unpruned(&bvh, &x, r, gap, root, root, &mut order);
+                assert_eq!(got, order, "{name}, gap {gap}: order");
+                many = many.max(got.len());
+            }
+        }
+        assert!(many > 100, "no configuration with many contacts: {many}");
     }
 
     #[test]
