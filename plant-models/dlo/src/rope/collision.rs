@@ -83,6 +83,18 @@ pub struct Bvh {
     level: Vec<usize>,
     next: Vec<usize>,
     stack: Vec<(usize, usize)>,
+    /// The sweep of [`Bvh::find_contacts`]: the leaves' intervals along
+    /// one axis, sorted by their low ends (the order kept from step to
+    /// step).
+    sweep: Vec<Interval>,
+}
+
+/// A leaf's extent along the sweep's axis.
+#[derive(Debug, Clone, Copy)]
+struct Interval {
+    low: f64,
+    high: f64,
+    segment: usize,
 }
 
 /// One pair of colliding segments and its closest points.
@@ -117,17 +129,139 @@ impl Bvh {
     /// shape is laid out when the number of segments changes; otherwise
     /// only the spheres are recomputed, in the same order.
     pub fn build(&mut self, x: &[V3], radius_m: f64) {
-        let segments = x.len().saturating_sub(1);
-        if self.root.is_none() || self.leaves != segments {
+        if self.needs_lay_out(x) {
             self.lay_out(x, radius_m);
-            return;
+        } else {
+            self.fit_leaves(x, radius_m);
+            self.fit_inner();
         }
-        for k in 0..self.nodes.len() {
-            self.nodes[k].sphere = match self.nodes[k].children {
-                None => leaf_sphere(x, self.nodes[k].segment, radius_m),
-                Some((l, r)) => self.nodes[l].sphere.merge(&self.nodes[r].sphere),
+    }
+
+    /// Whether the shape is not laid out for this many segments.
+    fn needs_lay_out(&self, x: &[V3]) -> bool {
+        self.root.is_none() || self.leaves != x.len().saturating_sub(1)
+    }
+
+    /// Recomputes the leaves' spheres (the first `leaves` nodes).
+    fn fit_leaves(&mut self, x: &[V3], radius_m: f64) {
+        for (i, node) in self.nodes[..self.leaves].iter_mut().enumerate() {
+            node.sphere = leaf_sphere(x, i, radius_m);
+        }
+    }
+
+    /// Recomputes the merged nodes' spheres from the leaves up.
+    fn fit_inner(&mut self) {
+        for k in self.leaves..self.nodes.len() {
+            if let Some((l, r)) = self.nodes[k].children {
+                self.nodes[k].sphere = self.nodes[l].sphere.merge(&self.nodes[r].sphere);
+            }
+        }
+    }
+
+    /// [`Bvh::build`] then [`Bvh::self_contacts`], with the same result,
+    /// but first a cheaper test on the leaves alone: when no two segments
+    /// at least the gap apart have overlapping spheres (the tree search's
+    /// own leaf test) and centre lines closer than 2r, the tree search
+    /// would find nothing, so the merged spheres are not refitted and the
+    /// tree is not searched. The test is a sweep along the axis of largest
+    /// extent of the segments' midpoints over the leaves' intervals, sorted
+    /// by insertion from the last step's order (nearly sorted, so O(N) for
+    /// a rope that moves little per step). When it finds a contact, the
+    /// tree search runs as before and gives the contacts in its order.
+    pub fn find_contacts(
+        &mut self,
+        x: &[V3],
+        radius_m: f64,
+        index_gap: usize,
+        out: &mut Vec<Contact>,
+    ) {
+        if self.needs_lay_out(x) {
+            self.lay_out(x, radius_m);
+        } else {
+            self.fit_leaves(x, radius_m);
+            if !self.leaves_may_touch(x, 2.0 * radius_m, index_gap.max(2)) {
+                return;
+            }
+            self.fit_inner();
+        }
+        self.self_contacts(x, radius_m, index_gap, out);
+    }
+
+    /// Whether two leaves `gap` or more apart along the chain pass the
+    /// tree search's leaf tests (spheres overlap, centre lines closer than
+    /// `reach_m`). An interval is widened by 1 nm plus 1e-9 of its
+    /// coordinate so that no pair the sphere test accepts is lost to
+    /// rounding in the sweep.
+    fn leaves_may_touch(&mut self, x: &[V3], reach_m: f64, gap: usize) -> bool {
+        let n = self.leaves;
+        let leaves = &self.nodes[..n];
+        let (mut lo, mut hi) = (leaves[0].sphere.centre, leaves[0].sphere.centre);
+        for node in leaves {
+            let c = &node.sphere.centre;
+            (lo.x, hi.x) = (
+                if c.x < lo.x { c.x } else { lo.x },
+                if c.x > hi.x { c.x } else { hi.x },
+            );
+            (lo.y, hi.y) = (
+                if c.y < lo.y { c.y } else { lo.y },
+                if c.y > hi.y { c.y } else { hi.y },
+            );
+            (lo.z, hi.z) = (
+                if c.z < lo.z { c.z } else { lo.z },
+                if c.z > hi.z { c.z } else { hi.z },
+            );
+        }
+        let extent = hi - lo;
+        let axis = if extent.x >= extent.y && extent.x >= extent.z {
+            0
+        } else if extent.y >= extent.z {
+            1
+        } else {
+            2
+        };
+        if self.sweep.len() != n {
+            self.sweep.clear();
+            self.sweep.extend((0..n).map(|segment| Interval {
+                low: 0.0,
+                high: 0.0,
+                segment,
+            }));
+        }
+        for iv in self.sweep.iter_mut() {
+            let sphere = &leaves[iv.segment].sphere;
+            let c = match axis {
+                0 => sphere.centre.x,
+                1 => sphere.centre.y,
+                _ => sphere.centre.z,
             };
+            let half = sphere.radius + 1e-9 * (1.0 + c.abs() + sphere.radius);
+            (iv.low, iv.high) = (c - half, c + half);
         }
+        let sweep = &mut self.sweep[..];
+        for a in 1..n {
+            let iv = sweep[a];
+            let mut b = a;
+            while b > 0 && sweep[b - 1].low > iv.low {
+                sweep[b] = sweep[b - 1];
+                b -= 1;
+            }
+            sweep[b] = iv;
+        }
+        for (a, iv) in sweep.iter().enumerate() {
+            for other in &sweep[a + 1..] {
+                if other.low > iv.high {
+                    break;
+                }
+                let (i, j) = (iv.segment.min(other.segment), iv.segment.max(other.segment));
+                if j >= i + gap
+                    && leaves[i].sphere.overlaps(&leaves[j].sphere)
+                    && segment_contact(x, i, j, reach_m).is_some()
+                {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// Builds the tree from scratch (shape and spheres).
@@ -445,6 +579,28 @@ mod tests {
                 }),
             ),
             ("straight", curve(51, 0.102, |t| V3::new(0.0, 0.0, -t))),
+            ("end to end", end_to_end()),
+            (
+                "near miss",
+                curve(50, 0.1, |t| {
+                    if t < 2.45 {
+                        V3::new(0.0, t, 0.0)
+                    } else {
+                        V3::new(0.0, 4.9 - t, 0.101)
+                    }
+                }),
+            ),
+            (
+                "one touch",
+                curve(50, 0.1, |t| {
+                    let z = if (t - 4.0).abs() < 0.01 { 0.099 } else { 0.12 };
+                    if t < 2.45 {
+                        V3::new(t, 0.0, 0.0)
+                    } else {
+                        V3::new(4.9 - t, 0.0, z)
+                    }
+                }),
+            ),
             (
                 "folded",
                 curve(50, 0.1, |t| {
@@ -456,6 +612,21 @@ mod tests {
                 }),
             ),
         ]
+    }
+
+    /// A chain along x to (2, 0, 0), a detour up, over and down, and back
+    /// along x to (2.09, 0, 0): its only contacts are its last segment
+    /// meeting the first run's end nearly end to end along the sweep's
+    /// axis, where the leaves' intervals overlap least.
+    fn end_to_end() -> Vec<V3> {
+        let mut x: Vec<V3> = (0..=20)
+            .map(|k| V3::new(0.1 * k as f64, 0.0, 0.0))
+            .collect();
+        x.extend((1..=5).map(|k| V3::new(2.0, 0.0, 0.1 * k as f64)));
+        x.extend((1..=5).map(|k| V3::new(2.0 + 0.1 * k as f64, 0.0, 0.5)));
+        x.extend((1..=5).map(|k| V3::new(2.5, 0.0, 0.5 - 0.1 * k as f64)));
+        x.extend((1..=4).map(|k| V3::new(2.5 - 0.1025 * k as f64, 0.0, 0.0)));
+        x
     }
 
     /// All pairs i < j with j ≥ i + max(gap, 2) closer than 2r, by
@@ -526,6 +697,8 @@ mod tests {
         // One tree refitted through every configuration of a length, as
         // the rope uses it; its spheres must equal a fresh build's.
         let mut bvh = Bvh::default();
+        let mut swept = Bvh::default();
+        let (mut none, mut some) = (0, 0);
         for (name, x) in configurations() {
             let mut fresh = Bvh::default();
             fresh.build(&x, r);
@@ -545,10 +718,22 @@ mod tests {
                 let root = bvh.root.unwrap();
                 unpruned(&bvh, &x, r, gap, root, root, &mut order);
                 assert_eq!(got, order, "{name}, gap {gap}: order");
+                let mut found = Vec::new();
+                swept.find_contacts(&x, r, gap, &mut found);
+                assert_eq!(found, got, "{name}, gap {gap}: find_contacts");
                 many = many.max(got.len());
+                if got.is_empty() {
+                    none += 1;
+                } else {
+                    some += 1;
+                }
             }
         }
         assert!(many > 100, "no configuration with many contacts: {many}");
+        assert!(
+            none >= 5 && some >= 15,
+            "{none} searches without contact, {some} with"
+        );
     }
 
     #[test]

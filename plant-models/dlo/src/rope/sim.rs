@@ -394,8 +394,7 @@ impl Rope {
         let (r, dt, m) = (p.radius_m, p.dt_s, p.node_mass_kg);
         let gap = super::collision::contact_index_gap(p.rest_length_m(), r);
         self.contacts.clear();
-        self.bvh.build(&self.x, r);
-        self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
+        self.bvh.find_contacts(&self.x, r, gap, &mut self.contacts);
         self.stats.contacts = self.contacts.len();
         for c in &self.contacts {
             let pts = ContactPoints::new(c, &self.inv_mass);
@@ -429,8 +428,7 @@ impl Rope {
         for pass in 0..p.collision_passes {
             if pass > 0 {
                 self.contacts.clear();
-                self.bvh.build(&self.x, r);
-                self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
+                self.bvh.find_contacts(&self.x, r, gap, &mut self.contacts);
                 moved = false;
             }
             if self.contacts.is_empty() {
@@ -470,8 +468,7 @@ impl Rope {
         // pass has moved a point since).
         if moved {
             self.contacts.clear();
-            self.bvh.build(&self.x, r);
-            self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
+            self.bvh.find_contacts(&self.x, r, gap, &mut self.contacts);
         }
         self.stats.max_penetration_m = self
             .contacts
