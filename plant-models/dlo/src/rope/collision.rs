@@ -6,6 +6,13 @@
 //! applied as impulses to the four end points (Eq. 19–23), and by the
 //! position shift of Fig. 6 (each segment moved r − d/2 + ε/2 away).
 //!
+//! Cost (issue 34), not the paper's: the tree's shape is fixed by the
+//! number of segments, so it is refitted, not rebuilt; node pairs whose
+//! segment pairs all lie within the excluded index gap are not explored;
+//! and a sweep over the leaves first certifies when there is no contact
+//! at all (a hanging rope), so that the tree is searched only when there
+//! is one. The contacts, and their order, are those of the plain search.
+//!
 //! Generalisations, stated: points of infinite mass (pinned) take no
 //! impulse and no shift, and the others share it so that the closest points
 //! still separate as Eq. 19 prescribes (with four equal masses this is
