@@ -336,6 +336,8 @@ impl Bvh {
     /// from the top down (L1330). A pair of nodes all of whose segment
     /// pairs lie within the gap is not explored (it cannot hold a contact);
     /// the contacts are appended to `out` in the order of the full search.
+    /// The tree must have been fitted to `x` by [`Bvh::build`] (after
+    /// [`Bvh::find_contacts`] its merged spheres may be stale).
     pub fn self_contacts(
         &mut self,
         x: &[V3],
