@@ -394,8 +394,7 @@ impl Rope {
         let (r, dt, m) = (p.radius_m, p.dt_s, p.node_mass_kg);
         let gap = super::collision::contact_index_gap(p.rest_length_m(), r);
         self.contacts.clear();
-        self.bvh.build(&self.x, r);
-        self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
+        self.bvh.find_contacts(&self.x, r, gap, &mut self.contacts);
         self.stats.contacts = self.contacts.len();
         for c in &self.contacts {
             let pts = ContactPoints::new(c, &self.inv_mass);
@@ -423,16 +422,19 @@ impl Rope {
                 self.stats.friction_impulse_n_s += 0.5 * dv * m;
             }
         }
-        // Fig. 6: shift each segment by r − d/2 + ε/2 along ±n̂.
+        // Fig. 6: shift each segment by r − d/2 + ε/2 along ±n̂. Whether
+        // the points moved since `self.contacts` was searched.
+        let mut moved = false;
         for pass in 0..p.collision_passes {
             if pass > 0 {
                 self.contacts.clear();
-                self.bvh.build(&self.x, r);
-                self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
+                self.bvh.find_contacts(&self.x, r, gap, &mut self.contacts);
+                moved = false;
             }
             if self.contacts.is_empty() {
                 break;
             }
+            moved = true;
             for c in &self.contacts {
                 // Recompute on the current positions (earlier shifts of
                 // this pass may have moved the segments).
@@ -462,10 +464,12 @@ impl Rope {
             // then moves the segment above it further up.
             self.floor();
         }
-        // The deepest overlap left.
-        self.contacts.clear();
-        self.bvh.build(&self.x, r);
-        self.bvh.self_contacts(&self.x, r, gap, &mut self.contacts);
+        // The deepest overlap left (the last search still holds when no
+        // pass has moved a point since).
+        if moved {
+            self.contacts.clear();
+            self.bvh.find_contacts(&self.x, r, gap, &mut self.contacts);
+        }
         self.stats.max_penetration_m = self
             .contacts
             .iter()
