@@ -159,11 +159,29 @@ impl Stopped {
 /// start it from the thread that outlives it) and puts it in its own
 /// process group (a Ctrl-C in the terminal reaches `softjoint`, which ends
 /// the process at a clean point, not the process under it).
+///
+/// The process starts with SIGINT at its default action, whatever this
+/// program inherited: a shell starts a background job (`softjoint … &`,
+/// `nohup`, a CI script's job) with SIGINT ignored, an ignored signal
+/// stays ignored across exec, and a process that ignores it cannot be
+/// stopped cleanly by [`interrupt`] (a shell cannot even trap it, and
+/// Python then raises no KeyboardInterrupt).
 pub fn die_with_parent(cmd: &mut Command) {
     #[cfg(unix)]
     {
         use std::os::unix::process::CommandExt as _;
         cmd.process_group(0);
+        // SAFETY: the closure runs in the forked child before exec and only
+        // calls signal(2), which is async-signal-safe; it allocates nothing.
+        #[allow(unsafe_code)]
+        unsafe {
+            cmd.pre_exec(|| {
+                if libc::signal(libc::SIGINT, libc::SIG_DFL) == libc::SIG_ERR {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
     }
     #[cfg(target_os = "linux")]
     {
@@ -212,4 +230,50 @@ pub fn interrupt(child: &std::process::Child) {
 pub fn file_size_limit_is_an_error() -> anyhow::Result<()> {
     signal_hook::flag::register(SIGXFSZ, Arc::new(AtomicBool::new(false)))?;
     Ok(())
+}
+
+#[cfg(all(test, target_os = "linux"))]
+mod tests {
+    use super::*;
+    use std::os::unix::process::CommandExt as _;
+
+    /// Whether the process whose `/proc/PID/status` is `status` ignores
+    /// SIGINT (its bit in the `SigIgn` mask).
+    fn ignores_sigint(status: &str) -> bool {
+        let mask = status
+            .lines()
+            .find_map(|l| l.strip_prefix("SigIgn:"))
+            .and_then(|m| u64::from_str_radix(m.trim(), 16).ok())
+            .expect("a SigIgn line");
+        mask & (1 << (libc::SIGINT - 1)) != 0
+    }
+
+    /// `cat /proc/self/status` started as a shell starts a background job:
+    /// SIGINT ignored before exec; `started` may add more.
+    fn status_of_a_background_child(started: impl FnOnce(&mut Command)) -> String {
+        let mut cmd = Command::new("cat");
+        cmd.arg("/proc/self/status");
+        // SAFETY: signal(2) only, in the forked child (async-signal-safe).
+        #[allow(unsafe_code)]
+        unsafe {
+            cmd.pre_exec(|| {
+                libc::signal(libc::SIGINT, libc::SIG_IGN);
+                Ok(())
+            });
+        }
+        started(&mut cmd);
+        let out = cmd.output().expect("cat runs");
+        assert!(out.status.success());
+        String::from_utf8(out.stdout).unwrap()
+    }
+
+    #[test]
+    fn a_child_can_be_interrupted_even_when_this_program_runs_in_the_background() {
+        // The set-up does what it says: without die_with_parent the child
+        // inherits SIGINT ignored, and interrupt() would not reach it.
+        assert!(ignores_sigint(&status_of_a_background_child(|_| {})));
+        assert!(!ignores_sigint(&status_of_a_background_child(
+            die_with_parent
+        )));
+    }
 }
