@@ -16,8 +16,12 @@ and a reduction: :class:`TuneSweep` gives the units and reduces their
 results; ``softjoint.ray_sweep`` runs the units as Ray tasks. Where the
 units run does not change the result.
 
-Left out so far: identification, the push, viscoelastic, rope and
-contour systems, and writing plant or gains files from Python.
+Contour fits (:func:`contour_fit`) are ``softjoint contour fit``'s, with
+the fit's own checks: a fit with a frame that failed them raises
+:class:`UnverifiedError` (the fit attached) unless asked to return it.
+
+Left out so far: identification, the push, viscoelastic and rope
+systems, and writing plant or gains files from Python.
 """
 from __future__ import annotations
 
@@ -43,6 +47,7 @@ from ._native import (
     SweepError,
     TuneSweep,
     UnstableError,
+    UnverifiedError,
     rheology_units,
 )
 
@@ -63,6 +68,10 @@ __all__ = [
     "Trace",
     "TuneSweep",
     "UnstableError",
+    "UnverifiedError",
+    "ContourFit",
+    "ContourFrame",
+    "contour_fit",
     "load_plant",
     "load_scenario",
     "rheology_problem",
@@ -179,3 +188,70 @@ def rheology_problem(scenario: Optional[PathLike] = None, measured: Optional[Pat
         m = (_read(d / "surface_points.csv"), _read(d / "forces.csv"))
     name = "scenario" if scenario is None else os.fspath(scenario)
     return RheologyProblem(text, m, params, name)
+
+
+@dataclass(frozen=True)
+class ContourFrame:
+    """One fitted frame: the fitted contour at ``samples`` points (``x``,
+    ``y``; for the signature and surface models also ``angle_rad`` and
+    ``radius``, else ``None``) and the frame's figures and checks
+    (``figures``: the frame's entry of fit.json's ``per_frame``, with
+    ``checks``)."""
+
+    frame: float
+    x: np.ndarray
+    y: np.ndarray
+    angle_rad: Optional[np.ndarray]
+    radius: Optional[np.ndarray]
+    figures: dict = field(repr=False)
+
+    @property
+    def verified(self) -> bool:
+        return self.figures["checks"]["status"] == "verified"
+
+
+@dataclass(frozen=True)
+class ContourFit:
+    """A contour fit: ``summary`` holds fit.json's fields (``status``,
+    ``unverified_frames``, ``model``, ``knots``, ``surface_lambda`` …,
+    ``per_frame``), ``frames`` the fitted frames."""
+
+    summary: dict = field(repr=False)
+    frames: List[ContourFrame]
+
+    @property
+    def verified(self) -> bool:
+        """Whether every frame passed the fit's own checks."""
+        return self.summary["status"] == "verified"
+
+
+def contour_fit(points: PathLike, model: Optional[str] = None, knots: Optional[int] = None,
+                time_knots: Optional[int] = None, lambda_: Optional[float] = None,
+                solver: str = "reduced", samples: int = 200, signed_radii: bool = False,
+                allow_unverified: bool = False) -> ContourFit:
+    """Fits the contour points in the CSV ``points`` as ``softjoint
+    contour fit`` does (``model``: ``"signature"``, ``"curve"`` or
+    ``"surface"``, default from the data; ``lambda_``: λ, or ``None`` to
+    choose it by GCV as ``--lambda gcv``).
+
+    Raises :class:`UnverifiedError` (its ``fit`` attribute holds the
+    :class:`ContourFit`) when a frame failed the fit's own checks, as the
+    program exits 1, unless ``allow_unverified``; the fit then still says
+    ``verified == False``. :class:`InputError` for a file, column or
+    option the program refuses."""
+    path = Path(points)
+    text, frames = _native.contour_fit(_read(path), os.fspath(path), model, knots, time_knots,
+                                       lambda_, solver, samples, signed_radii)
+    summary = json.loads(text)
+    fit = ContourFit(summary=summary, frames=[
+        ContourFrame(f, x, y, a, r, figures)
+        for (f, x, y, a, r), figures in zip(frames, summary["per_frame"])])
+    if not fit.verified and not allow_unverified:
+        e = UnverifiedError(
+            f"{len(summary['unverified_frames'])} of {len(frames)} fitted frame(s) UNVERIFIED "
+            f"(frames {summary['unverified_frames'][:10]}): their figures failed the fit's own "
+            "checks (see `checks` of each frame's figures); pass allow_unverified=True to get "
+            "the fit with that mark")
+        e.fit = fit
+        raise e
+    return fit

@@ -26,6 +26,9 @@ class UnstableError(SoftjointError):
 class SweepError(SoftjointError):
     """A sweep's units do not add up, or its objective failed."""
 
+class UnverifiedError(SoftjointError):
+    """A result failed its own checks (a contour fit's frames); `.fit` holds it."""
+
 class Scenario:
     @staticmethod
     def default() -> Scenario: ...
@@ -101,3 +104,21 @@ class RheologyProblem:
         seed: int = 1,
         evaluate_batch: Optional[Callable[[List[List[float]]], List[float]]] = None,
     ) -> str: ...
+
+def contour_fit(
+    text: str,
+    name: str = "contour.csv",
+    model: Optional[str] = None,
+    knots: Optional[int] = None,
+    time_knots: Optional[int] = None,
+    lambda_: Optional[float] = None,
+    solver: str = "reduced",
+    samples: int = 200,
+    signed_radii: bool = False,
+) -> Tuple[
+    str,
+    List[Tuple[float, np.ndarray, np.ndarray, Optional[np.ndarray], Optional[np.ndarray]]],
+]:
+    """`softjoint contour fit` of a CSV's text: fit.json's fields as JSON
+    text, and each fitted frame as (frame, x, y, angle_rad, radius)."""
+    ...

@@ -16,11 +16,14 @@
 //! 1 with "run cut short"); the joint's plant stops a run whose state
 //! goes non-finite before any row holds it.
 //!
+//! Contour fits are `softjoint contour fit`'s, with the fit's own checks.
+//!
 //! Left out (issue 33 goes on): plant and gains files written from
-//! Python, identification, push, viscoelastic, rope and contour fits.
+//! Python, identification, push, viscoelastic and rope.
 
 use pyo3::prelude::*;
 
+mod contour;
 mod errors;
 mod joint;
 mod rheology;
@@ -31,5 +34,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     joint::register(m)?;
     rheology::register(m)?;
+    contour::register(m)?;
     Ok(())
 }
