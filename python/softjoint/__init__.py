@@ -20,8 +20,11 @@ Contour fits (:func:`contour_fit`) are ``softjoint contour fit``'s, with
 the fit's own checks: a fit with a frame that failed them raises
 :class:`UnverifiedError` (the fit attached) unless asked to return it.
 
-Left out so far: identification, the push, viscoelastic and rope
-systems, and writing plant or gains files from Python.
+The 3-element viscoelastic model's trace (:func:`viscoelastic_simulate`)
+is ``softjoint viscoelastic simulate``'s.
+
+Left out so far: identification, the push and rope systems, the
+viscoelastic fit and object, and writing plant or gains files from Python.
 """
 from __future__ import annotations
 
@@ -72,6 +75,7 @@ __all__ = [
     "ContourFit",
     "ContourFrame",
     "contour_fit",
+    "viscoelastic_simulate",
     "load_plant",
     "load_scenario",
     "rheology_problem",
@@ -255,3 +259,21 @@ def contour_fit(points: PathLike, model: Optional[str] = None, knots: Optional[i
         e.fit = fit
         raise e
     return fit
+
+
+def viscoelastic_simulate(trial: PathLike, k1_n_per_m: float, k2_n_per_m: float,
+                          b_n_s_per_m: float) -> Dict[str, np.ndarray]:
+    """Runs the 3-element model of seed 002 (Eq. 3: delayed spring k1,
+    series spring k2, dashpot b) on the CSV ``trial`` as ``softjoint
+    viscoelastic simulate`` does: on its ``time_s,displacement`` columns
+    (m) to give the force (N), or else on ``time_s,force`` to give the
+    displacement. Returns ``time_s``, ``displacement`` and ``force``, the
+    program's CSV columns, as NumPy arrays.
+
+    Raises :class:`InputError` for a parameter, file or column the
+    program refuses (named), :class:`NonFiniteError` for a trace that
+    is not finite."""
+    path = Path(trial)
+    t, x, f = _native.viscoelastic_simulate(_read(path), k1_n_per_m, k2_n_per_m, b_n_s_per_m,
+                                            os.fspath(path))
+    return {"time_s": t, "displacement": x, "force": f}

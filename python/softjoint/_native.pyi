@@ -122,3 +122,14 @@ def contour_fit(
     """`softjoint contour fit` of a CSV's text: fit.json's fields as JSON
     text, and each fitted frame as (frame, x, y, angle_rad, radius)."""
     ...
+
+def viscoelastic_simulate(
+    text: str,
+    k1_n_per_m: float,
+    k2_n_per_m: float,
+    b_n_s_per_m: float,
+    name: str = "trial.csv",
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`softjoint viscoelastic simulate` of a CSV's text: (time_s,
+    displacement_m, force_n)."""
+    ...

@@ -16,10 +16,11 @@
 //! 1 with "run cut short"); the joint's plant stops a run whose state
 //! goes non-finite before any row holds it.
 //!
-//! Contour fits are `softjoint contour fit`'s, with the fit's own checks.
+//! Contour fits are `softjoint contour fit`'s, with the fit's own checks;
+//! the viscoelastic trace is `softjoint viscoelastic simulate`'s.
 //!
 //! Left out (issue 33 goes on): plant and gains files written from
-//! Python, identification, push, viscoelastic and rope.
+//! Python, identification, push, the viscoelastic fit and object, and rope.
 
 use pyo3::prelude::*;
 
@@ -27,6 +28,7 @@ mod contour;
 mod errors;
 mod joint;
 mod rheology;
+mod viscoelastic;
 
 /// The module.
 #[pymodule]
@@ -35,5 +37,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     joint::register(m)?;
     rheology::register(m)?;
     contour::register(m)?;
+    viscoelastic::register(m)?;
     Ok(())
 }
