@@ -23,7 +23,9 @@ the fit's own checks: a fit with a frame that failed them raises
 The 3-element viscoelastic model's trace (:func:`viscoelastic_simulate`)
 is ``softjoint viscoelastic simulate``'s.
 
-Left out so far: identification, the push and rope systems, the
+The rope's run (:func:`rope_simulate`) is ``softjoint dlo rope``'s.
+
+Left out so far: identification, the push system, ``dlo solve``, the
 viscoelastic fit and object, and writing plant or gains files from Python.
 """
 from __future__ import annotations
@@ -76,6 +78,8 @@ __all__ = [
     "ContourFrame",
     "contour_fit",
     "viscoelastic_simulate",
+    "RopeRun",
+    "rope_simulate",
     "load_plant",
     "load_scenario",
     "rheology_problem",
@@ -277,3 +281,33 @@ def viscoelastic_simulate(trial: PathLike, k1_n_per_m: float, k2_n_per_m: float,
     t, x, f = _native.viscoelastic_simulate(_read(path), k1_n_per_m, k2_n_per_m, b_n_s_per_m,
                                             os.fspath(path))
     return {"time_s": t, "displacement": x, "force": f}
+
+
+@dataclass(frozen=True)
+class RopeRun:
+    """A rope run: ``time_s`` (frames), ``nodes_m`` of shape (frames,
+    nodes, 3) — rope_nodes.csv's positions — and ``summary``, the
+    ``--json`` summary's figures and topology ``checks`` (without
+    ``step_time_us`` and the file names)."""
+
+    time_s: np.ndarray
+    nodes_m: np.ndarray
+    summary: dict = field(repr=False)
+
+
+def rope_simulate(scenario: Optional[PathLike] = None) -> RopeRun:
+    """Runs a rope scenario file (TOML; default: the built-in overhand
+    knot, ``scenarios/dlo/overhand.toml``) as ``softjoint dlo rope``
+    does.
+
+    Raises :class:`InputError` for a scenario the program refuses (the
+    file and field named), :class:`UnstableError` for a run that went
+    unstable (the time and the cause)."""
+    if scenario is None:
+        text, name = None, "built-in overhand scenario"
+    else:
+        path = Path(scenario)
+        text, name = _read(path), os.fspath(path)
+    summary, t, flat = _native.rope_simulate(text, name)
+    summary = json.loads(summary)
+    return RopeRun(time_s=t, nodes_m=flat.reshape(len(t), summary["nodes"], 3), summary=summary)

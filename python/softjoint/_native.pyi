@@ -133,3 +133,11 @@ def viscoelastic_simulate(
     """`softjoint viscoelastic simulate` of a CSV's text: (time_s,
     displacement_m, force_n)."""
     ...
+
+def rope_simulate(
+    text: Optional[str] = None, name: str = "built-in overhand scenario"
+) -> Tuple[str, np.ndarray, np.ndarray]:
+    """`softjoint dlo rope` of a scenario's TOML text (None: the built-in
+    overhand knot): the summary as JSON text, the frames' times (s), and
+    the node positions flat (frame, node, x/y/z; m)."""
+    ...

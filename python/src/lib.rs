@@ -17,10 +17,11 @@
 //! goes non-finite before any row holds it.
 //!
 //! Contour fits are `softjoint contour fit`'s, with the fit's own checks;
-//! the viscoelastic trace is `softjoint viscoelastic simulate`'s.
+//! the viscoelastic trace is `softjoint viscoelastic simulate`'s; the
+//! rope's run is `softjoint dlo rope`'s.
 //!
 //! Left out (issue 33 goes on): plant and gains files written from
-//! Python, identification, push, the viscoelastic fit and object, and rope.
+//! Python, identification, push, the viscoelastic fit and object, and `dlo solve`.
 
 use pyo3::prelude::*;
 
@@ -28,6 +29,7 @@ mod contour;
 mod errors;
 mod joint;
 mod rheology;
+mod rope;
 mod viscoelastic;
 
 /// The module.
@@ -38,5 +40,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     rheology::register(m)?;
     contour::register(m)?;
     viscoelastic::register(m)?;
+    rope::register(m)?;
     Ok(())
 }
