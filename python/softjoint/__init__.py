@@ -16,8 +16,17 @@ and a reduction: :class:`TuneSweep` gives the units and reduces their
 results; ``softjoint.ray_sweep`` runs the units as Ray tasks. Where the
 units run does not change the result.
 
-Left out so far: identification, the push, viscoelastic, rope and
-contour systems, and writing plant or gains files from Python.
+Contour fits (:func:`contour_fit`) are ``softjoint contour fit``'s, with
+the fit's own checks: a fit with a frame that failed them raises
+:class:`UnverifiedError` (the fit attached) unless asked to return it.
+
+The 3-element viscoelastic model's trace (:func:`viscoelastic_simulate`)
+is ``softjoint viscoelastic simulate``'s.
+
+The rope's run (:func:`rope_simulate`) is ``softjoint dlo rope``'s.
+
+Left out so far: identification, the push system, ``dlo solve``, the
+viscoelastic fit and object, and writing plant or gains files from Python.
 """
 from __future__ import annotations
 
@@ -43,6 +52,7 @@ from ._native import (
     SweepError,
     TuneSweep,
     UnstableError,
+    UnverifiedError,
     rheology_units,
 )
 
@@ -63,6 +73,13 @@ __all__ = [
     "Trace",
     "TuneSweep",
     "UnstableError",
+    "UnverifiedError",
+    "ContourFit",
+    "ContourFrame",
+    "contour_fit",
+    "viscoelastic_simulate",
+    "RopeRun",
+    "rope_simulate",
     "load_plant",
     "load_scenario",
     "rheology_problem",
@@ -179,3 +196,118 @@ def rheology_problem(scenario: Optional[PathLike] = None, measured: Optional[Pat
         m = (_read(d / "surface_points.csv"), _read(d / "forces.csv"))
     name = "scenario" if scenario is None else os.fspath(scenario)
     return RheologyProblem(text, m, params, name)
+
+
+@dataclass(frozen=True)
+class ContourFrame:
+    """One fitted frame: the fitted contour at ``samples`` points (``x``,
+    ``y``; for the signature and surface models also ``angle_rad`` and
+    ``radius``, else ``None``) and the frame's figures and checks
+    (``figures``: the frame's entry of fit.json's ``per_frame``, with
+    ``checks``)."""
+
+    frame: float
+    x: np.ndarray
+    y: np.ndarray
+    angle_rad: Optional[np.ndarray]
+    radius: Optional[np.ndarray]
+    figures: dict = field(repr=False)
+
+    @property
+    def verified(self) -> bool:
+        return self.figures["checks"]["status"] == "verified"
+
+
+@dataclass(frozen=True)
+class ContourFit:
+    """A contour fit: ``summary`` holds fit.json's fields (``status``,
+    ``unverified_frames``, ``model``, ``knots``, ``surface_lambda`` …,
+    ``per_frame``), ``frames`` the fitted frames."""
+
+    summary: dict = field(repr=False)
+    frames: List[ContourFrame]
+
+    @property
+    def verified(self) -> bool:
+        """Whether every frame passed the fit's own checks."""
+        return self.summary["status"] == "verified"
+
+
+def contour_fit(points: PathLike, model: Optional[str] = None, knots: Optional[int] = None,
+                time_knots: Optional[int] = None, lambda_: Optional[float] = None,
+                solver: str = "reduced", samples: int = 200, signed_radii: bool = False,
+                allow_unverified: bool = False) -> ContourFit:
+    """Fits the contour points in the CSV ``points`` as ``softjoint
+    contour fit`` does (``model``: ``"signature"``, ``"curve"`` or
+    ``"surface"``, default from the data; ``lambda_``: λ, or ``None`` to
+    choose it by GCV as ``--lambda gcv``).
+
+    Raises :class:`UnverifiedError` (its ``fit`` attribute holds the
+    :class:`ContourFit`) when a frame failed the fit's own checks, as the
+    program exits 1, unless ``allow_unverified``; the fit then still says
+    ``verified == False``. :class:`InputError` for a file, column or
+    option the program refuses."""
+    path = Path(points)
+    text, frames = _native.contour_fit(_read(path), os.fspath(path), model, knots, time_knots,
+                                       lambda_, solver, samples, signed_radii)
+    summary = json.loads(text)
+    fit = ContourFit(summary=summary, frames=[
+        ContourFrame(f, x, y, a, r, figures)
+        for (f, x, y, a, r), figures in zip(frames, summary["per_frame"])])
+    if not fit.verified and not allow_unverified:
+        e = UnverifiedError(
+            f"{len(summary['unverified_frames'])} of {len(frames)} fitted frame(s) UNVERIFIED "
+            f"(frames {summary['unverified_frames'][:10]}): their figures failed the fit's own "
+            "checks (see `checks` of each frame's figures); pass allow_unverified=True to get "
+            "the fit with that mark")
+        e.fit = fit
+        raise e
+    return fit
+
+
+def viscoelastic_simulate(trial: PathLike, k1_n_per_m: float, k2_n_per_m: float,
+                          b_n_s_per_m: float) -> Dict[str, np.ndarray]:
+    """Runs the 3-element model of seed 002 (Eq. 3: delayed spring k1,
+    series spring k2, dashpot b) on the CSV ``trial`` as ``softjoint
+    viscoelastic simulate`` does: on its ``time_s,displacement`` columns
+    (m) to give the force (N), or else on ``time_s,force`` to give the
+    displacement. Returns ``time_s``, ``displacement`` and ``force``, the
+    program's CSV columns, as NumPy arrays.
+
+    Raises :class:`InputError` for a parameter, file or column the
+    program refuses (named), :class:`NonFiniteError` for a trace that
+    is not finite."""
+    path = Path(trial)
+    t, x, f = _native.viscoelastic_simulate(_read(path), k1_n_per_m, k2_n_per_m, b_n_s_per_m,
+                                            os.fspath(path))
+    return {"time_s": t, "displacement": x, "force": f}
+
+
+@dataclass(frozen=True)
+class RopeRun:
+    """A rope run: ``time_s`` (frames), ``nodes_m`` of shape (frames,
+    nodes, 3) — rope_nodes.csv's positions — and ``summary``, the
+    ``--json`` summary's figures and topology ``checks`` (without
+    ``step_time_us`` and the file names)."""
+
+    time_s: np.ndarray
+    nodes_m: np.ndarray
+    summary: dict = field(repr=False)
+
+
+def rope_simulate(scenario: Optional[PathLike] = None) -> RopeRun:
+    """Runs a rope scenario file (TOML; default: the built-in overhand
+    knot, ``scenarios/dlo/overhand.toml``) as ``softjoint dlo rope``
+    does.
+
+    Raises :class:`InputError` for a scenario the program refuses (the
+    file and field named), :class:`UnstableError` for a run that went
+    unstable (the time and the cause)."""
+    if scenario is None:
+        text, name = None, "built-in overhand scenario"
+    else:
+        path = Path(scenario)
+        text, name = _read(path), os.fspath(path)
+    summary, t, flat = _native.rope_simulate(text, name)
+    summary = json.loads(summary)
+    return RopeRun(time_s=t, nodes_m=flat.reshape(len(t), summary["nodes"], 3), summary=summary)

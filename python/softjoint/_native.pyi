@@ -26,6 +26,9 @@ class UnstableError(SoftjointError):
 class SweepError(SoftjointError):
     """A sweep's units do not add up, or its objective failed."""
 
+class UnverifiedError(SoftjointError):
+    """A result failed its own checks (a contour fit's frames); `.fit` holds it."""
+
 class Scenario:
     @staticmethod
     def default() -> Scenario: ...
@@ -101,3 +104,40 @@ class RheologyProblem:
         seed: int = 1,
         evaluate_batch: Optional[Callable[[List[List[float]]], List[float]]] = None,
     ) -> str: ...
+
+def contour_fit(
+    text: str,
+    name: str = "contour.csv",
+    model: Optional[str] = None,
+    knots: Optional[int] = None,
+    time_knots: Optional[int] = None,
+    lambda_: Optional[float] = None,
+    solver: str = "reduced",
+    samples: int = 200,
+    signed_radii: bool = False,
+) -> Tuple[
+    str,
+    List[Tuple[float, np.ndarray, np.ndarray, Optional[np.ndarray], Optional[np.ndarray]]],
+]:
+    """`softjoint contour fit` of a CSV's text: fit.json's fields as JSON
+    text, and each fitted frame as (frame, x, y, angle_rad, radius)."""
+    ...
+
+def viscoelastic_simulate(
+    text: str,
+    k1_n_per_m: float,
+    k2_n_per_m: float,
+    b_n_s_per_m: float,
+    name: str = "trial.csv",
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`softjoint viscoelastic simulate` of a CSV's text: (time_s,
+    displacement_m, force_n)."""
+    ...
+
+def rope_simulate(
+    text: Optional[str] = None, name: str = "built-in overhand scenario"
+) -> Tuple[str, np.ndarray, np.ndarray]:
+    """`softjoint dlo rope` of a scenario's TOML text (None: the built-in
+    overhand knot): the summary as JSON text, the frames' times (s), and
+    the node positions flat (frame, node, x/y/z; m)."""
+    ...

@@ -40,6 +40,12 @@ pyo3::create_exception!(
 );
 pyo3::create_exception!(
     softjoint,
+    UnverifiedError,
+    SoftjointError,
+    "A result failed its own checks (a contour fit's frames marked unverified); the result is attached as `.fit`."
+);
+pyo3::create_exception!(
+    softjoint,
     SweepError,
     SoftjointError,
     "A sweep's units or their scores do not fit together, or its objective failed."
@@ -54,6 +60,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RunCutShortError", py.get_type::<RunCutShortError>())?;
     m.add("UnstableError", py.get_type::<UnstableError>())?;
     m.add("SweepError", py.get_type::<SweepError>())?;
+    m.add("UnverifiedError", py.get_type::<UnverifiedError>())?;
     Ok(())
 }
 

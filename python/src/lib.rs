@@ -16,14 +16,21 @@
 //! 1 with "run cut short"); the joint's plant stops a run whose state
 //! goes non-finite before any row holds it.
 //!
+//! Contour fits are `softjoint contour fit`'s, with the fit's own checks;
+//! the viscoelastic trace is `softjoint viscoelastic simulate`'s; the
+//! rope's run is `softjoint dlo rope`'s.
+//!
 //! Left out (issue 33 goes on): plant and gains files written from
-//! Python, identification, push, viscoelastic, rope and contour fits.
+//! Python, identification, push, the viscoelastic fit and object, and `dlo solve`.
 
 use pyo3::prelude::*;
 
+mod contour;
 mod errors;
 mod joint;
 mod rheology;
+mod rope;
+mod viscoelastic;
 
 /// The module.
 #[pymodule]
@@ -31,5 +38,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     joint::register(m)?;
     rheology::register(m)?;
+    contour::register(m)?;
+    viscoelastic::register(m)?;
+    rope::register(m)?;
     Ok(())
 }

@@ -1,0 +1,163 @@
+//! Contour fits from Python: what `softjoint contour fit` does — periodic
+//! or closed smoothing splines (Fujioka & Kano, seed 000) fitted to
+//! tracked contour points by `plant_contour`'s `fit_contours` — with the
+//! fit's own checks (verified or not and why, λ, GCV) handed back beside
+//! the fitted contours. Files and pictures stay the program's.
+use host_tools::output;
+use numpy::{PyArray1, ToPyArray};
+use plant_contour::fit::Solver;
+use plant_contour::identify::checks::Status;
+use plant_contour::identify::contours::{
+    fit_contours, ContourFitSpec, ContourModel, FrameResult, LambdaSummary,
+};
+use plant_contour::identify::data::read_contour_csv;
+use plant_contour::identify::gcv::{Lambda, MAX_LAMBDA};
+use pyo3::prelude::*;
+use serde::Serialize;
+
+use crate::errors::{input, to_py};
+
+/// Adds the contour functions to the module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(contour_fit, m)?)?;
+    Ok(())
+}
+
+/// The fit's figures: the fields of `softjoint contour fit`'s fit.json
+/// but its units, input, output directory and file list.
+#[derive(Serialize)]
+struct Summary<'a> {
+    status: Status,
+    unverified_frames: Vec<f64>,
+    model: ContourModel,
+    solver: &'static str,
+    knots: usize,
+    time_knots: Option<usize>,
+    frames: usize,
+    surface_lambda: Option<LambdaSummary>,
+    centre_lambda: Option<LambdaSummary>,
+    surface_rms_residual: Option<f64>,
+    per_frame: Vec<&'a FrameResult>,
+}
+
+/// One fitted frame as NumPy arrays: `(frame, x, y, angle_rad, radius)`
+/// (angle and radius `None` for a closed curve).
+type PyFrame<'py> = (
+    f64,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Option<Bound<'py, PyArray1<f64>>>,
+    Option<Bound<'py, PyArray1<f64>>>,
+);
+
+fn model(name: Option<&str>) -> PyResult<Option<ContourModel>> {
+    match name {
+        None => Ok(None),
+        Some("signature") => Ok(Some(ContourModel::Signature)),
+        Some("curve") => Ok(Some(ContourModel::Curve)),
+        Some("surface") => Ok(Some(ContourModel::Surface)),
+        Some(m) => Err(input(anyhow::anyhow!(
+            "model {m:?}: give \"signature\", \"curve\" or \"surface\""
+        ))),
+    }
+}
+
+fn solver(name: &str) -> PyResult<Solver> {
+    match name {
+        "reduced" => Ok(Solver::Reduced),
+        "kkt" => Ok(Solver::Kkt),
+        _ => Err(input(anyhow::anyhow!(
+            "solver {name:?}: give \"reduced\" or \"kkt\""
+        ))),
+    }
+}
+
+/// `None` is GCV; a number must be as `--lambda` takes it.
+fn lambda(value: Option<f64>) -> PyResult<Lambda> {
+    match value {
+        None => Ok(Lambda::Gcv),
+        Some(v) if v.is_finite() && v > 0.0 && v <= MAX_LAMBDA => Ok(Lambda::Fixed(v)),
+        Some(v) => Err(input(anyhow::anyhow!(
+            "lambda {v}: λ must be a number > 0 and ≤ {MAX_LAMBDA:e} (or None for GCV)"
+        ))),
+    }
+}
+
+/// Fits the contour points of a CSV's text (`name` names it in errors)
+/// as `softjoint contour fit` does with the same options, and returns
+/// the fit's figures as JSON text (the fields of fit.json: `status`,
+/// `unverified_frames`, λ and GCV reports, `per_frame` with each frame's
+/// `checks`) and the fitted frames as arrays.
+#[pyfunction]
+#[pyo3(signature = (text, name="contour.csv", model=None, knots=None, time_knots=None,
+                    lambda_=None, solver="reduced", samples=200, signed_radii=false))]
+#[allow(clippy::too_many_arguments)]
+fn contour_fit<'py>(
+    py: Python<'py>,
+    text: &str,
+    name: &str,
+    model: Option<&str>,
+    knots: Option<usize>,
+    time_knots: Option<usize>,
+    lambda_: Option<f64>,
+    solver: &str,
+    samples: usize,
+    signed_radii: bool,
+) -> PyResult<(String, Vec<PyFrame<'py>>)> {
+    let spec = ContourFitSpec {
+        model: self::model(model)?,
+        knots,
+        time_knots,
+        lambda: lambda(lambda_)?,
+        solver: self::solver(solver)?,
+        samples,
+        signed_radii,
+    };
+    if !(3..=100_000).contains(&samples) {
+        return Err(input(anyhow::anyhow!(
+            "samples must be 3..=100000, got {samples}"
+        )));
+    }
+    let data = read_contour_csv(text, name).map_err(|e| input(e.into()))?;
+    if spec.model == Some(ContourModel::Surface) && data.frames.len() < 2 {
+        return Err(input(anyhow::anyhow!(
+            "{name}: model surface needs at least two frames (column `frame`), found one"
+        )));
+    }
+    let fit = py
+        .detach(|| fit_contours(&data, &spec))
+        .map_err(|e| input(e.into()))?;
+    let surface = fit.surface();
+    let unverified: Vec<f64> = fit.unverified().map(|f| f.frame).collect();
+    let summary = Summary {
+        status: if unverified.is_empty() {
+            Status::Verified
+        } else {
+            Status::Unverified
+        },
+        unverified_frames: unverified,
+        model: fit.model,
+        solver: spec.solver.name(),
+        knots: fit.knots,
+        time_knots: fit.time_knots,
+        frames: data.frames.len(),
+        surface_lambda: surface.map(|f| (&f.lambda).into()),
+        centre_lambda: surface.map(|f| (&f.centre_lambda).into()),
+        surface_rms_residual: surface.map(|f| f.rms_residual),
+        per_frame: fit.frames.iter().map(|f| &f.result).collect(),
+    };
+    let json = output::json("the contour fit's summary", &summary).map_err(to_py)?;
+    let mut frames = Vec::with_capacity(fit.frames.len());
+    for f in &fit.frames {
+        let (x, y): (Vec<f64>, Vec<f64>) = f.fit.iter().map(|p| (p.0, p.1)).unzip();
+        output::check_value("the fitted contour", &(&x, &y, &f.angle, &f.radius)).map_err(to_py)?;
+        frames.push((
+            f.frame,
+            x.to_pyarray(py),
+            y.to_pyarray(py),
+            f.angle.as_ref().map(|a| a.to_pyarray(py)),
+            f.radius.as_ref().map(|r| r.to_pyarray(py)),
+        ));
+    }
+    Ok((json, frames))
+}
