@@ -6,14 +6,10 @@
 use host_tools::output;
 use numpy::{PyArray1, ToPyArray};
 use plant_contour::fit::Solver;
-use plant_contour::identify::checks::Status;
-use plant_contour::identify::contours::{
-    fit_contours, ContourFitSpec, ContourModel, FrameResult, LambdaSummary,
-};
+use plant_contour::identify::contours::{fit_contours, ContourFitSpec, ContourModel};
 use plant_contour::identify::data::read_contour_csv;
 use plant_contour::identify::gcv::{Lambda, MAX_LAMBDA};
 use pyo3::prelude::*;
-use serde::Serialize;
 
 use crate::errors::{input, to_py};
 
@@ -21,23 +17,6 @@ use crate::errors::{input, to_py};
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(contour_fit, m)?)?;
     Ok(())
-}
-
-/// The fit's figures: the fields of `softjoint contour fit`'s fit.json
-/// but its units, input, output directory and file list.
-#[derive(Serialize)]
-struct Summary<'a> {
-    status: Status,
-    unverified_frames: Vec<f64>,
-    model: ContourModel,
-    solver: &'static str,
-    knots: usize,
-    time_knots: Option<usize>,
-    frames: usize,
-    surface_lambda: Option<LambdaSummary>,
-    centre_lambda: Option<LambdaSummary>,
-    surface_rms_residual: Option<f64>,
-    per_frame: Vec<&'a FrameResult>,
 }
 
 /// One fitted frame as NumPy arrays: `(frame, x, y, angle_rad, radius)`
@@ -127,25 +106,8 @@ fn contour_fit<'py>(
     let fit = py
         .detach(|| fit_contours(&data, &spec))
         .map_err(|e| input(e.into()))?;
-    let surface = fit.surface();
-    let unverified: Vec<f64> = fit.unverified().map(|f| f.frame).collect();
-    let summary = Summary {
-        status: if unverified.is_empty() {
-            Status::Verified
-        } else {
-            Status::Unverified
-        },
-        unverified_frames: unverified,
-        model: fit.model,
-        solver: spec.solver.name(),
-        knots: fit.knots,
-        time_knots: fit.time_knots,
-        frames: data.frames.len(),
-        surface_lambda: surface.map(|f| (&f.lambda).into()),
-        centre_lambda: surface.map(|f| (&f.centre_lambda).into()),
-        surface_rms_residual: surface.map(|f| f.rms_residual),
-        per_frame: fit.frames.iter().map(|f| &f.result).collect(),
-    };
+    // fit.json's figures (the command adds its units, input and files).
+    let summary = fit.figures(data.frames.len(), spec.solver);
     let json = output::json("the contour fit's summary", &summary).map_err(to_py)?;
     let mut frames = Vec::with_capacity(fit.frames.len());
     for f in &fit.frames {

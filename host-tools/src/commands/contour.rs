@@ -23,8 +23,8 @@ use host_tools::{out, outln};
 use plant_contour::fit::Solver;
 use plant_contour::identify::checks::Status;
 use plant_contour::identify::contours::{
-    fit_contours, ContourFitReport, ContourFitSpec, ContourModel, FittedFrame, FittedSplines,
-    FrameResult, LambdaSummary,
+    fit_contours, ContourFitReport, ContourFitSpec, ContourModel, FitFigures, FittedFrame,
+    FittedSplines, FrameResult,
 };
 use plant_contour::identify::data::read_contour_csv;
 use plant_contour::identify::gcv::{Lambda, LambdaReport, MAX_LAMBDA};
@@ -223,27 +223,14 @@ const UNITS: Units = Units {
     bending_energy: "1/length (∫κ² dl)",
 };
 
-/// What `fit` prints with `--json` and writes as fit.json.
+/// What `fit` prints with `--json` and writes as fit.json: the fit's
+/// own figures, then where they came from and went.
 #[derive(Serialize)]
 struct FitSummary<'a> {
-    /// `verified` when every frame passed its checks.
-    status: Status,
-    /// Frames that failed a check (their `checks` say why).
-    unverified_frames: Vec<f64>,
+    #[serde(flatten)]
+    fit: FitFigures<'a>,
     units: Units,
     input: String,
-    model: ContourModel,
-    solver: &'static str,
-    knots: usize,
-    time_knots: Option<usize>,
-    frames: usize,
-    /// The surface's λ report (surface model).
-    surface_lambda: Option<LambdaSummary>,
-    /// The centroid curves' λ report (surface model).
-    centre_lambda: Option<LambdaSummary>,
-    /// RMS radius residual of the surface (surface model).
-    surface_rms_residual: Option<f64>,
-    per_frame: Vec<&'a FrameResult>,
     out: String,
     files: Vec<&'static str>,
 }
@@ -271,26 +258,10 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
         signed_radii: a.signed_radii,
     };
     let fit = fit_contours(&data, &spec)?;
-    let surface = fit.surface();
-    let unverified: Vec<f64> = fit.unverified().map(|f| f.frame).collect();
     let summary = FitSummary {
-        status: if unverified.is_empty() {
-            Status::Verified
-        } else {
-            Status::Unverified
-        },
-        unverified_frames: unverified,
+        fit: fit.figures(data.frames.len(), solver),
         units: UNITS,
         input: file.clone(),
-        model: fit.model,
-        solver: solver.name(),
-        knots: fit.knots,
-        time_knots: fit.time_knots,
-        frames: data.frames.len(),
-        surface_lambda: surface.map(|f| (&f.lambda).into()),
-        centre_lambda: surface.map(|f| (&f.centre_lambda).into()),
-        surface_rms_residual: surface.map(|f| f.rms_residual),
-        per_frame: fit.frames.iter().map(|f| &f.result).collect(),
         out: a.out.display().to_string(),
         files: Vec::new(),
     };
@@ -316,12 +287,12 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
     } else {
         out!("{}", fit_report(&summary));
     }
-    if summary.status == Status::Unverified && !a.allow_unverified {
+    if summary.fit.status == Status::Unverified && !a.allow_unverified {
         bail!(
             "{} of {} fitted frame(s) UNVERIFIED (frames {}): their figures failed the fit's own checks (see `checks` in fit.json / frames.csv); the results were written with that mark to {} (give --allow-unverified to exit 0)",
-            summary.unverified_frames.len(),
-            summary.per_frame.len(),
-            frame_list(&summary.unverified_frames),
+            summary.fit.unverified_frames.len(),
+            summary.fit.per_frame.len(),
+            frame_list(&summary.fit.unverified_frames),
             summary.out
         );
     }
@@ -404,18 +375,19 @@ fn fit_report(s: &FitSummary) -> String {
         out,
         "{}: {} model, {} frame(s), {} knot intervals around the contour{}",
         s.input,
-        match s.model {
+        match s.fit.model {
             ContourModel::Signature => "signature",
             ContourModel::Curve => "closed-curve",
             ContourModel::Surface => "surface",
         },
-        s.frames,
-        s.knots,
-        s.time_knots
+        s.fit.frames,
+        s.fit.knots,
+        s.fit
+            .time_knots
             .map(|t| format!(", {t} along time"))
             .unwrap_or_default()
     );
-    if let Some(l) = &s.surface_lambda {
+    if let Some(l) = &s.fit.surface_lambda {
         let _ = writeln!(
             out,
             "surface: λ = {:.3e}{} (GCV {}, tr H = {:.1}), RMS residual {:.4}",
@@ -426,7 +398,7 @@ fn fit_report(s: &FitSummary) -> String {
                     "{v:.4e}"
                 )),
             l.trace_hat,
-            s.surface_rms_residual.unwrap_or(f64::NAN)
+            s.fit.surface_rms_residual.unwrap_or(f64::NAN)
         );
         if l.at_scan_edge {
             let _ = writeln!(
@@ -440,11 +412,11 @@ fn fit_report(s: &FitSummary) -> String {
         "units: area {}, perimeter {}, smoothness {}, bending {} (length = the data's unit)",
         s.units.area, s.units.perimeter, s.units.smoothness, s.units.bending_energy
     );
-    let shown: Vec<&&FrameResult> = if s.per_frame.len() > 12 {
-        let step = s.per_frame.len().div_ceil(12);
-        s.per_frame.iter().step_by(step).collect()
+    let shown: Vec<&&FrameResult> = if s.fit.per_frame.len() > 12 {
+        let step = s.fit.per_frame.len().div_ceil(12);
+        s.fit.per_frame.iter().step_by(step).collect()
     } else {
-        s.per_frame.iter().collect()
+        s.fit.per_frame.iter().collect()
     };
     let _ = writeln!(
         out,
@@ -467,17 +439,17 @@ fn fit_report(s: &FitSummary) -> String {
             status_word(f.checks.status)
         );
     }
-    for f in s.per_frame.iter().filter(|f| !f.checks.verified()) {
+    for f in s.fit.per_frame.iter().filter(|f| !f.checks.verified()) {
         let why: Vec<&str> = f.checks.flags.iter().map(|g| g.describe()).collect();
         let _ = writeln!(out, "UNVERIFIED frame {}: {}", f.frame, why.join("; "));
     }
     let _ = writeln!(out, "wrote {} to {}", s.files.join(", "), s.out);
-    if s.status == Status::Unverified {
+    if s.fit.status == Status::Unverified {
         let _ = writeln!(
             out,
             "UNVERIFIED: {} of {} frame(s) failed the fit's own checks; do not use their figures",
-            s.unverified_frames.len(),
-            s.per_frame.len()
+            s.fit.unverified_frames.len(),
+            s.fit.per_frame.len()
         );
     }
     out
@@ -614,11 +586,11 @@ fn fit_picture(
         ContourModel::Curve => "closed parametric splines (x(t), y(t))",
         ContourModel::Surface => "the contour × time surface",
     };
-    let title = if summary.status == Status::Unverified {
+    let title = if summary.fit.status == Status::Unverified {
         format!(
             "{file}: {what} — UNVERIFIED: {} of {} frame(s) failed their checks",
-            summary.unverified_frames.len(),
-            summary.per_frame.len()
+            summary.fit.unverified_frames.len(),
+            summary.fit.per_frame.len()
         )
     } else {
         format!("{file}: {what}")

@@ -24,7 +24,7 @@ use serde::Serialize;
 
 use crate::error::{ContourError, Result};
 use crate::fit::Solver;
-use crate::identify::checks::{jumps, polygon_self_intersects, Flag, FrameChecks};
+use crate::identify::checks::{jumps, polygon_self_intersects, Flag, FrameChecks, Status};
 use crate::identify::data::{ContourData, FrameData};
 use crate::identify::gcv::{Lambda, LambdaReport};
 use crate::identify::tracked::{
@@ -200,6 +200,55 @@ impl ContourFitReport {
     pub fn unverified(&self) -> impl Iterator<Item = &FittedFrame> {
         self.frames.iter().filter(|f| !f.result.checks.verified())
     }
+
+    /// What the fit reports about itself (`softjoint contour fit`'s
+    /// fit.json and the Python binding's summary): `data_frames` frames
+    /// fitted with `solver`.
+    pub fn figures(&self, data_frames: usize, solver: Solver) -> FitFigures<'_> {
+        let surface = self.surface();
+        let unverified: Vec<f64> = self.unverified().map(|f| f.frame).collect();
+        FitFigures {
+            status: if unverified.is_empty() {
+                Status::Verified
+            } else {
+                Status::Unverified
+            },
+            unverified_frames: unverified,
+            model: self.model,
+            solver: solver.name(),
+            knots: self.knots,
+            time_knots: self.time_knots,
+            frames: data_frames,
+            surface_lambda: surface.map(|f| (&f.lambda).into()),
+            centre_lambda: surface.map(|f| (&f.centre_lambda).into()),
+            surface_rms_residual: surface.map(|f| f.rms_residual),
+            per_frame: self.frames.iter().map(|f| &f.result).collect(),
+        }
+    }
+}
+
+/// A fit's own figures: whether every frame passed its checks, the
+/// model and its sizes, the λ reports and each frame's figures with its
+/// checks.
+#[derive(Debug, Serialize)]
+pub struct FitFigures<'a> {
+    /// `verified` when every frame passed its checks.
+    pub status: Status,
+    /// Frames that failed a check (their `checks` say why).
+    pub unverified_frames: Vec<f64>,
+    pub model: ContourModel,
+    pub solver: &'static str,
+    pub knots: usize,
+    pub time_knots: Option<usize>,
+    /// Frames in the data.
+    pub frames: usize,
+    /// The surface's λ report (surface model).
+    pub surface_lambda: Option<LambdaSummary>,
+    /// The centroid curves' λ report (surface model).
+    pub centre_lambda: Option<LambdaSummary>,
+    /// RMS radius residual of the surface (surface model).
+    pub surface_rms_residual: Option<f64>,
+    pub per_frame: Vec<&'a FrameResult>,
 }
 
 /// Fits the contours of `data` as `spec` says.
