@@ -48,16 +48,22 @@ def test_a_plant_that_fails_mid_run_is_a_run_cut_short_error_with_the_programs_w
     assert cli.stderr.strip().splitlines()[-1] == f"error: {msg}"
 
 
+def measured_small_push(softjoint_bin, data, tmp_path):
+    """The small rheology scenario and a push the program made of it (the
+    reference model's run, as `--measured` reads it)."""
+    small = data / "rheology/small.toml"
+    measured = tmp_path / "measured"
+    run_cli(softjoint_bin, "rheology", "simulate", small, "--model", "reference",
+            "--out", measured, "--json")
+    return small, measured
+
 def test_a_weight_for_which_the_objective_can_overflow_is_refused_by_name(softjoint_bin, data, tmp_path):
     """A shape weight of 1e308 per cm: S = 1e308 · S_shape is past the
     largest double for a stable run (issue 31: the program printed `s:
     null` and its searches counted such runs as unstable). The problem
     refuses the weight by name when it meets the measured push, as the
     program does, before any run; no inf is handed back."""
-    small = data / "rheology/small.toml"
-    measured = tmp_path / "measured"
-    run_cli(softjoint_bin, "rheology", "simulate", small, "--model", "reference",
-            "--out", measured, "--json")
+    small, measured = measured_small_push(softjoint_bin, data, tmp_path)
     scen = tmp_path / "heavy_weight.toml"
     scen.write_text(small.read_text() + "\n[objective]\nshape_per_cm = 1e308\n")
     cli = run_cli(softjoint_bin, "rheology", "simulate", scen, "--measured", measured,
@@ -77,10 +83,7 @@ def test_a_force_term_that_overflows_in_a_batch_raises_by_name_not_inf(softjoint
     InputError naming the weight, so the driver's search stops with it,
     instead of handing back +inf, which the search counts as an unstable
     candidate (issue 31)."""
-    small = data / "rheology/small.toml"
-    measured = tmp_path / "measured"
-    run_cli(softjoint_bin, "rheology", "simulate", small, "--model", "reference",
-            "--out", measured, "--json")
+    small, measured = measured_small_push(softjoint_bin, data, tmp_path)
     scen = tmp_path / "heavy_force.toml"
     scen.write_text(small.read_text() + "\n[objective]\nshape_per_cm = 0\nforce_per_n = 1e308\n")
     p = softjoint.rheology_problem(scen, measured, 4)
