@@ -2,7 +2,8 @@
 //! Cortex-M4F, talking over UART0.
 //!
 //! Default board: QEMU's `mps2-an386` (CMSDK APB UART0 at 0x4000_4000,
-//! 25 MHz system clock, SysTick as the millisecond clock). Another board
+//! its receive interrupt on IRQ 0, 25 MHz system clock, SysTick as the
+//! millisecond clock). The main loop sleeps in WFI between interrupts. Another board
 //! goes in its own module behind a cargo feature, providing the same four
 //! things: a byte UART, a millisecond clock, SMA driver outputs and wire
 //! sensors.
@@ -57,20 +58,40 @@ mod mps2 {
     const DATA: usize = 0x000;
     const STATE: usize = 0x004;
     const CTRL: usize = 0x008;
+    /// INTSTATUS when read, INTCLEAR when written.
+    const INTCLEAR: usize = 0x00C;
     const BAUDDIV: usize = 0x010;
     const STATE_TX_FULL: u32 = 1 << 0;
     const STATE_RX_FULL: u32 = 1 << 1;
     const CTRL_TX_EN: u32 = 1 << 0;
     const CTRL_RX_EN: u32 = 1 << 1;
+    const CTRL_RX_INT_EN: u32 = 1 << 3;
+    const INT_RX: u32 = 1 << 1;
+    const UART0_BASE: usize = 0x4000_4000;
+
+    /// UART0's receive interrupt: IRQ 0 on the AN385/AN386 images (AN386's
+    /// interrupt map: UART0 RX 0, TX 1; QEMU's mps2 machine wires it so).
+    #[derive(Clone, Copy)]
+    struct Uart0Rx;
+
+    // SAFETY: 0 is a valid external interrupt number of this device (the
+    // Cortex-M4 of AN386 has more than one), and the only one this type
+    // returns.
+    unsafe impl cortex_m::interrupt::InterruptNumber for Uart0Rx {
+        fn number(self) -> u16 {
+            0
+        }
+    }
 
     impl CmsdkUart {
-        /// UART0 of mps2-an386.
+        /// UART0 of mps2-an386, its receive interrupt enabled (the NVIC
+        /// line is unmasked by `main`).
         fn uart0() -> Self {
-            let u = Self { base: 0x4000_4000 };
+            let u = Self { base: UART0_BASE };
             // 115200 Bd at 25 MHz: BAUDDIV = 217 (must be ≥ 16). QEMU's
             // model ignores the rate but requires the register and enables.
             u.write(BAUDDIV, SYSCLK_HZ / 115_200);
-            u.write(CTRL, CTRL_TX_EN | CTRL_RX_EN);
+            u.write(CTRL, CTRL_TX_EN | CTRL_RX_EN | CTRL_RX_INT_EN);
             u
         }
 
@@ -85,8 +106,12 @@ mod mps2 {
             unsafe { core::ptr::write_volatile((self.base + off) as *mut u32, v) }
         }
 
+        fn rx_full(&self) -> bool {
+            self.read(STATE) & STATE_RX_FULL != 0
+        }
+
         fn try_read_byte(&self) -> Option<u8> {
-            if self.read(STATE) & STATE_RX_FULL != 0 {
+            if self.rx_full() {
                 Some((self.read(DATA) & 0xFF) as u8)
             } else {
                 None
@@ -108,6 +133,21 @@ mod mps2 {
     #[exception]
     fn SysTick() {
         MILLIS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Every interrupt without its own handler. UART0's receive interrupt
+    /// only wakes the main loop from WFI: it is acknowledged here and the
+    /// byte stays in the data register for the loop. Any other is not
+    /// expected: outputs off, and under QEMU a failed exit (as a panic).
+    #[exception]
+    unsafe fn DefaultHandler(irqn: i16) {
+        if irqn == 0 {
+            CmsdkUart { base: UART0_BASE }.write(INTCLEAR, INT_RX);
+        } else {
+            all_outputs_off();
+            cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_FAILURE);
+            halt()
+        }
     }
 
     /// The board's monotonic clock (read from the main loop only).
@@ -156,6 +196,10 @@ mod mps2 {
         core.SYST.enable_interrupt();
 
         let uart = CmsdkUart::uart0();
+        // SAFETY: unmasking UART0's receive interrupt is sound: its handler
+        // (`DefaultHandler`, IRQ 0) only writes the UART's INTCLEAR and
+        // shares no data with the loop.
+        unsafe { cortex_m::peripheral::NVIC::unmask(Uart0Rx) };
         let Ok(mut app) = App::new() else { halt() };
         #[cfg(feature = "defmt")]
         defmt::info!("softjoint-fw up");
@@ -167,6 +211,21 @@ mod mps2 {
             }
             app.poll(clock.now(), &mut NoSensors, &mut send);
             apply_outputs(app.outputs(), app.joint().driver());
+            // Sleep until the next interrupt: SysTick every millisecond
+            // (the control period) or a received byte. Interrupts are
+            // masked from the check to the WFI, so a byte that arrives
+            // after the check still ends the WFI (a pending interrupt
+            // wakes it even while masked) and none waits for the next
+            // tick. Under QEMU this is what keeps an idle board from
+            // costing a host core: a spinning loop did, and its clock
+            // (`-icount shift=0`) ran only as fast as QEMU executed it.
+            cortex_m::interrupt::disable();
+            if !uart.rx_full() {
+                cortex_m::asm::wfi();
+            }
+            // SAFETY: re-enables what the line before disabled; no
+            // critical section of the loop spans it.
+            unsafe { cortex_m::interrupt::enable() };
         }
     }
 

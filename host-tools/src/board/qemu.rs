@@ -79,18 +79,15 @@ impl QemuBoard {
 
     /// The link-loss timeout (ms of the board's clock) `softjoint hil`
     /// sets on this board under QEMU, unless told otherwise. An emulated
-    /// board's clock depends on host scheduling, and the two images spend
-    /// their waiting time differently: the mps2-an386 image spins, so
-    /// under `-icount shift=0` its clock advances only with the
-    /// instructions QEMU manages to execute (0.06–0.23× wall time here),
-    /// and 250 ms of its clock is 1–4 s of a stalled host; the STM32F4
-    /// image sleeps in WFI between interrupts, and QEMU then advances its
-    /// clock with wall time (0.9× here, as a real board's), so the same
-    /// slack against a stalled host needs about 1 s.
+    /// board's clock depends on host scheduling: both images sleep in WFI
+    /// between interrupts, and under `-icount shift=0` QEMU then advances
+    /// their clock with wall time (0.9× here, as a real board's), so 1 s
+    /// is the slack against a stalled host. (The mps2-an386 image spun in
+    /// its loop until issue 27's CI work, its clock then at 0.06–0.23×
+    /// wall time, and this was 250 ms for it.)
     pub const fn hil_link_timeout_ms(self) -> u16 {
         match self {
-            QemuBoard::Mps2An386 => 250,
-            QemuBoard::Stm32f4 => 1000,
+            QemuBoard::Mps2An386 | QemuBoard::Stm32f4 => 1000,
         }
     }
 

@@ -55,10 +55,10 @@ pub struct HilArgs {
     #[arg(allow_negative_numbers = true, long)]
     lose_every: Option<u32>,
     /// Link-loss timeout to set on the board (ms of its clock)
-    /// [default: 250; under QEMU the board's own: 250 for mps2-an386, 1000
-    /// for stm32f4]. The board's built-in default is 50 ms; an emulated
-    /// board's clock depends on host scheduling, so a loaded host needs
-    /// more slack than a real board does.
+    /// [default: 250 on a port; 1000 under QEMU, either image]. The
+    /// board's built-in default is 50 ms; an emulated board's clock
+    /// depends on host scheduling, so a loaded host needs more slack than
+    /// a real board does.
     #[arg(allow_negative_numbers = true, long, value_parser = link_timeout_ms)]
     link_timeout_ms: Option<u16>,
     /// A board that restarts during the run is set up again and the run
