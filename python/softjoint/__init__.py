@@ -23,7 +23,9 @@ the fit's own checks: a fit with a frame that failed them raises
 The 3-element viscoelastic model's trace (:func:`viscoelastic_simulate`)
 is ``softjoint viscoelastic simulate``'s.
 
-The rope's run (:func:`rope_simulate`) is ``softjoint dlo rope``'s.
+The rope's run (:func:`rope_simulate`) is ``softjoint dlo rope``'s, with
+the run's own checks: a run that fails them raises
+:class:`UnverifiedError` (the run attached) unless asked to return it.
 
 Left out so far: identification, the push system, ``dlo solve``, the
 viscoelastic fit and object, and writing plant or gains files from Python.
@@ -287,27 +289,43 @@ def viscoelastic_simulate(trial: PathLike, k1_n_per_m: float, k2_n_per_m: float,
 class RopeRun:
     """A rope run: ``time_s`` (frames), ``nodes_m`` of shape (frames,
     nodes, 3) — rope_nodes.csv's positions — and ``summary``, the
-    ``--json`` summary's figures and topology ``checks`` (without
-    ``step_time_us`` and the file names)."""
+    ``--json`` summary's ``status``, self-``checks``, figures and
+    ``topology`` checks (without ``step_time_us`` and the file names)."""
 
     time_s: np.ndarray
     nodes_m: np.ndarray
     summary: dict = field(repr=False)
 
+    @property
+    def verified(self) -> bool:
+        """Whether the run passed every one of its own checks."""
+        return self.summary["status"] == "verified"
 
-def rope_simulate(scenario: Optional[PathLike] = None) -> RopeRun:
+
+def rope_simulate(scenario: Optional[PathLike] = None, check_step: bool = False,
+                  allow_unverified: bool = False) -> RopeRun:
     """Runs a rope scenario file (TOML; default: the built-in overhand
     knot, ``scenarios/dlo/overhand.toml``) as ``softjoint dlo rope``
-    does.
+    does (``check_step``: as ``--check-step``, again at half the time
+    step for the ``time_step`` check).
 
-    Raises :class:`InputError` for a scenario the program refuses (the
-    file and field named), :class:`UnstableError` for a run that went
-    unstable (the time and the cause)."""
+    Raises :class:`UnverifiedError` (its ``run`` attribute holds the
+    :class:`RopeRun`) when the run failed its own checks — a run the
+    step's checks stopped fails ``stability`` — as the program exits 1,
+    unless ``allow_unverified``. :class:`InputError` for a scenario the
+    program refuses (the file and field named)."""
     if scenario is None:
         text, name = None, "built-in overhand scenario"
     else:
         path = Path(scenario)
         text, name = _read(path), os.fspath(path)
-    summary, t, flat = _native.rope_simulate(text, name)
+    summary, t, flat = _native.rope_simulate(text, name, check_step)
     summary = json.loads(summary)
-    return RopeRun(time_s=t, nodes_m=flat.reshape(len(t), summary["nodes"], 3), summary=summary)
+    run = RopeRun(time_s=t, nodes_m=flat.reshape(len(t), summary["nodes"], 3), summary=summary)
+    if not run.verified and not allow_unverified:
+        e = UnverifiedError(
+            f"{name}: UNVERIFIED: the run fails {', '.join(summary['failed_checks'])} (see "
+            "`checks` in its summary); pass allow_unverified=True to get the run with that mark")
+        e.run = run
+        raise e
+    return run

@@ -135,9 +135,11 @@ def viscoelastic_simulate(
     ...
 
 def rope_simulate(
-    text: Optional[str] = None, name: str = "built-in overhand scenario"
+    text: Optional[str] = None, name: str = "built-in overhand scenario",
+    check_step: bool = False,
 ) -> Tuple[str, np.ndarray, np.ndarray]:
     """`softjoint dlo rope` of a scenario's TOML text (None: the built-in
-    overhand knot): the summary as JSON text, the frames' times (s), and
-    the node positions flat (frame, node, x/y/z; m)."""
+    overhand knot; check_step: `--check-step`): the summary as JSON text
+    (status and self-checks included), the frames' times (s), and the
+    node positions flat (frame, node, x/y/z; m)."""
     ...

@@ -20,6 +20,7 @@ def test_the_rope_run_is_the_programs(softjoint_bin, tmp_path):
     table = np.loadtxt(tmp_path / "o" / "rope_nodes.csv", delimiter=",", skiprows=1)
     run = softjoint.rope_simulate()
     assert run.summary == want
+    assert run.verified and run.summary["checks"]["overlap"]["passed"]
     assert run.nodes_m.shape == (len(run.time_s), 50, 3)
     assert len(table) == run.nodes_m.shape[0] * 50
     np.testing.assert_allclose(np.repeat(run.time_s, 50), table[:, 0], rtol=0, atol=5e-5)
@@ -37,3 +38,47 @@ def test_rope_input_errors_name_the_file_and_field(softjoint_bin, data, tmp_path
         softjoint.rope_simulate(bad)
     assert str(bad) in str(e.value) and "duration_s" in str(e.value)
     assert str(e.value) in cli.stderr
+
+
+DRAG_THROUGH = """name = "drag through"
+start_m = [0.0, 0.0, 0.05]
+direction = [1.0, 0.0, 0.0]
+pins = [0, 10]
+desk_height_m = 0.0
+duration_s = 2.0
+
+[rope]
+nodes = 20
+length_m = 2.0
+collision_passes = 0
+
+[[hands]]
+name = "right"
+keys = [
+  { t_s = 0.0, at_m = [2.0, 0.0, 0.05], action = "grasp", node = 19 },
+  { t_s = 0.7, at_m = [1.5, -0.6, 0.05] },
+  { t_s = 1.6, at_m = [0.5, 0.6, 0.05] },
+]
+"""
+
+
+def test_an_unverified_rope_run_raises_as_the_program_exits_1(softjoint_bin, tmp_path):
+    """Issue 29: a hand drags the rope's end through the rope with the
+    collision shift off; the overlap fails its check. The program exits 1
+    and says UNVERIFIED; rope_simulate raises UnverifiedError with the run
+    attached, and with allow_unverified returns the program's summary."""
+    scenario = tmp_path / "through.toml"
+    scenario.write_text(DRAG_THROUGH)
+    cli = run_cli(softjoint_bin, "dlo", "rope", scenario, "--out", tmp_path / "o", "--json",
+                  ok=False)
+    assert cli.returncode == 1 and "UNVERIFIED" in cli.stderr
+    want = {k: v for k, v in json.loads(cli.stdout).items()
+            if k not in ("step_time_us", "csv", "picture")}
+    with pytest.raises(softjoint.UnverifiedError) as e:
+        softjoint.rope_simulate(scenario)
+    assert "overlap" in str(e.value)
+    assert e.value.run.summary == want
+    run = softjoint.rope_simulate(scenario, allow_unverified=True)
+    assert not run.verified
+    assert run.summary["failed_checks"] == ["overlap"]
+    assert run.summary == want

@@ -19,6 +19,7 @@ use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, PanelStroke, ViewPanel};
 use host_tools::{out, outln};
 use plant_dlo::rope::script::{Frame, RopeScenario, RunResult};
+use plant_dlo::rope::verify::RopeChecks;
 use plant_dlo::rope::V3;
 use plant_dlo::wire::belt::{curve_top, BeltMethod, BeltShape};
 use plant_dlo::wire::linear::SequenceStep;
@@ -71,6 +72,15 @@ struct RopeArgs {
     /// Print a machine-readable summary.
     #[arg(long)]
     json: bool,
+    /// Also run the scenario at half the time step and check that the
+    /// shapes at the topology checks and at the end agree (the `time_step`
+    /// check; about three times the run's cost).
+    #[arg(long)]
+    check_step: bool,
+    /// Exit 0 even when the run fails its checks (it is still marked
+    /// UNVERIFIED in the report, the JSON and the picture).
+    #[arg(long)]
+    allow_unverified: bool,
 }
 
 /// The built-in rope scenario (also `scenarios/dlo/overhand.toml`).
@@ -118,17 +128,41 @@ fn rope_cmd(a: RopeArgs) -> Result<()> {
     let result = scenario
         .run(|f| rope_csv_rows(&mut csv, f))
         .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let started = std::time::Instant::now();
+    let half = if a.check_step {
+        Some(
+            scenario
+                .run_half_step()
+                .map_err(|e| anyhow::anyhow!("{source} at dt/2: {e}"))?,
+        )
+    } else {
+        None
+    };
+    let half_s = started.elapsed().as_secs_f64();
+    let checks = RopeChecks::of(&scenario, &result, half.as_ref());
     output::write_csv(&csv_path, &csv)?;
     let svg_path = a.out.join("rope_frames.svg");
-    output::write_svg(&svg_path, &rope_strip(&scenario, &result, a.strip).finish())?;
+    output::write_svg(
+        &svg_path,
+        &rope_strip(&scenario, &result, &checks, a.strip).finish(),
+    )?;
     if a.json {
-        rope_json(&scenario, &result)?
+        rope_json(&scenario, &result, &checks)?
             .field("csv", &csv_path)?
             .field("picture", &svg_path)?
             .print()?;
     } else {
-        print_rope_report(&scenario, &result)?;
+        print_rope_report(&scenario, &result, &checks)?;
+        if a.check_step {
+            outln!("the run at dt/2 took {half_s:.2} s");
+        }
         outln!("wrote {} and {}", csv_path.display(), svg_path.display());
+    }
+    if !checks.verified() && !a.allow_unverified {
+        anyhow::bail!(
+            "{source}: UNVERIFIED: the run fails {} (see \"checks\" in --json); the files were written with that mark (give --allow-unverified to exit 0)",
+            checks.failures().join(", ")
+        );
     }
     Ok(())
 }
@@ -140,10 +174,18 @@ fn rope_csv_rows(csv: &mut String, f: &Frame) {
     }
 }
 
-/// The `--json` summary of a rope run (without the file names).
-fn rope_json(scenario: &RopeScenario, result: &RunResult) -> Result<JsonObject> {
+/// The `--json` summary of a rope run (without the file names): its
+/// status and self-checks, figures, topology checks and hands.
+fn rope_json(
+    scenario: &RopeScenario,
+    result: &RunResult,
+    checks: &RopeChecks,
+) -> Result<JsonObject> {
     JsonObject::new()
         .field("scenario", &scenario.name)?
+        .field("status", checks.status())?
+        .field("failed_checks", &checks.failures())?
+        .field("checks", checks)?
         .field("nodes", &scenario.rope.nodes)?
         .field("model", &scenario.rope.model.number())?
         .field("duration_s", &scenario.duration_s)?
@@ -158,13 +200,23 @@ fn rope_json(scenario: &RopeScenario, result: &RunResult) -> Result<JsonObject> 
         .field("contact_steps", &result.contact_steps)?
         .field("clamped_segments", &result.clamped_segments)?
         .field("max_internal_force_sum_n", &result.max_internal_force_sum_n)?
-        .field("checks", &result.checks)?
+        .field("topology", &result.topology)?
         .field("hands", &result.hands)
 }
 
-/// The text report of a rope run: the run, the overlap, each topology
-/// check and each hand.
-fn print_rope_report(scenario: &RopeScenario, result: &RunResult) -> Result<()> {
+/// The text report of a rope run: the status (first, when UNVERIFIED),
+/// the run, each self-check, each topology check and each hand.
+fn print_rope_report(
+    scenario: &RopeScenario,
+    result: &RunResult,
+    checks: &RopeChecks,
+) -> Result<()> {
+    if !checks.verified() {
+        outln!(
+            "UNVERIFIED: the run fails {} (its figures are not to be trusted)",
+            checks.failures().join(", ")
+        );
+    }
     outln!(
         "{}: {} nodes, model {}, {} s in {} steps ({:.1} µs/step)",
         scenario.name,
@@ -181,9 +233,33 @@ fn print_rope_report(scenario: &RopeScenario, result: &RunResult) -> Result<()> 
         scenario.penetration_tolerance_m(),
         result.contact_steps
     );
-    for c in &result.checks {
+    for (name, c) in [
+        ("overlap", Some(&checks.overlap)),
+        ("force_balance", Some(&checks.force_balance)),
+        ("stability", Some(&checks.stability)),
+        ("rest", checks.rest.as_ref()),
+        ("time_step", checks.time_step.as_ref()),
+    ] {
+        let Some(c) = c else { continue };
         outln!(
-            "check {:>10} at {:6.2} s: {} crossings seen from above, knot determinant {}",
+            "check {name:>13}: {:.4e} {} (tolerance {:.4e}) {}{}",
+            c.value,
+            c.unit,
+            c.tolerance,
+            if c.passed { "passed" } else { "FAILED" },
+            c.note
+                .as_ref()
+                .map(|n| format!(" ({n})"))
+                .unwrap_or_default()
+        );
+    }
+    if checks.time_step.is_none() {
+        outln!("check     time_step: not made (--check-step runs the scenario at dt/2)");
+    }
+    outln!("status: {}", checks.status());
+    for c in &result.topology {
+        outln!(
+            "topology {:>10} at {:6.2} s: {} crossings seen from above, knot determinant {}",
             c.label,
             c.time_s,
             c.crossings,
@@ -302,12 +378,12 @@ fn rope_panel(s: &RopeScenario, f: &Frame, title: String, top: bool) -> ViewPane
 
 /// The frame strip: `count` frames evenly spread over the run (the check
 /// times among them), top view above side view.
-fn rope_strip(s: &RopeScenario, r: &RunResult, count: usize) -> plot::Svg {
+fn rope_strip(s: &RopeScenario, r: &RunResult, checks: &RopeChecks, count: usize) -> plot::Svg {
     let frames = &r.frames;
     let mut picks: Vec<usize> = (0..count)
         .map(|k| (k * (frames.len() - 1)) / (count - 1).max(1))
         .collect();
-    for c in &r.checks {
+    for c in &r.topology {
         if let Some(i) = frames
             .iter()
             .position(|f| (f.time_s - c.time_s).abs() < 0.5 * s.frame_interval_s + 1e-9)
@@ -319,7 +395,7 @@ fn rope_strip(s: &RopeScenario, r: &RunResult, count: usize) -> plot::Svg {
     picks.dedup();
     let label = |f: &Frame| {
         let check = r
-            .checks
+            .topology
             .iter()
             .find(|c| (f.time_s - c.time_s).abs() < 0.5 * s.frame_interval_s + 1e-9);
         match check {
@@ -333,13 +409,18 @@ fn rope_strip(s: &RopeScenario, r: &RunResult, count: usize) -> plot::Svg {
         }
     };
     let columns = 4;
+    let mark = if checks.verified() {
+        ""
+    } else {
+        " · UNVERIFIED"
+    };
     let mut panels = Vec::new();
     for chunk in picks.chunks(columns) {
         for &i in chunk {
             panels.push(rope_panel(
                 s,
                 &frames[i],
-                format!("top · {}", label(&frames[i])),
+                format!("top · {}{mark}", label(&frames[i])),
                 true,
             ));
         }
@@ -347,13 +428,23 @@ fn rope_strip(s: &RopeScenario, r: &RunResult, count: usize) -> plot::Svg {
             panels.push(ViewPanel::default());
         }
         for &i in chunk {
-            panels.push(rope_panel(s, &frames[i], "side".into(), false));
+            panels.push(rope_panel(s, &frames[i], format!("side{mark}"), false));
         }
         for _ in chunk.len()..columns {
             panels.push(ViewPanel::default());
         }
     }
-    plot::panel_grid(&panels, columns, 300.0, (1.0, "1 m"), true)
+    let mut svg = plot::panel_grid(&panels, columns, 300.0, (1.0, "1 m"), true);
+    // panel_grid's layout: rows of 300 px panels with a 22 px head and an
+    // 18 px foot, and 24 px below for the scale bar.
+    let rows = panels.len().div_ceil(columns).max(1) as f64;
+    unverified_note_at(
+        &mut svg,
+        &checks.failures(),
+        columns as f64 * 300.0 - 10.0,
+        (300.0 + 22.0 + 18.0) * rows + 24.0 - 8.0,
+    );
+    svg
 }
 
 fn solve_cmd(a: SolveArgs) -> Result<()> {
@@ -453,12 +544,22 @@ fn solution_files(solution: &StaticSolution) -> (String, String) {
 /// Bottom right of a row of three 320-px panels, beside the scale bar, in
 /// red: why the answer is unverified (nothing when `failures` is empty).
 fn unverified_note(svg: &mut plot::Svg, failures: &[&str]) {
+    unverified_note_at(
+        svg,
+        failures,
+        3.0 * 320.0 - 10.0,
+        320.0 + 22.0 + 18.0 + 24.0 - 8.0,
+    );
+}
+
+/// The red UNVERIFIED line, ending at `x` on the baseline `y` (px).
+fn unverified_note_at(svg: &mut plot::Svg, failures: &[&str], x: f64, y: f64) {
     if failures.is_empty() {
         return;
     }
     svg.text_styled(
-        3.0 * 320.0 - 10.0,
-        320.0 + 22.0 + 18.0 + 24.0 - 8.0,
+        x,
+        y,
         14.0,
         plot::Anchor::End,
         r##"fill="#d62728" font-weight="bold""##,

@@ -39,8 +39,17 @@ fn rope_writes_csv_picture_and_json() {
     let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(json["nodes"], 20);
     assert_eq!(json["steps"], 300);
-    assert_eq!(json["checks"][0]["determinant"], 1);
-    assert_eq!(json["checks"][0]["crossings"], 0);
+    assert_eq!(json["topology"][0]["determinant"], 1);
+    assert_eq!(json["topology"][0]["crossings"], 0);
+    // Issue 29: the run's own checks, each a number with its tolerance.
+    assert_eq!(json["status"], "verified");
+    assert_eq!(json["failed_checks"], serde_json::json!([]));
+    for name in ["overlap", "force_balance", "stability"] {
+        let c = &json["checks"][name];
+        assert_eq!(c["passed"], true, "{name}: {c}");
+        assert!(c["value"].as_f64().unwrap() <= c["tolerance"].as_f64().unwrap());
+    }
+    assert!(json["checks"].get("time_step").is_none(), "asked for only");
     assert!(json["hands"][0]["max_coupling_force_n"].as_f64().unwrap() > 0.0);
     // Four frames (0, 0.1, 0.2, 0.3 s) of 20 nodes.
     let csv = std::fs::read_to_string(out.join("rope_nodes.csv")).unwrap();
@@ -50,6 +59,119 @@ fn rope_writes_csv_picture_and_json() {
     assert!(!csv.contains("NaN") && !csv.contains("inf"));
     let svg = std::fs::read_to_string(out.join("rope_frames.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("top · t = 0.3 s"));
+}
+
+/// Issue 29: a rope whose free end a hand drags through the rope, with
+/// the collision shift turned off, overlaps by about 2r against a
+/// tolerance of 0.3 r. The command writes its files, says UNVERIFIED (text,
+/// JSON, picture) and exits 1; `--allow-unverified` exits 0 with the same
+/// marks. With Table I's four shift passes the same drag is verified.
+#[test]
+fn a_rope_dragged_through_itself_is_unverified_and_exits_1() {
+    let dir = scratch("dlo-rope-overlap");
+    let drag = |passes: usize| {
+        format!(
+            r#"name = "drag through"
+start_m = [0.0, 0.0, 0.05]
+direction = [1.0, 0.0, 0.0]
+pins = [0, 10]
+desk_height_m = 0.0
+duration_s = 2.0
+
+[rope]
+nodes = 20
+length_m = 2.0
+collision_passes = {passes}
+
+[[hands]]
+name = "right"
+keys = [
+  {{ t_s = 0.0, at_m = [2.0, 0.0, 0.05], action = "grasp", node = 19 }},
+  {{ t_s = 0.7, at_m = [1.5, -0.6, 0.05] }},
+  {{ t_s = 1.6, at_m = [0.5, 0.6, 0.05] }},
+]
+"#
+        )
+    };
+    let through = file(&dir, "through.toml", &drag(0));
+    let out = dir.join("out");
+    let o = softjoint(&["dlo", "rope", &through, "--out", s(&out), "--json"]);
+    assert_eq!(o.status.code(), Some(1), "{}", common::stderr(&o));
+    assert!(
+        common::stderr(&o).contains("through.toml: UNVERIFIED: the run fails overlap"),
+        "{}",
+        common::stderr(&o)
+    );
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(json["status"], "UNVERIFIED");
+    assert_eq!(json["failed_checks"], serde_json::json!(["overlap"]));
+    let overlap = &json["checks"]["overlap"];
+    assert_eq!(overlap["passed"], false);
+    assert!(overlap["value"].as_f64().unwrap() > 4.0 * overlap["tolerance"].as_f64().unwrap());
+    let svg = std::fs::read_to_string(out.join("rope_frames.svg")).unwrap();
+    assert!(svg.contains("UNVERIFIED: fails overlap"));
+    assert!(svg.contains("top · t = 0.0 s · UNVERIFIED"));
+    assert!(out.join("rope_nodes.csv").exists());
+    let o = softjoint(&["dlo", "rope", &through, "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stdout(&o).starts_with("UNVERIFIED: the run fails overlap"),
+        "{}",
+        stdout(&o)
+    );
+    let o = softjoint(&[
+        "dlo",
+        "rope",
+        &through,
+        "--out",
+        s(&out),
+        "--allow-unverified",
+    ]);
+    ok(&o);
+    assert!(stdout(&o).starts_with("UNVERIFIED"));
+    let kept = file(&dir, "kept.toml", &drag(4));
+    let o = softjoint(&["dlo", "rope", &kept, "--out", s(&out), "--json"]);
+    ok(&o);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(json["status"], "verified");
+    let svg = std::fs::read_to_string(out.join("rope_frames.svg")).unwrap();
+    assert!(!svg.contains("UNVERIFIED"));
+}
+
+/// Issue 29: a run the step stops (soft springs whipping at dt = 5 ms)
+/// is the failed stability check with the step's reason, its frames up to
+/// there written; `--check-step` adds the time-step check, which fails too.
+#[test]
+fn a_rope_that_blows_up_is_unverified_with_its_reason() {
+    let dir = scratch("dlo-rope-unstable");
+    let scenario = file(
+        &dir,
+        "whip.toml",
+        "name = \"whip\"\nstart_m = [0.0, 0.0, 2.0]\ndirection = [1.0, 0.0, 0.0]\npins = [0]\nduration_s = 1.0\n[rope]\nnodes = 12\nlength_m = 1.1\nradius_m = 0.01\ndt_s = 0.005\nlinear_stiffness_n = 20.0\ntorsional_stiffness_n_m = 0.1\n",
+    );
+    let out = dir.join("out");
+    let o = softjoint(&[
+        "dlo",
+        "rope",
+        &scenario,
+        "--out",
+        s(&out),
+        "--json",
+        "--check-step",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", common::stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(
+        json["failed_checks"],
+        serde_json::json!(["stability", "time_step"])
+    );
+    let note = json["checks"]["stability"]["note"].as_str().unwrap();
+    assert!(
+        note.contains("the run stopped") && note.contains("rest lengths"),
+        "{note}"
+    );
+    let csv = std::fs::read_to_string(out.join("rope_nodes.csv")).unwrap();
+    assert!(csv.lines().count() > 12 && !csv.contains("NaN"));
 }
 
 #[test]

@@ -10,7 +10,9 @@
 //! - [`sim`]: the rope in time (Euler step, desk, tools, propagation,
 //!   collisions, instability detection);
 //! - [`script`]: scripted hands (grasp, move, release) and the knotting
-//!   and unknotting scenarios.
+//!   and unknotting scenarios;
+//! - [`verify`]: a run's self-checks (overlap, force balance, stability,
+//!   rest, time step) and its verified/UNVERIFIED status.
 //!
 //! Left out: the haptic devices themselves (scripted hands drive the
 //! virtual coupling; the device force −s·f is computed and reported),
@@ -22,6 +24,7 @@ pub mod forces;
 pub mod params;
 pub mod script;
 pub mod sim;
+pub mod verify;
 
 pub use forces::V3;
 pub use params::{RopeModel, RopeParams};

@@ -172,6 +172,12 @@ pub struct RopeScenario {
     pub frame_interval_s: f64,
     #[serde(default)]
     pub checks: Vec<TopologyCheck>,
+    /// Relax to rest: after every step, all velocities are zeroed whenever
+    /// the kinetic energy has passed a peak ([`Rope::relax`]'s kinetic
+    /// damping). The answer is then the run's end state, and the run
+    /// carries the `rest` check (see [`super::verify`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub kinetic_damping: bool,
 }
 
 fn default_frame_interval() -> f64 {
@@ -198,6 +204,9 @@ pub struct TopologyResult {
     pub crossings: usize,
     /// Knot determinant of the closed rope (1 unknot, 3 trefoil/overhand).
     pub determinant: Option<u128>,
+    /// Node positions then, m (for the time-step check).
+    #[serde(skip)]
+    pub x: Vec<V3>,
 }
 
 /// Per-hand figures of a run.
@@ -216,7 +225,8 @@ pub struct HandSummary {
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunResult {
     pub frames: Vec<Frame>,
-    pub checks: Vec<TopologyResult>,
+    /// The topology checks, in time order.
+    pub topology: Vec<TopologyResult>,
     pub hands: Vec<HandSummary>,
     pub steps: usize,
     /// Largest overlap 2r − s of non-neighbouring segments after any
@@ -230,6 +240,23 @@ pub struct RunResult {
     pub clamped_segments: usize,
     /// Largest |Σ internal forces| over the run, N (0 up to rounding).
     pub max_internal_force_sum_n: f64,
+    /// Largest Σ|f_i| of the internal forces at the same samples, N (the
+    /// scale the rounding of the sum is relative to).
+    pub internal_force_scale_n: f64,
+    /// Longest segment after any step, in rest lengths.
+    pub max_segment_ratio: f64,
+    /// Which segment that was, and when, s.
+    pub max_segment_index: usize,
+    pub max_segment_ratio_time_s: f64,
+    /// Why the step's own checks stopped the run (time and reason); the
+    /// frames and the figures end at the last good step.
+    pub unstable: Option<String>,
+    /// Node positions at the end of the run (or at the last good step), m.
+    pub final_x: Vec<V3>,
+    /// Largest force left on a free point by the end positions at rest
+    /// (gravity, internal forces, desk, couplings; not the collision
+    /// impulses), N.
+    pub rest_force_n: f64,
     /// Wall time of the stepping alone, s.
     pub wall_s: f64,
 }
@@ -305,6 +332,8 @@ impl RopeScenario {
         let steps = run.out.steps;
         let frame_every = ((self.frame_interval_s / run.dt).round() as usize).max(1);
         let started = std::time::Instant::now();
+        // Kinetic damping: the kinetic energy after the last step.
+        let mut last_ke = 0.0;
         for k in 0..=steps {
             run.move_hands(k)?;
             run.check_topology(k);
@@ -316,11 +345,45 @@ impl RopeScenario {
             if k == steps {
                 break;
             }
-            run.rope.step()?;
+            match run.rope.step() {
+                Ok(()) => {}
+                Err(e @ DloError::Unstable { .. }) => {
+                    // Reported as the failed stability check, with the
+                    // frames and figures up to the last good step.
+                    run.out.unstable = Some(e.to_string());
+                    break;
+                }
+                Err(e) => return Err(e),
+            }
             run.record_step(k);
+            if self.kinetic_damping {
+                let ke = run.rope.kinetic_energy();
+                if ke < last_ke {
+                    // Past a peak: the potential energy is near a minimum
+                    // along the motion; stop it there.
+                    for v in run.rope.v.iter_mut() {
+                        *v = V3::zeros();
+                    }
+                    last_ke = 0.0;
+                } else {
+                    last_ke = ke;
+                }
+            }
         }
         run.out.wall_s = started.elapsed().as_secs_f64();
         run.out.hands = run.hands;
+        run.out.final_x = run.rope.x.clone();
+        if run.out.unstable.is_none() {
+            // The static residual: the forces at the end positions with
+            // every point at rest (the dampers then exert nothing).
+            let mut still = run.rope.clone();
+            still.v.iter_mut().for_each(|v| *v = V3::zeros());
+            run.out.rest_force_n = still
+                .net_forces_n()
+                .iter()
+                .map(|f| f.norm())
+                .fold(0.0, f64::max);
+        }
         Ok(run.out)
     }
 
@@ -393,7 +456,7 @@ impl<'a> ScenarioRun<'a> {
             hands,
             out: RunResult {
                 frames: Vec::new(),
-                checks: Vec::new(),
+                topology: Vec::new(),
                 hands: Vec::new(),
                 steps,
                 max_penetration_m: 0.0,
@@ -401,6 +464,13 @@ impl<'a> ScenarioRun<'a> {
                 contact_steps: 0,
                 clamped_segments: 0,
                 max_internal_force_sum_n: 0.0,
+                internal_force_scale_n: 0.0,
+                max_segment_ratio: 1.0,
+                max_segment_index: 0,
+                max_segment_ratio_time_s: 0.0,
+                unstable: None,
+                final_x: Vec::new(),
+                rest_force_n: 0.0,
                 wall_s: 0.0,
             },
             rope,
@@ -461,11 +531,12 @@ impl<'a> ScenarioRun<'a> {
                 break;
             }
             self.next_check += 1;
-            self.out.checks.push(TopologyResult {
+            self.out.topology.push(TopologyResult {
                 label: c.label.clone(),
                 time_s: self.rope.time_s,
                 crossings: crossings(&self.rope.x, View::default()).len(),
                 determinant: knot_determinant(&self.rope.x, View::default()),
+                x: self.rope.x.clone(),
             });
         }
     }
@@ -480,8 +551,9 @@ impl<'a> ScenarioRun<'a> {
         }
     }
 
-    /// The run's figures after step `k`: internal-force sum (every 100
-    /// steps), deepest overlap, contacts, clamping, hand forces.
+    /// The run's figures after step `k`: internal-force sum and its scale
+    /// (every 100 steps), deepest overlap, longest segment, contacts,
+    /// clamping, hand forces.
     fn record_step(&mut self, k: usize) {
         let (rope, out) = (&self.rope, &mut self.out);
         if k % 100 == 0 {
@@ -491,6 +563,17 @@ impl<'a> ScenarioRun<'a> {
             super::forces::add_internal_forces(&rope.params, &rope.x, &rope.v, &mut self.internal);
             let sum: V3 = self.internal.iter().sum();
             out.max_internal_force_sum_n = out.max_internal_force_sum_n.max(sum.norm());
+            let scale: f64 = self.internal.iter().map(|f| f.norm()).sum();
+            out.internal_force_scale_n = out.internal_force_scale_n.max(scale);
+        }
+        let l_r = rope.params.rest_length_m();
+        for (i, w) in rope.x.windows(2).enumerate() {
+            let ratio = (w[1] - w[0]).norm() / l_r;
+            if ratio > out.max_segment_ratio {
+                out.max_segment_ratio = ratio;
+                out.max_segment_index = i;
+                out.max_segment_ratio_time_s = rope.time_s;
+            }
         }
         if rope.stats.max_penetration_m > out.max_penetration_m {
             out.max_penetration_m = rope.stats.max_penetration_m;
@@ -525,7 +608,7 @@ mod tests {
         let s: RopeScenario = toml::from_str(OVERHAND).unwrap();
         let r = s.run(|_| {}).unwrap();
         let check = |label: &str| {
-            r.checks
+            r.topology
                 .iter()
                 .find(|c| c.label == label)
                 .unwrap_or_else(|| panic!("no check {label}"))
@@ -563,6 +646,11 @@ mod tests {
         for h in &r.hands {
             assert!(h.max_output_force_n < super::super::params::OMNI_MAX_FORCE_N);
         }
+        // The run passes its own checks (issue 29; the time-step check,
+        // `--check-step`, is not made: README, "Rope self-checks").
+        let c = super::super::verify::RopeChecks::of(&s, &r, None);
+        assert!(c.verified(), "{c:?}");
+        assert_eq!(c.status(), "verified");
     }
 }
 

@@ -265,6 +265,18 @@ impl Rope {
         Ok(max_steps)
     }
 
+    /// The force left on every point at the current state (gravity,
+    /// internal forces, desk, tool couplings; not the collision impulses),
+    /// zero on pinned points, N: the residual of a rest state.
+    pub fn net_forces_n(&mut self) -> Vec<V3> {
+        self.compute_forces();
+        self.force
+            .iter()
+            .zip(&self.pinned)
+            .map(|(f, &pinned)| if pinned { V3::zeros() } else { *f })
+            .collect()
+    }
+
     /// Total force on every point at the current state (without the
     /// impulses of collisions), N; fills the internal buffer.
     fn compute_forces(&mut self) {

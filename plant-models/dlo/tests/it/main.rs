@@ -4,3 +4,4 @@ mod campaign;
 mod elastica;
 mod elastica_ref;
 mod rope;
+mod rope_campaign;
