@@ -246,6 +246,9 @@ impl Bvh {
         }
         let sweep = &mut self.sweep[..];
         for a in 1..n {
+            if sweep[a - 1].low <= sweep[a].low {
+                continue; // already in place (the common case)
+            }
             let iv = sweep[a];
             let mut b = a;
             while b > 0 && sweep[b - 1].low > iv.low {

@@ -65,8 +65,24 @@ impl Term {
 /// Smallest |ê_{i−1} × ê_i| for which the bending plane is defined.
 const MIN_SIN_BEND: f64 = 1e-12;
 
+/// One segment's length l and direction ê = d/l (NaN when l = 0).
+#[derive(Clone, Copy)]
+struct Segment {
+    e: V3,
+    l: f64,
+}
+
 /// Calls `sink(term, node, force_n)` for every internal force contribution
 /// of the rope at positions `x` (m) and velocities `v` (m/s).
+///
+/// Cost (issue 34), not the paper's: one pass over the segments computes
+/// each segment's length and direction once (the bending terms of joint i
+/// reuse those of segments i − 1 and i instead of recomputing them), and
+/// joint j is handled right after segment j + 1. The calls reach every node
+/// in the order of two separate passes (all segments, then all joints):
+/// node k hears from segments k − 1 and k before any joint, because joint
+/// j, the first to touch node j + 1, comes after segment j + 1. A sum in
+/// the sink is therefore the same, bit for bit.
 pub fn for_each_internal_force(
     p: &RopeParams,
     x: &[V3],
@@ -75,74 +91,97 @@ pub fn for_each_internal_force(
 ) {
     let n = x.len();
     let l_r = p.rest_length_m();
-    // Linear spring and damper on each segment (Eq. 5–7).
+    let bending = p.model.torsional_spring();
+    // Segments i − 2 and i − 1 when segment i is reached.
+    let mut before = Segment {
+        e: V3::zeros(),
+        l: 0.0,
+    };
+    let mut last = before;
     for i in 0..n.saturating_sub(1) {
         let d = x[i + 1] - x[i];
         let l = d.norm();
-        if l <= 0.0 {
-            continue;
-        }
         let e = d / l;
-        let strain = (l - l_r) / l_r;
-        let magnitude = match p.model {
-            // Model 5 (L1501): quadratic in the length difference, signed.
-            RopeModel::Quadratic => p.linear_stiffness_n * strain * strain.abs(),
-            _ => p.linear_stiffness_n * strain,
-        };
-        let fs = e * magnitude;
-        sink(Term::LinearSpring, i, fs);
-        sink(Term::LinearSpring, i + 1, -fs);
-        let fd = e * (p.linear_damping_n_s_per_m * (v[i + 1] - v[i]).dot(&e));
-        sink(Term::LinearDamper, i, fd);
-        sink(Term::LinearDamper, i + 1, -fd);
+        // Linear spring and damper on segment i (Eq. 5–7); a NaN length
+        // goes through, so that the checks of the step see it.
+        let degenerate = l <= 0.0;
+        if !degenerate {
+            let strain = (l - l_r) / l_r;
+            let magnitude = match p.model {
+                // Model 5 (L1501): quadratic in the length difference, signed.
+                RopeModel::Quadratic => p.linear_stiffness_n * strain * strain.abs(),
+                _ => p.linear_stiffness_n * strain,
+            };
+            let fs = e * magnitude;
+            sink(Term::LinearSpring, i, fs);
+            sink(Term::LinearSpring, i + 1, -fs);
+            let fd = e * (p.linear_damping_n_s_per_m * (v[i + 1] - v[i]).dot(&e));
+            sink(Term::LinearDamper, i, fd);
+            sink(Term::LinearDamper, i + 1, -fd);
+        }
+        if bending && i >= 2 {
+            joint_forces(p, v, i - 1, before, last, &mut sink);
+        }
+        before = last;
+        last = Segment { e, l };
     }
-    if !p.model.torsional_spring() {
+    if bending && n >= 3 {
+        joint_forces(p, v, n - 2, before, last, &mut sink);
+    }
+}
+
+/// The bending terms at joint i (points i − 1, i, i + 1) between segment
+/// `sa` (i − 1) and `sb` (i): Eq. 8–16. Inlined: a call passing the two
+/// segments costs more than the test that ends it on a straight joint.
+#[inline(always)]
+fn joint_forces(
+    p: &RopeParams,
+    v: &[V3],
+    i: usize,
+    sa: Segment,
+    sb: Segment,
+    sink: &mut impl FnMut(Term, usize, V3),
+) {
+    let (la, lb) = (sa.l, sb.l);
+    if la <= 0.0 || lb <= 0.0 {
         return;
     }
-    for i in 1..n.saturating_sub(1) {
-        let a = x[i] - x[i - 1];
-        let b = x[i + 1] - x[i];
-        let (la, lb) = (a.norm(), b.norm());
-        if la <= 0.0 || lb <= 0.0 {
-            continue;
-        }
-        let (e1, e2) = (a / la, b / lb);
-        let c = e1.cross(&e2);
-        let sin_a = c.norm();
-        if sin_a < MIN_SIN_BEND {
-            continue;
-        }
-        let s_hat = c / sin_a;
-        // t̂_{i+1} = ê_i × (ê_{i−1} × ê_i), t̂_{i−1} = ê_{i−1} × (ê_{i−1} × ê_i),
-        // normalised: both point towards straightening the joint.
-        let t_next = e2.cross(&s_hat);
-        let t_prev = e1.cross(&s_hat);
-        // α = arcsin|ê×ê| or π − arcsin|ê×ê| (L1252): atan2 covers both.
-        let alpha = sin_a.atan2(e1.dot(&e2));
-        // Eq. 8–10.
-        let f_prev = t_prev * (p.torsional_stiffness_n_m * alpha / (std::f64::consts::PI * la));
-        let f_next = t_next * (p.torsional_stiffness_n_m * alpha / (std::f64::consts::PI * lb));
-        sink(Term::TorsionalSpring, i - 1, f_prev);
-        sink(Term::TorsionalSpring, i + 1, f_next);
-        sink(Term::TorsionalSpring, i, -(f_prev + f_next));
-        if p.model.torsional_damper() {
-            // Eq. 11–13 with the dissipative sign (module doc).
-            let rate = (v[i - 1] - v[i]).dot(&t_prev) / la + (v[i + 1] - v[i]).dot(&t_next) / lb;
-            let k = -p.torsional_damping_n_m_s * rate;
-            let f_prev = t_prev * (k / la);
-            let f_next = t_next * (k / lb);
-            sink(Term::TorsionalDamper, i - 1, f_prev);
-            sink(Term::TorsionalDamper, i + 1, f_next);
-            sink(Term::TorsionalDamper, i, -(f_prev + f_next));
-        }
-        if p.model.swivel_damper() {
-            // Eq. 14–16 with the dissipative sign (module doc).
-            let f_prev = s_hat * (-p.swivel_damping_n_s * (v[i - 1] - v[i]).dot(&s_hat) / la);
-            let f_next = s_hat * (-p.swivel_damping_n_s * (v[i + 1] - v[i]).dot(&s_hat) / lb);
-            sink(Term::SwivelDamper, i - 1, f_prev);
-            sink(Term::SwivelDamper, i + 1, f_next);
-            sink(Term::SwivelDamper, i, -(f_prev + f_next));
-        }
+    let (e1, e2) = (sa.e, sb.e);
+    let c = e1.cross(&e2);
+    let sin_a = c.norm();
+    if sin_a < MIN_SIN_BEND {
+        return;
+    }
+    let s_hat = c / sin_a;
+    // t̂_{i+1} = ê_i × (ê_{i−1} × ê_i), t̂_{i−1} = ê_{i−1} × (ê_{i−1} × ê_i),
+    // normalised: both point towards straightening the joint.
+    let t_next = e2.cross(&s_hat);
+    let t_prev = e1.cross(&s_hat);
+    // α = arcsin|ê×ê| or π − arcsin|ê×ê| (L1252): atan2 covers both.
+    let alpha = sin_a.atan2(e1.dot(&e2));
+    // Eq. 8–10.
+    let f_prev = t_prev * (p.torsional_stiffness_n_m * alpha / (std::f64::consts::PI * la));
+    let f_next = t_next * (p.torsional_stiffness_n_m * alpha / (std::f64::consts::PI * lb));
+    sink(Term::TorsionalSpring, i - 1, f_prev);
+    sink(Term::TorsionalSpring, i + 1, f_next);
+    sink(Term::TorsionalSpring, i, -(f_prev + f_next));
+    if p.model.torsional_damper() {
+        // Eq. 11–13 with the dissipative sign (module doc).
+        let rate = (v[i - 1] - v[i]).dot(&t_prev) / la + (v[i + 1] - v[i]).dot(&t_next) / lb;
+        let k = -p.torsional_damping_n_m_s * rate;
+        let f_prev = t_prev * (k / la);
+        let f_next = t_next * (k / lb);
+        sink(Term::TorsionalDamper, i - 1, f_prev);
+        sink(Term::TorsionalDamper, i + 1, f_next);
+        sink(Term::TorsionalDamper, i, -(f_prev + f_next));
+    }
+    if p.model.swivel_damper() {
+        // Eq. 14–16 with the dissipative sign (module doc).
+        let f_prev = s_hat * (-p.swivel_damping_n_s * (v[i - 1] - v[i]).dot(&s_hat) / la);
+        let f_next = s_hat * (-p.swivel_damping_n_s * (v[i + 1] - v[i]).dot(&s_hat) / lb);
+        sink(Term::SwivelDamper, i - 1, f_prev);
+        sink(Term::SwivelDamper, i + 1, f_next);
+        sink(Term::SwivelDamper, i, -(f_prev + f_next));
     }
 }
 
@@ -200,6 +239,118 @@ mod tests {
             let scale: f64 = f.iter().map(|f| f.norm()).sum();
             assert!(scale > 1e-3, "{term:?} is inactive in the test");
             assert!(total.norm() < 1e-12 * scale, "{term:?}: sum {total}");
+        }
+    }
+
+    /// The internal forces as two passes, all segments then all joints,
+    /// each joint recomputing its segments (the code before issue 34's
+    /// single pass), added into `out` in that order.
+    fn two_passes(p: &RopeParams, x: &[V3], v: &[V3], out: &mut [V3]) {
+        let n = x.len();
+        let l_r = p.rest_length_m();
+        for i in 0..n - 1 {
+            let d = x[i + 1] - x[i];
+            let l = d.norm();
+            if l <= 0.0 {
+                continue;
+            }
+            let e = d / l;
+            let strain = (l - l_r) / l_r;
+            let magnitude = match p.model {
+                RopeModel::Quadratic => p.linear_stiffness_n * strain * strain.abs(),
+                _ => p.linear_stiffness_n * strain,
+            };
+            let fs = e * magnitude;
+            out[i] += fs;
+            out[i + 1] += -fs;
+            let fd = e * (p.linear_damping_n_s_per_m * (v[i + 1] - v[i]).dot(&e));
+            out[i] += fd;
+            out[i + 1] += -fd;
+        }
+        if !p.model.torsional_spring() {
+            return;
+        }
+        for i in 1..n - 1 {
+            let (a, b) = (x[i] - x[i - 1], x[i + 1] - x[i]);
+            let (la, lb) = (a.norm(), b.norm());
+            if la <= 0.0 || lb <= 0.0 {
+                continue;
+            }
+            let (e1, e2) = (a / la, b / lb);
+            let c = e1.cross(&e2);
+            let sin_a = c.norm();
+            if sin_a < MIN_SIN_BEND {
+                continue;
+            }
+            let s_hat = c / sin_a;
+            let (t_next, t_prev) = (e2.cross(&s_hat), e1.cross(&s_hat));
+            let alpha = sin_a.atan2(e1.dot(&e2));
+            let pi = std::f64::consts::PI;
+            let f_prev = t_prev * (p.torsional_stiffness_n_m * alpha / (pi * la));
+            let f_next = t_next * (p.torsional_stiffness_n_m * alpha / (pi * lb));
+            out[i - 1] += f_prev;
+            out[i + 1] += f_next;
+            out[i] += -(f_prev + f_next);
+            if p.model.torsional_damper() {
+                let rate =
+                    (v[i - 1] - v[i]).dot(&t_prev) / la + (v[i + 1] - v[i]).dot(&t_next) / lb;
+                let k = -p.torsional_damping_n_m_s * rate;
+                let (f_prev, f_next) = (t_prev * (k / la), t_next * (k / lb));
+                out[i - 1] += f_prev;
+                out[i + 1] += f_next;
+                out[i] += -(f_prev + f_next);
+            }
+            if p.model.swivel_damper() {
+                let k = -p.swivel_damping_n_s;
+                let f_prev = s_hat * (k * (v[i - 1] - v[i]).dot(&s_hat) / la);
+                let f_next = s_hat * (k * (v[i + 1] - v[i]).dot(&s_hat) / lb);
+                out[i - 1] += f_prev;
+                out[i + 1] += f_next;
+                out[i] += -(f_prev + f_next);
+            }
+        }
+    }
+
+    #[test]
+    fn one_pass_adds_up_bit_for_bit_like_two_passes() {
+        // Issue 34: the single pass must give the same sums, to the bit,
+        // for every model, with a zero-length segment (points 5 and 6
+        // coincide) and with a non-finite point.
+        let (x, v) = wiggly(20);
+        let mut coincident = x.clone();
+        coincident[6] = coincident[5];
+        let mut broken = x.clone();
+        broken[12].y = f64::NAN;
+        let models = [
+            RopeModel::LinearOnly,
+            RopeModel::TorsionalSpring,
+            RopeModel::TorsionalDamper,
+            RopeModel::Swivel,
+            RopeModel::Quadratic,
+        ];
+        for model in models {
+            let p = RopeParams {
+                nodes: 20,
+                model,
+                ..RopeParams::default()
+            };
+            for (name, x) in [
+                ("wiggly", &x),
+                ("coincident", &coincident),
+                ("nan", &broken),
+            ] {
+                let g = V3::new(0.0, 0.0, -0.49);
+                let (mut one, mut two) = (vec![g; 20], vec![g; 20]);
+                add_internal_forces(&p, x, &v, &mut one);
+                two_passes(&p, x, &v, &mut two);
+                // NaN's sign and payload depend on how the compiler
+                // orders an addition, so any NaN counts as one value.
+                let bits = |f: &[V3]| -> Vec<u64> {
+                    let canonical = |c: &f64| if c.is_nan() { u64::MAX } else { c.to_bits() };
+                    f.iter().flat_map(|f| f.iter().map(canonical)).collect()
+                };
+                assert_eq!(bits(&one), bits(&two), "{model:?}, {name}");
+            }
         }
     }
 

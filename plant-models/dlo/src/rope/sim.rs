@@ -323,12 +323,14 @@ impl Rope {
     pub fn step(&mut self) -> Result<()> {
         self.compute_forces();
         let dt = self.params.dt_s;
-        for i in 0..self.x.len() {
-            if self.pinned[i] {
+        let points = self.x.iter_mut().zip(self.v.iter_mut());
+        let state = self.pinned.iter().zip(&self.force).zip(&self.inv_mass);
+        for ((x, v), ((&pinned, f), &w)) in points.zip(state) {
+            if pinned {
                 continue;
             }
-            self.v[i] += self.force[i] * (dt * self.inv_mass[i]);
-            self.x[i] += self.v[i] * dt;
+            *v += f * (dt * w);
+            *x += *v * dt;
         }
         self.stats = StepStats::default();
         self.floor();
@@ -491,6 +493,35 @@ impl Rope {
 
     /// Instability detection (module doc, step 5).
     fn check(&self) -> Result<()> {
+        if self.plainly_stable() {
+            return Ok(());
+        }
+        self.check_each()
+    }
+
+    /// A cheap certificate (issue 34) that [`Rope::check_each`] passes:
+    /// no square root and no early exit. A finite sum of the components
+    /// means that each is finite; |x|² ≤ 10⁶ means that the rounded
+    /// √|x|² (nalgebra's norm) is at most 10³, since √ is correctly
+    /// rounded and √10⁶ = 10³ exactly; a squared length below
+    /// 0.99·(10 l_r)² leaves room for every rounding of the length. When
+    /// any test fails, `check_each` decides (and names the first fault).
+    fn plainly_stable(&self) -> bool {
+        let limit = 10.0 * self.params.rest_length_m();
+        let limit_sq = 0.99 * limit * limit;
+        let mut ok = true;
+        for (x, v) in self.x.iter().zip(&self.v) {
+            ok &= x.norm_squared() <= 1e6;
+            ok &= (v.x + v.y + v.z).is_finite();
+        }
+        for w in self.x.windows(2) {
+            ok &= (w[1] - w[0]).norm_squared() <= limit_sq;
+        }
+        ok
+    }
+
+    /// The checks one by one (module doc, step 5).
+    fn check_each(&self) -> Result<()> {
         let l_r = self.params.rest_length_m();
         for (i, (x, v)) in self.x.iter().zip(&self.v).enumerate() {
             if !(x.iter().chain(v.iter()).all(|c| c.is_finite())) {
@@ -567,6 +598,62 @@ mod tests {
             assert!((top - want).abs() < 1e-4 * want, "top strain {top}");
             assert!(rope.kinetic_energy() < 1e-9, "not at rest");
         }
+    }
+
+    #[test]
+    fn quick_check_passes_only_what_the_full_check_passes() {
+        // Issue 34: `plainly_stable` may send a sane rope to the full
+        // check, but never pass one that the full check stops, at the
+        // edges of each test: |x| at 1 km exactly and one ulp beyond, a
+        // segment at 10 l_r exactly and one ulp beyond, overflowing
+        // squares, infinities and NaN.
+        let p = RopeParams {
+            nodes: 5,
+            ..RopeParams::default()
+        };
+        let l_r = p.rest_length_m();
+        let up = |a: f64| f64::from_bits(a.to_bits() + 1);
+        // A rope from `top` straight down (z falls by l_r per point).
+        let hang = |top: V3| Rope::straight(p.clone(), top, -V3::z()).unwrap();
+        let base = hang(V3::zeros());
+        let mut cases: Vec<(&str, Rope)> = vec![
+            ("straight", base.clone()),
+            ("top at 1 km", hang(V3::new(0.0, 0.0, 1e3))),
+            ("top beyond 1 km", hang(V3::new(0.0, 0.0, up(1e3)))),
+        ];
+        let mut edit = |name, f: &dyn Fn(&mut Rope)| {
+            let mut r = base.clone();
+            f(&mut r);
+            cases.push((name, r));
+        };
+        edit("x overflows", &|r| r.x[2].y = 1e200);
+        edit("x infinite", &|r| r.x[2].z = f64::INFINITY);
+        edit("x NaN", &|r| r.x[3].x = f64::NAN);
+        edit("v infinite", &|r| r.v[1].y = f64::NEG_INFINITY);
+        edit("v NaN", &|r| r.v[0].z = f64::NAN);
+        edit("v sum overflows", &|r| r.v[2] = V3::new(1e308, 1e308, 0.0));
+        // The last segment from the origin along x, of length `l`.
+        let last = |l: f64| {
+            move |r: &mut Rope| {
+                r.x[3] = V3::zeros();
+                r.x[4] = V3::new(l, 0.0, 0.0);
+            }
+        };
+        edit("at 10 l_r", &last(10.0 * l_r));
+        edit("beyond 10 l_r", &last(up(10.0 * l_r)));
+        edit("just inside 10 l_r", &last(9.9 * l_r));
+        let mut passed = 0;
+        for (name, rope) in &cases {
+            let full = rope.check_each();
+            assert_eq!(rope.check(), full, "{name}");
+            if rope.plainly_stable() {
+                assert!(full.is_ok(), "{name}: quick check passed {full:?}");
+                passed += 1;
+            }
+        }
+        // Both outcomes occur: the quick check is not vacuous.
+        assert!(passed >= 2, "quick check passed {passed} cases");
+        assert!(cases.iter().filter(|(_, r)| r.check().is_err()).count() >= 7);
     }
 
     #[test]
