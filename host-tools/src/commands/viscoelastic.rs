@@ -10,15 +10,14 @@ use host_tools::outln;
 use host_tools::output;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
 use host_tools::visco_core::CoreObject;
+use host_tools::visco_fit::{fit_summary, fit_trial_text, weighting_name};
 use plant_viscoelastic::error::VeError;
 use plant_viscoelastic::experiment::pipeline::{
     default_probe_script, object_dgfm, probe_beside_reference, Campaign, IdentifiedObject, ProbeRun,
 };
-use plant_viscoelastic::experiment::trial::{
-    fit_trial_checked, simulate_table, ThreeElementParams, Trace,
-};
+use plant_viscoelastic::experiment::trial::{simulate_table, ThreeElementParams, Trace};
 use plant_viscoelastic::fit::{simulate_force, TrialFit, Weighting};
-use plant_viscoelastic::io::{read_columns, read_probe_script, read_table, Columns};
+use plant_viscoelastic::io::{read_probe_script, read_table};
 use plant_viscoelastic::object::{ProbeEvent, HAPTIC_PERIOD_S};
 use plant_viscoelastic::Vec3;
 use plant_viscoelastic::{Dgfm, SurfaceMesh};
@@ -177,62 +176,17 @@ fn trace_csv(trace: &Trace) -> String {
     s
 }
 
-/// A trial's forces and displacements within what a trial of a soft
-/// material records, and a stiffness scale (largest force over largest
-/// displacement) a fit can represent: a force a million times too large,
-/// or displacements in the wrong unit, are refused by line, not fitted to
-/// a stiffness of `inf`.
-fn check_trial_ranges(c: &Columns, name: &str) -> Result<()> {
-    use plant_viscoelastic::io::{check_magnitude, MAX_TRIAL_DISPLACEMENT_M, MAX_TRIAL_FORCE_N};
-    check_magnitude(
-        c,
-        name,
-        "force",
-        MAX_TRIAL_FORCE_N,
-        "N",
-        "a soft material's trial",
-    )?;
-    check_magnitude(
-        c,
-        name,
-        "displacement",
-        MAX_TRIAL_DISPLACEMENT_M,
-        "m",
-        "a soft material's trial",
-    )?;
-    let peak = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let (f, u) = (peak(&c.values[2]), peak(&c.values[1]));
-    // Steel in contact is ≈ 1e9 N/m; a soft object is many decades below.
-    let stiffness = f / u;
-    if f > 0.0 && stiffness > 1e12 {
-        bail!(
-            "{name}: forces up to {} N against displacements of at most {} m (a stiffness of {} N/m) — beyond any soft material; is the displacement column in metres?",
-            plant_common::short_number(f),
-            plant_common::short_number(u),
-            plant_common::short_number(stiffness)
-        );
-    }
-    Ok(())
-}
-
 fn fit(a: &FitArgs) -> Result<()> {
     let text = read_text(&a.input)?;
     let name = a.input.display().to_string();
-    let c = read_columns(
-        &text,
-        &name,
-        &["time_s", "displacement", "force"],
-        Some("time_s"),
-    )?;
-    check_trial_ranges(&c, &name)?;
-    let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
     let weighting = if a.uniform {
         Weighting::Uniform
     } else {
         Weighting::Seed
     };
-    let weighting_name = if a.uniform { "uniform" } else { "seed" };
-    let r = fit_trial_checked(t, u, f, weighting).with_context(|| format!("fitting {name}"))?;
+    let (c, r) = fit_trial_text(&text, &name, weighting)?;
+    let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
+    let weighting_name = weighting_name(weighting);
     if let Some(p) = &a.plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
@@ -242,17 +196,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         output::write_svg(p, &fit_plot(t, f, &fitted, &caption))?;
     }
     if a.json {
-        output::JsonObject::new()
-            .field("k1_n_per_m", &r.k1_n_per_m)?
-            .field("k2_n_per_m", &r.k2_n_per_m)?
-            .field("b_n_s_per_m", &r.b_n_s_per_m)?
-            .field("rms_residual_n", &r.rms_residual_n)?
-            .field("weighted_cost_n2", &r.weighted_cost_n2)?
-            .field("uncertainty_factor", &r.uncertainty_factor())?
-            .field("evaluations", &r.evaluations)?
-            .field("weighting", weighting_name)?
-            .field("samples", &t.len())?
-            .print()
+        fit_summary(&r, weighting, t.len())?.print()
     } else {
         print_fit(&r, t.len(), weighting_name)
     }
