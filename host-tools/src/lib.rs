@@ -7,7 +7,8 @@
 //! What the seed systems' commands do around their crates' calls, shared
 //! with the Python package: the push prepared and its frame table
 //! ([`push`]), a static solve's summary and checks ([`dlo_solve`]), a
-//! viscoelastic trial's fit ([`visco_fit`]) and the contour test cases
+//! viscoelastic trial's fit ([`visco_fit`]) and object run
+//! ([`visco_object`]), and the contour test cases
 //! ([`contour_synth`]).
 
 pub mod board;
@@ -26,3 +27,4 @@ pub mod run;
 pub mod stop;
 pub mod visco_core;
 pub mod visco_fit;
+pub mod visco_object;
