@@ -24,7 +24,8 @@ The 3-element viscoelastic model's trace (:func:`viscoelastic_simulate`)
 is ``softjoint viscoelastic simulate``'s.
 
 The 3-element model's fit (:func:`viscoelastic_fit`) is ``softjoint
-viscoelastic fit``'s.
+viscoelastic fit``'s, and the measured-object pipeline
+(:func:`viscoelastic_object`) ``softjoint viscoelastic object``'s.
 
 The rope's run (:func:`rope_simulate`) is ``softjoint dlo rope``'s; the
 static wire, belt or sequence (:func:`dlo_solve`) is ``softjoint dlo
@@ -38,9 +39,8 @@ The pushed block (:class:`PushProblem`, :func:`push_simulate`) is
 ``softjoint push simulate``'s, and :func:`push_objective` the fitness
 ``softjoint push calibrate`` maximises.
 
-Left out so far: identification, the viscoelastic object, push
-calibration and classification, and writing plant or gains files from
-Python.
+Left out so far: identification, push calibration and classification,
+and writing plant or gains files from Python.
 """
 from __future__ import annotations
 
@@ -95,6 +95,8 @@ __all__ = [
     "viscoelastic_simulate",
     "viscoelastic_fit",
     "ViscoelasticFit",
+    "ViscoelasticObject",
+    "viscoelastic_object",
     "RopeRun",
     "rope_simulate",
     "DloSolution",
@@ -515,3 +517,54 @@ def push_objective(problem: PushProblem, params, score: str = "f") -> float:
     parameters the program refuses (the field named)."""
     text, name = _params_text(params)
     return problem.objective(text, score, name)
+
+
+@dataclass(frozen=True)
+class ViscoelasticObject:
+    """An object run: ``summary`` the figures the program prints
+    (``vertices``, ``traction_vertices``, ``trials``,
+    ``estimated_vertices``, ``haptic_steps``, ``display_frames``, and the
+    firmware update's largest difference from the exact reference,
+    ``contact_difference_m``/``_rel`` and ``frames_difference_m``/``_rel``);
+    ``haptic`` haptic.csv's columns; ``frame_time_s`` and
+    ``displacement_m``/``force_n`` of shape (frames, vertices, 3),
+    frames.csv's; ``fixed`` and ``damping_n_s_per_m`` per vertex,
+    params.csv's."""
+
+    summary: dict
+    haptic: Dict[str, np.ndarray] = field(repr=False)
+    frame_time_s: np.ndarray = field(repr=False)
+    displacement_m: np.ndarray = field(repr=False)
+    force_n: np.ndarray = field(repr=False)
+    fixed: np.ndarray = field(repr=False)
+    damping_n_s_per_m: np.ndarray = field(repr=False)
+
+
+def viscoelastic_object(mesh: Optional[PathLike] = None, script: Optional[PathLike] = None,
+                        duration_s: float = 1.5, probe_every: int = 10, seed: int = 1,
+                        tensor: bool = False) -> ViscoelasticObject:
+    """Runs ``softjoint viscoelastic object``: the DGFM of ``mesh`` (an
+    OBJ in metres; default the shipped blob), its parameters estimated
+    from a simulated probe campaign (every ``probe_every``-th traction
+    vertex, noise seeded by ``seed``; damping tensors if ``tensor``), and
+    the probe ``script`` (CSV ``time_s,vertex,fx_n,fy_n,fz_n``; default 1
+    N down on the top vertex for 0.5 s) run for ``duration_s`` at 1 kHz by
+    the firmware's update beside the exact reference.
+
+    Raises :class:`InputError` for an argument out of its bounds or a
+    file the program refuses (a script's event named by file and line)."""
+    def text(p):
+        if p is None:
+            return None
+        path = Path(p)
+        return (_read(path), os.fspath(path))
+
+    summary, haptic, frames, params = _native.viscoelastic_object(
+        text(mesh), text(script), duration_s, probe_every, seed, tensor)
+    summary = json.loads(summary)
+    shape = (len(frames["time_s"]), summary["vertices"], 3)
+    return ViscoelasticObject(
+        summary=summary, haptic=dict(haptic), frame_time_s=frames["time_s"],
+        displacement_m=frames["displacement_m"].reshape(shape),
+        force_n=frames["force_n"].reshape(shape), fixed=params["fixed"].astype(bool),
+        damping_n_s_per_m=params["damping_magnitude_n_s_per_m"])

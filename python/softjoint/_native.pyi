@@ -201,3 +201,17 @@ class PushProblem:
         """The fitness `push calibrate --score SCORE` maximises (μ(F), or
         minus the contour distance in px) for parameters as JSON text."""
         ...
+
+def viscoelastic_object(
+    mesh: Optional[Tuple[str, str]] = None,
+    script: Optional[Tuple[str, str]] = None,
+    duration_s: float = 1.5,
+    probe_every: int = 10,
+    seed: int = 1,
+    tensor: bool = False,
+) -> Tuple[str, Dict[str, np.ndarray], Dict[str, np.ndarray], Dict[str, np.ndarray]]:
+    """`softjoint viscoelastic object` on an OBJ's and a script's (text,
+    name): the printed figures as JSON text, haptic.csv's columns,
+    frames.csv's (`time_s` per frame; `displacement_m`, `force_n` flat),
+    params.csv's (`fixed`, `damping_magnitude_n_s_per_m`)."""
+    ...

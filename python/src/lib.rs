@@ -18,14 +18,14 @@
 //!
 //! Contour fits are `softjoint contour fit`'s, with the fit's own checks,
 //! and its test cases `contour synth`'s; the viscoelastic trace and fit
-//! are `softjoint viscoelastic simulate`'s and `fit`'s; the rope's run is
+//! are `softjoint viscoelastic simulate`'s and `fit`'s, the object run
+//! `object`'s; the rope's run is
 //! `softjoint dlo rope`'s and the static solve `dlo solve`'s with its
 //! checks; the pushed block is `push simulate`'s, and its objective the
 //! fitness `push calibrate` maximises.
 //!
 //! Left out (issue 33 goes on): plant and gains files written from
-//! Python, identification, push calibration and classification, and the
-//! viscoelastic object.
+//! Python, identification, push calibration and classification.
 
 use pyo3::prelude::*;
 
