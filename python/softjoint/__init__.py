@@ -23,12 +23,25 @@ the fit's own checks: a fit with a frame that failed them raises
 The 3-element viscoelastic model's trace (:func:`viscoelastic_simulate`)
 is ``softjoint viscoelastic simulate``'s.
 
-The rope's run (:func:`rope_simulate`) is ``softjoint dlo rope``'s, with
-the run's own checks: a run that fails them raises
-:class:`UnverifiedError` (the run attached) unless asked to return it.
+The 3-element model's fit (:func:`viscoelastic_fit`) is ``softjoint
+viscoelastic fit``'s, and the measured-object pipeline
+(:func:`viscoelastic_object`) ``softjoint viscoelastic object``'s.
 
-Left out so far: identification, the push system, ``dlo solve``, the
-viscoelastic fit and object, and writing plant or gains files from Python.
+The rope's run (:func:`rope_simulate`) is ``softjoint dlo rope``'s; the
+static wire, belt or sequence (:func:`dlo_solve`) is ``softjoint dlo
+solve``'s. Both come with their own checks: a run or answer that fails
+them raises :class:`UnverifiedError` (the result attached) unless asked
+to return it.
+
+The contour test cases (:func:`contour_synth`) are ``softjoint contour
+synth``'s.
+
+The pushed block (:class:`PushProblem`, :func:`push_simulate`) is
+``softjoint push simulate``'s, and :func:`push_objective` the fitness
+``softjoint push calibrate`` maximises.
+
+Left out so far: identification, push calibration and classification,
+and writing plant or gains files from Python.
 """
 from __future__ import annotations
 
@@ -47,6 +60,7 @@ from ._native import (
     InputError,
     NonFiniteError,
     PlantFile,
+    PushProblem,
     RheologyProblem,
     RunCutShortError,
     Scenario,
@@ -80,8 +94,21 @@ __all__ = [
     "ContourFrame",
     "contour_fit",
     "viscoelastic_simulate",
+    "viscoelastic_fit",
+    "ViscoelasticFit",
+    "ViscoelasticObject",
+    "viscoelastic_object",
     "RopeRun",
     "rope_simulate",
+    "DloSolution",
+    "dlo_solve",
+    "ContourSynth",
+    "contour_synth",
+    "PushProblem",
+    "PushRun",
+    "push_problem",
+    "push_simulate",
+    "push_objective",
     "load_plant",
     "load_scenario",
     "rheology_problem",
@@ -329,3 +356,232 @@ def rope_simulate(scenario: Optional[PathLike] = None, check_step: bool = False,
         e.run = run
         raise e
     return run
+
+
+@dataclass(frozen=True)
+class ViscoelasticFit:
+    """A fit of the 3-element model: ``summary`` holds ``softjoint
+    viscoelastic fit --json``'s fields (``k1_n_per_m``, ``k2_n_per_m``,
+    ``b_n_s_per_m``, ``rms_residual_n``, ``weighted_cost_n2``,
+    ``uncertainty_factor``, ``evaluations``, ``weighting``, ``samples``),
+    ``fitted_force_n`` the fitted model's force at the trial's samples
+    (the ``--plot`` curve)."""
+
+    summary: dict
+    fitted_force_n: np.ndarray = field(repr=False)
+
+
+def viscoelastic_fit(trial: PathLike, uniform: bool = False) -> ViscoelasticFit:
+    """Fits (k1, k2, b) of the 3-element model to the trial CSV ``trial``
+    (``time_s,displacement,force``; s, m, N) as ``softjoint viscoelastic
+    fit`` does: Nelder–Mead with the seed's weighting (tail ×100, 3
+    points around the peak ×1000), or every sample alike if ``uniform``.
+
+    Raises :class:`InputError` for a file, column or value the program
+    refuses (named with its line), or a trial that does not determine the
+    parameters."""
+    path = Path(trial)
+    text, fitted = _native.viscoelastic_fit(_read(path), os.fspath(path), uniform)
+    return ViscoelasticFit(summary=json.loads(text), fitted_force_n=fitted)
+
+
+@dataclass(frozen=True)
+class DloSolution:
+    """A static solve: ``summary`` holds ``softjoint dlo solve --json``'s
+    fields (``model``, energies, ``status``, ``failed_checks``,
+    ``checks`` …; without ``solve_s``, a timing, and the file names),
+    ``shapes`` each solved shape as ``(name, l_fraction, columns)`` —
+    ``name`` ``"wire"``, ``"belt"``, or ``"knot_free"``/``"one_knot"``
+    of a sequence's step at end distance ``l_fraction`` (of L, else
+    ``None``) — with shape.csv's columns as arrays, and ``unverified``
+    why the answer is not verified (``None`` if it is)."""
+
+    summary: dict = field(repr=False)
+    shapes: List[tuple] = field(repr=False)
+    unverified: Optional[str] = None
+
+    @property
+    def verified(self) -> bool:
+        return self.unverified is None
+
+
+def dlo_solve(problem: PathLike, allow_unverified: bool = False) -> DloSolution:
+    """Solves the static wire, belt or end-distance sequence of the TOML
+    problem file ``problem`` (Wakamatsu et al.) as ``softjoint dlo solve``
+    does.
+
+    Raises :class:`UnverifiedError` (its ``solution`` attribute holds the
+    :class:`DloSolution`) when a shape failed its checks, as the program
+    exits 1, unless ``allow_unverified``; :class:`InputError` for a file
+    or field the program refuses."""
+    path = Path(problem)
+    text, why, shapes = _native.dlo_solve(_read(path), os.fspath(path))
+    solution = DloSolution(summary=json.loads(text),
+                           shapes=[(n, l, dict(c)) for n, l, c in shapes], unverified=why)
+    if why is not None and not allow_unverified:
+        e = UnverifiedError(f"{why}; pass allow_unverified=True to get the solution with that "
+                            "mark (see `checks` in its summary)")
+        e.solution = solution
+        raise e
+    return solution
+
+
+@dataclass(frozen=True)
+class ContourSynth:
+    """A contour test case: ``summary`` (``case``, ``frames``,
+    ``points_per_frame``, ``sigma``, ``seed``), ``data`` data.csv's
+    columns and ``truth`` truth.csv's, as arrays."""
+
+    summary: dict
+    data: Dict[str, np.ndarray] = field(repr=False)
+    truth: Dict[str, np.ndarray] = field(repr=False)
+
+
+def contour_synth(case: str, n: int = 40, sigma: Optional[float] = None, every: int = 10,
+                  angles: int = 10, seed: int = 1) -> ContourSynth:
+    """The test case ``case`` of ``softjoint contour synth``: ``"rbc"``
+    (Eq. 38 on an ``n`` × ``n`` grid, columns ``frame``, ``angle_rad``,
+    ``radius``) or ``"movie"`` (the pulsating contour seen along
+    ``angles`` rays every ``every``-th frame, columns ``frame``,
+    ``centre_x``, ``centre_y``, ``angle_rad``, ``radius``), with noise
+    ``sigma`` (``None``: 0.3, the paper's, or 1 px) seeded by ``seed``.
+
+    Raises :class:`InputError` naming an argument out of its range."""
+    text, data, truth = _native.contour_synth(case, n, sigma, every, angles, seed)
+    return ContourSynth(summary=json.loads(text), data=dict(data), truth=dict(truth))
+
+
+@dataclass(frozen=True)
+class PushRun:
+    """A push simulated and scored: ``summary`` holds ``softjoint push
+    simulate --json``'s fields (``mean_f``, ``contour_mean_px``,
+    ``f_per_frame``, ``instability`` …; without ``out``), ``frames``
+    frames.csv's numeric columns as arrays and ``phase`` each frame's
+    phase (``push``, ``retrieval``)."""
+
+    summary: dict = field(repr=False)
+    frames: Dict[str, np.ndarray] = field(repr=False)
+    phase: List[str] = field(repr=False)
+
+
+def _params_text(params) -> tuple:
+    """Parameters as JSON text and a name: a dict of the eight, or a path
+    to a JSON file (bare or ``calibrate``'s params.json); ``None`` stays."""
+    if params is None:
+        return None, "params"
+    if isinstance(params, dict):
+        return json.dumps(params), "params"
+    path = Path(params)
+    return _read(path), os.fspath(path)
+
+
+def push_problem(material: str = "sponge", site: str = "middle-long",
+                 video: Optional[PathLike] = None, ref_element_px: float = 8.0,
+                 noise_seed: int = 1, integrator: str = "customised", mode: str = "both",
+                 nx: int = 20, ny: int = 10, cell_px: float = 1.0,
+                 repair: bool = True) -> PushProblem:
+    """The push of ``softjoint push simulate``/``calibrate`` with the same
+    options (``video``: a ``frame,force_n,x_px,y_px`` CSV instead of the
+    recorded ground truth; ``repair=False`` is ``--no-repair``), prepared
+    once for any number of runs (:meth:`PushProblem.simulate`,
+    :meth:`PushProblem.objective`).
+
+    Raises :class:`InputError` for an option or file the program refuses
+    (named)."""
+    v = None
+    if video is not None:
+        path = Path(video)
+        v = (_read(path), os.fspath(path))
+    return PushProblem(material, site, v, ref_element_px, noise_seed, integrator, mode, nx, ny,
+                       cell_px, repair)
+
+
+def push_simulate(problem: Optional[PushProblem] = None, params=None,
+                  predicted_forces: bool = False, allow_unstable: bool = False,
+                  **options) -> PushRun:
+    """Runs the mass-spring model through a push and scores it frame by
+    frame as ``softjoint push simulate`` does: ``problem`` (else
+    :func:`push_problem` of ``options``), ``params`` a dict of the eight
+    parameters or a JSON file (default: the material's seed values),
+    ``predicted_forces`` to drive it by the force predictor (§V).
+
+    Raises :class:`UnstableError` for a run that became unstable (the
+    frame and cause named), as the program exits 1, unless
+    ``allow_unstable`` (every frame from there on then scores 0);
+    :class:`InputError` for parameters the program refuses."""
+    if problem is None:
+        problem = push_problem(**options)
+    elif options:
+        raise InputError(f"push_simulate: options {sorted(options)} are the problem's; "
+                         "give them to push_problem")
+    text, name = _params_text(params)
+    summary, phase, frames = problem.simulate(text, name, predicted_forces)
+    summary = json.loads(summary)
+    if summary.get("instability") and not allow_unstable:
+        raise UnstableError(f"{summary['instability']}; pass allow_unstable=True to get the run "
+                            "with every frame from there on scored 0")
+    return PushRun(summary=summary, frames=dict(frames), phase=list(phase))
+
+
+def push_objective(problem: PushProblem, params, score: str = "f") -> float:
+    """The fitness ``softjoint push calibrate --score SCORE`` maximises
+    for ``params`` (a dict of the eight parameters, or a JSON file) on
+    ``problem``'s push and sensed forces: μ(F) for ``"f"``, minus the
+    mean contour distance in the finger's reach (px) for ``"contour"``.
+
+    Raises :class:`NonFiniteError` when the run cannot be scored (the
+    search counts such a candidate failed), :class:`InputError` for
+    parameters the program refuses (the field named)."""
+    text, name = _params_text(params)
+    return problem.objective(text, score, name)
+
+
+@dataclass(frozen=True)
+class ViscoelasticObject:
+    """An object run: ``summary`` the figures the program prints
+    (``vertices``, ``traction_vertices``, ``trials``,
+    ``estimated_vertices``, ``haptic_steps``, ``display_frames``, and the
+    firmware update's largest difference from the exact reference,
+    ``contact_difference_m``/``_rel`` and ``frames_difference_m``/``_rel``);
+    ``haptic`` haptic.csv's columns; ``frame_time_s`` and
+    ``displacement_m``/``force_n`` of shape (frames, vertices, 3),
+    frames.csv's; ``fixed`` and ``damping_n_s_per_m`` per vertex,
+    params.csv's."""
+
+    summary: dict
+    haptic: Dict[str, np.ndarray] = field(repr=False)
+    frame_time_s: np.ndarray = field(repr=False)
+    displacement_m: np.ndarray = field(repr=False)
+    force_n: np.ndarray = field(repr=False)
+    fixed: np.ndarray = field(repr=False)
+    damping_n_s_per_m: np.ndarray = field(repr=False)
+
+
+def viscoelastic_object(mesh: Optional[PathLike] = None, script: Optional[PathLike] = None,
+                        duration_s: float = 1.5, probe_every: int = 10, seed: int = 1,
+                        tensor: bool = False) -> ViscoelasticObject:
+    """Runs ``softjoint viscoelastic object``: the DGFM of ``mesh`` (an
+    OBJ in metres; default the shipped blob), its parameters estimated
+    from a simulated probe campaign (every ``probe_every``-th traction
+    vertex, noise seeded by ``seed``; damping tensors if ``tensor``), and
+    the probe ``script`` (CSV ``time_s,vertex,fx_n,fy_n,fz_n``; default 1
+    N down on the top vertex for 0.5 s) run for ``duration_s`` at 1 kHz by
+    the firmware's update beside the exact reference.
+
+    Raises :class:`InputError` for an argument out of its bounds or a
+    file the program refuses (a script's event named by file and line)."""
+    def text(p):
+        if p is None:
+            return None
+        path = Path(p)
+        return (_read(path), os.fspath(path))
+
+    summary, haptic, frames, params = _native.viscoelastic_object(
+        text(mesh), text(script), duration_s, probe_every, seed, tensor)
+    summary = json.loads(summary)
+    shape = (len(frames["time_s"]), summary["vertices"], 3)
+    return ViscoelasticObject(
+        summary=summary, haptic=dict(haptic), frame_time_s=frames["time_s"],
+        displacement_m=frames["displacement_m"].reshape(shape),
+        force_n=frames["force_n"].reshape(shape), fixed=params["fixed"].astype(bool),
+        damping_n_s_per_m=params["damping_magnitude_n_s_per_m"])

@@ -27,7 +27,8 @@ class SweepError(SoftjointError):
     """A sweep's units do not add up, or its objective failed."""
 
 class UnverifiedError(SoftjointError):
-    """A result failed its own checks (a contour fit's frames); `.fit` holds it."""
+    """A result failed its own checks: a contour fit's frames (`.fit` holds
+    the fit) or a dlo solve's shapes (`.solution` holds the solution)."""
 
 class Scenario:
     @staticmethod
@@ -142,4 +143,77 @@ def rope_simulate(
     overhand knot; check_step: `--check-step`): the summary as JSON text
     (status and self-checks included), the frames' times (s), and the
     node positions flat (frame, node, x/y/z; m)."""
+    ...
+
+def viscoelastic_fit(
+    text: str, name: str = "trial.csv", uniform: bool = False
+) -> Tuple[str, np.ndarray]:
+    """`softjoint viscoelastic fit` of a trial CSV's text: the `--json`
+    summary as JSON text and the fitted force at the samples (N)."""
+    ...
+
+def dlo_solve(
+    text: str, name: str = "problem.toml"
+) -> Tuple[str, Optional[str], List[Tuple[str, Optional[float], Dict[str, np.ndarray]]]]:
+    """`softjoint dlo solve` of a problem's TOML text: the summary as JSON
+    text (without `solve_s` and the file names), why it is unverified
+    (None if verified), and each shape as (name, l_fraction, shape.csv's
+    columns)."""
+    ...
+
+def contour_synth(
+    case: str,
+    n: int = 40,
+    sigma: Optional[float] = None,
+    every: int = 10,
+    angles: int = 10,
+    seed: int = 1,
+) -> Tuple[str, Dict[str, np.ndarray], Dict[str, np.ndarray]]:
+    """`softjoint contour synth --case CASE`: the summary's figures as JSON
+    text, data.csv's columns and truth.csv's."""
+    ...
+
+class PushProblem:
+    """A push prepared as `softjoint push simulate` prepares it."""
+    def __init__(
+        self,
+        material: str = "sponge",
+        site: str = "middle-long",
+        video: Optional[Tuple[str, str]] = None,
+        ref_element_px: float = 8.0,
+        noise_seed: int = 1,
+        integrator: str = "customised",
+        mode: str = "both",
+        nx: int = 20,
+        ny: int = 10,
+        cell_px: float = 1.0,
+        repair: bool = True,
+    ) -> None: ...
+    def frames(self) -> int: ...
+    def simulate(
+        self,
+        params: Optional[str] = None,
+        params_name: str = "params",
+        predicted_forces: bool = False,
+    ) -> Tuple[str, List[str], Dict[str, np.ndarray]]:
+        """`softjoint push simulate`: the `--json` summary as JSON text
+        (without `out`), each frame's phase, frames.csv's numeric columns."""
+        ...
+    def objective(self, params: str, score: str = "f", params_name: str = "params") -> float:
+        """The fitness `push calibrate --score SCORE` maximises (μ(F), or
+        minus the contour distance in px) for parameters as JSON text."""
+        ...
+
+def viscoelastic_object(
+    mesh: Optional[Tuple[str, str]] = None,
+    script: Optional[Tuple[str, str]] = None,
+    duration_s: float = 1.5,
+    probe_every: int = 10,
+    seed: int = 1,
+    tensor: bool = False,
+) -> Tuple[str, Dict[str, np.ndarray], Dict[str, np.ndarray], Dict[str, np.ndarray]]:
+    """`softjoint viscoelastic object` on an OBJ's and a script's (text,
+    name): the printed figures as JSON text, haptic.csv's columns,
+    frames.csv's (`time_s` per frame; `displacement_m`, `force_n` flat),
+    params.csv's (`fixed`, `damping_magnitude_n_s_per_m`)."""
     ...

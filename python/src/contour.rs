@@ -2,7 +2,10 @@
 //! or closed smoothing splines (Fujioka & Kano, seed 000) fitted to
 //! tracked contour points by `plant_contour`'s `fit_contours` — with the
 //! fit's own checks (verified or not and why, λ, GCV) handed back beside
-//! the fitted contours. Files and pictures stay the program's.
+//! the fitted contours; and the test cases `softjoint contour synth`
+//! writes (`host_tools::contour_synth`, the program's). Files and
+//! pictures stay the program's.
+use host_tools::contour_synth as synth;
 use host_tools::output;
 use numpy::{PyArray1, ToPyArray};
 use plant_contour::fit::Solver;
@@ -10,12 +13,14 @@ use plant_contour::identify::contours::{fit_contours, ContourFitSpec, ContourMod
 use plant_contour::identify::data::read_contour_csv;
 use plant_contour::identify::gcv::{Lambda, MAX_LAMBDA};
 use pyo3::prelude::*;
+use std::collections::BTreeMap;
 
 use crate::errors::{input, to_py};
 
 /// Adds the contour functions to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(contour_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(contour_synth, m)?)?;
     Ok(())
 }
 
@@ -122,4 +127,96 @@ fn contour_fit<'py>(
         ));
     }
     Ok((json, frames))
+}
+
+/// Columns of a CSV the program writes, as NumPy arrays.
+type PyColumns<'py> = BTreeMap<&'static str, Bound<'py, PyArray1<f64>>>;
+
+fn py_columns<'py>(
+    py: Python<'py>,
+    what: &str,
+    cols: Vec<(&'static str, Vec<f64>)>,
+) -> PyResult<PyColumns<'py>> {
+    output::check_value(what, &cols).map_err(to_py)?;
+    Ok(cols
+        .into_iter()
+        .map(|(k, v)| (k, v.to_pyarray(py)))
+        .collect())
+}
+
+/// The test case `case` (`"rbc"`: Eq. 38 on an `n` × `n` grid; `"movie"`:
+/// the pulsating contour observed along `angles` rays every `every`-th
+/// frame) with noise `sigma` (`None`: the case's default) seeded by
+/// `seed`, as `softjoint contour synth` writes it. Returns the summary's
+/// figures as JSON text (`case`, `frames`, `points_per_frame`, `sigma`,
+/// `seed`), data.csv's columns and truth.csv's.
+#[pyfunction]
+#[pyo3(signature = (case, n=40, sigma=None, every=10, angles=10, seed=1))]
+#[allow(clippy::type_complexity)]
+fn contour_synth<'py>(
+    py: Python<'py>,
+    case: &str,
+    n: usize,
+    sigma: Option<f64>,
+    every: usize,
+    angles: usize,
+    seed: u64,
+) -> PyResult<(String, PyColumns<'py>, PyColumns<'py>)> {
+    let (figures, data, truth) = match case {
+        "rbc" => {
+            let (figures, frames) = synth::rbc(n, sigma, seed).map_err(input)?;
+            let polar =
+                |of: &dyn Fn(&plant_contour::identify::synth::RbcFrame) -> &Vec<(f64, f64)>| {
+                    let mut c = (Vec::new(), Vec::new(), Vec::new());
+                    for (i, f) in frames.iter().enumerate() {
+                        for (th, r) in of(f) {
+                            c.0.push(i as f64);
+                            c.1.push(*th);
+                            c.2.push(*r);
+                        }
+                    }
+                    vec![("frame", c.0), ("angle_rad", c.1), ("radius", c.2)]
+                };
+            (figures, polar(&|f| &f.data), polar(&|f| &f.truth))
+        }
+        "movie" => {
+            let (figures, mc) = synth::movie(every, angles, sigma, seed).map_err(input)?;
+            let (mut d, mut t) = (vec![Vec::new(); 5], vec![Vec::new(); 3]);
+            for f in &mc.frames {
+                let frame = f.frame as f64;
+                for p in &f.truth {
+                    t[0].push(frame);
+                    t[1].push(p.0);
+                    t[2].push(p.1);
+                }
+                if let Some(sig) = &f.observed {
+                    for (th, r) in sig.angles_rad.iter().zip(&sig.radii) {
+                        for (col, v) in
+                            d.iter_mut()
+                                .zip([frame, sig.centre.0, sig.centre.1, *th, *r])
+                        {
+                            col.push(v);
+                        }
+                    }
+                }
+            }
+            let names = ["frame", "centre_x", "centre_y", "angle_rad", "radius"];
+            (
+                figures,
+                names.into_iter().zip(d).collect(),
+                ["frame", "x", "y"].into_iter().zip(t).collect(),
+            )
+        }
+        _ => {
+            return Err(input(anyhow::anyhow!(
+                "case {case:?}: give \"rbc\" or \"movie\""
+            )))
+        }
+    };
+    let json = output::json("the synth's summary", &figures).map_err(to_py)?;
+    Ok((
+        json,
+        py_columns(py, "the synth's data", data)?,
+        py_columns(py, "the synth's truth", truth)?,
+    ))
 }

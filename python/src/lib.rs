@@ -16,18 +16,24 @@
 //! 1 with "run cut short"); the joint's plant stops a run whose state
 //! goes non-finite before any row holds it.
 //!
-//! Contour fits are `softjoint contour fit`'s, with the fit's own checks;
-//! the viscoelastic trace is `softjoint viscoelastic simulate`'s; the
-//! rope's run is `softjoint dlo rope`'s.
+//! Contour fits are `softjoint contour fit`'s, with the fit's own checks,
+//! and its test cases `contour synth`'s; the viscoelastic trace and fit
+//! are `softjoint viscoelastic simulate`'s and `fit`'s, the object run
+//! `object`'s; the rope's run is
+//! `softjoint dlo rope`'s and the static solve `dlo solve`'s with its
+//! checks; the pushed block is `push simulate`'s, and its objective the
+//! fitness `push calibrate` maximises.
 //!
 //! Left out (issue 33 goes on): plant and gains files written from
-//! Python, identification, push, the viscoelastic fit and object, and `dlo solve`.
+//! Python, identification, push calibration and classification.
 
 use pyo3::prelude::*;
 
 mod contour;
+mod dlo_solve;
 mod errors;
 mod joint;
+mod push;
 mod rheology;
 mod rope;
 mod viscoelastic;
@@ -41,5 +47,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     contour::register(m)?;
     viscoelastic::register(m)?;
     rope::register(m)?;
+    dlo_solve::register(m)?;
+    push::register(m)?;
     Ok(())
 }

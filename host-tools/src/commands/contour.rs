@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use host_tools::contour_synth;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Chart, Panel, Series, Shape, ShapeStyle};
 use host_tools::{out, outln};
@@ -28,8 +29,7 @@ use plant_contour::identify::contours::{
 };
 use plant_contour::identify::data::read_contour_csv;
 use plant_contour::identify::gcv::{Lambda, LambdaReport, MAX_LAMBDA};
-use plant_contour::identify::paper;
-use plant_contour::identify::synth::{movie_case, rbc_case, MovieCase, RbcFrame};
+use plant_contour::identify::synth::{MovieCase, RbcFrame};
 use plant_contour::identify::tracked::Point;
 use serde::Serialize;
 
@@ -674,14 +674,12 @@ fn gcv_picture(what: &str, r: &LambdaReport) -> plot::Svg {
     }])
 }
 
-/// What `synth` prints (with `--json` as JSON).
+/// What `synth` prints (with `--json` as JSON): the case's figures,
+/// where it wrote what, and a command that fits the data.
 #[derive(Serialize)]
 struct SynthSummary {
-    case: &'static str,
-    frames: usize,
-    points_per_frame: usize,
-    sigma: f64,
-    seed: u64,
+    #[serde(flatten)]
+    figures: contour_synth::SynthFigures,
     out: String,
     files: Vec<&'static str>,
     /// A command that fits the data as the paper does.
@@ -699,11 +697,11 @@ fn synth_cmd(a: SynthArgs) -> Result<()> {
     } else {
         outln!(
             "{}: {} frames × {} points, σ = {}, seed {}; wrote {} to {}",
-            summary.case,
-            summary.frames,
-            summary.points_per_frame,
-            summary.sigma,
-            summary.seed,
+            summary.figures.case,
+            summary.figures.frames,
+            summary.figures.points_per_frame,
+            summary.figures.sigma,
+            summary.figures.seed,
             summary.files.join(", "),
             summary.out
         );
@@ -714,15 +712,8 @@ fn synth_cmd(a: SynthArgs) -> Result<()> {
 
 /// Eq. 38 (red blood cell): data.csv, truth.csv and synth.svg.
 fn synth_rbc(a: &SynthArgs) -> Result<SynthSummary> {
-    let sigma = a.sigma.unwrap_or(paper::SIGMA);
-    if !(sigma.is_finite() && sigma >= 0.0) {
-        bail!("--sigma must be finite and ≥ 0, got {sigma}");
-    }
-    if !(2..=1000).contains(&a.n) {
-        bail!("--n must be 2..=1000 (the paper: 5 and 40), got {}", a.n);
-    }
-    // Frame i ↔ s = 10 i/(N − 1); angle θ(t_j) = 2π j/N.
-    let frames = rbc_case(a.n, sigma, a.seed);
+    let (figures, frames) = contour_synth::rbc(a.n, a.sigma, a.seed).map_err(as_flag)?;
+    let sigma = figures.sigma;
     let data_path = a.out.join("data.csv");
     write(&data_path, &polar_csv(&frames, |f| &f.data))?;
     write(&a.out.join("truth.csv"), &polar_csv(&frames, |f| &f.truth))?;
@@ -731,11 +722,7 @@ fn synth_rbc(a: &SynthArgs) -> Result<SynthSummary> {
         &rbc_picture(&frames, a.n, sigma).finish(),
     )?;
     Ok(SynthSummary {
-        case: "rbc",
-        frames: a.n,
-        points_per_frame: a.n,
-        sigma,
-        seed: a.seed,
+        figures,
         out: a.out.display().to_string(),
         files: vec!["data.csv", "truth.csv", "synth.svg"],
         fit_command: format!(
@@ -749,6 +736,14 @@ fn synth_rbc(a: &SynthArgs) -> Result<SynthSummary> {
             }
         ),
     })
+}
+
+/// A refused synth argument in the command line's words (`--n`, not `n`).
+fn as_flag(e: anyhow::Error) -> anyhow::Error {
+    match e.downcast_ref::<contour_synth::SynthArgError>() {
+        Some(a) => anyhow::anyhow!("--{a}"),
+        None => e,
+    }
 }
 
 /// `frame,angle_rad,radius` rows of the (θ, r) pairs `of` each frame.
@@ -818,17 +813,9 @@ fn truth_and_data_panel(caption: String, truth: Vec<Point>, data: Vec<Point>) ->
 
 /// The pulsating contour movie: data.csv, truth.csv and synth.svg.
 fn synth_movie(a: &SynthArgs) -> Result<SynthSummary> {
-    let sigma = a.sigma.unwrap_or(1.0);
-    if !(sigma.is_finite() && sigma >= 0.0) {
-        bail!("--sigma must be finite and ≥ 0 (px), got {sigma}");
-    }
-    if !(3..=100_000).contains(&a.angles) {
-        bail!("--angles must be 3..=100000, got {}", a.angles);
-    }
-    if !(1..=100).contains(&a.every) {
-        bail!("--every must be 1..=100, got {}", a.every);
-    }
-    let case = movie_case(a.every, a.angles, sigma, a.seed)?;
+    let (figures, case) =
+        contour_synth::movie(a.every, a.angles, a.sigma, a.seed).map_err(as_flag)?;
+    let sigma = figures.sigma;
     let data_path = a.out.join("data.csv");
     let (data, truth) = movie_csv(&case);
     write(&data_path, &data)?;
@@ -838,11 +825,7 @@ fn synth_movie(a: &SynthArgs) -> Result<SynthSummary> {
         &movie_picture(&case, a.every, a.angles, sigma).finish(),
     )?;
     Ok(SynthSummary {
-        case: "movie",
-        frames: case.kept(),
-        points_per_frame: a.angles,
-        sigma,
-        seed: a.seed,
+        figures,
         out: a.out.display().to_string(),
         files: vec!["data.csv", "truth.csv", "synth.svg"],
         fit_command: format!(

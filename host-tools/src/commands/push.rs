@@ -16,26 +16,24 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use host_tools::input::from_json;
 use host_tools::output::{self, JsonObject};
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
+use host_tools::push::Material;
+use host_tools::push::{self, ModelGrid, PushSource};
 use host_tools::resume::{best_of, fnv1a_hex, Scored, Scores};
 use host_tools::stop::{Stop, StopSignal, Stopped};
 use host_tools::{outln, progress};
 use plant_pushing::classify::MaterialModel;
 use plant_pushing::contour_score::ReachZone;
-use plant_pushing::error::PushError;
-use plant_pushing::evaluate::{EvalSetup, PreparedVideo};
-use plant_pushing::evolution::CalibrationResult;
+use plant_pushing::evaluate::PreparedVideo;
 use plant_pushing::experiment::{
     self, CalibrateReport, CalibrateSpec, ClassifyReport, ScoreKind, SimulateReport, SimulateSpec,
     Tracking,
 };
 use plant_pushing::forces::MaterialParams;
-use plant_pushing::reference::{record_push, ReferenceConfig, ReferenceMaterial, Video};
-use plant_pushing::scenario::{PushScenario, PushSite};
+use plant_pushing::scenario::PushSite;
 use plant_pushing::sim::{DrivingMode, Integrator, SimConfig};
-use plant_pushing::video_csv::{parse_video_csv, write_video_csv};
+use plant_pushing::video_csv::write_video_csv;
 use plant_pushing::V2;
 use serde::{Deserialize, Serialize};
 
@@ -67,26 +65,21 @@ enum MaterialArg {
     Plasticine,
 }
 
+impl From<MaterialArg> for Material {
+    fn from(m: MaterialArg) -> Self {
+        match m {
+            MaterialArg::Sponge => Material::Sponge,
+            MaterialArg::Plasticine => Material::Plasticine,
+        }
+    }
+}
+
 impl MaterialArg {
     fn label(self) -> &'static str {
-        match self {
-            MaterialArg::Sponge => "sponge",
-            MaterialArg::Plasticine => "plasticine",
-        }
+        Material::from(self).label()
     }
-    fn reference(self) -> ReferenceMaterial {
-        match self {
-            MaterialArg::Sponge => ReferenceMaterial::SPONGE,
-            MaterialArg::Plasticine => ReferenceMaterial::PLASTICINE,
-        }
-    }
-    /// The seed's parameters of the material: Fig. 14 (sponge) or Fig. 15
-    /// (plasticine).
     fn seed_params(self) -> MaterialParams {
-        match self {
-            MaterialArg::Sponge => MaterialParams::SEED_FIG14_SPONGE,
-            MaterialArg::Plasticine => MaterialParams::SEED_FIG15_PLASTICINE,
-        }
+        Material::from(self).seed_params()
     }
 }
 
@@ -652,162 +645,73 @@ fn classify_cmd(a: ClassifyArgs) -> Result<()> {
 }
 
 fn sim_config(m: &ModelArgs) -> SimConfig {
-    SimConfig {
-        integrator: match m.integrator {
+    push::sim_config(
+        match m.integrator {
             IntegratorArg::Customised => Integrator::Customised,
             IntegratorArg::Euler => Integrator::Euler,
             IntegratorArg::Verlet => Integrator::Verlet,
             IntegratorArg::CustomisedSeq => Integrator::CustomisedSequential,
         },
-        mode: match m.mode {
+        match m.mode {
             ModeArg::Collision => DrivingMode::CollisionOnly,
             ModeArg::Forces => DrivingMode::ForcesOnVertices,
             ModeArg::Both => DrivingMode::CollisionAndForces,
         },
-        geometric_repair: !m.no_repair,
-        ..SimConfig::default()
-    }
+        !m.no_repair,
+    )
 }
 
-/// The flag behind each library parameter name the pushing code reports.
-const FLAGS: [(&str, &str); 4] = [
-    ("element_size_px", "--ref-element-px"),
-    ("nx", "--nx"),
-    ("ny", "--ny"),
-    ("cell_px", "--cell-px"),
-];
-
-/// A pushing error in the words of the command line: a parameter the user
-/// set by a flag is called by that flag (`element_size_px` was shown for
-/// `--ref-element-px`).
-fn as_flag(e: PushError) -> anyhow::Error {
-    let flag = |name: &str| FLAGS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f);
-    let short = plant_common::short_number;
-    match e {
-        PushError::InvalidParameter {
-            name,
-            value,
-            reason,
-        } if flag(name).is_some() => {
-            anyhow::anyhow!("{} {}: {reason}", flag(name).unwrap_or(name), short(value))
-        }
-        PushError::OutOfRange {
-            name,
-            value,
-            min,
-            max,
-        } if flag(name).is_some() => anyhow::anyhow!(
-            "{} {}: must be within {}..={}",
-            flag(name).unwrap_or(name),
-            short(value),
-            short(min),
-            short(max)
-        ),
-        other => other.into(),
-    }
+/// A setting's flag: `--ref-element-px` for `ref_element_px`.
+fn flag(name: &str) -> String {
+    format!("--{}", name.replace('_', "-"))
 }
 
-fn load_video(v: &VideoArgs, json: bool) -> Result<Video> {
-    let mat = v.material.reference();
-    let scenario = PushScenario::seed(v.site.into(), mat.scale_px_per_m)?;
-    match &v.video {
-        Some(path) => {
+/// The push the flags name, loaded (the tests read a written video back).
+#[cfg(test)]
+fn load_video(v: &VideoArgs, json: bool) -> Result<plant_pushing::reference::Video> {
+    let text = read_video(v)?;
+    push::load_video(&source(v, text.as_ref()), &flag, json)
+}
+
+/// The --video file's text and name, if one is given.
+fn read_video(v: &VideoArgs) -> Result<Option<(String, String)>> {
+    v.video
+        .as_ref()
+        .map(|path| {
             let text =
                 fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            Ok(parse_video_csv(
-                &text,
-                &path.display().to_string(),
-                &scenario,
-                v.material.label(),
-            )?)
-        }
-        None => {
-            if v.ref_element_px.is_nan() || v.ref_element_px < MIN_REF_ELEMENT_PX {
-                bail!(
-                    "--ref-element-px {}: must be at least {MIN_REF_ELEMENT_PX} px (the finite-element ground truth's time grows about as the cube of 1/size: below 2 px it runs for minutes; the default is 8 px)",
-                    plant_common::short_number(v.ref_element_px)
-                );
-            }
-            let cfg = ReferenceConfig {
-                element_size_px: v.ref_element_px,
-                seed: v.noise_seed,
-                ..ReferenceConfig::default()
-            };
-            let spinner = progress::spinner(
-                &format!(
-                    "recording the ground-truth push ({} px elements)",
-                    v.ref_element_px
-                ),
-                json,
-            );
-            let video = record_push(v.material.label(), mat, &scenario, &cfg);
-            spinner.finish_and_clear();
-            video.map_err(as_flag)
-        }
-    }
+            Ok((text, path.display().to_string()))
+        })
+        .transpose()
 }
 
-/// Smallest `--ref-element-px`: below ≈ 2 px the ground truth ran for
-/// minutes (issue 12); 8 px is the default.
-const MIN_REF_ELEMENT_PX: f64 = 2.0;
-
-/// Peak memory of the model per square of its `--nx × --ny` mesh (bytes)
-/// and besides it: the maximum resident set of `softjoint push simulate`
-/// at `--nx 200 --ny 100` (28 MB) and `--nx 400 --ny 200` (59 MB) over
-/// its 17 MB at the start (VmHWM of /proc/PID/status), ≈ 530–600 B a
-/// square; rounded up.
-const MODEL_BYTES_PER_SQUARE: u64 = 700;
-const MODEL_BYTES_BESIDES: u64 = 32_000_000;
-
-/// The mesh's size checked before any work (the ground truth is seconds
-/// of finite elements): each side within the model's 1..=2000 squares,
-/// and the memory the mesh needs within the memory there is.
-fn check_grid(m: &ModelArgs) -> Result<()> {
-    let max = plant_pushing::mesh::MAX_SQUARES_PER_SIDE;
-    for (flag, n) in [("--nx", m.nx), ("--ny", m.ny)] {
-        if !(1..=max).contains(&n) {
-            bail!("{flag} {n}: must be 1..={max} squares");
-        }
+/// The push the flags name (`text`: the --video file's text and name).
+fn source<'a>(v: &VideoArgs, text: Option<&'a (String, String)>) -> PushSource<'a> {
+    PushSource {
+        material: v.material.into(),
+        site: v.site.into(),
+        video: text.map(|(t, n)| (t.as_str(), n.as_str())),
+        ref_element_px: v.ref_element_px,
+        noise_seed: v.noise_seed,
     }
-    let squares = (m.nx * m.ny) as u64;
-    host_tools::memory::check_fits(
-        &format!("--nx {} --ny {} ({squares} squares)", m.nx, m.ny),
-        squares * MODEL_BYTES_PER_SQUARE + MODEL_BYTES_BESIDES,
-    )
 }
 
 fn prepare(v: &VideoArgs, m: &ModelArgs, json: bool) -> Result<PreparedVideo> {
-    check_grid(m)?;
-    let video = load_video(v, json)?;
-    PreparedVideo::new(
-        video,
-        &EvalSetup {
-            nx: m.nx,
-            ny: m.ny,
-            cell_px: m.cell_px,
-        },
-    )
-    .map_err(as_flag)
+    let grid = ModelGrid {
+        nx: m.nx,
+        ny: m.ny,
+        cell_px: m.cell_px,
+    };
+    push::check_grid(&grid, &flag)?;
+    let text = read_video(v)?;
+    push::prepare(&source(v, text.as_ref()), &grid, &flag, json)
 }
 
 /// Reads parameters from a bare parameter object or from `calibrate`'s
 /// `params.json` (which holds them under `best_params`).
 fn load_params(path: &Path) -> Result<MaterialParams> {
     let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let file = path.display().to_string();
-    let expected = "expected the eight model parameters (k_length, k_damping, k_area, k_angle, max_force, yield_strain, creep, max_alpha), or `calibrate`'s params.json";
-    // Duplicate keys and syntax first (the form is chosen from a parsed
-    // value, which would keep only the last of two equal keys).
-    let value: serde_json::Value = from_json(&text, &file)?;
-    let p = if value.get("best_params").is_some() {
-        from_json::<CalibrationResult>(&text, &file)
-            .with_context(|| format!("{file}: {expected}"))?
-            .best_params
-    } else {
-        from_json::<MaterialParams>(&text, &file).with_context(|| format!("{file}: {expected}"))?
-    };
-    p.validate().with_context(|| format!("in {file}"))?;
-    Ok(p)
+    push::params_from_json(&text, &path.display().to_string())
 }
 
 fn parse_model(spec: &str) -> Result<MaterialModel> {
@@ -1145,37 +1049,29 @@ fn zone_outline(z: &ReachZone) -> Vec<V2> {
 }
 
 /// `frames.csv`: per frame the finger, the forces, F and the contour
-/// distances of the model and the undeformed block.
+/// distances of the model and the undeformed block
+/// ([`push::frame_table`]'s columns).
 fn frames_csv(prep: &PreparedVideo, report: &SimulateReport) -> String {
-    let sc = &prep.video.scenario;
-    let tracking = &report.tracking;
-    let mean = plant_pushing::raster::running_mean(&report.f_per_frame);
-    let mut s = String::from(
-        "frame,time_s,phase,finger_depth_px,sensed_force_n,force_used_n,f_score,mean_f,contour_mean_px,contour_max_px,still_contour_mean_px,still_contour_max_px\n",
-    );
-    for (f, mean_f) in mean.iter().enumerate().take(prep.frame_count()) {
-        let t = sc.frame_time_s(f);
-        let (cm, cx) = tracking
-            .model
-            .as_ref()
-            .map(|m| (m.mean_px_per_frame[f], m.max_px_per_frame[f]))
-            .unwrap_or((f64::NAN, f64::NAN));
-        let _ = writeln!(
-            s,
-            "{f},{t:.3},{},{:.3},{:.4},{:.4},{:.5},{:.5},{cm:.3},{cx:.3},{:.3},{:.3}",
-            if sc.is_push_frame(f) {
-                "push"
-            } else {
-                "retrieval"
-            },
-            sc.finger_depth_px(t),
-            prep.video.forces_n[f],
-            report.forces_n[f],
-            report.f_per_frame[f],
-            mean_f,
-            tracking.still.mean_px_per_frame[f],
-            tracking.still.max_px_per_frame[f],
-        );
+    let table = push::frame_table(prep, report);
+    // Decimals of each numeric column, in the table's order.
+    const DIGITS: [usize; 10] = [3, 3, 4, 4, 5, 5, 3, 3, 3, 3];
+    let mut s = String::from("frame");
+    for (k, (name, _)) in table.columns.iter().enumerate() {
+        let _ = write!(s, ",{name}");
+        if k == 0 {
+            s.push_str(",phase");
+        }
+    }
+    s.push('\n');
+    for (f, phase) in table.phase.iter().enumerate() {
+        let _ = write!(s, "{f}");
+        for (k, ((_, col), digits)) in table.columns.iter().zip(DIGITS).enumerate() {
+            let _ = write!(s, ",{:.digits$}", col[f]);
+            if k == 0 {
+                let _ = write!(s, ",{phase}");
+            }
+        }
+        s.push('\n');
     }
     s
 }

@@ -9,17 +9,12 @@ use clap::{Args, Subcommand};
 use host_tools::outln;
 use host_tools::output;
 use host_tools::plot::{self, Anchor, Chart, Series, Stroke, Svg};
-use host_tools::visco_core::CoreObject;
-use plant_viscoelastic::error::VeError;
-use plant_viscoelastic::experiment::pipeline::{
-    default_probe_script, object_dgfm, probe_beside_reference, Campaign, IdentifiedObject, ProbeRun,
-};
-use plant_viscoelastic::experiment::trial::{
-    fit_trial_checked, simulate_table, ThreeElementParams, Trace,
-};
+use host_tools::visco_fit::{fit_summary, fit_trial_text, weighting_name};
+use host_tools::visco_object::{run_object, ObjectFigures, ObjectJob};
+use plant_viscoelastic::experiment::pipeline::{Campaign, IdentifiedObject, ProbeRun};
+use plant_viscoelastic::experiment::trial::{simulate_table, ThreeElementParams, Trace};
 use plant_viscoelastic::fit::{simulate_force, TrialFit, Weighting};
-use plant_viscoelastic::io::{read_columns, read_probe_script, read_table, Columns};
-use plant_viscoelastic::object::{ProbeEvent, HAPTIC_PERIOD_S};
+use plant_viscoelastic::io::read_table;
 use plant_viscoelastic::Vec3;
 use plant_viscoelastic::{Dgfm, SurfaceMesh};
 use std::fmt::Write as _;
@@ -177,62 +172,17 @@ fn trace_csv(trace: &Trace) -> String {
     s
 }
 
-/// A trial's forces and displacements within what a trial of a soft
-/// material records, and a stiffness scale (largest force over largest
-/// displacement) a fit can represent: a force a million times too large,
-/// or displacements in the wrong unit, are refused by line, not fitted to
-/// a stiffness of `inf`.
-fn check_trial_ranges(c: &Columns, name: &str) -> Result<()> {
-    use plant_viscoelastic::io::{check_magnitude, MAX_TRIAL_DISPLACEMENT_M, MAX_TRIAL_FORCE_N};
-    check_magnitude(
-        c,
-        name,
-        "force",
-        MAX_TRIAL_FORCE_N,
-        "N",
-        "a soft material's trial",
-    )?;
-    check_magnitude(
-        c,
-        name,
-        "displacement",
-        MAX_TRIAL_DISPLACEMENT_M,
-        "m",
-        "a soft material's trial",
-    )?;
-    let peak = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let (f, u) = (peak(&c.values[2]), peak(&c.values[1]));
-    // Steel in contact is ≈ 1e9 N/m; a soft object is many decades below.
-    let stiffness = f / u;
-    if f > 0.0 && stiffness > 1e12 {
-        bail!(
-            "{name}: forces up to {} N against displacements of at most {} m (a stiffness of {} N/m) — beyond any soft material; is the displacement column in metres?",
-            plant_common::short_number(f),
-            plant_common::short_number(u),
-            plant_common::short_number(stiffness)
-        );
-    }
-    Ok(())
-}
-
 fn fit(a: &FitArgs) -> Result<()> {
     let text = read_text(&a.input)?;
     let name = a.input.display().to_string();
-    let c = read_columns(
-        &text,
-        &name,
-        &["time_s", "displacement", "force"],
-        Some("time_s"),
-    )?;
-    check_trial_ranges(&c, &name)?;
-    let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
     let weighting = if a.uniform {
         Weighting::Uniform
     } else {
         Weighting::Seed
     };
-    let weighting_name = if a.uniform { "uniform" } else { "seed" };
-    let r = fit_trial_checked(t, u, f, weighting).with_context(|| format!("fitting {name}"))?;
+    let (c, r) = fit_trial_text(&text, &name, weighting)?;
+    let (t, u, f) = (&c.values[0], &c.values[1], &c.values[2]);
+    let weighting_name = weighting_name(weighting);
     if let Some(p) = &a.plot {
         let fitted = simulate_force(r.k1_n_per_m, r.k2_n_per_m, r.b_n_s_per_m, t, u)?;
         let caption = format!(
@@ -242,17 +192,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         output::write_svg(p, &fit_plot(t, f, &fitted, &caption))?;
     }
     if a.json {
-        output::JsonObject::new()
-            .field("k1_n_per_m", &r.k1_n_per_m)?
-            .field("k2_n_per_m", &r.k2_n_per_m)?
-            .field("b_n_s_per_m", &r.b_n_s_per_m)?
-            .field("rms_residual_n", &r.rms_residual_n)?
-            .field("weighted_cost_n2", &r.weighted_cost_n2)?
-            .field("uncertainty_factor", &r.uncertainty_factor())?
-            .field("evaluations", &r.evaluations)?
-            .field("weighting", weighting_name)?
-            .field("samples", &t.len())?
-            .print()
+        fit_summary(&r, weighting, t.len())?.print()
     } else {
         print_fit(&r, t.len(), weighting_name)
     }
@@ -280,123 +220,42 @@ fn print_fit(r: &TrialFit, samples: usize, weighting_name: &str) -> Result<()> {
     Ok(())
 }
 
-/// Longest `object` run: every haptic step and every 30 Hz frame of every
-/// vertex is kept in memory before it is written. Estimate for the default
-/// ~200-vertex mesh at this length: 0.2 GB of frames, 0.5 GB of CSV text.
-const MAX_OBJECT_DURATION_S: f64 = 600.0;
-
-/// Most surface vertices `object` takes: its time grows about as n³
-/// (1,982 vertices took 30 s, a 19,462-vertex sphere ran past 60 s with no
-/// end in sight); 3,000 vertices is about two minutes.
-const MAX_OBJECT_VERTICES: usize = 3000;
-
 fn object(a: &ObjectArgs) -> Result<()> {
-    let duration_s = a.duration_s;
-    if !(duration_s.is_finite() && (HAPTIC_PERIOD_S..=MAX_OBJECT_DURATION_S).contains(&duration_s))
-    {
-        bail!(
-            "--duration-s must be between one haptic period ({HAPTIC_PERIOD_S} s) and {MAX_OBJECT_DURATION_S} s, got {duration_s:e}"
-        );
-    }
-    if a.probe_every == 0 {
-        bail!("--probe-every must be at least 1 (probe every N-th traction vertex)");
-    }
+    let job = ObjectJob {
+        duration_s: a.duration_s,
+        probe_every: a.probe_every,
+        seed: a.seed,
+        tensor: a.tensor,
+    };
+    job.check("--")?;
     // The outputs are checked before the long part, not after it.
     output::check_dir(&a.out_dir)?;
     if let Some(dir) = &a.trials_dir {
         output::check_dir(dir)?;
     }
-    let mesh = load_mesh(a.mesh.as_deref())?;
-    let n = mesh.vertices_m.len();
-    let phase =
-        host_tools::progress::spinner(&format!("building the DGFM of {n} vertices (FEM)"), false);
-    let dgfm = object_dgfm(mesh)?;
-    // The script is read (and its forces checked) before the campaign.
-    let script = Script::load(a.script.as_deref(), &dgfm)?;
-    // Measure (simulated), fit, estimate and spread, as in seed §4.
-    phase.set_message("simulating and fitting the probe campaign");
-    let campaign = Campaign::simulate(&dgfm, a.probe_every, a.seed)?;
-    if let Some(dir) = &a.trials_dir {
-        write_trials(dir, &campaign)?;
-    }
-    let identified = campaign.identify(&dgfm, a.tensor)?;
-    // The haptic device runs the firmware's real-time update (seed §5);
-    // the plant's exact reference runs the same script beside it.
-    phase.set_message("running the probe script at 1 kHz");
-    let run = probe_beside_reference(
-        &dgfm,
-        &identified.params,
-        &script.events,
-        duration_s,
-        |dgfm, params| CoreObject::new(dgfm, params, HAPTIC_PERIOD_S),
-    )
-    .map_err(|e| script.name_error(e))?;
+    let mesh = read_named(a.mesh.as_deref())?;
+    let script = read_named(a.script.as_deref())?;
+    let phase = host_tools::progress::spinner("building the DGFM (FEM)", false);
+    let o = run_object(named(&mesh), named(&script), &job, &mut |what| {
+        phase.set_message(what.to_string())
+    })?;
     phase.finish_and_clear();
-    write_object_files(&a.out_dir, &dgfm, &campaign, &identified, &run)?;
-    print_object_summary(&a.out_dir, &dgfm, &campaign, &identified, &run)
+    if let Some(dir) = &a.trials_dir {
+        write_trials(dir, &o.campaign)?;
+    }
+    write_object_files(&a.out_dir, &o.dgfm, &o.campaign, &o.identified, &o.run)?;
+    print_object_summary(&a.out_dir, &o.figures())
 }
 
-/// The mesh of `path` (default: the shipped object), refused when its DGFM
-/// would take too long.
-fn load_mesh(path: Option<&Path>) -> Result<SurfaceMesh> {
-    let mesh = match path {
-        Some(p) => SurfaceMesh::from_obj_str(&read_text(p)?, &p.display().to_string())?,
-        None => SurfaceMesh::default_object(),
-    };
-    let n = mesh.vertices_m.len();
-    if n > MAX_OBJECT_VERTICES {
-        // Measured: 872 vertices 4 s, 1,982 vertices 30 s (release build):
-        // about n³, so the estimate scales the latter.
-        let minutes = 0.5 * (n as f64 / 1982.0).powi(3);
-        bail!(
-            "{}: {n} vertices is more than {MAX_OBJECT_VERTICES}: the DGFM and its fits take time growing as the cube of the vertex count (about {} minutes for this mesh; 1,982 vertices took 30 s); simplify the mesh (the seed's object has 193 vertices)",
-            path.map_or("the mesh".into(), |p| p.display().to_string()),
-            plant_common::short_number(minutes.round())
-        );
-    }
-    Ok(mesh)
+/// A file's text and name as borrowed strings.
+fn named(f: &Option<(String, String)>) -> Option<(&str, &str)> {
+    f.as_ref().map(|(t, n)| (t.as_str(), n.as_str()))
 }
 
-/// The probe script of `object`: the user's file (its events and their
-/// lines) or the default push.
-struct Script<'a> {
-    path: Option<&'a Path>,
-    events: Vec<ProbeEvent>,
-    /// The file line of each event (empty for the default).
-    lines: Vec<usize>,
-}
-
-impl<'a> Script<'a> {
-    fn load(path: Option<&'a Path>, dgfm: &Dgfm) -> Result<Self> {
-        let (events, lines) = match path {
-            Some(p) => {
-                let text = read_text(p)?;
-                let s = read_probe_script(&text, &p.display().to_string(), dgfm.mesh().len())?;
-                (s.events, s.lines)
-            }
-            None => (
-                default_probe_script(dgfm).context("no traction vertex")?,
-                Vec::new(),
-            ),
-        };
-        Ok(Script {
-            path,
-            events,
-            lines,
-        })
-    }
-
-    /// An error of the run, with an event of the user's script named by
-    /// its file and line.
-    fn name_error(&self, e: VeError) -> anyhow::Error {
-        match (&e, self.path) {
-            (VeError::ProbeEvent { index, error, .. }, Some(p)) => match self.lines.get(*index) {
-                Some(line) => anyhow::anyhow!("{}:{line}: {error}", p.display()),
-                None => anyhow::Error::new(e),
-            },
-            _ => anyhow::Error::new(e),
-        }
-    }
+/// A file's text (without a byte-order mark) and its name, if given.
+fn read_named(path: Option<&Path>) -> Result<Option<(String, String)>> {
+    path.map(|p| Ok((read_text(p)?, p.display().to_string())))
+        .transpose()
 }
 
 /// Every simulated trial as `trial_NNNN.csv` and the index `trials.csv`
@@ -488,30 +347,23 @@ fn haptic_csv(run: &ProbeRun) -> String {
     hs
 }
 
-fn print_object_summary(
-    out_dir: &Path,
-    dgfm: &Dgfm,
-    campaign: &Campaign,
-    identified: &IdentifiedObject,
-    run: &ProbeRun,
-) -> Result<()> {
+fn print_object_summary(out_dir: &Path, f: &ObjectFigures) -> Result<()> {
     outln!(
         "{} vertices ({} traction), {} trials fitted, {} vertices estimated; {} haptic steps, {} display frames written to {}",
-        dgfm.mesh().len(),
-        dgfm.fixed().iter().filter(|f| !**f).count(),
-        campaign.trials.len(),
-        identified.estimates.len(),
-        run.samples.len(),
-        run.frames.len(),
+        f.vertices,
+        f.traction_vertices,
+        f.trials,
+        f.estimated_vertices,
+        f.haptic_steps,
+        f.display_frames,
         out_dir.display()
     );
-    let d = &run.difference;
     outln!(
         "firmware update vs exact reference: contact max |Δu| {:.3e} m ({:.3} % of max |u|), all vertices over the display frames {:.3e} m ({:.3} %)",
-        d.contact_m,
-        100.0 * d.contact_rel,
-        d.frames_m,
-        100.0 * d.frames_rel
+        f.contact_difference_m,
+        100.0 * f.contact_difference_rel,
+        f.frames_difference_m,
+        100.0 * f.frames_difference_rel
     );
     Ok(())
 }

@@ -293,6 +293,28 @@ pub fn snapshot_positions(
     Ok(out)
 }
 
+/// The fitness Algorithm 5 maximises for parameters `p` on the push's
+/// sensed forces: μ(F) (`ScoreKind::F`), or minus the mean contour
+/// distance in the finger's reach against `target` (px); NaN when the
+/// run could not be scored (the search counts it failed).
+pub fn fitness(
+    prep: &PreparedVideo,
+    target: &ContourTarget,
+    score: ScoreKind,
+    sim: &SimConfig,
+    p: &MaterialParams,
+) -> f64 {
+    let forces = &prep.video.forces_n;
+    match score {
+        ScoreKind::F => score_run(prep, forces, p, sim)
+            .map(|s| s.mean_f)
+            .unwrap_or(f64::NAN),
+        ScoreKind::Contour => score_contour_run(prep, target, forces, p, sim)
+            .map(|s| -s.mean_px)
+            .unwrap_or(f64::NAN),
+    }
+}
+
 /// How to calibrate: Table III's search with `generations` and `seed`,
 /// maximising `score`, the model run as `sim` says.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -373,14 +395,7 @@ pub fn calibrate_until(
     let mut settings = EvolutionSettings::table_iii(spec.seed);
     settings.generations = spec.generations;
     let forces = &prep.video.forces_n;
-    let fitness = |p: &MaterialParams| match spec.score {
-        ScoreKind::F => score_run(prep, forces, p, &spec.sim)
-            .map(|s| s.mean_f)
-            .unwrap_or(f64::NAN),
-        ScoreKind::Contour => score_contour_run(prep, &tracking.target, forces, p, &spec.sim)
-            .map(|s| -s.mean_px)
-            .unwrap_or(f64::NAN),
-    };
+    let fitness = |p: &MaterialParams| fitness(prep, &tracking.target, spec.score, &spec.sim, p);
     let found = evolution::calibrate_until(
         &settings,
         &evolution::TABLE_III_RANGES,
