@@ -80,8 +80,16 @@ fn main() -> std::process::ExitCode {
     };
     println!(
         "flagged by the gap check alone: {} wrong, {} right",
-        outcomes.iter().filter(only_gap).filter(|o| !o.right()).count(),
-        outcomes.iter().filter(only_gap).filter(|o| o.right()).count()
+        outcomes
+            .iter()
+            .filter(only_gap)
+            .filter(|o| !o.right())
+            .count(),
+        outcomes
+            .iter()
+            .filter(only_gap)
+            .filter(|o| o.right())
+            .count()
     );
     if summary.wrong == 0 {
         std::process::ExitCode::SUCCESS

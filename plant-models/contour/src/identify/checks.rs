@@ -25,11 +25,13 @@
 //!   the full data's error is smaller than the halves' spread. Frames of
 //!   fewer than 6 points cannot be split and fail it.
 //! * **Gaps**: the halves share the data's largest gap, so they agree on
-//!   how to bridge it even when both cut a corner there. Across a gap of
-//!   chord g on a contour of curvature κ the spline may miss a cap of area
-//!   ≈ κg³/12 (the segment of a circle of radius 1/κ); with κ the fitted
-//!   contour's largest curvature this bounds what the gap can hide. A
-//!   bound over [`GAP_AREA_LIMIT`] of the area is flagged.
+//!   how to bridge it even when both cut a corner there. Every gap is
+//!   bounded by the area the truth may enclose between itself and the
+//!   fit's bridge there, with the ends held by the data on either side
+//!   and the truth's curvature at most the fit's largest, κ_max
+//!   ([`gap_caps`]: ≈ (κ_max + F) ℓ³/32 plus the ends' direction
+//!   uncertainty). A bound over [`GAP_AREA_LIMIT`] of the area is
+//!   flagged. (Before: the chord cap κ_max g³/12 of the largest gap.)
 //! * **Jumps across frames** (per-frame fits of ≥ 3 frames): the ratio of
 //!   the fit's area (perimeter) to its data polygon's, against the median
 //!   of the same ratio over the two frames either side. A fit that departs
@@ -53,8 +55,8 @@ pub const PERIMETER_RATIO_LIMIT: f64 = 1.25;
 pub const JUMP_LIMIT: f64 = 0.1;
 /// Largest relative spread of the two half-data fits' area or perimeter.
 pub const HALF_LIMIT: f64 = 0.1;
-/// Largest share of the area that the largest data gap may hide
-/// (κ_max g³ / 12 A): the 5 % to which a verified area is claimed
+/// Largest share of the area that a data gap may hide ([`gap_caps`]):
+/// the 5 % to which a verified area is claimed
 /// (the campaign's tolerance, [`crate::identify::campaign::TOLERANCE`]).
 pub const GAP_AREA_LIMIT: f64 = 0.05;
 /// Frames either side that a frame is compared with.
@@ -90,7 +92,7 @@ impl Flag {
         match self {
             Flag::LambdaAtDofBound => "GCV heads for interpolation (λ against its degrees-of-freedom bound: no noise seen, or too few points for the knots)",
             Flag::SelfIntersection => "the fitted contour crosses itself",
-            Flag::DataGap => "the largest gap between the points may hide more than 5 % of the area (κ_max g³/12)",
+            Flag::DataGap => "a gap between the points may hide more than 5 % of the area (a departure from the fit across it with the ends held by the data and curvature up to the fit's largest)",
             Flag::UnderResolved => "the two halves of the points (every other one) give areas or perimeters more than 10 % apart: too few points, or gaps, to determine the contour",
             Flag::AreaDisagreesWithData => "the fitted area is not within 25 % of the data polygon's",
             Flag::PerimeterDisagreesWithData => "the fitted perimeter is more than 1.25× the data polygon's",
@@ -350,7 +352,8 @@ pub fn gap_caps(data: &[Point], data_t: &[f64], dense: &DenseContour, rms: f64) 
             .fold(0.0, f64::max);
         // The end directions, each fitted to the points on that side
         // within ℓ of the gap's end (at least the next one).
-        let delta = direction_error(data, i, n - 1, l, rms) + direction_error(data, i + 1, 1, l, rms);
+        let delta =
+            direction_error(data, i, n - 1, l, rms) + direction_error(data, i + 1, 1, l, rms);
         let hidden = (kappa_max + across) * l.powi(3) / 32.0 + delta * l * l / 12.0;
         local = local.max(hidden);
     }

@@ -30,8 +30,8 @@ use crate::identify::checks::{
 use crate::identify::data::{ContourData, FrameData};
 use crate::identify::gcv::{Lambda, LambdaReport};
 use crate::identify::tracked::{
-    chord_parameters, fit_closed_curve, fit_movie, fit_signature, polygon_centroid, ClosedCurveFit, ContourOptions,
-    MovieFit, MovieOptions, Point, Signature, SignatureFit,
+    chord_parameters, fit_closed_curve, fit_movie, fit_signature, polygon_centroid, ClosedCurveFit,
+    ContourOptions, MovieFit, MovieOptions, Point, Signature, SignatureFit,
 };
 use crate::model::curve::sample_sites;
 
@@ -510,7 +510,10 @@ fn signature_dense(fit: &SignatureFit, n: usize) -> DenseContour {
             (fit.centre.0 + r * a.cos(), fit.centre.1 + r * a.sin())
         })
         .collect();
-    let kappa = t.iter().map(|&t| fit.radius.signature_curvature(t)).collect();
+    let kappa = t
+        .iter()
+        .map(|&t| fit.radius.signature_curvature(t))
+        .collect();
     DenseContour {
         period: axis.length(),
         t,
