@@ -2,7 +2,9 @@
 //! contours with known truth (`plant_contour::identify::campaign`), each
 //! fitted with λ by GCV as `softjoint contour fit` fits it, and the answer
 //! compared with the truth. Prints the counts, every unverified or wrong
-//! case, and exits 1 when any answer reported `verified` is more than 5 %
+//! case (with the gap check's bound, the old chord cap beside it, and the
+//! true cap of its largest gap), the share of solvable cases solved
+//! (`Outcome::solvable`), and exits 1 when any answer reported `verified` is more than 5 %
 //! off in area or perimeter (the campaign's claim is that none is).
 //!
 //! `cargo run --release -p plant-contour --example contour_campaign -- [CASES] [SEED]`
