@@ -123,6 +123,12 @@ pub struct Outcome {
     pub area_over_data: Option<f64>,
     /// The fit's refusal, if it refused.
     pub refused: Option<String>,
+    /// The checks' gap bound (share of the area; the tested one) and the
+    /// global κ_max bound beside it.
+    pub gap_bounds: Option<(f64, f64)>,
+    /// The largest share of the true area outside the polygon through
+    /// the noise-free points across one gap ([`truth_cap_share`]).
+    pub truth_cap: f64,
 }
 
 impl Outcome {
@@ -137,6 +143,55 @@ impl Outcome {
     pub fn wrong(&self) -> bool {
         self.verified && !self.right()
     }
+
+    /// Solvable from the truth alone: no gap between the data points
+    /// holds more than [`TOLERANCE`] of the true area outside the
+    /// polygon through the noise-free points. (A contour through the same
+    /// points that runs straight across such a gap fits the data as well
+    /// and differs from the truth by more than the tolerance.)
+    pub fn solvable(&self) -> bool {
+        self.truth_cap <= TOLERANCE
+    }
+}
+
+/// The largest `|cap| / A` over the gaps between consecutive `angles`
+/// (sorted, rad) of `shape`: the true area between the contour and the
+/// chord joining its noise-free points at those angles, over the true
+/// area A (sector ½∫r²dθ by Simpson on 64 panels, minus the triangle
+/// with the centre; concave caps count by magnitude).
+pub fn truth_cap_share(shape: &TrueShape, angles: &[f64]) -> f64 {
+    let n = angles.len();
+    if n < 2 {
+        return f64::INFINITY;
+    }
+    let (area, _) = shape.area_and_perimeter();
+    let panels = 64;
+    (0..n)
+        .map(|i| {
+            let a = angles[i];
+            let mut b = angles[(i + 1) % n];
+            if b <= a {
+                b += TAU;
+            }
+            let h = (b - a) / panels as f64;
+            let f = |t: f64| 0.5 * shape.radius(t).powi(2);
+            let sector = h / 3.0
+                * (0..=panels)
+                    .map(|k| {
+                        let w = if k == 0 || k == panels {
+                            1.0
+                        } else if k % 2 == 1 {
+                            4.0
+                        } else {
+                            2.0
+                        };
+                        w * f(a + k as f64 * h)
+                    })
+                    .sum::<f64>();
+            let triangle = 0.5 * shape.radius(a) * shape.radius(b) * (b - a).sin();
+            (sector - triangle).abs() / area
+        })
+        .fold(0.0, f64::max)
 }
 
 /// Draws case `index` of the campaign with `seed`.
@@ -183,6 +238,11 @@ pub fn draw_case(seed: u64, index: usize) -> Case {
 
 /// The noisy observation of a case (one frame), from the same stream.
 pub fn observe(seed: u64, case: &Case) -> Result<ContourData> {
+    observe_at(seed, case).map(|o| o.0)
+}
+
+/// The observation and the true angles (sorted) it was taken at.
+pub fn observe_at(seed: u64, case: &Case) -> Result<(ContourData, Vec<f64>)> {
     let mut r = rng::stream(
         seed.wrapping_mul(1_000_003).wrapping_add(case.index as u64) ^ 0x5eed,
         rng::CONTOUR_CAMPAIGN,
@@ -220,10 +280,13 @@ pub fn observe(seed: u64, case: &Case) -> Result<ContourData> {
                 .collect(),
         ),
     };
-    Ok(ContourData {
-        file,
-        frames: vec![(0.0, frame)],
-    })
+    Ok((
+        ContourData {
+            file,
+            frames: vec![(0.0, frame)],
+        },
+        angles,
+    ))
 }
 
 /// Fits case `index` as `softjoint contour fit` would and compares.
@@ -239,7 +302,13 @@ pub fn run_case(seed: u64, index: usize) -> Outcome {
         signed_radii: false,
     };
     let (area, perimeter) = case.shape.area_and_perimeter();
-    let fitted = observe(seed, &case).and_then(|d| fit_contours(&d, &spec));
+    let (fitted, truth_cap) = match observe_at(seed, &case) {
+        Ok((d, angles)) => (
+            fit_contours(&d, &spec),
+            truth_cap_share(&case.shape, &angles),
+        ),
+        Err(e) => (Err(e), f64::INFINITY),
+    };
     match fitted {
         Ok(report) => {
             let r = &report.frames[0].result;
@@ -254,6 +323,8 @@ pub fn run_case(seed: u64, index: usize) -> Outcome {
                     .zip(r.checks.half_perimeter_spread),
                 area_over_data: r.checks.data_area.map(|a| r.area / a),
                 refused: None,
+                gap_bounds: r.checks.gap_area_bound.zip(r.checks.gap_area_bound_global),
+                truth_cap,
                 case,
             }
         }
@@ -265,6 +336,8 @@ pub fn run_case(seed: u64, index: usize) -> Outcome {
             half_spreads: None,
             area_over_data: None,
             refused: Some(e.to_string()),
+            gap_bounds: None,
+            truth_cap,
             case,
         },
     }
@@ -286,6 +359,10 @@ pub struct Summary {
     pub refused: usize,
     /// Largest |error| (area or perimeter) among verified answers.
     pub worst_verified_error: f64,
+    /// Solvable cases ([`Outcome::solvable`]).
+    pub solvable: usize,
+    /// Solvable cases solved.
+    pub solvable_solved: usize,
 }
 
 /// Runs cases `0..cases` with `seed`.
@@ -304,6 +381,8 @@ pub fn run(seed: u64, cases: usize) -> (Summary, Vec<Outcome>) {
             .filter(|o| o.verified)
             .filter_map(|o| Some(o.area_error?.abs().max(o.perimeter_error?.abs())))
             .fold(0.0, f64::max),
+        solvable: count(&|o| o.solvable()),
+        solvable_solved: count(&|o| o.solvable() && o.verified && o.right()),
     };
     (summary, outcomes)
 }

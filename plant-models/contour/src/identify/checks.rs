@@ -25,11 +25,13 @@
 //!   the full data's error is smaller than the halves' spread. Frames of
 //!   fewer than 6 points cannot be split and fail it.
 //! * **Gaps**: the halves share the data's largest gap, so they agree on
-//!   how to bridge it even when both cut a corner there. Across a gap of
-//!   chord g on a contour of curvature κ the spline may miss a cap of area
-//!   ≈ κg³/12 (the segment of a circle of radius 1/κ); with κ the fitted
-//!   contour's largest curvature this bounds what the gap can hide. A
-//!   bound over [`GAP_AREA_LIMIT`] of the area is flagged.
+//!   how to bridge it even when both cut a corner there. Every gap is
+//!   bounded by the area the truth may enclose between itself and the
+//!   fit's bridge there, with the ends held by the data on either side
+//!   and the truth's curvature at most the fit's largest, κ_max
+//!   ([`gap_caps`]: ≈ (κ_max + F) ℓ³/32 plus the ends' direction
+//!   uncertainty). A bound over [`GAP_AREA_LIMIT`] of the area is
+//!   flagged. (Before: the chord cap κ_max g³/12 of the largest gap.)
 //! * **Jumps across frames** (per-frame fits of ≥ 3 frames): the ratio of
 //!   the fit's area (perimeter) to its data polygon's, against the median
 //!   of the same ratio over the two frames either side. A fit that departs
@@ -53,8 +55,8 @@ pub const PERIMETER_RATIO_LIMIT: f64 = 1.25;
 pub const JUMP_LIMIT: f64 = 0.1;
 /// Largest relative spread of the two half-data fits' area or perimeter.
 pub const HALF_LIMIT: f64 = 0.1;
-/// Largest share of the area that the largest data gap may hide
-/// (κ_max g³ / 12 A): the 5 % to which a verified area is claimed
+/// Largest share of the area that a data gap may hide ([`gap_caps`]):
+/// the 5 % to which a verified area is claimed
 /// (the campaign's tolerance, [`crate::identify::campaign::TOLERANCE`]).
 pub const GAP_AREA_LIMIT: f64 = 0.05;
 /// Frames either side that a frame is compared with.
@@ -90,7 +92,7 @@ impl Flag {
         match self {
             Flag::LambdaAtDofBound => "GCV heads for interpolation (λ against its degrees-of-freedom bound: no noise seen, or too few points for the knots)",
             Flag::SelfIntersection => "the fitted contour crosses itself",
-            Flag::DataGap => "the largest gap between the points may hide more than 5 % of the area (κ_max g³/12)",
+            Flag::DataGap => "a gap between the points may hide more than 5 % of the area (a departure from the fit across it with the ends held by the data and curvature up to the fit's largest)",
             Flag::UnderResolved => "the two halves of the points (every other one) give areas or perimeters more than 10 % apart: too few points, or gaps, to determine the contour",
             Flag::AreaDisagreesWithData => "the fitted area is not within 25 % of the data polygon's",
             Flag::PerimeterDisagreesWithData => "the fitted perimeter is more than 1.25× the data polygon's",
@@ -126,9 +128,15 @@ pub struct FrameChecks {
     pub half_area_spread: Option<f64>,
     /// The same for the perimeters.
     pub half_perimeter_spread: Option<f64>,
-    /// `κ_max g³ / 12 A`: the share of the area the largest data gap may
-    /// hide (None without data).
+    /// The largest share of the area a gap between data points may hide,
+    /// `K g³ / 12 A` with K the curvature bound across that gap
+    /// ([`gap_caps`]; None without data). The figure the gap check tests.
     pub gap_area_bound: Option<f64>,
+    /// The same with K the fit's largest curvature anywhere and the
+    /// largest gap, `κ_max g³ / 12 A` (the check before the local bound;
+    /// reported for comparison, not tested).
+    #[serde(default)]
+    pub gap_area_bound_global: Option<f64>,
 }
 
 impl FrameChecks {
@@ -179,25 +187,30 @@ impl FrameChecks {
             half_area_spread: None,
             half_perimeter_spread: None,
             gap_area_bound: None,
+            gap_area_bound_global: None,
         }
     }
 
-    /// Checks the largest gap between consecutive `data` points against
-    /// the fitted contour's largest curvature `kappa_max` and its `area`.
-    pub fn gap(&mut self, data: &[Point], kappa_max: f64, area: f64) {
-        let n = data.len();
-        if n < 2 {
+    /// Checks every gap between consecutive `data` points (in order along
+    /// the contour, `data_t` their parameters on the fit `dense`, `rms`
+    /// the fit's residual) against the area it may hide, relative to the
+    /// fitted `area`; see [`gap_caps`].
+    pub fn gap(
+        &mut self,
+        data: &[Point],
+        data_t: &[f64],
+        dense: &DenseContour,
+        rms: f64,
+        area: f64,
+    ) {
+        let Some(caps) = gap_caps(data, data_t, dense, rms) else {
             return;
-        }
-        let g = (0..n)
-            .map(|i| {
-                let (a, b) = (data[i], data[(i + 1) % n]);
-                (b.0 - a.0).hypot(b.1 - a.1)
-            })
-            .fold(0.0, f64::max);
-        let bound = kappa_max * g * g * g / (12.0 * area.abs());
-        self.gap_area_bound = Some(bound).filter(|v| v.is_finite());
-        if bound.is_nan() || bound > GAP_AREA_LIMIT {
+        };
+        let share = |cap: f64| cap / area.abs();
+        let local = share(caps.local);
+        self.gap_area_bound = Some(local).filter(|v| v.is_finite());
+        self.gap_area_bound_global = Some(share(caps.global)).filter(|v| v.is_finite());
+        if local.is_nan() || local > GAP_AREA_LIMIT {
             self.flag(Flag::DataGap);
         }
     }
@@ -232,6 +245,145 @@ impl FrameChecks {
     pub fn verified(&self) -> bool {
         self.status == Status::Verified
     }
+}
+
+/// A fitted closed contour sampled at equally spaced parameters over one
+/// period: the parameter, the point and the signed curvature of each
+/// sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DenseContour {
+    /// The parameter's period; sample `j` is at `t[0] + j·period/n`.
+    pub period: f64,
+    /// The samples' parameters.
+    pub t: Vec<f64>,
+    /// The samples' points.
+    pub points: Vec<Point>,
+    /// The signed curvature at each sample, 1/length.
+    pub kappa: Vec<f64>,
+}
+
+/// The areas (length²) the gaps between data points may hide.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GapCaps {
+    /// The largest over the gaps of the area by which the contour may
+    /// depart from the fit across the gap ([`gap_caps`]).
+    pub local: f64,
+    /// `κ_max g³/12` for the largest gap g, κ_max the fit's largest
+    /// curvature anywhere: the cap of a circle of curvature κ_max over
+    /// the chord (the bound before, kept for comparison).
+    pub global: f64,
+    /// The largest gap (chord), length.
+    pub largest_gap: f64,
+}
+
+/// The area each gap between consecutive `data` points (in order along
+/// the contour; `data_t` their parameters on `dense`) may hide, given
+/// the fit's residual `rms` (length).
+///
+/// What is hidden is the area between the true contour and the fit
+/// across the gap (not the chord: the fit already bends across it). Let
+/// the truth be the fit's bridge (arc length ℓ) displaced along its
+/// normal by e(s), 0 ≤ s ≤ ℓ. To first order in e:
+///
+/// * e″ = κ_true − κ_fit, so |e″| ≤ M = κ_max + F with κ_max the fit's
+///   largest |κ| anywhere (the assumption the bound rests on, as before:
+///   the contour bends nowhere more sharply than the fit shows where it
+///   has data) and F the fit's largest |κ| across the gap;
+/// * the data on either side hold the position and the direction of the
+///   contour at the gap's ends: e = 0 there, and e′ = 0 up to the
+///   direction's uncertainty δ ≈ 2·rms/h, h the spacing of the two
+///   points that end the gap on that side.
+///
+/// With e = e′ = 0 at both ends, `∫e ds = ∫ e″ s(ℓ − s)/2 ds` with ∫e″ = 0
+/// and ∫ s e″ = 0, which |e″| ≤ M bounds by M ℓ³/32 (e″ = ±M switching at
+/// ℓ/4 and 3ℓ/4). The end directions add at most (δ_a + δ_b) ℓ²/12 (the
+/// area of the cubic Hermite slope functions). The gap's bound is the
+/// sum. Without the end directions the same argument gives M ℓ³/12, more
+/// than the old chord cap κ_max g³/12, which ignored the fit's own bend.
+///
+/// The first-order model strains once Mℓ is not small (a gap as long as
+/// the contour's radius of curvature); the figure is then an estimate
+/// of the right size, as κ_max g³/12 was. A feature sharper than any the
+/// fit resolves, inside a gap, is what this cannot see. `None` with fewer
+/// than 4 points or 3 samples.
+pub fn gap_caps(data: &[Point], data_t: &[f64], dense: &DenseContour, rms: f64) -> Option<GapCaps> {
+    let (n, m) = (data.len(), dense.points.len());
+    if n < 4 || m < 3 || data_t.len() != n || dense.kappa.len() != m {
+        return None;
+    }
+    let dist = |a: Point, b: Point| (b.0 - a.0).hypot(b.1 - a.1);
+    // Arc length at each sample; the closing segment makes the perimeter.
+    let mut arc = Vec::with_capacity(m + 1);
+    arc.push(0.0);
+    for j in 0..m {
+        let step = dist(dense.points[j], dense.points[(j + 1) % m]);
+        arc.push(arc[j] + step);
+    }
+    let perimeter = arc[m];
+    let kappa_max = dense.kappa.iter().fold(0.0, |a: f64, k| a.max(k.abs()));
+    let h = dense.period / m as f64;
+    let mi = m as i64;
+    // Unwrapped arc length at sample index j (any integer).
+    let arc_of_index =
+        |j: i64| j.div_euclid(mi) as f64 * perimeter + arc[j.rem_euclid(mi) as usize];
+    // Sample position (fractional index in [0, m)) of parameter t.
+    let position = |t: f64| ((t - dense.t[0]) / h).rem_euclid(m as f64);
+    let arc_of_position = |u: f64| {
+        let j = u.floor();
+        let f = u - j;
+        let j = j as i64;
+        (1.0 - f) * arc_of_index(j) + f * arc_of_index(j + 1)
+    };
+    let point = |i: usize| data[i % n];
+    let (mut local, mut largest_gap) = (0.0_f64, 0.0_f64);
+    for i in 0..n {
+        let g = dist(point(i), point(i + 1));
+        largest_gap = largest_gap.max(g);
+        let ua = position(data_t[i]);
+        let mut ub = position(data_t[(i + 1) % n]);
+        if ub <= ua {
+            ub += m as f64;
+        }
+        let l = arc_of_position(ub) - arc_of_position(ua);
+        // The fit's largest |κ| across the gap (samples inside it and the
+        // one either side).
+        let across = (ua.floor() as i64..=ub.ceil() as i64)
+            .map(|j| dense.kappa[j.rem_euclid(mi) as usize].abs())
+            .fold(0.0, f64::max);
+        // The end directions, each fitted to the points on that side
+        // within ℓ of the gap's end (at least the next one).
+        let delta =
+            direction_error(data, i, n - 1, l, rms) + direction_error(data, i + 1, 1, l, rms);
+        let hidden = (kappa_max + across) * l.powi(3) / 32.0 + delta * l * l / 12.0;
+        local = local.max(hidden);
+    }
+    Some(GapCaps {
+        local,
+        global: kappa_max * largest_gap.powi(3) / 12.0,
+        largest_gap,
+    })
+}
+
+/// The uncertainty (rad) of the contour's direction at `data[end]` as the
+/// points on one side fix it: the points `end`, `end + step`, … (indices
+/// modulo n; step 1 goes forward, n − 1 back) within `reach` of the end,
+/// at least two. A straight line fitted to c points spread over a
+/// baseline b with noise σ (`rms`) has a slope error ≈ σ√12/(b√c) (the
+/// least-squares slope's standard deviation for evenly spread points).
+fn direction_error(data: &[Point], end: usize, step: usize, reach: f64, rms: f64) -> f64 {
+    let n = data.len();
+    let p0 = data[end % n];
+    let (mut count, mut baseline) = (1usize, 0.0_f64);
+    for k in 1..n {
+        let p = data[(end + k * step) % n];
+        let d = (p.0 - p0.0).hypot(p.1 - p0.1);
+        count += 1;
+        baseline = baseline.max(d);
+        if baseline >= reach {
+            break;
+        }
+    }
+    rms * 12f64.sqrt() / (baseline * (count as f64).sqrt())
 }
 
 /// Flags the frames whose fit-to-data ratio of `fitted` (area or

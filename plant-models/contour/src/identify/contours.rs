@@ -24,12 +24,14 @@ use serde::Serialize;
 
 use crate::error::{ContourError, Result};
 use crate::fit::Solver;
-use crate::identify::checks::{jumps, polygon_self_intersects, Flag, FrameChecks, Status};
+use crate::identify::checks::{
+    jumps, polygon_self_intersects, DenseContour, Flag, FrameChecks, Status,
+};
 use crate::identify::data::{ContourData, FrameData};
 use crate::identify::gcv::{Lambda, LambdaReport};
 use crate::identify::tracked::{
-    fit_closed_curve, fit_movie, fit_signature, polygon_centroid, ClosedCurveFit, ContourOptions,
-    MovieFit, MovieOptions, Point, Signature, SignatureFit,
+    chord_parameters, fit_closed_curve, fit_movie, fit_signature, polygon_centroid, ClosedCurveFit,
+    ContourOptions, MovieFit, MovieOptions, Point, Signature, SignatureFit,
 };
 use crate::model::curve::sample_sites;
 
@@ -385,11 +387,14 @@ fn fit_signatures(
             (area, perimeter),
             signature_halves(&loc, &sig, opts, fit.lambda.lambda),
         );
-        let kappa_max = sample_sites(&fit.radius.axis, check_samples(opts.knots))
-            .into_iter()
-            .map(|t| fit.radius.signature_curvature(t).abs())
-            .fold(0.0, f64::max);
-        checks.gap(&data_points, kappa_max, area);
+        let (gap_points, gap_t) = signature_gap_data(&sig, &fit);
+        checks.gap(
+            &gap_points,
+            &gap_t,
+            &signature_dense(&fit, check_samples(opts.knots)),
+            fit.rms_residual,
+            area,
+        );
         frames.push(FittedFrame {
             frame: *frame,
             data: sig.points(),
@@ -447,11 +452,13 @@ fn fit_curves(
             (area, perimeter),
             curve_halves(&loc, &pts, opts, fit.lambda.lambda),
         );
-        let kappa_max = sample_sites(&fit.curve.x.axis, check_samples(opts.knots))
-            .into_iter()
-            .map(|t| fit.curve.curvature(t).abs())
-            .fold(0.0, f64::max);
-        checks.gap(&pts, kappa_max, area);
+        checks.gap(
+            &pts,
+            &chord_parameters(&loc, &pts, opts.knots)?,
+            &curve_dense(&fit, check_samples(opts.knots)),
+            fit.rms_residual,
+            area,
+        );
         frames.push(FittedFrame {
             frame: *frame,
             data: pts,
@@ -477,6 +484,53 @@ fn fit_curves(
         fits.push((*frame, fit));
     }
     Ok((frames, FittedSplines::Curves(fits)))
+}
+
+/// A signature's data points in order of angle and their parameters on
+/// the fit (the gap check's input).
+fn signature_gap_data(sig: &Signature, fit: &SignatureFit) -> (Vec<Point>, Vec<f64>) {
+    let mut order: Vec<usize> = (0..sig.radii.len()).collect();
+    order.sort_by(|&a, &b| sig.angles_rad[a].total_cmp(&sig.angles_rad[b]));
+    let pts = sig.points();
+    order
+        .into_iter()
+        .map(|k| (pts[k], fit.t_of_angle(sig.angles_rad[k])))
+        .unzip()
+}
+
+/// A fitted signature sampled at `n` equally spaced parameters.
+fn signature_dense(fit: &SignatureFit, n: usize) -> DenseContour {
+    let axis = &fit.radius.axis;
+    let t = sample_sites(axis, n);
+    let points = t
+        .iter()
+        .map(|&t| {
+            let a = TAU * (t - axis.start) / axis.length();
+            let r = fit.radius.value(t);
+            (fit.centre.0 + r * a.cos(), fit.centre.1 + r * a.sin())
+        })
+        .collect();
+    let kappa = t
+        .iter()
+        .map(|&t| fit.radius.signature_curvature(t))
+        .collect();
+    DenseContour {
+        period: axis.length(),
+        t,
+        points,
+        kappa,
+    }
+}
+
+/// A fitted closed curve sampled at `n` equally spaced parameters.
+fn curve_dense(fit: &ClosedCurveFit, n: usize) -> DenseContour {
+    let t = sample_sites(&fit.curve.x.axis, n);
+    DenseContour {
+        period: fit.curve.x.axis.length(),
+        points: t.iter().map(|&t| fit.curve.point(t)).collect(),
+        kappa: t.iter().map(|&t| fit.curve.curvature(t)).collect(),
+        t,
+    }
 }
 
 /// Indices of every other point, starting at `first` (0 or 1).
