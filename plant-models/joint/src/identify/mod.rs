@@ -500,8 +500,9 @@ where
             ..LmOptions::default()
         };
         // A pre-fit that fails leaves the sponge as it was: the stage's
-        // own fits report any real failure.
-        if let Ok(r) = lm::levenberg_marquardt(|x: &[f64]| residuals(&apply(x)), &x0, opts) {
+        // own fits report any real failure. Its minimum alone is used:
+        // not the Jacobian there (`Minimum::finish`), two replays more.
+        if let Ok(r) = lm::minimise(&|x: &[f64]| residuals(&apply(x)), &x0, opts) {
             evaluations += r.evaluations;
             model = apply(&r.x);
             cost_at_model = Some(r.cost);
