@@ -211,12 +211,6 @@ mod mps2 {
             }
             app.poll(clock.now(), &mut NoSensors, &mut send);
             apply_outputs(app.outputs(), app.joint().driver());
-            // A frame's bytes come one at a time (the UART holds one):
-            // watch the receiver a while before sleeping, so that the
-            // rest of a frame does not wake the core byte by byte.
-            if byte_within(&uart, SPIN_POLLS) {
-                continue;
-            }
             // Sleep until the next interrupt: SysTick every millisecond
             // (the control period) or a received byte. Interrupts are
             // masked from the check to the WFI, so a byte that arrives
@@ -233,20 +227,6 @@ mod mps2 {
             // critical section of the loop spans it.
             unsafe { cortex_m::interrupt::enable() };
         }
-    }
-
-    /// Polls of the receiver before the loop sleeps: about 1,200
-    /// instructions (1.2 µs of QEMU's clock under `-icount shift=0`, 48 µs
-    /// at AN386's 25 MHz), enough for the next byte of a frame the host is
-    /// writing. Under QEMU every sleep and wake-up is a hand-over between
-    /// its threads; woken byte by byte, the image needed more host CPU per
-    /// lockstep step than one that never slept (measured, docs/hil.md).
-    const SPIN_POLLS: u32 = 200;
-
-    /// Whether a byte is in `uart`'s receiver within `polls` reads of its
-    /// state.
-    fn byte_within(uart: &CmsdkUart, polls: u32) -> bool {
-        (0..polls).any(|_| uart.rx_full())
     }
 
     /// Unpowered forever (configuration failure at boot).
