@@ -35,6 +35,9 @@ pub struct Outcome {
     pub failures: Vec<&'static str>,
     /// The elastica's modulus k = sin(θ_max/2) (NaN when the solve failed).
     pub modulus_k: f64,
+    /// The retry the solve twice as fine needed, if any
+    /// (`Checks::fine_solve_retry`).
+    pub fine_solve_retry: Option<&'static str>,
 }
 
 /// splitmix64: the campaign's own random stream (no dependency).
@@ -109,6 +112,7 @@ self_contact = {}
                     },
                 ],
                 modulus_k: f64::NAN,
+                fine_solve_retry: None,
             }
         }
     };
@@ -123,6 +127,7 @@ self_contact = {}
         deflection_error,
         failures: shape.checks.failures(),
         modulus_k: reference.k,
+        fine_solve_retry: shape.checks.fine_solve_retry,
     }
 }
 
