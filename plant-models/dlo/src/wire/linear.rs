@@ -429,7 +429,10 @@ impl WireProblem {
         let sol = optimize::solve_warm(&cf, x0.clone(), warm, settings)?;
         let mut f = cf.settled(cf.shape(cf.polished(sol, settings)), settings)?;
         if !f.verified() {
-            // RETRY (issue 29)
+            // A backstop: warm from the answer with ρ started afresh (a ρ
+            // of 1e9 leaves BFGS ill-conditioned), else the finer problem
+            // by continuation, as the coarse one was solved. Neither
+            // changes a check; a retry that fails its checks is not used.
             let fresh = Some((shape.solution.multipliers.as_slice(), settings.rho0));
             let again = optimize::solve_warm(&cf, x0, fresh, settings)
                 .and_then(|sol| cf.settled(cf.shape(cf.polished(sol, settings)), settings));

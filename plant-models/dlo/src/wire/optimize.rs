@@ -420,6 +420,26 @@ fn newton_kkt<P: Problem>(problem: &P, rows: &[usize], x: &mut [f64], lam: &mut 
             }
             g
         };
+    // Start from the least-norm multipliers that best balance ∇U (Jᵀλ =
+    // −∇U by SVD). Redundant rows (six conditions on an orientation) leave
+    // λ free along the null space of Jᵀ, and the multiplier method, its ρ
+    // grown to 1e9, drifts far along it (|λ| 1e6–1e7 where the least-norm
+    // one is 60: campaign cases 16 and 85 of seed 29, issue 29). That does
+    // not change ∇U + Jᵀλ but does change Σλ∇²c in the Hessian below, and
+    // with it each Newton step; the steps then no longer lower the
+    // residual, and the polish stalls short of stationarity.
+    if k > 0 {
+        let mut grad_u = vec![0.0; n];
+        problem.energy(x, &mut grad_u);
+        problem.constraints(x, &mut c, &mut jac);
+        let jt = DMatrix::from_fn(n, k, |i, q| jac[rows[q]][i]);
+        let rhs = DVector::from_fn(n, |i, _| -grad_u[i]);
+        let svd = jt.svd(true, true);
+        let largest = svd.singular_values.max();
+        if let Ok(l) = svd.solve(&rhs, 1e-10 * largest) {
+            lam.copy_from_slice(l.as_slice());
+        }
+    }
     let step = 1e-6;
     for _ in 0..40 {
         let g = lagrangian_gradient(x, lam, &mut c, &mut jac);
