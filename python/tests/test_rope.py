@@ -2,6 +2,7 @@
 summary and topology checks, the same node trajectories (rope_nodes.csv),
 and refused scenarios named."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -40,26 +41,8 @@ def test_rope_input_errors_name_the_file_and_field(softjoint_bin, data, tmp_path
     assert str(e.value) in cli.stderr
 
 
-DRAG_THROUGH = """name = "drag through"
-start_m = [0.0, 0.0, 0.05]
-direction = [1.0, 0.0, 0.0]
-pins = [0, 10]
-desk_height_m = 0.0
-duration_s = 2.0
-
-[rope]
-nodes = 20
-length_m = 2.0
-collision_passes = 0
-
-[[hands]]
-name = "right"
-keys = [
-  { t_s = 0.0, at_m = [2.0, 0.0, 0.05], action = "grasp", node = 19 },
-  { t_s = 0.7, at_m = [1.5, -0.6, 0.05] },
-  { t_s = 1.6, at_m = [0.5, 0.6, 0.05] },
-]
-"""
+# The shipped example of a run the tool must not call right.
+DRAG_THROUGH = Path(__file__).resolve().parents[2] / "scenarios" / "dlo" / "drag_through.toml"
 
 
 def test_an_unverified_rope_run_raises_as_the_program_exits_1(softjoint_bin, tmp_path):
@@ -67,8 +50,7 @@ def test_an_unverified_rope_run_raises_as_the_program_exits_1(softjoint_bin, tmp
     collision shift off; the overlap fails its check. The program exits 1
     and says UNVERIFIED; rope_simulate raises UnverifiedError with the run
     attached, and with allow_unverified returns the program's summary."""
-    scenario = tmp_path / "through.toml"
-    scenario.write_text(DRAG_THROUGH)
+    scenario = DRAG_THROUGH
     cli = run_cli(softjoint_bin, "dlo", "rope", scenario, "--out", tmp_path / "o", "--json",
                   ok=False)
     assert cli.returncode == 1 and "UNVERIFIED" in cli.stderr

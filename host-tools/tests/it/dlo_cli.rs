@@ -69,36 +69,16 @@ fn rope_writes_csv_picture_and_json() {
 #[test]
 fn a_rope_dragged_through_itself_is_unverified_and_exits_1() {
     let dir = scratch("dlo-rope-overlap");
-    let drag = |passes: usize| {
-        format!(
-            r#"name = "drag through"
-start_m = [0.0, 0.0, 0.05]
-direction = [1.0, 0.0, 0.0]
-pins = [0, 10]
-desk_height_m = 0.0
-duration_s = 2.0
-
-[rope]
-nodes = 20
-length_m = 2.0
-collision_passes = {passes}
-
-[[hands]]
-name = "right"
-keys = [
-  {{ t_s = 0.0, at_m = [2.0, 0.0, 0.05], action = "grasp", node = 19 }},
-  {{ t_s = 0.7, at_m = [1.5, -0.6, 0.05] }},
-  {{ t_s = 1.6, at_m = [0.5, 0.6, 0.05] }},
-]
-"#
-        )
-    };
-    let through = file(&dir, "through.toml", &drag(0));
+    // The shipped example of a run the tool must not call right.
+    let through = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/dlo/drag_through.toml"
+    );
     let out = dir.join("out");
-    let o = softjoint(&["dlo", "rope", &through, "--out", s(&out), "--json"]);
+    let o = softjoint(&["dlo", "rope", through, "--out", s(&out), "--json"]);
     assert_eq!(o.status.code(), Some(1), "{}", common::stderr(&o));
     assert!(
-        common::stderr(&o).contains("through.toml: UNVERIFIED: the run fails overlap"),
+        common::stderr(&o).contains("drag_through.toml: UNVERIFIED: the run fails overlap"),
         "{}",
         common::stderr(&o)
     );
@@ -112,7 +92,7 @@ keys = [
     assert!(svg.contains("UNVERIFIED: fails overlap"));
     assert!(svg.contains("top · t = 0.0 s · UNVERIFIED"));
     assert!(out.join("rope_nodes.csv").exists());
-    let o = softjoint(&["dlo", "rope", &through, "--out", s(&out)]);
+    let o = softjoint(&["dlo", "rope", through, "--out", s(&out)]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stdout(&o).starts_with("UNVERIFIED: the run fails overlap"),
@@ -122,14 +102,17 @@ keys = [
     let o = softjoint(&[
         "dlo",
         "rope",
-        &through,
+        through,
         "--out",
         s(&out),
         "--allow-unverified",
     ]);
     ok(&o);
     assert!(stdout(&o).starts_with("UNVERIFIED"));
-    let kept = file(&dir, "kept.toml", &drag(4));
+    let four_passes = std::fs::read_to_string(through)
+        .unwrap()
+        .replace("collision_passes = 0", "collision_passes = 4");
+    let kept = file(&dir, "kept.toml", &four_passes);
     let o = softjoint(&["dlo", "rope", &kept, "--out", s(&out), "--json"]);
     ok(&o);
     let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();

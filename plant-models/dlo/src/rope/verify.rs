@@ -226,30 +226,13 @@ impl RopeScenario {
 mod tests {
     use super::*;
 
-    /// A rope of 20 nodes on a desk, pinned at nodes 0 and 10; a hand
-    /// drags its free end across the pinned part at the same height.
+    /// `scenarios/dlo/drag_through.toml` (a hand drags the rope's free end
+    /// across its pinned part at the same height) with `collision_passes`
+    /// shift passes.
     fn drag(collision_passes: usize) -> RopeScenario {
-        let text = format!(
-            r#"name = "drag through"
-start_m = [0.0, 0.0, 0.05]
-direction = [1.0, 0.0, 0.0]
-pins = [0, 10]
-desk_height_m = 0.0
-duration_s = 2.0
-
-[rope]
-nodes = 20
-length_m = 2.0
-collision_passes = {collision_passes}
-
-[[hands]]
-name = "right"
-keys = [
-  {{ t_s = 0.0, at_m = [2.0, 0.0, 0.05], action = "grasp", node = 19 }},
-  {{ t_s = 0.7, at_m = [1.5, -0.6, 0.05] }},
-  {{ t_s = 1.6, at_m = [0.5, 0.6, 0.05] }},
-]
-"#
+        let text = include_str!("../../../../scenarios/dlo/drag_through.toml").replace(
+            "collision_passes = 0",
+            &format!("collision_passes = {collision_passes}"),
         );
         toml::from_str(&text).unwrap()
     }
