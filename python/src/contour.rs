@@ -13,8 +13,8 @@ use plant_contour::identify::contours::{fit_contours, ContourFitSpec, ContourMod
 use plant_contour::identify::data::read_contour_csv;
 use plant_contour::identify::gcv::{Lambda, MAX_LAMBDA};
 use pyo3::prelude::*;
-use std::collections::BTreeMap;
 
+use crate::arrays::{py_columns, PyColumns};
 use crate::errors::{input, to_py};
 
 /// Adds the contour functions to the module.
@@ -127,21 +127,6 @@ fn contour_fit<'py>(
         ));
     }
     Ok((json, frames))
-}
-
-/// Columns of a CSV the program writes, as NumPy arrays.
-type PyColumns<'py> = BTreeMap<&'static str, Bound<'py, PyArray1<f64>>>;
-
-fn py_columns<'py>(
-    py: Python<'py>,
-    what: &str,
-    cols: Vec<(&'static str, Vec<f64>)>,
-) -> PyResult<PyColumns<'py>> {
-    output::check_value(what, &cols).map_err(to_py)?;
-    Ok(cols
-        .into_iter()
-        .map(|(k, v)| (k, v.to_pyarray(py)))
-        .collect())
 }
 
 /// The test case `case` (`"rbc"`: Eq. 38 on an `n` × `n` grid; `"movie"`:

@@ -29,6 +29,7 @@
 
 use pyo3::prelude::*;
 
+mod arrays;
 mod contour;
 mod dlo_solve;
 mod errors;

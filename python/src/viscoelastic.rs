@@ -15,8 +15,8 @@ use plant_viscoelastic::experiment::trial::{simulate_table, ThreeElementParams};
 use plant_viscoelastic::fit::{simulate_force, Weighting};
 use plant_viscoelastic::io::read_table;
 use pyo3::prelude::*;
-use std::collections::BTreeMap;
 
+use crate::arrays::{py_columns, PyColumns};
 use crate::errors::{input, to_py};
 
 /// Adds the viscoelastic functions to the module.
@@ -110,21 +110,6 @@ fn viscoelastic_fit<'py>(
         .map_err(|e| input(e.into()))?;
     output::check_value("the fitted force", &fitted).map_err(to_py)?;
     Ok((json, fitted.to_pyarray(py)))
-}
-
-/// Columns by name as NumPy arrays.
-type PyColumns<'py> = BTreeMap<&'static str, Bound<'py, PyArray1<f64>>>;
-
-fn py_columns<'py>(
-    py: Python<'py>,
-    what: &str,
-    cols: Vec<(&'static str, Vec<f64>)>,
-) -> PyResult<PyColumns<'py>> {
-    output::check_value(what, &cols).map_err(to_py)?;
-    Ok(cols
-        .into_iter()
-        .map(|(k, v)| (k, v.to_pyarray(py)))
-        .collect())
 }
 
 /// Runs `softjoint viscoelastic object` on a mesh (`mesh`: an OBJ's text
