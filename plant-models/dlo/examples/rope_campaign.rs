@@ -14,6 +14,8 @@
 //! (`rope_campaign::` in the test binary).
 #[path = "../tests/it/rope_campaign.rs"]
 mod rope_campaign;
+#[path = "../tests/it/splitmix.rs"]
+mod splitmix;
 
 use std::process::ExitCode;
 

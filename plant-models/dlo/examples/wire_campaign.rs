@@ -14,6 +14,8 @@
 mod campaign;
 #[path = "../tests/it/elastica_ref.rs"]
 mod elastica_ref;
+#[path = "../tests/it/splitmix.rs"]
+mod splitmix;
 
 use std::process::ExitCode;
 

@@ -40,14 +40,7 @@ pub struct Outcome {
     pub fine_solve_retry: Option<&'static str>,
 }
 
-/// splitmix64: the campaign's own random stream (no dependency).
-fn next(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
+use crate::splitmix::next;
 
 /// Case `index` of the campaign seeded by `seed`: L in [0.2, 2] m, R_f
 /// log-uniform in [1e-4, 1e-2] N·m², R_t/R_f in [0.3, 1.5], l/L in [0.3,

@@ -5,3 +5,4 @@ mod elastica;
 mod elastica_ref;
 mod rope;
 mod rope_campaign;
+mod splitmix;

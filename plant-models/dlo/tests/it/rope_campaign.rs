@@ -57,14 +57,7 @@ pub struct Outcome {
     pub rest_ratio: f64,
 }
 
-/// splitmix64: the campaign's own random stream (no dependency).
-fn next(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
+use crate::splitmix::next;
 
 /// Case `index` of the campaign seeded by `seed`: N in 8..=60, l in
 /// [0.5, 6] m, l_r/(2r) in [0.5, 2] (segments shorter than the diameter
