@@ -53,12 +53,6 @@ fn main() -> ExitCode {
         }
         let c = campaign::case(seed, i);
         let o = campaign::run(&c);
-        if let Some(retry) = o.fine_solve_retry {
-            println!(
-                "case {i}: the solve twice as fine needed a retry ({retry}); right {}, verified {}, fails {:?}",
-                o.right, o.verified, o.failures
-            );
-        }
         if o.right && o.verified {
             solved += 1;
         } else {

@@ -426,31 +426,8 @@ impl WireProblem {
         let (cc, cf) = (self.compile()?, fine.compile()?);
         let x0 = cf.embed(&cc, &shape.solution.x);
         let warm = Some((shape.solution.multipliers.as_slice(), shape.solution.rho));
-        let sol = optimize::solve_warm(&cf, x0.clone(), warm, settings)?;
-        let mut f = cf.settled(cf.shape(cf.polished(sol, settings)), settings)?;
-        if !f.verified() {
-            // A backstop: warm from the answer with ρ started afresh (a ρ
-            // of 1e9 leaves BFGS ill-conditioned), else the finer problem
-            // by continuation, as the coarse one was solved. Neither
-            // changes a check; a retry that fails its checks is not used.
-            let fresh = Some((shape.solution.multipliers.as_slice(), settings.rho0));
-            let again = optimize::solve_warm(&cf, x0, fresh, settings)
-                .and_then(|sol| cf.settled(cf.shape(cf.polished(sol, settings)), settings));
-            match again {
-                Ok(g) if g.verified() => {
-                    f = g;
-                    shape.checks.fine_solve_retry = Some("fresh rho");
-                }
-                _ => {
-                    if let Ok(g) = fine.continuation(settings) {
-                        if g.verified() {
-                            f = g;
-                            shape.checks.fine_solve_retry = Some("continuation");
-                        }
-                    }
-                }
-            }
-        }
+        let sol = optimize::solve_warm(&cf, x0, warm, settings)?;
+        let f = cf.settled(cf.shape(cf.polished(sol, settings)), settings)?;
         let l = self.wire.length_m;
         if f.verified() {
             let scale = f

@@ -71,13 +71,6 @@ pub struct Checks {
     /// (the name is the wire's, where it is twice as fine), so the
     /// discretisation error is unknown (a failure).
     pub fine_solve_failed: bool,
-    /// Which retry gave the solve on the second discretisation, when the
-    /// first attempt (warm from the answer at its last ρ) failed its own
-    /// checks: `"fresh rho"` (warm from the answer, ρ started afresh) or
-    /// `"continuation"` (the finer problem solved by continuation from
-    /// the straight wire). `None` when no retry was needed or made.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub fine_solve_retry: Option<&'static str>,
 }
 
 impl Checks {
@@ -100,7 +93,6 @@ impl Checks {
             discretisation_position: None,
             discretisation_tolerance: DISCRETISATION_TOLERANCE,
             fine_solve_failed: false,
-            fine_solve_retry: None,
         }
     }
 
