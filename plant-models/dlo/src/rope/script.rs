@@ -566,9 +566,18 @@ impl<'a> ScenarioRun<'a> {
             let scale: f64 = self.internal.iter().map(|f| f.norm()).sum();
             out.internal_force_scale_n = out.internal_force_scale_n.max(scale);
         }
+        // The longest segment so far, without a square root per segment
+        // and step: squared lengths are screened against the record (with
+        // a margin far above rounding), and only a candidate's ratio is
+        // computed and compared as before, so the record is the same.
         let l_r = rope.params.rest_length_m();
+        let screen = (out.max_segment_ratio * l_r).powi(2) * (1.0 - 1e-9);
         for (i, w) in rope.x.windows(2).enumerate() {
-            let ratio = (w[1] - w[0]).norm() / l_r;
+            let d2 = (w[1] - w[0]).norm_squared();
+            if d2 < screen {
+                continue;
+            }
+            let ratio = d2.sqrt() / l_r;
             if ratio > out.max_segment_ratio {
                 out.max_segment_ratio = ratio;
                 out.max_segment_index = i;
