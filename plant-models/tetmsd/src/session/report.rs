@@ -184,8 +184,12 @@ pub struct NetemSummary {
     pub max_delay_us: u64,
     /// Input packets offered.
     pub inputs_offered: u64,
-    /// Input packets lost (what the sender really had to resend).
+    /// Input packets lost.
     pub inputs_lost: u64,
+    /// Inputs really lost: every packet carrying the tick lost (see
+    /// `NetemStats::input_ticks_lost`), what the sender had to resend.
+    #[serde(default)]
+    pub input_ticks_lost: u64,
     /// Mean one-way delay of the inputs passed (µs).
     pub input_delay_mean_us: f64,
 }
@@ -202,6 +206,7 @@ impl From<&NetemStats> for NetemSummary {
             max_delay_us: s.max_delay_us,
             inputs_offered: s.inputs_offered,
             inputs_lost: s.inputs_lost,
+            input_ticks_lost: s.input_ticks_lost,
             input_delay_mean_us: s.input_delay_mean_us(),
         }
     }

@@ -22,6 +22,7 @@
 use super::{io_error, NET_POLL_US};
 use crate::error::{Result, TetError};
 use crate::session::netem::{Emulator, NetemConfig};
+use crate::session::packet::{MAX_DATAGRAM_BYTES, PACKET_BYTES};
 use crate::session::report::NetemSummary;
 use serde::{Deserialize, Serialize};
 use std::net::{SocketAddr, UdpSocket};
@@ -124,7 +125,7 @@ pub fn run_relay(setup: RelaySetup) -> Result<RelayReport> {
     let mut report = RelayReport::default();
     let start = Instant::now();
     let mut last_heard: Option<Instant> = None;
-    let mut buf = [0u8; 128];
+    let mut buf = [0u8; 2048];
     // Summed lateness of the inputs released, per direction (µs).
     let mut late = [0.0f64; 2];
     loop {
@@ -143,10 +144,11 @@ pub fn run_relay(setup: RelaySetup) -> Result<RelayReport> {
                     sides[s].site = Some(from);
                     report.sites_learnt += 1;
                 }
-                let Ok(packet) = <[u8; 64]>::try_from(&buf[..len]) else {
+                if !(PACKET_BYTES..=MAX_DATAGRAM_BYTES).contains(&len) {
                     report.not_packets += 1;
                     continue;
-                };
+                }
+                let packet = buf[..len].to_vec();
                 let now_us = start.elapsed().as_micros() as u64;
                 emulators[s].push(now_us, packet);
             }
