@@ -40,12 +40,12 @@
 //! The emulator also keeps the truth a site cannot see, for checking what
 //! the sites measure: how many *input* packets it lost and the mean
 //! one-way delay it gave the inputs it passed.
+use super::packet::Packet;
 use crate::error::{check_range, Result};
 use plant_common::rng;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Exp1};
-use super::packet::Packet;
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
 

@@ -785,7 +785,12 @@ fn encode_state(b: &mut [u8], tick: u32, chunk: &StateChunk) {
 }
 
 fn decode_input(b: &[u8]) -> Result<Message, Malformed> {
-    let input = manipulation(get_f64s(&b[0..24]), u16_at(b, 24), u16_at(b, 32), &b[40..64])?;
+    let input = manipulation(
+        get_f64s(&b[0..24]),
+        u16_at(b, 24),
+        u16_at(b, 32),
+        &b[40..64],
+    )?;
     let tick = u32_at(b, 28);
     let mut copies = Copies::none();
     let mut previous_back = u32::MAX;
