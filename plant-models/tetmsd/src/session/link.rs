@@ -17,8 +17,21 @@
 //! it describes). So the sender learns within a few milliseconds of every
 //! arrival, however much is in flight, and resends only what is missing.
 //!
+//! **Copies** (protocol version 3, forward redundancy): each new input
+//! packet also carries the inputs of up to K = [`LinkConfig::redundancy`]
+//! preceding ticks not yet known to have arrived, so a lost packet's input
+//! comes a tick later in the next one and only a run of K + 1 losses needs
+//! a resend. The receiver takes each tick from whichever packet brings it
+//! first and counts later copies ([`LinkStats::copies_redundant`]), not as
+//! errors. Loss detection and the timeout count from the last packet that
+//! carried a tick.
+//!
 //! **Round trips** (Karn's rule made exact): a tick gives a sample only if
-//! it was sent once and an acknowledgement described it as *missing* at
+//! it was sent once, no packet carrying a copy of it can have delivered it
+//! (every such packet's own tick is still described missing by the
+//! acknowledgement that first describes this one arrived: a packet that
+//! arrived would have brought its own tick too), and an acknowledgement
+//! described it as *missing* at
 //! most [`REPORT_EVERY_US`] + 1 tick before this one describes it as
 //! *arrived*: it arrived between the two, so the sample is its round trip
 //! plus at most that gap (normally one tick). A tick that was resent, or

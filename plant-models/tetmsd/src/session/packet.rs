@@ -21,12 +21,17 @@
 //! | 27 | bits 0–2 kind (0 input, 1 hello, 2 ack, 3 bye, 4 state), bit 3 sending site, bits 4–7 zero |
 //! | 28–31 | u32: the tick (input: its tick; ack: the first tick its blocks describe; bye: the sender's next tick; state: the state's tick; hello: stage and serial) |
 //! | 34–37 | acknowledgements (input, ack, bye): [`Acks`]; hello: the echo; state: zero |
-//! | 38–39 | CRC-16/IBM-3740 (CCITT-FALSE: poly 0x1021, init 0xFFFF) of bytes 0–37 and 40–63 |
+//! | 38–39 | CRC-16/IBM-3740 (CCITT-FALSE: poly 0x1021, init 0xFFFF) of bytes 0–37 and 40 to the end |
 //!
-//! and bytes 0–25, 32–33 and 40–63 are the kind's own ([`Message`]).
+//! and bytes 0–25, 32–33 and 40–63 are the kind's own ([`Message`]). An
+//! input packet may go on after its 64 bytes with [`COPY_BYTES`]-byte
+//! copies of the sender's inputs of up to [`MAX_COPIES`] earlier ticks
+//! ([`Copies`], version 3): forward redundancy, so that a lost packet's
+//! input comes in the next one instead of waiting for a resend.
 //!
 //! Decoding refuses, and names, every packet that is not exactly what the
-//! encoder would write: a wrong length, another version, set reserved
+//! encoder would write: a wrong length, copies out of order or out of
+//! reach, another version, set reserved
 //! bits, a kind, stage or reason this version does not define, a bad CRC,
 //! a non-finite number, a tetrahedron without a node (or the reverse),
 //! selective-ack blocks out of order, and non-zero bytes where a message

@@ -14,16 +14,14 @@
 //!   present, once per tick) at p99, against one round trip + 50 ms.
 //! - **Replicas** bit-identical at the end.
 //!
-//! The lag has a floor no protocol without redundant sending can go
-//! under: a lost input is missed when a later one arrives, the sender
-//! hears of it a round trip after it was sent and the resend takes a
-//! one-way trip more, so the committed replica waits about one round trip
-//! plus one one-way delay behind for every loss
-//! ([`PathFigures::loss_floor_ms`]). Where losses are frequent enough to
-//! keep it waiting more than 1 % of the time and the one-way delay plus
-//! the reordering window exceeds 50 ms (long paths with loss), p99 cannot
-//! meet "one round trip + 50 ms"; [`PathFigures::failures`] names the
-//! criterion then, and the table shows the floor beside the figure.
+//! Resends are counted against the inputs *really* lost (every packet
+//! carrying the input, its own and the copies in later packets, dropped:
+//! `NetemStats::input_ticks_lost`); the packets dropped are reported
+//! beside them. Without copies a lost input holds the committed replica
+//! about one round trip plus one one-way delay behind
+//! ([`PathFigures::loss_floor_ms`]); with K copies only a run of K + 1
+//! lost packets does. The bytes sent per second, and how many of them
+//! were copies, give the redundancy's cost against version 2.
 use super::link::DEFAULT_REDUNDANCY;
 use super::netem::{NetemConfig, Profile, TABLES};
 use super::pair::{run_virtual, PairConfig, PairReport};
@@ -157,9 +155,9 @@ impl PathFigures {
         self.sites[s].rtt_path_ms + 50.0
     }
 
-    /// The lag a lost input causes at least (ms): a round trip to learn of
-    /// it, a one-way trip for the resend, the 5 ms reordering window and
-    /// a tick.
+    /// The lag an input lost with all its copies causes at least (ms): a
+    /// round trip to learn of it, a one-way trip for the resend, the 5 ms
+    /// reordering window and a tick.
     pub fn loss_floor_ms(&self, s: usize) -> f64 {
         let f = &self.sites[s];
         f.rtt_path_ms + f.peer_one_way_ms + 6.0
