@@ -10,8 +10,9 @@
 //! A's site goes out of B's socket to B's site after its emulated delay,
 //! and the reverse. A side's site address is given or learnt from the
 //! first datagram that arrives on its socket (a restarted site that binds
-//! a new port is learnt again). Datagrams that are not 64 bytes are not
-//! packets of this protocol: counted and dropped.
+//! a new port is learnt again). Datagrams shorter than 64 bytes or longer
+//! than an input with 16 copies (960 bytes) are not packets of this
+//! protocol: counted and dropped.
 //!
 //! Timing is the relay's own clock (µs since it started); it sleeps
 //! [`super::NET_POLL_US`] when nothing is due, so a delay is given to
@@ -80,7 +81,7 @@ pub struct RelayReport {
     /// other, each the emulated delay plus the relay's lateness — plus
     /// half a tick of acknowledgement hold (ms).
     pub path_rtt_ms: f64,
-    /// Datagrams that were not 64 bytes (dropped).
+    /// Datagrams shorter than 64 or longer than 960 bytes (dropped).
     pub not_packets: u64,
     /// Datagrams due to a side whose site was not known yet (dropped).
     pub no_destination: u64,
