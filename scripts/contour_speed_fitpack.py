@@ -15,9 +15,22 @@ N sigma^2), in a Python loop; its time does not include reading or
 writing anything. The two are run alternately, REPS times each, and the
 medians compared.
 
-Usage (after ``cargo build --release -p host-tools``):
+FITPACK has no "lambda given" mode. With s given it chooses its knots
+(adding them until the least-squares residual is below s) and then
+searches its smoothing factor p (a root search, several banded solves)
+until the residual equals s: more work than our one solve with the knots
+and lambda given. Its nearest single-solve case is ``splrep(t=..., per=1)``
+with our knots given (``task=-1``): the periodic least-squares spline on
+the same knots with no smoothing term, timed too. With ``--example`` the
+project's fit alone is timed in-process as well (the example
+``contour_fit_speed`` of plant-contour: ``fit_signature`` per frame, and
+``fit_contours``, the fit and every per-frame check, without file I/O).
+
+Usage (after ``cargo build --release -p host-tools`` and
+``cargo build --release -p plant-contour --example contour_fit_speed``):
 
     python3 scripts/contour_speed_fitpack.py [--softjoint target/release/softjoint]
+        [--example target/release/examples/contour_fit_speed]
         [--frames 200] [--points 64] [--knots 16] [--reps 5]
 
 Needs numpy and scipy (pip install numpy scipy).
@@ -55,6 +68,8 @@ def main():
     ap.add_argument("--knots", type=int, default=16)
     ap.add_argument("--lambda", dest="lam", default="1e-3")
     ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--example", default=None,
+                    help="the contour_fit_speed example, to time the fit alone in-process")
     a = ap.parse_args()
     theta, data = contours(a.frames, a.points)
     sigma = 0.01 * 35
@@ -68,7 +83,10 @@ def main():
         cmd = [a.softjoint, "contour", "fit", path, "--model", "signature",
                "--knots", str(a.knots), "--lambda", a.lam, "--samples", "64",
                "--out", os.path.join(work, "out"), "--json", "--allow-unverified"]
-        ours, theirs = [], []
+        ours, theirs, lsq, alone, checked = [], [], [], [], []
+        # Our knots: `knots` equal intervals over [0, 2 pi); FITPACK takes
+        # the interior ones.
+        t_ours = np.linspace(0, 2 * np.pi, a.knots + 1)[1:-1]
         for _ in range(a.reps):
             t0 = time.perf_counter()
             res = subprocess.run(cmd, capture_output=True, text=True)
@@ -82,6 +100,18 @@ def main():
             for r in data:
                 splrep(tt, np.append(r, r[0]), per=1, s=a.points * sigma ** 2)
             theirs.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            for r in data:
+                splrep(tt, np.append(r, r[0]), per=1, t=t_ours, task=-1)
+            lsq.append(time.perf_counter() - t0)
+            if a.example:
+                res = subprocess.run([a.example, path, str(a.knots), a.lam, "5", "64"],
+                                     capture_output=True, text=True)
+                if res.returncode != 0:
+                    sys.exit(f"the example failed: {res.stderr}")
+                fig = dict(line.split() for line in res.stdout.splitlines())
+                alone.append(float(fig["fit_only_ms"]))
+                checked.append(float(fig["fit_and_checks_ms"]))
     mo, mt = statistics.median(ours), statistics.median(theirs)
     print(f"{a.frames} frames x {a.points} points, knots {a.knots}, lambda {a.lam}; "
           f"median of {a.reps} alternating runs")
@@ -89,7 +119,16 @@ def main():
           f"({mo:.3f} s)")
     print(f"FITPACK splrep(per=1), s = N sigma^2, fit only: {1e3 * mt / a.frames:.3f} ms per frame "
           f"({mt:.3f} s)")
-    print(f"ratio softjoint / FITPACK: {mo / mt:.2f}")
+    ml = statistics.median(lsq)
+    print(f"FITPACK splrep(per=1, t = our knots, task=-1), least squares, fit only: "
+          f"{1e3 * ml / a.frames:.3f} ms per frame")
+    print(f"ratio softjoint whole command / FITPACK s given: {mo / mt:.2f}")
+    if a.example:
+        fa, fc = statistics.median(alone), statistics.median(checked)
+        print(f"softjoint fit alone (fit_signature, lambda given, in-process): {fa:.3f} ms per frame")
+        print(f"softjoint fit and every per-frame check, no file I/O (fit_contours): {fc:.3f} ms per frame")
+        print(f"ratio softjoint fit alone / FITPACK s given: {fa / (1e3 * mt / a.frames):.2f}; "
+              f"/ FITPACK least squares on our knots: {fa / (1e3 * ml / a.frames):.2f}")
 
 
 if __name__ == "__main__":

@@ -942,6 +942,11 @@ fn pair_table(s: &PairSummary<'_>, o: &PairOutcome) -> String {
             "  packets        {} sent, {} resent, {} acks; {} received, {} duplicates, {} gaps seen / {} filled, {} refused; rtt {}/{:.0}/{} µs",
             l.inputs_sent, l.retransmissions, l.acks_sent, l.inputs_received, l.duplicates, l.gaps_seen, l.gaps_filled, l.malformed, l.rtt_min_us, l.rtt_mean_us, l.rtt_max_us
         );
+        let _ = writeln!(
+            t,
+            "  copies         {} sent ({} of {} bytes sent), {} peer inputs came first in a copy, {} copies already had",
+            l.copies_sent, l.copy_bytes, l.bytes_sent, l.inputs_from_copies, l.copies_redundant
+        );
         let n = &r.netem;
         let _ = writeln!(
             t,

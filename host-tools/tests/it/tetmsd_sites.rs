@@ -297,44 +297,41 @@ fn two_namespaces_through_the_relay() {
     // however late the relay itself was scheduled (measured; a few ms on
     // a loaded machine).
     assert!((40.5..50.0).contains(&path_ms), "{relay}");
-    for (r, lost) in [
-        (&r0, &relay["a_to_b"]["inputs_lost"]),
-        (&r1, &relay["b_to_a"]["inputs_lost"]),
-    ] {
+    for (r, dir) in [(&r0, &relay["a_to_b"]), (&r1, &relay["b_to_a"])] {
+        let (lost, packets_lost) = (&dir["input_ticks_lost"], &dir["inputs_lost"]);
         let link = &r["link"];
         let rtt_ms = link["rtt_mean_us"].as_f64().unwrap() / 1000.0;
         eprintln!(
-            "site {}: rtt {rtt_ms:.2} ms (path {path_ms:.2}), resent {} for {lost} lost, lag p99 {} ms, committed {}",
-            r["site"], link["retransmissions"], r["replica"]["lag_p99_ms"], r["committed_tick"]
+            "site {}: rtt {rtt_ms:.2} ms (path {path_ms:.2}), resent {} for {lost} inputs lost ({packets_lost} packets), lag p99 {} ms, committed {}, bytes sent {} (copies {})",
+            r["site"], link["retransmissions"], r["replica"]["lag_p99_ms"], r["committed_tick"],
+            link["bytes_sent"], link["copy_bytes"]
         );
-        // The mean is printed, not asserted: on this loaded machine it is
-        // 6–17 % over the relay's path, the sites' own threads waking
-        // late (the virtual table meets 10 % on every path). The smallest
-        // sample is a round trip no scheduling delay touched: within 10 %
-        // of the emulated minimum, 40 ms.
+        // The smallest sample is a round trip no scheduling delay touched:
+        // within 10 % of the emulated minimum, 40 ms. The mean: within
+        // 10 % of the relay's path on a quiet machine (1 % over, 42.4
+        // against 42.0 ms), more on a loaded one, where the sites' own
+        // threads wake late; 25 % is asserted (see the README's "Two
+        // namespaces" for the loaded figures).
         let min_ms = link["rtt_min_us"].as_f64().unwrap() / 1000.0;
         assert!((40.0..=44.0).contains(&min_ms), "{link}");
-        assert!(rtt_ms >= min_ms && rtt_ms <= 1.5 * path_ms, "{link}");
-        let (resent, lost) = (
+        assert!(rtt_ms >= min_ms && rtt_ms <= 1.25 * path_ms, "{link}");
+        let (resent, lost, packets_lost) = (
             link["retransmissions"].as_u64().unwrap(),
             lost.as_u64().unwrap(),
+            packets_lost.as_u64().unwrap(),
         );
-        assert!(lost > 0, "2 % of 3000 inputs: some are lost");
-        // Issue 30's criterion is 1.2 × (met in virtual time on every
-        // path, tests/it/path_figures.rs in plant-tetmsd). In real time on
-        // this loaded machine a scheduling delay now and then makes a
-        // resend needless: 1.05–1.4 × measured, so only twice is asserted
-        // here, a guard against the 20 × of issue 30's first measurement.
+        assert!(packets_lost > 0, "2 % of 3000 input packets: some are lost");
+        // With three copies per packet an input is really lost only when
+        // four packets in a row are (2 %: about once in 10⁷ ticks), so
+        // almost nothing is resent. Issue 30's 1.2 × lost, with a margin
+        // of 5 for resends a scheduling delay makes needless under load.
         assert!(
-            resent as f64 <= 2.0 * lost as f64,
+            resent as f64 <= 1.2 * lost as f64 + 5.0,
             "{resent} resent for {lost} lost"
         );
-        // The committed lag's p99 is reported, not asserted: in real time
-        // on this loaded 2-core machine it is 170–240 ms against one round
-        // trip + 50 ms ≈ 95 ms (the reordering window widens to the round
-        // trip after scheduling delays make a resend needless, and each
-        // loss then holds the replica ≈ 2 round trips + a one-way trip);
-        // plant-models/tetmsd/README.md, "Link figures", has the numbers.
+        // Issue 30's lag criterion: one round trip + 50 ms at p99.
+        let lag_ms = r["replica"]["lag_p99_ms"].as_f64().unwrap();
+        assert!(lag_ms <= path_ms + 50.0, "lag p99 {lag_ms} ms");
         // The end both commit to is min(own, peer) (the bye exchange): a
         // site a tick behind when its peer's bye arrives stops there, as
         // in `a_restarted_peer_…` above. Both end at the same tick,

@@ -5,10 +5,12 @@
 //! whether the replicas ended bit-identical. Exits non-zero, naming each
 //! missed criterion, if any row misses one.
 //!
-//! `cargo run --release -p plant-tetmsd --example path_table -- [DURATION_S] [LEVEL] [SEED] [ONLY]`
+//! `cargo run --release -p plant-tetmsd --example path_table -- [DURATION_S] [LEVEL] [SEED] [ONLY] [K]`
 //! (default 10 s of session per row at level 3, seed 1; ONLY keeps the
-//! rows whose label contains it, e.g. `rtt-200`).
-use plant_tetmsd::paths::{full_table, run_case, PathFigures};
+//! rows whose label contains it, e.g. `rtt-200`, "" for all; K the copies
+//! per input packet, default `link::DEFAULT_REDUNDANCY`).
+use plant_tetmsd::link::DEFAULT_REDUNDANCY;
+use plant_tetmsd::paths::{full_table, run_case_with, PathFigures};
 use std::process::ExitCode;
 
 fn arg<T: std::str::FromStr>(k: usize, name: &str, default: T) -> Result<T, String> {
@@ -26,9 +28,10 @@ fn main() -> ExitCode {
             arg(1, "DURATION_S", 10.0f64)?,
             arg(2, "LEVEL", 3u32)?,
             arg(3, "SEED", 1u64)?,
+            arg(5, "K", DEFAULT_REDUNDANCY)?,
         ))
     })();
-    let (duration_s, level, seed) = match parsed {
+    let (duration_s, level, seed, k) = match parsed {
         Ok(v) => v,
         Err(e) => {
             eprintln!("path_table: {e}");
@@ -36,14 +39,14 @@ fn main() -> ExitCode {
         }
     };
     let only = std::env::args().nth(4).unwrap_or_default();
-    println!("{duration_s} s per row, level {level}, seed {seed}\n");
+    println!("{duration_s} s per row, level {level}, seed {seed}, K = {k} copies\n");
     println!("{}", PathFigures::header());
     let mut missed = Vec::new();
     for case in full_table()
         .into_iter()
         .filter(|c| c.label().contains(&only))
     {
-        match run_case(case, level, duration_s, seed) {
+        match run_case_with(case, level, duration_s, seed, k) {
             Ok(f) => {
                 println!("{}", f.row());
                 missed.extend(

@@ -6,7 +6,7 @@
 //! [`Fitter`](crate::model::fit::Fitter); λ may be chosen by
 //! generalised cross-validation ([`crate::identify::gcv`]).
 use crate::error::{ContourError, Result};
-use crate::model::basis::Axis;
+use crate::model::basis::{local_cubic, Axis};
 use crate::model::fit::{FitProblem, Fitter, Solver};
 use crate::model::gramian::{gauss4, gramian};
 use serde::{Deserialize, Serialize};
@@ -50,6 +50,22 @@ impl SplineCurve {
         self.derivative(s, 0)
     }
 
+    /// The value and the first `D` derivatives at s, `[x, x', …]`, with the
+    /// interval located once: each entry is bit-identical to
+    /// [`SplineCurve::derivative`] of its order (the same operations).
+    pub fn derivatives<const D: usize>(&self, s: f64) -> [f64; D] {
+        let (first, x) = self.axis.locate(s);
+        let c = &self.coef[first..first + 4];
+        std::array::from_fn(|order| {
+            let scale = self.axis.alpha.powi(order as i32);
+            local_cubic(x, order)
+                .iter()
+                .zip(c)
+                .map(|(b, c)| (b * scale) * c)
+                .sum()
+        })
+    }
+
     /// `∫ x(s)² ds` over the domain (`τᵀ Q⁽⁰⁰⁾ τ`).
     pub fn integral_of_square(&self) -> f64 {
         quadratic_form(&gramian(&self.axis, 0, 0), &self.coef)
@@ -83,8 +99,8 @@ impl SplineCurve {
     pub fn signature_perimeter(&self) -> f64 {
         let k = self.axis.length() / std::f64::consts::TAU;
         integrate(&self.axis, QUADRATURE_SUB, |s| {
-            let (r, r1) = (self.value(s), k * self.derivative(s, 1));
-            r.hypot(r1) / k
+            let [r, r1] = self.derivatives::<2>(s);
+            speed(r, k * r1) / k
         })
     }
 
@@ -95,9 +111,8 @@ impl SplineCurve {
     pub fn signature_bending_energy(&self) -> f64 {
         let k = self.axis.length() / std::f64::consts::TAU;
         integrate(&self.axis, QUADRATURE_SUB, |s| {
-            let r = self.value(s);
-            let r1 = k * self.derivative(s, 1);
-            let r2 = k * k * self.derivative(s, 2);
+            let [r, r1, r2] = self.derivatives::<3>(s);
+            let (r1, r2) = (k * r1, k * k * r2);
             let v2 = r * r + r1 * r1;
             let num = r * r + 2.0 * r1 * r1 - r * r2;
             num * num / (v2 * v2 * v2.sqrt()) / k
@@ -121,6 +136,18 @@ impl SplineCurve {
             .into_iter()
             .map(|s| (s, self.value(s)))
             .collect()
+    }
+}
+
+/// `√(a² + b²)` by the square root (about a fifth of libm's `hypot` in
+/// the perimeter's quadrature, issue 34; within an ulp or two of it),
+/// falling back to `hypot` where the squares overflow or underflow.
+fn speed(a: f64, b: f64) -> f64 {
+    let s2 = a * a + b * b;
+    if s2.is_normal() {
+        s2.sqrt()
+    } else {
+        a.hypot(b)
     }
 }
 

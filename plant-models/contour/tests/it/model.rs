@@ -474,3 +474,36 @@ fn area_and_smoothness_are_the_kronecker_forms_of_eq_40_and_41() {
         assert!((quad - area).abs() < 1e-6 * area, "S({s}) by quadrature");
     }
 }
+
+/// The perimeter's quadrature takes value and slope from one interval
+/// search (`derivatives`, issue 34): each is bit-identical to
+/// `derivative` of its order; the perimeter of a circle r = R stays
+/// 2πR, also for radii whose squares overflow (the `hypot` fallback).
+#[test]
+fn derivatives_match_derivative_bit_for_bit_and_the_perimeter_survives_huge_radii() {
+    let m = 12;
+    let axis = Axis::over(0.0, m as f64, m, true).unwrap();
+    let coef: Vec<f64> = (0..axis.coefficients())
+        .map(|i| 3.0 + (i as f64 * 0.7).sin())
+        .collect();
+    let c = SplineCurve::new(axis, coef).unwrap();
+    for k in 0..97 {
+        let s = m as f64 * k as f64 / 97.0;
+        let [v, d1, d2] = c.derivatives::<3>(s);
+        assert_eq!(v.to_bits(), c.value(s).to_bits(), "value at {s}");
+        assert_eq!(d1.to_bits(), c.derivative(s, 1).to_bits(), "slope at {s}");
+        assert_eq!(
+            d2.to_bits(),
+            c.derivative(s, 2).to_bits(),
+            "curvature term at {s}"
+        );
+    }
+    for r in [1.0, 1e200] {
+        let circle = SplineCurve::new(axis, vec![r; axis.coefficients()]).unwrap();
+        let p = circle.signature_perimeter();
+        assert!(
+            ((p - TAU * r) / (TAU * r)).abs() < 1e-12,
+            "r {r}: perimeter {p}"
+        );
+    }
+}

@@ -189,7 +189,7 @@ impl Control {
         None
     }
 
-    fn hello(&mut self, now_us: u64, stage: Stage) -> [u8; 64] {
+    fn hello(&mut self, now_us: u64, stage: Stage) -> Vec<u8> {
         self.serial = self.serial.wrapping_add(1);
         self.sent.push_back((self.serial, now_us));
         if self.sent.len() > 64 {
@@ -230,7 +230,7 @@ impl Control {
     /// Packets due at `now_us`: hellos while looking for the peer, state
     /// rounds while offering. `committed_tick` is what a running site
     /// reports in its hellos.
-    pub fn poll(&mut self, now_us: u64) -> Vec<[u8; 64]> {
+    pub fn poll(&mut self, now_us: u64) -> Vec<Vec<u8>> {
         let due = self
             .last_hello_us
             .is_none_or(|t| now_us >= t + HELLO_EVERY_US);
@@ -289,7 +289,7 @@ impl Control {
 
     /// Takes in a hello or state packet at `now_us`; returns what to do
     /// and what to send at once.
-    pub fn on_packet(&mut self, now_us: u64, packet: &Packet) -> (Vec<Event>, Vec<[u8; 64]>) {
+    pub fn on_packet(&mut self, now_us: u64, packet: &Packet) -> (Vec<Event>, Vec<Vec<u8>>) {
         match &packet.message {
             Message::Hello(h) => self.on_hello(now_us, h),
             Message::State { tick, chunk } => self.on_state(now_us, *tick, chunk),
@@ -297,7 +297,7 @@ impl Control {
         }
     }
 
-    fn on_hello(&mut self, now_us: u64, h: &Hello) -> (Vec<Event>, Vec<[u8; 64]>) {
+    fn on_hello(&mut self, now_us: u64, h: &Hello) -> (Vec<Event>, Vec<Vec<u8>>) {
         if let Some(why) = self.describe(h) {
             // Answer a fresh site's refusal with our own hello, so that a
             // peer which started later (and missed our earlier hellos)
@@ -418,7 +418,7 @@ impl Control {
     }
 
     /// Site 0 starts a new session with the peer `nonce`.
-    fn go(&mut self, now_us: u64, nonce: u32) -> (Vec<Event>, Vec<[u8; 64]>) {
+    fn go(&mut self, now_us: u64, nonce: u32) -> (Vec<Event>, Vec<Vec<u8>>) {
         let half = (self.rtt_us().unwrap_or(0) / 2) as i64;
         let origin = now_us as i64 + half;
         self.origin_us = Some(origin);
@@ -443,7 +443,7 @@ impl Control {
         now_us: u64,
         tick: u32,
         chunk: &StateChunk,
-    ) -> (Vec<Event>, Vec<[u8; 64]>) {
+    ) -> (Vec<Event>, Vec<Vec<u8>>) {
         if self.running() {
             // A round after we started: the peer did not hear us.
             if matches!(self.phase, Phase::Running) && matches!(chunk, StateChunk::Summary { .. }) {
@@ -484,7 +484,7 @@ impl Control {
 
     /// Starts the session from an assembled state once it is whole and
     /// its hash checks.
-    fn try_join(&mut self, now_us: u64) -> (Vec<Event>, Vec<[u8; 64]>) {
+    fn try_join(&mut self, now_us: u64) -> (Vec<Event>, Vec<Vec<u8>>) {
         let Phase::Joining(a) = &self.phase else {
             return (Vec::new(), Vec::new());
         };
@@ -532,10 +532,10 @@ impl Control {
 
 /// The packets of `state`: one per node, then the summary with the
 /// sender's session clock `clock_us`.
-pub fn state_packets(site: u8, state: &State, clock_us: i64) -> Vec<[u8; 64]> {
+pub fn state_packets(site: u8, state: &State, clock_us: i64) -> Vec<Vec<u8>> {
     let count = state.x_m.len() as u16;
     let tick = state.tick as u32;
-    let mut out: Vec<[u8; 64]> = state
+    let mut out: Vec<Vec<u8>> = state
         .x_m
         .iter()
         .zip(&state.v_m_s)

@@ -40,13 +40,14 @@
 //! The emulator also keeps the truth a site cannot see, for checking what
 //! the sites measure: how many *input* packets it lost and the mean
 //! one-way delay it gave the inputs it passed.
+use super::packet::Packet;
 use crate::error::{check_range, Result};
 use plant_common::rng;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Exp1};
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::{BTreeMap, BinaryHeap};
 
 /// Frames per replayed trial: 12 s at one frame per millisecond.
 pub const TRIAL_FRAMES: usize = 12_000;
@@ -343,9 +344,15 @@ pub struct NetemStats {
     pub max_delay_us: u64,
     /// Input packets (kind 0) given to the emulator.
     pub inputs_offered: u64,
-    /// Input packets lost (at random or by a full queue): what the sender
-    /// really has to resend.
+    /// Input packets lost (at random or by a full queue).
     pub inputs_lost: u64,
+    /// Inputs really lost, what the sender has to resend: ticks whose own
+    /// packet and every copy of them in later packets were lost, and
+    /// resends lost before any packet carrying the tick passed. Without
+    /// copies (version 2, K = 0) this is [`NetemStats::inputs_lost`].
+    pub input_ticks_lost: u64,
+    /// Bytes of the input packets offered (their copies included).
+    pub input_bytes_offered: u64,
     /// Input packets passed on.
     pub inputs_passed: u64,
     /// Sum of the one-way delays given to those (µs).
@@ -363,6 +370,21 @@ impl NetemStats {
     }
 }
 
+/// What became of one input tick's packets.
+#[derive(Clone, Copy, Debug, Default)]
+struct Fate {
+    /// Its own first packet was lost.
+    own_lost: bool,
+    /// Its own first packet or a copy of it passed.
+    first_round_passed: bool,
+    /// Any packet carrying it passed.
+    passed: bool,
+}
+
+/// Ticks whose fate an emulator remembers behind the highest it saw: the
+/// link's window (`link::WINDOW_TICKS`), beyond which nothing is resent.
+const FATE_TICKS: u32 = 8192;
+
 /// One direction of the emulated network.
 #[derive(Clone, Debug)]
 pub struct Emulator {
@@ -372,8 +394,10 @@ pub struct Emulator {
     one_way_us: Vec<u64>,
     repeats: bool,
     rng: ChaCha8Rng,
-    queue: BinaryHeap<Reverse<(u64, u64, [u8; 64])>>,
+    queue: BinaryHeap<Reverse<(u64, u64, Vec<u8>)>>,
     order: u64,
+    /// Input ticks seen, and what became of their packets.
+    fates: BTreeMap<u32, Fate>,
     /// The Gilbert chain is in its losing state.
     in_burst: bool,
     stats: NetemStats,
@@ -408,6 +432,7 @@ impl Emulator {
             rng: rng::stream(seed, rng::TETMSD_LOSS_BASE + u64::from(site & 1)),
             queue: BinaryHeap::new(),
             order: 0,
+            fates: BTreeMap::new(),
             in_burst: false,
             stats: NetemStats::default(),
         })
@@ -449,10 +474,13 @@ impl Emulator {
     }
 
     /// Sends `packet` at `now_us`.
-    pub fn push(&mut self, now_us: u64, packet: [u8; 64]) {
+    pub fn push(&mut self, now_us: u64, packet: Vec<u8>) {
         self.stats.offered += 1;
-        let input = packet[27] & 0b111 == 0;
+        let input = packet.len() >= 28 && packet[27] & 0b111 == 0;
         self.stats.inputs_offered += u64::from(input);
+        if input {
+            self.stats.input_bytes_offered += packet.len() as u64;
+        }
         // Draw every number for every packet so that one setting does
         // not shift the others' streams.
         let (lose, hold, extra, jitter) = (
@@ -464,13 +492,16 @@ impl Emulator {
         if self.loses(lose) {
             self.stats.lost += 1;
             self.stats.inputs_lost += u64::from(input);
+            self.count_fate(&packet, false);
             return;
         }
         if self.queue.len() >= self.config.capacity {
             self.stats.overflowed += 1;
             self.stats.inputs_lost += u64::from(input);
+            self.count_fate(&packet, false);
             return;
         }
+        self.count_fate(&packet, true);
         let mut delay = self.delay_at_us(now_us);
         if hold < self.config.reorder {
             delay += extra;
@@ -488,8 +519,51 @@ impl Emulator {
         self.stats.max_queued = self.stats.max_queued.max(self.queue.len());
     }
 
+    /// Counts what became of the input ticks `packet` carries (nothing
+    /// if it is not an input packet): see [`NetemStats::input_ticks_lost`].
+    fn count_fate(&mut self, packet: &[u8], passed: bool) {
+        let Some((tick, copies)) = Packet::input_ticks(packet) else {
+            return;
+        };
+        let lost = &mut self.stats.input_ticks_lost;
+        for t in copies {
+            // A copy rides behind its tick's own packet.
+            if let Some(f) = self.fates.get_mut(&t) {
+                if passed && !f.first_round_passed {
+                    f.first_round_passed = true;
+                    *lost -= u64::from(f.own_lost);
+                }
+                f.passed |= passed;
+            }
+        }
+        match self.fates.get_mut(&tick) {
+            Some(f) => {
+                // A resend.
+                if !passed && !f.passed {
+                    *lost += 1;
+                }
+                f.passed |= passed;
+            }
+            None => {
+                *lost += u64::from(!passed);
+                self.fates.insert(
+                    tick,
+                    Fate {
+                        own_lost: !passed,
+                        first_round_passed: passed,
+                        passed,
+                    },
+                );
+                if self.fates.len() > 2 * FATE_TICKS as usize {
+                    let keep = self.fates.split_off(&tick.saturating_sub(FATE_TICKS));
+                    self.fates = keep;
+                }
+            }
+        }
+    }
+
     /// The next packet due by `now_us`, earliest first.
-    pub fn pop_due(&mut self, now_us: u64) -> Option<[u8; 64]> {
+    pub fn pop_due(&mut self, now_us: u64) -> Option<Vec<u8>> {
         match self.queue.peek() {
             Some(Reverse((t, _, _))) if *t <= now_us => {
                 self.stats.delivered += 1;
@@ -566,7 +640,7 @@ mod tests {
         for k in 0..20_000u64 {
             let mut p = [0u8; 64];
             p[..8].copy_from_slice(&k.to_le_bytes());
-            e.push(k * 1000, p);
+            e.push(k * 1000, p.to_vec());
             while let Some(q) = e.pop_due(k * 1000) {
                 got.push(u64::from_le_bytes(q[..8].try_into().unwrap()));
             }
@@ -592,7 +666,7 @@ mod tests {
         )
         .unwrap();
         for k in 0..10 {
-            tiny.push(k, [0; 64]);
+            tiny.push(k, vec![0; 64]);
         }
         assert_eq!(tiny.stats().overflowed, 8);
         assert!(Emulator::new(NetemConfig { loss: 0.9, ..cfg }, 3, 0).is_err());
@@ -606,8 +680,8 @@ mod tests {
     }
 
     /// Inputs (kind byte 0) numbered by their first eight bytes.
-    fn numbered(k: u64) -> [u8; 64] {
-        let mut p = [0u8; 64];
+    fn numbered(k: u64) -> Vec<u8> {
+        let mut p = vec![0u8; 64];
         p[..8].copy_from_slice(&k.to_le_bytes());
         p
     }
@@ -677,7 +751,7 @@ mod tests {
         // An ack (kind 2) is not an input.
         let mut ack = [0u8; 64];
         ack[27] = 2;
-        e.push(0, ack);
+        e.push(0, ack.to_vec());
         let s = *e.stats();
         assert_eq!((s.inputs_offered, s.inputs_passed), (100_000, 100_000));
         // 10 ms one way plus uniform [0, 8] ms: mean 14 ms, at most 18 ms.

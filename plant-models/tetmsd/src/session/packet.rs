@@ -21,12 +21,17 @@
 //! | 27 | bits 0–2 kind (0 input, 1 hello, 2 ack, 3 bye, 4 state), bit 3 sending site, bits 4–7 zero |
 //! | 28–31 | u32: the tick (input: its tick; ack: the first tick its blocks describe; bye: the sender's next tick; state: the state's tick; hello: stage and serial) |
 //! | 34–37 | acknowledgements (input, ack, bye): [`Acks`]; hello: the echo; state: zero |
-//! | 38–39 | CRC-16/IBM-3740 (CCITT-FALSE: poly 0x1021, init 0xFFFF) of bytes 0–37 and 40–63 |
+//! | 38–39 | CRC-16/IBM-3740 (CCITT-FALSE: poly 0x1021, init 0xFFFF) of bytes 0–37 and 40 to the end |
 //!
-//! and bytes 0–25, 32–33 and 40–63 are the kind's own ([`Message`]).
+//! and bytes 0–25, 32–33 and 40–63 are the kind's own ([`Message`]). An
+//! input packet may go on after its 64 bytes with [`COPY_BYTES`]-byte
+//! copies of the sender's inputs of up to [`MAX_COPIES`] earlier ticks
+//! ([`Copies`], version 3): forward redundancy, so that a lost packet's
+//! input comes in the next one instead of waiting for a resend.
 //!
 //! Decoding refuses, and names, every packet that is not exactly what the
-//! encoder would write: a wrong length, another version, set reserved
+//! encoder would write: a wrong length, copies out of order or out of
+//! reach, another version, set reserved
 //! bits, a kind, stage or reason this version does not define, a bad CRC,
 //! a non-finite number, a tetrahedron without a node (or the reverse),
 //! selective-ack blocks out of order, and non-zero bytes where a message
@@ -40,10 +45,21 @@ use crate::model::V3;
 use crc::{Crc, CRC_16_IBM_3740};
 use std::fmt;
 
-/// Bytes in a packet.
+/// Bytes in a packet (an input packet with copies has [`COPY_BYTES`]
+/// more per copy).
 pub const PACKET_BYTES: usize = 64;
-/// The protocol version this code speaks.
-pub const VERSION: u8 = 2;
+/// The protocol version this code speaks: 3 adds the copies of earlier
+/// inputs after an input packet's 64 bytes.
+pub const VERSION: u8 = 3;
+/// Bytes of one copied input after an input packet's 64.
+pub const COPY_BYTES: usize = 56;
+/// Most copies one input packet may carry: 16 keeps the datagram at 960
+/// bytes, inside the 1,232-byte UDP payload every IPv6 path carries
+/// (1,280-byte minimum MTU less 48 bytes of headers) without
+/// fragmentation.
+pub const MAX_COPIES: usize = 16;
+/// The longest datagram of this version (an input with [`MAX_COPIES`]).
+pub const MAX_DATAGRAM_BYTES: usize = PACKET_BYTES + MAX_COPIES * COPY_BYTES;
 /// "No tetrahedron" / "no node" in an index field.
 pub const NONE_INDEX: u16 = 0xFFFF;
 /// The haptic tick this version runs at (µs): one input per millisecond.
@@ -69,6 +85,64 @@ pub struct Acks {
     /// Bits 0–14: the peer's tick `ack + 1 + b` has arrived; bit 15
     /// ([`SACK_MORE`]): the receiver holds ticks beyond `ack + 15`.
     pub sack: u16,
+}
+
+/// Copies of earlier inputs an input packet carries (forward
+/// redundancy): each one's tick and manipulation, ticks ascending, each
+/// 1–[`MAX_COPIES`] ticks before the packet's own.
+#[derive(Clone, Copy, Debug)]
+pub struct Copies {
+    count: u8,
+    items: [(u32, Manipulation); MAX_COPIES],
+}
+
+impl Copies {
+    /// No copies.
+    pub fn none() -> Self {
+        Copies {
+            count: 0,
+            items: [(0, Manipulation::free(V3::zeros())); MAX_COPIES],
+        }
+    }
+
+    /// Adds the copy of `tick`'s `input` (after the ones there; ticks
+    /// must ascend). False when [`MAX_COPIES`] are already there.
+    pub fn push(&mut self, tick: u32, input: Manipulation) -> bool {
+        let k = usize::from(self.count);
+        if k >= MAX_COPIES {
+            return false;
+        }
+        self.items[k] = (tick, input);
+        self.count += 1;
+        true
+    }
+
+    /// The copies, ticks ascending.
+    pub fn as_slice(&self) -> &[(u32, Manipulation)] {
+        &self.items[..usize::from(self.count)]
+    }
+
+    /// How many.
+    pub fn len(&self) -> usize {
+        usize::from(self.count)
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+impl Default for Copies {
+    fn default() -> Self {
+        Copies::none()
+    }
+}
+
+impl PartialEq for Copies {
+    fn eq(&self, other: &Self) -> bool {
+        self.as_slice() == other.as_slice()
+    }
 }
 
 /// What both sites must run identically: the hello carries it, and a site
@@ -307,8 +381,10 @@ pub enum StateChunk {
 
 /// What a packet says.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)] // an input's copies (1.2 kB) kept inline so that packets stay Copy; one is built per tick
 pub enum Message {
-    /// Kind 0: the sender's manipulation for `tick`.
+    /// Kind 0: the sender's manipulation for `tick`, and copies of
+    /// earlier ones.
     Input {
         /// The sender's haptic tick.
         tick: u32,
@@ -316,6 +392,8 @@ pub enum Message {
         acks: Acks,
         /// The manipulation.
         input: Manipulation,
+        /// Copies of the sender's inputs of earlier ticks.
+        copies: Copies,
     },
     /// Kind 1: the handshake.
     Hello(Hello),
@@ -378,6 +456,9 @@ pub enum Malformed {
     NonCanonical,
     /// Selective-ack blocks out of order, empty or beyond the frontier.
     BadBlocks,
+    /// Copies of inputs not 1–16 ticks before the packet's own, or not
+    /// ascending.
+    BadCopies,
     /// An index outside this session's mesh (or a state of another size).
     IndexOutOfRange,
     /// The node is not a vertex of the tetrahedron, or may not be held
@@ -390,7 +471,7 @@ pub enum Malformed {
 
 impl Malformed {
     /// Every reason, in [`DecodeStats`] order.
-    pub const ALL: [Malformed; 12] = [
+    pub const ALL: [Malformed; 13] = [
         Malformed::WrongLength,
         Malformed::BadVersion,
         Malformed::ReservedBits,
@@ -400,6 +481,7 @@ impl Malformed {
         Malformed::InconsistentGrip,
         Malformed::NonCanonical,
         Malformed::BadBlocks,
+        Malformed::BadCopies,
         Malformed::IndexOutOfRange,
         Malformed::BadGrip,
         Malformed::WrongPeer,
@@ -417,6 +499,7 @@ impl Malformed {
             Malformed::InconsistentGrip => "inconsistent_grip",
             Malformed::NonCanonical => "non_canonical",
             Malformed::BadBlocks => "bad_blocks",
+            Malformed::BadCopies => "bad_copies",
             Malformed::IndexOutOfRange => "index_out_of_range",
             Malformed::BadGrip => "bad_grip",
             Malformed::WrongPeer => "wrong_peer",
@@ -442,6 +525,7 @@ impl fmt::Display for Malformed {
             }
             Malformed::NonCanonical => "unused bytes are not zero",
             Malformed::BadBlocks => "selective-ack blocks out of order or beyond the frontier",
+            Malformed::BadCopies => "input copies not 1-16 ticks back in ascending order",
             Malformed::IndexOutOfRange => "an index outside the mesh, or a state of another size",
             Malformed::BadGrip => "the node is not a grippable vertex of the tetrahedron",
             Malformed::WrongPeer => "not from the peer, or the peer runs another configuration",
@@ -455,7 +539,7 @@ impl std::error::Error for Malformed {}
 /// Refused packets counted by reason.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DecodeStats {
-    counts: [u64; 12],
+    counts: [u64; 13],
 }
 
 impl DecodeStats {
@@ -520,7 +604,7 @@ fn put_u64(b: &mut [u8], k: usize, v: u64) {
     b[k..k + 8].copy_from_slice(&v.to_le_bytes());
 }
 
-fn crc_of(b: &[u8; PACKET_BYTES]) -> u16 {
+fn crc_of(b: &[u8]) -> u16 {
     let mut d = CRC16.digest();
     d.update(&b[..38]);
     d.update(&b[40..]);
@@ -557,7 +641,7 @@ fn finite(v: V3) -> bool {
     v.iter().all(|c| c.is_finite())
 }
 
-fn encode_input(b: &mut [u8; PACKET_BYTES], tick: u32, acks: Acks, m: &Manipulation) {
+fn encode_input(b: &mut [u8], tick: u32, acks: Acks, m: &Manipulation, copies: &Copies) {
     put_f64s(&mut b[0..24], m.tip_m);
     let (tet, node) = match m.grip {
         Some(g) => {
@@ -570,9 +654,48 @@ fn encode_input(b: &mut [u8; PACKET_BYTES], tick: u32, acks: Acks, m: &Manipulat
     put_u32(b, 28, tick);
     put_u16(b, 32, node);
     put_acks(b, acks);
+    for (k, (t, c)) in copies.as_slice().iter().enumerate() {
+        let r = &mut b[PACKET_BYTES + k * COPY_BYTES..PACKET_BYTES + (k + 1) * COPY_BYTES];
+        put_u16(r, 0, tick.wrapping_sub(*t) as u16);
+        let (tet, node) = match c.grip {
+            Some(g) => {
+                put_f64s(&mut r[32..56], g.node_m);
+                (g.tet, g.node)
+            }
+            None => (NONE_INDEX, NONE_INDEX),
+        };
+        put_u16(r, 2, tet);
+        put_u16(r, 4, node);
+        put_f64s(&mut r[8..32], c.tip_m);
+    }
 }
 
-fn encode_hello(b: &mut [u8; PACKET_BYTES], h: &Hello) {
+/// A manipulation from its tip, tetrahedron, node and node position
+/// fields (`node_b` the 24 bytes of the node position).
+fn manipulation(tip_m: V3, tet: u16, node: u16, node_b: &[u8]) -> Result<Manipulation, Malformed> {
+    if !finite(tip_m) {
+        return Err(Malformed::NonFinite);
+    }
+    let grip = match (tet == NONE_INDEX, node == NONE_INDEX) {
+        (true, true) => {
+            if !zero(node_b, 0..24) {
+                return Err(Malformed::NonCanonical);
+            }
+            None
+        }
+        (false, false) => {
+            let node_m = get_f64s(node_b);
+            if !finite(node_m) {
+                return Err(Malformed::NonFinite);
+            }
+            Some(Grip { tet, node, node_m })
+        }
+        _ => return Err(Malformed::InconsistentGrip),
+    };
+    Ok(Manipulation { tip_m, grip })
+}
+
+fn encode_hello(b: &mut [u8], h: &Hello) {
     let f = &h.fields;
     for (k, v) in [f.side_m, f.stiffness_modulus_pa, f.damping_modulus_pa_s]
         .iter()
@@ -603,7 +726,7 @@ fn encode_hello(b: &mut [u8; PACKET_BYTES], h: &Hello) {
     put_u32(b, 60, word);
 }
 
-fn encode_ack(b: &mut [u8; PACKET_BYTES], from: u32, acks: Acks, r: &SackReport) {
+fn encode_ack(b: &mut [u8], from: u32, acks: Acks, r: &SackReport) {
     put_u16(b, 24, u16::from(r.count));
     put_u32(b, 28, from);
     put_u16(b, 32, r.frontier);
@@ -614,7 +737,7 @@ fn encode_ack(b: &mut [u8; PACKET_BYTES], from: u32, acks: Acks, r: &SackReport)
     }
 }
 
-fn encode_bye(b: &mut [u8; PACKET_BYTES], next_tick: u32, acks: Acks, bye: &Bye) {
+fn encode_bye(b: &mut [u8], next_tick: u32, acks: Acks, bye: &Bye) {
     let reason_code = |r: ByeReason| match r {
         ByeReason::Duration => 0u16,
         ByeReason::User => 1,
@@ -639,7 +762,7 @@ fn encode_bye(b: &mut [u8; PACKET_BYTES], next_tick: u32, acks: Acks, bye: &Bye)
     put_acks(b, acks);
 }
 
-fn encode_state(b: &mut [u8; PACKET_BYTES], tick: u32, chunk: &StateChunk) {
+fn encode_state(b: &mut [u8], tick: u32, chunk: &StateChunk) {
     put_u32(b, 28, tick);
     match chunk {
         StateChunk::Node {
@@ -666,36 +789,38 @@ fn encode_state(b: &mut [u8; PACKET_BYTES], tick: u32, chunk: &StateChunk) {
     }
 }
 
-fn decode_input(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
-    let (tet, node) = (u16_at(b, 24), u16_at(b, 32));
-    let tip_m = get_f64s(&b[0..24]);
-    if !finite(tip_m) {
-        return Err(Malformed::NonFinite);
+fn decode_input(b: &[u8]) -> Result<Message, Malformed> {
+    let input = manipulation(
+        get_f64s(&b[0..24]),
+        u16_at(b, 24),
+        u16_at(b, 32),
+        &b[40..64],
+    )?;
+    let tick = u32_at(b, 28);
+    let mut copies = Copies::none();
+    let mut previous_back = u32::MAX;
+    for r in b[PACKET_BYTES..].chunks(COPY_BYTES) {
+        let back = u32::from(u16_at(r, 0));
+        // Ticks ascending: each copy nearer the packet's own tick.
+        if back == 0 || back as usize > MAX_COPIES || back >= previous_back || back > tick {
+            return Err(Malformed::BadCopies);
+        }
+        if !zero(r, 6..8) {
+            return Err(Malformed::NonCanonical);
+        }
+        previous_back = back;
+        let m = manipulation(get_f64s(&r[8..32]), u16_at(r, 2), u16_at(r, 4), &r[32..56])?;
+        copies.push(tick - back, m);
     }
-    let grip = match (tet == NONE_INDEX, node == NONE_INDEX) {
-        (true, true) => {
-            if !zero(b, 40..64) {
-                return Err(Malformed::NonCanonical);
-            }
-            None
-        }
-        (false, false) => {
-            let node_m = get_f64s(&b[40..64]);
-            if !finite(node_m) {
-                return Err(Malformed::NonFinite);
-            }
-            Some(Grip { tet, node, node_m })
-        }
-        _ => return Err(Malformed::InconsistentGrip),
-    };
     Ok(Message::Input {
-        tick: u32_at(b, 28),
+        tick,
         acks: get_acks(b),
-        input: Manipulation { tip_m, grip },
+        input,
+        copies,
     })
 }
 
-fn decode_hello(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
+fn decode_hello(b: &[u8]) -> Result<Message, Malformed> {
     let fields = SessionFields {
         level: u16_at(b, 24),
         tick_us: u16_at(b, 32),
@@ -750,7 +875,7 @@ fn decode_hello(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
     }))
 }
 
-fn decode_ack(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
+fn decode_ack(b: &[u8]) -> Result<Message, Malformed> {
     let count = u16_at(b, 24);
     if usize::from(count) > MAX_BLOCKS {
         return Err(Malformed::BadBlocks);
@@ -782,7 +907,7 @@ fn decode_ack(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
     })
 }
 
-fn decode_bye(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
+fn decode_bye(b: &[u8]) -> Result<Message, Malformed> {
     if !zero(b, 0..24) || !zero(b, 56..64) {
         return Err(Malformed::NonCanonical);
     }
@@ -814,7 +939,7 @@ fn decode_bye(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
     })
 }
 
-fn decode_state(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
+fn decode_state(b: &[u8]) -> Result<Message, Malformed> {
     if !zero(b, 34..38) {
         return Err(Malformed::NonCanonical);
     }
@@ -855,12 +980,22 @@ fn decode_state(b: &[u8; PACKET_BYTES]) -> Result<Message, Malformed> {
 }
 
 impl Packet {
-    /// The 64 bytes of this packet.
-    pub fn encode(&self) -> [u8; PACKET_BYTES] {
-        let mut b = [0u8; PACKET_BYTES];
+    /// The bytes of this packet: 64, and [`COPY_BYTES`] more per copy
+    /// an input carries.
+    pub fn encode(&self) -> Vec<u8> {
+        let copies = match &self.message {
+            Message::Input { copies, .. } => copies.len(),
+            _ => 0,
+        };
+        let mut b = vec![0u8; PACKET_BYTES + copies * COPY_BYTES];
         let kind = match &self.message {
-            Message::Input { tick, acks, input } => {
-                encode_input(&mut b, *tick, *acks, input);
+            Message::Input {
+                tick,
+                acks,
+                input,
+                copies,
+            } => {
+                encode_input(&mut b, *tick, *acks, input, copies);
                 0u8
             }
             Message::Hello(h) => {
@@ -891,9 +1026,30 @@ impl Packet {
         b
     }
 
+    /// The input ticks this packet carries (its own and its copies'), if
+    /// it is an input packet: what the emulators count.
+    pub fn input_ticks(bytes: &[u8]) -> Option<(u32, impl Iterator<Item = u32> + '_)> {
+        if bytes.len() < PACKET_BYTES || bytes[27] & 0b111 != 0 {
+            return None;
+        }
+        let tick = u32_at(bytes, 28);
+        let copies = bytes[PACKET_BYTES..]
+            .chunks_exact(COPY_BYTES)
+            .map(move |r| tick.wrapping_sub(u32::from(u16_at(r, 0))));
+        Some((tick, copies))
+    }
+
     /// Decodes and checks the structure of a received datagram.
     pub fn decode(bytes: &[u8]) -> Result<Packet, Malformed> {
-        let b: &[u8; PACKET_BYTES] = bytes.try_into().map_err(|_| Malformed::WrongLength)?;
+        let b = bytes;
+        let extra = b.len().saturating_sub(PACKET_BYTES);
+        if b.len() < PACKET_BYTES
+            || extra % COPY_BYTES != 0
+            || extra / COPY_BYTES > MAX_COPIES
+            || (extra > 0 && b[27] & 0b111 != 0)
+        {
+            return Err(Malformed::WrongLength);
+        }
         if b[26] != VERSION {
             return Err(Malformed::BadVersion);
         }
@@ -921,17 +1077,23 @@ impl Packet {
     /// node a grippable vertex of the tetrahedron, a state of the mesh's
     /// node count.
     pub fn check_against(&self, geometry: &ContactGeometry, nodes: usize) -> Result<(), Malformed> {
-        match &self.message {
-            Message::Input {
-                input: Manipulation { grip: Some(g), .. },
-                ..
-            } => {
+        let grip_ok = |m: &Manipulation| -> Result<(), Malformed> {
+            if let Some(g) = m.grip {
                 let (tet, node) = (usize::from(g.tet), usize::from(g.node));
                 if tet >= geometry.tet_count() || node >= nodes {
                     return Err(Malformed::IndexOutOfRange);
                 }
                 if !geometry.tet_has_node(tet, node) || !geometry.grippable(node) {
                     return Err(Malformed::BadGrip);
+                }
+            }
+            Ok(())
+        };
+        match &self.message {
+            Message::Input { input, copies, .. } => {
+                grip_ok(input)?;
+                for (_, c) in copies.as_slice() {
+                    grip_ok(c)?;
                 }
             }
             Message::State { chunk, .. } => {
@@ -1074,21 +1236,44 @@ mod tests {
         ]
     }
 
-    fn message() -> impl Strategy<Value = Message> {
-        let input = (
+    fn manipulation() -> impl Strategy<Value = Manipulation> {
+        (
             v3(),
             proptest::option::of((0u16..0xFFFF, 0u16..0xFFFF, v3())),
         )
             .prop_map(|(tip_m, g)| Manipulation {
                 tip_m,
                 grip: g.map(|(tet, node, node_m)| Grip { tet, node, node_m }),
-            });
+            })
+    }
+
+    /// An input of `tick` with copies of some of the 16 ticks before it.
+    fn input_message() -> impl Strategy<Value = Message> {
+        (
+            any::<u32>(),
+            acks(),
+            manipulation(),
+            proptest::collection::vec((any::<bool>(), manipulation()), MAX_COPIES),
+        )
+            .prop_map(|(tick, acks, input, pick)| {
+                let mut copies = Copies::none();
+                for (back, (keep, m)) in (1..=MAX_COPIES as u32).rev().zip(pick) {
+                    if keep && back <= tick {
+                        copies.push(tick - back, m);
+                    }
+                }
+                Message::Input {
+                    tick,
+                    acks,
+                    input,
+                    copies,
+                }
+            })
+    }
+
+    fn message() -> impl Strategy<Value = Message> {
         prop_oneof![
-            (any::<u32>(), acks(), input).prop_map(|(tick, acks, input)| Message::Input {
-                tick,
-                acks,
-                input
-            }),
+            input_message(),
             hello().prop_map(Message::Hello),
             (any::<u32>(), acks(), report()).prop_map(|(from, acks, report)| Message::Ack {
                 from,
@@ -1113,7 +1298,7 @@ mod tests {
         a.encode() == b.encode() && format!("{a:?}") == format!("{b:?}")
     }
 
-    fn reseal(mut b: [u8; 64]) -> [u8; 64] {
+    fn reseal(mut b: Vec<u8>) -> Vec<u8> {
         let crc = crc_of(&b);
         b[38..40].copy_from_slice(&crc.to_le_bytes());
         b
@@ -1125,7 +1310,11 @@ mod tests {
         #[test]
         fn every_packet_is_64_bytes_and_round_trips_bit_exactly(p in packet()) {
             let b = p.encode();
-            prop_assert_eq!(b.len(), PACKET_BYTES);
+            let copies = match &p.message {
+                Message::Input { copies, .. } => copies.len(),
+                _ => 0,
+            };
+            prop_assert_eq!(b.len(), PACKET_BYTES + COPY_BYTES * copies);
             let q = Packet::decode(&b).unwrap();
             prop_assert!(same_bits(&p, &q), "{:?} vs {:?}", p, q);
             prop_assert_eq!(p, q);
@@ -1133,7 +1322,7 @@ mod tests {
 
         #[test]
         fn arbitrary_bytes_are_refused_with_a_reason_or_are_canonical(
-            bytes in proptest::collection::vec(any::<u8>(), 0..130)
+            bytes in proptest::collection::vec(any::<u8>(), 0..200)
         ) {
             let mut stats = DecodeStats::default();
             match Packet::decode(&bytes) {
@@ -1148,13 +1337,14 @@ mod tests {
 
         #[test]
         fn a_packet_with_a_valid_crc_but_a_broken_field_is_refused(
-            p in packet(), at in 0usize..64, value in any::<u8>()
+            p in packet(), at in 0usize..MAX_DATAGRAM_BYTES, value in any::<u8>()
         ) {
             // Change any byte, then repair the CRC: what remains is refused
             // for its structure unless it is again a canonical packet.
             let mut b = p.encode();
+            let at = at % b.len();
             b[at] = value;
-            if let Ok(q) = Packet::decode(&reseal(b)) {
+            if let Ok(q) = Packet::decode(&reseal(b.clone())) {
                 prop_assert_eq!(q.encode(), reseal(b));
             }
         }
@@ -1165,6 +1355,7 @@ mod tests {
             site: 1,
             message: Message::Input {
                 tick: 123_456,
+                copies: Copies::none(),
                 acks: Acks {
                     ack: 7,
                     sack: 0b1010,
@@ -1188,7 +1379,7 @@ mod tests {
         let mut tried = 0;
         for i in 0..512 {
             for j in i..512 {
-                let mut c = b;
+                let mut c = b.clone();
                 c[i / 8] ^= 1 << (i % 8);
                 if j != i {
                     c[j / 8] ^= 1 << (j % 8);
@@ -1216,16 +1407,16 @@ mod tests {
         }
         .encode();
         assert_eq!(Packet::decode(&ok[..63]), Err(Malformed::WrongLength));
-        let mut v = ok;
+        let mut v = ok.clone();
         v[26] = 1;
         assert_eq!(Packet::decode(&v), Err(Malformed::BadVersion));
-        let mut r = ok;
+        let mut r = ok.clone();
         r[27] |= 0x80;
         assert_eq!(Packet::decode(&r), Err(Malformed::ReservedBits));
-        let mut k = ok;
+        let mut k = ok.clone();
         k[27] = 5;
         assert_eq!(Packet::decode(&reseal(k)), Err(Malformed::UnknownValue));
-        let mut n = ok;
+        let mut n = ok.clone();
         n[50] = 1;
         assert_eq!(Packet::decode(&reseal(n)), Err(Malformed::NonCanonical));
         // A block that starts at the missing tick, one past the frontier,
@@ -1236,7 +1427,7 @@ mod tests {
             (2, [(1, 3), (3, 5)], 10),
             (13, [(0, 0), (0, 0)], 10),
         ] {
-            let mut a = ok;
+            let mut a = ok.clone();
             a[24..26].copy_from_slice(&count.to_le_bytes());
             a[32..34].copy_from_slice(&frontier.to_le_bytes());
             for (k, (s, e)) in blocks.iter().enumerate() {
@@ -1250,15 +1441,41 @@ mod tests {
             );
         }
         let input = input_packet().encode();
-        let mut nan = input;
+        let mut nan = input.clone();
         nan[0..8].copy_from_slice(&f64::NAN.to_le_bytes());
         assert_eq!(Packet::decode(&reseal(nan)), Err(Malformed::NonFinite));
-        let mut half = input;
+        let mut half = input.clone();
         half[32..34].copy_from_slice(&NONE_INDEX.to_le_bytes());
         assert_eq!(
             Packet::decode(&reseal(half)),
             Err(Malformed::InconsistentGrip)
         );
+        // Copies: a record that is not a whole 56 bytes, copies on a
+        // packet that is not an input, a copy 0 or 17 ticks back, two
+        // copies out of order.
+        let mut one = input_packet();
+        if let Message::Input { copies, .. } = &mut one.message {
+            copies.push(123_450, Manipulation::free(V3::zeros()));
+        }
+        let one = one.encode();
+        assert_eq!(one.len(), PACKET_BYTES + COPY_BYTES);
+        assert!(Packet::decode(&one).is_ok());
+        assert_eq!(Packet::decode(&one[..100]), Err(Malformed::WrongLength));
+        let mut long_ack = ok.clone();
+        long_ack.extend_from_slice(&[0u8; COPY_BYTES]);
+        assert_eq!(Packet::decode(&long_ack), Err(Malformed::WrongLength));
+        for back in [0u16, 17] {
+            let mut c = one.clone();
+            c[64..66].copy_from_slice(&back.to_le_bytes());
+            assert_eq!(Packet::decode(&reseal(c)), Err(Malformed::BadCopies));
+        }
+        let mut two = one.clone();
+        two.extend_from_slice(&one[64..]);
+        assert_eq!(Packet::decode(&reseal(two)), Err(Malformed::BadCopies));
+        // The CRC covers the copies.
+        let mut flipped = one.clone();
+        flipped[100] ^= 1;
+        assert_eq!(Packet::decode(&flipped), Err(Malformed::BadCrc));
         assert_eq!(Malformed::BadCrc.to_string(), "CRC mismatch");
         let stats = DecodeStats::default();
         assert_eq!(stats.by_reason().count(), Malformed::ALL.len());
@@ -1311,6 +1528,7 @@ mod tests {
             message: Message::Input {
                 tick: 0,
                 acks: Acks::default(),
+                copies: Copies::none(),
                 input: Manipulation {
                     tip_m: V3::zeros(),
                     grip: Some(Grip {

@@ -130,6 +130,22 @@ pub struct LinkSummary {
     pub send_errors: u64,
     /// The network thread's scheduling (`normal` or `SCHED_FIFO N`).
     pub scheduling: String,
+    /// Copies of earlier inputs sent in new input packets.
+    #[serde(default)]
+    pub copies_sent: u64,
+    /// Bytes of those copies (56 each).
+    #[serde(default)]
+    pub copy_bytes: u64,
+    /// Bytes of every datagram sent (version 2 would have sent this less
+    /// `copy_bytes`).
+    #[serde(default)]
+    pub bytes_sent: u64,
+    /// Peer inputs that came first in a copy.
+    #[serde(default)]
+    pub inputs_from_copies: u64,
+    /// Copies of peer inputs already there.
+    #[serde(default)]
+    pub copies_redundant: u64,
 }
 
 impl From<&LinkStats> for LinkSummary {
@@ -161,6 +177,11 @@ impl From<&LinkStats> for LinkSummary {
             reorder_window_us: s.reorder_window_us,
             send_errors: 0,
             scheduling: "virtual".into(),
+            copies_sent: s.copies_sent,
+            copy_bytes: s.copy_bytes(),
+            bytes_sent: s.bytes_sent,
+            inputs_from_copies: s.inputs_from_copies,
+            copies_redundant: s.copies_redundant,
         }
     }
 }
@@ -184,8 +205,12 @@ pub struct NetemSummary {
     pub max_delay_us: u64,
     /// Input packets offered.
     pub inputs_offered: u64,
-    /// Input packets lost (what the sender really had to resend).
+    /// Input packets lost.
     pub inputs_lost: u64,
+    /// Inputs really lost: every packet carrying the tick lost (see
+    /// `NetemStats::input_ticks_lost`), what the sender had to resend.
+    #[serde(default)]
+    pub input_ticks_lost: u64,
     /// Mean one-way delay of the inputs passed (µs).
     pub input_delay_mean_us: f64,
 }
@@ -202,6 +227,7 @@ impl From<&NetemStats> for NetemSummary {
             max_delay_us: s.max_delay_us,
             inputs_offered: s.inputs_offered,
             inputs_lost: s.inputs_lost,
+            input_ticks_lost: s.input_ticks_lost,
             input_delay_mean_us: s.input_delay_mean_us(),
         }
     }

@@ -7,8 +7,8 @@ use plant_tetmsd::model::probe::{Grip, Manipulation};
 use plant_tetmsd::model::voigt::State;
 use plant_tetmsd::model::V3;
 use plant_tetmsd::packet::{
-    fnv1a, Acks, Bye, ByeReason, Echo, Hello, Message, Packet, SackReport, SessionFields, Stage,
-    StateChunk, MAX_BLOCKS, PACKET_BYTES, SACK_MORE, TICK_US, VERSION,
+    fnv1a, Acks, Bye, ByeReason, Copies, Echo, Hello, Message, Packet, SackReport, SessionFields,
+    Stage, StateChunk, COPY_BYTES, MAX_BLOCKS, PACKET_BYTES, SACK_MORE, TICK_US, VERSION,
 };
 
 fn doc() -> String {
@@ -54,6 +54,25 @@ fn ack_example() -> Packet {
     }
 }
 
+/// The copies example: tick 1235 carries ticks 1233 (free, the tip at
+/// 0.02, 0.03, 0.062) and 1234 (the input example's grip).
+fn copies_example() -> Copies {
+    let mut c = Copies::none();
+    c.push(1233, Manipulation::free(V3::new(0.02, 0.03, 0.062)));
+    c.push(
+        1234,
+        Manipulation {
+            tip_m: V3::new(0.02, 0.03, 0.0595),
+            grip: Some(Grip {
+                tet: 377,
+                node: 98,
+                node_m: V3::new(0.015, 0.03, 0.0595),
+            }),
+        },
+    );
+    c
+}
+
 /// The example packets of the page, as the encoder writes them.
 fn examples() -> Vec<(&'static str, Packet)> {
     let f = fields();
@@ -76,6 +95,22 @@ fn examples() -> Vec<(&'static str, Packet)> {
                             node_m: V3::new(0.015, 0.03, 0.0595),
                         }),
                     },
+                    copies: Copies::none(),
+                },
+            },
+        ),
+        (
+            "input with copies",
+            Packet {
+                site: 1,
+                message: Message::Input {
+                    tick: 1235,
+                    acks: Acks {
+                        ack: 1229,
+                        sack: 0b101,
+                    },
+                    input: Manipulation::free(V3::new(0.02, 0.03, 0.061)),
+                    copies: copies_example(),
                 },
             },
         ),
@@ -194,7 +229,11 @@ fn the_example_packets_are_the_encoders_bytes() {
     let d = doc();
     for (name, p) in examples() {
         let bytes = p.encode();
-        assert_eq!(bytes.len(), PACKET_BYTES);
+        let copies = match &p.message {
+            Message::Input { copies, .. } => copies.len(),
+            _ => 0,
+        };
+        assert_eq!(bytes.len(), PACKET_BYTES + COPY_BYTES * copies);
         let h = hex(&bytes);
         assert!(
             d.contains(&format!("```\n{h}\n```")),
@@ -286,6 +325,12 @@ fn the_page_names_every_field_where_the_code_puts_it() {
         "| 40–47 | end tick",
         "| 48–55 | state hash",
         "| 8–15 | session clock",
+        "| 0–1 | ticks back",
+        "| 2–3 | tetrahedron index",
+        "| 4–5 | node index",
+        "| 6–7 | zero",
+        "| 8–31 | stylus tip",
+        "| 32–55 | held node",
     ] {
         assert!(
             d.contains(needle),

@@ -134,7 +134,7 @@ impl<'a> Net<'a> {
     }
 
     /// Sends `bytes` through the emulator (if any) or straight out.
-    fn send(&mut self, now_us: u64, bytes: [u8; 64]) {
+    fn send(&mut self, now_us: u64, bytes: Vec<u8>) {
         match &mut self.emulator {
             Some(e) => e.push(now_us, bytes),
             None => {
@@ -145,7 +145,7 @@ impl<'a> Net<'a> {
         }
     }
 
-    fn send_all(&mut self, now_us: u64, packets: Vec<[u8; 64]>) {
+    fn send_all(&mut self, now_us: u64, packets: Vec<Vec<u8>>) {
         for p in packets {
             self.send(now_us, p);
         }
@@ -164,13 +164,13 @@ impl<'a> Net<'a> {
 
     /// The next datagram, if one is waiting: refuses another protocol
     /// version by name.
-    fn recv(&mut self, buf: &mut [u8; 128]) -> Result<Option<usize>> {
+    fn recv(&mut self, buf: &mut [u8; 2048]) -> Result<Option<usize>> {
         // Empty (WouldBlock) or a transient error: nothing this pass.
         let Ok((len, from)) = self.socket.recv_from(buf) else {
             return Ok(None);
         };
         self.last_heard = Instant::now();
-        if len == 64 && buf[26] != VERSION && !self.control.running() {
+        if len >= 64 && buf[26] != VERSION && !self.control.running() {
             return Err(TetError::Site(format!(
                 "refused the peer at {from}: it speaks protocol version {}, this site version {VERSION}",
                 buf[26]
@@ -183,7 +183,7 @@ impl<'a> Net<'a> {
     /// running one joined by state transfer).
     pub(super) fn connect(&mut self) -> Result<Started> {
         let timeout = self.setup.connect_timeout;
-        let mut buf = [0u8; 128];
+        let mut buf = [0u8; 2048];
         loop {
             if self.setup.stop.load(Ordering::Relaxed) != 0 {
                 return Err(TetError::Site(format!(
@@ -203,9 +203,11 @@ impl<'a> Net<'a> {
                     .link
                     .on_datagram(now, &buf[..len], &self.geometry, self.nodes)
                 {
-                    Arrival::Input { tick, input } => {
-                        self.backlog
-                            .push_back(PeerEvent::Input(u64::from(tick), input));
+                    Arrival::Inputs(inputs) => {
+                        for (tick, input) in inputs {
+                            self.backlog
+                                .push_back(PeerEvent::Input(u64::from(tick), input));
+                        }
                     }
                     Arrival::Control(p) => {
                         if let Some(s) = self.on_connect_packet(now, &p)? {
@@ -416,7 +418,7 @@ impl<'a> Net<'a> {
 
     /// Takes up to 64 datagrams from the socket; returns how many came.
     fn receive(&mut self, shared: &Shared) -> Result<usize> {
-        let mut buf = [0u8; 128];
+        let mut buf = [0u8; 2048];
         let mut got = 0;
         while got < 64 {
             let Some(len) = self.recv(&mut buf)? else {
@@ -428,14 +430,16 @@ impl<'a> Net<'a> {
                 .link
                 .on_datagram(now, &buf[..len], &self.geometry, self.nodes)
             {
-                Arrival::Input { tick, input } => {
+                Arrival::Inputs(inputs) => {
                     if self.control.resyncing() && !self.waiting_state {
                         // The restarted peer runs: it has the state.
                         self.control.peer_is_running();
                         self.link.set_paused(false);
                     }
-                    self.backlog
-                        .push_back(PeerEvent::Input(u64::from(tick), input));
+                    for (tick, input) in inputs {
+                        self.backlog
+                            .push_back(PeerEvent::Input(u64::from(tick), input));
+                    }
                 }
                 Arrival::Control(p) => self.on_control(shared, now, &p),
                 Arrival::Nothing => {}

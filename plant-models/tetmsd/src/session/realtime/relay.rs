@@ -10,8 +10,9 @@
 //! A's site goes out of B's socket to B's site after its emulated delay,
 //! and the reverse. A side's site address is given or learnt from the
 //! first datagram that arrives on its socket (a restarted site that binds
-//! a new port is learnt again). Datagrams that are not 64 bytes are not
-//! packets of this protocol: counted and dropped.
+//! a new port is learnt again). Datagrams shorter than 64 bytes or longer
+//! than an input with 16 copies (960 bytes) are not packets of this
+//! protocol: counted and dropped.
 //!
 //! Timing is the relay's own clock (µs since it started); it sleeps
 //! [`super::NET_POLL_US`] when nothing is due, so a delay is given to
@@ -22,6 +23,7 @@
 use super::{io_error, NET_POLL_US};
 use crate::error::{Result, TetError};
 use crate::session::netem::{Emulator, NetemConfig};
+use crate::session::packet::{MAX_DATAGRAM_BYTES, PACKET_BYTES};
 use crate::session::report::NetemSummary;
 use serde::{Deserialize, Serialize};
 use std::net::{SocketAddr, UdpSocket};
@@ -79,7 +81,7 @@ pub struct RelayReport {
     /// other, each the emulated delay plus the relay's lateness — plus
     /// half a tick of acknowledgement hold (ms).
     pub path_rtt_ms: f64,
-    /// Datagrams that were not 64 bytes (dropped).
+    /// Datagrams shorter than 64 or longer than 960 bytes (dropped).
     pub not_packets: u64,
     /// Datagrams due to a side whose site was not known yet (dropped).
     pub no_destination: u64,
@@ -124,7 +126,7 @@ pub fn run_relay(setup: RelaySetup) -> Result<RelayReport> {
     let mut report = RelayReport::default();
     let start = Instant::now();
     let mut last_heard: Option<Instant> = None;
-    let mut buf = [0u8; 128];
+    let mut buf = [0u8; 2048];
     // Summed lateness of the inputs released, per direction (µs).
     let mut late = [0.0f64; 2];
     loop {
@@ -143,10 +145,11 @@ pub fn run_relay(setup: RelaySetup) -> Result<RelayReport> {
                     sides[s].site = Some(from);
                     report.sites_learnt += 1;
                 }
-                let Ok(packet) = <[u8; 64]>::try_from(&buf[..len]) else {
+                if !(PACKET_BYTES..=MAX_DATAGRAM_BYTES).contains(&len) {
                     report.not_packets += 1;
                     continue;
-                };
+                }
+                let packet = buf[..len].to_vec();
                 let now_us = start.elapsed().as_micros() as u64;
                 emulators[s].push(now_us, packet);
             }
