@@ -66,6 +66,7 @@ pub mod lm;
 pub mod log;
 pub mod params;
 pub mod plan;
+pub mod probe;
 pub mod regression;
 pub mod replay;
 mod stage;

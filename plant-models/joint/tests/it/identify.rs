@@ -571,3 +571,44 @@ fn a_campaign_twin_whose_g_was_28_sigma_off_is_now_within_its_sigma() {
         g.std
     );
 }
+
+/// Issue 28, the probe: on the off-plan twin, where the standard plan
+/// leaves α unverified with its turn-on unknown (the test above), the
+/// probe (each coil alone up a 1.4–2.6 V staircase, then a 3 V pulse)
+/// finds α's drivers turning on at 2.0 V and β's at 1.6 V from the
+/// logged currents, and the plan adapted to it moves α's sustained levels
+/// above 2.0 V and keeps it inside the firmware's default budget by
+/// chopping them. Whether that plan identifies α is not asserted: it does
+/// not (README, "Probe and adapted plan").
+#[test]
+#[ignore = "a 194 s 3D probe log: ≈ 2 s optimised; CI runs it in the ci-opt build (scripts/test-all.sh)"]
+fn the_probe_finds_each_coils_turn_on_on_the_off_plan_twin() {
+    let hidden = hidden::off_plan_joint_3d(5);
+    let probe_log = twin::record_3d(&hidden, &ExcitationPlan::probe(2), true, NOISE).unwrap();
+    let found = identify::probe::analyse(&probe_log).unwrap();
+    let on: Vec<f64> = found.coils.iter().map(|c| c.turn_on_v.unwrap()).collect();
+    assert!(
+        (on[0] - 2.0).abs() < 0.02 && (on[2] - 2.0).abs() < 0.02,
+        "{on:?}"
+    );
+    assert!(
+        (on[1] - 1.6).abs() < 0.02 && (on[3] - 1.6).abs() < 0.02,
+        "{on:?}"
+    );
+    let plan = ExcitationPlan::adapted(2, 240.0, &found, false);
+    plan.validate(2).unwrap();
+    let alpha_levels: Vec<f64> = plan
+        .drive
+        .iter()
+        .filter(|d| d.coil == 1 && d.volts.is_some_and(|v| v < 2.5))
+        .map(|d| d.volts.unwrap())
+        .collect();
+    assert!(alpha_levels.iter().all(|v| *v > 2.0), "{alpha_levels:?}");
+    assert!(alpha_levels.iter().all(|v| *v <= 2.3), "{alpha_levels:?}");
+    // Above the default budget's sustained limit: 1 s pieces.
+    assert!(plan
+        .drive
+        .iter()
+        .filter(|d| d.coil == 1 && d.peak_v() < 2.5)
+        .all(|d| d.to_s - d.from_s <= identify::probe::CHOP_ON_S + 1e-9));
+}
