@@ -658,6 +658,16 @@ fn verdict(
             e.reason = Some(why.clone());
         }
     }
+    // A plane whose log moved it too little to determine any thermal or
+    // mechanical parameter keeps its prior there: reporting it verified
+    // would call a plant identified that was not.
+    let physical = |e: &Estimate| e.stage == "thermal" || e.stage == "mechanics";
+    if estimates.iter().any(physical) && !estimates.iter().any(|e| physical(e) && e.identifiable) {
+        failures.push(
+            "the log determines none of the plane's thermal and mechanical parameters (each is named not identifiable): the plane is its prior, not identified; record holds that move it"
+                .into(),
+        );
+    }
     for e in estimates.iter_mut() {
         e.pull_sigma = if e.identifiable && e.std > 0.0 {
             (e.value - e.prior) / e.std
