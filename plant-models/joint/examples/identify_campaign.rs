@@ -128,17 +128,7 @@ fn main() {
             std::process::exit(2)
         });
         for (p, r) in reports.iter().enumerate() {
-            let (plane, wire) = if p == 0 {
-                (&h.alpha, &h.wires[0])
-            } else {
-                (&h.beta, &h.wires[1])
-            };
-            let truth = PlaneModel {
-                plane: plane.clone(),
-                wires: vec![wire.clone()],
-                settle_s: 1.0,
-                substep_s: 1e-3,
-            };
+            let truth = hidden::plane_truth(&h, p);
             let wrong = tallies[p].add(r, &truth);
             for e in r.estimates.iter().filter(|e| e.identifiable && e.std > 0.0) {
                 z_rows.push_str(&format!(
@@ -154,7 +144,7 @@ fn main() {
             println!(
                 "twin {k} {}: turn-on {:.2} V, {}{}",
                 r.plane,
-                plane.driver.turn_on_v,
+                truth.plane.driver.turn_on_v,
                 if r.verdict.verified {
                     "verified".to_string()
                 } else {

@@ -14,7 +14,7 @@
 //! Exits 1 when a plane is unverified or a parameter called identifiable
 //! lies more than 2σ from the truth, 2 on a bad argument or a failed run.
 use plant_joint::identify::{
-    self, hidden, probe, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel,
+    self, hidden, probe, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions,
 };
 use plant_joint::Joint3dParams;
 
@@ -69,17 +69,7 @@ fn main() {
             .unwrap_or_else(|e| fail(&e));
     let mut bad = false;
     for (p, r) in reports.iter().enumerate() {
-        let (plane, wire) = if p == 0 {
-            (&h.alpha, &h.wires[0])
-        } else {
-            (&h.beta, &h.wires[1])
-        };
-        let truth = PlaneModel {
-            plane: plane.clone(),
-            wires: vec![wire.clone()],
-            settle_s: 1.0,
-            substep_s: 1e-3,
-        };
+        let truth = hidden::plane_truth(&h, p);
         println!(
             "{}: {}; fit rms {:.3}°, held-out rms {:.3}°",
             r.plane,

@@ -173,3 +173,20 @@ pub fn campaign_joint_3d(k: u64) -> Joint3dParams {
     p.sim.seed = 1000 + k;
     p
 }
+
+/// What identifying plane `plane` (0: α, 1: β) of the hidden joint `j`
+/// aims at: its plane and its wire sensor, with the settle time and substep
+/// the twins and the campaign judge estimates against.
+pub fn plane_truth(j: &Joint3dParams, plane: usize) -> super::PlaneModel {
+    let (p, wire) = if plane == 0 {
+        (&j.alpha, &j.wires[0])
+    } else {
+        (&j.beta, &j.wires[1])
+    };
+    super::PlaneModel {
+        plane: p.clone(),
+        wires: vec![wire.clone()],
+        settle_s: 1.0,
+        substep_s: 1e-3,
+    }
+}
