@@ -116,21 +116,14 @@ fn a_restarted_peer_is_resynchronised_and_both_replicas_end_identical() {
         .as_u64()
         .expect("site 1 joined by state transfer");
     assert!(joined > 500 && joined < 3000, "joined at {joined}");
-    // The run ends where the first site to stop left it: site 0 stops at
-    // its 3000th tick and says so; the restarted site, whose clock started
-    // at the state transfer, may be a tick behind when that word arrives
-    // and stops there (stopped by its peer), and the end both commit to is
-    // the smaller count (`end_tick = min(own, peer)`, the bye exchange). In
-    // one CI run it was 2999. What must hold: both sites end at the same
-    // tick, committed, within the word's latency of the duration, with the
-    // same state.
+    // Both sites run the same 3 s. Site 0 runs out its duration first and
+    // says so; the restarted site, whose clock started at the state
+    // transfer, may be some ticks behind when that word arrives (13 under
+    // CI's load, when it stopped there): it runs on up to site 0's count
+    // and stops, so both end at the duration, committed, with the same
+    // state.
     let end_tick = r0["end"]["end_tick"].as_u64().expect("site 0's end tick");
-    assert!(
-        (2990..=3000).contains(&end_tick),
-        "ended at {end_tick}: {} {}",
-        r0["end"],
-        r1["end"]
-    );
+    assert_eq!(end_tick, 3000, "{} {}", r0["end"], r1["end"]);
     for r in [&r0, &r1] {
         let end = &r["end"];
         assert_eq!(end["end_tick"], end_tick, "{} {}", r0["end"], r1["end"]);

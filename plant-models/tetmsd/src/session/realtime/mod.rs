@@ -258,6 +258,11 @@ struct Shared {
     resyncs: AtomicU64,
     /// Why the haptic thread stops ([`STOP_NONE`] while it runs).
     stop: AtomicU8,
+    /// The tick count a peer that ran out its duration reached (`u64::MAX`
+    /// until one says so): this site runs up to it, then stops, so that a
+    /// site running a few ticks behind its peer (late wake-ups, a later
+    /// start) still ends where the session's duration does.
+    peer_end: AtomicU64,
     /// The haptic thread made its last input.
     haptic_done: AtomicBool,
     abort: AtomicBool,
@@ -282,6 +287,7 @@ impl Shared {
             missed_ticks: AtomicU64::new(0),
             resyncs: AtomicU64::new(0),
             stop: AtomicU8::new(STOP_NONE),
+            peer_end: AtomicU64::new(u64::MAX),
             haptic_done: AtomicBool::new(false),
             abort: AtomicBool::new(false),
             done: AtomicBool::new(false),

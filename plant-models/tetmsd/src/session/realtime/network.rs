@@ -505,7 +505,13 @@ impl<'a> Net<'a> {
             // Answer at once: the peer waits for our word.
             e.last_bye_us = None;
         }
-        // The peer stops: so does this site.
+        // A peer that ran out its duration: this site runs up to the
+        // peer's tick count (it may be a few ticks behind), then stops.
+        if reason == ByeReason::Duration {
+            shared.peer_end.fetch_min(next_tick, Ordering::Relaxed);
+            return;
+        }
+        // The peer stops for another reason: so does this site, now.
         let _ = shared.stop.compare_exchange(
             STOP_NONE,
             STOP_PEER,

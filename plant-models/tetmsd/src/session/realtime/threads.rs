@@ -4,7 +4,7 @@
 //! bounded hand-over that never waits).
 use super::network::{stop_code, Started};
 use super::{lag_histogram, PeerEvent, Shared, SiteSetup, Snapshot, CHANNEL_TICKS, NET_POLL_US};
-use super::{STOP_NONE, STOP_USER};
+use super::{STOP_NONE, STOP_PEER, STOP_USER};
 use crate::error::{Result, TetError};
 use crate::model::probe::Manipulation;
 use crate::model::voigt::State;
@@ -115,6 +115,14 @@ fn stopping(setup: &SiteSetup, shared: &Shared, k: u64) -> bool {
         let _ = shared.stop.compare_exchange(
             STOP_NONE,
             STOP_USER,
+            Ordering::Relaxed,
+            Ordering::Relaxed,
+        );
+    }
+    if k >= shared.peer_end.load(Ordering::Relaxed) {
+        let _ = shared.stop.compare_exchange(
+            STOP_NONE,
+            STOP_PEER,
             Ordering::Relaxed,
             Ordering::Relaxed,
         );
