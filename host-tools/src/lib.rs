@@ -22,6 +22,7 @@ pub mod output;
 pub mod plot;
 pub mod progress;
 pub mod push;
+pub mod ray;
 pub mod resume;
 pub mod run;
 pub mod stop;

@@ -203,6 +203,11 @@ class PushProblem:
         """The fitness `push calibrate --score SCORE` maximises (μ(F), or
         minus the contour distance in px) for parameters as JSON text."""
         ...
+    def scores(self, genes: List[List[float]], score: str = "f") -> List[float]:
+        """That fitness for each gene vector (the eight parameters in
+        params.json's order), in order; NaN for a run that cannot be
+        scored (the search ranks it last)."""
+        ...
 
 def viscoelastic_object(
     mesh: Optional[Tuple[str, str]] = None,

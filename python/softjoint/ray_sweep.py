@@ -42,6 +42,12 @@ scores the batches the program's search sends it, one JSON line each way
 
     python -m softjoint.ray_sweep rheology-serve [SCENARIO] [--measured DIR] \\
         --params N --address ADDRESS
+
+and, the same way, what ``softjoint push calibrate --ray ADDRESS`` runs
+(:func:`push_batches`; each line a generation's new candidates)::
+
+    python -m softjoint.ray_sweep push-serve [--material M] [--site S] \\
+        [--video CSV] [--nx N] [--ny N] ... [--score f|contour] --address ADDRESS
 """
 from __future__ import annotations
 
@@ -62,6 +68,7 @@ from . import (
     RHEOLOGY_UNIT_CANDIDATES,
     TUNE_UNIT_CANDIDATES,
     PlantFile,
+    PushProblem,
     RheologyProblem,
     TuneSweep,
     load_plant,
@@ -71,6 +78,12 @@ from . import (
 
 #: Retries of a task whose worker died (Ray's own mechanism).
 MAX_RETRIES = 3
+
+#: Candidates of a push calibration per task: one. A candidate is a whole
+#: push simulated (seconds at the default 20 x 10 mesh), far above Ray's
+#: per-task overhead, and a generation has only 15 new candidates (Table
+#: III) to spread over the workers.
+PUSH_UNIT_CANDIDATES = 1
 
 # A worker's sweeps, by their specification (kept for the sweep's units).
 _cache: Dict[Tuple[Any, ...], Any] = {}
@@ -90,6 +103,12 @@ def _tune_unit(spec: Tuple[str, str, int, int, int, bool], unit: Tuple[int, int,
     sweep = _cached(("tune",) + spec, lambda: TuneSweep(
         PlantFile.from_text(text, name), candidates, plants, seed, svo))
     return sweep.run_unit(*unit)
+
+
+@ray.remote(max_retries=MAX_RETRIES)
+def _push_unit(spec: Tuple[Any, ...], score: str, genes: List[List[float]]) -> List[float]:
+    problem = _cached(("push",) + spec, lambda: PushProblem(*spec))
+    return problem.scores(genes, score)
 
 
 @ray.remote(max_retries=MAX_RETRIES)
@@ -351,6 +370,33 @@ def rheology_batches(scenario: Optional[str] = None, measured: Optional[str] = N
     return evaluate_batch
 
 
+def push_batches(options: Dict[str, Any], score: str = "f", unit: int = PUSH_UNIT_CANDIDATES
+                 ) -> Callable[[List[List[float]]], List[float]]:
+    """The scorer of a push calibration's generations on the cluster this
+    process is connected to: a batch (the generation's new candidates as
+    gene lists of eight) is cut into units of ``unit`` candidates, each a
+    ``_push_unit`` task on a worker that prepares the push of ``options``
+    (:func:`softjoint.push_problem`'s keywords; ``video`` a path) once
+    and scores them as ``PushProblem.scores`` does (NaN for a run that
+    cannot be scored); the scores come back in batch order. A task that
+    failed for good raises here; Ctrl-C raises :class:`SweepStopped`."""
+    o = dict(options)
+    video = o.pop("video", None)
+    v = None if video is None else (open(video, encoding="utf-8").read(), os.fspath(video))
+    spec = (o.get("material", "sponge"), o.get("site", "middle-long"), v,
+            o.get("ref_element_px", 8.0), o.get("noise_seed", 1),
+            o.get("integrator", "customised"), o.get("mode", "both"), o.get("nx", 20),
+            o.get("ny", 10), o.get("cell_px", 1.0), o.get("repair", True))
+    ref = ray.put(spec)
+
+    def evaluate_batch(batch: List[List[float]]) -> List[float]:
+        tasks = [lambda a=a: _push_unit.remote(ref, score, batch[a:a + unit])
+                 for a in range(0, len(batch), unit)]
+        return [s for part in _gather(tasks) for s in part]
+
+    return evaluate_batch
+
+
 def _batch_of(line: str) -> List[List[float]]:
     """A batch as ``rheology-serve`` reads it: a JSON array of arrays of
     finite numbers; ValueError naming what is wrong otherwise."""
@@ -373,7 +419,17 @@ def rheology_serve(scenario: Optional[str], measured: Optional[str], params: int
     non-finite S), flushed. Returns at the end of ``batches``. The search,
     its draws, its progress and its files are the program's."""
     connect(address)
-    evaluate_batch = rheology_batches(scenario, measured, params, unit)
+    serve_batches(rheology_batches(scenario, measured, params, unit), batches, answers)
+
+
+def serve_batches(evaluate_batch: Callable[[List[List[float]]], List[float]], batches: Any,
+                  answers: Any) -> None:
+    """For each line of ``batches`` (a JSON array of gene arrays), its
+    scores by ``evaluate_batch`` as one line to ``answers``: a JSON array
+    in batch order, ``null`` for a score that is not finite (the program
+    reads it as its search's worst: +inf for a rheology calibration,
+    which minimises, NaN, ranked last, for a push calibration, which
+    maximises), flushed. Returns at the end of ``batches``."""
     for line in batches:
         if not line.strip():
             continue
@@ -458,8 +514,26 @@ def main(argv: Optional[List[str]] = None) -> int:
     v.add_argument("--params", type=int, default=4)
     v.add_argument("--address", default=None)
     v.add_argument("--unit", type=int, default=RHEOLOGY_UNIT_CANDIDATES)
+    u = sub.add_parser("push-serve", help="score the generations of `softjoint push calibrate "
+                       "--ray` on Ray: one JSON line in (the new candidates' gene arrays), one "
+                       "JSON line out (their fitness, null for one that cannot be scored), "
+                       "until end of input")
+    u.add_argument("--material", default="sponge")
+    u.add_argument("--site", default="middle-long")
+    u.add_argument("--video")
+    u.add_argument("--ref-element-px", type=float, default=8.0)
+    u.add_argument("--noise-seed", type=int, default=1)
+    u.add_argument("--integrator", default="customised")
+    u.add_argument("--mode", default="both")
+    u.add_argument("--nx", type=int, default=20)
+    u.add_argument("--ny", type=int, default=10)
+    u.add_argument("--cell-px", type=float, default=1.0)
+    u.add_argument("--no-repair", action="store_true")
+    u.add_argument("--score", default="f", choices=["f", "contour"])
+    u.add_argument("--address", default=None)
+    u.add_argument("--unit", type=int, default=PUSH_UNIT_CANDIDATES)
     a = p.parse_args(argv)
-    if a.command == "rheology-serve":
+    if a.command in ("rheology-serve", "push-serve"):
         return _serve(a)
     try:
         if a.command == "tune" and a.units_out:
@@ -489,7 +563,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
 
 def _serve(a: argparse.Namespace) -> int:
-    """``rheology-serve``: the answers go to the standard output this
+    """``rheology-serve`` and ``push-serve``: the answers go to the standard output this
     process was given, and everything else written to file descriptor 1
     (Ray's own messages, a stray print) to standard error, so that no line
     but an answer reaches the program. A failure is said on standard
@@ -499,7 +573,16 @@ def _serve(a: argparse.Namespace) -> int:
     os.dup2(2, 1)
     sys.stdout = sys.stderr
     try:
-        rheology_serve(a.scenario, a.measured, a.params, a.address, a.unit, sys.stdin, answers)
+        if a.command == "push-serve":
+            connect(a.address)
+            options = dict(material=a.material, site=a.site, video=a.video,
+                           ref_element_px=a.ref_element_px, noise_seed=a.noise_seed,
+                           integrator=a.integrator, mode=a.mode, nx=a.nx, ny=a.ny,
+                           cell_px=a.cell_px, repair=not a.no_repair)
+            serve_batches(push_batches(options, a.score, a.unit), sys.stdin, answers)
+        else:
+            rheology_serve(a.scenario, a.measured, a.params, a.address, a.unit, sys.stdin,
+                           answers)
     except KeyboardInterrupt:
         print("stopped: no more of the batch's tasks submitted", file=sys.stderr)
         return 130

@@ -215,4 +215,39 @@ impl PyPushProblem {
         }
         Ok(v)
     }
+
+    /// The fitness `softjoint push calibrate --score SCORE` maximises for
+    /// each gene vector of `genes` (the eight parameters in params.json's
+    /// order: k_d, k_L, k_A, k_φ, max(F), max α, yield, creep), in order,
+    /// as the program scores a generation's candidates: a run that cannot
+    /// be scored gives NaN (the search ranks it last), not an error. What
+    /// `softjoint push calibrate --ray` has its Ray tasks run.
+    #[pyo3(signature = (genes, score="f"))]
+    fn scores(&self, py: Python<'_>, genes: Vec<Vec<f64>>, score: &str) -> PyResult<Vec<f64>> {
+        let kind = self::score(score)?;
+        let mut params = Vec::with_capacity(genes.len());
+        for (i, g) in genes.iter().enumerate() {
+            let Ok(a) = <[f64; 8]>::try_from(g.as_slice()) else {
+                return Err(input(anyhow::anyhow!(
+                    "genes[{i}]: {} values, the push's candidates have 8",
+                    g.len()
+                )));
+            };
+            params.push(MaterialParams::from_array(a));
+        }
+        Ok(py.detach(|| {
+            params
+                .iter()
+                .map(|p| {
+                    let v =
+                        experiment::fitness(&self.prep, &self.tracking.target, kind, &self.sim, p);
+                    if v.is_finite() {
+                        v
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect()
+        }))
+    }
 }

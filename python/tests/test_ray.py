@@ -288,6 +288,60 @@ def test_the_programs_calibration_with_ray_writes_the_files_of_its_own_run(clust
     assert not (tmp_path / "bad" / "params.toml").exists()
 
 
+# `softjoint push calibrate --ray`: the program's Algorithm 5 with each
+# generation's new candidates scored on the cluster by `ray_sweep
+# push-serve`. A small push (the host-tools tests' 3 x 2 mesh, 30 px
+# ground-truth elements) and two generations: 20 + 15 simulations.
+PUSH = ["--ref-element-px", "30", "--nx", "3", "--ny", "2", "--cell-px", "8",
+        "--generations", "2", "--seed", "3"]
+PUSH_FILES = ("params.json", "generations.csv", "mu_per_generation.svg", "snapshots.svg")
+
+
+def test_the_programs_push_calibration_with_ray_writes_the_files_of_its_own_run(
+        cluster, softjoint_bin, repo, tmp_path):
+    """The files and the summary of `push calibrate --ray` are those of
+    the same calibration without it, byte for byte; no cluster at the
+    address is an error naming the driver."""
+    env = dict(os.environ, SOFTJOINT_PYTHON=sys.executable)
+    runs = {}
+    for kind, extra in (("local", []), ("ray", ["--ray", cluster])):
+        out = tmp_path / kind
+        p = subprocess.run([softjoint_bin, "push", "calibrate", *PUSH, *extra, "--out", str(out),
+                            "--json"], cwd=repo, env=env, capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        summary = json.loads(p.stdout)
+        summary.pop("out")
+        runs[kind] = (summary, {f: (out / f).read_bytes() for f in PUSH_FILES})
+    assert runs["ray"] == runs["local"]
+    assert runs["local"][0]["evaluations"] == 35
+    nowhere = f"127.0.0.1:{ray_sweep._free_port()}"
+    bad = subprocess.run([softjoint_bin, "push", "calibrate", *PUSH, "--ray", nowhere, "--out",
+                          str(tmp_path / "bad")], cwd=repo, env=env, capture_output=True,
+                         text=True, timeout=60)
+    assert bad.returncode == 1, bad.stderr
+    assert (f"the Ray driver ({sys.executable} -m softjoint.ray_sweep push-serve, cluster at "
+            f"{nowhere}): it ended without answering a batch of 20 (exit status: 1); it said: "
+            f"ConnectionError: no Ray cluster at {nowhere}") in bad.stderr, bad.stderr
+    assert not (tmp_path / "bad" / "params.json").exists()
+
+
+def test_push_problem_scores_a_batch_as_its_objective_does():
+    """`PushProblem.scores`, what the Ray tasks run: each gene vector's
+    fitness as `push_objective` gives it, NaN for one that cannot be
+    scored, and a vector of the wrong length refused by its index."""
+    problem = softjoint.push_problem(ref_element_px=30, nx=3, ny=2, cell_px=8)
+    genes = [[0.01, 10.0, 10.0, 1.0, 1000.0, 0.5, 0.5, 0.5],
+             [0.0, 100.0, 1.0, 0.0, 50.0, 0.1, 0.01, 0.9]]
+    names = ["k_damping", "k_length", "k_area", "k_angle", "max_force", "max_alpha",
+             "yield_strain", "creep"]
+    got = problem.scores(genes, "contour")
+    for g, s in zip(genes, got):
+        want = softjoint.push_objective(problem, dict(zip(names, g)), "contour")
+        assert s == want
+    with pytest.raises(softjoint.InputError, match=r"genes\[1\]: 7 values"):
+        problem.scores([genes[0], genes[1][:7]])
+
+
 # Stands in for Python as $SOFTJOINT_PYTHON: runs the real driver with
 # the same arguments, passes its answers on and touches TAP_DIR/answer-N
 # after the N-th, and passes SIGINT on to it; exits with its status.

@@ -247,6 +247,14 @@ struct CalibrateArgs {
     /// calibration stopped again writes its state back to this file.
     #[arg(long, value_name = "STATE")]
     resume: Option<PathBuf>,
+    /// Score each generation's new candidates on the Ray cluster at this
+    /// address, through the Python package's driver (`python3 -m
+    /// softjoint.ray_sweep push-serve`; $SOFTJOINT_PYTHON names another
+    /// Python). The draws and the selection stay here: the files are
+    /// those of the same calibration without --ray, and --resume goes on
+    /// with or without it.
+    #[arg(long, value_name = "ADDRESS")]
+    ray: Option<String>,
 }
 
 #[derive(Args)]
@@ -376,6 +384,17 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     if a.resume.is_some() || a.out.is_dir() {
         output::check_file(&state_path)?;
     }
+    // Started before the push is prepared: it joins the cluster meanwhile.
+    // It answers `null` for a fitness that is not finite, read as NaN,
+    // which the search ranks last, as it ranks a local one.
+    let driver = a
+        .ray
+        .as_deref()
+        .map(|address| {
+            let (cmd, who) = push_driver_command(&a, address);
+            host_tools::ray::Driver::start(cmd, who, stop.clone(), f64::NAN)
+        })
+        .transpose()?;
     let prep = prepare(&a.video, &a.model, a.json)?;
     let spec = CalibrateSpec {
         generations: a.generations,
@@ -395,13 +414,36 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     let layer = |p: &MaterialParams, run: &dyn Fn(&MaterialParams) -> f64| {
         scores.score(&p.to_array(), |_| run(p))
     };
-    let found = experiment::calibrate_until(&prep, &spec, &layer, &mut |g| {
+    let mut on_generation = |g: &plant_pushing::evolution::GenerationReport| {
         bar.set_message(match spec.score {
             ScoreKind::F => format!("best μ(F) {:.4}", g.best),
             ScoreKind::Contour => format!("best contour distance {:.2} px", -g.best),
         });
         bar.inc(1);
-    });
+    };
+    let found = match driver {
+        None => experiment::calibrate_until(&prep, &spec, &layer, &mut on_generation),
+        Some(mut driver) => {
+            // The driver's failure, which stops the search.
+            let mut failed = None;
+            let found = experiment::calibrate_batches(
+                &prep,
+                &spec,
+                &mut |genes| match scores.score_batch(genes, |todo| driver.scores(todo)) {
+                    Ok(kept) => kept,
+                    Err(e) => {
+                        failed = Some(e);
+                        None
+                    }
+                },
+                &mut on_generation,
+            );
+            if let (Some(e), None) = (failed, stop.requested()) {
+                bail!("{e}");
+            }
+            found
+        }
+    };
     let report = match (found, stop.requested()) {
         (Ok(Some(report)), _) => report,
         (Ok(None) | Err(_), Some(signal)) => {
@@ -442,6 +484,33 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
     );
     // The search had ended when a signal came: its files are whole.
     host_tools::resume::finished_or_stopped(&stop, &a.out)
+}
+
+/// The Ray driver of `a`'s calibration (`push-serve` with the push and
+/// model flags of `a`, as the Python package's `PushProblem` takes them),
+/// and its name in errors.
+fn push_driver_command(a: &CalibrateArgs, address: &str) -> (std::process::Command, String) {
+    let (mut cmd, who) = host_tools::ray::serve_command("push-serve", address);
+    let name = |v: Option<clap::builder::PossibleValue>| {
+        v.map(|v| v.get_name().to_string()).unwrap_or_default()
+    };
+    let (v, m) = (&a.video, &a.model);
+    cmd.args(["--material", &name(v.material.to_possible_value())]);
+    cmd.args(["--site", &name(v.site.to_possible_value())]);
+    if let Some(path) = &v.video {
+        cmd.arg("--video").arg(path);
+    }
+    cmd.args(["--ref-element-px", &format!("{:?}", v.ref_element_px)]);
+    cmd.args(["--noise-seed", &v.noise_seed.to_string()]);
+    cmd.args(["--integrator", &name(m.integrator.to_possible_value())]);
+    cmd.args(["--mode", &name(m.mode.to_possible_value())]);
+    cmd.args(["--nx", &m.nx.to_string(), "--ny", &m.ny.to_string()]);
+    cmd.args(["--cell-px", &format!("{:?}", m.cell_px)]);
+    if m.no_repair {
+        cmd.arg("--no-repair");
+    }
+    cmd.args(["--score", &name(a.score.to_possible_value())]);
+    (cmd, who)
 }
 
 /// A `push calibrate` stopped by a signal: what it had simulated, to
@@ -1402,6 +1471,7 @@ mod tests {
                 out: dir.join(name),
                 json: true,
                 resume: None,
+                ray: None,
             })
             .unwrap();
             let p = load_params(&dir.join(name).join("params.json")).unwrap();
@@ -1466,6 +1536,7 @@ mod tests {
             out: dir.join("z"),
             json: true,
             resume: None,
+            ray: None,
         })
         .is_err());
     }

@@ -375,7 +375,8 @@ fn calibrate_cmd(a: CalibrateArgs) -> Result<()> {
             params: a.params,
             address,
         });
-        ray::Driver::start(cmd, who, stop.clone())
+        // The search counts any non-finite S as +∞.
+        ray::Driver::start(cmd, who, stop.clone(), f64::INFINITY)
     });
     let driver = driver.transpose()?;
     let problem = experiment::calibration_problem(&spec, &mut |e| watch.event(e))

@@ -1,54 +1,19 @@
 //! `rheology calibrate --ray ADDRESS`: each batch the search asks for (a
 //! GA generation, RA's probes, a uniform draw) is scored on a Ray cluster
-//! by the Python package's driver, `python3 -m softjoint.ray_sweep
-//! rheology-serve` ($SOFTJOINT_PYTHON names another Python), which cuts it
-//! into the units `softjoint.ray_sweep.rheology_batches` runs as tasks.
-//! The search, its draws and selection, its progress bar, the scores kept
-//! for a stop and every file stay in this program: a calibration on Ray
-//! writes the files of the same calibration without `--ray`.
-//!
-//! The protocol, one line each way over the driver's standard input and
-//! output: this program writes a batch as a JSON array of gene arrays;
-//! the driver answers with a JSON array of as many scores, in order,
-//! `null` for one that is not finite (read back as +∞, which is how the
-//! search counts any non-finite S). The end of its input ends the driver.
-//! The scores are parsed here number by number with Rust's correctly
-//! rounded `f64` parser (serde_json's default float parsing may be one
-//! unit in the last place off, which would change the search).
-//!
-//! A driver that exits or answers anything else ends the search with an
-//! error naming it and quoting what it said on standard error (the last
-//! [`SAID_KEPT`] bytes). A stop (Ctrl-C, SIGTERM, SIGHUP) is sent on to
-//! the driver as SIGINT (it stops submitting the batch's tasks and exits
-//! 130) and ends the search at once: the batch in flight is lost, the
-//! batches before it are kept in the search state (`--resume` goes on
-//! from it, with or without `--ray`).
-use std::io::{BufRead, BufReader, Read, Write};
+//! by the Python package's driver ([`host_tools::ray`]), `python3 -m
+//! softjoint.ray_sweep rheology-serve` ($SOFTJOINT_PYTHON names another
+//! Python), which cuts it into the units `softjoint.ray_sweep.rheology_batches`
+//! runs as tasks. Its `null` (a score that is not finite) reads as +∞,
+//! which is how the search counts any non-finite S. A stop ends the
+//! search at once: the batch in flight is lost, the batches before it
+//! are kept in the search state (`--resume` goes on from it, with or
+//! without `--ray`).
 use std::path::Path;
-use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
-use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::process::Command;
 
-use anyhow::Context;
+pub use host_tools::ray::Driver;
 use host_tools::resume::Scores;
-use host_tools::stop::Stop;
 use plant_rheology::identify::search::BatchObjective;
-
-/// What the driver said on standard error that an error quotes: its last
-/// this many bytes.
-pub const SAID_KEPT: usize = 4000;
-
-/// The longest answer line read (a batch's scores are a few kB).
-const LINE_LIMIT: u64 = 16 << 20;
-
-/// How long a driver that closed its output or input is given to exit
-/// (its exit status and last words are in its error).
-const DYING: Duration = Duration::from_secs(2);
-
-/// How long a driver whose input was closed, or that was sent SIGINT, is
-/// given to exit before it is killed.
-const EXIT_GRACE: Duration = Duration::from_secs(10);
 
 /// What the calibration asks the driver for.
 pub struct Problem<'a> {
@@ -58,254 +23,17 @@ pub struct Problem<'a> {
     pub address: &'a str,
 }
 
-/// The driver's command line for `p`.
+/// The driver's command line for `p`, and its name in errors.
 pub fn driver_command(p: &Problem) -> (Command, String) {
-    let python = std::env::var_os("SOFTJOINT_PYTHON").unwrap_or_else(|| "python3".into());
-    let mut cmd = Command::new(&python);
-    cmd.args(["-m", "softjoint.ray_sweep", "rheology-serve"]);
+    let (mut cmd, who) = host_tools::ray::serve_command("rheology-serve", p.address);
     if let Some(s) = p.scenario {
         cmd.arg(s);
     }
     if let Some(m) = p.measured {
         cmd.arg("--measured").arg(m);
     }
-    cmd.args(["--params", &p.params.to_string(), "--address", p.address]);
-    let who = format!(
-        "the Ray driver ({} -m softjoint.ray_sweep rheology-serve, cluster at {})",
-        python.to_string_lossy(),
-        p.address
-    );
+    cmd.args(["--params", &p.params.to_string()]);
     (cmd, who)
-}
-
-/// A running driver: its input, its answer lines (read by a thread, so
-/// that a stop is seen while an answer is awaited) and what it said on
-/// standard error.
-pub struct Driver {
-    who: String,
-    child: Child,
-    input: Option<ChildStdin>,
-    lines: Receiver<std::io::Result<String>>,
-    said: Arc<Mutex<Vec<u8>>>,
-    /// Disconnected when the driver's standard error is closed (all it
-    /// said is in `said`).
-    said_all: Receiver<()>,
-    stop: Stop,
-}
-
-impl Driver {
-    /// Starts `cmd` (named `who` in errors), which dies with this program
-    /// and is out of the terminal's process group: a signal reaches it
-    /// from here.
-    pub fn start(mut cmd: Command, who: String, stop: Stop) -> anyhow::Result<Self> {
-        cmd.stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped());
-        host_tools::stop::die_with_parent(&mut cmd);
-        let mut child = cmd.spawn().with_context(|| {
-            format!("cannot run {who} (the Python package, python/README.md, and ray installed?)")
-        })?;
-        let (Some(input), Some(out), Some(mut err)) =
-            (child.stdin.take(), child.stdout.take(), child.stderr.take())
-        else {
-            anyhow::bail!("{who}: its pipes were not opened");
-        };
-        let (tx, lines) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut out = BufReader::new(out);
-            loop {
-                let mut line = String::new();
-                match (&mut out).take(LINE_LIMIT).read_line(&mut line) {
-                    Ok(0) => break,
-                    Ok(_) if !line.ends_with('\n') && line.len() as u64 >= LINE_LIMIT => {
-                        let _ = tx.send(Err(std::io::Error::other(format!(
-                            "an answer line longer than {LINE_LIMIT} bytes"
-                        ))));
-                        break;
-                    }
-                    Ok(_) => {
-                        if tx.send(Ok(line)).is_err() {
-                            break;
-                        }
-                    }
-                    Err(e) => {
-                        let _ = tx.send(Err(e));
-                        break;
-                    }
-                }
-            }
-        });
-        let said = Arc::new(Mutex::new(Vec::new()));
-        let kept = Arc::clone(&said);
-        let (done, said_all) = mpsc::channel::<()>();
-        std::thread::spawn(move || {
-            let _done = done;
-            let mut buf = [0u8; 4096];
-            while let Ok(n) = err.read(&mut buf) {
-                if n == 0 {
-                    break;
-                }
-                let mut k = kept.lock().unwrap_or_else(|e| e.into_inner());
-                k.extend_from_slice(&buf[..n]);
-                let over = k.len().saturating_sub(SAID_KEPT);
-                k.drain(..over);
-            }
-        });
-        Ok(Self {
-            who,
-            child,
-            input: Some(input),
-            lines,
-            said,
-            said_all,
-            stop,
-        })
-    }
-
-    /// The scores of `batch`, or why there are none: a stop, or a
-    /// driver that ended or answered garbage (then it is ended too).
-    pub fn scores(&mut self, batch: &[Vec<f64>]) -> Result<Vec<f64>, String> {
-        let sent = batch_line(batch).and_then(|line| {
-            let input = self.input.as_mut().ok_or("its input is closed")?;
-            input
-                .write_all(line.as_bytes())
-                .and_then(|()| input.flush())
-                .map_err(|e| format!("sending it a batch: {e}"))
-        });
-        if let Err(why) = sent {
-            return Err(self.failed(&why, DYING));
-        }
-        loop {
-            if self.stop.requested().is_some() {
-                host_tools::stop::interrupt(&self.child);
-                return Err("stopped by a signal".into());
-            }
-            match self.lines.recv_timeout(Duration::from_millis(20)) {
-                Ok(Ok(line)) => {
-                    return parse_scores(&line, batch.len()).map_err(|why| {
-                        self.failed(
-                            &format!(
-                                "it answered a batch of {} candidates with {:?}: {why}",
-                                batch.len(),
-                                clip(line.trim_end(), 200)
-                            ),
-                            Duration::ZERO,
-                        )
-                    })
-                }
-                Ok(Err(e)) => {
-                    return Err(self.failed(&format!("reading its answer: {e}"), Duration::ZERO))
-                }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => {
-                    let why = format!("it ended without answering a batch of {}", batch.len());
-                    return Err(self.failed(&why, DYING));
-                }
-            }
-        }
-    }
-
-    /// The error of a failed driver: `why`, how it ended (it is killed if
-    /// still running after `grace`) and what it said.
-    fn failed(&mut self, why: &str, grace: Duration) -> String {
-        let ended = match self.end(grace) {
-            Some(status) => format!("{status}"),
-            None => "killed".into(),
-        };
-        // What it said last may still be on its way from the pipe.
-        let _ = self.said_all.recv_timeout(Duration::from_secs(1));
-        let said = self.said.lock().unwrap_or_else(|e| e.into_inner());
-        let said = String::from_utf8_lossy(&said);
-        let said = said.trim();
-        format!(
-            "{}: {why} ({ended}); it said: {}",
-            self.who,
-            if said.is_empty() { "nothing" } else { said }
-        )
-    }
-
-    /// Closes the driver's input and waits up to `grace` for it to exit;
-    /// kills it then. Its exit status, unless it had to be killed.
-    fn end(&mut self, grace: Duration) -> Option<std::process::ExitStatus> {
-        self.input = None;
-        let until = Instant::now() + grace;
-        while Instant::now() < until {
-            match self.child.try_wait() {
-                Ok(Some(status)) => return Some(status),
-                Ok(None) => std::thread::sleep(Duration::from_millis(20)),
-                Err(_) => break,
-            }
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        None
-    }
-}
-
-impl Drop for Driver {
-    /// The driver's input is closed (it ends its Ray job and exits), or,
-    /// after a stop, it was sent SIGINT; either way it is waited for, at
-    /// most [`EXIT_GRACE`].
-    fn drop(&mut self) {
-        self.end(EXIT_GRACE);
-    }
-}
-
-/// A batch as the line sent: a JSON array of gene arrays, each gene the
-/// shortest decimal that reads back as the same `f64` (Rust's `{:?}`:
-/// `0.1`, `1e-7`, `2.0`), after `output`'s check that every gene is
-/// finite (JSON has no word for the others).
-fn batch_line(batch: &[Vec<f64>]) -> Result<String, String> {
-    host_tools::output::check_value("the batch sent to the Ray driver", &batch)
-        .map_err(|e| format!("{e:#}"))?;
-    let genes = |g: &Vec<f64>| {
-        let each: Vec<String> = g.iter().map(|x| format!("{x:?}")).collect();
-        format!("[{}]", each.join(","))
-    };
-    let rows: Vec<String> = batch.iter().map(genes).collect();
-    Ok(format!("[{}]\n", rows.join(",")))
-}
-
-/// `s` cut to at most `n` characters.
-fn clip(s: &str, n: usize) -> String {
-    match s.char_indices().nth(n) {
-        Some((at, _)) => format!("{}…", &s[..at]),
-        None => s.to_string(),
-    }
-}
-
-/// The scores of an answer line: a JSON array of `n` numbers or `null`s
-/// (+∞).
-pub fn parse_scores(line: &str, n: usize) -> Result<Vec<f64>, String> {
-    let inner = line
-        .trim()
-        .strip_prefix('[')
-        .and_then(|s| s.strip_suffix(']'))
-        .ok_or("not a JSON array")?
-        .trim();
-    let scores = if inner.is_empty() {
-        Vec::new()
-    } else {
-        inner
-            .split(',')
-            .map(|tok| match tok.trim() {
-                "null" => Ok(f64::INFINITY),
-                t => match t.parse::<f64>() {
-                    Ok(v)
-                        if v.is_finite()
-                            && t.starts_with(|c: char| c == '-' || c.is_ascii_digit()) =>
-                    {
-                        Ok(v)
-                    }
-                    _ => Err(format!("{t:?} is neither a finite number nor null")),
-                },
-            })
-            .collect::<Result<Vec<f64>, String>>()?
-    };
-    if scores.len() != n {
-        return Err(format!("{} scores for {n} candidates", scores.len()));
-    }
-    Ok(scores)
 }
 
 /// The search's objective on the driver, with its scores kept as the
@@ -323,107 +51,5 @@ impl BatchObjective for OnRay<'_> {
         self.scores
             .score_batch(batch, |todo| driver.scores(todo))?
             .ok_or_else(|| "stopped by a signal".into())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn answers_parse_exactly_and_garbage_is_named() {
-        let got = parse_scores("[0.1, null, 2.5e-3, 17]\n", 4).unwrap();
-        assert_eq!(got, [0.1, f64::INFINITY, 0.0025, 17.0]);
-        // The shortest decimal of a double comes back as that double.
-        let x = 0.300_000_000_000_000_04_f64;
-        assert_eq!(
-            parse_scores(&format!("[{x:?}]"), 1).unwrap()[0].to_bits(),
-            x.to_bits()
-        );
-        assert_eq!(parse_scores("[]", 0).unwrap(), Vec::<f64>::new());
-        for (line, why) in [
-            ("[1.0, 2.0]", "2 scores for 3 candidates"),
-            ("{\"s\": 1}", "not a JSON array"),
-            (
-                "[1.0, NaN, 2.0]",
-                "\"NaN\" is neither a finite number nor null",
-            ),
-            ("[1.0, inf, 2.0]", "\"inf\" is neither"),
-            ("[1.0, 1e999, 2.0]", "\"1e999\" is neither"),
-            ("[1.0, \"x\", 2.0]", "\"\\\"x\\\"\" is neither"),
-            ("Traceback (most recent call last):", "not a JSON array"),
-        ] {
-            let e = parse_scores(line, 3).unwrap_err();
-            assert!(e.contains(why), "{line}: {e}");
-        }
-    }
-
-    #[test]
-    fn a_batch_is_one_line_of_exact_decimals_and_only_finite_genes_go() {
-        let x = 0.300_000_000_000_000_04_f64;
-        let line = batch_line(&[vec![x, 1e-7, 2.0], vec![-1.5e300]]).unwrap();
-        assert_eq!(line, "[[0.30000000000000004,1e-7,2.0],[-1.5e300]]\n");
-        assert_eq!(
-            "0.30000000000000004".parse::<f64>().unwrap().to_bits(),
-            x.to_bits()
-        );
-        let e = batch_line(&[vec![1.0, f64::NAN]]).unwrap_err();
-        assert!(e.contains("the batch sent to the Ray driver"), "{e}");
-    }
-
-    /// A stand-in driver: `sh -c SCRIPT`.
-    fn stand_in(script: &str, stop: Stop) -> Driver {
-        let mut cmd = Command::new("sh");
-        cmd.args(["-c", script]);
-        Driver::start(cmd, "the stand-in driver".into(), stop).unwrap()
-    }
-
-    #[test]
-    fn a_driver_that_answers_garbage_or_dies_is_an_error_naming_it() {
-        // One that answers, then garbage.
-        let mut d = stand_in(
-            "read b; echo '[1.5, null]'; read b; echo 'oops' >&2; echo 'not json'; read b",
-            Stop::never(),
-        );
-        let batch = [vec![1.0, 2.0], vec![3.0, 4.0]];
-        assert_eq!(d.scores(&batch).unwrap(), [1.5, f64::INFINITY]);
-        let e = d.scores(&batch).unwrap_err();
-        assert!(
-            e.starts_with("the stand-in driver: it answered a batch of 2 candidates with \"not json\": not a JSON array (killed)")
-                && e.ends_with("it said: oops"),
-            "{e}"
-        );
-        // One that exits at once, saying why.
-        let mut d = stand_in(
-            "echo 'ConnectionError: no cluster' >&2; exit 1",
-            Stop::never(),
-        );
-        let e = d.scores(&batch).unwrap_err();
-        assert!(
-            e.contains("the stand-in driver: ")
-                && e.contains("exit status: 1")
-                && e.ends_with("it said: ConnectionError: no cluster"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn a_stop_while_a_batch_is_out_interrupts_the_driver() {
-        let stop = Stop::never();
-        let mut d = stand_in(
-            "trap 'echo stopped >&2; exit 130' INT; read b; while :; do sleep 0.02; done",
-            stop.clone(),
-        );
-        let s2 = stop.clone();
-        let t = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(100));
-            s2.request(host_tools::stop::StopSignal::Interrupt);
-        });
-        let started = Instant::now();
-        assert_eq!(d.scores(&[vec![1.0]]), Err("stopped by a signal".into()));
-        t.join().unwrap();
-        let status = d.end(Duration::from_secs(5)).expect("the driver exits");
-        assert_eq!(status.code(), Some(130));
-        assert!(started.elapsed() < Duration::from_secs(5));
     }
 }

@@ -261,23 +261,34 @@ where
     )
 }
 
-/// Scores the candidates of `pop` without a score yet, in parallel (NaN
-/// ranks as −∞); how many, or `None` if `fitness` refused one (then no
-/// score is set).
-fn score_new<F>(pop: &[[f64; 8]], scores: &mut [Option<f64>], fitness: &F) -> Option<usize>
+/// Scores the candidates of `pop` without a score yet with one call of
+/// `batch` (their genes in population order; it must answer one score
+/// each, in that order), NaN ranking as −∞; how many, or `None` if
+/// `batch` refused the batch (then no score is set).
+fn score_new<B>(
+    pop: &[[f64; 8]],
+    scores: &mut [Option<f64>],
+    batch: &mut B,
+) -> Result<Option<usize>>
 where
-    F: Fn(&MaterialParams) -> Option<f64> + Sync,
+    B: FnMut(&[Vec<f64>]) -> Option<Vec<f64>>,
 {
     let todo: Vec<usize> = (0..pop.len()).filter(|&i| scores[i].is_none()).collect();
-    let fresh: Vec<Option<f64>> = todo
-        .par_iter()
-        .map(|&i| fitness(&MaterialParams::from_array(pop[i])))
-        .collect();
-    let fresh = fresh.into_iter().collect::<Option<Vec<f64>>>()?;
+    let genes: Vec<Vec<f64>> = todo.iter().map(|&i| pop[i].to_vec()).collect();
+    let Some(fresh) = batch(&genes) else {
+        return Ok(None);
+    };
+    if fresh.len() != todo.len() {
+        return Err(PushError::InvalidParameter {
+            name: "batch scores",
+            value: fresh.len() as f64,
+            reason: "a batch scorer must answer one score per candidate",
+        });
+    }
     for (&i, s) in todo.iter().zip(fresh) {
         scores[i] = Some(if s.is_nan() { f64::NEG_INFINITY } else { s });
     }
-    Some(todo.len())
+    Ok(Some(todo.len()))
 }
 
 /// [`calibrate`] with a fitness that may refuse to score (`None`: the
@@ -285,14 +296,45 @@ where
 /// ends after the generation it was scoring, with `Ok(None)`; what was
 /// scored is the caller's to keep (the draws depend only on the seed and
 /// the scores, so a search given the same scores retraces this one).
+/// Each generation's new candidates are scored in parallel (rayon), as
+/// [`calibrate_batches`]' batch.
 pub fn calibrate_until<F>(
     settings: &EvolutionSettings,
     ranges: &[ParamRange; 8],
     fitness: F,
-    mut on_generation: impl FnMut(&GenerationReport),
+    on_generation: impl FnMut(&GenerationReport),
 ) -> Result<Option<CalibrationResult>>
 where
     F: Fn(&MaterialParams) -> Option<f64> + Sync,
+{
+    let local = |genes: &[Vec<f64>]| -> Option<Vec<f64>> {
+        let fresh: Vec<Option<f64>> = genes
+            .par_iter()
+            .map(|g| {
+                let a: [f64; 8] = core::array::from_fn(|k| g[k]);
+                fitness(&MaterialParams::from_array(a))
+            })
+            .collect();
+        fresh.into_iter().collect()
+    };
+    calibrate_batches(settings, ranges, local, on_generation)
+}
+
+/// [`calibrate_until`] with each generation's candidates not scored yet
+/// given to `batch` at once, as gene vectors in the order of
+/// [`MaterialParams::to_array`] (the work units of a generation), which
+/// answers their scores in the same order, or `None` to stop the search.
+/// Every random draw and the selection stay here, in one sequence from
+/// the seed, so where `batch` scores them (threads, a Ray cluster) cannot
+/// change the result, only the scores it answers can.
+pub fn calibrate_batches<B>(
+    settings: &EvolutionSettings,
+    ranges: &[ParamRange; 8],
+    mut batch: B,
+    mut on_generation: impl FnMut(&GenerationReport),
+) -> Result<Option<CalibrationResult>>
+where
+    B: FnMut(&[Vec<f64>]) -> Option<Vec<f64>>,
 {
     settings.validate()?;
     check_ranges(ranges)?;
@@ -309,7 +351,7 @@ where
     let mut best: Option<([f64; 8], f64)> = None;
     for g in 1..=settings.generations {
         // Line 6: run the simulations not run yet, in parallel.
-        let Some(fresh) = score_new(&pop, &mut scores, &fitness) else {
+        let Some(fresh) = score_new(&pop, &mut scores, &mut batch)? else {
             return Ok(None);
         };
         evaluations += fresh;
@@ -397,4 +439,82 @@ where
         history,
         evaluations,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cheap fitness: closeness of the parameters' logarithms to a
+    /// point inside the ranges.
+    fn bowl(p: &MaterialParams) -> f64 {
+        -p.to_array()
+            .iter()
+            .map(|x| {
+                if *x == 0.0 {
+                    4.0
+                } else {
+                    (x.ln() + 2.0).powi(2)
+                }
+            })
+            .sum::<f64>()
+    }
+
+    fn small(seed: u64) -> EvolutionSettings {
+        let mut s = EvolutionSettings::table_iii(seed);
+        s.generations = 6;
+        s
+    }
+
+    #[test]
+    fn a_batch_scorer_retraces_the_threaded_search_and_sees_each_generations_new_candidates() {
+        let s = small(3);
+        let local = calibrate_until(&s, &TABLE_III_RANGES, |p| Some(bowl(p)), |_| {})
+            .unwrap()
+            .unwrap();
+        let mut sizes = Vec::new();
+        let batched = calibrate_batches(
+            &s,
+            &TABLE_III_RANGES,
+            |genes: &[Vec<f64>]| {
+                sizes.push(genes.len());
+                // Scored in reverse, one by one: the order of the work
+                // cannot matter, only the answers in batch order.
+                let mut out: Vec<f64> = genes
+                    .iter()
+                    .rev()
+                    .map(|g| bowl(&MaterialParams::from_array(core::array::from_fn(|k| g[k]))))
+                    .collect();
+                out.reverse();
+                Some(out)
+            },
+            |_| {},
+        )
+        .unwrap()
+        .unwrap();
+        assert_eq!(batched, local);
+        // All of the first generation, then every candidate but the survivors.
+        let n = s.population();
+        assert_eq!(sizes[0], n);
+        assert!(
+            sizes[1..].iter().all(|&k| k == n - s.survivors),
+            "{sizes:?}"
+        );
+        assert_eq!(local.evaluations, sizes.iter().sum::<usize>());
+    }
+
+    #[test]
+    fn a_batch_scorer_that_stops_or_answers_the_wrong_count_ends_the_search() {
+        let s = small(3);
+        let stopped = calibrate_batches(&s, &TABLE_III_RANGES, |_: &[Vec<f64>]| None, |_| {});
+        assert_eq!(stopped.unwrap(), None);
+        let e = calibrate_batches(
+            &s,
+            &TABLE_III_RANGES,
+            |g: &[Vec<f64>]| Some(vec![0.0; g.len() - 1]),
+            |_| {},
+        )
+        .unwrap_err();
+        assert!(format!("{e}").contains("one score per candidate"), "{e}");
+    }
 }

@@ -391,10 +391,8 @@ pub fn calibrate_until(
     layer: &FitnessLayer,
     on_generation: &mut dyn FnMut(&GenerationReport),
 ) -> Result<Option<CalibrateReport>> {
-    let mut tracking = Tracking::of(prep)?;
-    let mut settings = EvolutionSettings::table_iii(spec.seed);
-    settings.generations = spec.generations;
-    let forces = &prep.video.forces_n;
+    let tracking = Tracking::of(prep)?;
+    let settings = settings_of(spec);
     let fitness = |p: &MaterialParams| fitness(prep, &tracking.target, spec.score, &spec.sim, p);
     let found = evolution::calibrate_until(
         &settings,
@@ -402,9 +400,56 @@ pub fn calibrate_until(
         |p| layer(p, &fitness),
         |g| on_generation(g),
     )?;
-    let Some(result) = found else {
-        return Ok(None);
-    };
+    match found {
+        Some(result) => Ok(Some(assess_calibration(prep, spec, tracking, result)?)),
+        None => Ok(None),
+    }
+}
+
+/// A generation's candidates not scored yet, as gene vectors in the order
+/// of [`MaterialParams::to_array`], scored elsewhere (a Ray cluster):
+/// their fitness ([`fitness`] on the push's [`Tracking::of`]) in the same
+/// order, or `None` to stop the search.
+pub type BatchScorer<'a> = dyn FnMut(&[Vec<f64>]) -> Option<Vec<f64>> + 'a;
+
+/// [`calibrate_until`] with each generation's new candidates scored at
+/// once by `batch` ([`evolution::calibrate_batches`]): the same search,
+/// draws and report for the same scores, wherever `batch` runs them.
+pub fn calibrate_batches(
+    prep: &PreparedVideo,
+    spec: &CalibrateSpec,
+    batch: &mut BatchScorer,
+    on_generation: &mut dyn FnMut(&GenerationReport),
+) -> Result<Option<CalibrateReport>> {
+    let tracking = Tracking::of(prep)?;
+    let found = evolution::calibrate_batches(
+        &settings_of(spec),
+        &evolution::TABLE_III_RANGES,
+        |genes| batch(genes),
+        |g| on_generation(g),
+    )?;
+    match found {
+        Some(result) => Ok(Some(assess_calibration(prep, spec, tracking, result)?)),
+        None => Ok(None),
+    }
+}
+
+/// Table III's settings with `spec`'s generations and seed.
+fn settings_of(spec: &CalibrateSpec) -> EvolutionSettings {
+    let mut settings = EvolutionSettings::table_iii(spec.seed);
+    settings.generations = spec.generations;
+    settings
+}
+
+/// The report of a finished search: its best candidate run through the
+/// push and scored.
+fn assess_calibration(
+    prep: &PreparedVideo,
+    spec: &CalibrateSpec,
+    mut tracking: Tracking,
+    result: CalibrationResult,
+) -> Result<CalibrateReport> {
+    let forces = &prep.video.forces_n;
     let best = &result.best_params;
     let score = score_run(prep, forces, best, &spec.sim)?;
     let contour = score_contour_run(prep, &tracking.target, forces, best, &spec.sim)?;
@@ -444,7 +489,7 @@ pub fn calibrate_until(
             tracking
         },
     };
-    Ok(Some(report))
+    Ok(report)
 }
 
 /// Which material model explains a push best; the `Serialize` form is
