@@ -38,9 +38,10 @@
 //! echoed does not depend on its delay: version 3's rule (Karn's, made
 //! exact for copies) kept a tick's sample only if no later packet carrying
 //! a copy could have delivered it first, and so left out slow packets
-//! overtaken by faster ones (Table 2's rows read 12 % low); echoing the
-//! newest tick's packet, or only the latest arrival, would leave them out
-//! too (`a_path_whose_delay_varies_by_packet_is_measured_without_bias`).
+//! overtaken by faster ones (Table 2's rows read 12 % low,
+//! `a_path_whose_delay_varies_by_packet_is_measured_without_bias`);
+//! echoing only the newest tick's packet, or only the latest arrival,
+//! can leave them out too (reasoned, not measured here).
 //! The samples feed RFC 6298's estimator (`srtt`, `rttvar` with gains 1/8
 //! and 1/4, the first sample giving `srtt = R`, `rttvar = R/2`).
 //!
@@ -186,10 +187,10 @@ pub struct LinkStats {
     pub copies_redundant: u64,
     /// Bytes of every datagram this link sent.
     pub bytes_sent: u64,
-    /// Arrivals not echoed because [`ECHO_QUEUE`] were waiting.
+    /// Arrivals not echoed because 64 were waiting (`ECHO_QUEUE`).
     pub echoes_dropped: u64,
     /// Echoes that gave no sample: the hold longer than the time since the
-    /// echoed send, or a sample beyond [`MAX_SAMPLE_US`].
+    /// echoed send, or a sample beyond 8.2 s (`MAX_SAMPLE_US`).
     pub echoes_refused: u64,
 }
 
