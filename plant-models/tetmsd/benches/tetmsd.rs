@@ -12,7 +12,7 @@ use plant_tetmsd::model::probe::{Grip, Manipulation};
 use plant_tetmsd::model::voigt::{Hold, VoigtMaterial, VoigtModel};
 use plant_tetmsd::model::V3;
 use plant_tetmsd::netem::{Profile, TABLE_2};
-use plant_tetmsd::packet::{Acks, Copies, Message, Packet};
+use plant_tetmsd::packet::{Acks, Copies, Message, Packet, Stamp};
 use plant_tetmsd::pair::run_virtual;
 use plant_tetmsd::scenario::Scenario;
 use std::hint::black_box;
@@ -92,6 +92,8 @@ fn codec(c: &mut Criterion) {
         site: 1,
         message: Message::Input {
             tick: 123_456,
+            stamp: Stamp::default(),
+            copies: Copies::none(),
             acks: Acks {
                 ack: 7,
                 sack: 0b1010,
@@ -104,9 +106,6 @@ fn codec(c: &mut Criterion) {
                     node_m: V3::new(0.0225, 0.03, 0.0598),
                 }),
             },
-            // The packet alone, without protocol v3's copies of earlier
-            // inputs (their records are the same encoding, repeated).
-            copies: Copies::none(),
         },
     };
     let bytes = p.encode();

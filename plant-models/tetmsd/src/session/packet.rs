@@ -24,10 +24,13 @@
 //! | 38–39 | CRC-16/IBM-3740 (CCITT-FALSE: poly 0x1021, init 0xFFFF) of bytes 0–37 and 40 to the end |
 //!
 //! and bytes 0–25, 32–33 and 40–63 are the kind's own ([`Message`]). An
-//! input packet may go on after its 64 bytes with [`COPY_BYTES`]-byte
-//! copies of the sender's inputs of up to [`MAX_COPIES`] earlier ticks
-//! ([`Copies`], version 3): forward redundancy, so that a lost packet's
-//! input comes in the next one instead of waiting for a resend.
+//! input packet goes on after its 64 bytes with a [`STAMP_BYTES`]-byte
+//! timestamp echo ([`Stamp`], version 4: its send time and the echo of
+//! a send time of the peer's, for round trips that need no guess about
+//! which packet delivered a tick), then [`COPY_BYTES`]-byte copies of the
+//! sender's inputs of up to [`MAX_COPIES`] earlier ticks ([`Copies`],
+//! version 3): forward redundancy, so that a lost packet's input comes in
+//! the next one instead of waiting for a resend.
 //!
 //! Decoding refuses, and names, every packet that is not exactly what the
 //! encoder would write: a wrong length, copies out of order or out of
@@ -45,21 +48,29 @@ use crate::model::V3;
 use crc::{Crc, CRC_16_IBM_3740};
 use std::fmt;
 
-/// Bytes in a packet (an input packet with copies has [`COPY_BYTES`]
-/// more per copy).
+/// Bytes in a packet (an input packet has [`STAMP_BYTES`] more, and
+/// [`COPY_BYTES`] more per copy).
 pub const PACKET_BYTES: usize = 64;
-/// The protocol version this code speaks: 3 adds the copies of earlier
-/// inputs after an input packet's 64 bytes.
-pub const VERSION: u8 = 3;
-/// Bytes of one copied input after an input packet's 64.
+/// The protocol version this code speaks: 3 added the copies of earlier
+/// inputs after an input packet's 64 bytes, 4 the timestamp echo before
+/// them.
+pub const VERSION: u8 = 4;
+/// Bytes of an input packet's timestamp echo ([`Stamp`]), after its 64.
+pub const STAMP_BYTES: usize = 12;
+/// Bytes of an input packet without copies.
+pub const INPUT_BYTES: usize = PACKET_BYTES + STAMP_BYTES;
+/// Bytes of one copied input after an input packet's stamp.
 pub const COPY_BYTES: usize = 56;
-/// Most copies one input packet may carry: 16 keeps the datagram at 960
+/// Most copies one input packet may carry: 16 keeps the datagram at 972
 /// bytes, inside the 1,232-byte UDP payload every IPv6 path carries
 /// (1,280-byte minimum MTU less 48 bytes of headers) without
 /// fragmentation.
 pub const MAX_COPIES: usize = 16;
 /// The longest datagram of this version (an input with [`MAX_COPIES`]).
-pub const MAX_DATAGRAM_BYTES: usize = PACKET_BYTES + MAX_COPIES * COPY_BYTES;
+pub const MAX_DATAGRAM_BYTES: usize = INPUT_BYTES + MAX_COPIES * COPY_BYTES;
+/// A stamp's hold when it echoes nothing (its echoed send time is then
+/// zero).
+pub const NO_ECHO: u32 = u32::MAX;
 /// "No tetrahedron" / "no node" in an index field.
 pub const NONE_INDEX: u16 = 0xFFFF;
 /// The haptic tick this version runs at (µs): one input per millisecond.
@@ -85,6 +96,30 @@ pub struct Acks {
     /// Bits 0–14: the peer's tick `ack + 1 + b` has arrived; bit 15
     /// ([`SACK_MORE`]): the receiver holds ticks beyond `ack + 15`.
     pub sack: u16,
+}
+
+/// The timestamp echo of an input packet (version 4; after RFC 7323
+/// §3–4, the TCP timestamps option): the sender's send time, and the send
+/// time of one input packet of the peer's that arrived, with how long it
+/// waited here. The peer's sample `now − echoed − hold` is that packet's
+/// trip and this one's, whatever tick it delivered.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stamp {
+    /// The sender's clock when it sent this packet: µs, modulo 2³².
+    pub sent_us: u32,
+    /// The echo, if one is due.
+    pub echo: Option<StampEcho>,
+}
+
+/// The echoed half of a [`Stamp`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StampEcho {
+    /// The [`Stamp::sent_us`] of the peer's packet echoed (the peer's
+    /// clock).
+    pub sent_us: u32,
+    /// µs between that packet's arrival and this packet's sending (below
+    /// [`NO_ECHO`]).
+    pub hold_us: u32,
 }
 
 /// Copies of earlier inputs an input packet carries (forward
@@ -392,6 +427,8 @@ pub enum Message {
         acks: Acks,
         /// The manipulation.
         input: Manipulation,
+        /// The timestamp echo.
+        stamp: Stamp,
         /// Copies of the sender's inputs of earlier ticks.
         copies: Copies,
     },
@@ -438,7 +475,7 @@ pub struct Packet {
 /// Why a packet was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Malformed {
-    /// Not 64 bytes.
+    /// Not 64 bytes (an input: not 76 + 56·n, n ≤ 16).
     WrongLength,
     /// Another protocol version.
     BadVersion,
@@ -514,7 +551,7 @@ impl Malformed {
 impl fmt::Display for Malformed {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let text = match self {
-            Malformed::WrongLength => "not 64 bytes long",
+            Malformed::WrongLength => "not 64 bytes long (an input: 76 + 56 per copy, 16 at most)",
             Malformed::BadVersion => "another protocol version",
             Malformed::ReservedBits => "reserved bits set",
             Malformed::BadCrc => "CRC mismatch",
@@ -641,7 +678,14 @@ fn finite(v: V3) -> bool {
     v.iter().all(|c| c.is_finite())
 }
 
-fn encode_input(b: &mut [u8], tick: u32, acks: Acks, m: &Manipulation, copies: &Copies) {
+fn encode_input(
+    b: &mut [u8],
+    tick: u32,
+    acks: Acks,
+    m: &Manipulation,
+    stamp: &Stamp,
+    copies: &Copies,
+) {
     put_f64s(&mut b[0..24], m.tip_m);
     let (tet, node) = match m.grip {
         Some(g) => {
@@ -654,8 +698,12 @@ fn encode_input(b: &mut [u8], tick: u32, acks: Acks, m: &Manipulation, copies: &
     put_u32(b, 28, tick);
     put_u16(b, 32, node);
     put_acks(b, acks);
+    put_u32(b, 64, stamp.sent_us);
+    let (echoed, hold) = stamp.echo.map_or((0, NO_ECHO), |e| (e.sent_us, e.hold_us));
+    put_u32(b, 68, echoed);
+    put_u32(b, 72, hold);
     for (k, (t, c)) in copies.as_slice().iter().enumerate() {
-        let r = &mut b[PACKET_BYTES + k * COPY_BYTES..PACKET_BYTES + (k + 1) * COPY_BYTES];
+        let r = &mut b[INPUT_BYTES + k * COPY_BYTES..INPUT_BYTES + (k + 1) * COPY_BYTES];
         put_u16(r, 0, tick.wrapping_sub(*t) as u16);
         let (tet, node) = match c.grip {
             Some(g) => {
@@ -797,9 +845,21 @@ fn decode_input(b: &[u8]) -> Result<Message, Malformed> {
         &b[40..64],
     )?;
     let tick = u32_at(b, 28);
+    let (sent_us, echoed, hold_us) = (u32_at(b, 64), u32_at(b, 68), u32_at(b, 72));
+    let echo = if hold_us == NO_ECHO {
+        if echoed != 0 {
+            return Err(Malformed::NonCanonical);
+        }
+        None
+    } else {
+        Some(StampEcho {
+            sent_us: echoed,
+            hold_us,
+        })
+    };
     let mut copies = Copies::none();
     let mut previous_back = u32::MAX;
-    for r in b[PACKET_BYTES..].chunks(COPY_BYTES) {
+    for r in b[INPUT_BYTES..].chunks(COPY_BYTES) {
         let back = u32::from(u16_at(r, 0));
         // Ticks ascending: each copy nearer the packet's own tick.
         if back == 0 || back as usize > MAX_COPIES || back >= previous_back || back > tick {
@@ -816,6 +876,7 @@ fn decode_input(b: &[u8]) -> Result<Message, Malformed> {
         tick,
         acks: get_acks(b),
         input,
+        stamp: Stamp { sent_us, echo },
         copies,
     })
 }
@@ -980,22 +1041,23 @@ fn decode_state(b: &[u8]) -> Result<Message, Malformed> {
 }
 
 impl Packet {
-    /// The bytes of this packet: 64, and [`COPY_BYTES`] more per copy
-    /// an input carries.
+    /// The bytes of this packet: 64; an input [`INPUT_BYTES`], and
+    /// [`COPY_BYTES`] more per copy it carries.
     pub fn encode(&self) -> Vec<u8> {
-        let copies = match &self.message {
-            Message::Input { copies, .. } => copies.len(),
-            _ => 0,
+        let len = match &self.message {
+            Message::Input { copies, .. } => INPUT_BYTES + copies.len() * COPY_BYTES,
+            _ => PACKET_BYTES,
         };
-        let mut b = vec![0u8; PACKET_BYTES + copies * COPY_BYTES];
+        let mut b = vec![0u8; len];
         let kind = match &self.message {
             Message::Input {
                 tick,
                 acks,
                 input,
+                stamp,
                 copies,
             } => {
-                encode_input(&mut b, *tick, *acks, input, copies);
+                encode_input(&mut b, *tick, *acks, input, stamp, copies);
                 0u8
             }
             Message::Hello(h) => {
@@ -1029,11 +1091,11 @@ impl Packet {
     /// The input ticks this packet carries (its own and its copies'), if
     /// it is an input packet: what the emulators count.
     pub fn input_ticks(bytes: &[u8]) -> Option<(u32, impl Iterator<Item = u32> + '_)> {
-        if bytes.len() < PACKET_BYTES || bytes[27] & 0b111 != 0 {
+        if bytes.len() < INPUT_BYTES || bytes[27] & 0b111 != 0 {
             return None;
         }
         let tick = u32_at(bytes, 28);
-        let copies = bytes[PACKET_BYTES..]
+        let copies = bytes[INPUT_BYTES..]
             .chunks_exact(COPY_BYTES)
             .map(move |r| tick.wrapping_sub(u32::from(u16_at(r, 0))));
         Some((tick, copies))
@@ -1042,12 +1104,13 @@ impl Packet {
     /// Decodes and checks the structure of a received datagram.
     pub fn decode(bytes: &[u8]) -> Result<Packet, Malformed> {
         let b = bytes;
-        let extra = b.len().saturating_sub(PACKET_BYTES);
-        if b.len() < PACKET_BYTES
-            || extra % COPY_BYTES != 0
-            || extra / COPY_BYTES > MAX_COPIES
-            || (extra > 0 && b[27] & 0b111 != 0)
-        {
+        let length_ok = if b.len() >= PACKET_BYTES && b[27] & 0b111 == 0 {
+            let extra = b.len().saturating_sub(INPUT_BYTES);
+            b.len() >= INPUT_BYTES && extra % COPY_BYTES == 0 && extra / COPY_BYTES <= MAX_COPIES
+        } else {
+            b.len() == PACKET_BYTES
+        };
+        if !length_ok {
             return Err(Malformed::WrongLength);
         }
         if b[26] != VERSION {
@@ -1254,18 +1317,24 @@ mod tests {
             acks(),
             manipulation(),
             proptest::collection::vec((any::<bool>(), manipulation()), MAX_COPIES),
+            (
+                any::<u32>(),
+                proptest::option::of((any::<u32>(), 0..NO_ECHO)),
+            ),
         )
-            .prop_map(|(tick, acks, input, pick)| {
+            .prop_map(|(tick, acks, input, pick, (sent_us, echo))| {
                 let mut copies = Copies::none();
                 for (back, (keep, m)) in (1..=MAX_COPIES as u32).rev().zip(pick) {
                     if keep && back <= tick {
                         copies.push(tick - back, m);
                     }
                 }
+                let echo = echo.map(|(sent_us, hold_us)| StampEcho { sent_us, hold_us });
                 Message::Input {
                     tick,
                     acks,
                     input,
+                    stamp: Stamp { sent_us, echo },
                     copies,
                 }
             })
@@ -1310,11 +1379,11 @@ mod tests {
         #[test]
         fn every_packet_is_64_bytes_and_round_trips_bit_exactly(p in packet()) {
             let b = p.encode();
-            let copies = match &p.message {
-                Message::Input { copies, .. } => copies.len(),
-                _ => 0,
+            let len = match &p.message {
+                Message::Input { copies, .. } => INPUT_BYTES + COPY_BYTES * copies.len(),
+                _ => PACKET_BYTES,
             };
-            prop_assert_eq!(b.len(), PACKET_BYTES + COPY_BYTES * copies);
+            prop_assert_eq!(b.len(), len);
             let q = Packet::decode(&b).unwrap();
             prop_assert!(same_bits(&p, &q), "{:?} vs {:?}", p, q);
             prop_assert_eq!(p, q);
@@ -1356,6 +1425,13 @@ mod tests {
             message: Message::Input {
                 tick: 123_456,
                 copies: Copies::none(),
+                stamp: Stamp {
+                    sent_us: 4_000_000_123,
+                    echo: Some(StampEcho {
+                        sent_us: 77,
+                        hold_us: 310,
+                    }),
+                },
                 acks: Acks {
                     ack: 7,
                     sack: 0b1010,
@@ -1458,7 +1534,7 @@ mod tests {
             copies.push(123_450, Manipulation::free(V3::zeros()));
         }
         let one = one.encode();
-        assert_eq!(one.len(), PACKET_BYTES + COPY_BYTES);
+        assert_eq!(one.len(), INPUT_BYTES + COPY_BYTES);
         assert!(Packet::decode(&one).is_ok());
         assert_eq!(Packet::decode(&one[..100]), Err(Malformed::WrongLength));
         let mut long_ack = ok.clone();
@@ -1466,12 +1542,33 @@ mod tests {
         assert_eq!(Packet::decode(&long_ack), Err(Malformed::WrongLength));
         for back in [0u16, 17] {
             let mut c = one.clone();
-            c[64..66].copy_from_slice(&back.to_le_bytes());
+            c[INPUT_BYTES..INPUT_BYTES + 2].copy_from_slice(&back.to_le_bytes());
             assert_eq!(Packet::decode(&reseal(c)), Err(Malformed::BadCopies));
         }
         let mut two = one.clone();
-        two.extend_from_slice(&one[64..]);
+        two.extend_from_slice(&one[INPUT_BYTES..]);
         assert_eq!(Packet::decode(&reseal(two)), Err(Malformed::BadCopies));
+        // The stamp: an input of version 3's 64 bytes has none; "no echo"
+        // (hold 0xFFFFFFFF) with an echoed time is not canonical; the
+        // stamp is where the page puts it.
+        assert_eq!(
+            Packet::decode(&input[..PACKET_BYTES]),
+            Err(Malformed::WrongLength)
+        );
+        assert_eq!(
+            u32::from_le_bytes(input[64..68].try_into().unwrap()),
+            4_000_000_123
+        );
+        assert_eq!(u32::from_le_bytes(input[68..72].try_into().unwrap()), 77);
+        assert_eq!(u32::from_le_bytes(input[72..76].try_into().unwrap()), 310);
+        let mut none = input.clone();
+        none[72..76].copy_from_slice(&NO_ECHO.to_le_bytes());
+        assert_eq!(
+            Packet::decode(&reseal(none.clone())),
+            Err(Malformed::NonCanonical)
+        );
+        none[68..72].copy_from_slice(&[0; 4]);
+        assert!(Packet::decode(&reseal(none)).is_ok());
         // The CRC covers the copies.
         let mut flipped = one.clone();
         flipped[100] ^= 1;
@@ -1528,6 +1625,7 @@ mod tests {
             message: Message::Input {
                 tick: 0,
                 acks: Acks::default(),
+                stamp: Stamp::default(),
                 copies: Copies::none(),
                 input: Manipulation {
                     tip_m: V3::zeros(),

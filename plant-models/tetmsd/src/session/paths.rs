@@ -5,9 +5,9 @@
 //!
 //! - **Round trip**: the link's mean sample against the path's mean round
 //!   trip, the mean one-way delay the emulator gave the inputs one way
-//!   plus the mean it gave them the other way (acknowledgements ride on
-//!   the inputs), plus half a tick: an acknowledgement waits for the
-//!   receiver's next tick, 0–1 ms, 0.5 ms on average. Within 10 %.
+//!   plus the mean it gave them the other way (the timestamp echoes ride
+//!   on the inputs, and a sample leaves out the receiver's hold, which
+//!   the echo states). Within 10 %.
 //! - **Resends** against the inputs the emulator really dropped: at most
 //!   1.2 × as many (with nothing dropped, none).
 //! - **Committed lag** (the committed replica's distance behind the
@@ -99,8 +99,9 @@ pub struct SiteFigures {
     pub packets_lost: u64,
     /// Bytes per second of session this site sent (every datagram).
     pub bytes_per_s: f64,
-    /// Of those, the copies of earlier inputs: version 2 would have sent
-    /// `bytes_per_s − copy_bytes_per_s`.
+    /// Of those, the copies of earlier inputs: without them a site sends
+    /// `bytes_per_s − copy_bytes_per_s` (version 2 sent that less the
+    /// 12-byte timestamp echo of every input packet).
     pub copy_bytes_per_s: f64,
     /// The committed replica's lag at p99 (ms).
     pub lag_p99_ms: f64,
@@ -130,8 +131,7 @@ impl PathFigures {
             SiteFigures {
                 rtt_measured_ms: me.link.rtt_mean_us() / 1000.0,
                 rtt_path_ms: (me.netem.input_delay_mean_us() + peer.netem.input_delay_mean_us())
-                    / 1000.0
-                    + 0.5,
+                    / 1000.0,
                 rtt_samples: me.link.rtt_samples,
                 resends: me.link.retransmissions,
                 lost: me.netem.input_ticks_lost,
@@ -234,7 +234,7 @@ impl PathFigures {
 
     /// The table's header (Markdown).
     pub fn header() -> &'static str {
-        "| path | loss % | reorder % | RTT site 0 measured / path (ms) | RTT site 1 | resends / inputs lost (packets lost) site 0 | site 1 | lag p99 site 0 / 1 (ms) | RTT + 50 ms | kB/s sent site 0 / as version 2 | identical | all met |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| path | loss % | reorder % | RTT site 0 measured / path (ms) | RTT site 1 | resends / inputs lost (packets lost) site 0 | site 1 | lag p99 site 0 / 1 (ms) | RTT + 50 ms | kB/s sent site 0 / without the copies | identical | all met |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
     }
 }
 

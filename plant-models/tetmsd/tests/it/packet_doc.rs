@@ -8,7 +8,8 @@ use plant_tetmsd::model::voigt::State;
 use plant_tetmsd::model::V3;
 use plant_tetmsd::packet::{
     fnv1a, Acks, Bye, ByeReason, Copies, Echo, Hello, Message, Packet, SackReport, SessionFields,
-    Stage, StateChunk, COPY_BYTES, MAX_BLOCKS, PACKET_BYTES, SACK_MORE, TICK_US, VERSION,
+    Stage, Stamp, StampEcho, StateChunk, COPY_BYTES, INPUT_BYTES, MAX_BLOCKS, PACKET_BYTES,
+    SACK_MORE, TICK_US, VERSION,
 };
 
 fn doc() -> String {
@@ -95,6 +96,13 @@ fn examples() -> Vec<(&'static str, Packet)> {
                             node_m: V3::new(0.015, 0.03, 0.0595),
                         }),
                     },
+                    stamp: Stamp {
+                        sent_us: 1_234_250,
+                        echo: Some(StampEcho {
+                            sent_us: 1_229_310,
+                            hold_us: 420,
+                        }),
+                    },
                     copies: Copies::none(),
                 },
             },
@@ -110,6 +118,10 @@ fn examples() -> Vec<(&'static str, Packet)> {
                         sack: 0b101,
                     },
                     input: Manipulation::free(V3::new(0.02, 0.03, 0.061)),
+                    stamp: Stamp {
+                        sent_us: 1_235_250,
+                        echo: None,
+                    },
                     copies: copies_example(),
                 },
             },
@@ -229,11 +241,11 @@ fn the_example_packets_are_the_encoders_bytes() {
     let d = doc();
     for (name, p) in examples() {
         let bytes = p.encode();
-        let copies = match &p.message {
-            Message::Input { copies, .. } => copies.len(),
-            _ => 0,
+        let len = match &p.message {
+            Message::Input { copies, .. } => INPUT_BYTES + COPY_BYTES * copies.len(),
+            _ => PACKET_BYTES,
         };
-        assert_eq!(bytes.len(), PACKET_BYTES + COPY_BYTES * copies);
+        assert_eq!(bytes.len(), len);
         let h = hex(&bytes);
         assert!(
             d.contains(&format!("```\n{h}\n```")),
@@ -331,6 +343,9 @@ fn the_page_names_every_field_where_the_code_puts_it() {
         "| 6–7 | zero",
         "| 8–31 | stylus tip",
         "| 32–55 | held node",
+        "| 64–67 | send time",
+        "| 68–71 | echoed send time",
+        "| 72–75 | hold",
     ] {
         assert!(
             d.contains(needle),

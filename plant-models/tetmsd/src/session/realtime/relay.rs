@@ -11,7 +11,7 @@
 //! and the reverse. A side's site address is given or learnt from the
 //! first datagram that arrives on its socket (a restarted site that binds
 //! a new port is learnt again). Datagrams shorter than 64 bytes or longer
-//! than an input with 16 copies (960 bytes) are not packets of this
+//! than an input with 16 copies (972 bytes) are not packets of this
 //! protocol: counted and dropped.
 //!
 //! Timing is the relay's own clock (µs since it started); it sleeps
@@ -78,10 +78,11 @@ pub struct RelayReport {
     /// The same from B.
     pub b_to_a_late_mean_us: f64,
     /// The mean round trip the relay gave the inputs — one way plus the
-    /// other, each the emulated delay plus the relay's lateness — plus
-    /// half a tick of acknowledgement hold (ms).
+    /// other, each the emulated delay plus the relay's lateness (ms). The
+    /// sites' samples leave out the receiver's hold (the timestamp echo
+    /// says it), so none is added.
     pub path_rtt_ms: f64,
-    /// Datagrams shorter than 64 or longer than 960 bytes (dropped).
+    /// Datagrams shorter than 64 or longer than 972 bytes (dropped).
     pub not_packets: u64,
     /// Datagrams due to a side whose site was not known yet (dropped).
     pub no_destination: u64,
@@ -194,8 +195,7 @@ pub fn run_relay(setup: RelaySetup) -> Result<RelayReport> {
         + report.a_to_b_late_mean_us
         + report.b_to_a.input_delay_mean_us
         + report.b_to_a_late_mean_us)
-        / 1000.0
-        + 0.5;
+        / 1000.0;
     report.run_s = start.elapsed().as_secs_f64();
     Ok(report)
 }
