@@ -277,7 +277,6 @@ fn analyse_coil(log: &ExcitationLog, slot: usize, noise: f64) -> Result<CoilProb
             ),
         });
     }
-    let dt = log.period_s;
     // Current noise: rows where the coil has no input.
     let currents = log.current_a.as_ref();
     let i_noise = currents.map(|c| {
@@ -287,40 +286,7 @@ fn analyse_coil(log: &ExcitationLog, slot: usize, noise: f64) -> Result<CoilProb
             .collect();
         super::rms(off.iter().copied())
     });
-    let mut levels = Vec::new();
-    for (n, s) in segs.iter().enumerate() {
-        let t_on = log.t_s[s.start];
-        let t_next = segs
-            .get(n + 1)
-            .map_or(log.t_s[log.len() - 1] + dt, |x| log.t_s[x.start]);
-        let before = frames_between(log, plane, t_on - 1.0, t_on);
-        let base = if before.is_empty() {
-            frames_between(log, plane, t_on, t_on + 0.1)
-                .first()
-                .map_or(f64::NAN, |f| f.1)
-        } else {
-            before.iter().map(|f| f.1).sum::<f64>() / before.len() as f64
-        };
-        let after = frames_between(log, plane, t_on, t_next);
-        let travel = after
-            .iter()
-            .map(|f| f.1 - base)
-            .max_by(|a, b| a.abs().total_cmp(&b.abs()))
-            .unwrap_or(f64::NAN);
-        let current_a = currents.map(|c| {
-            let half = s.start + (s.end - s.start) / 2;
-            let rows = &c[half..s.end - 1];
-            rows.iter().map(|r| r[slot]).sum::<f64>() / rows.len().max(1) as f64
-        });
-        levels.push((
-            s,
-            LevelProbe {
-                volts: s.volts,
-                current_a,
-                travel_deg: travel,
-            },
-        ));
-    }
+    let levels = level_probes(log, plane, slot, &segs, currents);
     if levels.iter().any(|(_, l)| l.travel_deg.is_nan()) {
         return Err(ProbeError {
             column: cam.clone(),
@@ -365,7 +331,89 @@ fn analyse_coil(log: &ExcitationLog, slot: usize, noise: f64) -> Result<CoilProb
         }
     }
     // The driver from the currents.
-    let (bracket, turn_on) = match i_noise {
+    let (bracket, turn_on) = driver_from_currents(coil, &steps, &top, i_noise)?;
+    // Rise and fall of the top pulse's travel.
+    let (rise_63_s, fall_37_s) = rise_and_fall(log, plane, &segs, top_seg, &top, sign);
+    let anchor_v = turn_on.unwrap_or(motion_from_v - 0.1);
+    Ok(CoilProbe {
+        coil,
+        plane,
+        levels: steps
+            .into_iter()
+            .chain(std::iter::once(top.clone()))
+            .collect(),
+        current_bracket_v: bracket,
+        turn_on_v: turn_on,
+        motion_from_v,
+        anchor_v,
+        top_v: top.volts,
+        top_travel_deg: top.travel_deg,
+        rise_63_s,
+        fall_37_s,
+    })
+}
+
+/// Each constant level of the staircase: its input, the current over its
+/// second half and the plane's largest travel from the second before it.
+fn level_probes<'a>(
+    log: &ExcitationLog,
+    plane: usize,
+    slot: usize,
+    segs: &'a [Segment],
+    currents: Option<&Vec<[f64; 4]>>,
+) -> Vec<(&'a Segment, LevelProbe)> {
+    let dt = log.period_s;
+    let mut levels = Vec::new();
+    for (n, s) in segs.iter().enumerate() {
+        let t_on = log.t_s[s.start];
+        let t_next = segs
+            .get(n + 1)
+            .map_or(log.t_s[log.len() - 1] + dt, |x| log.t_s[x.start]);
+        let before = frames_between(log, plane, t_on - 1.0, t_on);
+        let base = if before.is_empty() {
+            frames_between(log, plane, t_on, t_on + 0.1)
+                .first()
+                .map_or(f64::NAN, |f| f.1)
+        } else {
+            before.iter().map(|f| f.1).sum::<f64>() / before.len() as f64
+        };
+        let after = frames_between(log, plane, t_on, t_next);
+        let travel = after
+            .iter()
+            .map(|f| f.1 - base)
+            .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+            .unwrap_or(f64::NAN);
+        let current_a = currents.map(|c| {
+            let half = s.start + (s.end - s.start) / 2;
+            let rows = &c[half..s.end - 1];
+            rows.iter().map(|r| r[slot]).sum::<f64>() / rows.len().max(1) as f64
+        });
+        levels.push((
+            s,
+            LevelProbe {
+                volts: s.volts,
+                current_a,
+                travel_deg: travel,
+            },
+        ));
+    }
+    levels
+}
+
+/// Highest input without a current and lowest with one (V).
+type Bracket = Option<(f64, f64)>;
+
+/// The bracket of the driver's turn-on (highest input without a current,
+/// lowest with one) and the turn-on itself from the staircase's currents:
+/// a line through the unsaturated steps where it falls inside the bracket,
+/// else the bracket's middle. `None`s without current columns.
+fn driver_from_currents(
+    coil: usize,
+    steps: &[LevelProbe],
+    top: &LevelProbe,
+    i_noise: Option<f64>,
+) -> Result<(Bracket, Option<f64>), ProbeError> {
+    Ok(match i_noise {
         Some(n) => {
             let on_at = 3.0 * n + 0.005;
             let with: Vec<&LevelProbe> = steps
@@ -380,12 +428,12 @@ fn analyse_coil(log: &ExcitationLog, slot: usize, noise: f64) -> Result<CoilProb
             let top_i = top.current_a.unwrap_or(0.0);
             let Some(lowest_on) = with.first().map(|l| l.volts) else {
                 return Err(ProbeError {
-                    column: format!("i{coil}_a"),
-                    message: format!(
-                        "coil {coil} carried no current on any step up to {} V: its driver turns on above the probe's staircase (or does not conduct)",
-                        plant_common::short_number(steps.last().map_or(0.0, |l| l.volts))
-                    ),
-                });
+                column: format!("i{coil}_a"),
+                message: format!(
+                    "coil {coil} carried no current on any step up to {} V: its driver turns on above the probe's staircase (or does not conduct)",
+                    plant_common::short_number(steps.last().map_or(0.0, |l| l.volts))
+                ),
+            });
             };
             // Unsaturated: below 0.85 × the top pulse's (saturated) current.
             let lin: Vec<(f64, f64)> = with
@@ -423,10 +471,21 @@ fn analyse_coil(log: &ExcitationLog, slot: usize, noise: f64) -> Result<CoilProb
             )
         }
         None => (None, None),
-    };
-    // Rise and fall of the top pulse's travel.
+    })
+}
+
+/// Seconds to 63 % of the top pulse's travel and from its peak down to
+/// 37 % (`None` when the log ends first).
+fn rise_and_fall(
+    log: &ExcitationLog,
+    plane: usize,
+    segs: &[Segment],
+    top_seg: &Segment,
+    top: &LevelProbe,
+    sign: f64,
+) -> (f64, Option<f64>) {
+    let dt = log.period_s;
     let t_on = log.t_s[top_seg.start];
-    let base = top.travel_deg; // signed peak
     let t_next = segs
         .iter()
         .find(|s| s.start > top_seg.start)
@@ -435,7 +494,7 @@ fn analyse_coil(log: &ExcitationLog, slot: usize, noise: f64) -> Result<CoilProb
     let b0 = before.iter().map(|f| f.1).sum::<f64>() / before.len().max(1) as f64;
     let after = frames_between(log, plane, t_on, t_next);
     let d: Vec<(f64, f64)> = after.iter().map(|f| (f.0, sign * (f.1 - b0))).collect();
-    let peak = base.abs();
+    let peak = top.travel_deg.abs();
     let (tp, _) = d
         .iter()
         .copied()
@@ -449,23 +508,7 @@ fn analyse_coil(log: &ExcitationLog, slot: usize, noise: f64) -> Result<CoilProb
         .iter()
         .find(|f| f.0 > tp && f.1 <= 0.37 * peak)
         .map(|f| f.0 - tp);
-    let anchor_v = turn_on.unwrap_or(motion_from_v - 0.1);
-    Ok(CoilProbe {
-        coil,
-        plane,
-        levels: steps
-            .into_iter()
-            .chain(std::iter::once(top.clone()))
-            .collect(),
-        current_bracket_v: bracket,
-        turn_on_v: turn_on,
-        motion_from_v,
-        anchor_v,
-        top_v: top.volts,
-        top_travel_deg: top.travel_deg,
-        rise_63_s,
-        fall_37_s,
-    })
+    (rise_63_s, fall_37_s)
 }
 
 /// Splits a drive whose peak exceeds `limit_v` into
