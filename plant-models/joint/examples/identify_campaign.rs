@@ -23,7 +23,8 @@
 //!
 //! `cargo run --release -p plant-joint --example identify_campaign -- [TWINS] [SECONDS] [FIRST] [Z.csv]`
 //! (default 20 twins of the 240 s plan; ≈ 15–40 s of CPU per twin). With
-//! `Z.csv`, every estimate called identifiable is written there with its
+//! `Z.csv` (a new file: an existing one is refused), every estimate
+//! called identifiable is written there with its
 //! signed distance from the truth in its own 1σ (what the 1σ's
 //! calibration is measured from).
 //! Exits 1 when a wrong parameter is called identifiable on a verified
@@ -116,6 +117,19 @@ fn main() {
     let seconds = parse(2, 240.0);
     let first = parse(3, 0.0) as u64;
     let plan = ExcitationPlan::standard(2, seconds, false);
+    // Opened before the campaign, as a new file only: nothing that already
+    // exists (a user's file, a device, a FIFO, a link) is replaced, and a
+    // refused path is said before the minutes of work, not after.
+    let z_file = args.get(4).map(|path| {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .unwrap_or_else(|e| {
+                eprintln!("{path}: {e} (the σ-distances go to a new file only)");
+                std::process::exit(2)
+            })
+    });
     let mut tallies = [Tally::default(), Tally::default()];
     let mut z_rows = String::from("twin,plane,field,stage,verified_plane,verified,z\n");
     for k in first..first + twins {
@@ -158,8 +172,9 @@ fn main() {
             );
         }
     }
-    if let Some(path) = args.get(4) {
-        if let Err(e) = std::fs::write(path, &z_rows) {
+    if let (Some(path), Some(mut f)) = (args.get(4), z_file) {
+        use std::io::Write;
+        if let Err(e) = f.write_all(z_rows.as_bytes()) {
             eprintln!("{path}: {e}");
             std::process::exit(2);
         }
