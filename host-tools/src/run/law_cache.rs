@@ -90,12 +90,32 @@ fn file_for(dir: &Path, key: &str) -> PathBuf {
 /// there and reads as a valid calibration.
 pub fn load(dir: &Path, key: &str) -> Option<(CalibrationFile, usize)> {
     let path = file_for(dir, key);
-    let text = std::fs::read_to_string(&path).ok()?;
-    let entry: Entry = toml::from_str(&text).ok()?;
+    parse(&std::fs::read_to_string(&path).ok()?, key)
+}
+
+/// The laws of an entry's text when its key is exactly `key` and its
+/// calibration is valid (a cache file's or the built-in entry's).
+pub fn parse(text: &str, key: &str) -> Option<(CalibrationFile, usize)> {
+    let entry: Entry = toml::from_str(text).ok()?;
     if entry.key != key || entry.calibration.check().is_err() {
         return None;
     }
     Some((entry.calibration, entry.sweep_rows))
+}
+
+/// An entry's text as [`store`] writes it, after `header`.
+pub fn entry_text(
+    header: &str,
+    key: &str,
+    calibration: &CalibrationFile,
+    sweep_rows: usize,
+) -> anyhow::Result<String> {
+    let entry = Entry {
+        key: key.to_string(),
+        sweep_rows,
+        calibration: calibration.clone(),
+    };
+    Ok(format!("{header}{}", toml::to_string(&entry)?))
 }
 
 /// Keeps the laws for `key` in `dir` (created if missing), atomically so

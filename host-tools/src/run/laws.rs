@@ -104,10 +104,10 @@ pub fn fitted(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<Arc<
         return Ok(hit);
     }
     let kept = law_cache::dir().zip(law_cache::key(&key));
-    let fit = match kept
-        .as_ref()
-        .and_then(|(dir, file_key)| law_cache::load(dir, file_key))
-    {
+    let fit = match law_cache::parse(BUILT_IN, &key).or_else(|| {
+        kept.as_ref()
+            .and_then(|(dir, file_key)| law_cache::load(dir, file_key))
+    }) {
         Some((calibration, sweep_rows)) => FittedLaws {
             calibration,
             sweep_rows,
@@ -127,6 +127,19 @@ pub fn fitted(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<Arc<
     Ok(fit)
 }
 
+/// The default scenario's laws (`softjoint sim` with no scenario: the 3D
+/// joint's defaults, seed and the switching method), fitted once to its
+/// 80 s sweep and kept in the source, so that the main job's first run
+/// does not sweep either (issue 34: the sweep and fit were ≈ 700 M of a
+/// first run's ≈ 814 M instructions). Used only under its exact key, the
+/// same text as the process cache's (every parameter of the joint and the
+/// method), and held to the fit by
+/// `tests::the_built_in_laws_are_the_default_joints_own_fit`, which
+/// sweeps and fits anew and fails on any difference (after a change to the
+/// plant, the firmware or the fit: regenerate with
+/// `SOFTJOINT_BLESS_LAWS=1 cargo test -p host-tools --lib built_in_laws`).
+const BUILT_IN: &str = include_str!("default_laws.toml");
+
 /// The sweep of `joint` and `method`'s fit to it, uncached.
 fn sweep_and_fit(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<FittedLaws> {
     let rows = calibration_sweep(joint)?;
@@ -142,4 +155,70 @@ fn sweep_and_fit(joint: &JointSpec, method: EstimatorMethod) -> anyhow::Result<F
         calibration,
         sweep_rows: rows.len(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default scenario's joint and its key, as [`fitted`] forms it.
+    fn default_key() -> (JointSpec, EstimatorMethod, String) {
+        let s = Scenario::default();
+        let joint = JointSpec::of(&s);
+        let method = s.estimator.method;
+        let key = format!("{joint:?}|{method:?}");
+        (joint, method, key)
+    }
+
+    /// The built-in entry is the default joint's own sweep and fit, key and
+    /// laws alike: a change to the plant, the firmware, the sweep or the
+    /// fit that moves any digit of the laws fails here (an 80 s sweep,
+    /// ≈ 0.5 CPU-s in an optimised build).
+    #[test]
+    fn the_built_in_laws_are_the_default_joints_own_fit() {
+        let (joint, method, key) = default_key();
+        let fit = sweep_and_fit(&joint, method).expect("the default joint sweeps and fits");
+        let header =
+            "# The default scenario's laws (`softjoint sim` with no scenario), fitted to\n\
+                      # its simulated calibration sweep; see `run::laws::BUILT_IN`. Generated:\n\
+                      # SOFTJOINT_BLESS_LAWS=1 cargo test -p host-tools --lib built_in_laws\n";
+        let text = law_cache::entry_text(header, &key, &fit.calibration, fit.sweep_rows)
+            .expect("the entry serialises");
+        if std::env::var_os("SOFTJOINT_BLESS_LAWS").is_some() {
+            std::fs::write(
+                concat!(env!("CARGO_MANIFEST_DIR"), "/src/run/default_laws.toml"),
+                &text,
+            )
+            .expect("the built-in entry is written");
+            return;
+        }
+        let built_in = law_cache::parse(BUILT_IN, &key).expect(
+            "the built-in entry is not the default joint's (another key or invalid laws); \
+             regenerate it with SOFTJOINT_BLESS_LAWS=1 (see `BUILT_IN`)",
+        );
+        assert_eq!(
+            built_in,
+            (fit.calibration.clone(), fit.sweep_rows),
+            "the built-in laws are not the default joint's fit; regenerate them with \
+             SOFTJOINT_BLESS_LAWS=1 (see `BUILT_IN`)"
+        );
+        // Read back from the text the test itself makes, too: the entry
+        // round-trips every digit.
+        assert_eq!(
+            law_cache::parse(&text, &key),
+            Some((fit.calibration, fit.sweep_rows))
+        );
+    }
+
+    /// Only the exact key reads the built-in entry: another seed of the
+    /// same joint, or another method, is a miss.
+    #[test]
+    fn the_built_in_laws_serve_only_their_own_key() {
+        let (joint, method, key) = default_key();
+        assert!(law_cache::parse(BUILT_IN, &key).is_some());
+        let other_seed = joint.with_seed(joint.seed + 1);
+        assert!(law_cache::parse(BUILT_IN, &format!("{other_seed:?}|{method:?}")).is_none());
+        let other_method = format!("{joint:?}|{:?}", EstimatorMethod::Differential);
+        assert!(law_cache::parse(BUILT_IN, &other_method).is_none());
+    }
 }

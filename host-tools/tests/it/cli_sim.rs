@@ -342,15 +342,18 @@ fn a_2d_file_without_targets_runs_the_default_steps_under_its_own_name() {
     assert_eq!(v["segments"][0]["desired_deg"], serde_json::json!([0.0]));
 }
 
-/// The laws fitted to the default joint's sweep are kept between runs
+/// The laws fitted to a joint's sweep are kept between runs
 /// (`run::law_cache`): the second run reads them instead of sweeping and
-/// prints the same summary; an entry is used only under its own key.
+/// prints the same summary; an entry is used only under its own key. (A
+/// joint other than the default's, whose laws are built in.)
 #[test]
 fn fitted_laws_are_kept_between_runs_and_used_only_under_their_key() {
     let dir = scratch("law-cache");
+    let scenario = dir.join("seed2.toml");
+    std::fs::write(&scenario, "joint = \"3d\"\nseed = 2\n").unwrap();
     let run = |cache: &Path| {
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_softjoint"))
-            .args(["sim", "--json"])
+            .args(["sim", s(&scenario), "--json"])
             .env("SOFTJOINT_CACHE_DIR", cache)
             .output()
             .expect("binary runs");
@@ -365,6 +368,7 @@ fn fitted_laws_are_kept_between_runs_and_used_only_under_their_key() {
     let entries: Vec<_> = std::fs::read_dir(&*dir)
         .unwrap()
         .map(|e| e.unwrap().path())
+        .filter(|p| p != &scenario)
         .collect();
     assert_eq!(entries.len(), 1, "one kept fit: {entries:?}");
     let kept = std::fs::read_to_string(&entries[0]).unwrap();
@@ -396,4 +400,31 @@ fn fitted_laws_are_kept_between_runs_and_used_only_under_their_key() {
     .unwrap();
     assert_eq!(run(&dir), cold, "an entry under another key was used");
     assert_eq!(std::fs::read_to_string(&entries[0]).unwrap(), kept);
+}
+
+/// The default scenario's laws are built into the program
+/// (`run::laws::BUILT_IN`): its first run neither sweeps nor writes a
+/// cache entry, and says where its laws come from exactly as a swept run
+/// does (the same summary as with the cache turned off is asserted by
+/// `run::laws`'s test that the built-in entry is the fit).
+#[test]
+fn the_default_runs_first_time_from_its_built_in_laws() {
+    let dir = scratch("law-cache-default");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_softjoint"))
+        .args(["sim", "--json"])
+        .env("SOFTJOINT_CACHE_DIR", &*dir)
+        .output()
+        .expect("binary runs");
+    ok(&o);
+    let v: Value = serde_json::from_str(&stdout(&o)).expect("JSON");
+    assert_eq!(
+        std::fs::read_dir(&*dir).unwrap().count(),
+        0,
+        "the default run swept and kept its fit"
+    );
+    let estimator = v["estimator"].as_str().unwrap_or_default();
+    assert!(
+        estimator.contains("fitted to a simulated sweep (2399 rows)"),
+        "{v}"
+    );
 }
