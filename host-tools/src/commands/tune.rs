@@ -137,18 +137,7 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let g = r.gains_file(&a.plant.display().to_string(), joint, a.request());
     let proven = r.heldout.beats_or_ties_paper;
-    let verdict = format!(
-        "held-out steps {:?} on {} plants drawn anew: tuned robust cost {:.3}, paper {:.3}: {}",
-        tune::HELDOUT_STEPS.map(|s| s.1),
-        a.plants,
-        r.heldout.score.robust,
-        r.heldout.paper.robust,
-        if proven {
-            "the tuned gains beat or tie the paper's"
-        } else {
-            "the tuned gains LOSE to the paper's: NOT RECOMMENDED"
-        }
-    );
+    let verdict = heldout_verdict(&r.heldout, a.plants);
     if !proven && !a.allow_unproven {
         anyhow::bail!("{verdict}; no gains written (--allow-unproven writes them all the same)");
     }
@@ -310,4 +299,34 @@ fn stopped(a: &TuneArgs, signal: StopSignal, state: &tune::SearchState) -> anyho
         ),
     }
     .into()
+}
+
+/// What the held-out check found, manoeuvre by manoeuvre, and its verdict.
+fn heldout_verdict(h: &host_tools::files::gains::HeldOut, plants: u64) -> String {
+    let steps_ok = h.score.robust <= h.paper.robust * (1.0 + tune::HELDOUT_TIE);
+    let mut parts = vec![format!(
+        "steps {:?}: tuned {:.3}, paper {:.3}{}",
+        tune::HELDOUT_STEPS.map(|s| s.1),
+        h.score.robust,
+        h.paper.robust,
+        if steps_ok { "" } else { " (LOST)" }
+    )];
+    for m in &h.manoeuvres {
+        parts.push(format!(
+            "{}: tuned {:.3}, paper {:.3}{}",
+            m.name,
+            m.tuned.robust,
+            m.paper.robust,
+            if m.beats_or_ties_paper { "" } else { " (LOST)" }
+        ));
+    }
+    format!(
+        "held-out manoeuvres on {plants} plants drawn anew (robust cost) — {}: {}",
+        parts.join("; "),
+        if h.beats_or_ties_paper {
+            "the tuned gains beat or tie the paper's on every one"
+        } else {
+            "the tuned gains LOSE to the paper's: NOT RECOMMENDED"
+        }
+    )
 }

@@ -85,18 +85,38 @@ pub struct Tuning {
 }
 
 /// Tuned gains against the paper's on manoeuvres the search never saw
-/// (`host_tools::joint::tune::heldout_scenario`) and on plants drawn
-/// anew from the identification's uncertainty.
+/// (`host_tools::joint::tune::Manoeuvre`) and on plants drawn anew from
+/// the identification's uncertainty.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HeldOut {
-    /// The tuned gains' score there.
+    /// The tuned gains' score on the held-out steps (the first
+    /// manoeuvre, the only one before the others were added).
     pub score: Score,
     /// The paper's gains' score there.
     pub paper: Score,
     /// Whether the tuned gains' robust cost is at most the paper's
-    /// (within `host_tools::joint::tune::HELDOUT_TIE`).
+    /// (within `host_tools::joint::tune::HELDOUT_TIE`) on the steps and on
+    /// every other manoeuvre.
     pub beats_or_ties_paper: bool,
+    /// The other manoeuvres (the planes in opposite directions, a load);
+    /// absent in files written before them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub manoeuvres: Vec<ManoeuvreScore>,
+}
+
+/// The tuned and the paper's gains on one held-out manoeuvre.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManoeuvreScore {
+    /// The manoeuvre ("opposite planes", "load").
+    pub name: String,
+    /// Whether the tuned gains beat or tie the paper's on it.
+    pub beats_or_ties_paper: bool,
+    /// The tuned gains' score.
+    pub tuned: Score,
+    /// The paper's gains' score.
+    pub paper: Score,
 }
 
 /// A gains file (`softjoint tune -o`), loaded by scenarios

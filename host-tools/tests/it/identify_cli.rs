@@ -176,9 +176,21 @@ fn record_identify_tune_and_load_the_gains() {
     let g = GainsFile::load(&gains).unwrap();
     let heldout = g.tuning.as_ref().unwrap().heldout.as_ref().unwrap();
     assert_eq!(proven, heldout.beats_or_ties_paper);
+    // Proven only if the tuned gains beat or tie the paper's on the steps
+    // and on every other manoeuvre (2D: the load).
+    let names: Vec<&str> = heldout.manoeuvres.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["load"]);
+    for m in &heldout.manoeuvres {
+        assert_eq!(
+            m.beats_or_ties_paper,
+            m.tuned.robust <= m.paper.robust * (1.0 + tune::HELDOUT_TIE),
+            "{m:?}"
+        );
+    }
     assert_eq!(
         proven,
-        heldout.score.robust <= heldout.paper.robust * (1.0 + tune::HELDOUT_TIE),
+        heldout.score.robust <= heldout.paper.robust * (1.0 + tune::HELDOUT_TIE)
+            && heldout.manoeuvres.iter().all(|m| m.beats_or_ties_paper),
         "{heldout:?}"
     );
     assert_eq!(g.joint, JointKind::TwoD);

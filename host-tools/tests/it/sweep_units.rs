@@ -22,6 +22,9 @@
 //! those last digits move the 9 × 2 tune's costs by up to 6 %. The
 //! units' equality with the program before them held when issue 33 landed;
 //! since issue 34 the file pins the tune's output against later changes.
+//! Issue 28's held-out manoeuvres (opposite planes, a load) added their
+//! scores to the file (written again, same arguments): everything before
+//! them in it is unchanged.
 use std::path::Path;
 use std::process::Command;
 
