@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::Args;
+use host_tools::files::gains::GainsFile;
 use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::files::JointKind;
 use host_tools::joint::tune;
@@ -56,6 +57,12 @@ pub struct TuneArgs {
     /// A search stopped again writes its state back to this file.
     #[arg(long, value_name = "STATE")]
     resume: Option<PathBuf>,
+    /// A gains file in use now (`tune -o` or hand-written): scored on the
+    /// held-out manoeuvres and plants beside the tuned and the paper's
+    /// gains, so the output says whether the tuned gains beat them too.
+    /// Reported only: the recommendation is against the paper's gains.
+    #[arg(long, value_name = "GAINS_FILE")]
+    current: Option<PathBuf>,
 }
 
 impl TuneArgs {
@@ -104,6 +111,11 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
         PlantParams::ThreeD(_) => (JointKind::ThreeD, 4),
     };
     let done = a.resumed(&plant_bytes)?;
+    let current = a
+        .current
+        .as_ref()
+        .map(|path| current_gains(path, joint))
+        .transpose()?;
     // The gains file and the state file can be written: checked before
     // the search, not after it.
     output::check_file(&a.output)?;
@@ -138,6 +150,17 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
     let g = r.gains_file(&a.plant.display().to_string(), joint, a.request());
     let proven = r.heldout.beats_or_ties_paper;
     let verdict = heldout_verdict(&r.heldout, a.plants);
+    let current = match &current {
+        Some(g) => Some(
+            tune::heldout_scores(&file, &[&g.controller], a.plants as usize, a.seed)
+                .context("the current gains on the held-out manoeuvres")?
+                .into_iter()
+                .map(|(m, mut s)| (m, s.remove(0)))
+                .collect::<Vec<_>>(),
+        ),
+        None => None,
+    };
+    let against_current = current.as_ref().map(|c| against_current(&r.heldout, c));
     if !proven && !a.allow_unproven {
         anyhow::bail!("{verdict}; no gains written (--allow-unproven writes them all the same)");
     }
@@ -152,6 +175,10 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
             .field("failed_candidates", &r.failed)?
             .field("wall_seconds", &wall)?
             .field("heldout_beats_or_ties_paper", &proven)?
+            .field(
+                "heldout_current",
+                &against_current.as_ref().map(|(rows, _)| rows),
+            )?
             .print()?;
     } else {
         let c = &r.best;
@@ -179,6 +206,9 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
             );
         }
         host_tools::outln!("{verdict}");
+        if let (Some(path), Some((_, line))) = (&a.current, &against_current) {
+            host_tools::outln!("current gains ({}) {line}", path.display());
+        }
         host_tools::outln!("gains written to {}", a.output.display());
     }
     Ok(())
@@ -329,4 +359,83 @@ fn heldout_verdict(h: &host_tools::files::gains::HeldOut, plants: u64) -> String
             "the tuned gains LOSE to the paper's: NOT RECOMMENDED"
         }
     )
+}
+
+/// The gains file `--current` names, for a joint of kind `joint`.
+fn current_gains(path: &std::path::Path, joint: JointKind) -> anyhow::Result<GainsFile> {
+    let g = GainsFile::load(path).with_context(|| format!("--current {}", path.display()))?;
+    if g.joint != joint {
+        bail!(
+            "--current {}: gains for a {} joint, but the plant file is a {} joint's",
+            path.display(),
+            kind(g.joint),
+            kind(joint)
+        );
+    }
+    Ok(g)
+}
+
+fn kind(j: JointKind) -> &'static str {
+    match j {
+        JointKind::TwoD => "2d",
+        JointKind::ThreeD => "3d",
+    }
+}
+
+/// One held-out manoeuvre's comparison of the tuned gains with the current
+/// ones (`--json`'s `heldout_current`).
+#[derive(serde::Serialize)]
+struct AgainstCurrent {
+    manoeuvre: &'static str,
+    current_robust: f64,
+    tuned_robust: f64,
+    tuned_beats_or_ties_current: bool,
+}
+
+/// The current gains' held-out scores beside the tuned gains': the rows
+/// and the line the text output prints.
+fn against_current(
+    h: &host_tools::files::gains::HeldOut,
+    current: &[(tune::Manoeuvre, host_tools::files::gains::Score)],
+) -> (Vec<AgainstCurrent>, String) {
+    let rows: Vec<AgainstCurrent> = current
+        .iter()
+        .map(|(m, c)| {
+            let tuned = if *m == tune::Manoeuvre::Steps {
+                &h.score
+            } else {
+                h.manoeuvres
+                    .iter()
+                    .find(|s| s.name == m.name())
+                    .map_or(&h.score, |s| &s.tuned)
+            };
+            AgainstCurrent {
+                manoeuvre: m.name(),
+                current_robust: c.robust,
+                tuned_robust: tuned.robust,
+                tuned_beats_or_ties_current: tuned.robust <= c.robust * (1.0 + tune::HELDOUT_TIE),
+            }
+        })
+        .collect();
+    let lost: Vec<&str> = rows
+        .iter()
+        .filter(|r| !r.tuned_beats_or_ties_current)
+        .map(|r| r.manoeuvre)
+        .collect();
+    let line = format!(
+        "on the held-out manoeuvres (robust cost) — {}: {}",
+        rows.iter()
+            .map(|r| format!(
+                "{}: current {:.3}, tuned {:.3}",
+                r.manoeuvre, r.current_robust, r.tuned_robust
+            ))
+            .collect::<Vec<_>>()
+            .join("; "),
+        if lost.is_empty() {
+            "the tuned gains beat or tie them on every one".to_string()
+        } else {
+            format!("the tuned gains lose to them on {}", lost.join(", "))
+        }
+    );
+    (rows, line)
 }

@@ -205,6 +205,65 @@ fn record_identify_tune_and_load_the_gains() {
         "name = \"tuned\"\njoint = \"2d\"\nduration_s = 2.0\ntargets = [{ t_s = 0, deg = [3] }]\n[estimator]\nmethod = \"paper\"\n[plant]\nfile = \"plant.toml\"\n[controller]\ngains_file = \"gains.toml\"\n",
     );
     ok(&softjoint(&["sim", s(&dir.join("tuned.scenario.toml"))]));
+
+    // The gains in use now (`--current`) are scored on the same held-out
+    // manoeuvres and plants and compared with the new winner.
+    let o = softjoint(&[
+        "tune",
+        s(&plant),
+        "--candidates",
+        "2",
+        "--plants",
+        "1",
+        "--json",
+        "--allow-unproven",
+        "--current",
+        s(&gains),
+        "-o",
+        s(&dir.join("gains2.toml")),
+    ]);
+    ok(&o);
+    let j: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let rows = j["heldout_current"]
+        .as_array()
+        .expect("heldout_current rows");
+    let names: Vec<&str> = rows
+        .iter()
+        .map(|r| r["manoeuvre"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["steps", "load"]);
+    for r in rows {
+        let (c, t) = (
+            r["current_robust"].as_f64().unwrap(),
+            r["tuned_robust"].as_f64().unwrap(),
+        );
+        assert!(c.is_finite() && t.is_finite(), "{r}");
+        assert_eq!(
+            r["tuned_beats_or_ties_current"].as_bool().unwrap(),
+            t <= c * (1.0 + tune::HELDOUT_TIE),
+            "{r}"
+        );
+    }
+    // A 3D gains file for this 2D plant is refused before any search.
+    let g3 = dir.join("gains3d.toml");
+    let mut three = g.clone();
+    three.joint = JointKind::ThreeD;
+    three.controller.kp_v_per_deg = vec![2.0; 4];
+    write(&g3, &toml::to_string(&three).unwrap());
+    let o = softjoint(&[
+        "tune",
+        s(&plant),
+        "--current",
+        s(&g3),
+        "-o",
+        s(&dir.join("g4.toml")),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains(&format!("--current {}: gains for a 3d joint", g3.display())),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// The must-show in `sim`: the gains `softjoint tune` found on the plant
