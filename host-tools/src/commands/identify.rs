@@ -6,7 +6,7 @@ use std::sync::atomic::AtomicUsize;
 
 use anyhow::{bail, Context};
 use clap::{Args, Subcommand, ValueEnum};
-use host_tools::files::plant::{PlantFile, PlantParams, Uncertainty};
+use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::joint::excite;
 use host_tools::output;
 use host_tools::plot::{line_charts, Chart, Series};
@@ -219,7 +219,7 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         }
         .into());
     }
-    let uncertainty = uncertainties(&reports);
+    let uncertainty = host_tools::files::plant::uncertainties(&reports);
     let unverified = unverified(&reports);
     let mut header = format!(
         "# Written by `softjoint identify joint {}`: the identified joint.\n# `[[uncertainty]]` lists each identified parameter's 1σ (softjoint tune samples them).\n",
@@ -330,24 +330,6 @@ fn stopped_fit(a: &JointArgs) -> String {
         a.log.display(),
         a.output.display()
     )
-}
-
-/// The 1σ of every parameter identified and verified, for the plant file.
-fn uncertainties(reports: &[PlaneReport]) -> Vec<Uncertainty> {
-    reports
-        .iter()
-        .flat_map(|r| {
-            r.estimates
-                .iter()
-                .filter(|e| e.identifiable && e.verified && e.std.is_finite())
-                .map(|e| Uncertainty {
-                    plane: r.plane.clone(),
-                    field: e.field.clone(),
-                    value: e.value,
-                    std: e.std,
-                })
-        })
-        .collect()
 }
 
 /// Every plane's failed checks, "plane: why" (empty: verified).
