@@ -331,13 +331,28 @@ def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
 def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] = None,
                        params: int = 4, method: str = "ga", evaluations: int = 1000,
                        seed: int = 1, address: Optional[str] = None,
-                       unit: int = RHEOLOGY_UNIT_CANDIDATES) -> dict:
+                       unit: int = RHEOLOGY_UNIT_CANDIDATES,
+                       on_progress: Optional[Callable[[int, int], None]] = None) -> dict:
     """``softjoint rheology calibrate`` with each batch the search asks
     for (a GA generation, RA's probes) cut into units and run as Ray
-    tasks; returns its ``--json`` summary as a dict."""
+    tasks; returns its ``--json`` summary as a dict. ``on_progress(done,
+    evaluations)`` is called after each batch with the evaluations scored
+    so far (the search may stop short of the budget: its summary says how
+    many it made)."""
     connect(address)
     problem = rheology_problem(scenario, measured, params)
     evaluate_batch = rheology_batches(scenario, measured, params, unit)
+    if on_progress is not None:
+        scored = evaluate_batch
+        done = 0
+
+        def evaluate_batch(batch: List[List[float]]) -> List[float]:
+            nonlocal done
+            out = scored(batch)
+            done += len(batch)
+            on_progress(done, evaluations)
+            return out
+
     return json.loads(problem.calibrate(method, evaluations, seed, evaluate_batch))
 
 

@@ -81,7 +81,14 @@ def test_two_raylets_calibrate_the_lattice_as_the_program_does(cluster, softjoin
     scen = data / "rheology/small.toml"
     cli = cli_json(softjoint_bin, "rheology", "calibrate", scen, "--evaluations", 40,
                    "--seed", 3, "--out", tmp_path / "o", "--json")
-    got = ray_sweep.rheology_calibrate(str(scen), None, 4, "ga", 40, 3, unit=3)
+    seen = []
+    got = ray_sweep.rheology_calibrate(str(scen), None, 4, "ga", 40, 3, unit=3,
+                                       on_progress=lambda done, total: seen.append((done, total)))
+    # Progress after every batch: rising, against the budget, ending at the
+    # evaluations the summary reports.
+    assert seen and all(t == 40 for _, t in seen)
+    assert [d for d, _ in seen] == sorted(set(d for d, _ in seen))
+    assert seen[-1][0] == got["evaluations"], (seen, got)
     for d in (cli, got):
         d.pop("elapsed_s")
         d.pop("out", None)
