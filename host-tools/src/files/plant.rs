@@ -119,6 +119,26 @@ impl PlantFile {
     }
 }
 
+/// The 1σ of every parameter identified and verified in `reports`, as a
+/// plant file lists them (what `softjoint identify joint` writes and
+/// `softjoint tune` samples).
+pub fn uncertainties(reports: &[plant_joint::identify::PlaneReport]) -> Vec<Uncertainty> {
+    reports
+        .iter()
+        .flat_map(|r| {
+            r.estimates
+                .iter()
+                .filter(|e| e.identifiable && e.verified && e.std.is_finite())
+                .map(|e| Uncertainty {
+                    plane: r.plane.clone(),
+                    field: e.field.clone(),
+                    value: e.value,
+                    std: e.std,
+                })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -158,24 +178,4 @@ mod tests {
             .to_string();
         assert!(e.contains("p.toml:") && e.contains("speed"), "{e}");
     }
-}
-
-/// The 1σ of every parameter identified and verified in `reports`, as a
-/// plant file lists them (what `softjoint identify joint` writes and
-/// `softjoint tune` samples).
-pub fn uncertainties(reports: &[plant_joint::identify::PlaneReport]) -> Vec<Uncertainty> {
-    reports
-        .iter()
-        .flat_map(|r| {
-            r.estimates
-                .iter()
-                .filter(|e| e.identifiable && e.verified && e.std.is_finite())
-                .map(|e| Uncertainty {
-                    plane: r.plane.clone(),
-                    field: e.field.clone(),
-                    value: e.value,
-                    std: e.std,
-                })
-        })
-        .collect()
 }
