@@ -115,7 +115,7 @@ pub fn entry_text(
         sweep_rows,
         calibration: calibration.clone(),
     };
-    Ok(format!("{header}{}", toml::to_string(&entry)?))
+    crate::output::toml("the built-in laws", header, &entry)
 }
 
 /// Keeps the laws for `key` in `dir` (created if missing), atomically so
