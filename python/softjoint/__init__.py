@@ -198,7 +198,8 @@ def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
          search_v_offset: bool = False, unit: int = TUNE_UNIT_CANDIDATES) -> dict:
     """``softjoint tune`` in this process, unit after unit: the same units
     and reduction the Ray driver runs. Returns ``gains`` (the gains file
-    as a dict), ``failed_candidates`` and ``heldout_beats_or_ties_paper``."""
+    as a dict), ``failed_candidates``, ``rejected_early`` and
+    ``heldout_beats_or_ties_paper``."""
     sweep = TuneSweep(plant, candidates, plants, seed, search_v_offset)
     results = [sweep.run_unit(*u) for u in sweep.units(unit)]
     return json.loads(sweep.reduce(results))

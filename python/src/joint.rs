@@ -446,7 +446,8 @@ impl PyTuneSweep {
 
     /// The reduction of the units' results (any order): returns the
     /// `--json` output of `softjoint tune` without its wall time, as text
-    /// (`gains`, `failed_candidates`, `heldout_beats_or_ties_paper`).
+    /// (`gains`, `failed_candidates`, `rejected_early`,
+    /// `heldout_beats_or_ties_paper`).
     fn reduce(&self, py: Python<'_>, units: Vec<String>) -> PyResult<String> {
         let scored = scored_of(&units)?;
         let sweep = &self.sweep;
@@ -457,6 +458,7 @@ impl PyTuneSweep {
         let out = serde_json::json!({
             "gains": g,
             "failed_candidates": r.failed,
+            "rejected_early": r.rejected,
             "heldout_beats_or_ties_paper": r.heldout.beats_or_ties_paper,
         });
         output::json("the sweep's result", &out).map_err(to_py)

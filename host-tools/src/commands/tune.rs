@@ -173,6 +173,7 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
         output::JsonObject::new()
             .field("gains", &g)?
             .field("failed_candidates", &r.failed)?
+            .field("rejected_early", &r.rejected)?
             .field("wall_seconds", &wall)?
             .field("heldout_beats_or_ties_paper", &proven)?
             .field(
@@ -197,6 +198,12 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
             host_tools::outln!(
                 "{name:>6}: robust cost {:.3} (mean {:.3} + sd {:.3}); identified plant: settling {:.2} s, overshoot {:.2}°, ss error {:.3}°, peak coil {:.1} °C, budget margin {:.1} K, fault {}",
                 s.robust, s.mean, s.std, n.settling_s, n.overshoot_deg, n.steady_state_error_deg, n.peak_coil_c, n.budget_margin_k, n.fault
+            );
+        }
+        if r.rejected > 0 {
+            host_tools::outln!(
+                "{} candidate(s) rejected early: their first plants' runs already cost more than the paper's gains' robust cost",
+                r.rejected
             );
         }
         if r.failed > 0 {

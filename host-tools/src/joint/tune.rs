@@ -50,6 +50,8 @@
 //!   units on this machine's threads, the Python package's Ray driver on
 //!   a cluster's workers: the same units, so the same result.
 
+use std::sync::OnceLock;
+
 use anyhow::{bail, Context};
 use hal_sim::{ClosedLoop, CoreController, Plant, Sample};
 use plant_joint::identify::{Param, PlaneModel, Scale};
@@ -515,6 +517,104 @@ pub fn score(
     score_on(joint, gains, plants, seed, &TEST_STEPS)
 }
 
+/// A candidate scored with a bound on the cost that matters.
+enum Bounded {
+    /// Every plant run.
+    Scored(Score),
+    /// Stopped after this many plants: the runs so far prove its robust
+    /// cost above the bound.
+    Rejected(usize),
+}
+
+/// The least robust cost (mean + population sd over `n` plants) a
+/// candidate can still reach when the costs `known` of its first plants
+/// are known and the others may be any cost ≥ 0 (every run's cost is).
+///
+/// Mean + sd is a convex function of the cost vector (the mean is linear,
+/// the sd a norm of the centred vector), and symmetric in the unknown
+/// costs, so its least value over them is reached with all of them equal
+/// to one cost u ≥ 0 (averaging any minimiser over their permutations
+/// does not raise it). Along u it is convex: its least value is at u = 0,
+/// at a kink (sd = 0: every known cost equal, u that cost), or where its
+/// derivative vanishes, which is where sd = mean − u, a quadratic in u
+/// (coefficients below, with a = (n − k)/n and the known costs' sum S1
+/// and sum of squares S2). The function is evaluated at each of those
+/// points and the least value returned: exact but for rounding, which
+/// [`REJECT_MARGIN`] covers.
+pub fn robust_lower_bound(known: &[f64], n: usize) -> f64 {
+    let (k, nf) = (known.len(), n as f64);
+    if k == 0 || n < k {
+        return 0.0;
+    }
+    let r = (n - k) as f64;
+    let s1: f64 = known.iter().sum();
+    let s2: f64 = known.iter().map(|c| c * c).sum();
+    let robust_at = |u: f64| {
+        let mean = (s1 + r * u) / nf;
+        let second = (s2 + r * u * u) / nf;
+        mean + (second - mean * mean).max(0.0).sqrt()
+    };
+    let a = r / nf;
+    let qa = (2.0 * a - 1.0) * (1.0 - a);
+    let qb = 2.0 * s1 / nf * (1.0 - 2.0 * a);
+    let qc = s2 / nf - 2.0 * s1 * s1 / (nf * nf);
+    let mut points = vec![0.0, s1 / k as f64];
+    if qa.abs() > 1e-12 {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc >= 0.0 {
+            let root = disc.sqrt();
+            points.push((-qb + root) / (2.0 * qa));
+            points.push((-qb - root) / (2.0 * qa));
+        }
+    } else if qb.abs() > 1e-300 {
+        points.push(-qc / qb);
+    }
+    points
+        .into_iter()
+        .filter(|u| u.is_finite() && *u >= 0.0)
+        .map(robust_at)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// [`score`], but stopped once the candidate provably cannot reach
+/// `bound` (the paper's robust cost): after each plant, the least robust
+/// cost its remaining plants could still give it
+/// ([`robust_lower_bound`]) is compared with `bound`; once it exceeds it
+/// (by [`REJECT_MARGIN`]) the candidate would lose to the paper's gains
+/// whatever the other plants gave, so it cannot win and the rest of its
+/// runs are skipped. A candidate run to the end gets exactly [`score`]'s
+/// score.
+fn score_bounded(
+    joint: JointKind,
+    gains: &Gains,
+    plants: &[PlantParams],
+    seed: u64,
+    bound: Option<f64>,
+) -> anyhow::Result<Bounded> {
+    let mut runs: Vec<RunCost> = Vec::with_capacity(plants.len());
+    let mut costs = Vec::with_capacity(plants.len());
+    for p in plants {
+        let run = evaluate(&RunSpec::resolve(&step_scenario(
+            joint,
+            gains,
+            p.clone(),
+            seed,
+            &TEST_STEPS,
+        ))?)?;
+        debug_assert!(run.cost >= 0.0, "a run's cost is ≥ 0: {run:?}");
+        costs.push(run.cost);
+        runs.push(run);
+        if let Some(b) = bound {
+            if runs.len() < plants.len()
+                && robust_lower_bound(&costs, plants.len()) > b * (1.0 + REJECT_MARGIN)
+            {
+                return Ok(Bounded::Rejected(runs.len()));
+            }
+        }
+    }
+    Ok(Bounded::Scored(summarise(runs)))
+}
+
 /// Scores `gains` on every plant with the steps `steps`.
 fn score_on(
     joint: JointKind,
@@ -535,15 +635,20 @@ fn score_scenarios(
         .iter()
         .map(|p| evaluate(&RunSpec::resolve(&make(p.clone()))?))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(summarise(runs))
+}
+
+/// The score of a candidate's runs, one per plant (plant 0 first).
+fn summarise(runs: Vec<RunCost>) -> Score {
     let n = runs.len() as f64;
     let mean = runs.iter().map(|r| r.cost).sum::<f64>() / n;
     let std = (runs.iter().map(|r| (r.cost - mean).powi(2)).sum::<f64>() / n).sqrt();
-    Ok(Score {
+    Score {
         mean,
         std,
         robust: mean + std,
         nominal: runs[0].clone(),
-    })
+    }
 }
 
 /// The result of a search.
@@ -556,6 +661,9 @@ pub struct TuneResult {
     pub paper: Score,
     /// Candidates whose runs failed (plant instability), by index.
     pub failed: usize,
+    /// Candidates rejected early: their first plants' runs already cost
+    /// more than the paper's gains' robust cost.
+    pub rejected: usize,
     /// The best and the paper's gains on the held-out steps and plants.
     pub heldout: HeldOut,
 }
@@ -656,10 +764,20 @@ pub struct TuneRequest {
 pub struct Scored {
     /// Index in the candidate sequence (0: the paper's gains).
     pub index: usize,
-    /// Its score; absent if its runs failed.
+    /// Its score; absent if its runs failed or it was rejected early.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub score: Option<Score>,
+    /// Rejected after this many plants: its runs so far already cost more
+    /// than the paper's gains' robust cost ([`TuneSweep::run_unit`]), so
+    /// it cannot be the search's winner.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rejected_after_plants: Option<usize>,
 }
+
+/// The relative margin by which a candidate's lower bound must exceed the
+/// paper's robust cost before it is rejected: rounding in the two sums
+/// (≈ 1e-16 relative) cannot then turn a tie into a rejection.
+pub const REJECT_MARGIN: f64 = 1e-9;
 
 /// How a search ended.
 pub enum TuneOutcome {
@@ -713,6 +831,10 @@ pub struct TuneSweep {
     plants: Vec<PlantParams>,
     /// The seeded candidate sequence, drawn once.
     cands: Vec<Gains>,
+    /// Candidate 0's (the paper's gains') result, made once per sweep
+    /// (per process: a Ray worker makes its own, the same): the bound
+    /// every other candidate is checked against.
+    paper: OnceLock<Option<Score>>,
 }
 
 impl TuneSweep {
@@ -731,7 +853,15 @@ impl TuneSweep {
             joint,
             plants,
             cands,
+            paper: OnceLock::new(),
         })
+    }
+
+    /// The paper's gains' score on the sweep's plants (`None`: they
+    /// failed), made on first use.
+    fn paper(&self) -> &Option<Score> {
+        self.paper
+            .get_or_init(|| score(self.joint, &self.cands[0], &self.plants, self.req.seed).ok())
     }
 
     /// The request.
@@ -759,7 +889,11 @@ impl TuneSweep {
     /// Scores the unit's candidates in order, except those `skip` names
     /// (scored already: a resumed search); `stop` is read before each
     /// candidate and, once asked, the rest are left out. A candidate
-    /// whose runs fail (a plant gone unstable) has no score.
+    /// whose runs fail (a plant gone unstable) has no score. A candidate
+    /// whose first plants already prove it worse than the paper's gains
+    /// is rejected there ([`score_bounded`]): it could not have won, so
+    /// the search's winner, its score and every file are those of the
+    /// search without the rejections.
     pub fn run_unit(
         &self,
         unit: TuneUnit,
@@ -775,8 +909,21 @@ impl TuneSweep {
             if stop.requested().is_some() {
                 break;
             }
-            let score = score(self.joint, gains, &self.plants, self.req.seed).ok();
-            out.push(Scored { index, score });
+            let (score, rejected_after_plants) = if index == 0 {
+                (self.paper().clone(), None)
+            } else {
+                let bound = self.paper().as_ref().map(|p| p.robust);
+                match score_bounded(self.joint, gains, &self.plants, self.req.seed, bound) {
+                    Ok(Bounded::Scored(s)) => (Some(s), None),
+                    Ok(Bounded::Rejected(k)) => (None, Some(k)),
+                    Err(_) => (None, None),
+                }
+            };
+            out.push(Scored {
+                index,
+                score,
+                rejected_after_plants,
+            });
         }
         out
     }
@@ -788,7 +935,9 @@ impl TuneSweep {
     pub fn reduce(&self, scored: &[Scored]) -> anyhow::Result<TuneResult> {
         let n = self.req.candidates.max(1);
         let mut scores: Vec<Option<&Option<Score>>> = vec![None; n];
+        let mut rejected = 0;
         for s in scored {
+            rejected += usize::from(s.rejected_after_plants.is_some());
             match scores.get_mut(s.index) {
                 Some(slot @ None) => *slot = Some(&s.score),
                 Some(Some(_)) => bail!("candidate {} was scored twice", s.index),
@@ -802,7 +951,7 @@ impl TuneSweep {
             .into_iter()
             .map(|s| s.and_then(Option::as_ref))
             .collect();
-        let failed = scores.iter().filter(|s| s.is_none()).count();
+        let failed = scores.iter().filter(|s| s.is_none()).count() - rejected;
         let paper = scores[0]
             .cloned()
             .context("the paper's gains failed on the identified plant")?;
@@ -820,6 +969,7 @@ impl TuneSweep {
             score: best.clone(),
             paper,
             failed,
+            rejected,
             heldout,
         })
     }
@@ -841,9 +991,9 @@ pub fn tune(
 ) -> anyhow::Result<TuneOutcome> {
     let sweep = TuneSweep::new(file, req)?;
     let n = req.candidates.max(1);
-    let mut known: Vec<Option<Option<Score>>> = vec![None; n];
+    let mut known: Vec<Option<Scored>> = vec![None; n];
     for d in done.iter().filter(|d| d.index < n) {
-        known[d.index] = Some(d.score.clone());
+        known[d.index] = Some(d.clone());
     }
     let todo = known.iter().filter(|k| k.is_none()).count();
     let bar = crate::progress::counter("tune", "candidates", Some(todo as u64), !progress);
@@ -858,11 +1008,7 @@ pub fn tune(
         })
         .collect();
     bar.finish_and_clear();
-    let mut scored: Vec<Scored> = known
-        .into_iter()
-        .enumerate()
-        .filter_map(|(index, k)| k.map(|score| Scored { index, score }))
-        .collect();
+    let mut scored: Vec<Scored> = known.into_iter().flatten().collect();
     scored.extend(fresh);
     scored.sort_by_key(|s| s.index);
     if let Some(signal) = stop.requested() {
@@ -1094,6 +1240,140 @@ mod tests {
         assert!(wrong.steady_state_error_deg > 11.9, "{wrong:?}");
     }
 
+    /// The robust cost's lower bound is one: no way of filling the plants
+    /// not yet run (costs ≥ 0, seeded draws of several shapes) gives a
+    /// robust cost below it, the best equal filling meets it (a fine scan
+    /// of u), and it is tighter than the plain √(Σc²/n) bound it replaced.
+    #[test]
+    fn the_robust_lower_bound_is_never_above_a_reachable_cost_and_is_reached() {
+        use rand::SeedableRng;
+        let robust = |c: &[f64]| {
+            let n = c.len() as f64;
+            let m = c.iter().sum::<f64>() / n;
+            m + (c.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt()
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(28);
+        let mut tighter = 0;
+        for case in 0..400 {
+            let n = rng.gen_range(2..25usize);
+            let k = rng.gen_range(1..n);
+            let known: Vec<f64> = (0..k)
+                .map(|_| match case % 4 {
+                    0 => rng.gen_range(0.0..10.0),
+                    1 => 3.0,
+                    2 => rng.gen_range(0.0..1.0f64).powi(4) * 60.0,
+                    _ => {
+                        if rng.gen_bool(0.5) {
+                            0.0
+                        } else {
+                            50.0 + rng.gen_range(0.0..5.0)
+                        }
+                    }
+                })
+                .collect();
+            let lb = robust_lower_bound(&known, n);
+            for _ in 0..50 {
+                let mut c = known.clone();
+                let scale = rng.gen_range(0.0..20.0);
+                c.extend((k..n).map(|_| rng.gen_range(0.0..1.0f64) * scale));
+                assert!(
+                    robust(&c) >= lb * (1.0 - 1e-12),
+                    "{known:?} n {n}: {} < {lb}",
+                    robust(&c)
+                );
+            }
+            let top = known.iter().cloned().fold(0.0, f64::max);
+            let scan = (0..=20_000)
+                .map(|i| {
+                    let mut c = known.clone();
+                    c.extend(std::iter::repeat_n(top * i as f64 / 20_000.0, n - k));
+                    robust(&c)
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                lb <= scan * (1.0 + 1e-12),
+                "{known:?} n {n}: bound {lb} above the scan's {scan}"
+            );
+            assert!(
+                scan - lb <= 1e-3 * scan.max(1.0),
+                "{known:?} n {n}: bound {lb}, scan {scan}"
+            );
+            let rms = (known.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+            assert!(
+                lb >= rms * (1.0 - 1e-12),
+                "{known:?} n {n}: {lb} < rms {rms}"
+            );
+            tighter += usize::from(lb > rms * 1.01);
+        }
+        assert!(
+            tighter > 200,
+            "tighter than the rms bound in only {tighter} of 400"
+        );
+    }
+
+    /// Rejection changes nothing a search reports but its counts: a 3D
+    /// search of 8 candidates on 4 plants drawn from the committed
+    /// identified plant's 1σ rejects some early, and every candidate it
+    /// ran to the end has the score the unbounded scoring gives; the
+    /// winner is the unbounded search's.
+    #[test]
+    fn rejected_candidates_could_not_have_won_and_the_rest_score_as_before() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .unwrap();
+        let file = PlantFile::load(&root.join("scenarios/identify/plant.toml")).unwrap();
+        let req = TuneRequest {
+            candidates: 8,
+            plants: 4,
+            seed: 3,
+            search_v_offset: false,
+        };
+        let sweep = TuneSweep::new(&file, req).unwrap();
+        let bounded: Vec<Scored> = sweep
+            .units(UNIT_CANDIDATES)
+            .into_iter()
+            .flat_map(|u| sweep.run_unit(u, &|_| false, &Stop::never()))
+            .collect();
+        let rejected = bounded
+            .iter()
+            .filter(|s| s.rejected_after_plants.is_some())
+            .count();
+        assert!(rejected > 0, "nothing rejected: the test shows nothing");
+        let paper = bounded[0].score.clone().unwrap();
+        let mut best_unbounded = (0, paper.robust);
+        for (s, g) in bounded.iter().zip(&sweep.cands) {
+            let full = score(sweep.joint, g, &sweep.plants, req.seed).ok();
+            match (&s.score, s.rejected_after_plants) {
+                (Some(sc), None) => assert_eq!(Some(sc), full.as_ref(), "candidate {}", s.index),
+                (None, Some(k)) => {
+                    assert!(k < req.plants);
+                    let f = full.as_ref().expect("a rejected candidate ran in full");
+                    assert!(
+                        f.robust > paper.robust,
+                        "candidate {} rejected at {k} plants but robust {} ≤ paper {}",
+                        s.index,
+                        f.robust,
+                        paper.robust
+                    );
+                }
+                (None, None) => assert!(full.is_none()),
+                (Some(_), Some(_)) => panic!("scored and rejected"),
+            }
+            if let Some(f) = &full {
+                if f.robust < best_unbounded.1 {
+                    best_unbounded = (s.index, f.robust);
+                }
+            }
+        }
+        let (i, _) = best_of(
+            bounded
+                .iter()
+                .filter_map(|s| s.score.as_ref().map(|sc| (s.index, sc))),
+        )
+        .unwrap();
+        assert_eq!(i, best_unbounded.0);
+    }
+
     /// A sweep's units, of any size and reduced in any order, give what
     /// the search gives, and each unit's scores are the candidates'
     /// scores made one by one with [`score`] (the search before the
@@ -1115,6 +1395,7 @@ mod tests {
             .map(|(index, g)| Scored {
                 index,
                 score: score(JointKind::TwoD, g, &plants, 9).ok(),
+                rejected_after_plants: None,
             })
             .collect();
         let mut by_units: Vec<Scored> = sweep
