@@ -111,9 +111,23 @@ impl fmt::Display for NonFinite {
 }
 
 /// The first word of `text` that reads as a number and is not finite.
+///
+/// Only a word that could parse to a non-finite value is parsed: one with
+/// a letter (`inf`, `NaN`, an exponent such as `1e999`) or one too long
+/// for a finite f64 (a string of digits, signs and points without a
+/// letter is finite up to 308 digits: `f64::MAX` ≈ 1.8·10³⁰⁸). Every number
+/// an output writes is such a word, so parsing every word cost the
+/// contour fit's frames more than the fit itself.
 fn non_finite_word(text: &str) -> Option<&str> {
     text.split(|c: char| !(c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.' | '_')))
+        .filter(|w| could_be_non_finite(w))
         .find(|w| w.parse::<f64>().is_ok_and(|v| !v.is_finite()))
+}
+
+/// Whether a word of digits, letters, signs, points and underscores could
+/// parse as a non-finite f64 (see [`non_finite_word`]).
+fn could_be_non_finite(word: &str) -> bool {
+    word.len() > 300 || word.bytes().any(|b| b.is_ascii_alphabetic())
 }
 
 /// Checks CSV text (header line first; `#` lines are comments).
@@ -359,6 +373,41 @@ mod tests {
         }
         // Words that merely contain the letters are not numbers.
         assert!(check_csv("f.csv", "label,info\nnanny,infinite_loop\n").is_ok());
+    }
+
+    /// The scanner that parses only words with a letter or of over 300
+    /// characters finds, on random text of number-like words, exactly
+    /// the word that parsing every word finds.
+    #[test]
+    fn the_word_scanner_finds_what_parsing_every_word_finds() {
+        use rand::{Rng, SeedableRng};
+        fn parse_every_word(text: &str) -> Option<&str> {
+            text.split(|c: char| !(c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.' | '_')))
+                .find(|w| w.parse::<f64>().is_ok_and(|v| !v.is_finite()))
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(45);
+        let pieces = [
+            "0", "1", "9", "-", "+", ".", "e", "E", "_", "inf", "NaN", "infinity", "x", " ", ",",
+        ];
+        let mut non_finite_found = 0;
+        for _ in 0..20_000 {
+            let n = rng.gen_range(1..12);
+            let mut text: String = (0..n).map(|_| pieces[rng.gen_range(0..pieces.len())]).collect();
+            if rng.gen_bool(0.05) {
+                // Long digit strings: finite up to 308 digits, inf from 309.
+                let digits = rng.gen_range(295..320);
+                text.push(' ');
+                text.extend(std::iter::repeat_n('9', digits));
+            }
+            let fast = non_finite_word(&text);
+            assert_eq!(fast, parse_every_word(&text), "{text:?}");
+            non_finite_found += usize::from(fast.is_some());
+        }
+        // Both outcomes are exercised, so the comparison can fail.
+        assert!(non_finite_found > 1_000 && non_finite_found < 19_000, "{non_finite_found}");
+        let long = "9".repeat(309);
+        assert_eq!(non_finite_word(&long), Some(long.as_str()));
+        assert_eq!(non_finite_word(&"9".repeat(308)), None);
     }
 
     #[test]
