@@ -1,5 +1,6 @@
-//! `softjoint identify joint|plan`: the joint's plant fitted to a user's
-//! recording, and the plans to record one.
+//! `softjoint identify joint|plan|probe`: the joint's plant fitted to a
+//! user's recording, and the plans to record one (placed from a probe's
+//! log where the joint's drivers turn on away from the default).
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicUsize;
@@ -29,8 +30,22 @@ pub enum IdentifyCommand {
     Joint(JointArgs),
     /// Print an excitation plan (TOML) to start from: the standard plan
     /// (steps, pulses, ramps, co-contraction, optional holds), within the
-    /// firmware's thermal budget.
+    /// firmware's thermal budget; with --probe, its levels placed from
+    /// where each coil's driver was found to turn on.
     Plan(PlanArgs),
+    /// Print the probe plan (TOML): each coil alone up a staircase of 13
+    /// inputs from 1.4 to 2.6 V (1.5 s on, 3 s off), then a 3 V pulse,
+    /// within the firmware's thermal budget (194 s). Record it like any
+    /// plan (`sim --excite`, `hil --excite`, `console excite`), then
+    /// `identify plan --probe LOG` places the plan's levels from it.
+    Probe(ProbeArgs),
+}
+
+#[derive(Args)]
+pub struct ProbeArgs {
+    /// Which joint.
+    #[arg(long, value_enum, default_value = "3d")]
+    joint: JointArg,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -43,15 +58,27 @@ pub enum JointArg {
 
 #[derive(Args)]
 pub struct PlanArgs {
-    /// Which joint.
-    #[arg(long, value_enum, default_value = "3d")]
-    joint: JointArg,
+    /// Which joint [default: 3d; with --probe, the probe log's].
+    #[arg(long, value_enum)]
+    joint: Option<JointArg>,
     /// Length (s).
     #[arg(long, allow_negative_numbers = true, default_value_t = 600.0)]
     duration_s: f64,
     /// Add holds at ±8° under the controller.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "probe")]
     holds: bool,
+    /// A recorded probe log (`identify probe`): each coil's sustained
+    /// levels, ramp and warm antagonist are moved by its driver's turn-on
+    /// (from the log's currents, else from where the plane starts to
+    /// move) instead of being placed from the default 1.7 V. The plan's
+    /// TOML then starts with what the probe found, and a coil whose
+    /// levels the thermal budget only allows in pulses is named.
+    #[arg(long, value_name = "LOG")]
+    probe: Option<PathBuf>,
+    /// With --probe: print the probe's findings, the warnings and the plan
+    /// as one JSON object instead of the TOML.
+    #[arg(long, requires = "probe")]
+    json: bool,
 }
 
 /// Where the angles that the mechanics stage fits come from.
@@ -148,23 +175,162 @@ fn angles_from_board_estimates(
 pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
     match cmd {
         IdentifyCommand::Plan(a) => {
-            let planes = match a.joint {
-                JointArg::TwoD => 1,
-                JointArg::ThreeD => 2,
-            };
             if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= 7200.0) {
                 bail!(
                     "--duration-s must be in (0, 7200] s, got {}",
                     plant_common::short_number(a.duration_s)
                 );
             }
+            if let Some(log) = &a.probe {
+                return adapted_plan(log, a.joint, a.duration_s, a.json);
+            }
+            let planes = a.joint.map_or(2, planes_of);
             let plan = ExcitationPlan::standard(planes, a.duration_s, a.holds);
             excite::check_budget(&plan)?;
             output::print_toml("", &plan)?;
             Ok(())
         }
+        IdentifyCommand::Probe(a) => {
+            let plan = ExcitationPlan::probe(planes_of(a.joint));
+            let peak = excite::check_budget(&plan)?;
+            let header = format!(
+                "# The probe ({} s): record it (`softjoint sim --excite`, `hil --excite`, `console excite`),\n# then `softjoint identify plan --probe LOG` places the plan's levels from it.\n# Peak rise of the firmware's default thermal budget over it: {peak:.0} K (trip 95 K).\n",
+                plant_common::short_number(plan.duration_s)
+            );
+            output::print_toml(&header, &plan)?;
+            Ok(())
+        }
         IdentifyCommand::Joint(a) => joint(a),
     }
+}
+
+fn planes_of(j: JointArg) -> usize {
+    match j {
+        JointArg::TwoD => 1,
+        JointArg::ThreeD => 2,
+    }
+}
+
+/// Plane names of a joint with `planes` angles.
+fn plane_name(planes: usize, plane: usize) -> &'static str {
+    match (planes, plane) {
+        (1, _) => "θ",
+        (_, 0) => "α",
+        _ => "β",
+    }
+}
+
+/// What `identify plan --probe --json` prints.
+#[derive(serde::Serialize)]
+struct AdaptedPlanReport<'a> {
+    probe_log: String,
+    probe: &'a identify::probe::ProbeReport,
+    /// Coils whose unsaturated levels the budget allows only in pulses.
+    pulsed_coils: Vec<usize>,
+    warnings: Vec<String>,
+    budget_peak_rise_k: f64,
+    plan: &'a ExcitationPlan,
+}
+
+/// `identify plan --probe LOG`: the probe log analysed, the standard
+/// plan's levels moved by each coil's turn-on, checked against the
+/// firmware's default budget; the TOML's header (or the JSON) says what
+/// the probe found and which coils are only pulsed.
+fn adapted_plan(
+    log_path: &std::path::Path,
+    joint: Option<JointArg>,
+    duration_s: f64,
+    json: bool,
+) -> anyhow::Result<()> {
+    use identify::probe::{self, BUDGET_SUSTAINED_ABOVE_OFFSET_V, FIRMWARE_DEFAULT_OFFSET_V};
+    let log = excite::read_log(log_path)?;
+    if let Some(j) = joint {
+        if planes_of(j) != log.planes {
+            bail!(
+                "--joint {} but the probe log {} is of the {} joint ({} angle column(s))",
+                if planes_of(j) == 1 { "2d" } else { "3d" },
+                log_path.display(),
+                if log.planes == 1 { "2D" } else { "3D" },
+                log.planes
+            );
+        }
+    }
+    let found = probe::analyse(&log).map_err(|e| {
+        anyhow::anyhow!(
+            "the probe log {} cannot place the plan: {e}",
+            log_path.display()
+        )
+    })?;
+    let plan = ExcitationPlan::adapted(log.planes, duration_s, &found, false);
+    let peak = excite::check_budget(&plan)?;
+    let standard = ExcitationPlan::standard(log.planes, duration_s, false);
+    let drives = |p: &ExcitationPlan, coil: usize| p.drive.iter().filter(|d| d.coil == coil).count();
+    let sustained_limit = FIRMWARE_DEFAULT_OFFSET_V + BUDGET_SUSTAINED_ABOVE_OFFSET_V;
+    let mut pulsed = Vec::new();
+    let mut warnings = Vec::new();
+    let mut header = format!(
+        "# Adapted from the probe log {} (levels moved by each coil's turn-on from 1.7 V, + up to 0.1 V):\n",
+        log_path.display()
+    );
+    for c in &found.coils {
+        let how = match (c.turn_on_v, c.current_bracket_v) {
+            (Some(v), Some((lo, hi))) => format!(
+                "turns on at {v:.3} V (no current at {}, current at {} V)",
+                plant_common::short_number(lo),
+                plant_common::short_number(hi)
+            ),
+            (Some(v), None) => format!("turns on at {v:.3} V"),
+            _ => format!(
+                "no currents logged: placed 0.1 V below where motion starts ({:.2} V)",
+                c.motion_from_v
+            ),
+        };
+        let _ = writeln!(
+            header,
+            "#   coil {} (plane {}): {how}; the {} V pulse moved it {:+.2}°",
+            c.coil,
+            plane_name(log.planes, c.plane),
+            plant_common::short_number(c.top_v),
+            c.top_travel_deg
+        );
+        if drives(&plan, c.coil) > drives(&standard, c.coil) {
+            pulsed.push(c.coil);
+            let top = plan
+                .drive
+                .iter()
+                .filter(|d| d.coil == c.coil && d.peak_v() < 2.5)
+                .map(|d| d.peak_v())
+                .fold(0.0, f64::max);
+            warnings.push(format!(
+                "coil {} (plane {}) turns on at {:.2} V: its unsaturated levels (up to {} V) lie above the {sustained_limit:.2} V the firmware's default thermal budget allows held, so the plan pulses them (1 s on, 2 s off); such a plane may barely move, and `identify joint` then names it UNVERIFIED",
+                c.coil,
+                plane_name(log.planes, c.plane),
+                c.anchor_v,
+                plant_common::short_number(top)
+            ));
+        }
+    }
+    for w in &warnings {
+        let _ = writeln!(header, "# warning: {w}");
+    }
+    let _ = writeln!(
+        header,
+        "# Peak rise of the firmware's default thermal budget over the plan: {peak:.0} K (trip 95 K)."
+    );
+    if json {
+        return output::print_json(&AdaptedPlanReport {
+            probe_log: log_path.display().to_string(),
+            probe: &found,
+            pulsed_coils: pulsed,
+            warnings,
+            budget_peak_rise_k: peak,
+            plan: &plan,
+        });
+    }
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
+    output::print_toml(&header, &plan)
 }
 
 fn joint(a: JointArgs) -> anyhow::Result<()> {

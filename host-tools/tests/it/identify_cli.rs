@@ -520,3 +520,133 @@ fn the_plan_through_hil_logs_what_sim_logs() {
     );
     assert!(hil_log == sim_log, "hil and sim logs differ");
 }
+
+/// The probe, as a user runs it, on issue 28's off-plan twin (α's drivers
+/// turn on at 2.0 V, above the standard plan's held levels; β's at 1.6 V):
+/// `identify probe` → `sim --excite` → `identify plan --probe`. The
+/// turn-ons come out of the log's currents; α's coils are named as only
+/// pulsed (their adapted levels lie above what the firmware's default
+/// budget allows held), β's are not; the adapted plan is within the
+/// budget and runs through `sim --excite`. A log that is no probe is
+/// refused naming the file and the column, and writes nothing on stdout.
+#[test]
+fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
+    let dir = scratch("identify-probe");
+    PlantFile::new(
+        PlantParams::ThreeD(hidden::off_plan_joint_3d(5)),
+        vec![],
+    )
+    .save(&dir.join("hidden.toml"), "# hidden\n")
+    .unwrap();
+    let scen = dir.join("hidden.scenario.toml");
+    write(&scen, "joint = \"3d\"\nseed = 5\n[plant]\nfile = \"hidden.toml\"\n");
+    let o = softjoint(&["identify", "probe", "--joint", "3d"]);
+    ok(&o);
+    let probe_plan = dir.join("probe.toml");
+    write(&probe_plan, &stdout(&o));
+    let plan: ExcitationPlan = toml::from_str(&stdout(&o)).unwrap();
+    assert_eq!(plan, ExcitationPlan::probe(2));
+    let peak = host_tools::joint::excite::check_budget(&plan).unwrap();
+    assert!(peak > 60.0 && peak < 95.0, "probe: peak rise {peak} K");
+    let log = dir.join("probe.csv");
+    ok(&softjoint(&[
+        "sim",
+        s(&scen),
+        "--excite",
+        s(&probe_plan),
+        "--log",
+        s(&log),
+    ]));
+
+    let o = softjoint(&[
+        "identify",
+        "plan",
+        "--probe",
+        s(&log),
+        "--duration-s",
+        "240",
+        "--json",
+    ]);
+    ok(&o);
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let turn_on = |coil: usize| r["probe"]["coils"][coil - 1]["turn_on_v"].as_f64().unwrap();
+    for (coil, truth) in [(1, 2.0), (2, 1.6), (3, 2.0), (4, 1.6)] {
+        assert!(
+            (turn_on(coil) - truth).abs() < 0.02,
+            "coil {coil}: {} V against {truth} V",
+            turn_on(coil)
+        );
+    }
+    assert_eq!(r["pulsed_coils"], serde_json::json!([1, 3]), "{}", r["warnings"]);
+    assert!(
+        r["warnings"][0].as_str().unwrap().contains("coil 1 (plane α) turns on at 2.00 V"),
+        "{}",
+        r["warnings"]
+    );
+    let adapted: ExcitationPlan = serde_json::from_value(r["plan"].clone()).unwrap();
+    let found: plant_joint::identify::probe::ProbeReport =
+        plant_joint::identify::probe::analyse(&host_tools::joint::excite::read_log(&log).unwrap())
+            .unwrap();
+    // (serde_json reads a float back within an ulp, not always exactly.)
+    let expected = ExcitationPlan::adapted(2, 240.0, &found, false);
+    assert_eq!(adapted.drive.len(), expected.drive.len());
+    let near = |a: Option<f64>, b: Option<f64>| match (a, b) {
+        (Some(x), Some(y)) => (x - y).abs() < 1e-12,
+        (x, y) => x == y,
+    };
+    for (a, b) in adapted.drive.iter().zip(&expected.drive) {
+        assert!(
+            a.coil == b.coil
+                && near(Some(a.from_s), Some(b.from_s))
+                && near(Some(a.to_s), Some(b.to_s))
+                && near(a.volts, b.volts)
+                && near(a.from_v, b.from_v)
+                && near(a.to_v, b.to_v),
+            "{a:?} against {b:?}"
+        );
+    }
+    let peak = r["budget_peak_rise_k"].as_f64().unwrap();
+    assert!(peak > 40.0 && peak < 95.0, "adapted: peak rise {peak} K");
+
+    // The TOML form: the findings and the warning in its header, the
+    // warning on stderr too; it loads and runs as a plan (its first 12 s).
+    let o = softjoint(&["identify", "plan", "--probe", s(&log), "--duration-s", "240"]);
+    ok(&o);
+    let text = stdout(&o);
+    assert!(
+        text.contains("#   coil 2 (plane β): turns on at 1.6")
+            && text.contains("# warning: coil 3 (plane α)"),
+        "{text}"
+    );
+    assert!(stderr(&o).contains("warning: coil 1 (plane α)"), "{}", stderr(&o));
+    let mut short: ExcitationPlan = toml::from_str(&text).unwrap();
+    assert_eq!(short, expected);
+    short.duration_s = 12.0;
+    short.drive.retain(|d| d.to_s <= 12.0);
+    write(&dir.join("adapted.toml"), &toml::to_string_pretty(&short).unwrap());
+    ok(&softjoint(&[
+        "sim",
+        s(&scen),
+        "--excite",
+        s(&dir.join("adapted.toml")),
+        "--log",
+        s(&dir.join("adapted.csv")),
+    ]));
+
+    // A log that is no probe (the adapted plan's own): refused by name.
+    let o = softjoint(&["identify", "plan", "--probe", s(&dir.join("adapted.csv"))]);
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("adapted.csv") && e.contains("cannot place the plan") && e.contains("column `"),
+        "{e}"
+    );
+    // The joint asked for must be the log's.
+    let o = softjoint(&["identify", "plan", "--probe", s(&log), "--joint", "2d"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("--joint 2d but the probe log"),
+        "{}",
+        stderr(&o)
+    );
+}

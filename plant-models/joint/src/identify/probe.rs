@@ -515,7 +515,8 @@ fn rise_and_fall(
 /// [`CHOP_ON_S`] pulses [`CHOP_OFF_S`] apart (a ramp keeps its slope across
 /// the pieces); others are kept whole.
 pub fn chop(d: &Drive, limit_v: f64) -> Vec<Drive> {
-    if d.peak_v() <= limit_v {
+    // 1 µV of slack: a level rounded to 10 mV at the limit is held.
+    if d.peak_v() <= limit_v + 1e-6 {
         return vec![d.clone()];
     }
     let mut out = Vec::new();
@@ -544,13 +545,33 @@ pub const STANDARD_ANCHOR_V: f64 = 1.7;
 /// coil turn on so high that 3 V would not saturate it).
 const PULSE_V: f64 = 2.5;
 
-/// The adapted levels lie this much higher above the turn-on than the
-/// standard's above 1.7 V (V): on issue 28's twin β (turn-on 1.6 V) the
-/// standard's 1.85/1.9 V levels transform the coil and its plane is
+/// The adapted levels lie up to this much higher above the turn-on than
+/// the standard's above 1.7 V (V): on issue 28's twin β (turn-on 1.6 V)
+/// the standard's 1.85/1.9 V levels transform the coil and its plane is
 /// verified, while 1.75/1.8 V (the same distance from the turn-on as the
 /// standard's from 1.7 V) left the plane within 0.2° of rest all plan
-/// long (`examples/identify_probe.rs`).
+/// long (`examples/identify_probe.rs`). Less where the full margin would
+/// lift a level the budget allows held above the budget's limit (see
+/// [`ExcitationPlan::adapted`]).
 pub const LEVEL_MARGIN_V: f64 = 0.1;
+
+/// The standard plan's highest held level (V): its second sustained
+/// level, the ramp's end and the warm antagonist, 0.2 V above 1.7 V.
+const STANDARD_TOP_HELD_V: f64 = 1.9;
+
+/// The margin above the turn-on for a coil anchored at `anchor_v` (V):
+/// [`LEVEL_MARGIN_V`], lowered (to no less than 0) so that the highest held
+/// level stays within `limit_v` when it fits there without the margin. A
+/// coil whose levels exceed the limit even without it is pulsed anyway
+/// and keeps the whole margin (its pulses then pass more current).
+fn level_margin_v(anchor_v: f64, limit_v: f64) -> f64 {
+    let top_without = STANDARD_TOP_HELD_V + anchor_v - STANDARD_ANCHOR_V;
+    if top_without > limit_v + 1e-6 {
+        return LEVEL_MARGIN_V;
+    }
+    // Down to 10 mV, as the levels are rounded.
+    (((limit_v - top_without) * 100.0 + 1e-6).floor() / 100.0).clamp(0.0, LEVEL_MARGIN_V)
+}
 
 impl ExcitationPlan {
     /// The standard plan (without holds) with each coil's levels moved by
@@ -560,7 +581,11 @@ impl ExcitationPlan {
     /// 0.2 V — so each coil is driven through its unsaturated range,
     /// partly transforming, wherever its driver turns on. Levels are
     /// rounded to 10 mV, and lie [`LEVEL_MARGIN_V`] further above the
-    /// turn-on than the standard's above 1.7 V. A level above what the
+    /// turn-on than the standard's above 1.7 V, or less where that would
+    /// push a level the budget allows held past its limit (a coil that
+    /// turns on at 1.7 V gets levels 1.88 and 1.93 V, not 1.95 and 2.0 V
+    /// pulsed: never a pulsed level where the standard plan holds one).
+    /// A level above what the
     /// budget allows sustained ([`BUDGET_SUSTAINED_ABOVE_OFFSET_V`] above
     /// the budget's driver offset) is chopped into 1 s pulses 2 s apart
     /// ([`chop`]). The budget's offset is the firmware default's (1.7 V)
@@ -581,27 +606,29 @@ impl ExcitationPlan {
                 .find(|c| c.coil == coil)
                 .map_or(STANDARD_ANCHOR_V, |c| (c.anchor_v * 100.0).round() / 100.0)
         };
-        let shift = |v: f64, a: f64| {
+        let shift = |v: f64, a: f64, margin: f64| {
             if v >= PULSE_V {
                 v.max(a + 0.8).min(5.0)
             } else {
                 // Rounded to 10 mV: the standard's levels are exact in TOML.
-                ((v + a + LEVEL_MARGIN_V - STANDARD_ANCHOR_V) * 100.0).round() / 100.0
+                ((v + a + margin - STANDARD_ANCHOR_V) * 100.0).round() / 100.0
             }
         };
         let mut drive = Vec::new();
         for d in &base.drive {
             let a = anchor(d.coil);
-            let mut m = d.clone();
-            m.volts = d.volts.map(|v| shift(v, a));
-            m.from_v = d.from_v.map(|v| shift(v, a));
-            m.to_v = d.to_v.map(|v| shift(v, a));
             let offset = if budget_offset_from_probe {
                 a
             } else {
                 FIRMWARE_DEFAULT_OFFSET_V
             };
-            drive.extend(chop(&m, offset + BUDGET_SUSTAINED_ABOVE_OFFSET_V));
+            let limit = offset + BUDGET_SUSTAINED_ABOVE_OFFSET_V;
+            let margin = level_margin_v(a, limit);
+            let mut m = d.clone();
+            m.volts = d.volts.map(|v| shift(v, a, margin));
+            m.from_v = d.from_v.map(|v| shift(v, a, margin));
+            m.to_v = d.to_v.map(|v| shift(v, a, margin));
+            drive.extend(chop(&m, limit));
         }
         let anchors: Vec<String> = probe
             .coils
@@ -659,6 +686,50 @@ mod tests {
         let e = analyse(&log).unwrap_err();
         assert_eq!(e.column, "cam_theta_deg", "{e}");
         assert!(e.message.contains("never moved"), "{e}");
+    }
+
+    /// A coil that turns on at the default 1.7 V keeps every level held:
+    /// the margin shrinks to 0.03 V so the top level is the budget's 1.93
+    /// V, where the full margin would pulse 1.95 and 2.0 V.
+    #[test]
+    fn a_default_turn_on_keeps_its_levels_held() {
+        let coil = |c: usize| CoilProbe {
+            coil: c,
+            plane: (c - 1) % 2,
+            levels: Vec::new(),
+            current_bracket_v: Some((1.7, 1.8)),
+            turn_on_v: Some(1.7),
+            motion_from_v: 2.0,
+            anchor_v: 1.7,
+            top_v: 3.0,
+            top_travel_deg: -23.0,
+            rise_63_s: 1.0,
+            fall_37_s: None,
+        };
+        let probe = ProbeReport {
+            planes: 2,
+            camera_noise_deg: vec![0.05; 2],
+            coils: (1..=4).map(coil).collect(),
+        };
+        let a = ExcitationPlan::adapted(2, 240.0, &probe, false);
+        let s = ExcitationPlan::standard(2, 240.0, false);
+        assert_eq!(a.drive.len(), s.drive.len(), "no level pulsed");
+        let mut held: Vec<f64> = a
+            .drive
+            .iter()
+            .filter_map(|d| d.volts)
+            .filter(|&v| v < PULSE_V)
+            .collect();
+        held.sort_by(f64::total_cmp);
+        held.dedup();
+        assert_eq!(held, vec![1.88, 1.93]);
+        // A coil at 1.6 V keeps the whole margin, one at 2.0 V too (its
+        // levels are pulsed whatever the margin).
+        assert_eq!(level_margin_v(1.6, 1.93), LEVEL_MARGIN_V);
+        assert_eq!(level_margin_v(2.0, 1.93), LEVEL_MARGIN_V);
+        assert_eq!(level_margin_v(1.72, 1.93), 0.01);
+        assert_eq!(level_margin_v(1.73, 1.93), 0.0);
+        assert_eq!(level_margin_v(1.75, 1.93), LEVEL_MARGIN_V);
     }
 
     /// The standard plan is what the adapted plan gives for a probe that
