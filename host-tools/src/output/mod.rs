@@ -392,7 +392,9 @@ mod tests {
         let mut non_finite_found = 0;
         for _ in 0..20_000 {
             let n = rng.gen_range(1..12);
-            let mut text: String = (0..n).map(|_| pieces[rng.gen_range(0..pieces.len())]).collect();
+            let mut text: String = (0..n)
+                .map(|_| pieces[rng.gen_range(0..pieces.len())])
+                .collect();
             if rng.gen_bool(0.05) {
                 // Long digit strings: finite up to 308 digits, inf from 309.
                 let digits = rng.gen_range(295..320);
@@ -404,7 +406,10 @@ mod tests {
             non_finite_found += usize::from(fast.is_some());
         }
         // Both outcomes are exercised, so the comparison can fail.
-        assert!(non_finite_found > 1_000 && non_finite_found < 19_000, "{non_finite_found}");
+        assert!(
+            non_finite_found > 1_000 && non_finite_found < 19_000,
+            "{non_finite_found}"
+        );
         let long = "9".repeat(309);
         assert_eq!(non_finite_word(&long), Some(long.as_str()));
         assert_eq!(non_finite_word(&"9".repeat(308)), None);
