@@ -72,7 +72,8 @@ pub struct PlanArgs {
     /// (from the log's currents, else from where the plane starts to
     /// move) instead of being placed from the default 1.7 V. The plan's
     /// TOML then starts with what the probe found, and a coil whose
-    /// levels the thermal budget only allows in pulses is named.
+    /// levels the thermal budget only allows in pulses is named (its
+    /// pulses carry the held level's mean power).
     #[arg(long, value_name = "LOG")]
     probe: Option<PathBuf>,
     /// With --probe: print the probe's findings, the warnings and the plan
@@ -227,7 +228,8 @@ struct AdaptedPlanReport<'a> {
     probe: &'a identify::probe::ProbeReport,
     /// Coils whose unsaturated levels the budget allows only in pulses.
     pulsed_coils: Vec<usize>,
-    warnings: Vec<String>,
+    /// What the plan does differently for them, a line each.
+    notes: Vec<String>,
     budget_peak_rise_k: f64,
     plan: &'a ExcitationPlan,
 }
@@ -264,10 +266,11 @@ fn adapted_plan(
     let plan = ExcitationPlan::adapted(log.planes, duration_s, &found, false);
     let peak = excite::check_budget(&plan)?;
     let standard = ExcitationPlan::standard(log.planes, duration_s, false);
-    let drives = |p: &ExcitationPlan, coil: usize| p.drive.iter().filter(|d| d.coil == coil).count();
+    let drives =
+        |p: &ExcitationPlan, coil: usize| p.drive.iter().filter(|d| d.coil == coil).count();
     let sustained_limit = FIRMWARE_DEFAULT_OFFSET_V + BUDGET_SUSTAINED_ABOVE_OFFSET_V;
     let mut pulsed = Vec::new();
-    let mut warnings = Vec::new();
+    let mut notes = Vec::new();
     let mut header = format!(
         "# Adapted from the probe log {} (levels moved by each coil's turn-on from 1.7 V, + up to 0.1 V):\n",
         log_path.display()
@@ -295,23 +298,25 @@ fn adapted_plan(
         );
         if drives(&plan, c.coil) > drives(&standard, c.coil) {
             pulsed.push(c.coil);
-            let top = plan
-                .drive
-                .iter()
-                .filter(|d| d.coil == c.coil && d.peak_v() < 2.5)
-                .map(|d| d.peak_v())
-                .fold(0.0, f64::max);
-            warnings.push(format!(
-                "coil {} (plane {}) turns on at {:.2} V: its unsaturated levels (up to {} V) lie above the {sustained_limit:.2} V the firmware's default thermal budget allows held, so the plan pulses them (1 s on, 2 s off); such a plane may barely move, and `identify joint` then names it UNVERIFIED",
+            // The highest level below the coil's saturated pulses.
+            let peaks = || {
+                plan.drive
+                    .iter()
+                    .filter(|d| d.coil == c.coil)
+                    .map(|d| d.peak_v())
+            };
+            let pulse = peaks().fold(0.0, f64::max);
+            let top = peaks().filter(|&v| v < pulse).fold(0.0, f64::max);
+            notes.push(format!(
+                "coil {} (plane {}) turns on at {:.2} V: its levels lie above the {sustained_limit:.2} V the firmware's default thermal budget allows held, so the plan pulses them (1 s on, 2 s off, up to {top:.2} V: √3 × the held level's distance above the turn-on, the same mean power); `identify joint` says whether the log determines the plane",
                 c.coil,
                 plane_name(log.planes, c.plane),
                 c.anchor_v,
-                plant_common::short_number(top)
             ));
         }
     }
-    for w in &warnings {
-        let _ = writeln!(header, "# warning: {w}");
+    for w in &notes {
+        let _ = writeln!(header, "# note: {w}");
     }
     let _ = writeln!(
         header,
@@ -322,13 +327,13 @@ fn adapted_plan(
             probe_log: log_path.display().to_string(),
             probe: &found,
             pulsed_coils: pulsed,
-            warnings,
+            notes,
             budget_peak_rise_k: peak,
             plan: &plan,
         });
     }
-    for w in &warnings {
-        eprintln!("warning: {w}");
+    for w in &notes {
+        eprintln!("note: {w}");
     }
     output::print_toml(&header, &plan)
 }

@@ -524,7 +524,7 @@ fn the_plan_through_hil_logs_what_sim_logs() {
 /// The probe, as a user runs it, on issue 28's off-plan twin (α's drivers
 /// turn on at 2.0 V, above the standard plan's held levels; β's at 1.6 V):
 /// `identify probe` → `sim --excite` → `identify plan --probe`. The
-/// turn-ons come out of the log's currents; α's coils are named as only
+/// turn-ons come out of the log's currents; α's coils are named as
 /// pulsed (their adapted levels lie above what the firmware's default
 /// budget allows held), β's are not; the adapted plan is within the
 /// budget and runs through `sim --excite`. A log that is no probe is
@@ -532,14 +532,14 @@ fn the_plan_through_hil_logs_what_sim_logs() {
 #[test]
 fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
     let dir = scratch("identify-probe");
-    PlantFile::new(
-        PlantParams::ThreeD(hidden::off_plan_joint_3d(5)),
-        vec![],
-    )
-    .save(&dir.join("hidden.toml"), "# hidden\n")
-    .unwrap();
+    PlantFile::new(PlantParams::ThreeD(hidden::off_plan_joint_3d(5)), vec![])
+        .save(&dir.join("hidden.toml"), "# hidden\n")
+        .unwrap();
     let scen = dir.join("hidden.scenario.toml");
-    write(&scen, "joint = \"3d\"\nseed = 5\n[plant]\nfile = \"hidden.toml\"\n");
+    write(
+        &scen,
+        "joint = \"3d\"\nseed = 5\n[plant]\nfile = \"hidden.toml\"\n",
+    );
     let o = softjoint(&["identify", "probe", "--joint", "3d"]);
     ok(&o);
     let probe_plan = dir.join("probe.toml");
@@ -577,11 +577,20 @@ fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
             turn_on(coil)
         );
     }
-    assert_eq!(r["pulsed_coils"], serde_json::json!([1, 3]), "{}", r["warnings"]);
-    assert!(
-        r["warnings"][0].as_str().unwrap().contains("coil 1 (plane α) turns on at 2.00 V"),
+    assert_eq!(
+        r["pulsed_coils"],
+        serde_json::json!([1, 3]),
         "{}",
-        r["warnings"]
+        r["notes"]
+    );
+    assert!(
+        r["notes"][0]
+            .as_str()
+            .unwrap()
+            .contains("coil 1 (plane α) turns on at 2.00 V")
+            && r["notes"][0].as_str().unwrap().contains("up to 2.52 V"),
+        "{}",
+        r["notes"]
     );
     let adapted: ExcitationPlan = serde_json::from_value(r["plan"].clone()).unwrap();
     let found: plant_joint::identify::probe::ProbeReport =
@@ -608,22 +617,36 @@ fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
     let peak = r["budget_peak_rise_k"].as_f64().unwrap();
     assert!(peak > 40.0 && peak < 95.0, "adapted: peak rise {peak} K");
 
-    // The TOML form: the findings and the warning in its header, the
-    // warning on stderr too; it loads and runs as a plan (its first 12 s).
-    let o = softjoint(&["identify", "plan", "--probe", s(&log), "--duration-s", "240"]);
+    // The TOML form: the findings and the notes in its header, the notes
+    // on stderr too; it loads and runs as a plan (its first 12 s).
+    let o = softjoint(&[
+        "identify",
+        "plan",
+        "--probe",
+        s(&log),
+        "--duration-s",
+        "240",
+    ]);
     ok(&o);
     let text = stdout(&o);
     assert!(
         text.contains("#   coil 2 (plane β): turns on at 1.6")
-            && text.contains("# warning: coil 3 (plane α)"),
+            && text.contains("# note: coil 3 (plane α)"),
         "{text}"
     );
-    assert!(stderr(&o).contains("warning: coil 1 (plane α)"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("note: coil 1 (plane α)"),
+        "{}",
+        stderr(&o)
+    );
     let mut short: ExcitationPlan = toml::from_str(&text).unwrap();
     assert_eq!(short, expected);
     short.duration_s = 12.0;
     short.drive.retain(|d| d.to_s <= 12.0);
-    write(&dir.join("adapted.toml"), &toml::to_string_pretty(&short).unwrap());
+    write(
+        &dir.join("adapted.toml"),
+        &toml::to_string_pretty(&short).unwrap(),
+    );
     ok(&softjoint(&[
         "sim",
         s(&scen),

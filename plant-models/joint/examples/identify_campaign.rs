@@ -27,10 +27,15 @@
 //! called identifiable is written there with its
 //! signed distance from the truth in its own 1σ (what the 1σ's
 //! calibration is measured from).
+//! With `CAMPAIGN_PLAN=adapted`, each twin records the probe first
+//! (`ExcitationPlan::probe`) and then the plan adapted to what the probe
+//! found (`ExcitationPlan::adapted`, the firmware's default budget), as
+//! `identify probe` / `identify plan --probe` do (≈ 2× the CPU).
 //! Exits 1 when a wrong parameter is called identifiable on a verified
 //! plane, 2 on a bad argument or a failed identification.
 use plant_joint::identify::{
-    self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel, PlaneReport,
+    self, hidden, probe, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel,
+    PlaneReport,
 };
 use plant_joint::Joint3dParams;
 
@@ -116,7 +121,11 @@ fn main() {
     let twins = parse(1, 20.0) as u64;
     let seconds = parse(2, 240.0);
     let first = parse(3, 0.0) as u64;
-    let plan = ExcitationPlan::standard(2, seconds, false);
+    let standard = ExcitationPlan::standard(2, seconds, false);
+    let adapted = std::env::var("CAMPAIGN_PLAN").is_ok_and(|v| v == "adapted");
+    if adapted {
+        println!("plan: each twin's probe recorded and analysed, the plan adapted to it");
+    }
     // Opened before the campaign, as a new file only: nothing that already
     // exists (a user's file, a device, a FIFO, a link) is replaced, and a
     // refused path is said before the minutes of work, not after.
@@ -134,6 +143,22 @@ fn main() {
     let mut z_rows = String::from("twin,plane,field,stage,verified_plane,verified,z\n");
     for k in first..first + twins {
         let h = hidden::campaign_joint_3d(k);
+        let plan = if adapted {
+            let found = twin::record_3d(&h, &ExcitationPlan::probe(2), true, NOISE)
+                .map_err(|e| e.to_string())
+                .and_then(|log| probe::analyse(&log).map_err(|e| e.to_string()));
+            match found {
+                Ok(found) => ExcitationPlan::adapted(2, seconds, &found, false),
+                Err(e) => {
+                    // What a user falls back to when `identify plan
+                    // --probe` refuses the probe.
+                    println!("twin {k}: probe refused ({e}); the standard plan instead");
+                    standard.clone()
+                }
+            }
+        } else {
+            standard.clone()
+        };
         let run = twin::record_3d(&h, &plan, true, NOISE).and_then(|log| {
             identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
         });
