@@ -408,3 +408,51 @@ def test_the_programs_calibration_with_ray_stopped_keeps_its_state(cluster, soft
     assert without_times(resumed) == without_times(
         dict(local_calibration(softjoint_bin, repo, tmp_path)["summary"], resumed=resumed["resumed"]))
     assert calibration_files(out) == local_calibration(softjoint_bin, repo, tmp_path)["files"]
+
+
+def test_the_programs_push_calibration_with_ray_stopped_keeps_its_state(cluster, softjoint_bin,
+                                                                        repo, tmp_path):
+    """SIGINT to `push calibrate --ray` once its driver has answered the
+    first generation's batch: exit 130, the answered candidates kept in
+    the search state (the batch in flight lost), from which the program
+    goes on without --ray to the files of the calibration never stopped."""
+    tap = tmp_path / "tap.py"
+    tap.write_text(TAP)
+    wrapper = tmp_path / "python"
+    wrapper.write_text(f"#!/bin/sh\nexec {sys.executable} {tap} \"$@\"\n")
+    wrapper.chmod(0o755)
+    env = dict(os.environ, SOFTJOINT_PYTHON=str(wrapper), TAP_PYTHON=sys.executable,
+               TAP_DIR=str(tmp_path))
+    # Four generations: 20 candidates, then 15 new ones each.
+    push = PUSH[:-4] + ["--generations", "4", "--seed", "3"]
+    out = tmp_path / "stopped"
+    p = subprocess.Popen([softjoint_bin, "push", "calibrate", *push, "--ray", cluster, "--out",
+                          str(out)], cwd=repo, env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (tmp_path / "answer-1").exists():
+        assert time.time() < deadline and p.poll() is None, "no batch was answered"
+        time.sleep(0.02)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err
+    state_path = out / "params.search.toml"
+    assert str(state_path) in err, err
+    state = tomllib.loads(state_path.read_text())
+    answered = len(list(tmp_path.glob("answer-*")))
+    assert answered < 4, f"the search ran to its end ({answered} batches) before the signal"
+    assert state["evaluations"] >= len(state["scored"]) >= 20, (answered, state)
+    assert (state["generations"], state["seed"]) == (4, 3)
+    assert "best" in state
+    assert not (out / "params.json").exists()
+    resumed = cli_json(softjoint_bin, "push", "calibrate", *push, "--resume", state_path,
+                       "--out", out, "--json", cwd=repo)
+    local = cli_json(softjoint_bin, "push", "calibrate", *push, "--out", tmp_path / "local",
+                     "--json", cwd=repo)
+    for s in (resumed, local):
+        s.pop("out")
+        s.pop("resumed", None)
+    assert resumed == local
+    assert (out / "params.json").read_bytes() == (tmp_path / "local" / "params.json").read_bytes()
+    cut = lambda d: [r.rsplit(",", 1)[0] for r in (d / "generations.csv").read_text().splitlines()]
+    assert cut(out) == cut(tmp_path / "local")
