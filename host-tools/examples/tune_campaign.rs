@@ -18,6 +18,10 @@
 //! paper's on the true joint" (goal 0); "refused though it wins on the
 //! true joint" is the price of the check.
 //!
+//! With `CAMPAIGN_PLAN=adapted` each twin records the probe first and
+//! then the plan adapted to it (`twin::adapted_plan_3d`, what `softjoint
+//! identify plan --probe` gives), as `identify_campaign` does.
+//!
 //! `cargo run --profile ci-opt -p host-tools --example tune_campaign -- [TWINS] [C] [P] [FIRST] [SECONDS]`
 //! (defaults 5 twins, 60 candidates × 6 plants, from twin 0, the 240 s
 //! plan: ≈ 100–150 s of CPU per verified twin). Exits 1 when a recommended
@@ -54,12 +58,24 @@ fn main() {
         eprintln!("twin {k}: {e:#}");
         std::process::exit(2)
     };
-    let plan = ExcitationPlan::standard(2, seconds, false);
+    let standard = ExcitationPlan::standard(2, seconds, false);
+    let adapted = std::env::var("CAMPAIGN_PLAN").is_ok_and(|v| v == "adapted");
+    if adapted {
+        println!("plan: each twin's probe recorded and analysed, the plan adapted to it");
+    }
     let (mut tuned, mut recommended, mut recommended_loses, mut refused_wins) = (0, 0, 0, 0);
     println!("| twin | identification | tune's verdict | true joint: winner / paper per manoeuvre | on the true joint |");
     println!("|---|---|---|---|---|");
     for k in first..first + twins {
         let h = hidden::campaign_joint_3d(k);
+        let plan = if adapted {
+            twin::adapted_plan_3d(&h, seconds, NOISE).unwrap_or_else(|e| {
+                println!("twin {k}: probe refused ({e}); the standard plan instead");
+                standard.clone()
+            })
+        } else {
+            standard.clone()
+        };
         let (params, reports) = twin::record_3d(&h, &plan, true, NOISE)
             .and_then(|log| {
                 identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())

@@ -34,8 +34,7 @@
 //! Exits 1 when a wrong parameter is called identifiable on a verified
 //! plane, 2 on a bad argument or a failed identification.
 use plant_joint::identify::{
-    self, hidden, probe, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel,
-    PlaneReport,
+    self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel, PlaneReport,
 };
 use plant_joint::Joint3dParams;
 
@@ -144,18 +143,12 @@ fn main() {
     for k in first..first + twins {
         let h = hidden::campaign_joint_3d(k);
         let plan = if adapted {
-            let found = twin::record_3d(&h, &ExcitationPlan::probe(2), true, NOISE)
-                .map_err(|e| e.to_string())
-                .and_then(|log| probe::analyse(&log).map_err(|e| e.to_string()));
-            match found {
-                Ok(found) => ExcitationPlan::adapted(2, seconds, &found, false),
-                Err(e) => {
-                    // What a user falls back to when `identify plan
-                    // --probe` refuses the probe.
-                    println!("twin {k}: probe refused ({e}); the standard plan instead");
-                    standard.clone()
-                }
-            }
+            twin::adapted_plan_3d(&h, seconds, NOISE).unwrap_or_else(|e| {
+                // What a user falls back to when `identify plan --probe`
+                // refuses the probe.
+                println!("twin {k}: probe refused ({e}); the standard plan instead");
+                standard.clone()
+            })
         } else {
             standard.clone()
         };

@@ -90,6 +90,22 @@ pub fn record_3d(
     Ok(rec.finish())
 }
 
+/// The plan `softjoint identify plan --probe` gives for the 3D joint
+/// `params`: the probe ([`ExcitationPlan::probe`]) recorded on it and
+/// analysed, and the standard plan of `seconds` adapted to what it found
+/// ([`ExcitationPlan::adapted`], the firmware's default budget). The
+/// error says what failed: the recording, or the analysis by column.
+pub fn adapted_plan_3d(
+    params: &Joint3dParams,
+    seconds: f64,
+    noise: ElectricalNoise,
+) -> Result<ExcitationPlan, String> {
+    let log =
+        record_3d(params, &ExcitationPlan::probe(2), true, noise).map_err(|e| e.to_string())?;
+    let found = super::probe::analyse(&log).map_err(|e| format!("the probe log: {e}"))?;
+    Ok(ExcitationPlan::adapted(2, seconds, &found, false))
+}
+
 /// Coil resistances of the 3D joint, coils 1..4 (Ω).
 pub fn resistances_3d(j: &Joint3d) -> [f64; 4] {
     let a = j.plane(crate::Plane::Alpha).coils();
