@@ -235,14 +235,16 @@ joint_log=$(mktemp)
 ncpu=$(nproc)
 # The 3D and 2D ten-minute twins (≈ 60 and 33 CPU-s, the longest) go
 # first, with the jamming check that reads both from the same process's
-# cache: in name order the 3D twin started seventh of nine and ran on
-# alone at the end. Should these names change, the first run matches
+# cache, and the campaign's short form (two probed twins, ≈ 70 CPU-s):
+# in name order the 3D twin started seventh of nine and ran on alone at
+# the end. Should these names change, the first run matches
 # nothing and the second runs every test: the order is lost, no test.
 taskset -c "$((ncpu - 1))" bash -c '
     cd plant-models/joint
     first=(identify::ten_minute_twin_3d_recovers_both_planes
         identify::ten_minute_twin_2d_recovers_each_identifiable_parameter
-        identify::ten_minute_twins_recover_the_jamming_gain_or_name_it_not_identifiable)
+        identify::ten_minute_twins_recover_the_jamming_gain_or_name_it_not_identifiable
+        identify::the_campaign_in_short_form_calls_nothing_wrong_identifiable)
     skip=()
     for f in "${first[@]}"; do skip+=(--skip "$f"); done
     for t in "$@"; do
