@@ -665,6 +665,27 @@ fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
         e.contains("adapted.csv") && e.contains("cannot place the plan") && e.contains("column `"),
         "{e}"
     );
+    // A probe recorded without the coil currents (`sim --no-electrical`,
+    // a lab without a current sense) cannot place the plan: refused by
+    // the column it lacks.
+    let bare = dir.join("probe-bare.csv");
+    ok(&softjoint(&[
+        "sim",
+        s(&scen),
+        "--excite",
+        s(&probe_plan),
+        "--log",
+        s(&bare),
+        "--no-electrical",
+    ]));
+    let o = softjoint(&["identify", "plan", "--probe", s(&bare)]);
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
+    assert!(
+        stderr(&o).contains("probe-bare.csv has no current column `i1_a`"),
+        "{}",
+        stderr(&o)
+    );
     // The joint asked for must be the log's.
     let o = softjoint(&["identify", "plan", "--probe", s(&log), "--joint", "2d"]);
     assert!(

@@ -716,7 +716,10 @@ fn the_campaign_in_short_form_calls_nothing_wrong_identifiable() {
                 .unwrap();
         for (p, r) in reports.iter().enumerate() {
             if !r.verdict.verified {
-                eprintln!("twin {k} {}: unverified ({:?})", r.plane, r.verdict.failures);
+                eprintln!(
+                    "twin {k} {}: unverified ({:?})",
+                    r.plane, r.verdict.failures
+                );
                 continue;
             }
             verified += 1;
@@ -729,6 +732,9 @@ fn the_campaign_in_short_form_calls_nothing_wrong_identifiable() {
             }
         }
     }
-    assert!(wrong.is_empty(), "called identifiable, more than 3σ off: {wrong:?}");
+    assert!(
+        wrong.is_empty(),
+        "called identifiable, more than 3σ off: {wrong:?}"
+    );
     assert!(verified >= 3, "{verified} of 4 planes verified");
 }
