@@ -30,7 +30,7 @@ use host_tools::files::gains::Gains;
 use host_tools::files::plant::{uncertainties, PlantFile, PlantParams};
 use host_tools::joint::tune::{self, TuneRequest, TuneSweep, HELDOUT_TIE};
 use host_tools::stop::Stop;
-use plant_joint::identify::{self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions};
+use plant_joint::identify::{self, hidden, twin, ElectricalNoise, IdentifyOptions};
 use plant_joint::Joint3dParams;
 
 /// The identification campaign's electrical noise (its example's).
@@ -58,7 +58,6 @@ fn main() {
         eprintln!("twin {k}: {e:#}");
         std::process::exit(2)
     };
-    let standard = ExcitationPlan::standard(2, seconds, false);
     let adapted = std::env::var("CAMPAIGN_PLAN").is_ok_and(|v| v == "adapted");
     if adapted {
         println!("plan: each twin's probe recorded and analysed, the plan adapted to it");
@@ -68,14 +67,10 @@ fn main() {
     println!("|---|---|---|---|---|");
     for k in first..first + twins {
         let h = hidden::campaign_joint_3d(k);
-        let plan = if adapted {
-            twin::adapted_plan_3d(&h, seconds, NOISE).unwrap_or_else(|e| {
-                println!("twin {k}: probe refused ({e}); the standard plan instead");
-                standard.clone()
-            })
-        } else {
-            standard.clone()
-        };
+        let (plan, refused) = twin::campaign_plan_3d(&h, seconds, NOISE, adapted);
+        if let Some(e) = refused {
+            println!("twin {k}: probe refused ({e}); the standard plan instead");
+        }
         let (params, reports) = twin::record_3d(&h, &plan, true, NOISE)
             .and_then(|log| {
                 identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())

@@ -367,12 +367,10 @@ sys.exit(rc if rc >= 0 else 128 - rc)
 '''
 
 
-def test_the_programs_calibration_with_ray_stopped_keeps_its_state(cluster, softjoint_bin, repo,
-                                                                  tmp_path):
-    """SIGINT to `rheology calibrate --ray` once its driver has answered
-    a batch: exit 130, the scored batches kept in the search state (the
-    batch in flight lost), from which the program goes on without --ray
-    to the files of the calibration never stopped."""
+def interrupted_after_one_answer(args, cwd, tmp_path):
+    """Runs the program (`args`, with `--ray`) with the tap standing in
+    for Python, sends SIGINT once the driver has answered its first
+    batch; returns the program's exit status and standard error."""
     tap = tmp_path / "tap.py"
     tap.write_text(TAP)
     wrapper = tmp_path / "python"
@@ -380,10 +378,7 @@ def test_the_programs_calibration_with_ray_stopped_keeps_its_state(cluster, soft
     wrapper.chmod(0o755)
     env = dict(os.environ, SOFTJOINT_PYTHON=str(wrapper), TAP_PYTHON=sys.executable,
                TAP_DIR=str(tmp_path))
-    out = tmp_path / "stopped"
-    p = subprocess.Popen([softjoint_bin, "rheology", "calibrate", SMALL, "--method", "ga",
-                          "--evaluations", "400", "--seed", "4", "--ray", cluster, "--out",
-                          str(out)], cwd=repo, env=env, stdout=subprocess.PIPE,
+    p = subprocess.Popen([str(a) for a in args], cwd=cwd, env=env, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
     while not (tmp_path / "answer-1").exists():
@@ -391,7 +386,20 @@ def test_the_programs_calibration_with_ray_stopped_keeps_its_state(cluster, soft
         time.sleep(0.02)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=60)
-    assert p.returncode == 130, err
+    return p.returncode, err
+
+
+def test_the_programs_calibration_with_ray_stopped_keeps_its_state(cluster, softjoint_bin, repo,
+                                                                  tmp_path):
+    """SIGINT to `rheology calibrate --ray` once its driver has answered
+    a batch: exit 130, the scored batches kept in the search state (the
+    batch in flight lost), from which the program goes on without --ray
+    to the files of the calibration never stopped."""
+    out = tmp_path / "stopped"
+    rc, err = interrupted_after_one_answer(
+        [softjoint_bin, "rheology", "calibrate", SMALL, "--method", "ga", "--evaluations", "400",
+         "--seed", "4", "--ray", cluster, "--out", out], repo, tmp_path)
+    assert rc == 130, err
     state_path = out / "params.search.toml"
     assert f"search state in {state_path}" in err, err
     state = tomllib.loads(state_path.read_text())
@@ -416,26 +424,13 @@ def test_the_programs_push_calibration_with_ray_stopped_keeps_its_state(cluster,
     first generation's batch: exit 130, the answered candidates kept in
     the search state (the batch in flight lost), from which the program
     goes on without --ray to the files of the calibration never stopped."""
-    tap = tmp_path / "tap.py"
-    tap.write_text(TAP)
-    wrapper = tmp_path / "python"
-    wrapper.write_text(f"#!/bin/sh\nexec {sys.executable} {tap} \"$@\"\n")
-    wrapper.chmod(0o755)
-    env = dict(os.environ, SOFTJOINT_PYTHON=str(wrapper), TAP_PYTHON=sys.executable,
-               TAP_DIR=str(tmp_path))
     # Four generations: 20 candidates, then 15 new ones each.
     push = PUSH[:-4] + ["--generations", "4", "--seed", "3"]
     out = tmp_path / "stopped"
-    p = subprocess.Popen([softjoint_bin, "push", "calibrate", *push, "--ray", cluster, "--out",
-                          str(out)], cwd=repo, env=env, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 120
-    while not (tmp_path / "answer-1").exists():
-        assert time.time() < deadline and p.poll() is None, "no batch was answered"
-        time.sleep(0.02)
-    p.send_signal(signal.SIGINT)
-    _, err = p.communicate(timeout=60)
-    assert p.returncode == 130, err
+    rc, err = interrupted_after_one_answer(
+        [softjoint_bin, "push", "calibrate", *push, "--ray", cluster, "--out", out], repo,
+        tmp_path)
+    assert rc == 130, err
     state_path = out / "params.search.toml"
     assert str(state_path) in err, err
     state = tomllib.loads(state_path.read_text())

@@ -548,26 +548,32 @@ fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
     assert_eq!(plan, ExcitationPlan::probe(2));
     let peak = host_tools::joint::excite::check_budget(&plan).unwrap();
     assert!(peak > 60.0 && peak < 95.0, "probe: peak rise {peak} K");
+    // `sim --excite PLAN --log LOG` on the twin, and any other flags.
+    let record = |plan: &std::path::Path, log: &std::path::Path, more: &[&str]| {
+        let mut args = vec!["sim", s(&scen), "--excite", s(plan), "--log", s(log)];
+        args.extend(more);
+        ok(&softjoint(&args));
+    };
     let log = dir.join("probe.csv");
-    ok(&softjoint(&[
-        "sim",
-        s(&scen),
-        "--excite",
-        s(&probe_plan),
-        "--log",
-        s(&log),
-    ]));
+    record(&probe_plan, &log, &[]);
 
-    let o = softjoint(&[
-        "identify",
-        "plan",
-        "--probe",
-        s(&log),
-        "--duration-s",
-        "240",
-        "--json",
-    ]);
-    ok(&o);
+    let adapted_plan = |json: bool| {
+        let mut args = vec![
+            "identify",
+            "plan",
+            "--probe",
+            s(&log),
+            "--duration-s",
+            "240",
+        ];
+        if json {
+            args.push("--json");
+        }
+        let o = softjoint(&args);
+        ok(&o);
+        o
+    };
+    let o = adapted_plan(true);
     let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     let turn_on = |coil: usize| r["probe"]["coils"][coil - 1]["turn_on_v"].as_f64().unwrap();
     for (coil, truth) in [(1, 2.0), (2, 1.6), (3, 2.0), (4, 1.6)] {
@@ -619,15 +625,7 @@ fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
 
     // The TOML form: the findings and the notes in its header, the notes
     // on stderr too; it loads and runs as a plan (its first 12 s).
-    let o = softjoint(&[
-        "identify",
-        "plan",
-        "--probe",
-        s(&log),
-        "--duration-s",
-        "240",
-    ]);
-    ok(&o);
+    let o = adapted_plan(false);
     let text = stdout(&o);
     assert!(
         text.contains("#   coil 2 (plane β): turns on at 1.6")
@@ -647,14 +645,7 @@ fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
         &dir.join("adapted.toml"),
         &toml::to_string_pretty(&short).unwrap(),
     );
-    ok(&softjoint(&[
-        "sim",
-        s(&scen),
-        "--excite",
-        s(&dir.join("adapted.toml")),
-        "--log",
-        s(&dir.join("adapted.csv")),
-    ]));
+    record(&dir.join("adapted.toml"), &dir.join("adapted.csv"), &[]);
 
     // A log that is no probe (the adapted plan's own): refused by name.
     let o = softjoint(&["identify", "plan", "--probe", s(&dir.join("adapted.csv"))]);
@@ -669,15 +660,7 @@ fn a_probe_log_places_the_plan_and_names_the_coils_it_can_only_pulse() {
     // a lab without a current sense) cannot place the plan: refused by
     // the column it lacks.
     let bare = dir.join("probe-bare.csv");
-    ok(&softjoint(&[
-        "sim",
-        s(&scen),
-        "--excite",
-        s(&probe_plan),
-        "--log",
-        s(&bare),
-        "--no-electrical",
-    ]));
+    record(&probe_plan, &bare, &["--no-electrical"]);
     let o = softjoint(&["identify", "plan", "--probe", s(&bare)]);
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     assert!(stdout(&o).is_empty(), "{}", stdout(&o));

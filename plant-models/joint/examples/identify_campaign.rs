@@ -34,7 +34,7 @@
 //! Exits 1 when a wrong parameter is called identifiable on a verified
 //! plane, 2 on a bad argument or a failed identification.
 use plant_joint::identify::{
-    self, hidden, twin, ElectricalNoise, ExcitationPlan, IdentifyOptions, PlaneModel, PlaneReport,
+    self, hidden, twin, ElectricalNoise, IdentifyOptions, PlaneModel, PlaneReport,
 };
 use plant_joint::Joint3dParams;
 
@@ -120,7 +120,6 @@ fn main() {
     let twins = parse(1, 20.0) as u64;
     let seconds = parse(2, 240.0);
     let first = parse(3, 0.0) as u64;
-    let standard = ExcitationPlan::standard(2, seconds, false);
     let adapted = std::env::var("CAMPAIGN_PLAN").is_ok_and(|v| v == "adapted");
     if adapted {
         println!("plan: each twin's probe recorded and analysed, the plan adapted to it");
@@ -142,16 +141,10 @@ fn main() {
     let mut z_rows = String::from("twin,plane,field,stage,verified_plane,verified,z\n");
     for k in first..first + twins {
         let h = hidden::campaign_joint_3d(k);
-        let plan = if adapted {
-            twin::adapted_plan_3d(&h, seconds, NOISE).unwrap_or_else(|e| {
-                // What a user falls back to when `identify plan --probe`
-                // refuses the probe.
-                println!("twin {k}: probe refused ({e}); the standard plan instead");
-                standard.clone()
-            })
-        } else {
-            standard.clone()
-        };
+        let (plan, refused) = twin::campaign_plan_3d(&h, seconds, NOISE, adapted);
+        if let Some(e) = refused {
+            println!("twin {k}: probe refused ({e}); the standard plan instead");
+        }
         let run = twin::record_3d(&h, &plan, true, NOISE).and_then(|log| {
             identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
         });

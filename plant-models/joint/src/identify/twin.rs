@@ -106,6 +106,27 @@ pub fn adapted_plan_3d(
     Ok(ExcitationPlan::adapted(2, seconds, &found, false))
 }
 
+/// The plan a campaign records on `params`: with `probe`,
+/// [`adapted_plan_3d`], or the standard plan of `seconds` where the probe
+/// cannot place one (what a user falls back to when `identify plan
+/// --probe` refuses the probe) with the reason; without, the standard
+/// plan.
+pub fn campaign_plan_3d(
+    params: &Joint3dParams,
+    seconds: f64,
+    noise: ElectricalNoise,
+    probe: bool,
+) -> (ExcitationPlan, Option<String>) {
+    let standard = || ExcitationPlan::standard(2, seconds, false);
+    if !probe {
+        return (standard(), None);
+    }
+    match adapted_plan_3d(params, seconds, noise) {
+        Ok(plan) => (plan, None),
+        Err(e) => (standard(), Some(e)),
+    }
+}
+
 /// Coil resistances of the 3D joint, coils 1..4 (Ω).
 pub fn resistances_3d(j: &Joint3d) -> [f64; 4] {
     let a = j.plane(crate::Plane::Alpha).coils();
