@@ -67,17 +67,17 @@ pub struct PlanArgs {
     /// Add holds at ±8° under the controller.
     #[arg(long, conflicts_with = "probe")]
     holds: bool,
-    /// A recorded probe log (`identify probe`): each coil's sustained
-    /// levels, ramp and warm antagonist are moved by its driver's turn-on
-    /// (from the log's currents, else from where the plane starts to
-    /// move) instead of being placed from the default 1.7 V. The plan's
+    /// A recorded probe log (`identify probe`, with the coil currents):
+    /// each coil's sustained levels, ramp and warm antagonist are moved by
+    /// its driver's turn-on, found from the currents, instead of being
+    /// placed from the default 1.7 V. The plan's
     /// TOML then starts with what the probe found, and a coil whose
     /// levels the thermal budget only allows in pulses is named (its
     /// pulses carry the held level's mean power).
     #[arg(long, value_name = "LOG")]
     probe: Option<PathBuf>,
-    /// With --probe: print the probe's findings, the warnings and the plan
-    /// as one JSON object instead of the TOML.
+    /// With --probe: print the probe's findings, the pulsed coils, the
+    /// notes and the plan as one JSON object instead of the TOML.
     #[arg(long, requires = "probe")]
     json: bool,
 }
@@ -275,14 +275,11 @@ fn adapted_plan(
     }
     let plan = ExcitationPlan::adapted(log.planes, duration_s, &found, false);
     let peak = excite::check_budget(&plan)?;
-    let standard = ExcitationPlan::standard(log.planes, duration_s, false);
-    let drives =
-        |p: &ExcitationPlan, coil: usize| p.drive.iter().filter(|d| d.coil == coil).count();
+    let pulsed = ExcitationPlan::pulsed_coils(&found, false);
     let sustained_limit = FIRMWARE_DEFAULT_OFFSET_V + BUDGET_SUSTAINED_ABOVE_OFFSET_V;
-    let mut pulsed = Vec::new();
     let mut notes = Vec::new();
     let mut header = format!(
-        "# Adapted from the probe log {} (levels moved by each coil's turn-on from 1.7 V, + up to 0.1 V):\n",
+        "# Adapted from the probe log {} (levels moved by each coil's turn-on from 1.7 V + 0.1 V; the standard's for turn-ons of 1.63-1.73 V):\n",
         log_path.display()
     );
     for c in &found.coils {
@@ -303,8 +300,7 @@ fn adapted_plan(
             plant_common::short_number(c.top_v),
             c.top_travel_deg
         );
-        if drives(&plan, c.coil) > drives(&standard, c.coil) {
-            pulsed.push(c.coil);
+        if pulsed.contains(&c.coil) {
             // The highest level below the coil's saturated pulses.
             let peaks = || {
                 plan.drive

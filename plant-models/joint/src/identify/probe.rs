@@ -555,14 +555,14 @@ pub const STANDARD_ANCHOR_V: f64 = 1.7;
 /// coil turn on so high that 3 V would not saturate it).
 const PULSE_V: f64 = 2.5;
 
-/// The adapted levels lie up to this much higher above the turn-on than
+/// The adapted levels lie this much higher above the turn-on than
 /// the standard's above 1.7 V (V): on issue 28's twin β (turn-on 1.6 V)
 /// the standard's 1.85/1.9 V levels transform the coil and its plane is
 /// verified, while 1.75/1.8 V (the same distance from the turn-on as the
 /// standard's from 1.7 V) left the plane within 0.2° of rest all plan
-/// long (`examples/identify_probe.rs`). Less where the full margin would
-/// lift a level the budget allows held above the budget's limit (see
-/// [`ExcitationPlan::adapted`]).
+/// long (`examples/identify_probe.rs`). None (the standard's levels)
+/// where the full margin would lift a level the budget allows held above
+/// the budget's limit (`level_placement`).
 pub const LEVEL_MARGIN_V: f64 = 0.1;
 
 /// The standard plan's highest held level (V): its second sustained
@@ -586,15 +586,57 @@ const STANDARD_TOP_HELD_V: f64 = 1.9;
 /// plan verified all five, within their 1σ.
 fn level_placement(anchor_v: f64, limit_v: f64) -> (f64, f64) {
     let top_without = STANDARD_TOP_HELD_V + anchor_v - STANDARD_ANCHOR_V;
-    let fits = |top: f64| top <= limit_v + 1e-6;
-    if fits(top_without + LEVEL_MARGIN_V) || !fits(top_without) {
+    if top_without + LEVEL_MARGIN_V <= limit_v + 1e-6 || pulsed_from(anchor_v, limit_v) {
         (anchor_v, LEVEL_MARGIN_V)
     } else {
         (STANDARD_ANCHOR_V, 0.0)
     }
 }
 
+/// Whether a coil anchored at `anchor_v` (V) has held levels above
+/// `limit_v` even without the margin: its levels are then pulsed.
+fn pulsed_from(anchor_v: f64, limit_v: f64) -> bool {
+    STANDARD_TOP_HELD_V + anchor_v - STANDARD_ANCHOR_V > limit_v + 1e-6
+}
+
+/// The probe's anchor of `coil` rounded to 10 mV, or the standard's.
+fn coil_anchor(probe: &ProbeReport, coil: usize) -> f64 {
+    probe
+        .coils
+        .iter()
+        .find(|c| c.coil == coil)
+        .map_or(STANDARD_ANCHOR_V, |c| (c.anchor_v * 100.0).round() / 100.0)
+}
+
+/// The highest input the budget allows held for a coil anchored at
+/// `anchor_v` (V): its driver offset is the firmware default's, or with
+/// `budget_offset_from_probe` the anchor itself.
+fn sustained_limit_v(anchor_v: f64, budget_offset_from_probe: bool) -> f64 {
+    let offset = if budget_offset_from_probe {
+        anchor_v
+    } else {
+        FIRMWARE_DEFAULT_OFFSET_V
+    };
+    offset + BUDGET_SUSTAINED_ABOVE_OFFSET_V
+}
+
 impl ExcitationPlan {
+    /// The coils of `probe` whose held levels lie above what the budget
+    /// allows held even without the margin: [`adapted`](Self::adapted)
+    /// pulses them (some or all of their levels, and their saturated
+    /// pulses cut to 1 s).
+    pub fn pulsed_coils(probe: &ProbeReport, budget_offset_from_probe: bool) -> Vec<usize> {
+        probe
+            .coils
+            .iter()
+            .map(|c| c.coil)
+            .filter(|&coil| {
+                let a = coil_anchor(probe, coil);
+                pulsed_from(a, sustained_limit_v(a, budget_offset_from_probe))
+            })
+            .collect()
+    }
+
     /// The standard plan (without holds) with each coil's levels moved by
     /// its probe anchor's distance from [`STANDARD_ANCHOR_V`]: sustained
     /// levels at anchor + 0.15 and + 0.2 V, the ramp from the anchor to
@@ -626,13 +668,7 @@ impl ExcitationPlan {
         budget_offset_from_probe: bool,
     ) -> Self {
         let base = Self::standard(planes, duration_s, false);
-        let anchor = |coil: usize| {
-            probe
-                .coils
-                .iter()
-                .find(|c| c.coil == coil)
-                .map_or(STANDARD_ANCHOR_V, |c| (c.anchor_v * 100.0).round() / 100.0)
-        };
+        let anchor = |coil: usize| coil_anchor(probe, coil);
         let shift = |v: f64, a: f64, margin: f64| {
             if v >= PULSE_V {
                 v.max(a + 0.8).min(5.0)
@@ -641,23 +677,11 @@ impl ExcitationPlan {
                 ((v + a + margin - STANDARD_ANCHOR_V) * 100.0).round() / 100.0
             }
         };
-        let limit_of = |a: f64| {
-            if budget_offset_from_probe {
-                a
-            } else {
-                FIRMWARE_DEFAULT_OFFSET_V
-            }
-        } + BUDGET_SUSTAINED_ABOVE_OFFSET_V;
-        // A coil whose held levels lie above the budget's limit even
-        // without the margin.
-        let pulsed = |coil: usize| {
-            let a = anchor(coil);
-            STANDARD_TOP_HELD_V + a - STANDARD_ANCHOR_V > limit_of(a) + 1e-6
-        };
+        let pulsed = Self::pulsed_coils(probe, budget_offset_from_probe);
         let mut drive = Vec::new();
         for d in &base.drive {
             let a = anchor(d.coil);
-            let limit = limit_of(a);
+            let limit = sustained_limit_v(a, budget_offset_from_probe);
             let (a, margin) = level_placement(a, limit);
             let mut m = d.clone();
             m.volts = d.volts.map(|v| shift(v, a, margin));
@@ -672,7 +696,7 @@ impl ExcitationPlan {
                 m.from_v = m.from_v.map(up);
                 m.to_v = m.to_v.map(up);
             }
-            if d.peak_v() < PULSE_V || pulsed(d.coil) {
+            if d.peak_v() < PULSE_V || pulsed.contains(&d.coil) {
                 // A pulsed coil's saturated pulses (1–2.5 s) are cut to
                 // 1 s too: kept whole, the off-plan twin's α ended in a
                 // wrong basin (fit rms 0.238° against 0.049° of noise,
@@ -767,7 +791,7 @@ mod tests {
         let a = ExcitationPlan::adapted(2, 240.0, &probe, false);
         let s = ExcitationPlan::standard(2, 240.0, false);
         assert_eq!(a.drive, s.drive);
-        // The whole margin where it fits (1.6, 1.63 V) or where the
+        // The whole margin where it fits (1.5, 1.63 V) or where the
         // levels are pulsed anyway (from 1.74 V); the standard's levels
         // in between.
         for (anchor, placed) in [
