@@ -31,6 +31,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use plant_joint::identify::{IdentifyError, StartFit, StartFits, StartUnit};
 
 use crate::stop::Stop;
 
@@ -40,6 +41,9 @@ pub const SAID_KEPT: usize = 4000;
 
 /// The longest answer line read (a batch's scores are a few kB).
 const LINE_LIMIT: u64 = 16 << 20;
+
+/// What [`Driver::answer`] says when a stop ended the wait.
+pub const STOPPED: &str = "stopped by a signal";
 
 /// How long a driver that closed its output or input is given to exit
 /// (its exit status and last words are in its error).
@@ -155,44 +159,60 @@ impl Driver {
     /// The scores of `batch`, or why there are none: a stop, or a
     /// driver that ended or answered garbage (then it is ended too).
     pub fn scores(&mut self, batch: &[Vec<f64>]) -> Result<Vec<f64>, String> {
-        let sent = batch_line(batch).and_then(|line| {
-            let input = self.input.as_mut().ok_or("its input is closed")?;
-            input
-                .write_all(line.as_bytes())
-                .and_then(|()| input.flush())
-                .map_err(|e| format!("sending it a batch: {e}"))
-        });
+        let line = batch_line(batch).map_err(|why| self.failed(&why, DYING))?;
+        let n = batch.len();
+        let answer = self.answer(&line, &format!("a batch of {n}"))?;
+        parse_scores(&answer, n, self.null_as)
+            .map_err(|why| self.refused(&format!("a batch of {n} candidates"), &answer, &why))
+    }
+
+    /// Sends `line` (one line, `\n` ended) and returns the driver's answer
+    /// line, or why there is none: a stop (`"stopped by a signal"`; the
+    /// driver is sent SIGINT), or a driver that ended (then it is ended
+    /// too). `what` names the request in errors.
+    pub fn answer(&mut self, line: &str, what: &str) -> Result<String, String> {
+        let sent = self
+            .input
+            .as_mut()
+            .ok_or_else(|| "its input is closed".to_string())
+            .and_then(|input| {
+                input
+                    .write_all(line.as_bytes())
+                    .and_then(|()| input.flush())
+                    .map_err(|e| format!("sending it {what}: {e}"))
+            });
         if let Err(why) = sent {
             return Err(self.failed(&why, DYING));
         }
         loop {
             if self.stop.requested().is_some() {
                 crate::stop::interrupt(&self.child);
-                return Err("stopped by a signal".into());
+                return Err(STOPPED.into());
             }
             match self.lines.recv_timeout(Duration::from_millis(20)) {
-                Ok(Ok(line)) => {
-                    return parse_scores(&line, batch.len(), self.null_as).map_err(|why| {
-                        self.failed(
-                            &format!(
-                                "it answered a batch of {} candidates with {:?}: {why}",
-                                batch.len(),
-                                clip(line.trim_end(), 200)
-                            ),
-                            Duration::ZERO,
-                        )
-                    })
-                }
+                Ok(Ok(line)) => return Ok(line),
                 Ok(Err(e)) => {
                     return Err(self.failed(&format!("reading its answer: {e}"), Duration::ZERO))
                 }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
-                    let why = format!("it ended without answering a batch of {}", batch.len());
+                    let why = format!("it ended without answering {what}");
                     return Err(self.failed(&why, DYING));
                 }
             }
         }
+    }
+
+    /// The error of a driver whose answer to `what` was `answer` and is
+    /// refused for `why` (the driver is ended).
+    pub fn refused(&mut self, what: &str, answer: &str, why: &str) -> String {
+        self.failed(
+            &format!(
+                "it answered {what} with {:?}: {why}",
+                clip(answer.trim_end(), 200)
+            ),
+            Duration::ZERO,
+        )
     }
 
     /// The error of a failed driver: `why`, how it ended (it is killed if
@@ -238,6 +258,67 @@ impl Drop for Driver {
     /// most [`EXIT_GRACE`].
     fn drop(&mut self) {
         self.end(EXIT_GRACE);
+    }
+}
+
+/// The mechanics stage's starts of `identify joint --ray` run on the
+/// cluster by the driver `identify-serve` (one request at a time; the
+/// 3D joint's two planes take turns). The request is a JSON array of the
+/// units ([`StartUnit`]: every number as its bit pattern), the answer a
+/// JSON array of as many `{"fit": StartFit}` or `{"error": "message"}`,
+/// in order.
+pub struct RayStartFits {
+    driver: Mutex<Driver>,
+}
+
+impl RayStartFits {
+    /// Fits run by `driver`.
+    pub fn new(driver: Driver) -> Self {
+        Self {
+            driver: Mutex::new(driver),
+        }
+    }
+}
+
+/// One answer of `identify-serve`.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "snake_case")]
+enum StartAnswer {
+    Fit(StartFit),
+    Error(String),
+}
+
+impl StartFits for RayStartFits {
+    fn fit(&self, units: &[StartUnit]) -> Result<Vec<Result<StartFit, String>>, IdentifyError> {
+        let mut d = self.driver.lock().unwrap_or_else(|e| e.into_inner());
+        let line = serde_json::to_string(units)
+            .map_err(|e| IdentifyError::Remote(format!("the fits sent to the Ray driver: {e}")))?
+            + "\n";
+        let what = format!("{} mechanics fits", units.len());
+        let answer = d.answer(&line, &what).map_err(|why| {
+            if why == STOPPED {
+                IdentifyError::Stopped
+            } else {
+                IdentifyError::Remote(why)
+            }
+        })?;
+        let parsed = serde_json::from_str::<Vec<StartAnswer>>(&answer)
+            .map_err(|e| e.to_string())
+            .and_then(|a| {
+                if a.len() == units.len() {
+                    Ok(a)
+                } else {
+                    Err(format!("{} answers for {} fits", a.len(), units.len()))
+                }
+            })
+            .map_err(|why| IdentifyError::Remote(d.refused(&what, &answer, &why)))?;
+        Ok(parsed
+            .into_iter()
+            .map(|a| match a {
+                StartAnswer::Fit(f) => Ok(f),
+                StartAnswer::Error(e) => Err(e),
+            })
+            .collect())
     }
 }
 

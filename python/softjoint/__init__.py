@@ -57,6 +57,7 @@ from . import _native
 from ._native import (
     RHEOLOGY_UNIT_CANDIDATES,
     TUNE_UNIT_CANDIDATES,
+    IdentifyProblem,
     InputError,
     NonFiniteError,
     PlantFile,
@@ -78,6 +79,7 @@ __all__ = [
     "RHEOLOGY_UNIT_CANDIDATES",
     "TUNE_UNIT_CANDIDATES",
     "Gains",
+    "IdentifyProblem",
     "InputError",
     "NonFiniteError",
     "PlantFile",

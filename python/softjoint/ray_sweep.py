@@ -1,5 +1,7 @@
-"""Sweeps on a Ray cluster: the work units of ``softjoint tune`` and of a
-rheology calibration as Ray tasks, the reduction on the driver.
+"""Sweeps on a Ray cluster: the work units of ``softjoint tune`` (its
+candidates, then its held-out check's Monte Carlo), of a rheology or push
+calibration and of an identification's multi-starts as Ray tasks, the
+reduction on the driver.
 
 The units are the ones the one-machine program runs (``TuneSweep.units``,
 ``rheology_units``), each a pure function of the sweep and its index, so
@@ -48,6 +50,13 @@ and, the same way, what ``softjoint push calibrate --ray ADDRESS`` runs
 
     python -m softjoint.ray_sweep push-serve [--material M] [--site S] \\
         [--video CSV] [--nx N] [--ny N] ... [--score f|contour] --address ADDRESS
+
+and what ``softjoint identify joint LOG --ray ADDRESS`` runs: each line a
+JSON array of the mechanics stage's start units (:func:`identify_fits`),
+each fitted as a task, the answers one JSON array back::
+
+    python -m softjoint.ray_sweep identify-serve LOG [--prior PLANT] \\
+        [--angles camera|board-estimate] --address ADDRESS
 """
 from __future__ import annotations
 
@@ -66,6 +75,7 @@ import ray
 
 from . import (
     RHEOLOGY_UNIT_CANDIDATES,
+    IdentifyProblem,
     TUNE_UNIT_CANDIDATES,
     PlantFile,
     PushProblem,
@@ -106,9 +116,24 @@ def _tune_unit(spec: Tuple[str, str, int, int, int, bool], unit: Tuple[int, int,
 
 
 @ray.remote(max_retries=MAX_RETRIES)
+def _heldout_unit(spec: Tuple[str, str, int, int, int, bool], best: int,
+                  unit: Tuple[int, int]) -> str:
+    text, name, candidates, plants, seed, svo = spec
+    sweep = _cached(("tune",) + spec, lambda: TuneSweep(
+        PlantFile.from_text(text, name), candidates, plants, seed, svo))
+    return sweep.run_heldout_unit(best, *unit)
+
+
+@ray.remote(max_retries=MAX_RETRIES)
 def _push_unit(spec: Tuple[Any, ...], score: str, genes: List[List[float]]) -> List[float]:
     problem = _cached(("push",) + spec, lambda: PushProblem(*spec))
     return problem.scores(genes, score)
+
+
+@ray.remote(max_retries=MAX_RETRIES)
+def _identify_unit(spec: Tuple[str, str, Optional[str], str, bool], unit: str) -> str:
+    problem = _cached(("identify",) + spec, lambda: IdentifyProblem(*spec))
+    return problem.fit(unit)
 
 
 @ray.remote(max_retries=MAX_RETRIES)
@@ -303,6 +328,22 @@ def tune_units(sweep: TuneSweep, plant: PlantFile, address: Optional[str] = None
     return _gather(tasks, on_progress, on_result)
 
 
+def tune_heldout(sweep: TuneSweep, plant: PlantFile, results: List[str],
+                 address: Optional[str] = None) -> List[str]:
+    """The held-out check of a finished search (the Monte Carlo over
+    plants drawn anew from the plant file's uncertainty: the winner and
+    the paper's gains on each held-out manoeuvre) as Ray tasks, one per
+    manoeuvre and gains (each the search's plants' count of 25 s runs);
+    returns their results for ``sweep.reduce(results, heldout)`` or
+    ``sweep.merge(results, heldout)``. Ctrl-C raises
+    :class:`SweepStopped` with the held-out results finished."""
+    connect(address)
+    best = sweep.best_index(results)
+    spec = ray.put((plant.text, plant.name) + tuple(sweep.request()))
+    tasks = [lambda u=u: _heldout_unit.remote(spec, best, u) for u in sweep.heldout_units()]
+    return _gather(tasks)
+
+
 def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
          search_v_offset: bool = False, address: Optional[str] = None,
          unit: int = TUNE_UNIT_CANDIDATES,
@@ -316,16 +357,22 @@ def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
     finishes removes the file it wrote (it has nothing left to resume)."""
     sweep = TuneSweep(plant, candidates, plants, seed, search_v_offset)
     writer = None if state is None else _StateWriter(sweep, state)
+    results: List[str] = []
     try:
         results = tune_units(sweep, plant, address, unit, on_progress, writer)
+        heldout = tune_heldout(sweep, plant, results, address)
     except SweepStopped as stopped:
+        # Stopped in the held-out check: every candidate was scored; the
+        # state keeps them (the program's --resume only reduces).
+        if results:
+            stopped.finished, stopped.units = results, len(results)
         if writer is not None:
             writer(stopped.finished, now=True)
             stopped.state = (writer.path,) + tuple(writer.held)
         raise
     if writer is not None:
         os.remove(writer.path)
-    return json.loads(sweep.reduce(results))
+    return json.loads(sweep.reduce(results, heldout))
 
 
 def rheology_calibrate(scenario: Optional[str] = None, measured: Optional[str] = None,
@@ -410,6 +457,53 @@ def push_batches(options: Dict[str, Any], score: str = "f", unit: int = PUSH_UNI
         return [s for part in _gather(tasks) for s in part]
 
     return evaluate_batch
+
+
+def identify_fits(log: str, prior: Optional[str] = None, board_estimates: bool = False
+                  ) -> Callable[[List[Any]], List[Any]]:
+    """The runner of an identification's start units on the cluster this
+    process is connected to: a request (a list of the units ``softjoint
+    identify joint --ray`` sends, as parsed JSON) becomes one
+    ``_identify_unit`` task per unit, on workers that read ``log`` and
+    ``prior`` (paths, read here and shipped once) as the program does;
+    the answers (``{"fit": ...}`` or ``{"error": ...}``) come back in
+    request order. Each unit is one Levenberg-Marquardt fit, seconds to
+    minutes of replays, so one unit per task. A task that failed for
+    good raises here; Ctrl-C raises :class:`SweepStopped`."""
+    with open(log, encoding="utf-8") as f:
+        log_text = f.read()
+    prior_text = None
+    if prior is not None:
+        with open(prior, encoding="utf-8") as f:
+            prior_text = f.read()
+    spec = ray.put((log_text, os.fspath(log), prior_text,
+                    "prior" if prior is None else os.fspath(prior), board_estimates))
+
+    def run(units: List[Any]) -> List[Any]:
+        tasks = [lambda u=u: _identify_unit.remote(spec, json.dumps(u)) for u in units]
+        return [json.loads(a) for a in _gather(tasks)]
+
+    return run
+
+
+def identify_serve(log: str, prior: Optional[str], board_estimates: bool,
+                   address: Optional[str], requests: Any, answers: Any) -> None:
+    """What ``softjoint identify joint --ray ADDRESS`` runs: joins the
+    cluster, then for each line of ``requests`` (a JSON array of start
+    units) fits them on Ray (:func:`identify_fits`) and writes one line to
+    ``answers``: a JSON array of the answers in order, flushed. Every
+    number in a unit and an answer is an integer (an IEEE double's bits),
+    so nothing is rounded on the way."""
+    connect(address)
+    run = identify_fits(log, prior, board_estimates)
+    for line in requests:
+        if not line.strip():
+            continue
+        units = json.loads(line)
+        if not isinstance(units, list) or not all(isinstance(u, dict) for u in units):
+            raise ValueError(f"a request must be a JSON array of start units, got {line[:200]!r}")
+        answers.write(json.dumps(run(units)) + "\n")
+        answers.flush()
 
 
 def _batch_of(line: str) -> List[List[float]]:
@@ -547,20 +641,32 @@ def main(argv: Optional[List[str]] = None) -> int:
     u.add_argument("--score", default="f", choices=["f", "contour"])
     u.add_argument("--address", default=None)
     u.add_argument("--unit", type=int, default=PUSH_UNIT_CANDIDATES)
+    d = sub.add_parser("identify-serve", help="fit the mechanics starts of `softjoint "
+                       "identify joint --ray` on Ray: one JSON line in (the start units), one "
+                       "JSON line out (their fits), until end of input")
+    d.add_argument("log")
+    d.add_argument("--prior")
+    d.add_argument("--angles", default="camera", choices=["camera", "board-estimate"])
+    d.add_argument("--address", default=None)
     a = p.parse_args(argv)
-    if a.command in ("rheology-serve", "push-serve"):
+    if a.command in ("rheology-serve", "push-serve", "identify-serve"):
         return _serve(a)
     try:
         if a.command == "tune" and a.units_out:
             plant = load_plant(a.plant)
             sweep = TuneSweep(plant, a.candidates, a.plants, a.seed, a.search_v_offset)
+            results = []
             try:
                 results = tune_units(sweep, plant, a.address, a.unit, _progress())
+                heldout = tune_heldout(sweep, plant, results, a.address)
             except SweepStopped as stopped:
-                # The units that finished, for the program's search state.
+                # The units that finished, for the program's search state
+                # (all of them when the held-out check was stopped).
+                if results:
+                    stopped.finished, stopped.units = results, len(results)
                 _write_text(a.units_out, sweep.merge(stopped.finished))
                 raise
-            _write_text(a.units_out, sweep.merge(results))
+            _write_text(a.units_out, sweep.merge(results, heldout))
             return 0
         if a.command == "tune":
             out = tune(load_plant(a.plant), a.candidates, a.plants, a.seed,
@@ -578,7 +684,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
 
 def _serve(a: argparse.Namespace) -> int:
-    """``rheology-serve`` and ``push-serve``: the answers go to the standard output this
+    """``rheology-serve``, ``push-serve`` and ``identify-serve``: the answers go to the standard output this
     process was given, and everything else written to file descriptor 1
     (Ray's own messages, a stray print) to standard error, so that no line
     but an answer reaches the program. A failure is said on standard
@@ -588,7 +694,10 @@ def _serve(a: argparse.Namespace) -> int:
     os.dup2(2, 1)
     sys.stdout = sys.stderr
     try:
-        if a.command == "push-serve":
+        if a.command == "identify-serve":
+            identify_serve(a.log, a.prior, a.angles == "board-estimate", a.address, sys.stdin,
+                           answers)
+        elif a.command == "push-serve":
             connect(a.address)
             options = dict(material=a.material, site=a.site, video=a.video,
                            ref_element_px=a.ref_element_px, noise_seed=a.noise_seed,

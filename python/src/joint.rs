@@ -313,6 +313,19 @@ pub struct PyTuneSweep {
 }
 
 /// The scored candidates of units' results (any order), in index order.
+/// The held-out units' results (TOML text each, as `run_heldout_unit`
+/// returns them).
+fn heldout_of(units: &[String]) -> PyResult<Vec<tune::HeldOutScored>> {
+    units
+        .iter()
+        .enumerate()
+        .map(|(k, text)| {
+            toml::from_str(text)
+                .map_err(|e| SweepError::new_err(format!("held-out unit result {k}: {e}")))
+        })
+        .collect()
+}
+
 fn scored_of(units: &[String]) -> PyResult<Vec<Scored>> {
     let mut scored = Vec::new();
     for (k, text) in units.iter().enumerate() {
@@ -404,12 +417,52 @@ impl PyTuneSweep {
         .map_err(|e| SweepError::new_err(format!("unit {index}: {e}")))
     }
 
+    /// The search's winner among the units' results (any order): the
+    /// candidate index the held-out units are run for.
+    fn best_index(&self, units: Vec<String>) -> PyResult<usize> {
+        let scored = scored_of(&units)?;
+        self.sweep
+            .best_index(&scored)
+            .map_err(|e| SweepError::new_err(format!("{e:#}")))
+    }
+
+    /// The held-out check's units (the Monte Carlo over plants drawn
+    /// anew from the plant file's uncertainty) as `(manoeuvre, gains)`:
+    /// each manoeuvre, the tuned gains (0) and the paper's (1).
+    fn heldout_units(&self) -> Vec<(usize, usize)> {
+        self.sweep
+            .heldout_units()
+            .into_iter()
+            .map(|u| (u.manoeuvre, u.gains))
+            .collect()
+    }
+
+    /// Runs held-out unit `(manoeuvre, gains)` for the winner `best`;
+    /// returns its score as text for `reduce(units, heldout)` and
+    /// `merge(units, heldout)`.
+    fn run_heldout_unit(
+        &self,
+        py: Python<'_>,
+        best: usize,
+        manoeuvre: usize,
+        gains: usize,
+    ) -> PyResult<String> {
+        let sweep = &self.sweep;
+        let unit = tune::HeldOutUnit { manoeuvre, gains };
+        let h = py
+            .detach(|| sweep.run_heldout_unit(best, unit))
+            .map_err(|e| SweepError::new_err(format!("{e:#}")))?;
+        toml::to_string(&h).map_err(|e| SweepError::new_err(format!("held-out unit: {e}")))
+    }
+
     /// The units' results (any order) merged into one scored-candidates
     /// file (`host_tools::joint::tune::ScoredFile`, TOML) for `softjoint
     /// tune --ray` to reduce.
-    fn merge(&self, units: Vec<String>) -> PyResult<String> {
+    #[pyo3(signature = (units, heldout=Vec::new()))]
+    fn merge(&self, units: Vec<String>, heldout: Vec<String>) -> PyResult<String> {
         let scored = scored_of(&units)?;
-        toml::to_string(&tune::ScoredFile { scored })
+        let heldout = heldout_of(&heldout)?;
+        toml::to_string(&tune::ScoredFile { scored, heldout })
             .map_err(|e| SweepError::new_err(format!("the merged units: {e}")))
     }
 
@@ -447,12 +500,21 @@ impl PyTuneSweep {
     /// The reduction of the units' results (any order): returns the
     /// `--json` output of `softjoint tune` without its wall time, as text
     /// (`gains`, `failed_candidates`, `rejected_early`,
-    /// `heldout_beats_or_ties_paper`).
-    fn reduce(&self, py: Python<'_>, units: Vec<String>) -> PyResult<String> {
+    /// `heldout_beats_or_ties_paper`). With `heldout` (every held-out
+    /// unit's result for the winner), the held-out check is taken from
+    /// them; without it, it runs here.
+    #[pyo3(signature = (units, heldout=None))]
+    fn reduce(
+        &self,
+        py: Python<'_>,
+        units: Vec<String>,
+        heldout: Option<Vec<String>>,
+    ) -> PyResult<String> {
         let scored = scored_of(&units)?;
+        let heldout = heldout.map(|h| heldout_of(&h)).transpose()?;
         let sweep = &self.sweep;
         let r = py
-            .detach(|| sweep.reduce(&scored))
+            .detach(|| sweep.reduce_with(&scored, heldout.as_deref()))
             .map_err(|e| SweepError::new_err(format!("{e:#}")))?;
         let g = r.gains_file(&self.plant_name, sweep.joint(), sweep.request());
         let out = serde_json::json!({

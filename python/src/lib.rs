@@ -24,8 +24,12 @@
 //! checks; the pushed block is `push simulate`'s, and its objective the
 //! fitness `push calibrate` maximises.
 //!
+//! Identification: the mechanics stage's fits from its starting points
+//! as work units (`IdentifyProblem`), for `identify joint --ray`.
+//!
 //! Left out (issue 33 goes on): plant and gains files written from
-//! Python, identification, push calibration and classification.
+//! Python, a whole identification as a Python call, push calibration and
+//! classification.
 
 use pyo3::prelude::*;
 
@@ -33,6 +37,7 @@ mod arrays;
 mod contour;
 mod dlo_solve;
 mod errors;
+mod identify;
 mod joint;
 mod push;
 mod rheology;
@@ -50,5 +55,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     rope::register(m)?;
     dlo_solve::register(m)?;
     push::register(m)?;
+    identify::register(m)?;
     Ok(())
 }

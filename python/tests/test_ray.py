@@ -367,10 +367,10 @@ sys.exit(rc if rc >= 0 else 128 - rc)
 '''
 
 
-def interrupted_after_one_answer(args, cwd, tmp_path):
-    """Runs the program (`args`, with `--ray`) with the tap standing in
-    for Python, sends SIGINT once the driver has answered its first
-    batch; returns the program's exit status and standard error."""
+def tapped(args, cwd, tmp_path):
+    """Starts the program (`args`, with `--ray`) with the tap standing in
+    for Python: each answer line of the driver marks a file
+    `answer-N` in `tmp_path`."""
     tap = tmp_path / "tap.py"
     tap.write_text(TAP)
     wrapper = tmp_path / "python"
@@ -378,8 +378,15 @@ def interrupted_after_one_answer(args, cwd, tmp_path):
     wrapper.chmod(0o755)
     env = dict(os.environ, SOFTJOINT_PYTHON=str(wrapper), TAP_PYTHON=sys.executable,
                TAP_DIR=str(tmp_path))
-    p = subprocess.Popen([str(a) for a in args], cwd=cwd, env=env, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen([str(a) for a in args], cwd=cwd, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def interrupted_after_one_answer(args, cwd, tmp_path):
+    """Runs the program (`args`, with `--ray`) with the tap standing in
+    for Python, sends SIGINT once the driver has answered its first
+    batch; returns the program's exit status and standard error."""
+    p = tapped(args, cwd, tmp_path)
     deadline = time.time() + 120
     while not (tmp_path / "answer-1").exists():
         assert time.time() < deadline and p.poll() is None, "no batch was answered"
@@ -451,3 +458,102 @@ def test_the_programs_push_calibration_with_ray_stopped_keeps_its_state(cluster,
     assert (out / "params.json").read_bytes() == (tmp_path / "local" / "params.json").read_bytes()
     cut = lambda d: [r.rsplit(",", 1)[0] for r in (d / "generations.csv").read_text().splitlines()]
     assert cut(out) == cut(tmp_path / "local")
+
+
+@pytest.fixture(scope="module")
+def identify_log(softjoint_bin, tmp_path_factory):
+    """A 240 s standard plan recorded on the default 3D joint, and the
+    program's identification of it on this machine (4 iterations per
+    stage: the mechanics stage still runs from five starts per plane):
+    its `--json` report and plant file, the file names taken out."""
+    d = tmp_path_factory.mktemp("identify")
+    plan = run_cli(softjoint_bin, "identify", "plan", "--joint", "3d", "--duration-s", "240").stdout
+    (d / "plan.toml").write_text(plan)
+    run_cli(softjoint_bin, "sim", "--excite", d / "plan.toml", "--log", d / "log.csv")
+    local = identified(run_cli(softjoint_bin, *IDENTIFY(d / "log.csv", d / "local.toml")),
+                       d / "local.toml")
+    starts = [st["starts"] for plane in local[0]["planes"] for st in plane["stages"]
+              if st["name"] == "mechanics"]
+    assert starts == [5, 5], starts
+    return d / "log.csv", local
+
+
+def IDENTIFY(log, out):
+    return ["identify", "joint", log, "-o", out, "--max-iterations", "4", "--json",
+            "--allow-unverified"]
+
+
+def identified(p, plant):
+    """The report and the plant file of an `identify joint --json` run."""
+    report = json.loads(p.stdout)
+    report.pop("plant_file")
+    return report, [line for line in plant.read_text().splitlines() if not line.startswith("#")]
+
+
+def identify_workers():
+    ps = subprocess.run(["ps", "-eo", "pid=,args="], capture_output=True, text=True).stdout
+    return [int(line.split()[0]) for line in ps.splitlines() if "ray::_identify_unit" in line]
+
+
+def test_the_programs_identification_with_ray_fits_its_starts_there_and_gives_its_own_result(
+        cluster, softjoint_bin, identify_log, tmp_path):
+    """`identify joint --ray`: the mechanics stage's five starts of each
+    plane go to the cluster as one request per plane (the tap counts the
+    driver's answers), one worker fitting a start is killed (Ray runs the
+    start again), and the plant file and report are the program's own
+    on this machine, every 1σ and evaluation count included."""
+    log, local = identify_log
+    out = tmp_path / "ray.toml"
+    p = tapped([softjoint_bin, *IDENTIFY(log, out), "--ray", cluster], None, tmp_path)
+    killed = None
+    deadline = time.time() + 120
+    while killed is None and p.poll() is None and time.time() < deadline:
+        pids = identify_workers()
+        if pids:
+            os.kill(pids[0], signal.SIGKILL)
+            killed = pids[0]
+        time.sleep(0.05)
+    stdout, err = p.communicate(timeout=300)
+    assert killed is not None, f"no worker was seen fitting a start: {err}"
+    assert p.returncode == 0, err
+    assert len(list(tmp_path.glob("answer-*"))) == 2, "one request per plane answered"
+    assert identified(subprocess.CompletedProcess([], 0, stdout), out) == local
+
+
+def heldout_workers():
+    ps = subprocess.run(["ps", "-eo", "pid=,args="], capture_output=True, text=True).stdout
+    return [int(line.split()[0]) for line in ps.splitlines() if "ray::_heldout_unit" in line]
+
+
+def test_the_held_out_check_runs_on_ray_and_a_killed_worker_changes_nothing(
+        cluster, softjoint_bin, repo, tmp_path):
+    """The tuned gains' held-out check (the winner and the paper's gains
+    on every held-out manoeuvre, on plants drawn anew from the plant
+    file's uncertainty) as Ray tasks, one worker killed while it runs a
+    manoeuvre: the check and the gains file are the ones the reduction
+    makes on this machine and the program writes."""
+    plant = softjoint.PlantFile.from_text((repo / PLANT).read_text(), PLANT)
+    sweep = softjoint.TuneSweep(plant, 6, 2, 5, True)
+    results = ray_sweep.tune_units(sweep, plant)
+    got = {}
+    t = threading.Thread(target=lambda: got.update(
+        heldout=ray_sweep.tune_heldout(sweep, plant, results)))
+    t.start()
+    killed = None
+    deadline = time.time() + 60
+    while killed is None and t.is_alive() and time.time() < deadline:
+        pids = heldout_workers()
+        if pids:
+            os.kill(pids[0], signal.SIGKILL)
+            killed = pids[0]
+        time.sleep(0.02)
+    t.join(120)
+    assert killed is not None, "no worker was seen running a held-out unit"
+    assert len(got["heldout"]) == len(sweep.heldout_units()) == 6
+    on_ray = json.loads(sweep.reduce(results, got["heldout"]))
+    assert on_ray == json.loads(sweep.reduce(results))
+    assert on_ray["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 6, 2, 5)
+    # A held-out result for another candidate than the winner is refused.
+    wrong = sweep.run_heldout_unit((sweep.best_index(results) + 1) % 6, 0, 0)
+    with pytest.raises(softjoint.SweepError, match="the search's winner is"):
+        sweep.reduce(results, [wrong] + got["heldout"][1:])

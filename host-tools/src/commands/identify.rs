@@ -128,50 +128,18 @@ pub struct JointArgs {
     /// plant file); without it such a result exits 1.
     #[arg(long)]
     allow_unverified: bool,
+    /// Run the mechanics stage's fits from its starting points on the Ray
+    /// cluster at ADDRESS (`ray start --head` prints it), each start a
+    /// task, through the Python package's driver (`python3 -m
+    /// softjoint.ray_sweep identify-serve`; $SOFTJOINT_PYTHON names another
+    /// Python). The selection and everything else run here; the plant
+    /// file and report are the same as without it.
+    #[arg(long, value_name = "ADDRESS")]
+    ray: Option<String>,
 }
 
 /// What `--angles board-estimate` tells the reader with every result.
 const BOARD_ESTIMATE_NOTE: &str = "angles: the board's wire-based estimates (est_*_deg), not a camera — the mechanics absorb the estimation law's error and the wires' jamming, and the jamming parameters are fitted against an angle read off the same wires (not independent)";
-
-/// Rows between two board estimates used as angle frames (every 3rd row
-/// of a 10 ms log: 33 frames/s, about the camera's 30, so the angle
-/// residuals keep the weight the camera's would have).
-const ESTIMATE_FRAME_ROWS: usize = 3;
-
-/// The log's camera columns replaced by the board's estimates (see
-/// [`AngleSource::BoardEstimate`]); errors name the file and column.
-fn angles_from_board_estimates(
-    log: &mut identify::ExcitationLog,
-    path: &std::path::Path,
-) -> anyhow::Result<()> {
-    if log.cam_capture_s.iter().any(|c| *c >= 0.0) {
-        bail!(
-            "{}: the log has camera frames; --angles board-estimate is for a log without a camera (`console excite`)",
-            path.display()
-        );
-    }
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read log {}", path.display()))?;
-    let table = plant_common::csv_input::read_numeric(&text, &path.display().to_string())?;
-    let names = ["est_alpha_deg", "est_beta_deg"];
-    let mut cols = Vec::new();
-    for name in names.iter().take(log.planes) {
-        cols.push(table.values(table.column(name)?));
-    }
-    for (k, (cap, deg)) in log
-        .cam_capture_s
-        .iter_mut()
-        .zip(log.cam_deg.iter_mut())
-        .enumerate()
-    {
-        let frame = k - k % ESTIMATE_FRAME_ROWS;
-        *cap = log.t_s[frame];
-        for (d, col) in deg.iter_mut().zip(&cols) {
-            *d = col[frame];
-        }
-    }
-    Ok(())
-}
 
 pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
     match cmd {
@@ -358,17 +326,16 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.plot {
         output::check_file(p)?;
     }
-    let mut log = excite::read_log(&a.log)?;
-    match a.angles {
-        AngleSource::BoardEstimate => angles_from_board_estimates(&mut log, &a.log)?,
-        AngleSource::Camera => {
-            if !log.cam_capture_s.iter().any(|c| *c >= 0.0) && !log.has_electrical() {
-                bail!(
-                    "{}: the log has no camera frame and no coil resistances, so nothing measures the angle the mechanics are fitted to; for a log recorded on a board (`console excite`), --angles board-estimate fits them to the board's own estimates",
-                    a.log.display()
-                );
-            }
-        }
+    let board_estimates = a.angles == AngleSource::BoardEstimate;
+    let log_text = std::fs::read_to_string(&a.log)
+        .with_context(|| format!("cannot read log {}", a.log.display()))?;
+    let log = excite::log_from_text(&log_text, &a.log.display().to_string(), board_estimates)?;
+    drop(log_text);
+    if !board_estimates && !log.cam_capture_s.iter().any(|c| *c >= 0.0) && !log.has_electrical() {
+        bail!(
+            "{}: the log has no camera frame and no coil resistances, so nothing measures the angle the mechanics are fitted to; for a log recorded on a board (`console excite`), --angles board-estimate fits them to the board's own estimates",
+            a.log.display()
+        );
     }
     let prior = match &a.prior {
         Some(p) => Some(PlantFile::load(p)?.params()?),
@@ -464,23 +431,41 @@ fn fit(
         .into(),
         None => anyhow::anyhow!("{}: {e}", a.log.display()),
     };
+    let ray = match &a.ray {
+        Some(address) => {
+            let (mut cmd, who) = host_tools::ray::serve_command("identify-serve", address);
+            cmd.arg(&a.log);
+            if let Some(p) = &a.prior {
+                cmd.arg("--prior").arg(p);
+            }
+            if a.angles == AngleSource::BoardEstimate {
+                cmd.args(["--angles", "board-estimate"]);
+            }
+            let driver = host_tools::ray::Driver::start(cmd, who, stop.clone(), f64::NAN)?;
+            Some(host_tools::ray::RayStartFits::new(driver))
+        }
+        None => None,
+    };
+    let elsewhere = ray.as_ref().map(|r| r as &dyn identify::StartFits);
     let (params, reports) = match (log.planes, prior) {
         (1, None) => {
             let (p, r) =
-                identify::identify_2d(log, &Joint2dParams::default(), opts).map_err(what)?;
+                identify::identify_2d_with(log, &Joint2dParams::default(), opts, elsewhere)
+                    .map_err(what)?;
             (PlantParams::TwoD(p), r)
         }
         (1, Some(PlantParams::TwoD(prior))) => {
-            let (p, r) = identify::identify_2d(log, &prior, opts).map_err(what)?;
+            let (p, r) = identify::identify_2d_with(log, &prior, opts, elsewhere).map_err(what)?;
             (PlantParams::TwoD(p), r)
         }
         (2, None) => {
             let (p, r) =
-                identify::identify_3d(log, &Joint3dParams::default(), opts).map_err(what)?;
+                identify::identify_3d_with(log, &Joint3dParams::default(), opts, elsewhere)
+                    .map_err(what)?;
             (PlantParams::ThreeD(p), r)
         }
         (2, Some(PlantParams::ThreeD(prior))) => {
-            let (p, r) = identify::identify_3d(log, &prior, opts).map_err(what)?;
+            let (p, r) = identify::identify_3d_with(log, &prior, opts, elsewhere).map_err(what)?;
             (PlantParams::ThreeD(p), r)
         }
         _ => bail!(

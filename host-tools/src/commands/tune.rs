@@ -274,11 +274,10 @@ fn on_ray(
     };
     let read = std::fs::read_to_string(&units);
     let _ = std::fs::remove_file(&units);
-    let scored = |text: &str| -> anyhow::Result<Vec<tune::Scored>> {
-        let file: tune::ScoredFile =
-            host_tools::input::from_toml(text, &units.display().to_string())?;
-        Ok(file.scored)
+    let read_units = |text: &str| -> anyhow::Result<tune::ScoredFile> {
+        host_tools::input::from_toml(text, &units.display().to_string())
     };
+    let scored = |text: &str| -> anyhow::Result<Vec<tune::Scored>> { Ok(read_units(text)?.scored) };
     if let Some(signal) = stop.requested() {
         // The units finished before the stop, if the driver got to write
         // them.
@@ -293,8 +292,11 @@ fn on_ray(
     }
     let text = read.with_context(|| format!("{who} wrote no {}", units.display()))?;
     let sweep = tune::TuneSweep::new(file, a.request())?;
+    // The held-out check's units too, where the driver ran them.
+    let done = read_units(&text)?;
+    let heldout = (!done.heldout.is_empty()).then_some(&done.heldout[..]);
     Ok(tune::TuneOutcome::Done(Box::new(
-        sweep.reduce(&scored(&text)?)?,
+        sweep.reduce_with(&done.scored, heldout)?,
     )))
 }
 

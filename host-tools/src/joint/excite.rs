@@ -483,8 +483,52 @@ pub fn write_log(path: &Path, log: &ExcitationLog) -> anyhow::Result<()> {
 pub fn read_log(path: &Path) -> anyhow::Result<ExcitationLog> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read log {}", path.display()))?;
-    let table = plant_common::csv_input::read_numeric(&text, &path.display().to_string())?;
-    Ok(ExcitationLog::from_table(&table)?)
+    log_from_text(&text, &path.display().to_string(), false)
+}
+
+/// Rows between two board estimates used as angle frames (every 3rd row
+/// of a 10 ms log: 33 frames/s, about the camera's 30, so the angle
+/// residuals keep the weight the camera's would have).
+pub const ESTIMATE_FRAME_ROWS: usize = 3;
+
+/// The log in `text` (named `name` in errors); with `board_estimates`,
+/// its camera columns replaced by the board's own wire-based estimates
+/// (columns `est_alpha_deg`, `est_beta_deg` of a `console excite` log, one
+/// frame every [`ESTIMATE_FRAME_ROWS`] rows; refused for a log that has
+/// camera frames). What `identify joint` fits, and what a Ray worker
+/// running its units rebuilds from the same text.
+pub fn log_from_text(
+    text: &str,
+    name: &str,
+    board_estimates: bool,
+) -> anyhow::Result<ExcitationLog> {
+    let table = plant_common::csv_input::read_numeric(text, name)?;
+    let mut log = ExcitationLog::from_table(&table)?;
+    if board_estimates {
+        if log.cam_capture_s.iter().any(|c| *c >= 0.0) {
+            anyhow::bail!(
+                "{name}: the log has camera frames; --angles board-estimate is for a log without a camera (`console excite`)"
+            );
+        }
+        let names = ["est_alpha_deg", "est_beta_deg"];
+        let mut cols = Vec::new();
+        for col in names.iter().take(log.planes) {
+            cols.push(table.values(table.column(col)?));
+        }
+        for (k, (cap, deg)) in log
+            .cam_capture_s
+            .iter_mut()
+            .zip(log.cam_deg.iter_mut())
+            .enumerate()
+        {
+            let frame = k - k % ESTIMATE_FRAME_ROWS;
+            *cap = log.t_s[frame];
+            for (d, col) in deg.iter_mut().zip(&cols) {
+                *d = col[frame];
+            }
+        }
+    }
+    Ok(log)
 }
 
 /// Column names of a log (for help texts).

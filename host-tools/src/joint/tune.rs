@@ -652,6 +652,7 @@ fn summarise(runs: Vec<RunCost>) -> Score {
 }
 
 /// The result of a search.
+#[derive(Debug)]
 pub struct TuneResult {
     /// The best candidate.
     pub best: Gains,
@@ -684,9 +685,19 @@ pub fn heldout(
         PlantParams::ThreeD(_) => 4,
     };
     let paper_gains = Gains::paper(coils);
-    let mut scores = heldout_scores(file, &[best, &paper_gains], n_plants, seed)?.into_iter();
+    Ok(heldout_of(heldout_scores(
+        file,
+        &[best, &paper_gains],
+        n_plants,
+        seed,
+    )?))
+}
+
+/// The held-out verdict from the tuned (first) and the paper's (second)
+/// gains' scores on each manoeuvre, [`Manoeuvre::Steps`] first.
+fn heldout_of(scores: Vec<(Manoeuvre, Vec<Score>)>) -> HeldOut {
     let mut manoeuvres = Vec::new();
-    for (m, pair) in scores.by_ref() {
+    for (m, pair) in scores {
         let [tuned, paper] = <[Score; 2]>::try_from(pair).expect("two gains scored");
         manoeuvres.push(ManoeuvreScore {
             name: m.name().to_string(),
@@ -698,13 +709,25 @@ pub fn heldout(
     // The steps first: its scores stay where files before the other
     // manoeuvres kept them.
     let steps = manoeuvres.remove(0);
-    Ok(HeldOut {
+    HeldOut {
         beats_or_ties_paper: steps.beats_or_ties_paper
             && manoeuvres.iter().all(|m| m.beats_or_ties_paper),
         score: steps.tuned,
         paper: steps.paper,
         manoeuvres,
-    })
+    }
+}
+
+/// One held-out manoeuvre's score of `gains` on `plants` (seeded as the
+/// search's runs): a unit of the held-out check, here or on a Ray worker.
+fn heldout_score(
+    joint: JointKind,
+    m: Manoeuvre,
+    gains: &Gains,
+    plants: &[PlantParams],
+    seed: u64,
+) -> anyhow::Result<Score> {
+    score_scenarios(plants, |p| m.scenario(joint, gains, p, seed))
 }
 
 /// Each of `gains` scored on every held-out manoeuvre of `file`'s joint
@@ -729,7 +752,7 @@ pub fn heldout_scores(
     let scored = jobs
         .par_iter()
         .map(|&(m, g)| {
-            score_scenarios(&plants, |p| m.scenario(joint, gains[g], p, seed))
+            heldout_score(joint, m, gains[g], &plants, seed)
                 .with_context(|| format!("gains {} on the held-out {}", g, m.name()))
         })
         .collect::<anyhow::Result<Vec<Score>>>()?;
@@ -807,6 +830,36 @@ pub struct ScoredFile {
     /// The candidates scored, in any order.
     #[serde(default)]
     pub scored: Vec<Scored>,
+    /// The held-out check's units, where the driver ran them (any order;
+    /// [`TuneSweep::heldout_units`]); without them the program runs the
+    /// check itself.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub heldout: Vec<HeldOutScored>,
+}
+
+/// A unit of the held-out check (the Monte Carlo over plants drawn anew
+/// from the plant file's uncertainty, [`heldout`]): the tuned gains
+/// (`gains` 0) or the paper's (1) on manoeuvre `manoeuvre` (its index in
+/// [`Manoeuvre::all`]), on every held-out plant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeldOutUnit {
+    /// Index in [`Manoeuvre::all`] of the sweep's joint.
+    pub manoeuvre: usize,
+    /// 0: the tuned gains, 1: the paper's.
+    pub gains: usize,
+}
+
+/// A held-out unit's score, and the search's winner it was run for.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeldOutScored {
+    /// The winning candidate's index (the tuned gains).
+    pub best: usize,
+    /// The unit.
+    pub unit: HeldOutUnit,
+    /// Its score.
+    pub score: Score,
 }
 
 /// A work unit of a search: candidates `start..end` of the seeded
@@ -835,6 +888,9 @@ pub struct TuneSweep {
     /// (per process: a Ray worker makes its own, the same): the bound
     /// every other candidate is checked against.
     paper: OnceLock<Option<Score>>,
+    /// The held-out plants (seed + 1 of the plant stream), drawn on first
+    /// use.
+    heldout_plants: OnceLock<Vec<PlantParams>>,
 }
 
 impl TuneSweep {
@@ -854,6 +910,7 @@ impl TuneSweep {
             plants,
             cands,
             paper: OnceLock::new(),
+            heldout_plants: OnceLock::new(),
         })
     }
 
@@ -930,9 +987,17 @@ impl TuneSweep {
 
     /// The reduction: every candidate's score (by index, in any order;
     /// one per candidate) to the best of them, the paper's, the failures
-    /// and the held-out check. The result depends only on the scores, not
-    /// on where or in which order they were made.
+    /// and the held-out check (run here, on this process's threads). The
+    /// result depends only on the scores, not on where or in which order
+    /// they were made.
     pub fn reduce(&self, scored: &[Scored]) -> anyhow::Result<TuneResult> {
+        self.reduce_with(scored, None)
+    }
+
+    /// The search's winner among `scored` (what [`Self::reduce`] keeps):
+    /// its index, its score, the paper's and the counts of failed and
+    /// rejected candidates.
+    fn winner(&self, scored: &[Scored]) -> anyhow::Result<(usize, Score, Score, usize, usize)> {
         let n = self.req.candidates.max(1);
         let mut scores: Vec<Option<&Option<Score>>> = vec![None; n];
         let mut rejected = 0;
@@ -962,15 +1027,116 @@ impl TuneSweep {
                 .filter_map(|(i, s)| s.map(|s| (i, s))),
         )
         .context("no candidate could be scored")?;
+        Ok((i, best.clone(), paper, failed, rejected))
+    }
+
+    /// The index of the search's winner among `scored`: the tuned gains
+    /// the held-out units are run for.
+    pub fn best_index(&self, scored: &[Scored]) -> anyhow::Result<usize> {
+        Ok(self.winner(scored)?.0)
+    }
+
+    /// The held-out check's units: each manoeuvre of the joint, the tuned
+    /// gains and then the paper's.
+    pub fn heldout_units(&self) -> Vec<HeldOutUnit> {
+        (0..Manoeuvre::all(self.joint).len())
+            .flat_map(|manoeuvre| (0..2).map(move |gains| HeldOutUnit { manoeuvre, gains }))
+            .collect()
+    }
+
+    /// Runs a held-out unit for the winner `best` (its candidate index):
+    /// the same score [`Self::reduce`] computes for it on this process.
+    pub fn run_heldout_unit(
+        &self,
+        best: usize,
+        unit: HeldOutUnit,
+    ) -> anyhow::Result<HeldOutScored> {
+        let m = *Manoeuvre::all(self.joint)
+            .get(unit.manoeuvre)
+            .with_context(|| {
+                format!(
+                    "held-out manoeuvre {} of {}",
+                    unit.manoeuvre,
+                    Manoeuvre::all(self.joint).len()
+                )
+            })?;
+        let coils = match self.joint {
+            JointKind::TwoD => 2,
+            JointKind::ThreeD => 4,
+        };
+        let paper = Gains::paper(coils);
+        let gains = match unit.gains {
+            0 => self
+                .cands
+                .get(best)
+                .with_context(|| format!("candidate {best} is not one of the sweep's"))?,
+            1 => &paper,
+            g => bail!("held-out gains {g}: 0 (tuned) or 1 (paper)"),
+        };
+        let plants = match self.heldout_plants.get() {
+            Some(p) => p,
+            None => {
+                let drawn = sample_plants(
+                    &self.file,
+                    self.req.plants.max(1),
+                    self.req.seed.wrapping_add(1),
+                )?;
+                self.heldout_plants.get_or_init(|| drawn)
+            }
+        };
+        let score = heldout_score(self.joint, m, gains, plants, self.req.seed)
+            .with_context(|| format!("gains {} on the held-out {}", unit.gains, m.name()))?;
+        Ok(HeldOutScored { best, unit, score })
+    }
+
+    /// [`Self::reduce`] with the held-out check's units run elsewhere
+    /// (`elsewhere`: every unit of [`Self::heldout_units`] once, for this
+    /// search's winner, in any order); `None` runs them here. The result
+    /// is the same either way.
+    pub fn reduce_with(
+        &self,
+        scored: &[Scored],
+        elsewhere: Option<&[HeldOutScored]>,
+    ) -> anyhow::Result<TuneResult> {
+        let (i, best, paper, failed, rejected) = self.winner(scored)?;
         let gains = self.cands[i].clone();
-        let heldout = heldout(&self.file, &gains, self.req.plants, self.req.seed)?;
+        let held = match elsewhere {
+            None => heldout(&self.file, &gains, self.req.plants, self.req.seed)?,
+            Some(units) => {
+                let all = Manoeuvre::all(self.joint);
+                let mut slots: Vec<Option<Score>> = vec![None; 2 * all.len()];
+                for h in units {
+                    if h.best != i {
+                        bail!(
+                            "a held-out unit was run for candidate {}, the search's winner is {i}",
+                            h.best
+                        );
+                    }
+                    let k = 2 * h.unit.manoeuvre + h.unit.gains;
+                    match slots.get_mut(k).filter(|_| h.unit.gains < 2) {
+                        Some(slot @ None) => *slot = Some(h.score.clone()),
+                        Some(Some(_)) => bail!("held-out unit {:?} was run twice", h.unit),
+                        None => bail!("held-out unit {:?} is not one of the check's", h.unit),
+                    }
+                }
+                let mut scores = Vec::new();
+                for (j, m) in all.iter().enumerate() {
+                    let pair = [slots[2 * j].take(), slots[2 * j + 1].take()];
+                    match pair {
+                        [Some(t), Some(p)] => scores.push((*m, vec![t, p])),
+                        _ => bail!("the held-out {} was not run for both gains", m.name()),
+                    }
+                }
+                heldout_of(scores)
+            }
+        };
         Ok(TuneResult {
             best: gains,
-            score: best.clone(),
+            score: best,
             paper,
             failed,
             rejected,
-            heldout,
+            heldout: held,
         })
     }
 }
@@ -1420,6 +1586,61 @@ mod tests {
             searched.gains_file(name, JointKind::TwoD, req)
         );
         assert_eq!(reduced.failed, searched.failed);
+    }
+
+    #[test]
+    fn heldout_units_run_one_by_one_give_the_reductions_check_and_misfits_are_refused() {
+        let file = PlantFile::new(PlantParams::TwoD(Joint2dParams::default()), vec![]);
+        let req = TuneRequest {
+            candidates: 3,
+            plants: 2,
+            seed: 4,
+            search_v_offset: false,
+        };
+        let sweep = TuneSweep::new(&file, req).unwrap();
+        let scored: Vec<Scored> = sweep
+            .units(3)
+            .into_iter()
+            .flat_map(|u| sweep.run_unit(u, &|_| false, &Stop::never()))
+            .collect();
+        let here = sweep.reduce(&scored).unwrap();
+        let best = sweep.best_index(&scored).unwrap();
+        let units = sweep.heldout_units();
+        // 2D: steps and load, each for the tuned and the paper's gains.
+        assert_eq!(units.len(), 4);
+        let mut there: Vec<HeldOutScored> = units
+            .iter()
+            .rev()
+            .map(|&u| sweep.run_heldout_unit(best, u).unwrap())
+            .collect();
+        let elsewhere = sweep.reduce_with(&scored, Some(&there)).unwrap();
+        assert_eq!(elsewhere.heldout, here.heldout);
+        let name = "p.toml";
+        assert_eq!(
+            elsewhere.gains_file(name, JointKind::TwoD, req),
+            here.gains_file(name, JointKind::TwoD, req)
+        );
+        // A unit missing, one twice, one run for another candidate.
+        let missing = &there[1..];
+        let e = sweep.reduce_with(&scored, Some(missing)).unwrap_err();
+        assert!(format!("{e}").contains("was not run for both gains"), "{e}");
+        let mut twice = there.clone();
+        twice.push(there[0].clone());
+        let e = sweep.reduce_with(&scored, Some(&twice)).unwrap_err();
+        assert!(format!("{e}").contains("was run twice"), "{e}");
+        there[2].best = (best + 1) % 3;
+        let e = sweep.reduce_with(&scored, Some(&there)).unwrap_err();
+        assert!(format!("{e}").contains("the search's winner is"), "{e}");
+        let e = sweep
+            .run_heldout_unit(
+                best,
+                HeldOutUnit {
+                    manoeuvre: 2,
+                    gains: 0,
+                },
+            )
+            .unwrap_err();
+        assert!(format!("{e}").contains("held-out manoeuvre 2 of 2"), "{e}");
     }
 
     /// FNV-1a against the published test vectors (the FNV authors' list:

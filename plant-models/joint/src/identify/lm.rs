@@ -154,15 +154,55 @@ pub struct Minimum {
     /// The Jacobian at `x` where the minimiser already has it (it stopped
     /// on a rejected step or on its budget, not just after a step).
     jacobian: Option<Vec<Vec<f64>>>,
+    /// A minimum found elsewhere ([`Minimum::from_unit`]): its residuals
+    /// (empty until then) and, where its minimiser had it, its Jacobian are
+    /// recomputed by [`Minimum::finish`] — `Some(jacobian known there)`.
+    elsewhere: Option<bool>,
 }
 
 impl Minimum {
+    /// Whether the minimiser had the Jacobian at `x` when it stopped.
+    pub fn jacobian_known(&self) -> bool {
+        self.jacobian.is_some()
+    }
+
+    /// A minimum a fit found elsewhere (a work unit, [`super::units`]):
+    /// its residuals, and its Jacobian where its minimiser had one, are
+    /// recomputed by [`Minimum::finish`] (not counted: the fit counted
+    /// them), which checks that they give its cost to the last bit.
+    pub fn from_unit(fit: &super::units::StartFit) -> Self {
+        Self {
+            x: fit.x(),
+            cost: f64::from_bits(fit.cost),
+            residuals: Vec::new(),
+            iterations: fit.iterations,
+            evaluations: fit.evaluations,
+            stopped_by_budget: fit.stopped_by_budget,
+            jacobian: None,
+            elsewhere: Some(fit.jacobian_known),
+        }
+    }
+
     /// The result with the Jacobian at the minimiser and the covariance
     /// from it (the Jacobian costs `n` evaluations unless known).
-    pub fn finish<F>(self, f: &F, opts: LmOptions) -> Result<LmResult, IdentifyError>
+    pub fn finish<F>(mut self, f: &F, opts: LmOptions) -> Result<LmResult, IdentifyError>
     where
         F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
     {
+        if let Some(known) = self.elsewhere {
+            let f = opts.stoppable(f);
+            self.residuals = f(&self.x)?;
+            let here = sq(&self.residuals);
+            if here.to_bits() != self.cost.to_bits() {
+                return Err(IdentifyError::Remote(format!(
+                    "a fit run elsewhere does not reproduce here: its cost {:e} at its minimiser is {here:e} here (another log, prior or build where it ran?)",
+                    self.cost
+                )));
+            }
+            if known {
+                self.jacobian = Some(jacobian(&f, &self.x, &self.residuals, opts.step)?);
+            }
+        }
         let n = self.x.len();
         let m = self.residuals.len();
         let (jac, evaluations) = match self.jacobian {
@@ -219,6 +259,7 @@ where
         evaluations,
         stopped_by_budget,
         jacobian,
+        elsewhere: None,
     };
     while iterations < opts.max_iterations {
         opts.check_stop()?;

@@ -71,12 +71,13 @@ pub mod regression;
 pub mod replay;
 mod stage;
 pub mod twin;
+pub mod units;
 pub mod verify;
 
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::{Joint2dParams, Joint3dParams, PlaneParams, PlantError, WireSensorParams};
+use crate::{Joint2dParams, Joint3dParams, PlantError, WireSensorParams};
 pub use lm::{LmOptions, LmResult, StopFlag};
 pub use log::{ElectricalNoise, ExcitationLog, LogRecorder, Observation};
 pub use params::{Param, Scale};
@@ -84,6 +85,7 @@ pub use plan::ExcitationPlan;
 use plant_common::csv_input::CsvError;
 pub use replay::{replay, PlaneMap, PlaneModel, Prediction};
 use stage::{with_coords, Found, Stage};
+pub use units::{StartFit, StartFits, StartUnit};
 
 /// Why identification failed.
 #[derive(Debug, thiserror::Error)]
@@ -114,6 +116,10 @@ pub enum IdentifyError {
     /// The caller asked the fit to stop ([`LmOptions::stop`]).
     #[error("the fit was stopped before it finished")]
     Stopped,
+    /// A fit run elsewhere ([`units`]): its error as it was said there, or
+    /// why it could not be run or taken.
+    #[error("{0}")]
+    Remote(String),
 }
 
 impl From<PlantError> for IdentifyError {
@@ -310,18 +316,54 @@ pub fn identify_2d(
     prior: &Joint2dParams,
     opts: &IdentifyOptions,
 ) -> Result<(Joint2dParams, Vec<PlaneReport>), IdentifyError> {
+    identify_2d_with(log, prior, opts, None)
+}
+
+/// The prior's model of the 2D joint's plane, as identification replays it.
+pub fn prior_model_2d(prior: &Joint2dParams, opts: &IdentifyOptions) -> PlaneModel {
+    PlaneModel {
+        plane: prior.plane.clone(),
+        wires: vec![prior.wire.clone()],
+        settle_s: prior.sim.settle_s,
+        substep_s: opts.substep_s,
+    }
+}
+
+/// The prior's model of the 3D joint's plane `p` (0: α, 1: β), as
+/// identification replays it.
+pub fn prior_model_3d(prior: &Joint3dParams, p: usize, opts: &IdentifyOptions) -> PlaneModel {
+    let map = PlaneMap::of(2, p);
+    PlaneModel {
+        plane: if p == 0 {
+            prior.alpha.clone()
+        } else {
+            prior.beta.clone()
+        },
+        wires: map
+            .sensors
+            .iter()
+            .map(|&s| prior.wires[s].clone())
+            .collect(),
+        settle_s: prior.sim.settle_s,
+        substep_s: opts.substep_s,
+    }
+}
+
+/// [`identify_2d`] with the mechanics stage's starts run by `elsewhere`
+/// (work units, [`units`]) where given: the same result.
+pub fn identify_2d_with(
+    log: &ExcitationLog,
+    prior: &Joint2dParams,
+    opts: &IdentifyOptions,
+    elsewhere: Option<&dyn StartFits>,
+) -> Result<(Joint2dParams, Vec<PlaneReport>), IdentifyError> {
     if log.planes != 1 {
         return Err(IdentifyError::Log(
             "a 3D log (α and β columns) given for the 2D joint".into(),
         ));
     }
-    let model = PlaneModel {
-        plane: prior.plane.clone(),
-        wires: vec![prior.wire.clone()],
-        settle_s: prior.sim.settle_s,
-        substep_s: opts.substep_s,
-    };
-    let (m, report) = identify_plane(log, PlaneMap::of(1, 0), model, "theta", opts)?;
+    let model = prior_model_2d(prior, opts);
+    let (m, report) = identify_plane(log, PlaneMap::of(1, 0), model, "theta", opts, elsewhere)?;
     let mut out = prior.clone();
     out.plane = m.plane;
     out.wire = m.wires[0].clone();
@@ -335,32 +377,30 @@ pub fn identify_3d(
     prior: &Joint3dParams,
     opts: &IdentifyOptions,
 ) -> Result<(Joint3dParams, Vec<PlaneReport>), IdentifyError> {
+    identify_3d_with(log, prior, opts, None)
+}
+
+/// [`identify_3d`] with the mechanics stage's starts run by `elsewhere`
+/// (work units, [`units`]) where given: the same result.
+pub fn identify_3d_with(
+    log: &ExcitationLog,
+    prior: &Joint3dParams,
+    opts: &IdentifyOptions,
+    elsewhere: Option<&dyn StartFits>,
+) -> Result<(Joint3dParams, Vec<PlaneReport>), IdentifyError> {
     if log.planes != 2 {
         return Err(IdentifyError::Log(
             "a 2D log (θ columns) given for the 3D joint".into(),
         ));
     }
-    let planes: Vec<(PlaneParams, &str)> =
-        vec![(prior.alpha.clone(), "alpha"), (prior.beta.clone(), "beta")];
-    let results: Vec<Result<(PlaneModel, PlaneReport), IdentifyError>> = planes
-        .into_par_iter()
-        .enumerate()
-        .map(|(p, (plane, name))| {
-            let map = PlaneMap::of(2, p);
-            let wires: Vec<WireSensorParams> = map
-                .sensors
-                .iter()
-                .map(|&s| prior.wires[s].clone())
-                .collect();
-            let model = PlaneModel {
-                plane,
-                wires,
-                settle_s: prior.sim.settle_s,
-                substep_s: opts.substep_s,
-            };
-            identify_plane(log, map, model, name, opts)
-        })
-        .collect();
+    let results: Vec<Result<(PlaneModel, PlaneReport), IdentifyError>> =
+        [(0, "alpha"), (1, "beta")]
+            .into_par_iter()
+            .map(|(p, name)| {
+                let model = prior_model_3d(prior, p, opts);
+                identify_plane(log, PlaneMap::of(2, p), model, name, opts, elsewhere)
+            })
+            .collect();
     let mut out = prior.clone();
     let mut reports = Vec::new();
     for (p, r) in results.into_iter().enumerate() {
@@ -552,13 +592,16 @@ where
     (out, evaluations)
 }
 
-/// The staged identification of one plane (see the module docs).
+/// The staged identification of one plane (see the module docs); the
+/// mechanics stage's starts run by `elsewhere` where given (the same
+/// result; [`units`]).
 pub fn identify_plane(
     log: &ExcitationLog,
     map: PlaneMap,
     prior: PlaneModel,
     name: &str,
     opts: &IdentifyOptions,
+    elsewhere: Option<&dyn StartFits>,
 ) -> Result<(PlaneModel, PlaneReport), IdentifyError> {
     let part = FitPart::new(log, map, opts.fit_fraction)?;
     let mut found = Found {
@@ -571,7 +614,7 @@ pub fn identify_plane(
         driver = electrical_stage(&part, &prior, &mut found);
         thermal_stage(&part, &prior, opts, &mut found)?;
     }
-    mechanics_stage(&part, &prior, opts, driver.as_ref(), &mut found)?;
+    mechanics_stage(&part, &prior, opts, driver.as_ref(), &mut found, elsewhere)?;
     wire_stage(&part, &prior, opts, &mut found)?;
     let validation = validate(&part, &found.model, &prior)?;
     let verdict = verdict(&part, &found.model, &validation, &mut found.estimates);
@@ -867,6 +910,7 @@ fn thermal_stage(
         resampled: &|_: &PlaneModel| Ok(Vec::new()),
         starts: &[],
         halves: Some(&blocks),
+        elsewhere: None,
     }
     .run(found, prior, opts)
 }
@@ -882,6 +926,7 @@ fn mechanics_stage(
     opts: &IdentifyOptions,
     driver: Option<&regression::DriverFit>,
     found: &mut Found,
+    elsewhere: Option<&dyn StartFits>,
 ) -> Result<(), IdentifyError> {
     let fit_frames = frames(part.log, part.map.plane, part.rows);
     let mech = mechanics_residuals(part, opts, &fit_frames);
@@ -948,6 +993,10 @@ fn mechanics_stage(
         resampled: &|_: &PlaneModel| Ok(Vec::new()),
         starts: &starts,
         halves: Some(&mech_blocks),
+        elsewhere: elsewhere.map(|fits| stage::Elsewhere {
+            fits,
+            plane: part.map.plane,
+        }),
     }
     .run(found, prior, opts)?;
     if let Some(st) = found.stages.last_mut() {
@@ -1066,6 +1115,7 @@ fn wire_stage(
         resampled: &resampled,
         starts: &[],
         halves: Some(&part.row_blocks(map.sensors.len())),
+        elsewhere: None,
     }
     .run(found, prior, opts)
 }

@@ -8,7 +8,8 @@
 
 use rayon::prelude::*;
 
-use super::lm::{self, LmOptions, LmResult};
+use super::lm::{self, LmResult};
+use super::units::{StartFits, StartUnit};
 use super::{verify, Estimate, IdentifyError, IdentifyOptions, Param, PlaneModel, StageReport};
 
 /// Errors a stage's data cannot average out, for the model at the fit:
@@ -69,6 +70,18 @@ pub(super) struct Stage<'a, F> {
     /// numbered sensor after sensor, so it passes the rows' fixed-time
     /// segments instead.
     pub halves: Option<&'a [usize]>,
+    /// Where the first fit's starts run when there are several: here (on
+    /// rayon's threads) without it, as work units elsewhere with it
+    /// ([`super::units`]); the result is the same.
+    pub elsewhere: Option<Elsewhere<'a>>,
+}
+
+/// Fits from several starts run elsewhere: by `fits`, as units of plane
+/// `plane`.
+#[derive(Clone, Copy)]
+pub(super) struct Elsewhere<'a> {
+    pub fits: &'a dyn StartFits,
+    pub plane: usize,
 }
 
 /// The 1σ of a fit's coordinates.
@@ -152,7 +165,7 @@ where
             } else {
                 vec![coords(&active, model)]
             };
-            let fit = self.best_of(&base, &active, &x0s, opts.lm)?;
+            let fit = self.best_of(&base, &active, &x0s, prior, opts)?;
             iterations += fit.iterations;
             evaluations += fit.evaluations;
             if pass == 0 {
@@ -216,18 +229,49 @@ where
         base: &PlaneModel,
         active: &[Param],
         x0s: &[Vec<f64>],
-        lm_opts: LmOptions,
+        prior: &PlaneModel,
+        opts: &IdentifyOptions,
     ) -> Result<BestFit, IdentifyError> {
+        let lm_opts = opts.lm;
         let f = |x: &[f64]| (self.residuals)(&with_coords(base, active, x));
         let mut minima: Vec<(usize, lm::Minimum)> = Vec::new();
         let mut iterations = 0;
         let mut evaluations = 0;
         let mut first_error = None;
-        // The starts run in parallel; their results are taken in order.
-        let fits: Vec<Result<lm::Minimum, IdentifyError>> = x0s
-            .par_iter()
-            .map(|x0| lm::minimise(&f, x0, lm_opts))
-            .collect();
+        // The starts run in parallel, here or elsewhere; their results are
+        // taken in order.
+        let fits: Vec<Result<lm::Minimum, IdentifyError>> =
+            match self.elsewhere.filter(|_| x0s.len() > 1) {
+                Some(e) => {
+                    let units = x0s
+                        .iter()
+                        .enumerate()
+                        .map(|(k, x0)| {
+                            StartUnit::new(e.plane, k, prior, base, active, x0, opts, lm_opts)
+                        })
+                        .collect::<Result<Vec<_>, _>>()?;
+                    let answers = e.fits.fit(&units)?;
+                    if answers.len() != units.len() {
+                        return Err(IdentifyError::Remote(format!(
+                            "{} answers for {} fits of the {} stage",
+                            answers.len(),
+                            units.len(),
+                            self.name
+                        )));
+                    }
+                    answers
+                        .into_iter()
+                        .map(|a| {
+                            a.map(|fit| lm::Minimum::from_unit(&fit))
+                                .map_err(IdentifyError::Remote)
+                        })
+                        .collect()
+                }
+                None => x0s
+                    .par_iter()
+                    .map(|x0| lm::minimise(&f, x0, lm_opts))
+                    .collect(),
+            };
         // A fit the caller stopped ends the stage: the other starts' best
         // is not the stage's answer.
         if fits

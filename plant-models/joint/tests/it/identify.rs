@@ -377,7 +377,7 @@ fn identify_beta(log: &identify::ExcitationLog) -> PlaneReport {
         settle_s: prior.sim.settle_s,
         substep_s: opts.substep_s,
     };
-    identify::identify_plane(log, map, model, "beta", &opts)
+    identify::identify_plane(log, map, model, "beta", &opts, None)
         .unwrap()
         .1
 }
@@ -737,4 +737,82 @@ fn the_campaign_in_short_form_calls_nothing_wrong_identifiable() {
         "called identifiable, more than 3σ off: {wrong:?}"
     );
     assert!(verified >= 3, "{verified} of 4 planes verified");
+}
+
+/// Runs the mechanics stage's starts "elsewhere": each unit goes through
+/// its JSON text and runs on another thread against its own copy of the
+/// log and of the prior's plane model, as a Ray worker would (issue 33).
+struct Elsewhere {
+    log: identify::ExcitationLog,
+    prior: PlaneModel,
+    units_run: std::sync::atomic::AtomicUsize,
+}
+
+impl identify::StartFits for Elsewhere {
+    fn fit(
+        &self,
+        units: &[identify::StartUnit],
+    ) -> Result<Vec<Result<identify::StartFit, String>>, identify::IdentifyError> {
+        let texts: Vec<String> = units
+            .iter()
+            .map(|u| serde_json::to_string(u).unwrap())
+            .collect();
+        std::thread::scope(|s| {
+            let runs: Vec<_> = texts
+                .iter()
+                .map(|t| {
+                    s.spawn(move || {
+                        let unit: identify::StartUnit = serde_json::from_str(t).unwrap();
+                        let fit = unit.run(&self.log, &self.prior).map_err(|e| e.to_string());
+                        // Back through text too.
+                        fit.map(|f| {
+                            serde_json::from_str(&serde_json::to_string(&f).unwrap()).unwrap()
+                        })
+                    })
+                })
+                .collect();
+            self.units_run
+                .fetch_add(runs.len(), std::sync::atomic::Ordering::Relaxed);
+            Ok(runs.into_iter().map(|r| r.join().unwrap()).collect())
+        })
+    }
+}
+
+#[test]
+fn the_mechanics_starts_run_as_units_elsewhere_give_the_same_identification() {
+    let hidden = hidden::joint_2d(3);
+    let log = twin::record_2d(&hidden, &ExcitationPlan::compact(1), true, NOISE).unwrap();
+    let opts = IdentifyOptions {
+        lm: LmOptions {
+            max_iterations: 8,
+            ..LmOptions::default()
+        },
+        ..IdentifyOptions::default()
+    };
+    let prior = Joint2dParams::default();
+    let here = identify::identify_2d(&log, &prior, &opts).unwrap();
+    let elsewhere = Elsewhere {
+        log: log.clone(),
+        prior: identify::prior_model_2d(&prior, &opts),
+        units_run: 0.into(),
+    };
+    let there = identify::identify_2d_with(&log, &prior, &opts, Some(&elsewhere)).unwrap();
+    let units = elsewhere.units_run.into_inner();
+    assert!(
+        units >= 2,
+        "the mechanics stage's starts ran elsewhere: {units}"
+    );
+    assert_eq!(here.0, there.0, "the identified plant");
+    assert_eq!(here.1, there.1, "the reports, evaluations and 1σ included");
+    // A worker with another prior (its link 10 % heavier, a parameter
+    // never fitted) computes another cost: refused, named.
+    let mut other = Joint2dParams::default();
+    other.plane.link.mass_kg *= 1.1;
+    let wrong = Elsewhere {
+        log: log.clone(),
+        prior: identify::prior_model_2d(&other, &opts),
+        units_run: 0.into(),
+    };
+    let e = identify::identify_2d_with(&log, &prior, &opts, Some(&wrong)).unwrap_err();
+    assert!(e.to_string().contains("does not reproduce here"), "{e}");
 }
