@@ -291,8 +291,8 @@ enum StartAnswer {
 impl StartFits for RayStartFits {
     fn fit(&self, units: &[StartUnit]) -> Result<Vec<Result<StartFit, String>>, IdentifyError> {
         let mut d = self.driver.lock().unwrap_or_else(|e| e.into_inner());
-        let line = serde_json::to_string(units)
-            .map_err(|e| IdentifyError::Remote(format!("the fits sent to the Ray driver: {e}")))?
+        let line = crate::output::json_line("the fits sent to the Ray driver", units)
+            .map_err(|e| IdentifyError::Remote(format!("{e:#}")))?
             + "\n";
         let what = format!("{} mechanics fits", units.len());
         let answer = d.answer(&line, &what).map_err(|why| {

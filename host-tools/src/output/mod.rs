@@ -251,6 +251,13 @@ pub fn json<T: Serialize + ?Sized>(target: &str, value: &T) -> anyhow::Result<St
     Ok(serde_json::to_string_pretty(value)?)
 }
 
+/// `value` as one line of compact JSON (no newline) after the same check
+/// as [`json`]: a message of a line protocol (the Ray drivers').
+pub fn json_line<T: Serialize + ?Sized>(target: &str, value: &T) -> anyhow::Result<String> {
+    check_value(target, value)?;
+    Ok(serde_json::to_string(value)?)
+}
+
 /// Writes `value` as a pretty JSON file, atomically.
 pub fn write_json<T: Serialize + ?Sized>(path: &Path, value: &T) -> anyhow::Result<()> {
     AtomicFile::create(path)?.commit_json(value)
