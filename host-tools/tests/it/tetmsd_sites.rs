@@ -102,28 +102,30 @@ fn a_configuration_mismatch_is_refused_by_name() {
 fn a_restarted_peer_is_resynchronised_and_both_replicas_end_identical() {
     let [p0, p1] = free_ports();
     let (a0, a1) = (format!("127.0.0.1:{p0}"), format!("127.0.0.1:{p1}"));
-    let s0 = site_cmd(&[], 0, 3, &a0, &a1, 3.0).spawn().unwrap();
-    let mut first = site_cmd(&[], 1, 3, &a1, &a0, 3.0).spawn().unwrap();
+    let s0 = site_cmd(&[], 0, 3, &a0, &a1, 5.0).spawn().unwrap();
+    let mut first = site_cmd(&[], 1, 3, &a1, &a0, 5.0).spawn().unwrap();
     std::thread::sleep(Duration::from_millis(1200));
     // A crash: no bye, the socket just goes away.
     first.kill().unwrap();
     first.wait().unwrap();
     std::thread::sleep(Duration::from_millis(200));
-    let again = site_cmd(&[], 1, 3, &a1, &a0, 3.0).spawn().unwrap();
+    let again = site_cmd(&[], 1, 3, &a1, &a0, 5.0).spawn().unwrap();
     let (r0, r1) = (report(&wait(s0)), report(&wait(again)));
     assert_eq!(r0["replica"]["resyncs"], 1, "{}", r0["notes"]);
     let joined = r1["joined_at_tick"]
         .as_u64()
         .expect("site 1 joined by state transfer");
-    assert!(joined > 500 && joined < 3000, "joined at {joined}");
-    // Both sites run the same 3 s. Site 0 runs out its duration first and
+    // 5 s, not 3 s as before: under CI's load (the twins beside the host
+    // tests) the restarted process once joined only at tick 3000 of 3000.
+    assert!(joined > 500 && joined < 5000, "joined at {joined}");
+    // Both sites run the same 5 s. Site 0 runs out its duration first and
     // says so; the restarted site, whose clock started at the state
     // transfer, may be some ticks behind when that word arrives (13 under
     // CI's load, when it stopped there): it runs on up to site 0's count
     // and stops, so both end at the duration, committed, with the same
     // state.
     let end_tick = r0["end"]["end_tick"].as_u64().expect("site 0's end tick");
-    assert_eq!(end_tick, 3000, "{} {}", r0["end"], r1["end"]);
+    assert_eq!(end_tick, 5000, "{} {}", r0["end"], r1["end"]);
     for r in [&r0, &r1] {
         let end = &r["end"];
         assert_eq!(end["end_tick"], end_tick, "{} {}", r0["end"], r1["end"]);
