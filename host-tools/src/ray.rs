@@ -268,14 +268,17 @@ impl Drop for Driver {
 /// JSON array of as many `{"fit": StartFit}` or `{"error": "message"}`,
 /// in order.
 pub struct RayStartFits {
-    driver: Mutex<Driver>,
+    /// The driver, and why it failed once it has (every later request
+    /// gets that error: the 3D joint's other plane would otherwise report
+    /// only that the driver's input is closed).
+    driver: Mutex<(Driver, Option<String>)>,
 }
 
 impl RayStartFits {
     /// Fits run by `driver`.
     pub fn new(driver: Driver) -> Self {
         Self {
-            driver: Mutex::new(driver),
+            driver: Mutex::new((driver, None)),
         }
     }
 }
@@ -290,7 +293,11 @@ enum StartAnswer {
 
 impl StartFits for RayStartFits {
     fn fit(&self, units: &[StartUnit]) -> Result<Vec<Result<StartFit, String>>, IdentifyError> {
-        let mut d = self.driver.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = self.driver.lock().unwrap_or_else(|e| e.into_inner());
+        let (d, failed) = &mut *guard;
+        if let Some(why) = failed {
+            return Err(IdentifyError::Remote(why.clone()));
+        }
         let line = crate::output::json_line("the fits sent to the Ray driver", units)
             .map_err(|e| IdentifyError::Remote(format!("{e:#}")))?
             + "\n";
@@ -299,6 +306,7 @@ impl StartFits for RayStartFits {
             if why == STOPPED {
                 IdentifyError::Stopped
             } else {
+                *failed = Some(why.clone());
                 IdentifyError::Remote(why)
             }
         })?;
@@ -311,7 +319,11 @@ impl StartFits for RayStartFits {
                     Err(format!("{} answers for {} fits", a.len(), units.len()))
                 }
             })
-            .map_err(|why| IdentifyError::Remote(d.refused(&what, &answer, &why)))?;
+            .map_err(|why| {
+                let why = d.refused(&what, &answer, &why);
+                *failed = Some(why.clone());
+                IdentifyError::Remote(why)
+            })?;
         Ok(parsed
             .into_iter()
             .map(|a| match a {
@@ -475,6 +487,54 @@ mod tests {
                 && e.ends_with("it said: ConnectionError: no cluster"),
             "{e}"
         );
+    }
+
+    fn unit(start: usize) -> StartUnit {
+        StartUnit {
+            plane: 0,
+            start,
+            base: vec![("coil.convection_w_m2_k".into(), 80.0f64.to_bits())],
+            active: vec!["coil.convection_w_m2_k".into()],
+            x0: vec![0.5f64.to_bits()],
+            fit_fraction: 0.75f64.to_bits(),
+            substep_s: 1e-3f64.to_bits(),
+            angle_sigma_deg: 0.1f64.to_bits(),
+            resistance_sigma_ohm: 0.02f64.to_bits(),
+            max_iterations: 3,
+            ftol: 1e-4f64.to_bits(),
+            step: 1e-3f64.to_bits(),
+        }
+    }
+
+    #[test]
+    fn start_fits_come_back_in_order_and_a_failed_driver_is_named_to_every_plane() {
+        // One request of two units answered (a fit, then a worker's
+        // error), then garbage.
+        let fit = r#"{"fit":{"x":[4602678819172646912],"cost":4611686018427387904,"iterations":2,"evaluations":5,"stopped_by_budget":false,"jacobian_known":true}}"#;
+        let script = format!(
+            "read r; echo '[{fit},{{\"error\":\"replay unstable: angle is not finite\"}}]'; read r; echo 'oops' >&2; echo '[1]'; read r"
+        );
+        let mut cmd = Command::new("sh");
+        cmd.args(["-c", &script]);
+        let d = Driver::start(cmd, "the stand-in driver".into(), Stop::never(), f64::NAN).unwrap();
+        let fits = RayStartFits::new(d);
+        let got = fits.fit(&[unit(0), unit(1)]).unwrap();
+        let f = got[0].as_ref().unwrap();
+        assert_eq!((f.x(), f64::from_bits(f.cost)), (vec![0.5], 2.0));
+        assert_eq!((f.iterations, f.evaluations, f.jacobian_known), (2, 5, true));
+        assert_eq!(
+            got[1].as_ref().unwrap_err(),
+            "replay unstable: angle is not finite"
+        );
+        let e = fits.fit(&[unit(0)]).unwrap_err().to_string();
+        assert!(
+            e.starts_with("the stand-in driver: it answered 1 mechanics fits with \"[1]\"")
+                && e.ends_with("it said: oops"),
+            "{e}"
+        );
+        // The other plane's request gets the same error, not "its input is
+        // closed".
+        assert_eq!(fits.fit(&[unit(0)]).unwrap_err().to_string(), e);
     }
 
     #[test]

@@ -48,7 +48,8 @@ REPO = Path(__file__).resolve().parents[2]
 TIMING_SERVE = r'''
 import json, os, sys, time
 from softjoint import IdentifyProblem
-args = sys.argv[3:]  # -m softjoint.ray_sweep identify-serve ...
+args = sys.argv[sys.argv.index("identify-serve") + 1:]
+del args[args.index("--address"):args.index("--address") + 2]
 log = args[0]
 prior = args[args.index("--prior") + 1] if "--prior" in args else None
 problem = IdentifyProblem(open(log).read(), log,
