@@ -521,7 +521,10 @@ mod tests {
         let got = fits.fit(&[unit(0), unit(1)]).unwrap();
         let f = got[0].as_ref().unwrap();
         assert_eq!((f.x(), f64::from_bits(f.cost)), (vec![0.5], 2.0));
-        assert_eq!((f.iterations, f.evaluations, f.jacobian_known), (2, 5, true));
+        assert_eq!(
+            (f.iterations, f.evaluations, f.jacobian_known),
+            (2, 5, true)
+        );
         assert_eq!(
             got[1].as_ref().unwrap_err(),
             "replay unstable: angle is not finite"

@@ -79,6 +79,7 @@ __all__ = [
     "RHEOLOGY_UNIT_CANDIDATES",
     "TUNE_UNIT_CANDIDATES",
     "Gains",
+    "Identification",
     "IdentifyProblem",
     "InputError",
     "NonFiniteError",
@@ -111,6 +112,7 @@ __all__ = [
     "push_problem",
     "push_simulate",
     "push_objective",
+    "identify_joint",
     "load_plant",
     "load_scenario",
     "rheology_problem",
@@ -118,6 +120,7 @@ __all__ = [
     "simulate",
     "tune",
     "tune_cost",
+    "write_gains",
 ]
 
 
@@ -205,6 +208,64 @@ def tune(plant: PlantFile, candidates: int, plants: int, seed: int = 1,
     sweep = TuneSweep(plant, candidates, plants, seed, search_v_offset)
     results = [sweep.run_unit(*u) for u in sweep.units(unit)]
     return json.loads(sweep.reduce(results))
+
+
+@dataclass(frozen=True)
+class Identification:
+    """What ``softjoint identify joint`` gives: ``report``, its ``--json``
+    report as a dict (every plane's estimates with their 1σ, stages,
+    held-out validation and verdict); ``plant``, the identified plant file
+    (the text ``-o`` writes, header and ``[[uncertainty]]`` included);
+    ``verified``, whether every plane passed its checks against the
+    data (``report["unverified_because"]`` says why not)."""
+
+    report: dict
+    plant: PlantFile
+    verified: bool
+
+
+def identify_joint(log: PathLike, prior: Optional[PathLike] = None, fit_fraction: float = 0.75,
+                   max_iterations: int = 100, angles: str = "camera",
+                   output: Optional[PathLike] = None, allow_unverified: bool = False,
+                   fits=None) -> Identification:
+    """``softjoint identify joint LOG [--prior PLANT] [--fit-fraction F]
+    [--max-iterations N] [--angles camera|board-estimate] [-o OUTPUT]
+    --json``: the joint's plant fitted to an excitation log. With
+    ``output``, the plant file is written there as the program writes it
+    (atomically; also when unverified, as the program does). An unverified
+    plant raises :class:`UnverifiedError` (its ``.identification`` holds
+    the result) unless ``allow_unverified``, as the program exits 1.
+    ``fits`` runs the mechanics stage's starts elsewhere
+    (:func:`softjoint.ray_sweep.identify_joint` passes the cluster's);
+    the result is the same."""
+    if angles not in ("camera", "board-estimate"):
+        raise InputError(f"angles {angles!r}: give \"camera\" or \"board-estimate\"")
+    log_text = _read(Path(log))
+    prior_text = None if prior is None else _read(Path(prior))
+    prior_name = "prior" if prior is None else os.fspath(prior)
+    out = None if output is None else os.fspath(output)
+    report, plant_text, verified = _native.identify_joint(
+        log_text, os.fspath(log), prior_text, prior_name, angles == "board-estimate",
+        fit_fraction, max_iterations, out, fits)
+    plant = PlantFile.from_text(plant_text, out or f"{os.fspath(log)} (identified)")
+    if out is not None:
+        plant.save(out)
+    result = Identification(json.loads(report), plant, verified)
+    if not verified and not allow_unverified:
+        e = UnverifiedError(
+            "the identified plant is UNVERIFIED: " + "; ".join(result.report["unverified_because"])
+            + "; pass allow_unverified=True to get it with that mark")
+        e.identification = result
+        raise e
+    return result
+
+
+def write_gains(path: PathLike, gains: dict) -> None:
+    """Writes a gains file (``gains``: a gains file's table, as
+    :func:`tune` and ``ray_sweep.tune`` return it under ``gains``) as
+    ``softjoint tune -o`` writes one, checked as a scenario or the console
+    loads it (:class:`InputError` names the file and field), atomically."""
+    _native.write_gains(os.fspath(path), json.dumps(gains))
 
 
 def _read(path: Path) -> str:

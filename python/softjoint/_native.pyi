@@ -51,6 +51,7 @@ class PlantFile:
     def name(self) -> str: ...
     @property
     def text(self) -> str: ...
+    def save(self, path: Union[str, PathLike[str]]) -> None: ...
 
 def candidate_gains(
     plant: PlantFile, index: int, seed: int = 1, search_v_offset: bool = False
@@ -211,6 +212,23 @@ class PushProblem:
         params.json's order), in order; NaN for a run that cannot be
         scored (the search ranks it last)."""
         ...
+
+def identify_joint(
+    log_text: str,
+    log_name: str,
+    prior_text: Optional[str] = None,
+    prior_name: str = "prior",
+    board_estimates: bool = False,
+    fit_fraction: float = 0.75,
+    max_iterations: int = 100,
+    plant_file: Optional[str] = None,
+    fits: Optional[Callable[[List[str]], List[str]]] = None,
+) -> Tuple[str, str, bool]:
+    """`softjoint identify joint --json`: the report's JSON text, the plant
+    file's text, whether every plane was verified."""
+    ...
+
+def write_gains(path: str, gains: str) -> None: ...
 
 class IdentifyProblem:
     """A joint's excitation log and the prior its identification starts

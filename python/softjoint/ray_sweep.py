@@ -73,6 +73,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import ray
 
+import softjoint
 from . import (
     RHEOLOGY_UNIT_CANDIDATES,
     IdentifyProblem,
@@ -484,6 +485,23 @@ def identify_fits(log: str, prior: Optional[str] = None, board_estimates: bool =
         return [json.loads(a) for a in _gather(tasks)]
 
     return run
+
+
+def identify_joint(log: str, prior: Optional[str] = None, address: Optional[str] = None,
+                   **options: Any) -> "softjoint.Identification":
+    """:func:`softjoint.identify_joint` with the mechanics stage's starts
+    as Ray tasks on the cluster at ``address`` (:func:`identify_fits`):
+    the same report and plant file. ``options`` are
+    :func:`softjoint.identify_joint`'s (``fit_fraction``,
+    ``max_iterations``, ``angles``, ``output``, ``allow_unverified``)."""
+    connect(address)
+    run = identify_fits(os.fspath(log), None if prior is None else os.fspath(prior),
+                        options.get("angles", "camera") == "board-estimate")
+
+    def fits(units: List[str]) -> List[str]:
+        return [json.dumps(a) for a in run([json.loads(u) for u in units])]
+
+    return softjoint.identify_joint(log, prior, fits=fits, **options)
 
 
 def identify_serve(log: str, prior: Optional[str], board_estimates: bool,

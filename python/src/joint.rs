@@ -30,6 +30,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(tune_cost, m)?)?;
     m.add_function(wrap_pyfunction!(candidate_gains, m)?)?;
+    m.add_function(wrap_pyfunction!(write_gains, m)?)?;
     m.add("TUNE_UNIT_CANDIDATES", tune::UNIT_CANDIDATES)?;
     Ok(())
 }
@@ -203,6 +204,31 @@ impl PyPlantFile {
     fn text(&self) -> String {
         self.text.clone()
     }
+
+    /// Writes the file's text to `path` as the program writes its files
+    /// (atomically: replaced whole or not at all; a symbolic link is
+    /// followed, a device or FIFO written through).
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        output::write_text(&path, &self.text).map_err(to_py)
+    }
+}
+
+/// Writes a gains file (`gains`: its table as JSON text, as `tune`
+/// returns it under `gains`) to `path` as `softjoint tune -o` writes one:
+/// the same header and TOML, checked as a scenario or the console loads
+/// it (InputError naming the file and field otherwise), atomically.
+#[pyfunction]
+pub fn write_gains(path: PathBuf, gains: &str) -> PyResult<()> {
+    let g: host_tools::files::gains::GainsFile = serde_json::from_str(gains)
+        .map_err(|e| input(anyhow::anyhow!("gains for {}: {e}", path.display())))?;
+    let text = output::toml(
+        &path.display().to_string(),
+        host_tools::files::gains::GAINS_HEADER,
+        &g,
+    )
+    .map_err(to_py)?;
+    host_tools::files::gains::GainsFile::from_text(&text, &path).map_err(input)?;
+    output::write_text(&path, &text).map_err(to_py)
 }
 
 fn request(candidates: usize, plants: usize, seed: u64, search_v_offset: bool) -> TuneRequest {

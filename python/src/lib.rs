@@ -24,12 +24,13 @@
 //! checks; the pushed block is `push simulate`'s, and its objective the
 //! fitness `push calibrate` maximises.
 //!
-//! Identification: the mechanics stage's fits from its starting points
-//! as work units (`IdentifyProblem`), for `identify joint --ray`.
+//! Identification: `identify joint` as a call (`identify_joint`, the
+//! report and plant file of `host_tools::joint::identify_run`), its
+//! mechanics stage's fits from their starting points as work units
+//! (`IdentifyProblem`) for Ray. Plant files and gains files written out
+//! as the program writes them (`PlantFile.save`, `write_gains`).
 //!
-//! Left out (issue 33 goes on): plant and gains files written from
-//! Python, a whole identification as a Python call, push calibration and
-//! classification.
+//! Left out: push calibration and classification as calls.
 
 use pyo3::prelude::*;
 

@@ -557,3 +557,29 @@ def test_the_held_out_check_runs_on_ray_and_a_killed_worker_changes_nothing(
     wrong = sweep.run_heldout_unit((sweep.best_index(results) + 1) % 6, 0, 0)
     with pytest.raises(softjoint.SweepError, match="the search's winner is"):
         sweep.reduce(results, [wrong] + got["heldout"][1:])
+
+
+def test_identify_joint_from_python_on_ray_is_the_programs(cluster, identify_log, tmp_path,
+                                                          monkeypatch):
+    """`ray_sweep.identify_joint`: the identification called from Python,
+    its starts on the cluster (one request of five per plane, counted):
+    the program's report and plant file."""
+    log, (report, plant) = identify_log
+    requests = []
+    runner = ray_sweep.identify_fits
+
+    def counted(*args, **kwargs):
+        run = runner(*args, **kwargs)
+
+        def counting(units):
+            requests.append(len(units))
+            return run(units)
+        return counting
+
+    monkeypatch.setattr(ray_sweep, "identify_fits", counted)
+    got = ray_sweep.identify_joint(log, max_iterations=4, output=tmp_path / "py.toml",
+                                   allow_unverified=True)
+    got.report.pop("plant_file")
+    assert got.report == report
+    assert [l for l in got.plant.text.splitlines() if not l.startswith("#")] == plant
+    assert requests == [5, 5]

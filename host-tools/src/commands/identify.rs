@@ -9,13 +9,13 @@ use anyhow::{bail, Context};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::files::plant::{PlantFile, PlantParams};
 use host_tools::joint::excite;
+use host_tools::joint::identify_run::{self, Identified, RunError, BOARD_ESTIMATE_NOTE};
 use host_tools::output;
 use host_tools::plot::{line_charts, Chart, Series};
 use host_tools::stop::{Stop, Stopped};
 use plant_joint::identify::{
     self, ExcitationPlan, IdentifyOptions, LmOptions, PlaneReport, StopFlag, NEVER_FITTED,
 };
-use plant_joint::{Joint2dParams, Joint3dParams};
 
 #[derive(Subcommand)]
 pub enum IdentifyCommand {
@@ -137,9 +137,6 @@ pub struct JointArgs {
     #[arg(long, value_name = "ADDRESS")]
     ray: Option<String>,
 }
-
-/// What `--angles board-estimate` tells the reader with every result.
-const BOARD_ESTIMATE_NOTE: &str = "angles: the board's wire-based estimates (est_*_deg), not a camera — the mechanics absorb the estimation law's error and the wires' jamming, and the jamming parameters are fitted against an angle read off the same wires (not independent)";
 
 pub fn run(cmd: IdentifyCommand) -> anyhow::Result<()> {
     match cmd {
@@ -331,12 +328,7 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         .with_context(|| format!("cannot read log {}", a.log.display()))?;
     let log = excite::log_from_text(&log_text, &a.log.display().to_string(), board_estimates)?;
     drop(log_text);
-    if !board_estimates && !log.cam_capture_s.iter().any(|c| *c >= 0.0) && !log.has_electrical() {
-        bail!(
-            "{}: the log has no camera frame and no coil resistances, so nothing measures the angle the mechanics are fitted to; for a log recorded on a board (`console excite`), --angles board-estimate fits them to the board's own estimates",
-            a.log.display()
-        );
-    }
+    identify_run::check_angles(&log, &a.log.display().to_string(), board_estimates)?;
     let prior = match &a.prior {
         Some(p) => Some(PlantFile::load(p)?.params()?),
         None => None,
@@ -351,7 +343,7 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         },
         ..IdentifyOptions::default()
     };
-    let (params, reports) = fit(&a, &log, prior, &opts, &stop)?;
+    let found = fit(&a, &log, prior, &opts, &stop)?;
     if let Some(signal) = stop.requested() {
         // Late in the fit: a stage may have been cut short.
         return Err(Stopped {
@@ -360,47 +352,27 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         }
         .into());
     }
-    let uncertainty = host_tools::files::plant::uncertainties(&reports);
-    let unverified = unverified(&reports);
-    let mut header = format!(
-        "# Written by `softjoint identify joint {}`: the identified joint.\n# `[[uncertainty]]` lists each identified parameter's 1σ (softjoint tune samples them).\n",
-        a.log.display()
-    );
-    for f in &unverified {
-        let _ = writeln!(header, "# UNVERIFIED: {f}");
-    }
-    PlantFile::new(params, uncertainty).save(&a.output, &header)?;
+    let log_name = a.log.display().to_string();
+    let unverified = found.unverified();
+    found
+        .plant_file()
+        .save(&a.output, &found.header(&log_name))?;
     if let Some(p) = &a.plot {
-        write_plot(p, &reports)?;
+        write_plot(p, &found.reports)?;
     }
     if a.json {
-        output::JsonObject::new()
-            .field("log", &a.log)?
-            .field("rows", &log.len())?
-            // A 1σ that is not finite (a parameter the log does not
-            // determine at all; `identifiable` is false) is written as
-            // null: JSON has no infinity, and the report must not fail.
-            .field(
-                "planes",
-                &serde_json::to_value(reports_without_frames(&reports))?,
-            )?
-            .field("verified", &unverified.is_empty())?
-            .field("unverified_because", &unverified)?
-            .field("never_fitted", &NEVER_FITTED)?
-            .field("plant_file", &a.output)?
-            .field(
-                "angles",
-                match a.angles {
-                    AngleSource::Camera => "camera",
-                    AngleSource::BoardEstimate => BOARD_ESTIMATE_NOTE,
-                },
+        found
+            .report(
+                &log_name,
+                Some(&a.output.display().to_string()),
+                board_estimates,
             )?
             .print()?;
     } else {
-        if a.angles == AngleSource::BoardEstimate {
+        if board_estimates {
             host_tools::outln!("{BOARD_ESTIMATE_NOTE}");
         }
-        host_tools::out!("{}", table(&reports));
+        host_tools::out!("{}", table(&found.reports));
         host_tools::outln!("plant file written to {}", a.output.display());
     }
     if !unverified.is_empty() {
@@ -414,23 +386,15 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The fit of `log` from `prior` (the defaults without one); a fit a
-/// signal stopped is the error [`Stopped`].
+/// The fit of `log` from `prior` (the defaults without one), its starts
+/// on Ray with `--ray`; a fit a signal stopped is the error [`Stopped`].
 fn fit(
     a: &JointArgs,
     log: &identify::ExcitationLog,
     prior: Option<PlantParams>,
     opts: &IdentifyOptions,
     stop: &Stop,
-) -> anyhow::Result<(PlantParams, Vec<PlaneReport>)> {
-    let what = |e: identify::IdentifyError| match stop.requested() {
-        Some(signal) => Stopped {
-            signal,
-            what: stopped_fit(a),
-        }
-        .into(),
-        None => anyhow::anyhow!("{}: {e}", a.log.display()),
-    };
+) -> anyhow::Result<Identified> {
     let ray = match &a.ray {
         Some(address) => {
             let (mut cmd, who) = host_tools::ray::serve_command("identify-serve", address);
@@ -447,34 +411,18 @@ fn fit(
         None => None,
     };
     let elsewhere = ray.as_ref().map(|r| r as &dyn identify::StartFits);
-    let (params, reports) = match (log.planes, prior) {
-        (1, None) => {
-            let (p, r) =
-                identify::identify_2d_with(log, &Joint2dParams::default(), opts, elsewhere)
-                    .map_err(what)?;
-            (PlantParams::TwoD(p), r)
+    identify_run::identify(log, prior, opts, elsewhere).map_err(|e| match (e, stop.requested()) {
+        (_, Some(signal)) => Stopped {
+            signal,
+            what: stopped_fit(a),
         }
-        (1, Some(PlantParams::TwoD(prior))) => {
-            let (p, r) = identify::identify_2d_with(log, &prior, opts, elsewhere).map_err(what)?;
-            (PlantParams::TwoD(p), r)
-        }
-        (2, None) => {
-            let (p, r) =
-                identify::identify_3d_with(log, &Joint3dParams::default(), opts, elsewhere)
-                    .map_err(what)?;
-            (PlantParams::ThreeD(p), r)
-        }
-        (2, Some(PlantParams::ThreeD(prior))) => {
-            let (p, r) = identify::identify_3d_with(log, &prior, opts, elsewhere).map_err(what)?;
-            (PlantParams::ThreeD(p), r)
-        }
-        _ => bail!(
-            "{}: a {} log, but --prior is a plant file for the other joint",
-            a.log.display(),
-            if log.planes == 1 { "2D" } else { "3D" }
+        .into(),
+        (RunError::OtherJoint { log: joint }, None) => anyhow::anyhow!(
+            "{}: a {joint} log, but --prior is a plant file for the other joint",
+            a.log.display()
         ),
-    };
-    Ok((params, reports))
+        (RunError::Identify(e), None) => anyhow::anyhow!("{}: {e}", a.log.display()),
+    })
 }
 
 /// What a fit stopped by a signal says: nothing written, how to fit again.
@@ -489,29 +437,6 @@ fn stopped_fit(a: &JointArgs) -> String {
         a.log.display(),
         a.output.display()
     )
-}
-
-/// Every plane's failed checks, "plane: why" (empty: verified).
-fn unverified(reports: &[PlaneReport]) -> Vec<String> {
-    reports
-        .iter()
-        .flat_map(|r| {
-            r.verdict
-                .failures
-                .iter()
-                .map(move |f| format!("{}: {f}", r.plane))
-        })
-        .collect()
-}
-
-fn reports_without_frames(r: &[PlaneReport]) -> Vec<PlaneReport> {
-    r.iter()
-        .map(|p| {
-            let mut p = p.clone();
-            p.validation.frames.clear();
-            p
-        })
-        .collect()
 }
 
 fn table(reports: &[PlaneReport]) -> String {

@@ -164,11 +164,7 @@ pub fn run(a: TuneArgs) -> anyhow::Result<()> {
     if !proven && !a.allow_unproven {
         anyhow::bail!("{verdict}; no gains written (--allow-unproven writes them all the same)");
     }
-    output::write_toml(
-        &a.output,
-        "# Written by `softjoint tune`: gains for the console (`gains load FILE`)\n# and scenarios (`controller.gains_file`).\n",
-        &g,
-    )?;
+    output::write_toml(&a.output, host_tools::files::gains::GAINS_HEADER, &g)?;
     if a.json {
         output::JsonObject::new()
             .field("gains", &g)?

@@ -119,6 +119,9 @@ pub struct ManoeuvreScore {
     pub paper: Score,
 }
 
+/// The comment lines `softjoint tune` starts a gains file with.
+pub const GAINS_HEADER: &str = "# Written by `softjoint tune`: gains for the console (`gains load FILE`)\n# and scenarios (`controller.gains_file`).\n";
+
 /// A gains file (`softjoint tune -o`), loaded by scenarios
 /// (`controller.gains_file`) and the console (`gains load FILE`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -152,7 +155,13 @@ impl GainsFile {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read gains file {}", path.display()))?;
-        let g: GainsFile = crate::input::from_toml(&text, &path.display().to_string())?;
+        Self::from_text(&text, path)
+    }
+
+    /// Reads and checks a gains file's text, as [`GainsFile::load`];
+    /// errors name `path`.
+    pub fn from_text(text: &str, path: &Path) -> anyhow::Result<Self> {
+        let g: GainsFile = crate::input::from_toml(text, &path.display().to_string())?;
         let coils = match g.joint {
             JointKind::TwoD => 2,
             JointKind::ThreeD => 4,

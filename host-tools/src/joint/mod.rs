@@ -3,4 +3,5 @@
 //! the gains search.
 pub mod calibrate;
 pub mod excite;
+pub mod identify_run;
 pub mod tune;

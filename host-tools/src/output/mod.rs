@@ -251,6 +251,12 @@ pub fn json<T: Serialize + ?Sized>(target: &str, value: &T) -> anyhow::Result<St
     Ok(serde_json::to_string_pretty(value)?)
 }
 
+/// Writes `text` (a file the caller formatted: TOML, a report) atomically,
+/// after the same check as an SVG's: no non-finite number in it.
+pub fn write_text(path: &Path, text: &str) -> anyhow::Result<()> {
+    AtomicFile::create(path)?.commit_svg(text)
+}
+
 /// `value` as one line of compact JSON (no newline) after the same check
 /// as [`json`]: a message of a line protocol (the Ray drivers').
 pub fn json_line<T: Serialize + ?Sized>(target: &str, value: &T) -> anyhow::Result<String> {
@@ -336,6 +342,12 @@ impl JsonObject {
     /// Prints the object on standard output.
     pub fn print(self) -> anyhow::Result<()> {
         print_json(&self.0)
+    }
+
+    /// The object as pretty JSON text (what [`print`](Self::print) prints,
+    /// without the newline).
+    pub fn text(&self) -> anyhow::Result<String> {
+        Ok(serde_json::to_string_pretty(&self.0)?)
     }
 }
 
