@@ -171,6 +171,17 @@ impl Driver {
     /// driver is sent SIGINT), or a driver that ended (then it is ended
     /// too). `what` names the request in errors.
     pub fn answer(&mut self, line: &str, what: &str) -> Result<String, String> {
+        self.send(line, what)?;
+        loop {
+            if let Some(line) = self.poll(what, Duration::from_millis(20))? {
+                return Ok(line);
+            }
+        }
+    }
+
+    /// Sends `line` (one line, `\n` ended); why not (the driver is ended
+    /// then). `what` names the request in errors.
+    pub fn send(&mut self, line: &str, what: &str) -> Result<(), String> {
         let sent = self
             .input
             .as_mut()
@@ -181,24 +192,25 @@ impl Driver {
                     .and_then(|()| input.flush())
                     .map_err(|e| format!("sending it {what}: {e}"))
             });
-        if let Err(why) = sent {
-            return Err(self.failed(&why, DYING));
+        sent.map_err(|why| self.failed(&why, DYING))
+    }
+
+    /// The driver's next answer line if one comes within `wait`; `None`
+    /// if none did; an error on a stop (`"stopped by a signal"`, the
+    /// driver sent SIGINT) or a driver that ended without answering
+    /// `what` (then it is ended too).
+    pub fn poll(&mut self, what: &str, wait: Duration) -> Result<Option<String>, String> {
+        if self.stop.requested().is_some() {
+            crate::stop::interrupt(&self.child);
+            return Err(STOPPED.into());
         }
-        loop {
-            if self.stop.requested().is_some() {
-                crate::stop::interrupt(&self.child);
-                return Err(STOPPED.into());
-            }
-            match self.lines.recv_timeout(Duration::from_millis(20)) {
-                Ok(Ok(line)) => return Ok(line),
-                Ok(Err(e)) => {
-                    return Err(self.failed(&format!("reading its answer: {e}"), Duration::ZERO))
-                }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => {
-                    let why = format!("it ended without answering {what}");
-                    return Err(self.failed(&why, DYING));
-                }
+        match self.lines.recv_timeout(wait) {
+            Ok(Ok(line)) => Ok(Some(line)),
+            Ok(Err(e)) => Err(self.failed(&format!("reading its answer: {e}"), Duration::ZERO)),
+            Err(RecvTimeoutError::Timeout) => Ok(None),
+            Err(RecvTimeoutError::Disconnected) => {
+                let why = format!("it ended without answering {what}");
+                Err(self.failed(&why, DYING))
             }
         }
     }
@@ -262,24 +274,46 @@ impl Drop for Driver {
 }
 
 /// The mechanics stage's starts of `identify joint --ray` run on the
-/// cluster by the driver `identify-serve` (one request at a time; the
-/// 3D joint's two planes take turns). The request is a JSON array of the
-/// units ([`StartUnit`]: every number as its bit pattern), the answer a
-/// JSON array of as many `{"fit": StartFit}` or `{"error": "message"}`,
-/// in order.
+/// cluster by the driver `identify-serve`. A request is one line, `{"id":
+/// N, "units": [...]}` (the units, [`StartUnit`]: every number as its
+/// bit pattern); its answer, when the units are fitted, `{"id": N,
+/// "answers": [...]}` with as many `{"fit": StartFit}` or `{"error":
+/// "message"}` in order. Requests overlap: the 3D joint's planes each
+/// send theirs when they reach the stage, and each takes the answer that
+/// carries its id, whichever plane reads it.
 pub struct RayStartFits {
-    /// The driver, and why it failed once it has (every later request
-    /// gets that error: the 3D joint's other plane would otherwise report
-    /// only that the driver's input is closed).
-    driver: Mutex<(Driver, Option<String>)>,
+    state: Mutex<FitsState>,
+}
+
+struct FitsState {
+    driver: Driver,
+    /// Why the driver failed, once it has: every later request gets that
+    /// error (the other plane would otherwise report only that the
+    /// driver's input is closed).
+    failed: Option<String>,
+    next_id: u64,
+    /// Requests sent and not answered yet.
+    waiting: std::collections::HashSet<u64>,
+    /// Answers read for another request than the reader's.
+    answered: std::collections::HashMap<u64, Vec<StartAnswer>>,
 }
 
 impl RayStartFits {
     /// Fits run by `driver`.
     pub fn new(driver: Driver) -> Self {
         Self {
-            driver: Mutex::new((driver, None)),
+            state: Mutex::new(FitsState {
+                driver,
+                failed: None,
+                next_id: 0,
+                waiting: Default::default(),
+                answered: Default::default(),
+            }),
         }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, FitsState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
@@ -291,40 +325,103 @@ enum StartAnswer {
     Error(String),
 }
 
+/// An answer line of `identify-serve`.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StartReply {
+    id: u64,
+    answers: Vec<StartAnswer>,
+}
+
+/// A request line of `identify-serve`.
+#[derive(serde::Serialize)]
+struct StartRequest<'a> {
+    id: u64,
+    units: &'a [StartUnit],
+}
+
+impl FitsState {
+    /// The error of a failed request: kept for every later one.
+    fn fail(&mut self, why: String) -> IdentifyError {
+        if why == STOPPED {
+            return IdentifyError::Stopped;
+        }
+        self.failed = Some(why.clone());
+        IdentifyError::Remote(why)
+    }
+}
+
 impl StartFits for RayStartFits {
     fn fit(&self, units: &[StartUnit]) -> Result<Vec<Result<StartFit, String>>, IdentifyError> {
-        let mut guard = self.driver.lock().unwrap_or_else(|e| e.into_inner());
-        let (d, failed) = &mut *guard;
-        if let Some(why) = failed {
-            return Err(IdentifyError::Remote(why.clone()));
-        }
-        let line = crate::output::json_line("the fits sent to the Ray driver", units)
-            .map_err(|e| IdentifyError::Remote(format!("{e:#}")))?
-            + "\n";
         let what = format!("{} mechanics fits", units.len());
-        let answer = d.answer(&line, &what).map_err(|why| {
-            if why == STOPPED {
-                IdentifyError::Stopped
-            } else {
-                *failed = Some(why.clone());
-                IdentifyError::Remote(why)
+        let id = {
+            let mut st = self.lock();
+            if let Some(why) = &st.failed {
+                return Err(IdentifyError::Remote(why.clone()));
             }
-        })?;
-        let parsed = serde_json::from_str::<Vec<StartAnswer>>(&answer)
-            .map_err(|e| e.to_string())
-            .and_then(|a| {
-                if a.len() == units.len() {
-                    Ok(a)
-                } else {
-                    Err(format!("{} answers for {} fits", a.len(), units.len()))
+            let id = st.next_id;
+            st.next_id += 1;
+            let line = crate::output::json_line(
+                "the fits sent to the Ray driver",
+                &StartRequest { id, units },
+            )
+            .map_err(|e| IdentifyError::Remote(format!("{e:#}")))?
+                + "\n";
+            if let Err(why) = st.driver.send(&line, &what) {
+                return Err(st.fail(why));
+            }
+            st.waiting.insert(id);
+            id
+        };
+        // Read answer lines a short while at a time, so that the other
+        // plane can send its request meanwhile; an answer for it is kept
+        // for it.
+        let answers = loop {
+            let mut st = self.lock();
+            if let Some(a) = st.answered.remove(&id) {
+                break a;
+            }
+            if let Some(why) = &st.failed {
+                return Err(IdentifyError::Remote(why.clone()));
+            }
+            let line = match st.driver.poll(&what, Duration::from_millis(20)) {
+                Ok(Some(line)) => line,
+                Ok(None) => continue,
+                Err(why) => return Err(st.fail(why)),
+            };
+            let reply = serde_json::from_str::<StartReply>(&line)
+                .map_err(|e| e.to_string())
+                .and_then(|r| {
+                    if st.waiting.remove(&r.id) {
+                        Ok(r)
+                    } else {
+                        Err(format!("no request {} is waiting for it", r.id))
+                    }
+                });
+            match reply {
+                Ok(r) if r.id == id => break r.answers,
+                Ok(r) => {
+                    st.answered.insert(r.id, r.answers);
                 }
-            })
-            .map_err(|why| {
-                let why = d.refused(&what, &answer, &why);
-                *failed = Some(why.clone());
-                IdentifyError::Remote(why)
-            })?;
-        Ok(parsed
+                Err(why) => {
+                    let why = st
+                        .driver
+                        .refused(&format!("a request ({what})"), &line, &why);
+                    return Err(st.fail(why));
+                }
+            }
+        };
+        if answers.len() != units.len() {
+            let mut st = self.lock();
+            let why = format!(
+                "the Ray driver answered {} fits for {} units",
+                answers.len(),
+                units.len()
+            );
+            st.driver.end(Duration::ZERO);
+            return Err(st.fail(why));
+        }
+        Ok(answers
             .into_iter()
             .map(|a| match a {
                 StartAnswer::Fit(f) => Ok(f),
@@ -506,18 +603,31 @@ mod tests {
         }
     }
 
+    /// A fit's answer whose minimiser is `x` (cost 2).
+    fn fit_answer(x: f64) -> String {
+        format!(
+            r#"{{"fit":{{"x":[{}],"cost":{},"iterations":2,"evaluations":5,"stopped_by_budget":false,"jacobian_known":true}}}}"#,
+            x.to_bits(),
+            2.0f64.to_bits()
+        )
+    }
+
+    fn bash_stand_in(script: &str) -> RayStartFits {
+        let mut cmd = Command::new("bash");
+        cmd.args(["-c", script]);
+        let d = Driver::start(cmd, "the stand-in driver".into(), Stop::never(), f64::NAN).unwrap();
+        RayStartFits::new(d)
+    }
+
     #[test]
     fn start_fits_come_back_in_order_and_a_failed_driver_is_named_to_every_plane() {
         // One request of two units answered (a fit, then a worker's
         // error), then garbage.
-        let fit = r#"{"fit":{"x":[4602678819172646912],"cost":4611686018427387904,"iterations":2,"evaluations":5,"stopped_by_budget":false,"jacobian_known":true}}"#;
         let script = format!(
-            "read r; echo '[{fit},{{\"error\":\"replay unstable: angle is not finite\"}}]'; read r; echo 'oops' >&2; echo '[1]'; read r"
+            "read r; echo '{{\"id\":0,\"answers\":[{},{{\"error\":\"replay unstable: angle is not finite\"}}]}}'; read r; echo 'oops' >&2; echo '[1]'; read r",
+            fit_answer(0.5)
         );
-        let mut cmd = Command::new("sh");
-        cmd.args(["-c", &script]);
-        let d = Driver::start(cmd, "the stand-in driver".into(), Stop::never(), f64::NAN).unwrap();
-        let fits = RayStartFits::new(d);
+        let fits = bash_stand_in(&script);
         let got = fits.fit(&[unit(0), unit(1)]).unwrap();
         let f = got[0].as_ref().unwrap();
         assert_eq!((f.x(), f64::from_bits(f.cost)), (vec![0.5], 2.0));
@@ -531,13 +641,50 @@ mod tests {
         );
         let e = fits.fit(&[unit(0)]).unwrap_err().to_string();
         assert!(
-            e.starts_with("the stand-in driver: it answered 1 mechanics fits with \"[1]\"")
-                && e.ends_with("it said: oops"),
+            e.starts_with(
+                "the stand-in driver: it answered a request (1 mechanics fits) with \"[1]\""
+            ) && e.ends_with("it said: oops"),
             "{e}"
         );
         // The other plane's request gets the same error, not "its input is
         // closed".
         assert_eq!(fits.fit(&[unit(0)]).unwrap_err().to_string(), e);
+        // An answer for no request waiting is refused.
+        let script = format!(
+            "read r; echo '{{\"id\":7,\"answers\":[{}]}}'; read r",
+            fit_answer(0.5)
+        );
+        let e = bash_stand_in(&script)
+            .fit(&[unit(0)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no request 7 is waiting for it"), "{e}");
+    }
+
+    #[test]
+    fn two_planes_requests_are_out_at_once_and_each_takes_its_own_answer() {
+        // The stand-in answers only once both requests have come (a
+        // program that sent one at a time would find it gone, saying
+        // so), the second first.
+        let script = format!(
+            "read a; read -t 10 b || {{ echo 'only one request came' >&2; exit 1; }}; \
+             echo '{{\"id\":1,\"answers\":[{}]}}'; echo '{{\"id\":0,\"answers\":[{}]}}'; read r",
+            fit_answer(1.5),
+            fit_answer(0.5)
+        );
+        let fits = bash_stand_in(&script);
+        let (a, b) = std::thread::scope(|s| {
+            let a = s.spawn(|| fits.fit(&[unit(0)]));
+            let b = s.spawn(|| fits.fit(&[unit(0)]));
+            (a.join().unwrap(), b.join().unwrap())
+        });
+        let mut xs: Vec<f64> = [a, b]
+            .into_iter()
+            .map(|r| r.unwrap()[0].as_ref().unwrap().x()[0])
+            .collect();
+        xs.sort_by(f64::total_cmp);
+        // Each request got one of the two answers, neither twice.
+        assert_eq!(xs, [0.5, 1.5]);
     }
 
     #[test]

@@ -56,15 +56,16 @@ problem = IdentifyProblem(open(log).read(), log,
                           None if prior is None else open(prior).read(), prior or "prior")
 times = open(os.environ["UNIT_TIMES"], "a")
 for line in sys.stdin:
+    request = json.loads(line)
     answers = []
-    for unit in json.loads(line):
+    for unit in request["units"]:
         c, w = time.process_time(), time.perf_counter()
         answers.append(json.loads(problem.fit(json.dumps(unit))))
         times.write(json.dumps({"plane": unit["plane"], "start": unit["start"],
                                 "cpu_s": time.process_time() - c,
                                 "wall_s": time.perf_counter() - w}) + "\n")
         times.flush()
-    print(json.dumps(answers), flush=True)
+    print(json.dumps({"id": request["id"], "answers": answers}), flush=True)
 '''
 
 

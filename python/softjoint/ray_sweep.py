@@ -52,8 +52,8 @@ and, the same way, what ``softjoint push calibrate --ray ADDRESS`` runs
         [--video CSV] [--nx N] [--ny N] ... [--score f|contour] --address ADDRESS
 
 and what ``softjoint identify joint LOG --ray ADDRESS`` runs: each line a
-JSON array of the mechanics stage's start units (:func:`identify_fits`),
-each fitted as a task, the answers one JSON array back::
+request of the mechanics stage's start units (:func:`identify_serve`),
+each unit fitted as a task, the answers one line back per request::
 
     python -m softjoint.ray_sweep identify-serve LOG [--prior PLANT] \\
         [--angles camera|board-estimate] --address ADDRESS
@@ -507,21 +507,46 @@ def identify_joint(log: str, prior: Optional[str] = None, address: Optional[str]
 def identify_serve(log: str, prior: Optional[str], board_estimates: bool,
                    address: Optional[str], requests: Any, answers: Any) -> None:
     """What ``softjoint identify joint --ray ADDRESS`` runs: joins the
-    cluster, then for each line of ``requests`` (a JSON array of start
-    units) fits them on Ray (:func:`identify_fits`) and writes one line to
-    ``answers``: a JSON array of the answers in order, flushed. Every
-    number in a unit and an answer is an integer (an IEEE double's bits),
-    so nothing is rounded on the way."""
+    cluster, then for each line of ``requests`` (``{"id": N, "units":
+    [...]}``: a plane's start units) fits them on Ray
+    (:func:`identify_fits`) and writes ``{"id": N, "answers": [...]}``
+    to ``answers`` once they are fitted, flushed. Requests are served at
+    once, each on a thread of its own (the 3D joint's two planes send
+    theirs as they reach the stage), so their tasks share the cluster.
+    Every number in a unit and an answer is an integer (an IEEE double's
+    bits), so nothing is rounded on the way. A request whose tasks failed
+    for good ends the driver (exit 1, the cause on standard error)."""
+    import threading
+
     connect(address)
     run = identify_fits(log, prior, board_estimates)
+    lock = threading.Lock()
+
+    def serve(rid: int, units: List[Any]) -> None:
+        try:
+            out = run(units)
+        except BaseException as e:  # noqa: BLE001 - said to the program, which ends the fit
+            cause = getattr(e, "cause", None) or e
+            print(f"{type(cause).__name__}: {cause}", file=sys.stderr, flush=True)
+            os._exit(1)
+        with lock:
+            answers.write(json.dumps({"id": rid, "answers": out}) + "\n")
+            answers.flush()
+
+    threads = []
     for line in requests:
         if not line.strip():
             continue
-        units = json.loads(line)
-        if not isinstance(units, list) or not all(isinstance(u, dict) for u in units):
-            raise ValueError(f"a request must be a JSON array of start units, got {line[:200]!r}")
-        answers.write(json.dumps(run(units)) + "\n")
-        answers.flush()
+        req = json.loads(line)
+        if not (isinstance(req, dict) and isinstance(req.get("id"), int)
+                and isinstance(req.get("units"), list)
+                and all(isinstance(u, dict) for u in req["units"])):
+            raise ValueError(f"a request must be {{\"id\": N, \"units\": [...]}}, got {line[:200]!r}")
+        t = threading.Thread(target=serve, args=(req["id"], req["units"]), daemon=True)
+        t.start()
+        threads.append(t)
+    for t in threads:
+        t.join()
 
 
 def _batch_of(line: str) -> List[List[float]]:

@@ -30,7 +30,8 @@
 //! (`IdentifyProblem`) for Ray. Plant files and gains files written out
 //! as the program writes them (`PlantFile.save`, `write_gains`).
 //!
-//! Left out: push calibration and classification as calls.
+//! Left out: push calibration and classification as calls (push
+//! calibration on Ray goes through the program, `push calibrate --ray`).
 
 use pyo3::prelude::*;
 
