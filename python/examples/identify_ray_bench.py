@@ -40,6 +40,9 @@ import ray
 
 from softjoint import ray_sweep
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ray_bench import makespan  # noqa: E402 - the same list scheduling
+
 REPO = Path(__file__).resolve().parents[2]
 
 # The driver that times each unit: `identify-serve`'s arguments, the
@@ -86,14 +89,6 @@ def identified(stdout, plant):
     report = json.loads(stdout)
     report.pop("plant_file")
     return report, [l for l in Path(plant).read_text().splitlines() if not l.startswith("#")]
-
-
-def makespan(durations, workers):
-    free = [0.0] * workers
-    for d in durations:
-        k = min(range(workers), key=free.__getitem__)
-        free[k] += d
-    return max(free)
 
 
 def main():

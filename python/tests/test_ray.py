@@ -102,22 +102,28 @@ def unit_workers():
     return [int(line.split()[0]) for line in ps.splitlines() if "ray::_tune_unit" in line]
 
 
+def killing_a_worker(run, workers, poll_s=0.05):
+    """Runs `run` on a thread and SIGKILLs the first Ray worker that
+    `workers()` lists while it runs; returns the thread (started) and
+    whether a worker was killed while `run` was still going."""
+    t = threading.Thread(target=run)
+    t.start()
+    deadline = time.time() + 60
+    while t.is_alive() and time.time() < deadline:
+        pids = workers()
+        if pids:
+            os.kill(pids[0], signal.SIGKILL)
+            return t, t.is_alive()
+        time.sleep(poll_s)
+    return t, False
+
+
 def test_a_worker_killed_mid_sweep_changes_nothing(cluster, softjoint_bin, repo, tmp_path):
     plant = softjoint.PlantFile.from_text((repo / PLANT).read_text(), PLANT)
     result = {}
-    t = threading.Thread(target=lambda: result.update(
-        ray_sweep.tune(plant, 8, 2, seed=7, search_v_offset=True)))
-    t.start()
-    killed = None
-    deadline = time.time() + 60
-    while killed is None and t.is_alive() and time.time() < deadline:
-        pids = unit_workers()
-        if pids:
-            os.kill(pids[0], signal.SIGKILL)
-            killed = pids[0]
-        time.sleep(0.05)
-    assert killed is not None, "no worker was seen running a unit"
-    assert t.is_alive(), "the sweep was still going when its worker was killed"
+    t, killed = killing_a_worker(lambda: result.update(
+        ray_sweep.tune(plant, 8, 2, seed=7, search_v_offset=True)), unit_workers)
+    assert killed, "no worker was seen running a unit while the sweep went on"
     t.join(120)
     assert not t.is_alive()
     assert result["gains"] == cli_tune(softjoint_bin, repo, tmp_path, 8, 2, 7)
@@ -536,19 +542,10 @@ def test_the_held_out_check_runs_on_ray_and_a_killed_worker_changes_nothing(
     sweep = softjoint.TuneSweep(plant, 6, 2, 5, True)
     results = ray_sweep.tune_units(sweep, plant)
     got = {}
-    t = threading.Thread(target=lambda: got.update(
-        heldout=ray_sweep.tune_heldout(sweep, plant, results)))
-    t.start()
-    killed = None
-    deadline = time.time() + 60
-    while killed is None and t.is_alive() and time.time() < deadline:
-        pids = heldout_workers()
-        if pids:
-            os.kill(pids[0], signal.SIGKILL)
-            killed = pids[0]
-        time.sleep(0.02)
+    t, killed = killing_a_worker(lambda: got.update(
+        heldout=ray_sweep.tune_heldout(sweep, plant, results)), heldout_workers, poll_s=0.02)
     t.join(120)
-    assert killed is not None, "no worker was seen running a held-out unit"
+    assert killed, "no worker was seen running a held-out unit while the check went on"
     assert len(got["heldout"]) == len(sweep.heldout_units()) == 6
     on_ray = json.loads(sweep.reduce(results, got["heldout"]))
     assert on_ray == json.loads(sweep.reduce(results))

@@ -364,20 +364,9 @@ fn ten_minute_twin_3d_seed_7_names_the_inertia_not_identifiable() {
 /// identifies it (each plane from the same log on its own, so β's report
 /// is the one `identify_3d` gives) at half its CPU.
 fn identify_beta(log: &identify::ExcitationLog) -> PlaneReport {
-    let prior = Joint3dParams::default();
     let opts = IdentifyOptions::default();
-    let map = PlaneMap::of(2, 1);
-    let model = PlaneModel {
-        plane: prior.beta.clone(),
-        wires: map
-            .sensors
-            .iter()
-            .map(|&s| prior.wires[s].clone())
-            .collect(),
-        settle_s: prior.sim.settle_s,
-        substep_s: opts.substep_s,
-    };
-    identify::identify_plane(log, map, model, "beta", &opts, None)
+    let model = identify::prior_model_3d(&Joint3dParams::default(), 1, &opts);
+    identify::identify_plane(log, PlaneMap::of(2, 1), model, "beta", &opts, None)
         .unwrap()
         .1
 }
