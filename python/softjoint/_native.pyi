@@ -246,6 +246,13 @@ class IdentifyProblem:
         """One start unit (JSON text) fitted: `{"fit": ...}` or
         `{"error": "..."}` as JSON text (every number as its bits)."""
         ...
+    def cost(
+        self, plane: int, values: Dict[str, float], fit_fraction: float = 0.75
+    ) -> Tuple[float, int]:
+        """The mechanics stage's cost (sum of squared scaled residuals) and
+        the residuals' count, with `values` (by plant-file field) set in
+        the prior."""
+        ...
     @property
     def planes(self) -> int: ...
 

@@ -16,7 +16,7 @@ use plant_joint::identify::{
 use plant_joint::{Joint2dParams, Joint3dParams};
 use pyo3::prelude::*;
 
-use crate::errors::{input, to_py};
+use crate::errors::{input, to_py, UnstableError};
 
 /// Adds the identification class and function to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -228,6 +228,36 @@ impl PyIdentifyProblem {
             Err(e) => serde_json::json!({ "error": e.to_string() }),
         });
         serde_json::to_string(&answer).map_err(|e| to_py(e.into()))
+    }
+
+    /// The mechanics stage's cost of plane `plane` (0: θ or α, 1: β) with
+    /// the parameters `values` (`{field: value}`, fields as the plant file
+    /// names them under the plane, e.g. `"coil.convection_w_m2_k"`) set in
+    /// the prior: what an identification's mechanics fit minimises (the
+    /// sum of squares of the scaled residuals over the first
+    /// `fit_fraction` of the log). Returns `(cost, residuals)`.
+    #[pyo3(signature = (plane, values, fit_fraction=0.75))]
+    fn cost(
+        &self,
+        py: Python<'_>,
+        plane: usize,
+        values: std::collections::BTreeMap<String, f64>,
+        fit_fraction: f64,
+    ) -> PyResult<(f64, usize)> {
+        let opts = IdentifyOptions {
+            fit_fraction,
+            ..IdentifyOptions::default()
+        };
+        let prior = match &self.prior {
+            Prior::TwoD(p) => identify::prior_model_2d(p, &opts),
+            Prior::ThreeD(p) => identify::prior_model_3d(p, plane.min(1), &opts),
+        };
+        let values: Vec<(String, f64)> = values.into_iter().collect();
+        py.detach(|| identify::mechanics_cost(&self.log, &prior, plane, &values, &opts))
+            .map_err(|e| match e {
+                IdentifyError::Unstable(_) => UnstableError::new_err(e.to_string()),
+                e => input(anyhow::anyhow!("{e}")),
+            })
     }
 
     /// Planes of the log (1: the 2D joint, 2: the 3D joint).

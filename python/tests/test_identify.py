@@ -3,6 +3,7 @@ against `softjoint identify joint --json -o` (report and plant file byte
 for byte), `PlantFile.save` and `write_gains` against the files the
 program writes; refused input named."""
 import json
+import struct
 
 import pytest
 
@@ -13,16 +14,23 @@ SCENARIO_2D = ('name = "2D"\njoint = "2d"\ntargets = [{ t_s = 0, deg = [0] }]\n'
                '[estimator]\nmethod = "paper"\n')
 
 
-@pytest.fixture(scope="module")
-def log_2d(softjoint_bin, tmp_path_factory):
-    """A 120 s standard plan recorded on the default 2D joint."""
-    d = tmp_path_factory.mktemp("identify-2d")
+def record_2d(softjoint_bin, d, duration_s):
+    """A standard plan of `duration_s` recorded on the default 2D joint
+    into `d`/log.csv."""
     (d / "scenario.toml").write_text(SCENARIO_2D)
-    plan = run_cli(softjoint_bin, "identify", "plan", "--joint", "2d", "--duration-s", "120").stdout
+    plan = run_cli(softjoint_bin, "identify", "plan", "--joint", "2d", "--duration-s",
+                   duration_s).stdout
     (d / "plan.toml").write_text(plan)
     run_cli(softjoint_bin, "sim", d / "scenario.toml", "--excite", d / "plan.toml", "--log",
             d / "log.csv")
     return d
+
+
+@pytest.fixture(scope="module")
+def log_2d(softjoint_bin, tmp_path_factory):
+    """A 120 s standard plan recorded on the default 2D joint (too short
+    to determine the plane: unverified)."""
+    return record_2d(softjoint_bin, tmp_path_factory.mktemp("identify-2d"), 120)
 
 
 def test_identify_joint_gives_the_programs_report_and_plant_file(softjoint_bin, log_2d):
@@ -83,3 +91,41 @@ def test_plant_files_and_gains_files_written_from_python_are_the_programs(
     with pytest.raises(softjoint.InputError, match=r"controller.kp_v_per_deg\[0\]"):
         softjoint.write_gains(tmp_path / "bad.toml", bad)
     assert not (tmp_path / "bad.toml").exists()
+
+
+def bits(x):
+    return struct.unpack("<Q", struct.pack("<d", x))[0]
+
+
+def double(b):
+    return struct.unpack("<d", struct.pack("<Q", b))[0]
+
+
+def test_the_identification_cost_is_what_its_fits_minimise(softjoint_bin, tmp_path):
+    """`IdentifyProblem.cost`: at the minimiser a start unit's fit
+    reaches (A_s alone, a linear coordinate: the value is the coordinate),
+    the cost is the fit's own to the bit, and no more than at the start;
+    another model costs otherwise; a field that is no parameter and a
+    plane the log lacks are refused by name."""
+    # 240 s: the plan's pulses heat the coils and move the link.
+    d = record_2d(softjoint_bin, tmp_path, 240)
+    problem = softjoint.IdentifyProblem((d / "log.csv").read_text(), str(d / "log.csv"))
+    field = "coil.austenite_start_c"
+    unit = {"plane": 0, "start": 0, "base": [], "active": [field], "x0": [bits(60.0)],
+            "fit_fraction": bits(0.75), "substep_s": bits(1e-3), "angle_sigma_deg": bits(0.1),
+            "resistance_sigma_ohm": bits(0.02), "max_iterations": 20, "ftol": bits(1e-4),
+            "step": bits(1e-3)}
+    fit = json.loads(problem.fit(json.dumps(unit)))["fit"]
+    a_s = double(fit["x"][0])
+    cost, residuals = problem.cost(0, {field: a_s})
+    assert cost == double(fit["cost"])
+    assert residuals > 1000
+    assert problem.cost(0, {field: 60.0})[0] >= cost
+    # Away from the minimiser along A_s, and with another convection, the
+    # cost is higher.
+    assert problem.cost(0, {field: a_s + 3.0})[0] > cost
+    assert problem.cost(0, {field: a_s, "coil.convection_w_m2_k": 3 * 54.0})[0] > cost
+    with pytest.raises(softjoint.InputError, match="no parameter \"coil.nope\""):
+        problem.cost(0, {"coil.nope": 1.0})
+    with pytest.raises(softjoint.InputError, match="plane 1 of a log with 1 plane"):
+        problem.cost(1, {})

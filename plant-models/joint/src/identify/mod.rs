@@ -85,7 +85,7 @@ pub use plan::ExcitationPlan;
 use plant_common::csv_input::CsvError;
 pub use replay::{replay, PlaneMap, PlaneModel, Prediction};
 use stage::{with_coords, Found, Stage};
-pub use units::{StartFit, StartFits, StartUnit};
+pub use units::{mechanics_cost, StartFit, StartFits, StartUnit};
 
 /// Why identification failed.
 #[derive(Debug, thiserror::Error)]

@@ -205,6 +205,38 @@ impl StartUnit {
     }
 }
 
+/// The mechanics stage's cost of plane `plane` of `log` (the sum of
+/// squares of its scaled residuals: camera angles over the fitted part,
+/// and the coil resistances where logged, as [`StartUnit::run`] fits
+/// them) for `prior` (the prior's model of that plane,
+/// [`super::prior_model_2d`], [`super::prior_model_3d`]) with the
+/// parameters `values` set (by field name, [`Param::field`]), and the
+/// residuals' count. What an identification's mechanics fit minimises,
+/// for a model a caller chooses.
+pub fn mechanics_cost(
+    log: &super::ExcitationLog,
+    prior: &PlaneModel,
+    plane: usize,
+    values: &[(String, f64)],
+    opts: &IdentifyOptions,
+) -> Result<(f64, usize), IdentifyError> {
+    if plane >= log.planes {
+        return Err(IdentifyError::Log(format!(
+            "plane {plane} of a log with {} plane(s)",
+            log.planes
+        )));
+    }
+    let mut m = prior.clone();
+    m.substep_s = opts.substep_s;
+    for (field, v) in values {
+        param(field)?.set(&mut m, *v);
+    }
+    let part = FitPart::new(log, PlaneMap::of(log.planes, plane), opts.fit_fraction)?;
+    let fit_frames = frames(log, plane, part.rows);
+    let r = mechanics_residuals(&part, opts, &fit_frames)(&m)?;
+    Ok((r.iter().map(|x| x * x).sum(), r.len()))
+}
+
 impl StartFit {
     /// The minimiser's coordinates.
     pub fn x(&self) -> Vec<f64> {
