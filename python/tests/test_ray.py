@@ -580,3 +580,18 @@ def test_identify_joint_from_python_on_ray_is_the_programs(cluster, identify_log
     assert got.report == report
     assert [l for l in got.plant.text.splitlines() if not l.startswith("#")] == plant
     assert requests == [5, 5]
+
+
+def test_the_programs_identification_with_ray_stopped_writes_nothing(cluster, softjoint_bin,
+                                                                   identify_log, tmp_path):
+    """SIGINT to `identify joint --ray` once the driver has answered a
+    plane's starts: the program passes the stop on to its driver and
+    exits 130 saying that nothing was written (a fit keeps no state to
+    resume from), and writes no plant file."""
+    log, _ = identify_log
+    out = tmp_path / "stopped.toml"
+    rc, err = interrupted_after_one_answer(
+        [softjoint_bin, *IDENTIFY(log, out), "--ray", cluster], None, tmp_path)
+    assert rc == 130, err
+    assert "was cut short, so nothing was written" in err, err
+    assert not out.exists()
