@@ -154,10 +154,10 @@ pub struct Minimum {
     /// The Jacobian at `x` where the minimiser already has it (it stopped
     /// on a rejected step or on its budget, not just after a step).
     jacobian: Option<Vec<Vec<f64>>>,
-    /// A minimum found elsewhere ([`Minimum::from_unit`]): its residuals
-    /// (empty until then) and, where its minimiser had it, its Jacobian are
-    /// recomputed by [`Minimum::finish`] — `Some(jacobian known there)`.
-    elsewhere: Option<bool>,
+    /// A minimum found elsewhere whose minimiser had the Jacobian at `x`
+    /// ([`Minimum::from_unit`]): [`Minimum::finish`] recomputes it without
+    /// counting it, as the minimiser's own was counted there.
+    jacobian_elsewhere: bool,
 }
 
 impl Minimum {
@@ -166,21 +166,39 @@ impl Minimum {
         self.jacobian.is_some()
     }
 
-    /// A minimum a fit found elsewhere (a work unit, [`super::units`]):
-    /// its residuals, and its Jacobian where its minimiser had one, are
-    /// recomputed by [`Minimum::finish`] (not counted: the fit counted
-    /// them), which checks that they give its cost to the last bit.
-    pub fn from_unit(fit: &super::units::StartFit) -> Self {
-        Self {
-            x: fit.x(),
-            cost: f64::from_bits(fit.cost),
-            residuals: Vec::new(),
+    /// A minimum a fit found elsewhere (a work unit, [`super::units`]),
+    /// taken only if it reproduces here: the residuals of `f` at its
+    /// minimiser must give its cost to the last bit (another log, prior
+    /// or build where it ran is an error, not a different minimum). Its
+    /// Jacobian, where its minimiser had one, is recomputed by
+    /// [`Minimum::finish`], uncounted (the fit counted it).
+    pub fn from_unit<F>(
+        fit: &super::units::StartFit,
+        f: &F,
+        opts: LmOptions,
+    ) -> Result<Self, IdentifyError>
+    where
+        F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+    {
+        let x = fit.x();
+        let cost = f64::from_bits(fit.cost);
+        let residuals = opts.stoppable(f)(&x)?;
+        let here = sq(&residuals);
+        if here.to_bits() != cost.to_bits() {
+            return Err(IdentifyError::Remote(format!(
+                "a fit run elsewhere does not reproduce here: its cost {cost:e} at its minimiser is {here:e} here (another log, prior or build where it ran?)"
+            )));
+        }
+        Ok(Self {
+            x,
+            cost,
+            residuals,
             iterations: fit.iterations,
             evaluations: fit.evaluations,
             stopped_by_budget: fit.stopped_by_budget,
             jacobian: None,
-            elsewhere: Some(fit.jacobian_known),
-        }
+            jacobian_elsewhere: fit.jacobian_known,
+        })
     }
 
     /// The result with the Jacobian at the minimiser and the covariance
@@ -189,19 +207,9 @@ impl Minimum {
     where
         F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
     {
-        if let Some(known) = self.elsewhere {
+        if self.jacobian_elsewhere {
             let f = opts.stoppable(f);
-            self.residuals = f(&self.x)?;
-            let here = sq(&self.residuals);
-            if here.to_bits() != self.cost.to_bits() {
-                return Err(IdentifyError::Remote(format!(
-                    "a fit run elsewhere does not reproduce here: its cost {:e} at its minimiser is {here:e} here (another log, prior or build where it ran?)",
-                    self.cost
-                )));
-            }
-            if known {
-                self.jacobian = Some(jacobian(&f, &self.x, &self.residuals, opts.step)?);
-            }
+            self.jacobian = Some(jacobian(&f, &self.x, &self.residuals, opts.step)?);
         }
         let n = self.x.len();
         let m = self.residuals.len();
@@ -259,7 +267,7 @@ where
         evaluations,
         stopped_by_budget,
         jacobian,
-        elsewhere: None,
+        jacobian_elsewhere: false,
     };
     while iterations < opts.max_iterations {
         opts.check_stop()?;

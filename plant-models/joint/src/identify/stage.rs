@@ -259,13 +259,19 @@ where
                             self.name
                         )));
                     }
-                    answers
-                        .into_iter()
-                        .map(|a| {
-                            a.map(|fit| lm::Minimum::from_unit(&fit))
-                                .map_err(IdentifyError::Remote)
-                        })
-                        .collect()
+                    // Every fit that came back is replayed here once at
+                    // its minimiser (in parallel) and must reproduce its
+                    // cost: one that does not ends the stage, since it
+                    // would decide the selection and the starts check.
+                    let taken: Vec<Result<Result<lm::Minimum, IdentifyError>, IdentifyError>> =
+                        answers
+                            .into_par_iter()
+                            .map(|a| match a {
+                                Ok(fit) => lm::Minimum::from_unit(&fit, &f, lm_opts).map(Ok),
+                                Err(why) => Ok(Err(IdentifyError::Remote(why))),
+                            })
+                            .collect();
+                    taken.into_iter().collect::<Result<Vec<_>, _>>()?
                 }
                 None => x0s
                     .par_iter()

@@ -8,9 +8,10 @@
 //! [`super::identify_3d_with`]).
 //!
 //! Every number crosses as its `f64` bit pattern (a `u64`), so nothing is
-//! rounded on the way, non-finite values included. A fit that comes back
-//! is checked where it is used: the residuals at its minimiser are
-//! recomputed here and must give its cost to the last bit
+//! rounded on the way, non-finite values included. Every fit that comes
+//! back is checked as it arrives, not only the one kept (the others steer
+//! the starts check): the residuals at its minimiser are recomputed here
+//! and must give its cost to the last bit
 //! ([`super::lm::Minimum::from_unit`]); a worker that computed something
 //! else (another log, another prior, another build) is an error, not a
 //! different answer.
@@ -54,8 +55,9 @@ pub struct StartUnit {
 }
 
 /// Where a fit from one start ended: what [`lm::minimise`] returns, less
-/// the residuals and Jacobian there (recomputed by the caller for the fit
-/// it keeps, bit for bit the same).
+/// the residuals and Jacobian there (recomputed by the caller, bit for
+/// bit the same: the residuals for every fit, the Jacobian for the one it
+/// keeps).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StartFit {

@@ -735,6 +735,9 @@ struct Elsewhere {
     log: identify::ExcitationLog,
     prior: PlaneModel,
     units_run: std::sync::atomic::AtomicUsize,
+    /// A start whose answered cost is one unit in the last place off (a
+    /// worker that computed something else for that start alone).
+    tamper: Option<usize>,
 }
 
 impl identify::StartFits for Elsewhere {
@@ -752,7 +755,12 @@ impl identify::StartFits for Elsewhere {
                 .map(|t| {
                     s.spawn(move || {
                         let unit: identify::StartUnit = serde_json::from_str(t).unwrap();
-                        let fit = unit.run(&self.log, &self.prior).map_err(|e| e.to_string());
+                        let mut fit = unit.run(&self.log, &self.prior).map_err(|e| e.to_string());
+                        if let (Some(k), Ok(f)) = (self.tamper, fit.as_mut()) {
+                            if k == unit.start {
+                                f.cost += 1;
+                            }
+                        }
                         // Back through text too.
                         fit.map(|f| {
                             serde_json::from_str(&serde_json::to_string(&f).unwrap()).unwrap()
@@ -784,6 +792,7 @@ fn the_mechanics_starts_run_as_units_elsewhere_give_the_same_identification() {
         log: log.clone(),
         prior: identify::prior_model_2d(&prior, &opts),
         units_run: 0.into(),
+        tamper: None,
     };
     let there = identify::identify_2d_with(&log, &prior, &opts, Some(&elsewhere)).unwrap();
     let units = elsewhere.units_run.into_inner();
@@ -801,7 +810,24 @@ fn the_mechanics_starts_run_as_units_elsewhere_give_the_same_identification() {
         log: log.clone(),
         prior: identify::prior_model_2d(&other, &opts),
         units_run: 0.into(),
+        tamper: None,
     };
     let e = identify::identify_2d_with(&log, &prior, &opts, Some(&wrong)).unwrap_err();
+    assert!(e.to_string().contains("does not reproduce here"), "{e}");
+    // One start answered wrong, not the one kept: its cost would still
+    // steer the starts check, so it is refused too.
+    let mech = here.1[0]
+        .stages
+        .iter()
+        .find(|s| s.name == "mechanics")
+        .unwrap();
+    let other_start = (mech.best_start + 1) % mech.starts;
+    let tampered = Elsewhere {
+        log: log.clone(),
+        prior: identify::prior_model_2d(&prior, &opts),
+        units_run: 0.into(),
+        tamper: Some(other_start),
+    };
+    let e = identify::identify_2d_with(&log, &prior, &opts, Some(&tampered)).unwrap_err();
     assert!(e.to_string().contains("does not reproduce here"), "{e}");
 }
