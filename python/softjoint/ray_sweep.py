@@ -68,6 +68,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -516,8 +517,6 @@ def identify_serve(log: str, prior: Optional[str], board_estimates: bool,
     Every number in a unit and an answer is an integer (an IEEE double's
     bits), so nothing is rounded on the way. A request whose tasks failed
     for good ends the driver (exit 1, the cause on standard error)."""
-    import threading
-
     connect(address)
     run = identify_fits(log, prior, board_estimates)
     lock = threading.Lock()
