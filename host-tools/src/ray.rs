@@ -600,6 +600,7 @@ mod tests {
             max_iterations: 3,
             ftol: 1e-4f64.to_bits(),
             step: 1e-3f64.to_bits(),
+            secant_updates: 2,
         }
     }
 

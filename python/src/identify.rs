@@ -127,7 +127,7 @@ fn identify_joint(
         fit_fraction,
         lm: LmOptions {
             max_iterations,
-            ..LmOptions::default()
+            ..IdentifyOptions::default().lm
         },
         ..IdentifyOptions::default()
     };

@@ -114,7 +114,7 @@ def test_the_identification_cost_is_what_its_fits_minimise(softjoint_bin, tmp_pa
     unit = {"plane": 0, "start": 0, "base": [], "active": [field], "x0": [bits(60.0)],
             "fit_fraction": bits(0.75), "substep_s": bits(1e-3), "angle_sigma_deg": bits(0.1),
             "resistance_sigma_ohm": bits(0.02), "max_iterations": 20, "ftol": bits(1e-4),
-            "step": bits(1e-3)}
+            "step": bits(1e-3), "secant_updates": 2}
     fit = json.loads(problem.fit(json.dumps(unit)))["fit"]
     a_s = double(fit["x"][0])
     cost, residuals = problem.cost(0, {field: a_s})

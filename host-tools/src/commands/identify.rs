@@ -339,7 +339,7 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         lm: LmOptions {
             max_iterations: a.max_iterations as usize,
             stop: Some(StopFlag(flag)),
-            ..LmOptions::default()
+            ..IdentifyOptions::default().lm
         },
         ..IdentifyOptions::default()
     };

@@ -38,6 +38,10 @@ pub struct LmOptions {
     pub ftol: f64,
     /// Forward-difference step per coordinate.
     pub step: f64,
+    /// Secant (Broyden) updates of the Jacobian between two
+    /// forward-difference ones (0: differences at every iteration, the
+    /// textbook method); see [`minimise`].
+    pub secant_updates: usize,
     /// A flag the caller sets (non-zero) to end the fit: read before
     /// each iteration and each Jacobian, it ends the minimiser with
     /// [`IdentifyError::Stopped`] (a program's Ctrl-C).
@@ -50,6 +54,7 @@ impl Default for LmOptions {
             max_iterations: 100,
             ftol: 1e-4,
             step: 1e-3,
+            secant_updates: 0,
             stop: None,
         }
     }
@@ -237,6 +242,18 @@ impl Minimum {
 }
 
 /// The minimiser of [`levenberg_marquardt`], without the final Jacobian.
+///
+/// The Jacobian is taken by forward differences (`n` evaluations) at the
+/// start; with `opts.secant_updates = k > 0` the next `k` accepted steps
+/// update it by Broyden's secant formula (the least change that maps the
+/// step to the change of the residuals along it; no evaluation) before it
+/// is differenced again. A step from an updated Jacobian that lowers the
+/// cost by less than `ftol`, or that finds no lower cost in
+/// [`SECANT_TRIALS`] trials, sends the minimiser back to forward
+/// differences where it is, so it stops only where a step from a
+/// differenced Jacobian gains less than `ftol`: the same test as with
+/// `k = 0`. The minimum is then a minimum of the same kind, reached by
+/// another path (and so not the same to the last digit).
 pub fn minimise<F>(f: &F, x0: &[f64], opts: LmOptions) -> Result<Minimum, IdentifyError>
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
@@ -259,6 +276,9 @@ where
     opts.check_stop()?;
     let mut jac = jacobian(f, &x, &r, opts.step)?;
     evaluations += n;
+    // Secant updates applied to `jac` since it was differenced at a point
+    // (0: it is the forward-difference Jacobian at `x`).
+    let mut updates = 0;
     let stop = |x, r, cost, iterations, evaluations, stopped_by_budget, jacobian| Minimum {
         x,
         cost,
@@ -272,31 +292,76 @@ where
     while iterations < opts.max_iterations {
         opts.check_stop()?;
         iterations += 1;
+        let trials = if updates == 0 { 8 } else { SECANT_TRIALS };
         let Some((trial, rt, new_cost)) =
-            lm_step(f, &x, &r, cost, &jac, &mut lambda, &mut evaluations)?
+            lm_step(f, &x, &r, cost, &jac, &mut lambda, &mut evaluations, trials)?
         else {
-            // No step lowers the cost: a (local) optimum, where the
-            // Jacobian is the one just used.
-            return Ok(stop(x, r, cost, iterations, evaluations, false, Some(jac)));
+            if updates == 0 {
+                // No step lowers the cost: a (local) optimum, where the
+                // Jacobian is the one just used.
+                return Ok(stop(x, r, cost, iterations, evaluations, false, Some(jac)));
+            }
+            // The updated Jacobian found no lower cost: difference anew.
+            opts.check_stop()?;
+            jac = jacobian(f, &x, &r, opts.step)?;
+            evaluations += n;
+            updates = 0;
+            continue;
         };
         let decrease = (cost - new_cost) / cost.max(1e-300);
+        let dx: Vec<f64> = trial.iter().zip(&x).map(|(a, b)| a - b).collect();
+        let dr: Vec<f64> = rt.iter().zip(&r).map(|(a, b)| a - b).collect();
         x = trial;
         r = rt;
         cost = new_cost;
-        if decrease < opts.ftol {
+        if decrease < opts.ftol && updates == 0 {
             return Ok(stop(x, r, cost, iterations, evaluations, false, None));
         }
         opts.check_stop()?;
-        jac = jacobian(f, &x, &r, opts.step)?;
-        evaluations += n;
+        if decrease < opts.ftol || updates >= opts.secant_updates {
+            jac = jacobian(f, &x, &r, opts.step)?;
+            evaluations += n;
+            updates = 0;
+        } else {
+            broyden_update(&mut jac, &dx, &dr);
+            updates += 1;
+        }
     }
-    Ok(stop(x, r, cost, iterations, evaluations, true, Some(jac)))
+    let known = (updates == 0).then_some(jac);
+    Ok(stop(x, r, cost, iterations, evaluations, true, known))
+}
+
+/// Trials (λ raised tenfold after each) a step from an updated Jacobian
+/// gets before the minimiser takes forward differences instead (from a
+/// differenced one: 8).
+pub const SECANT_TRIALS: usize = 2;
+
+/// Broyden's rank-one update of `jac` (columns) for a step `dx` that
+/// changed the residuals by `dr`: the least change of the Jacobian that
+/// maps `dx` to `dr`.
+fn broyden_update(jac: &mut [Vec<f64>], dx: &[f64], dr: &[f64]) {
+    let dxdx: f64 = dx.iter().map(|v| v * v).sum();
+    if dxdx.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return;
+    }
+    let mut u = dr.to_vec();
+    for (col, d) in jac.iter().zip(dx) {
+        for (ui, c) in u.iter_mut().zip(col) {
+            *ui -= c * d;
+        }
+    }
+    for (col, d) in jac.iter_mut().zip(dx) {
+        let w = d / dxdx;
+        for (c, ui) in col.iter_mut().zip(&u) {
+            *c += ui * w;
+        }
+    }
 }
 
 /// One Levenberg–Marquardt step from `x` with the Jacobian `jac`: λ grows
-/// tenfold per rejected trial (at most 8) and falls tenfold on
+/// tenfold per rejected trial (at most `trials`) and falls tenfold on
 /// acceptance; the accepted trial point, its residuals and cost.
-#[allow(clippy::type_complexity)] // (x, r, cost)
+#[allow(clippy::type_complexity, clippy::too_many_arguments)] // (x, r, cost)
 fn lm_step<F>(
     f: &F,
     x: &[f64],
@@ -305,6 +370,7 @@ fn lm_step<F>(
     jac: &[Vec<f64>],
     lambda: &mut f64,
     evaluations: &mut usize,
+    trials: usize,
 ) -> Result<Option<(Vec<f64>, Vec<f64>, f64)>, IdentifyError>
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
@@ -314,7 +380,7 @@ where
     let rv = DVector::from_column_slice(r);
     let jtj = jm.transpose() * &jm;
     let g = jm.transpose() * rv;
-    for _ in 0..8 {
+    for _ in 0..trials {
         let mut a = jtj.clone();
         for k in 0..n {
             a[(k, k)] += *lambda * jtj[(k, k)].max(1e-12);
@@ -603,6 +669,7 @@ mod tests {
         };
         let opts = |max_iterations| LmOptions {
             max_iterations,
+            secant_updates: 0,
             stop: None,
             ftol: 1e-12,
             step: 1e-7,
@@ -612,6 +679,78 @@ mod tests {
         assert!((short.x[1] - 0.7).abs() > 1e-3, "{:?}", short.x);
         let full = levenberg_marquardt(f, &[1.0, 0.2], opts(200)).unwrap();
         assert!(!full.stopped_by_budget, "{} iterations", full.iterations);
+    }
+
+    /// Secant updates between differenced Jacobians: on a nonlinear fit
+    /// of nine parameters (three peaks and noise, from a start off in
+    /// every one) they reach the textbook method's minimum — the same cost
+    /// to 1e-9 and coordinates within 1e-3 of their 1σ — with fewer
+    /// residual evaluations, and each evaluation is counted. With 0
+    /// updates it is the textbook method, evaluation for evaluation.
+    #[test]
+    fn secant_updates_reach_the_textbook_minimum_with_fewer_evaluations() {
+        let t: Vec<f64> = (0..600).map(|k| k as f64 * 0.02).collect();
+        let noise = |k: usize| ((k as f64 * 12.9898).sin() * 43_758.545_3).fract() - 0.5;
+        let peaks = |x: &[f64], t: f64| -> f64 {
+            x.chunks(3)
+                .map(|p| p[0] * (-((t - p[1]) / p[2]).powi(2)).exp())
+                .sum()
+        };
+        let truth = [2.0, 3.0, 0.8, 1.0, 6.0, 1.2, 1.5, 9.0, 0.6];
+        let y: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| peaks(&truth, t) + 0.02 * noise(k))
+            .collect();
+        let calls = AtomicUsize::new(0);
+        let f = |x: &[f64]| -> Result<Vec<f64>, IdentifyError> {
+            calls.fetch_add(1, Ordering::Relaxed);
+            Ok(t.iter().zip(&y).map(|(&t, y)| peaks(x, t) - y).collect())
+        };
+        let x0 = [1.0, 3.8, 1.3, 1.8, 5.2, 0.7, 0.9, 9.8, 1.1];
+        let fit = |secant_updates| {
+            calls.store(0, Ordering::Relaxed);
+            let opts = LmOptions {
+                ftol: 1e-8,
+                step: 1e-7,
+                secant_updates,
+                ..LmOptions::default()
+            };
+            let r = levenberg_marquardt(f, &x0, opts).unwrap();
+            assert_eq!(
+                r.evaluations,
+                calls.load(Ordering::Relaxed),
+                "evaluations counted"
+            );
+            r
+        };
+        let plain = fit(0);
+        let secant = fit(2);
+        assert!(!plain.stopped_by_budget && !secant.stopped_by_budget);
+        assert!(
+            (secant.cost / plain.cost - 1.0).abs() < 1e-9,
+            "{} vs {}",
+            secant.cost,
+            plain.cost
+        );
+        for j in 0..x0.len() {
+            let z = (secant.x[j] - plain.x[j]) / plain.std[j];
+            assert!(
+                z.abs() < 1e-3,
+                "x[{j}]: {} vs {} ({z} σ)",
+                secant.x[j],
+                plain.x[j]
+            );
+        }
+        assert!(
+            secant.evaluations < plain.evaluations,
+            "{} evaluations with secant updates, {} without",
+            secant.evaluations,
+            plain.evaluations
+        );
+        // The textbook method: one differenced Jacobian per iteration.
+        let again = fit(0);
+        assert_eq!((again.x, again.evaluations), (plain.x, plain.evaluations));
     }
 
     /// A straight line through residuals that come in runs (a slow wave

@@ -128,6 +128,16 @@ impl From<PlantError> for IdentifyError {
     }
 }
 
+/// Secant updates of the Jacobian between forward-difference ones in the
+/// mechanics stage's fits (its default; [`lm::minimise`]). Its
+/// evaluations are most of an identification's CPU; with 2 updates they
+/// fell by 0–71 % per plane on the logs measured (docs/benchmarks.md,
+/// "Identification with secant updates"), the minima the same to the
+/// reported digits of the fit rms. The thermal and wire stages difference
+/// every iteration (cheap replays; the wire stage's cost is rugged in its
+/// stick realisations).
+pub const SECANT_UPDATES: usize = 2;
+
 /// Settings of an identification.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IdentifyOptions {
@@ -152,7 +162,10 @@ impl Default for IdentifyOptions {
         Self {
             fit_fraction: 0.75,
             substep_s: 1e-3,
-            lm: LmOptions::default(),
+            lm: LmOptions {
+                secant_updates: SECANT_UPDATES,
+                ..LmOptions::default()
+            },
             angle_sigma_deg: 0.1,
             resistance_sigma_ohm: 0.02,
             stick_realisations: replay::STICK_REALISATIONS,
@@ -911,6 +924,7 @@ fn thermal_stage(
         starts: &[],
         halves: Some(&blocks),
         elsewhere: None,
+        secant: false,
     }
     .run(found, prior, opts)
 }
@@ -997,6 +1011,7 @@ fn mechanics_stage(
             fits,
             plane: part.map.plane,
         }),
+        secant: true,
     }
     .run(found, prior, opts)?;
     if let Some(st) = found.stages.last_mut() {
@@ -1116,6 +1131,7 @@ fn wire_stage(
         starts: &[],
         halves: Some(&part.row_blocks(map.sensors.len())),
         elsewhere: None,
+        secant: false,
     }
     .run(found, prior, opts)
 }

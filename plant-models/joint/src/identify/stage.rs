@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use super::lm::{self, LmResult};
+use super::lm::{self, LmOptions, LmResult};
 use super::units::{StartFits, StartUnit};
 use super::{verify, Estimate, IdentifyError, IdentifyOptions, Param, PlaneModel, StageReport};
 
@@ -74,6 +74,10 @@ pub(super) struct Stage<'a, F> {
     /// rayon's threads) without it, as work units elsewhere with it
     /// ([`super::units`]); the result is the same.
     pub elsewhere: Option<Elsewhere<'a>>,
+    /// Whether its fits carry the Jacobian along by secant updates
+    /// between forward differences (`opts.lm.secant_updates` of them;
+    /// without, every iteration differences it).
+    pub secant: bool,
 }
 
 /// Fits from several starts run elsewhere: by `fits`, as units of plane
@@ -232,7 +236,14 @@ where
         prior: &PlaneModel,
         opts: &IdentifyOptions,
     ) -> Result<BestFit, IdentifyError> {
-        let lm_opts = opts.lm;
+        let lm_opts = LmOptions {
+            secant_updates: if self.secant {
+                opts.lm.secant_updates
+            } else {
+                0
+            },
+            ..opts.lm
+        };
         let f = |x: &[f64]| (self.residuals)(&with_coords(base, active, x));
         let mut minima: Vec<(usize, lm::Minimum)> = Vec::new();
         let mut iterations = 0;

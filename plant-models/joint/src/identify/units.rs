@@ -52,6 +52,8 @@ pub struct StartUnit {
     pub ftol: u64,
     /// Its forward-difference step, bits.
     pub step: u64,
+    /// Its secant updates between forward-difference Jacobians.
+    pub secant_updates: usize,
 }
 
 /// Where a fit from one start ended: what [`lm::minimise`] returns, less
@@ -148,6 +150,7 @@ impl StartUnit {
             max_iterations: lm.max_iterations,
             ftol: lm.ftol.to_bits(),
             step: lm.step.to_bits(),
+            secant_updates: lm.secant_updates,
         })
     }
 
@@ -162,6 +165,7 @@ impl StartUnit {
                 max_iterations: self.max_iterations,
                 ftol: f64::from_bits(self.ftol),
                 step: f64::from_bits(self.step),
+                secant_updates: self.secant_updates,
                 stop: None,
             },
             ..IdentifyOptions::default()
