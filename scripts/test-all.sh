@@ -269,9 +269,6 @@ step "softjoint hil under QEMU as a user runs it: QEMU killed, hil stopped or ki
 cargo test "${targets[@]}" -- --ignored hil_qemu_cli:: console_excite:: --test-threads 1
 twins_on_every_cpu
 
-step "the checks that need the optimised build or QEMU (every #[ignore]d test but the joint's twins): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image"
-cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite::
-
 # The Python package (issue 33), in a virtual environment of its own
 # under target/: the wheel built from the workspace crate python/ in the
 # ci-opt profile into the workspace's target directory (python/Cargo.toml
@@ -280,7 +277,12 @@ cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cl
 # (SOFTJOINT_BIN), and a local Ray cluster of two raylets (separate `ray
 # start` processes) that the tests start and stop: a tune and a rheology
 # calibration equal to the program's, a worker killed mid-sweep, Ctrl-C.
-step "the Python package: wheel (maturin, ci-opt), pytest against the program, two Ray raylets"
+# The wheel is built first (a cargo running tests holds the build
+# directory's lock); the tests then run beside the other ignored checks:
+# they wait on Ray and on the program for most of their ≈ 100 s (≈ 0.8 of
+# a CPU), as those wait on QEMU, so one after the other they left a CPU to
+# the twins for ≈ 200 s that the suite's end then waited for.
+step "the Python package's wheel (maturin, ci-opt)"
 if ! wait "$pip_pid"; then
     cat "$pip_log" >&2
     echo "pip install of maturin, numpy, pytest and ray failed (log above)" >&2
@@ -291,7 +293,14 @@ rm -f "$pip_log"
     -i "$venv/bin/python" --out target/wheels
 "$venv/bin/pip" install -q --disable-pip-version-check --force-reinstall --no-deps \
     target/wheels/softjoint-0.1.0-*.whl
-SOFTJOINT_BIN=target/ci-opt/softjoint "$venv/bin/python" -m pytest -q python/tests
+
+step "beside each other: the checks that need the optimised build or QEMU (every #[ignore]d test but the joint's twins): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image — and the Python package's pytest against the program with two Ray raylets"
+py_log=$(mktemp)
+SOFTJOINT_BIN=target/ci-opt/softjoint "$venv/bin/python" -m pytest -q python/tests >"$py_log" 2>&1 &
+py_pid=$!
+bg_pids+=("$py_pid")
+cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite::
+wait_job "$py_pid" "$py_log" "the Python package's tests (pytest)"
 
 step "the joint's identification twins: the 10-minute logs, the off-plan, true-prior and campaign twins (if still running)"
 wait_job "$joint_pid" "$joint_log" "plant-joint's #[ignore]d checks"
