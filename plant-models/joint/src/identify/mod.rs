@@ -131,9 +131,9 @@ impl From<PlantError> for IdentifyError {
 /// Secant updates of the Jacobian between forward-difference ones in the
 /// mechanics stage's fits (its default; [`lm::minimise`]). Its
 /// evaluations are most of an identification's CPU; with 2 updates they
-/// fell by 0–71 % per plane on the logs measured (docs/benchmarks.md,
-/// "Identification with secant updates"), the minima the same to the
-/// reported digits of the fit rms. The thermal and wire stages difference
+/// fell by 6–73 % per plane on the logs measured (docs/benchmarks.md,
+/// "Identification with secant updates"), the estimates within 0.9 σ of
+/// the textbook method's. The thermal and wire stages difference
 /// every iteration (cheap replays; the wire stage's cost is rugged in its
 /// stick realisations).
 pub const SECANT_UPDATES: usize = 2;

@@ -103,7 +103,7 @@ fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
     let opts = IdentifyOptions {
         lm: LmOptions {
             max_iterations: 8,
-            ..LmOptions::default()
+            ..IdentifyOptions::default().lm
         },
         ..IdentifyOptions::default()
     };
@@ -139,6 +139,58 @@ fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
         "held-out rms {}",
         v.heldout_rms_deg
     );
+}
+
+/// The mechanics stage's secant updates (`LmOptions::secant_updates`, 2
+/// by default) against the textbook method (0) on the compact 2D twin,
+/// fits run to convergence: fewer mechanics replays, the same verdict,
+/// the same parameters called identifiable and every estimate within its
+/// 1σ of the textbook one. (Timings on longer logs: docs/benchmarks.md,
+/// "Identification with secant updates".)
+#[test]
+#[ignore = "two identifications of the compact twin to convergence (≈ 10 CPU-s in ci-opt); CI runs it with the twins"]
+fn secant_updates_save_mechanics_replays_on_the_compact_twin() {
+    let hidden = hidden::joint_2d(3);
+    let log = twin::record_2d(&hidden, &ExcitationPlan::compact(1), true, NOISE).unwrap();
+    let run = |secant_updates| {
+        let opts = IdentifyOptions {
+            lm: LmOptions {
+                secant_updates,
+                ..IdentifyOptions::default().lm
+            },
+            ..IdentifyOptions::default()
+        };
+        let (_, mut reports) =
+            identify::identify_2d(&log, &Joint2dParams::default(), &opts).unwrap();
+        reports.remove(0)
+    };
+    let textbook = run(0);
+    let secant = run(IdentifyOptions::default().lm.secant_updates);
+    assert_eq!(IdentifyOptions::default().lm.secant_updates, 2);
+    let mechanics = |r: &PlaneReport| {
+        let st = r.stages.iter().find(|s| s.name == "mechanics").unwrap();
+        assert!(!st.stopped_by_budget, "{st:?}");
+        st.evaluations
+    };
+    let (a, b) = (mechanics(&textbook), mechanics(&secant));
+    eprintln!("mechanics replays: textbook {a}, secant updates {b}");
+    assert!(b < a, "mechanics replays: textbook {a}, secant updates {b}");
+    assert_eq!(textbook.verdict.verified, secant.verdict.verified);
+    assert_eq!(textbook.estimates.len(), secant.estimates.len());
+    for t in &textbook.estimates {
+        let s = secant.estimate(t.param).unwrap();
+        assert_eq!(t.identifiable, s.identifiable, "{t:?} / {s:?}");
+        if t.identifiable {
+            let z = (s.value - t.value) / t.std;
+            assert!(
+                z.abs() <= 1.0,
+                "{}: {} against {} ({z:+.2} σ)",
+                t.field,
+                s.value,
+                t.value
+            );
+        }
+    }
 }
 
 /// The 10-minute standard plan on the hidden 2D joint, electrical columns
@@ -497,7 +549,7 @@ fn a_fit_far_above_the_noise_is_unverified() {
     let opts = IdentifyOptions {
         lm: LmOptions {
             max_iterations: 8,
-            ..LmOptions::default()
+            ..IdentifyOptions::default().lm
         },
         ..IdentifyOptions::default()
     };
@@ -782,7 +834,7 @@ fn the_mechanics_starts_run_as_units_elsewhere_give_the_same_identification() {
     let opts = IdentifyOptions {
         lm: LmOptions {
             max_iterations: 8,
-            ..LmOptions::default()
+            ..IdentifyOptions::default().lm
         },
         ..IdentifyOptions::default()
     };
