@@ -315,21 +315,26 @@ where
             continue;
         };
         let decrease = (cost - new_cost) / cost.max(1e-300);
-        let dx: Vec<f64> = trial.iter().zip(&x).map(|(a, b)| a - b).collect();
-        let dr: Vec<f64> = rt.iter().zip(&r).map(|(a, b)| a - b).collect();
+        let converged = decrease < opts.ftol;
+        let difference = converged || updates >= opts.secant_updates;
+        if !difference {
+            // Carried along the step, from where it was taken.
+            let dx: Vec<f64> = trial.iter().zip(&x).map(|(a, b)| a - b).collect();
+            let dr: Vec<f64> = rt.iter().zip(&r).map(|(a, b)| a - b).collect();
+            broyden_update(&mut jac, &dx, &dr);
+        }
         x = trial;
         r = rt;
         cost = new_cost;
-        if decrease < opts.ftol && updates == 0 {
+        if converged && updates == 0 {
             return Ok(stop(x, r, cost, iterations, evaluations, false, None));
         }
         opts.check_stop()?;
-        if decrease < opts.ftol || updates >= opts.secant_updates {
+        if difference {
             jac = jacobian(f, &x, &r, opts.step)?;
             evaluations += n;
             updates = 0;
         } else {
-            broyden_update(&mut jac, &dx, &dr);
             updates += 1;
         }
     }
