@@ -159,43 +159,101 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
             format!("header column {} has no name", empty + 1),
         ));
     }
-    let mut rows = Vec::new();
-    for record in records {
-        let record = record.map_err(|e| err(csv_line(&e, &line_at), None, csv_reason(&e)))?;
-        if record.iter().all(str::is_empty) {
-            continue;
+    drop(records);
+    // One data row's fields (trimmed of ASCII space) and where it starts:
+    // None for a blank row, else its values, or the error naming line and
+    // column. The text is a `str`, so every field is UTF-8; a field that
+    // does not parse once trimmed of ASCII space is trimmed of Unicode
+    // space (as a `StringRecord` is) before it is refused.
+    let row = |fields: &mut dyn ExactSizeIterator<Item = &[u8]>,
+               fields_again: &mut dyn Iterator<Item = &[u8]>,
+               start: usize|
+     -> Result<Option<Row>, CsvError> {
+        let blank = |f: &[u8]| std::str::from_utf8(f).is_ok_and(|f| f.trim().is_empty());
+        if Iterator::all(&mut &mut *fields_again, blank) {
+            return Ok(None);
         }
-        let line = line_of(&record);
-        if record.len() != columns.len() {
+        let line = line_at(start);
+        if fields.len() != columns.len() {
             return Err(err(
                 line,
                 None,
                 format!(
                     "{} fields, but the header has {}",
-                    record.len(),
+                    fields.len(),
                     columns.len()
                 ),
             ));
         }
         let mut values = Vec::with_capacity(columns.len());
-        for (field, name) in record.iter().zip(&columns) {
-            let v: f64 = field.parse().map_err(|_| {
+        for (field, name) in fields.zip(&columns) {
+            let field = std::str::from_utf8(field).unwrap_or_default();
+            let parsed = field.parse().or_else(|e| {
+                let unicode_trimmed = field.trim();
+                if unicode_trimmed.len() < field.len() {
+                    unicode_trimmed.parse()
+                } else {
+                    Err(e)
+                }
+            });
+            let v: f64 = parsed.map_err(|_| {
                 err(
                     line,
                     Some(name),
-                    format!("`{}` is not a number", excerpt(field)),
+                    format!("`{}` is not a number", excerpt(field.trim())),
                 )
             })?;
             if !v.is_finite() {
                 return Err(err(
                     line,
                     Some(name),
-                    format!("`{}` is not finite (NaN or infinite)", excerpt(field)),
+                    format!(
+                        "`{}` is not finite (NaN or infinite)",
+                        excerpt(field.trim())
+                    ),
                 ));
             }
             values.push(v);
         }
-        rows.push(Row { line, values });
+        Ok(Some(Row { line, values }))
+    };
+    let mut rows = Vec::new();
+    // Past the header, a text without quotes, and whose carriage returns
+    // all end lines, is lines of comma-separated fields: it is split here
+    // (the csv crate's record machinery was 3,700 instructions a row as
+    // `StringRecord`s, most of a contour file's reading; issue 34). Any
+    // other text is read by the csv crate as byte records into one buffer.
+    let rest_at = reader.position().byte() as usize;
+    if let Some(rest) = text.get(rest_at..).filter(|rest| plain_lines(rest)) {
+        let mut start = rest_at;
+        let mut fields: Vec<&[u8]> = Vec::new();
+        for raw in rest.split('\n') {
+            let line_start = start;
+            start += raw.len() + 1;
+            let l = raw.strip_suffix('\r').unwrap_or(raw);
+            if l.is_empty() || l.starts_with('#') {
+                continue;
+            }
+            fields.clear();
+            fields.extend(l.as_bytes().split(|&b| b == b',').map(<[u8]>::trim_ascii));
+            let (mut once, mut again) = (fields.iter().copied(), fields.iter().copied());
+            if let Some(r) = row(&mut once, &mut again, line_start)? {
+                rows.push(r);
+            }
+        }
+    } else {
+        let mut record = csv::ByteRecord::new();
+        loop {
+            match reader.read_byte_record(&mut record) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => return Err(err(csv_line(&e, &line_at), None, csv_reason(&e))),
+            }
+            let start = record.position().map_or(0, |p| p.byte() as usize);
+            if let Some(r) = row(&mut record.iter(), &mut record.iter(), start)? {
+                rows.push(r);
+            }
+        }
     }
     Ok(Table {
         file: file.to_string(),
@@ -203,6 +261,15 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
         columns,
         rows,
     })
+}
+
+/// Whether `text` has no quote and no carriage return but before a line
+/// feed: then its lines are its records and commas its field separators.
+fn plain_lines(text: &str) -> bool {
+    let b = text.as_bytes();
+    !b.iter()
+        .enumerate()
+        .any(|(i, &c)| c == b'"' || (c == b'\r' && b.get(i + 1) != Some(&b'\n')))
 }
 
 /// Line numbers of records, counted as the reader goes: records come in
@@ -348,5 +415,103 @@ mod tests {
         // An error after many rows still names its line.
         let e = read_numeric(&format!("{text}oops,1\n"), "long.csv").unwrap_err();
         assert_eq!(e.line, text.matches('\n').count() + 1);
+    }
+
+    /// Rows read as byte records give what reading each as a `StringRecord`
+    /// gave (values, lines, skipped blank rows and the error's line,
+    /// column and reason), on random files of numbers, blanks, Unicode
+    /// space (U+00A0, U+3000), quotes, comments, CRLF, short rows and words.
+    #[test]
+    fn byte_records_read_as_string_records_did() {
+        use rand::{Rng, SeedableRng};
+        // The reading before issue 34's change, as the reference.
+        /// Rows as (line, values), or the refusal as (line, what it names).
+        type Read = Result<Vec<(usize, Vec<f64>)>, (usize, String)>;
+        fn by_string_records(text: &str) -> Read {
+            let mut reader = csv::ReaderBuilder::new()
+                .has_headers(false)
+                .comment(Some(b'#'))
+                .trim(csv::Trim::All)
+                .flexible(true)
+                .from_reader(text.as_bytes());
+            let lines = LineCounter::new(text);
+            let mut header: Option<usize> = None;
+            let mut rows = Vec::new();
+            for r in reader.records() {
+                let r = r.map_err(|e| (csv_line(&e, &|b| lines.record_line(b)), csv_reason(&e)))?;
+                if r.iter().all(str::is_empty) {
+                    continue;
+                }
+                let line = r
+                    .position()
+                    .map_or(0, |p| lines.record_line(p.byte() as usize));
+                let Some(width) = header else {
+                    header = Some(r.len());
+                    continue;
+                };
+                if r.len() != width {
+                    return Err((line, format!("{} fields", r.len())));
+                }
+                let mut values = Vec::new();
+                for f in r.iter() {
+                    match f.parse::<f64>() {
+                        Ok(v) if v.is_finite() => values.push(v),
+                        _ => return Err((line, format!("`{}`", excerpt(f)))),
+                    }
+                }
+                rows.push((line, values));
+            }
+            if header.is_none() {
+                return Err((1, "empty".into()));
+            }
+            Ok(rows)
+        }
+        let pieces = [
+            "1", "2.5", "-3e2", " ", "\u{a0}", "\u{3000}", ",", ",", "\n", "\r\n", "\"4\"", "#",
+            "\r", "x", "NaN", "",
+        ];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(34);
+        let (mut read, mut refused) = (0, 0);
+        for case in 0..5_000 {
+            // Rows of two padded numbers, now and then a random piece.
+            let mut text = String::from("a , b\n");
+            let pad = ["", " ", "\u{a0}", "\u{3000}"];
+            for _ in 0..rng.gen_range(0..12) {
+                for field in 0..2 {
+                    text.push_str(pad[rng.gen_range(0..pad.len())]);
+                    text.push_str(pieces[rng.gen_range(0..3)]);
+                    text.push_str(pad[rng.gen_range(0..pad.len())]);
+                    if rng.gen_bool(0.03) {
+                        text.push_str(pieces[rng.gen_range(0..pieces.len())]);
+                    }
+                    text.push_str(if field == 0 { "," } else { "\n" });
+                }
+                if rng.gen_bool(0.05) {
+                    text.push_str(["\n", "# c\n", " , \n", "\u{a0}\n"][rng.gen_range(0..4)]);
+                }
+            }
+            let want = by_string_records(&text);
+            let got = read_numeric(&text, "f.csv");
+            match (&want, &got) {
+                (Ok(rows), Ok(t)) => {
+                    let got: Vec<_> = t.rows.iter().map(|r| (r.line, r.values.clone())).collect();
+                    assert_eq!(&got, rows, "case {case}: {text:?}");
+                    read += 1;
+                }
+                (Err((line, what)), Err(e)) => {
+                    assert_eq!(e.line, *line, "case {case}: {text:?}: {e}");
+                    assert!(
+                        e.reason.contains(what.as_str()),
+                        "case {case}: {text:?}: {e} ({what})"
+                    );
+                    refused += 1;
+                }
+                _ => panic!("case {case}: {text:?}: {want:?} against {got:?}"),
+            }
+        }
+        assert!(
+            read > 500 && refused > 500,
+            "{read} read, {refused} refused"
+        );
     }
 }
