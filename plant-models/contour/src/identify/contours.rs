@@ -30,10 +30,12 @@ use crate::identify::checks::{
 use crate::identify::data::{ContourData, FrameData};
 use crate::identify::gcv::{Lambda, LambdaReport};
 use crate::identify::tracked::{
-    chord_parameters, fit_closed_curve, fit_movie, fit_signature, polygon_centroid, ClosedCurveFit,
-    ContourOptions, MovieFit, MovieOptions, Point, Signature, SignatureFit,
+    chord_parameters, fit_closed_curve, fit_movie, fit_signature, fit_signature_curve,
+    polygon_centroid, ClosedCurveFit, ContourOptions, MovieFit, MovieOptions, Point, Signature,
+    SignatureFit,
 };
 use crate::model::curve::sample_sites;
+use rayon::prelude::*;
 
 /// What is fitted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -367,8 +369,7 @@ fn fit_signatures(
     opts: &ContourOptions,
     n: usize,
 ) -> Result<(Vec<FittedFrame>, FittedSplines)> {
-    let (mut frames, mut fits) = (Vec::new(), Vec::new());
-    for (frame, f) in &data.frames {
+    let (frames, fits) = each_frame(data, |frame, f| {
         let loc = format!("{}: frame {frame}", data.file);
         let sig = signature_of(&loc, f)?;
         let fit = fit_signature(&loc, &sig, opts)?;
@@ -395,14 +396,14 @@ fn fit_signatures(
             fit.rms_residual,
             area,
         );
-        frames.push(FittedFrame {
-            frame: *frame,
+        let fitted = FittedFrame {
+            frame,
             data: sig.points(),
             fit: fit.points(n),
             radius: Some(radius),
             angle: Some(angle),
             result: FrameResult {
-                frame: *frame,
+                frame,
                 points: f.len(),
                 area,
                 centre_x: fit.centre.0,
@@ -416,10 +417,35 @@ fn fit_signatures(
                 rms_residual: Some(fit.rms_residual),
                 checks,
             },
-        });
-        fits.push((*frame, fit));
-    }
+        };
+        Ok((fitted, (frame, fit)))
+    })?;
     Ok((frames, FittedSplines::Signatures(fits)))
+}
+
+/// Each frame's figures and checks, and its fit by frame number.
+type FramesAndFits<F> = (Vec<FittedFrame>, Vec<(f64, F)>);
+
+/// `fit` of every frame, the frames side by side on rayon's threads (each
+/// frame's fit and checks depend on its data alone, so the results are
+/// those of one frame after another), in frame order; the first frame
+/// that fails gives the error, as it would one after another.
+fn each_frame<F>(
+    data: &ContourData,
+    fit: impl Fn(f64, &FrameData) -> Result<(FittedFrame, (f64, F))> + Sync,
+) -> Result<FramesAndFits<F>>
+where
+    F: Send,
+{
+    let results: Vec<Result<(FittedFrame, (f64, F))>> = data
+        .frames
+        .par_iter()
+        .map(|(frame, f)| fit(*frame, f))
+        .collect();
+    results
+        .into_iter()
+        .collect::<Result<Vec<_>>>()
+        .map(|v| v.into_iter().unzip())
 }
 
 /// Each frame's closed parametric curve.
@@ -428,8 +454,7 @@ fn fit_curves(
     opts: &ContourOptions,
     n: usize,
 ) -> Result<(Vec<FittedFrame>, FittedSplines)> {
-    let (mut frames, mut fits) = (Vec::new(), Vec::new());
-    for (frame, f) in &data.frames {
+    let (frames, fits) = each_frame(data, |frame, f| {
         let loc = format!("{}: frame {frame}", data.file);
         let pts = f.points();
         let fit = fit_closed_curve(&loc, &pts, opts)?;
@@ -459,14 +484,14 @@ fn fit_curves(
             fit.rms_residual,
             area,
         );
-        frames.push(FittedFrame {
-            frame: *frame,
+        let fitted = FittedFrame {
+            frame,
             data: pts,
             fit: fit.curve.sample(n),
             radius: None,
             angle: None,
             result: FrameResult {
-                frame: *frame,
+                frame,
                 points: f.len(),
                 area,
                 centre_x: centre.0,
@@ -480,9 +505,9 @@ fn fit_curves(
                 rms_residual: Some(fit.rms_residual),
                 checks,
             },
-        });
-        fits.push((*frame, fit));
-    }
+        };
+        Ok((fitted, (frame, fit)))
+    })?;
     Ok((frames, FittedSplines::Curves(fits)))
 }
 
@@ -553,17 +578,13 @@ fn signature_halves(
     }
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| sig.angles_rad[a].total_cmp(&sig.angles_rad[b]));
-    let opts = ContourOptions {
-        lambda: Lambda::Fixed(lambda),
-        ..*opts
-    };
     let fit_half = |first: usize| -> Option<(f64, f64)> {
         let idx: Vec<usize> = half(n, first).map(|k| order[k]).collect();
         let angles: Vec<f64> = idx.iter().map(|&k| sig.angles_rad[k]).collect();
         let radii: Vec<f64> = idx.iter().map(|&k| sig.radii[k]).collect();
         let h = Signature::new(loc, sig.centre, &angles, &radii).ok()?;
-        let f = fit_signature(loc, &h, &opts).ok()?;
-        Some((f.area(), f.radius.signature_perimeter()))
+        let r = fit_signature_curve(loc, &h, opts.knots, lambda, opts.solver).ok()?;
+        Some((r.signature_area(), r.signature_perimeter()))
     };
     Some([fit_half(0)?, fit_half(1)?])
 }

@@ -12,13 +12,14 @@
 //! first and last frame to s = 0 and s = m₁. Default weights are 1/N
 //! (Eq. 29; the jellyfish used w = 1/(N₁N₂)).
 use crate::error::{check_finite, ContourError, Result};
-use crate::identify::gcv::{factor_with, Lambda, LambdaReport};
-use crate::model::basis::Axis;
+use crate::identify::gcv::{check_lambda, factor_with, Lambda, LambdaReport};
+use crate::model::basis::{rem_period, Axis};
 use crate::model::curve::{curve_problem, ClosedCurve, SplineCurve};
-use crate::model::fit::Solver;
+use crate::model::fit::{FitProblem, Solver};
 use crate::model::surface::{surface_problem, SplineSurface};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
+use std::sync::Arc;
 
 /// A point of the image plane (px, or any length unit).
 pub type Point = (f64, f64);
@@ -240,7 +241,7 @@ pub struct SignatureFit {
 impl SignatureFit {
     /// Spline parameter of angle θ.
     pub fn t_of_angle(&self, angle_rad: f64) -> f64 {
-        self.radius.axis.length() * angle_rad.rem_euclid(TAU) / TAU
+        self.radius.axis.length() * rem_period(angle_rad, TAU) / TAU
     }
 
     /// r̂(θ).
@@ -271,14 +272,7 @@ pub fn fit_signature(
     sig: &Signature,
     opts: &ContourOptions,
 ) -> Result<SignatureFit> {
-    sig.validate(location)?;
-    let axis = Axis::over(0.0, opts.knots as f64, opts.knots, true)?;
-    let sites: Vec<f64> = sig
-        .angles_rad
-        .iter()
-        .map(|a| axis.length() * a / TAU)
-        .collect();
-    let problem = curve_problem(&axis, &sites, None)?;
+    let (axis, problem) = signature_problem(location, sig, opts.knots)?;
     let (fitter, report) = factor_with(&problem, opts.lambda, opts.solver, &[&sig.radii])?;
     let tau = fitter.solve(&sig.radii)?;
     let rms = rms(&fitter.fitted(&tau), &sig.radii);
@@ -288,6 +282,39 @@ pub fn fit_signature(
         lambda: report,
         rms_residual: rms,
     })
+}
+
+/// The spline [`fit_signature`] fits for a given λ, without what it
+/// reports beside it (the GCV score, tr H, the residual): the halves
+/// check needs only the curves, and tr H was most of a half's fit.
+pub fn fit_signature_curve(
+    location: &str,
+    sig: &Signature,
+    knots: usize,
+    lambda: f64,
+    solver: Solver,
+) -> Result<SplineCurve> {
+    check_lambda(lambda)?;
+    let (axis, problem) = signature_problem(location, sig, knots)?;
+    let tau = problem.fitter(lambda, solver)?.solve(&sig.radii)?;
+    SplineCurve::new(axis, tau)
+}
+
+/// The periodic axis of `knots` intervals over the angle and the fit's
+/// quadratic problem at the signature's angles.
+fn signature_problem(
+    location: &str,
+    sig: &Signature,
+    knots: usize,
+) -> Result<(Axis, Arc<FitProblem>)> {
+    sig.validate(location)?;
+    let axis = Axis::over(0.0, knots as f64, knots, true)?;
+    let sites: Vec<f64> = sig
+        .angles_rad
+        .iter()
+        .map(|a| axis.length() * a / TAU)
+        .collect();
+    Ok((axis, curve_problem(&axis, &sites, None)?))
 }
 
 fn rms(a: &[f64], b: &[f64]) -> f64 {

@@ -99,6 +99,18 @@ pub fn local_cubic(x: f64, order: usize) -> [f64; 4] {
     }
 }
 
+/// `x.rem_euclid(period)`, bit for bit, without the division when x is
+/// already in `[0, period)` (where `rem_euclid` returns x itself): most
+/// sites a curve is evaluated at already lie in its domain, and `fmod` was
+/// a tenth of a contour frame's checks (issue 34).
+pub fn rem_period(x: f64, period: f64) -> f64 {
+    if (0.0..period).contains(&x) {
+        x
+    } else {
+        x.rem_euclid(period)
+    }
+}
+
 /// A uniform knot axis: knots `s_i = start + i/α`, `i = −3, …, m + 3`,
 /// domain `[s_0, s_m]`, `m` intervals and `M = m + 3` coefficients
 /// `τ_{−3} … τ_{m−1}` (stored at indices 0 … M−1). A periodic axis ties
@@ -199,7 +211,7 @@ impl Axis {
     pub fn wrap(&self, s: f64) -> f64 {
         if self.periodic {
             let l = self.length();
-            let mut r = (s - self.start).rem_euclid(l);
+            let mut r = rem_period(s - self.start, l);
             if r >= l {
                 r = 0.0;
             }

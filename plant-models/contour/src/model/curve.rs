@@ -98,8 +98,8 @@ impl SplineCurve {
     /// sub-intervals per knot interval).
     pub fn signature_perimeter(&self) -> f64 {
         let k = self.axis.length() / std::f64::consts::TAU;
-        integrate(&self.axis, QUADRATURE_SUB, |s| {
-            let [r, r1] = self.derivatives::<2>(s);
+        integrate::<2>(&self.axis, QUADRATURE_SUB, |j, b| {
+            let [r, r1] = self.combine(j, b);
             speed(r, k * r1) / k
         })
     }
@@ -110,8 +110,8 @@ impl SplineCurve {
     /// A circle of radius R has 2π/R.
     pub fn signature_bending_energy(&self) -> f64 {
         let k = self.axis.length() / std::f64::consts::TAU;
-        integrate(&self.axis, QUADRATURE_SUB, |s| {
-            let [r, r1, r2] = self.derivatives::<3>(s);
+        integrate::<3>(&self.axis, QUADRATURE_SUB, |j, b| {
+            let [r, r1, r2] = self.combine(j, b);
             let (r1, r2) = (k * r1, k * k * r2);
             let v2 = r * r + r1 * r1;
             let num = r * r + 2.0 * r1 * r1 - r * r2;
@@ -119,12 +119,20 @@ impl SplineCurve {
         })
     }
 
+    /// The value and derivatives in knot interval `j` from the basis
+    /// values `b` of a point there (as [`integrate`] gives them): the
+    /// operations of [`SplineCurve::derivatives`] at that point.
+    fn combine<const D: usize>(&self, j: usize, b: &[[f64; 4]; D]) -> [f64; D] {
+        let c = &self.coef[j..j + 4];
+        std::array::from_fn(|order| b[order].iter().zip(c).map(|(b, c)| b * c).sum())
+    }
+
     /// Curvature of the contour of the signature r(θ) at s, 1/length.
     pub fn signature_curvature(&self, s: f64) -> f64 {
         let k = self.axis.length() / std::f64::consts::TAU;
-        let r = self.value(s);
-        let r1 = k * self.derivative(s, 1);
-        let r2 = k * k * self.derivative(s, 2);
+        // One location for the three (bit-identical to one each).
+        let [r, r1, r2] = self.derivatives::<3>(s);
+        let (r1, r2) = (k * r1, k * k * r2);
         let v2 = r * r + r1 * r1;
         (r * r + 2.0 * r1 * r1 - r * r2) / (v2 * v2.sqrt())
     }
@@ -155,9 +163,48 @@ fn speed(a: f64, b: f64) -> f64 {
 /// not a polynomial (length, bending energy): 4-point Gauss on each.
 pub const QUADRATURE_SUB: usize = 8;
 
-/// `∫ f(s) ds` over the axis's domain by 4-point Gauss on `sub`
-/// sub-intervals of each knot interval.
-pub(crate) fn integrate(axis: &Axis, sub: usize, f: impl Fn(f64) -> f64) -> f64 {
+/// `∫ f ds` over the axis's domain by 4-point Gauss on `sub` sub-intervals
+/// of each knot interval. `f` gets the knot interval j of a point and the
+/// basis values there of the derivative orders 0 … D − 1 (in s, as
+/// [`Axis::basis`] gives them; the coefficients `j … j + 3` are the
+/// nonzero ones). On a uniform axis a point's basis values are the same in
+/// every interval, so they are computed once for the `4·sub` points of
+/// one interval, not located and evaluated anew at each of the
+/// `4·sub·m` points (issue 34: locating and evaluating were most of a
+/// contour frame's perimeter). A point's local coordinate is
+/// `(q + x_g)/sub` in sub-interval q; it equals `α(s − s_j)` of its s in
+/// real arithmetic (the two may differ in the last bit).
+pub(crate) fn integrate<const D: usize>(
+    axis: &Axis,
+    sub: usize,
+    mut f: impl FnMut(usize, &[[f64; 4]; D]) -> f64,
+) -> f64 {
+    let sub = sub.max(1);
+    let h = 1.0 / (axis.alpha * sub as f64);
+    let rule: Vec<(f64, [[f64; 4]; D])> = (0..sub)
+        .flat_map(|q| {
+            gauss4().iter().map(move |&(xg, w)| {
+                let x = (q as f64 + xg) / sub as f64;
+                let b = std::array::from_fn(|order| {
+                    let scale = axis.alpha.powi(order as i32);
+                    local_cubic(x, order).map(|b| b * scale)
+                });
+                (w * h, b)
+            })
+        })
+        .collect();
+    let mut total = 0.0;
+    for j in 0..axis.intervals {
+        for (wh, b) in &rule {
+            total += wh * f(j, b);
+        }
+    }
+    total
+}
+
+/// [`integrate`] for an integrand of s (a curve whose two coordinates
+/// have different axes: not one this crate fits, which share one).
+fn integrate_sites(axis: &Axis, sub: usize, f: impl Fn(f64) -> f64) -> f64 {
     let sub = sub.max(1);
     let h = 1.0 / (axis.alpha * sub as f64);
     let mut total = 0.0;
@@ -229,8 +276,15 @@ impl ClosedCurve {
     /// Length of the curve (Gauss quadrature, 4 points per knot interval
     /// and `sub` sub-intervals; the speed is not a polynomial).
     pub fn length(&self, sub: usize) -> f64 {
-        integrate(&self.x.axis, sub, |t| {
-            let (dx, dy) = self.derivative(t, 1);
+        if self.x.axis != self.y.axis {
+            return integrate_sites(&self.x.axis, sub, |t| {
+                let (dx, dy) = self.derivative(t, 1);
+                dx.hypot(dy)
+            });
+        }
+        integrate::<2>(&self.x.axis, sub, |j, b| {
+            let [_, dx] = self.x.combine(j, b);
+            let [_, dy] = self.y.combine(j, b);
             dx.hypot(dy)
         })
     }
@@ -247,12 +301,22 @@ impl ClosedCurve {
     /// 1/(length unit): independent of the parameter and of the knot
     /// count. A circle of radius R has 2π/R.
     pub fn bending_energy(&self) -> f64 {
-        integrate(&self.x.axis, QUADRATURE_SUB, |t| {
-            let (dx, dy) = self.derivative(t, 1);
-            let (ddx, ddy) = self.derivative(t, 2);
+        let energy = |dx: f64, dy: f64, ddx: f64, ddy: f64| {
             let cross = dx * ddy - dy * ddx;
             let v2 = dx * dx + dy * dy;
             cross * cross / (v2 * v2 * v2.sqrt())
+        };
+        if self.x.axis != self.y.axis {
+            return integrate_sites(&self.x.axis, QUADRATURE_SUB, |t| {
+                let (dx, dy) = self.derivative(t, 1);
+                let (ddx, ddy) = self.derivative(t, 2);
+                energy(dx, dy, ddx, ddy)
+            });
+        }
+        integrate::<3>(&self.x.axis, QUADRATURE_SUB, |j, b| {
+            let [_, dx, ddx] = self.x.combine(j, b);
+            let [_, dy, ddy] = self.y.combine(j, b);
+            energy(dx, dy, ddx, ddy)
         })
     }
 

@@ -247,19 +247,18 @@ impl FitProblem {
     /// The reduced matrix `Pᵀ(λQ + BWBᵀ)P` in skyline storage.
     fn reduced_matrix(&self, lambda: f64) -> SkylineCholesky {
         let mut first: Vec<usize> = (0..self.free).collect();
-        let mut reach = |a: usize, b: usize| {
+        for &(p, q, _) in &self.penalty {
+            let (a, b) = (self.free_of[p], self.free_of[q]);
             let (hi, lo) = if a > b { (a, b) } else { (b, a) };
             first[hi] = first[hi].min(lo);
-        };
-        for &(p, q, _) in &self.penalty {
-            reach(self.free_of[p], self.free_of[q]);
         }
-        for k in 0..self.samples() {
-            let row = &self.index[k * self.stride..(k + 1) * self.stride];
+        let free_at = self.free_at();
+        // A sample couples every pair of its coefficients: each one's
+        // profile reaches down to the sample's lowest (first[a] ≤ a).
+        for row in free_at.chunks(self.stride) {
+            let lo = row.iter().copied().min().unwrap_or(0);
             for &a in row {
-                for &b in row {
-                    reach(self.free_of[a], self.free_of[b]);
-                }
+                first[a] = first[a].min(lo);
             }
         }
         let mut m = SkylineCholesky::with_profile(first);
@@ -274,7 +273,7 @@ impl FitProblem {
             let r = k * self.stride..(k + 1) * self.stride;
             for e in r.clone() {
                 for f in r.clone() {
-                    let (a, b) = (self.free_of[self.index[e]], self.free_of[self.index[f]]);
+                    let (a, b) = (free_at[e], free_at[f]);
                     if a >= b {
                         m.add(a, b, w * self.value[e] * self.value[f]);
                     }
@@ -282,6 +281,12 @@ impl FitProblem {
             }
         }
         m
+    }
+
+    /// The free index of each nonzero (`free_of[index[e]]`), looked up
+    /// once for the passes over the samples.
+    fn free_at(&self) -> Vec<usize> {
+        self.index.iter().map(|&i| self.free_of[i]).collect()
     }
 
     /// Dense `λQ + BWBᵀ` over stored indices.
@@ -435,15 +440,14 @@ impl Fitter {
         match &self.method {
             Method::Reduced(chol) => {
                 let z = chol.inverse_in_profile();
+                let free_at = p.free_at();
                 let mut tr = 0.0;
                 for k in 0..p.samples() {
                     let r = k * p.stride..(k + 1) * p.stride;
                     let mut s = 0.0;
                     for e in r.clone() {
                         for f in r.clone() {
-                            s += p.value[e]
-                                * p.value[f]
-                                * z.get(p.free_of[p.index[e]], p.free_of[p.index[f]]);
+                            s += p.value[e] * p.value[f] * z.get(free_at[e], free_at[f]);
                         }
                     }
                     tr += p.weight[k] * s;

@@ -1,7 +1,7 @@
 //! Fujioka & Kano's spline machinery against closed forms and against
 //! itself: the bases (Eq. 1–4), the two solvers of Eq. 27, periodicity at
 //! the seam, the area functional, GCV and bad input.
-use plant_contour::basis::{b3, b_spline, basis_elements, Axis};
+use plant_contour::basis::{b3, b_spline, basis_elements, rem_period, Axis};
 use plant_contour::curve::{curve_problem, fit_curve, ClosedCurve, SplineCurve};
 use plant_contour::fit::Solver;
 use plant_contour::gramian::gauss4;
@@ -504,6 +504,134 @@ fn derivatives_match_derivative_bit_for_bit_and_the_perimeter_survives_huge_radi
         assert!(
             ((p - TAU * r) / (TAU * r)).abs() < 1e-12,
             "r {r}: perimeter {p}"
+        );
+    }
+}
+
+/// `∫ f(s) ds` by 4-point Gauss on `sub` sub-intervals of each knot
+/// interval, every point located from its s: the quadrature the crate ran
+/// before it took each point's basis values from one interval's table.
+fn gauss_by_sites(axis: &Axis, sub: usize, f: impl Fn(f64) -> f64) -> f64 {
+    let h = 1.0 / (axis.alpha * sub as f64);
+    let mut total = 0.0;
+    for j in 0..axis.intervals * sub {
+        for &(x, w) in gauss4() {
+            total += w * h * f(axis.start + (j as f64 + x) * h);
+        }
+    }
+    total
+}
+
+#[test]
+fn the_tabled_quadratures_equal_quadrature_at_located_points() {
+    // Perimeter, bending energy and length take the basis values of one
+    // knot interval's Gauss points for every interval (issue 34); each
+    // must be the quadrature of its integrand at the located points,
+    // to rounding, on random periodic and open axes and knot counts.
+    let k_sub = plant_contour::curve::QUADRATURE_SUB;
+    for case in 0..40 {
+        let m = 4 + case % 13;
+        let start = 3.0 * jitter(7 * case + 1);
+        let axis = Axis::over(
+            start,
+            start + 0.5 + 9.0 * jitter(7 * case + 2).abs(),
+            m,
+            true,
+        )
+        .unwrap();
+        // Free coefficients `mean(i) + ½ jitter`, tied round the period:
+        // a wavy signature about 4, and a wavy loop about a circle of
+        // radius 4 (no cusps, where rounding in the speed would be
+        // magnified without bound).
+        let coef = |seed: usize, mean: &dyn Fn(f64) -> f64| -> Vec<f64> {
+            let free: Vec<f64> = (0..m)
+                .map(|i| mean(TAU * i as f64 / m as f64) + 0.5 * jitter(seed + 31 * i))
+                .collect();
+            (0..axis.coefficients())
+                .map(|i| free[axis.free_index(i)])
+                .collect()
+        };
+        let r = SplineCurve::new(axis, coef(100 * case, &|_| 4.0)).unwrap();
+        let k = axis.length() / TAU;
+        let want_p = gauss_by_sites(&axis, k_sub, |s| {
+            let (r0, r1) = (r.value(s), k * r.derivative(s, 1));
+            (r0 * r0 + r1 * r1).sqrt() / k
+        });
+        let want_e = gauss_by_sites(&axis, k_sub, |s| {
+            let (r0, r1, r2) = (
+                r.value(s),
+                k * r.derivative(s, 1),
+                k * k * r.derivative(s, 2),
+            );
+            let v2 = r0 * r0 + r1 * r1;
+            let num = r0 * r0 + 2.0 * r1 * r1 - r0 * r2;
+            num * num / (v2 * v2 * v2.sqrt()) / k
+        });
+        let close = |got: f64, want: f64, what: &str| {
+            assert!(
+                (got - want).abs() <= 1e-13 * want.abs(),
+                "case {case} ({m} knots): {what} {got} against {want}"
+            );
+        };
+        close(r.signature_perimeter(), want_p, "perimeter");
+        close(r.signature_bending_energy(), want_e, "bending energy");
+        let c = ClosedCurve {
+            x: SplineCurve::new(axis, coef(100 * case + 50, &|a| 4.0 * a.cos())).unwrap(),
+            y: SplineCurve::new(axis, coef(100 * case + 77, &|a| 4.0 * a.sin())).unwrap(),
+        };
+        for sub in [1, 4, k_sub] {
+            let want = gauss_by_sites(&axis, sub, |t| {
+                let (dx, dy) = c.derivative(t, 1);
+                dx.hypot(dy)
+            });
+            close(c.length(sub), want, "length");
+        }
+        let want = gauss_by_sites(&axis, k_sub, |t| {
+            let (dx, dy) = c.derivative(t, 1);
+            let (ddx, ddy) = c.derivative(t, 2);
+            let cross = dx * ddy - dy * ddx;
+            let v2 = dx * dx + dy * dy;
+            cross * cross / (v2 * v2 * v2.sqrt())
+        });
+        close(c.bending_energy(), want, "curve bending energy");
+    }
+    // A curve whose coordinates have different axes (none this crate
+    // fits) is integrated at located points, not read out of range.
+    let (a, b) = (
+        Axis::over(0.0, 6.0, 6, true).unwrap(),
+        Axis::over(0.0, 6.0, 3, true).unwrap(),
+    );
+    let c = ClosedCurve {
+        x: SplineCurve::new(a, vec![1.0; a.coefficients()]).unwrap(),
+        y: SplineCurve::new(b, (0..b.coefficients()).map(|i| (i % 3) as f64).collect()).unwrap(),
+    };
+    let want = gauss_by_sites(&a, 4, |t| {
+        let (dx, dy) = c.derivative(t, 1);
+        dx.hypot(dy)
+    });
+    assert_eq!(c.length(4), want);
+}
+
+#[test]
+fn rem_period_is_rem_euclid_bit_for_bit() {
+    let period = TAU;
+    let mut xs = vec![
+        0.0,
+        -0.0,
+        period,
+        -period,
+        f64::NAN,
+        f64::INFINITY,
+        1e300,
+        -1e-300,
+    ];
+    xs.extend((0..2000).map(|k| 40.0 * jitter(k)));
+    xs.extend((0..200).map(|k| period * k as f64 / 200.0));
+    for x in xs {
+        assert_eq!(
+            rem_period(x, period).to_bits(),
+            x.rem_euclid(period).to_bits(),
+            "x = {x:e}"
         );
     }
 }
