@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use host_tools::contour_synth;
-use host_tools::output::{self, JsonObject};
+use host_tools::output::{self, CheckedText, JsonObject};
 use host_tools::plot::{self, Chart, Panel, Series, Shape, ShapeStyle};
 use host_tools::{out, outln};
 use plant_contour::fit::Solver;
@@ -31,6 +31,7 @@ use plant_contour::identify::data::read_contour_csv;
 use plant_contour::identify::gcv::{Lambda, LambdaReport, MAX_LAMBDA};
 use plant_contour::identify::synth::{MovieCase, RbcFrame};
 use plant_contour::identify::tracked::Point;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Arguments of `softjoint contour`.
@@ -278,9 +279,13 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
     };
     output::check_value("fit.json", &summary)?;
     output::create_dir(&a.out)?;
-    for (name, text) in &files {
-        write(&a.out.join(name), text)?;
-    }
+    // Written side by side (each waits on its own flush to disk); the
+    // first failure in file order is the one reported.
+    let written: Vec<Result<()>> = files
+        .par_iter()
+        .map(|(name, text)| output::write_checked(&a.out.join(name), text))
+        .collect();
+    written.into_iter().collect::<Result<()>>()?;
     output::write_json(&a.out.join("fit.json"), &summary)?;
     if a.json {
         output::print_json(&summary)?;
@@ -340,28 +345,44 @@ fn fit_files(
     file: &str,
     fit: &ContourFitReport,
     summary: &FitSummary,
-) -> Result<Vec<(&'static str, String)>> {
-    let splines = splines_json(fit)?;
+) -> Result<Vec<(&'static str, CheckedText)>> {
+    // The four files rendered and checked side by side (each on its own;
+    // a failure is reported in this order, as one after another would).
+    let ((spline, fit_text), (frames, picture)) = rayon::join(
+        || {
+            rayon::join(
+                || splines_json(fit).and_then(|s| CheckedText::json("spline.json", &s)),
+                || CheckedText::csv("fit.csv", fit_csv(&fit.frames)),
+            )
+        },
+        || {
+            rayon::join(
+                || CheckedText::csv("frames.csv", frames_csv(&fit.frames)),
+                || {
+                    CheckedText::text(
+                        "fit.svg",
+                        fit_picture(file, fit.model, &fit.frames, summary).finish(),
+                    )
+                },
+            )
+        },
+    );
     let mut files = vec![
-        ("spline.json", output::json("spline.json", &splines)?),
-        ("fit.csv", fit_csv(&fit.frames)),
-        ("frames.csv", frames_csv(&fit.frames)),
-        (
-            "fit.svg",
-            fit_picture(file, fit.model, &fit.frames, summary).finish(),
-        ),
+        ("spline.json", spline?),
+        ("fit.csv", fit_text?),
+        ("frames.csv", frames?),
+        ("fit.svg", picture?),
     ];
     if let Some(surface) = fit.surface() {
-        files.push(("functionals.svg", functionals_picture(&fit.frames).finish()));
+        files.push((
+            "functionals.svg",
+            CheckedText::text("functionals.svg", functionals_picture(&fit.frames).finish())?,
+        ));
         if surface.lambda.by_gcv {
-            files.push(("gcv.svg", gcv_picture("surface", &surface.lambda).finish()));
-        }
-    }
-    for (name, text) in &files {
-        if name.ends_with(".csv") {
-            output::check_csv(name, text)?;
-        } else {
-            output::check_text(name, text)?;
+            files.push((
+                "gcv.svg",
+                CheckedText::text("gcv.svg", gcv_picture("surface", &surface.lambda).finish())?,
+            ));
         }
     }
     Ok(files)
@@ -481,11 +502,19 @@ fn fit_csv(frames: &[FittedFrame]) -> String {
     let mut s = String::from("frame,k,x,y,angle_rad,radius\n");
     for f in frames {
         for (k, p) in f.fit.iter().enumerate() {
-            let (a, r) = match (&f.angle, &f.radius) {
-                (Some(a), Some(r)) => (format!("{:.6}", a[k]), format!("{:.6}", r[k])),
-                _ => (String::new(), String::new()),
-            };
-            let _ = writeln!(s, "{},{k},{:.6},{:.6},{a},{r}", f.frame, p.0, p.1);
+            let _ = write!(s, "{},{k},", f.frame);
+            output::push_fixed(&mut s, p.0, 6);
+            s.push(',');
+            output::push_fixed(&mut s, p.1, 6);
+            s.push(',');
+            if let (Some(a), Some(r)) = (&f.angle, &f.radius) {
+                output::push_fixed(&mut s, a[k], 6);
+                s.push(',');
+                output::push_fixed(&mut s, r[k], 6);
+            } else {
+                s.push(',');
+            }
+            s.push('\n');
         }
     }
     s
@@ -493,7 +522,7 @@ fn fit_csv(frames: &[FittedFrame]) -> String {
 
 fn opt(v: Option<f64>, digits: usize) -> String {
     v.filter(|v| v.is_finite())
-        .map(|v| format!("{v:.digits$}"))
+        .map(|v| output::fixed(v, digits))
         .unwrap_or_default()
 }
 

@@ -165,6 +165,11 @@ impl AtomicFile {
         self.commit(text.as_bytes())
     }
 
+    /// Commits text that passed its check ([`super::CheckedText`]).
+    pub fn commit_checked(self, text: &super::CheckedText) -> anyhow::Result<()> {
+        self.commit(text.text.as_bytes())
+    }
+
     /// Commits an SVG (or other text) after [`super::check_text`].
     pub fn commit_svg(self, text: &str) -> anyhow::Result<()> {
         super::check_text(&self.name(), text)?;
