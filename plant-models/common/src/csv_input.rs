@@ -6,6 +6,7 @@
 //! `#` (comments), spaces around fields, quoted fields. Every value must be
 //! a finite number. Every error names the file, the 1-based line and, for a
 //! value, its column; long offending text is quoted only in part.
+use rayon::prelude::*;
 use std::fmt;
 
 /// Why a CSV file could not be read.
@@ -160,88 +161,22 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
         ));
     }
     drop(records);
-    // One data row's fields (trimmed of ASCII space) and where it starts:
-    // None for a blank row, else its values, or the error naming line and
-    // column. The text is a `str`, so every field is UTF-8; a field that
-    // does not parse once trimmed of ASCII space is trimmed of Unicode
-    // space (as a `StringRecord` is) before it is refused.
-    let row = |fields: &mut dyn ExactSizeIterator<Item = &[u8]>,
-               fields_again: &mut dyn Iterator<Item = &[u8]>,
-               start: usize|
-     -> Result<Option<Row>, CsvError> {
-        let blank = |f: &[u8]| std::str::from_utf8(f).is_ok_and(|f| f.trim().is_empty());
-        if Iterator::all(&mut &mut *fields_again, blank) {
-            return Ok(None);
-        }
-        let line = line_at(start);
-        if fields.len() != columns.len() {
-            return Err(err(
-                line,
-                None,
-                format!(
-                    "{} fields, but the header has {}",
-                    fields.len(),
-                    columns.len()
-                ),
-            ));
-        }
-        let mut values = Vec::with_capacity(columns.len());
-        for (field, name) in fields.zip(&columns) {
-            let field = std::str::from_utf8(field).unwrap_or_default();
-            let parsed = field.parse().or_else(|e| {
-                let unicode_trimmed = field.trim();
-                if unicode_trimmed.len() < field.len() {
-                    unicode_trimmed.parse()
-                } else {
-                    Err(e)
-                }
-            });
-            let v: f64 = parsed.map_err(|_| {
-                err(
-                    line,
-                    Some(name),
-                    format!("`{}` is not a number", excerpt(field.trim())),
-                )
-            })?;
-            if !v.is_finite() {
-                return Err(err(
-                    line,
-                    Some(name),
-                    format!(
-                        "`{}` is not finite (NaN or infinite)",
-                        excerpt(field.trim())
-                    ),
-                ));
-            }
-            values.push(v);
-        }
-        Ok(Some(Row { line, values }))
-    };
-    let mut rows = Vec::new();
     // Past the header, a text without quotes, and whose carriage returns
     // all end lines, is lines of comma-separated fields: it is split here
     // (the csv crate's record machinery was 3,700 instructions a row as
-    // `StringRecord`s, most of a contour file's reading; issue 34). Any
-    // other text is read by the csv crate as byte records into one buffer.
+    // `StringRecord`s, most of a contour file's reading; issue 34), a
+    // large one in pieces on rayon's threads. Any other text is read by
+    // the csv crate as byte records into one buffer.
     let rest_at = reader.position().byte() as usize;
-    if let Some(rest) = text.get(rest_at..).filter(|rest| plain_lines(rest)) {
-        let mut start = rest_at;
-        let mut fields: Vec<&[u8]> = Vec::new();
-        for raw in rest.split('\n') {
-            let line_start = start;
-            start += raw.len() + 1;
-            let l = raw.strip_suffix('\r').unwrap_or(raw);
-            if l.is_empty() || l.starts_with('#') {
-                continue;
-            }
-            fields.clear();
-            fields.extend(l.as_bytes().split(|&b| b == b',').map(<[u8]>::trim_ascii));
-            let (mut once, mut again) = (fields.iter().copied(), fields.iter().copied());
-            if let Some(r) = row(&mut once, &mut again, line_start)? {
-                rows.push(r);
-            }
-        }
+    let rows = if let Some(rest) = text.get(rest_at..).filter(|rest| plain_lines(rest)) {
+        // The line of `rest`'s first byte, counted as `LineCounter` would.
+        let first_line = 1 + text.as_bytes()[..rest_at]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
+        plain_rows(rest, first_line, &columns, file)?
     } else {
+        let mut rows = Vec::new();
         let mut record = csv::ByteRecord::new();
         loop {
             match reader.read_byte_record(&mut record) {
@@ -249,18 +184,143 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
                 Ok(false) => break,
                 Err(e) => return Err(err(csv_line(&e, &line_at), None, csv_reason(&e))),
             }
-            let start = record.position().map_or(0, |p| p.byte() as usize);
-            if let Some(r) = row(&mut record.iter(), &mut record.iter(), start)? {
-                rows.push(r);
+            let fields: Vec<&[u8]> = record.iter().collect();
+            if is_blank(&fields) {
+                continue;
             }
+            let start = record.position().map_or(0, |p| p.byte() as usize);
+            rows.push(data_row(&fields, line_at(start), &columns, file)?);
         }
-    }
+        rows
+    };
     Ok(Table {
         file: file.to_string(),
         header_line,
         columns,
         rows,
     })
+}
+
+/// Texts at least this long are split into pieces read side by side.
+const PARALLEL_BYTES: usize = 1 << 16;
+
+/// The rows of plain lines `rest` (see [`plain_lines`]) whose first line
+/// is line `first_line` of the file: blank and comment lines skipped,
+/// each line's fields trimmed of ASCII space. A long text is cut at line
+/// ends into pieces read on rayon's threads, each counting its lines from
+/// the newlines before it; the first error in file order is returned.
+fn plain_rows(
+    rest: &str,
+    first_line: usize,
+    columns: &[String],
+    file: &str,
+) -> Result<Vec<Row>, CsvError> {
+    let pieces = if rest.len() < PARALLEL_BYTES {
+        1
+    } else {
+        rayon::current_num_threads().clamp(1, rest.len() / (PARALLEL_BYTES / 2))
+    };
+    // Cut points: after the first newline at or past each equal share.
+    let mut cuts = vec![0];
+    for k in 1..pieces {
+        let from = (rest.len() * k / pieces).max(*cuts.last().unwrap_or(&0));
+        let cut = rest.as_bytes()[from..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(rest.len(), |i| from + i + 1);
+        cuts.push(cut);
+    }
+    cuts.push(rest.len());
+    let read_piece = |k: usize| -> Result<Vec<Row>, CsvError> {
+        let (a, b) = (cuts[k], cuts[k + 1]);
+        let mut line = first_line + rest.as_bytes()[..a].iter().filter(|&&c| c == b'\n').count();
+        let mut rows = Vec::new();
+        let mut fields: Vec<&[u8]> = Vec::new();
+        // Each piece but the last ends in a newline: no empty tail line.
+        for raw in rest[a..b].split_terminator('\n') {
+            let l = raw.strip_suffix('\r').unwrap_or(raw);
+            if !(l.is_empty() || l.starts_with('#')) {
+                fields.clear();
+                fields.extend(l.as_bytes().split(|&c| c == b',').map(<[u8]>::trim_ascii));
+                if !is_blank(&fields) {
+                    rows.push(data_row(&fields, line, columns, file)?);
+                }
+            }
+            line += 1;
+        }
+        Ok(rows)
+    };
+    let pieces: Vec<Result<Vec<Row>, CsvError>> =
+        (0..pieces).into_par_iter().map(read_piece).collect();
+    let mut rows = Vec::new();
+    for piece in pieces {
+        rows.append(&mut piece?);
+    }
+    Ok(rows)
+}
+
+/// Whether every field is empty once trimmed of Unicode space (a blank
+/// row, skipped).
+fn is_blank(fields: &[&[u8]]) -> bool {
+    fields
+        .iter()
+        .all(|f| std::str::from_utf8(f).is_ok_and(|f| f.trim().is_empty()))
+}
+
+/// One data row's values from its fields (trimmed of ASCII space), at
+/// `line`, or the error naming line and column. The text is a `str`, so
+/// every field is UTF-8; a field that does not parse once trimmed of ASCII
+/// space is trimmed of Unicode space (as a `StringRecord` is) before it
+/// is refused.
+fn data_row(
+    fields: &[&[u8]],
+    line: usize,
+    columns: &[String],
+    file: &str,
+) -> Result<Row, CsvError> {
+    let err = |column: &str, reason: String| CsvError {
+        file: file.to_string(),
+        line,
+        column: Some(column.to_string()),
+        reason,
+    };
+    if fields.len() != columns.len() {
+        return Err(CsvError {
+            file: file.to_string(),
+            line,
+            column: None,
+            reason: format!(
+                "{} fields, but the header has {}",
+                fields.len(),
+                columns.len()
+            ),
+        });
+    }
+    let mut values = Vec::with_capacity(columns.len());
+    for (field, name) in fields.iter().zip(columns) {
+        let field = std::str::from_utf8(field).unwrap_or_default();
+        let parsed = field.parse().or_else(|e| {
+            let unicode_trimmed = field.trim();
+            if unicode_trimmed.len() < field.len() {
+                unicode_trimmed.parse()
+            } else {
+                Err(e)
+            }
+        });
+        let v: f64 = parsed
+            .map_err(|_| err(name, format!("`{}` is not a number", excerpt(field.trim()))))?;
+        if !v.is_finite() {
+            return Err(err(
+                name,
+                format!(
+                    "`{}` is not finite (NaN or infinite)",
+                    excerpt(field.trim())
+                ),
+            ));
+        }
+        values.push(v);
+    }
+    Ok(Row { line, values })
 }
 
 /// Whether `text` has no quote and no carriage return but before a line
@@ -417,6 +477,49 @@ mod tests {
         assert_eq!(e.line, text.matches('\n').count() + 1);
     }
 
+    // The reading before issue 34's change, as the reference.
+    /// Rows as (line, values), or the refusal as (line, what it names).
+    type Read = Result<Vec<(usize, Vec<f64>)>, (usize, String)>;
+    fn by_string_records(text: &str) -> Read {
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .comment(Some(b'#'))
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .from_reader(text.as_bytes());
+        let lines = LineCounter::new(text);
+        let mut header: Option<usize> = None;
+        let mut rows = Vec::new();
+        for r in reader.records() {
+            let r = r.map_err(|e| (csv_line(&e, &|b| lines.record_line(b)), csv_reason(&e)))?;
+            if r.iter().all(str::is_empty) {
+                continue;
+            }
+            let line = r
+                .position()
+                .map_or(0, |p| lines.record_line(p.byte() as usize));
+            let Some(width) = header else {
+                header = Some(r.len());
+                continue;
+            };
+            if r.len() != width {
+                return Err((line, format!("{} fields", r.len())));
+            }
+            let mut values = Vec::new();
+            for f in r.iter() {
+                match f.parse::<f64>() {
+                    Ok(v) if v.is_finite() => values.push(v),
+                    _ => return Err((line, format!("`{}`", excerpt(f)))),
+                }
+            }
+            rows.push((line, values));
+        }
+        if header.is_none() {
+            return Err((1, "empty".into()));
+        }
+        Ok(rows)
+    }
+
     /// Rows read as byte records give what reading each as a `StringRecord`
     /// gave (values, lines, skipped blank rows and the error's line,
     /// column and reason), on random files of numbers, blanks, Unicode
@@ -424,48 +527,6 @@ mod tests {
     #[test]
     fn byte_records_read_as_string_records_did() {
         use rand::{Rng, SeedableRng};
-        // The reading before issue 34's change, as the reference.
-        /// Rows as (line, values), or the refusal as (line, what it names).
-        type Read = Result<Vec<(usize, Vec<f64>)>, (usize, String)>;
-        fn by_string_records(text: &str) -> Read {
-            let mut reader = csv::ReaderBuilder::new()
-                .has_headers(false)
-                .comment(Some(b'#'))
-                .trim(csv::Trim::All)
-                .flexible(true)
-                .from_reader(text.as_bytes());
-            let lines = LineCounter::new(text);
-            let mut header: Option<usize> = None;
-            let mut rows = Vec::new();
-            for r in reader.records() {
-                let r = r.map_err(|e| (csv_line(&e, &|b| lines.record_line(b)), csv_reason(&e)))?;
-                if r.iter().all(str::is_empty) {
-                    continue;
-                }
-                let line = r
-                    .position()
-                    .map_or(0, |p| lines.record_line(p.byte() as usize));
-                let Some(width) = header else {
-                    header = Some(r.len());
-                    continue;
-                };
-                if r.len() != width {
-                    return Err((line, format!("{} fields", r.len())));
-                }
-                let mut values = Vec::new();
-                for f in r.iter() {
-                    match f.parse::<f64>() {
-                        Ok(v) if v.is_finite() => values.push(v),
-                        _ => return Err((line, format!("`{}`", excerpt(f)))),
-                    }
-                }
-                rows.push((line, values));
-            }
-            if header.is_none() {
-                return Err((1, "empty".into()));
-            }
-            Ok(rows)
-        }
         let pieces = [
             "1", "2.5", "-3e2", " ", "\u{a0}", "\u{3000}", ",", ",", "\n", "\r\n", "\"4\"", "#",
             "\r", "x", "NaN", "",
@@ -513,5 +574,56 @@ mod tests {
             read > 500 && refused > 500,
             "{read} read, {refused} refused"
         );
+    }
+
+    /// A file long enough to be read in pieces on several threads gives
+    /// the rows of the reference reading, and an error anywhere in it
+    /// (first piece, a cut, the last line) the reference's line and reason.
+    #[test]
+    fn a_long_file_read_in_pieces_is_the_reference_reading() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(48);
+        let mut text = String::from("# long\nt , x,y\n");
+        let mut k = 0;
+        while text.len() < 4 * PARALLEL_BYTES {
+            match rng.gen_range(0..40) {
+                0 => text.push_str("# note\n"),
+                1 => text.push_str("\r\n"),
+                2 => text.push_str(" ,\u{a0}, \n"),
+                _ => text.push_str(&format!(
+                    "{k}, {}\u{a0},{:e}\r\n",
+                    rng.gen::<f64>(),
+                    -1e3 * rng.gen::<f64>()
+                )),
+            }
+            k += 1;
+        }
+        let want = by_string_records(&text).unwrap();
+        let got = read_numeric(&text, "long.csv").unwrap();
+        assert!(want.len() > 5_000, "{}", want.len());
+        let got_rows: Vec<_> = got
+            .rows
+            .iter()
+            .map(|r| (r.line, r.values.clone()))
+            .collect();
+        assert_eq!(got_rows, want);
+        // A bad field at a random line, at a piece's likely cut (the
+        // middle) and on the last line.
+        let ends: Vec<usize> = text.match_indices('\n').map(|(i, _)| i).collect();
+        let mut places: Vec<usize> = (0..20)
+            .map(|_| ends[rng.gen_range(2..ends.len())])
+            .collect();
+        places.push(ends[ends.len() / 2]);
+        places.push(*ends.last().unwrap());
+        for at in places {
+            let bad = format!("{}9,oops,1\n{}", &text[..=at], &text[at + 1..]);
+            let (line, what) = by_string_records(&bad).unwrap_err();
+            let e = read_numeric(&bad, "long.csv").unwrap_err();
+            assert_eq!(
+                (e.line, e.reason.contains(what.as_str())),
+                (line, true),
+                "{e}"
+            );
+        }
     }
 }

@@ -377,9 +377,10 @@ fn fit_signatures(
         let radius: Vec<f64> = angle.iter().map(|&t| fit.radius_at(t)).collect();
         let (area, perimeter) = (fit.area(), fit.radius.signature_perimeter());
         let data_points = f.points();
+        let (dense, crosses_centre) = signature_dense(&fit, check_samples(opts.knots));
         let mut checks = FrameChecks::of_frame(
             Some(&fit.lambda),
-            signature_crosses_centre(&fit.radius, opts.knots),
+            crosses_centre,
             area,
             perimeter,
             &data_points,
@@ -389,13 +390,7 @@ fn fit_signatures(
             signature_halves(&loc, &sig, opts, fit.lambda.lambda),
         );
         let (gap_points, gap_t) = signature_gap_data(&sig, &fit);
-        checks.gap(
-            &gap_points,
-            &gap_t,
-            &signature_dense(&fit, check_samples(opts.knots)),
-            fit.rms_residual,
-            area,
-        );
+        checks.gap(&gap_points, &gap_t, &dense, fit.rms_residual, area);
         let fitted = FittedFrame {
             frame,
             data: sig.points(),
@@ -524,27 +519,28 @@ fn signature_gap_data(sig: &Signature, fit: &SignatureFit) -> (Vec<Point>, Vec<f
 }
 
 /// A fitted signature sampled at `n` equally spaced parameters.
-fn signature_dense(fit: &SignatureFit, n: usize) -> DenseContour {
+/// Also whether r ≤ 0 at any of the samples (those
+/// [`signature_crosses_centre`] takes: the same sites), with r and the
+/// curvature from one location of each sample's interval.
+fn signature_dense(fit: &SignatureFit, n: usize) -> (DenseContour, bool) {
     let axis = &fit.radius.axis;
     let t = sample_sites(axis, n);
-    let points = t
-        .iter()
-        .map(|&t| {
-            let a = TAU * (t - axis.start) / axis.length();
-            let r = fit.radius.value(t);
-            (fit.centre.0 + r * a.cos(), fit.centre.1 + r * a.sin())
-        })
-        .collect();
-    let kappa = t
-        .iter()
-        .map(|&t| fit.radius.signature_curvature(t))
-        .collect();
-    DenseContour {
+    let (mut points, mut kappa) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut crosses_centre = false;
+    for &t in &t {
+        let (r, curvature) = fit.radius.signature_radius_and_curvature(t);
+        let a = TAU * (t - axis.start) / axis.length();
+        points.push((fit.centre.0 + r * a.cos(), fit.centre.1 + r * a.sin()));
+        kappa.push(curvature);
+        crosses_centre |= r <= 0.0;
+    }
+    let dense = DenseContour {
         period: axis.length(),
         t,
         points,
         kappa,
-    }
+    };
+    (dense, crosses_centre)
 }
 
 /// A fitted closed curve sampled at `n` equally spaced parameters.

@@ -129,12 +129,18 @@ impl SplineCurve {
 
     /// Curvature of the contour of the signature r(θ) at s, 1/length.
     pub fn signature_curvature(&self, s: f64) -> f64 {
+        self.signature_radius_and_curvature(s).1
+    }
+
+    /// r(s) (bit-identical to [`SplineCurve::value`]) and the curvature
+    /// of [`SplineCurve::signature_curvature`] at s, the interval located
+    /// once for both.
+    pub fn signature_radius_and_curvature(&self, s: f64) -> (f64, f64) {
         let k = self.axis.length() / std::f64::consts::TAU;
-        // One location for the three (bit-identical to one each).
         let [r, r1, r2] = self.derivatives::<3>(s);
         let (r1, r2) = (k * r1, k * k * r2);
         let v2 = r * r + r1 * r1;
-        (r * r + 2.0 * r1 * r1 - r * r2) / (v2 * v2.sqrt())
+        (r, (r * r + 2.0 * r1 * r1 - r * r2) / (v2 * v2.sqrt()))
     }
 
     /// `n` values at equally spaced s over the domain (the end excluded on
