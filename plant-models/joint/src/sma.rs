@@ -498,9 +498,11 @@ impl SmaParams {
     }
 
     /// [`Self::phase_update`] where it needs neither branch's shape: no
-    /// change of temperature, or an end outside the band of the branch
-    /// taken (heating: at or above A_f, at or below A_s; cooling: at or
-    /// below M_f, at or above M_s); `None` inside it.
+    /// change of temperature, an end outside the band of the branch taken
+    /// (heating: at or above A_f, at or below A_s; cooling: at or below
+    /// M_f, at or above M_s), or a phase the branch cannot move (heating
+    /// with no martensite left, cooling with no austenite); `None` inside
+    /// the band otherwise.
     #[inline(always)]
     fn phase_update_outside_bands(&self, t_old: f64, xi_old: f64, t_new: f64) -> Option<f64> {
         if t_new > t_old {
@@ -511,6 +513,12 @@ impl SmaParams {
                 // g_A(t_old) = g_A(t_new) = 1: ξ·1/1 = ξ.
                 return Some(xi_old.min(xi_old).clamp(0.0, 1.0));
             }
+            if xi_old == 0.0 {
+                // ξ·g_A(t_new)/g_A(t_old) with ξ = ±0 and shapes in
+                // [0, 1] (or g_A(t_old) = 0, which returns ξ): ξ itself,
+                // to the bit, without the two cosines (issue 34).
+                return Some(xi_old);
+            }
             None
         } else if t_new < t_old {
             if t_new <= self.martensite_finish_c {
@@ -520,6 +528,11 @@ impl SmaParams {
                 // g_M(t_old) = g_M(t_new) = 1: (1 − ξ)·1/1 = 1 − ξ.
                 let aus = (1.0 - xi_old).min(1.0 - xi_old);
                 return Some((1.0 - aus).clamp(0.0, 1.0));
+            }
+            if xi_old == 1.0 {
+                // (1 − ξ)·g_M(t_new)/g_M(t_old) = 0: 1 − 0 = 1 = ξ (or
+                // g_M(t_old) = 0, which returns ξ).
+                return Some(xi_old);
             }
             None
         } else {
@@ -912,6 +925,7 @@ mod tests {
         let p = SmaParams::default();
         let temps: Vec<f64> = (0..=600).map(|k| 20.0 + k as f64 * 0.1 + 1e-3).collect();
         let xis = [
+            -0.0,
             0.0,
             1e-17,
             0.1,
