@@ -30,18 +30,18 @@ pub fn push_fixed(out: &mut String, v: f64, decimals: usize) {
     } else {
         (fraction | (1 << 52), exponent - 1075)
     };
-    // |v| < 10¹⁵ < 2⁵⁰, so e < −2: |v| = int + bits/2^shift.
+    // |v| < 10¹⁵ < 2⁵⁰, so e < −2: |v| = int + below/2^shift.
     let shift = (-e) as u32;
-    let (mut int, bits) = if shift < 64 {
+    let (mut int, below) = if shift < 64 {
         (m >> shift, m & ((1u64 << shift) - 1))
     } else {
         (0, m)
     };
-    // The fraction's digits, bits·10^d / 2^shift rounded half to even
-    // (bits·10^d < 2⁸³); a tie's parity is the last digit's (of int's
+    // The fraction's digits, below·10^d / 2^shift rounded half to even
+    // (below·10^d < 2⁸³); a tie's parity is the last digit's (of int's
     // when there are no decimals, 10^d being even otherwise).
     let scale = 10u64.pow(decimals as u32);
-    let scaled = u128::from(bits) * u128::from(scale);
+    let scaled = u128::from(below) * u128::from(scale);
     let mut frac = if shift > 100 {
         // scaled < 2⁸³ ≤ 2^(shift−1): below half a unit.
         0
@@ -67,27 +67,13 @@ pub fn push_fixed(out: &mut String, v: f64, decimals: usize) {
     if negative {
         out.push('-');
     }
-    // At most 16 digits before the point (|v| < 10¹⁵, rounded up).
-    let mut buf = [0u8; 16 + 1 + MAX_DECIMALS];
-    let mut at = buf.len();
-    for _ in 0..decimals {
-        at -= 1;
-        buf[at] = b'0' + (frac % 10) as u8;
-        frac /= 10;
-    }
+    let mut digits = itoa::Buffer::new();
+    out.push_str(digits.format(int));
     if decimals > 0 {
-        at -= 1;
-        buf[at] = b'.';
+        out.push('.');
+        // frac < 10^d: 10^d + frac has d digits after its leading 1.
+        out.push_str(&digits.format(scale + frac)[1..]);
     }
-    loop {
-        at -= 1;
-        buf[at] = b'0' + (int % 10) as u8;
-        int /= 10;
-        if int == 0 {
-            break;
-        }
-    }
-    out.extend(buf[at..].iter().map(|&b| char::from(b)));
 }
 
 /// `v` with `decimals` digits after the point (see [`push_fixed`]).

@@ -233,11 +233,11 @@ fn plain_rows(
     cuts.push(rest.len());
     let read_piece = |k: usize| -> Result<Vec<Row>, CsvError> {
         let (a, b) = (cuts[k], cuts[k + 1]);
-        let mut line = first_line + rest.as_bytes()[..a].iter().filter(|&&c| c == b'\n').count();
+        let first = first_line + rest.as_bytes()[..a].iter().filter(|&&c| c == b'\n').count();
         let mut rows = Vec::new();
         let mut fields: Vec<&[u8]> = Vec::new();
         // Each piece but the last ends in a newline: no empty tail line.
-        for raw in rest[a..b].split_terminator('\n') {
+        for (line, raw) in (first..).zip(rest[a..b].split_terminator('\n')) {
             let l = raw.strip_suffix('\r').unwrap_or(raw);
             if !(l.is_empty() || l.starts_with('#')) {
                 fields.clear();
@@ -246,7 +246,6 @@ fn plain_rows(
                     rows.push(data_row(&fields, line, columns, file)?);
                 }
             }
-            line += 1;
         }
         Ok(rows)
     };
