@@ -159,6 +159,11 @@ class LocalCluster:
     context manager; leaving it signals those process groups only (not
     ``ray stop``, which would end every Ray process of the machine)."""
 
+    #: Attempts at starting the cluster: a raylet that gives up at start-up
+    #: (Ray's own timeouts, on a loaded machine) ends its ``ray start``,
+    #: and the cluster is then started afresh once.
+    ATTEMPTS = 2
+
     def __init__(self, raylets: int = 2, cpus: int = 1, timeout_s: float = 60.0):
         self.raylets, self.cpus, self.timeout_s = raylets, cpus, timeout_s
         self.address = f"127.0.0.1:{_free_port()}"
@@ -166,38 +171,67 @@ class LocalCluster:
 
     def _start(self, *args: str) -> None:
         ray_bin = os.path.join(os.path.dirname(sys.executable), "ray")
+        # The raylet waits this long (ms) for its agent's port file before
+        # it aborts; Ray's default was too short beside a busy test suite
+        # on two cores (CI, session 48: "Timed out waiting for file
+        # .../metrics_agent_port_…").
+        env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0",
+                   RAY_agent_register_timeout_ms=str(int(1000 * max(self.timeout_s, 120))))
         self._procs.append(subprocess.Popen(
             [ray_bin, "start", *args, "--num-cpus", str(self.cpus), "--block",
              "--disable-usage-stats", "--dashboard-agent-listen-port", str(_free_port())],
-            env=dict(os.environ, RAY_USAGE_STATS_ENABLED="0"), start_new_session=True,
+            env=env, start_new_session=True,
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
 
+    def _check_started(self) -> None:
+        """Raises if a ``ray start --block`` has exited: its raylet is gone,
+        and asking the cluster (``ray.init``, ``ray.nodes``) would then
+        wait on a head that is not there (a suite hung 13 minutes so)."""
+        for p in self._procs:
+            rc = p.poll()
+            if rc is not None:
+                raise RuntimeError(
+                    f"`ray start` exited ({rc}) while the cluster at {self.address} "
+                    f"was starting; Ray's logs: /tmp/ray/session_latest/logs")
+
     def _alive(self) -> int:
+        self._check_started()
         return sum(1 for n in ray.nodes() if n["Alive"])
 
-    def __enter__(self) -> "LocalCluster":
+    def _enter_once(self) -> None:
         deadline = time.time() + self.timeout_s
-        try:
-            self._start("--head", "--port", self.address.split(":")[1],
-                        "--include-dashboard", "false")
-            while True:
-                try:
-                    ray.init(address=self.address, log_to_driver=False)
-                    break
-                except ConnectionError:
-                    if time.time() > deadline:
-                        raise
-                    time.sleep(0.5)
-            for _ in range(self.raylets - 1):
-                self._start("--address", self.address)
-            while self._alive() < self.raylets:
+        self._start("--head", "--port", self.address.split(":")[1],
+                    "--include-dashboard", "false")
+        while True:
+            self._check_started()
+            try:
+                ray.init(address=self.address, log_to_driver=False)
+                break
+            except ConnectionError:
                 if time.time() > deadline:
-                    raise TimeoutError(f"{self._alive()} of {self.raylets} raylets up "
-                                       f"after {self.timeout_s} s")
-                time.sleep(0.2)
-        except BaseException:
-            self.__exit__()
-            raise
+                    raise
+                time.sleep(0.5)
+        for _ in range(self.raylets - 1):
+            self._start("--address", self.address)
+        while self._alive() < self.raylets:
+            if time.time() > deadline:
+                raise TimeoutError(f"{self._alive()} of {self.raylets} raylets up "
+                                   f"after {self.timeout_s} s")
+            time.sleep(0.2)
+
+    def __enter__(self) -> "LocalCluster":
+        for attempt in range(self.ATTEMPTS):
+            try:
+                self._enter_once()
+                return self
+            except RuntimeError:
+                self.__exit__()
+                if attempt + 1 == self.ATTEMPTS:
+                    raise
+                self.address = f"127.0.0.1:{_free_port()}"
+            except BaseException:
+                self.__exit__()
+                raise
         return self
 
     def __exit__(self, *exc: Any) -> None:

@@ -32,6 +32,28 @@ def cluster():
         yield c.address
 
 
+def test_a_cluster_whose_ray_start_exits_is_an_error_not_a_hang(monkeypatch):
+    """A raylet that gives up at start-up ends its `ray start --block`:
+    starting the cluster then tries once more and fails naming `ray start`,
+    at once, instead of asking a head that is gone (a CI run hung so)."""
+    started = []
+
+    def exiting_ray_start(self, *args):
+        p = subprocess.Popen(["false"], start_new_session=True)
+        p.wait()
+        started.append(args)
+        self._procs.append(p)
+
+    monkeypatch.setattr(ray_sweep.LocalCluster, "_start", exiting_ray_start)
+    t0 = time.time()
+    with pytest.raises(RuntimeError, match="`ray start` exited"):
+        with ray_sweep.LocalCluster(raylets=2, cpus=1, timeout_s=30):
+            pass
+    assert [a[0] for a in started] == ["--head"] * ray_sweep.LocalCluster.ATTEMPTS
+    assert time.time() - t0 < 10
+    assert not ray.is_initialized()
+
+
 _cli_tunes = {}
 
 
