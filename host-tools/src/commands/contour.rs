@@ -31,7 +31,6 @@ use plant_contour::identify::data::read_contour_csv;
 use plant_contour::identify::gcv::{Lambda, LambdaReport, MAX_LAMBDA};
 use plant_contour::identify::synth::{MovieCase, RbcFrame};
 use plant_contour::identify::tracked::Point;
-use rayon::prelude::*;
 use serde::Serialize;
 
 /// Arguments of `softjoint contour`.
@@ -279,13 +278,12 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
     };
     output::check_value("fit.json", &summary)?;
     output::create_dir(&a.out)?;
-    // Written side by side (each waits on its own flush to disk); the
-    // first failure in file order is the one reported.
-    let written: Vec<Result<()>> = files
-        .par_iter()
-        .map(|(name, text)| output::write_checked(&a.out.join(name), text))
-        .collect();
-    written.into_iter().collect::<Result<()>>()?;
+    // One after another (side by side saved ≈ 0.5 ms of flushes, but two
+    // outputs linked to one device would interleave, and a failure would
+    // leave later files written and earlier ones not).
+    for (name, text) in &files {
+        output::write_checked(&a.out.join(name), text)?;
+    }
     output::write_json(&a.out.join("fit.json"), &summary)?;
     if a.json {
         output::print_json(&summary)?;

@@ -220,9 +220,23 @@ fn plain_rows(
     } else {
         rayon::current_num_threads().clamp(1, rest.len() / (PARALLEL_BYTES / 2))
     };
+    plain_rows_in(rest, first_line, columns, file, pieces)
+}
+
+/// [`plain_rows`] in `pieces` pieces. Each piece numbers its lines from
+/// 0 and counts them; the pieces are then joined in order, each one's
+/// lines moved on by those of the pieces before it (so no piece counts
+/// the text before it again).
+fn plain_rows_in(
+    rest: &str,
+    first_line: usize,
+    columns: &[String],
+    file: &str,
+    pieces: usize,
+) -> Result<Vec<Row>, CsvError> {
     // Cut points: after the first newline at or past each equal share.
     let mut cuts = vec![0];
-    for k in 1..pieces {
+    for k in 1..pieces.max(1) {
         let from = (rest.len() * k / pieces).max(*cuts.last().unwrap_or(&0));
         let cut = rest.as_bytes()[from..]
             .iter()
@@ -231,29 +245,49 @@ fn plain_rows(
         cuts.push(cut);
     }
     cuts.push(rest.len());
-    let read_piece = |k: usize| -> Result<Vec<Row>, CsvError> {
+    // A piece's rows and error with lines counted from its start, and its
+    // number of lines (each piece but the last ends in a newline: no empty
+    // tail line, and its lines are its newlines).
+    let read_piece = |k: usize| -> (Vec<Row>, Option<CsvError>, usize) {
         let (a, b) = (cuts[k], cuts[k + 1]);
-        let first = first_line + rest.as_bytes()[..a].iter().filter(|&&c| c == b'\n').count();
         let mut rows = Vec::new();
         let mut fields: Vec<&[u8]> = Vec::new();
-        // Each piece but the last ends in a newline: no empty tail line.
-        for (line, raw) in (first..).zip(rest[a..b].split_terminator('\n')) {
+        let mut lines = 0;
+        for raw in rest[a..b].split_terminator('\n') {
+            let line = lines;
+            lines += 1;
             let l = raw.strip_suffix('\r').unwrap_or(raw);
-            if !(l.is_empty() || l.starts_with('#')) {
-                fields.clear();
-                fields.extend(l.as_bytes().split(|&c| c == b',').map(<[u8]>::trim_ascii));
-                if !is_blank(&fields) {
-                    rows.push(data_row(&fields, line, columns, file)?);
-                }
+            if l.is_empty() || l.starts_with('#') {
+                continue;
+            }
+            fields.clear();
+            fields.extend(l.as_bytes().split(|&c| c == b',').map(<[u8]>::trim_ascii));
+            if is_blank(&fields) {
+                continue;
+            }
+            match data_row(&fields, line, columns, file) {
+                Ok(row) => rows.push(row),
+                Err(e) => return (rows, Some(e), lines),
             }
         }
-        Ok(rows)
+        (rows, None, lines)
     };
-    let pieces: Vec<Result<Vec<Row>, CsvError>> =
-        (0..pieces).into_par_iter().map(read_piece).collect();
+    let read: Vec<_> = (0..cuts.len() - 1)
+        .into_par_iter()
+        .map(read_piece)
+        .collect();
     let mut rows = Vec::new();
-    for piece in pieces {
-        rows.append(&mut piece?);
+    let mut base = first_line;
+    for (mut piece, error, lines) in read {
+        if let Some(mut e) = error {
+            e.line += base;
+            return Err(e);
+        }
+        for r in &mut piece {
+            r.line += base;
+        }
+        rows.append(&mut piece);
+        base += lines;
     }
     Ok(rows)
 }
@@ -477,8 +511,9 @@ mod tests {
     }
 
     // The reading before issue 34's change, as the reference.
-    /// Rows as (line, values), or the refusal as (line, what it names).
-    type Read = Result<Vec<(usize, Vec<f64>)>, (usize, String)>;
+    /// Rows as (line, values), or the refusal as (line, what it names,
+    /// the column it names).
+    type Read = Result<Vec<(usize, Vec<f64>)>, (usize, String, Option<String>)>;
     fn by_string_records(text: &str) -> Read {
         let mut reader = csv::ReaderBuilder::new()
             .has_headers(false)
@@ -487,34 +522,40 @@ mod tests {
             .flexible(true)
             .from_reader(text.as_bytes());
         let lines = LineCounter::new(text);
-        let mut header: Option<usize> = None;
+        let mut header: Option<Vec<String>> = None;
         let mut rows = Vec::new();
         for r in reader.records() {
-            let r = r.map_err(|e| (csv_line(&e, &|b| lines.record_line(b)), csv_reason(&e)))?;
+            let r = r.map_err(|e| {
+                (
+                    csv_line(&e, &|b| lines.record_line(b)),
+                    csv_reason(&e),
+                    None,
+                )
+            })?;
             if r.iter().all(str::is_empty) {
                 continue;
             }
             let line = r
                 .position()
                 .map_or(0, |p| lines.record_line(p.byte() as usize));
-            let Some(width) = header else {
-                header = Some(r.len());
+            let Some(names) = &header else {
+                header = Some(r.iter().map(str::to_string).collect());
                 continue;
             };
-            if r.len() != width {
-                return Err((line, format!("{} fields", r.len())));
+            if r.len() != names.len() {
+                return Err((line, format!("{} fields", r.len()), None));
             }
             let mut values = Vec::new();
-            for f in r.iter() {
+            for (f, name) in r.iter().zip(names) {
                 match f.parse::<f64>() {
                     Ok(v) if v.is_finite() => values.push(v),
-                    _ => return Err((line, format!("`{}`", excerpt(f)))),
+                    _ => return Err((line, format!("`{}`", excerpt(f)), Some(name.clone()))),
                 }
             }
             rows.push((line, values));
         }
         if header.is_none() {
-            return Err((1, "empty".into()));
+            return Err((1, "empty".into(), None));
         }
         Ok(rows)
     }
@@ -558,8 +599,9 @@ mod tests {
                     assert_eq!(&got, rows, "case {case}: {text:?}");
                     read += 1;
                 }
-                (Err((line, what)), Err(e)) => {
+                (Err((line, what, column)), Err(e)) => {
                     assert_eq!(e.line, *line, "case {case}: {text:?}: {e}");
+                    assert_eq!(&e.column, column, "case {case}: {text:?}: {e}");
                     assert!(
                         e.reason.contains(what.as_str()),
                         "case {case}: {text:?}: {e} ({what})"
@@ -616,13 +658,32 @@ mod tests {
         places.push(*ends.last().unwrap());
         for at in places {
             let bad = format!("{}9,oops,1\n{}", &text[..=at], &text[at + 1..]);
-            let (line, what) = by_string_records(&bad).unwrap_err();
+            let (line, what, column) = by_string_records(&bad).unwrap_err();
             let e = read_numeric(&bad, "long.csv").unwrap_err();
             assert_eq!(
-                (e.line, e.reason.contains(what.as_str())),
-                (line, true),
+                (e.line, e.reason.contains(what.as_str()), &e.column),
+                (line, true, &column),
                 "{e}"
             );
+        }
+        // And in 1 to 7 pieces, whatever the machine's threads.
+        let header_end = text.find("y\n").unwrap() + 2;
+        let columns = ["t".to_string(), "x".to_string(), "y".to_string()];
+        for pieces in 1..=7 {
+            let rows = plain_rows_in(&text[header_end..], 3, &columns, "long.csv", pieces).unwrap();
+            let got_rows: Vec<_> = rows.iter().map(|r| (r.line, r.values.clone())).collect();
+            assert_eq!(got_rows, want, "{pieces} pieces");
+            for &at in &[
+                ends[ends.len() / 3],
+                ends[ends.len() / 2],
+                ends[2 * ends.len() / 3],
+            ] {
+                let bad = format!("{}9,oops,1\n{}", &text[..=at], &text[at + 1..]);
+                let (line, _, column) = by_string_records(&bad).unwrap_err();
+                let e =
+                    plain_rows_in(&bad[header_end..], 3, &columns, "long.csv", pieces).unwrap_err();
+                assert_eq!((e.line, e.column), (line, column), "{pieces} pieces");
+            }
         }
     }
 }

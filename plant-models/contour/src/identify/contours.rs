@@ -36,6 +36,7 @@ use crate::identify::tracked::{
 };
 use crate::model::curve::sample_sites;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// What is fitted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -432,15 +433,34 @@ fn each_frame<F>(
 where
     F: Send,
 {
-    let results: Vec<Result<(FittedFrame, (f64, F))>> = data
+    // Once a frame fails, the frames after it are not fitted (their
+    // results could not be returned: the first failing frame's error is).
+    let first_failed = AtomicUsize::new(usize::MAX);
+    let results: Vec<_> = data
         .frames
         .par_iter()
-        .map(|(frame, f)| fit(*frame, f))
+        .enumerate()
+        .map(|(i, (frame, f))| {
+            if i > first_failed.load(Ordering::Relaxed) {
+                return None;
+            }
+            let r = fit(*frame, f);
+            if r.is_err() {
+                first_failed.fetch_min(i, Ordering::Relaxed);
+            }
+            Some(r)
+        })
         .collect();
-    results
-        .into_iter()
-        .collect::<Result<Vec<_>>>()
-        .map(|v| v.into_iter().unzip())
+    let mut out: FramesAndFits<F> = (Vec::new(), Vec::new());
+    for r in results {
+        // A frame skipped comes after one that failed, whose error has
+        // been returned by then.
+        let Some(r) = r else { break };
+        let (fitted, fit) = r?;
+        out.0.push(fitted);
+        out.1.push(fit);
+    }
+    Ok(out)
 }
 
 /// Each frame's closed parametric curve.

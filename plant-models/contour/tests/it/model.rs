@@ -614,24 +614,26 @@ fn the_tabled_quadratures_equal_quadrature_at_located_points() {
 
 #[test]
 fn rem_period_is_rem_euclid_bit_for_bit() {
-    let period = TAU;
-    let mut xs = vec![
-        0.0,
-        -0.0,
-        period,
-        -period,
-        f64::NAN,
-        f64::INFINITY,
-        1e300,
-        -1e-300,
-    ];
-    xs.extend((0..2000).map(|k| 40.0 * jitter(k)));
-    xs.extend((0..200).map(|k| period * k as f64 / 200.0));
-    for x in xs {
-        assert_eq!(
-            rem_period(x, period).to_bits(),
-            x.rem_euclid(period).to_bits(),
-            "x = {x:e}"
-        );
+    for period in [TAU, 16.0, 0.7, 1e-3, 3e5] {
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            period,
+            -period,
+            period * (1.0 - f64::EPSILON),
+            f64::NAN,
+            f64::INFINITY,
+            1e300,
+            -1e-300,
+        ];
+        xs.extend((0..2000).map(|k| 40.0 * period * jitter(k)));
+        xs.extend((0..200).map(|k| period * k as f64 / 200.0));
+        for x in xs {
+            assert_eq!(
+                rem_period(x, period).to_bits(),
+                x.rem_euclid(period).to_bits(),
+                "x = {x:e}, period {period}"
+            );
+        }
     }
 }
