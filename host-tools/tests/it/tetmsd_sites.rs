@@ -319,10 +319,14 @@ fn two_namespaces_through_the_relay() {
         // With three copies per packet an input is really lost only when
         // four packets in a row are (2 %: about once in 10⁷ ticks), so
         // almost nothing is resent. Issue 30's 1.2 × lost, with a margin
-        // of 5 for resends a scheduling delay makes needless under load.
+        // for resends a scheduling delay makes needless under load: 5,
+        // and a quarter of the packets lost (a CI run under the suite's
+        // load resent 6 for 0 inputs lost of 59 packets lost, session 48).
+        // A sender that resent every lost packet (≈ 60 here) still fails.
+        let needless = 5.0 + packets_lost as f64 / 4.0;
         assert!(
-            resent as f64 <= 1.2 * lost as f64 + 5.0,
-            "{resent} resent for {lost} lost"
+            resent as f64 <= 1.2 * lost as f64 + needless,
+            "{resent} resent for {lost} lost ({packets_lost} packets lost)"
         );
         // Issue 30's lag criterion: one round trip + 50 ms at p99.
         let lag_ms = r["replica"]["lag_p99_ms"].as_f64().unwrap();
