@@ -133,12 +133,7 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
         column: column.map(str::to_string),
         reason,
     };
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .comment(Some(b'#'))
-        .trim(csv::Trim::All)
-        .flexible(true)
-        .from_reader(text.as_bytes());
+    let mut reader = csv_reader(text);
     let mut records = reader.records();
     let lines = LineCounter::new(text);
     let line_at = |byte: usize| lines.record_line(byte);
@@ -199,6 +194,18 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
         columns,
         rows,
     })
+}
+
+/// The csv crate's reader of the format read here: no header row of its
+/// own (the first non-blank record is the header), `#` comment lines,
+/// fields trimmed, rows of any length (checked against the header here).
+fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes())
 }
 
 /// Texts at least this long are split into pieces read side by side.
@@ -515,12 +522,7 @@ mod tests {
     /// the column it names).
     type Read = Result<Vec<(usize, Vec<f64>)>, (usize, String, Option<String>)>;
     fn by_string_records(text: &str) -> Read {
-        let mut reader = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .comment(Some(b'#'))
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(text.as_bytes());
+        let mut reader = csv_reader(text);
         let lines = LineCounter::new(text);
         let mut header: Option<Vec<String>> = None;
         let mut rows = Vec::new();
