@@ -321,6 +321,15 @@ impl CheckedText {
         })
     }
 
+    /// Pretty JSON of `object`, as [`json`] writes it: every field was
+    /// checked when it was added ([`JsonObject::field`]), so the object is
+    /// not walked again.
+    pub fn json_object(object: &JsonObject) -> anyhow::Result<Self> {
+        Ok(Self {
+            text: object.text()?,
+        })
+    }
+
     /// The text.
     pub fn as_str(&self) -> &str {
         &self.text
@@ -427,6 +436,18 @@ impl JsonObject {
         Ok(self)
     }
 
+    /// Adds `key`: an array of `objects`, each checked field by field when
+    /// it was built (so neither walked nor copied again).
+    pub fn objects(mut self, key: &str, objects: Vec<JsonObject>) -> Self {
+        let items = objects
+            .into_iter()
+            .map(|o| serde_json::Value::Object(o.0))
+            .collect();
+        self.0
+            .insert(key.to_string(), serde_json::Value::Array(items));
+        self
+    }
+
     /// The fields of `value` (a report struct), each checked as
     /// [`field`](Self::field) checks it; more fields may follow.
     pub fn of<T: Serialize + ?Sized>(value: &T) -> anyhow::Result<Self> {
@@ -468,6 +489,55 @@ impl Serialize for JsonObject {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An array of objects added whole (`objects`, not walked or copied
+    /// again) is the same JSON as the same objects added as a field, and
+    /// a checked object's text is what `json` writes of it.
+    #[test]
+    fn objects_added_whole_are_the_same_json_as_a_field_of_them() {
+        #[derive(serde::Serialize)]
+        struct Inner {
+            zeta: f64,
+            alpha: Vec<f64>,
+            name: &'static str,
+            none: Option<f64>,
+        }
+        let parts = || -> Vec<JsonObject> {
+            (0..3)
+                .map(|k| {
+                    JsonObject::new()
+                        .field("frame", &(k as f64))
+                        .unwrap()
+                        .field(
+                            "signature",
+                            &Inner {
+                                zeta: 0.1 * k as f64,
+                                alpha: vec![1.0, 2.5e-9, -3.0],
+                                name: "a\"b",
+                                none: None,
+                            },
+                        )
+                        .unwrap()
+                })
+                .collect()
+        };
+        let whole = JsonObject::new()
+            .field("model", "signature")
+            .unwrap()
+            .objects("splines", parts());
+        let fielded = JsonObject::new()
+            .field("model", "signature")
+            .unwrap()
+            .field("splines", &parts())
+            .unwrap();
+        assert_eq!(whole.text().unwrap(), fielded.text().unwrap());
+        assert_eq!(
+            CheckedText::json_object(&whole).unwrap().as_str(),
+            json("t", &fielded).unwrap()
+        );
+        // A part with a non-finite number never becomes an object.
+        assert!(JsonObject::new().field("x", &[1.0, f64::NAN]).is_err());
+    }
 
     #[test]
     fn csv_names_line_and_column_of_a_non_finite_field() {

@@ -547,10 +547,10 @@ fn signature_dense(fit: &SignatureFit, n: usize) -> (DenseContour, bool) {
     let t = sample_sites(axis, n);
     let (mut points, mut kappa) = (Vec::with_capacity(n), Vec::with_capacity(n));
     let mut crosses_centre = false;
-    for &t in &t {
+    let circle = super::circle::sites(axis, n);
+    for (&t, &(cos, sin)) in t.iter().zip(circle.iter()) {
         let (r, curvature) = fit.radius.signature_radius_and_curvature(t);
-        let a = TAU * (t - axis.start) / axis.length();
-        points.push((fit.centre.0 + r * a.cos(), fit.centre.1 + r * a.sin()));
+        points.push((fit.centre.0 + r * cos, fit.centre.1 + r * sin));
         kappa.push(curvature);
         crosses_centre |= r <= 0.0;
     }

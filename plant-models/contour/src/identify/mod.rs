@@ -7,6 +7,7 @@
 //! `softjoint contour` does.
 pub mod campaign;
 pub mod checks;
+mod circle;
 pub mod contours;
 pub mod data;
 pub mod distance;

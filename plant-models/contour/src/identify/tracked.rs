@@ -251,11 +251,12 @@ impl SignatureFit {
 
     /// The fitted contour at `n` equally spaced angles.
     pub fn points(&self, n: usize) -> Vec<Point> {
+        let circle = super::circle::turn(n);
         (0..n)
-            .map(|k| {
-                let a = TAU * k as f64 / n as f64;
-                let r = self.radius_at(a);
-                (self.centre.0 + r * a.cos(), self.centre.1 + r * a.sin())
+            .zip(circle.iter())
+            .map(|(k, &(cos, sin))| {
+                let r = self.radius_at(super::circle::turn_angle(k, n));
+                (self.centre.0 + r * cos, self.centre.1 + r * sin)
             })
             .collect()
     }

@@ -134,7 +134,23 @@ pub const MIN_INTERVALS: usize = 3;
 /// Most knot intervals of an axis (a guard against absurd requests).
 pub const MAX_INTERVALS: usize = 100_000;
 
+/// Every field of an [`Axis`], to the bit ([`Axis::key`]): equal keys,
+/// equal axes.
+pub(crate) type AxisKey = (u64, usize, u64, bool);
+
 impl Axis {
+    /// The axis as a key for tables computed from it alone.
+    pub(crate) fn key(&self) -> AxisKey {
+        // Destructured: a field added to `Axis` must join the key.
+        let Axis {
+            start,
+            intervals,
+            alpha,
+            periodic,
+        } = *self;
+        (start.to_bits(), intervals, alpha.to_bits(), periodic)
+    }
+
     /// The axis over `[start, end]` with `intervals` knot intervals.
     pub fn over(start: f64, end: f64, intervals: usize, periodic: bool) -> Result<Self> {
         check_finite("start", start)?;

@@ -22,7 +22,7 @@
 //! degrees of freedom) comes from the entries of `A⁻¹` inside the band
 //! (selected inversion), for generalised cross-validation.
 use crate::error::{check_positive, ContourError, Result};
-use crate::model::basis::Axis;
+use crate::model::basis::{Axis, AxisKey};
 use crate::model::gramian::{surface_entry, AxisGramians};
 use nalgebra::{DMatrix, DVector};
 use plant_common::linalg::SkylineCholesky;
@@ -76,13 +76,40 @@ pub struct FitProblem {
     weight: Vec<f64>,
 }
 
+thread_local! {
+    /// The last axis a curve problem was built on, with its Q⁽²²⁾ entries:
+    /// the frames of a contour fit (and their halves) share one axis.
+    static CURVE_PENALTY: std::cell::RefCell<Option<(AxisKey, Vec<(usize, usize, f64)>)>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// Q⁽²²⁾'s entries on `axis`, from [`CURVE_PENALTY`] when the axis is the
+/// last one's (the same entries to the bit: the Gramian is a function of
+/// the axis alone).
+fn curve_penalty(axis: &Axis) -> Vec<(usize, usize, f64)> {
+    let key = axis.key();
+    CURVE_PENALTY.with(|cache| {
+        let mut cache = cache.borrow_mut();
+        match &*cache {
+            Some((k, entries)) if *k == key => entries.clone(),
+            _ => {
+                let entries: Vec<_> = crate::model::gramian::gramian(axis, 2, 2)
+                    .entries()
+                    .collect();
+                *cache = Some((key, entries.clone()));
+                entries
+            }
+        }
+    })
+}
+
 impl FitProblem {
     /// A curve on `axis` observed at `sites` with `weights` (Eq. 8 in one
     /// variable: Q = Q⁽²²⁾).
     pub(crate) fn curve(axis: &Axis, sites: &[f64], weights: &[f64]) -> Self {
         let stored = axis.coefficients();
         let free_of: Vec<usize> = (0..stored).map(|i| axis.free_index(i)).collect();
-        let q22 = crate::model::gramian::gramian(axis, 2, 2);
+        let penalty = curve_penalty(axis);
         let mut index = Vec::with_capacity(4 * sites.len());
         let mut value = Vec::with_capacity(4 * sites.len());
         for &s in sites {
@@ -97,7 +124,7 @@ impl FitProblem {
             free: axis.free_coefficients(),
             free_of,
             ties: axis.ties(),
-            penalty: q22.entries().collect(),
+            penalty,
             stride: 4,
             index,
             value,
