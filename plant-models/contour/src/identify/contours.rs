@@ -23,6 +23,7 @@ use std::f64::consts::TAU;
 use serde::Serialize;
 
 use crate::error::{ContourError, Result};
+use crate::fit::FitProblem;
 use crate::fit::Solver;
 use crate::identify::checks::{
     jumps, polygon_self_intersects, DenseContour, Flag, FrameChecks, Status,
@@ -30,9 +31,8 @@ use crate::identify::checks::{
 use crate::identify::data::{ContourData, FrameData};
 use crate::identify::gcv::{Lambda, LambdaReport};
 use crate::identify::tracked::{
-    chord_parameters, fit_closed_curve, fit_movie, fit_signature, fit_signature_curve,
-    polygon_centroid, ClosedCurveFit, ContourOptions, MovieFit, MovieOptions, Point, Signature,
-    SignatureFit,
+    self, chord_parameters, fit_closed_curve, fit_movie, polygon_centroid, ClosedCurveFit,
+    ContourOptions, MovieFit, MovieOptions, Point, Signature, SignatureFit,
 };
 use crate::model::curve::sample_sites;
 use rayon::prelude::*;
@@ -373,7 +373,7 @@ fn fit_signatures(
     let (frames, fits) = each_frame(data, |frame, f| {
         let loc = format!("{}: frame {frame}", data.file);
         let sig = signature_of(&loc, f)?;
-        let fit = fit_signature(&loc, &sig, opts)?;
+        let (fit, problem) = tracked::fit_signature_with_problem(&loc, &sig, opts)?;
         let angle = sample_angles(n);
         let radius: Vec<f64> = angle.iter().map(|&t| fit.radius_at(t)).collect();
         let (area, perimeter) = (fit.area(), fit.radius.signature_perimeter());
@@ -388,7 +388,7 @@ fn fit_signatures(
         );
         checks.halves(
             (area, perimeter),
-            signature_halves(&loc, &sig, opts, fit.lambda.lambda),
+            signature_halves(&loc, &sig, &problem, opts, fit.lambda.lambda),
         );
         let (gap_points, gap_t) = signature_gap_data(&sig, &fit);
         checks.gap(&gap_points, &gap_t, &dense, fit.rms_residual, area);
@@ -585,6 +585,7 @@ fn half(n: usize, first: usize) -> impl Iterator<Item = usize> {
 fn signature_halves(
     loc: &str,
     sig: &Signature,
+    problem: &FitProblem,
     opts: &ContourOptions,
     lambda: f64,
 ) -> Option<[(f64, f64); 2]> {
@@ -596,10 +597,16 @@ fn signature_halves(
     order.sort_by(|&a, &b| sig.angles_rad[a].total_cmp(&sig.angles_rad[b]));
     let fit_half = |first: usize| -> Option<(f64, f64)> {
         let idx: Vec<usize> = half(n, first).map(|k| order[k]).collect();
-        let angles: Vec<f64> = idx.iter().map(|&k| sig.angles_rad[k]).collect();
-        let radii: Vec<f64> = idx.iter().map(|&k| sig.radii[k]).collect();
-        let h = Signature::new(loc, sig.centre, &angles, &radii).ok()?;
-        let r = fit_signature_curve(loc, &h, opts.knots, lambda, opts.solver).ok()?;
+        let r = tracked::fit_signature_curve_at(
+            loc,
+            sig,
+            &idx,
+            problem,
+            opts.knots,
+            lambda,
+            opts.solver,
+        )
+        .ok()?;
         Some((r.signature_area(), r.signature_perimeter()))
     };
     Some([fit_half(0)?, fit_half(1)?])

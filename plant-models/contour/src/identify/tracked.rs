@@ -273,16 +273,27 @@ pub fn fit_signature(
     sig: &Signature,
     opts: &ContourOptions,
 ) -> Result<SignatureFit> {
+    Ok(fit_signature_with_problem(location, sig, opts)?.0)
+}
+
+/// [`fit_signature`] and the quadratic problem it solved (at `sig`'s
+/// angles), from which the halves check takes its halves' rows.
+pub(crate) fn fit_signature_with_problem(
+    location: &str,
+    sig: &Signature,
+    opts: &ContourOptions,
+) -> Result<(SignatureFit, Arc<FitProblem>)> {
     let (axis, problem) = signature_problem(location, sig, opts.knots)?;
     let (fitter, report) = factor_with(&problem, opts.lambda, opts.solver, &[&sig.radii])?;
     let tau = fitter.solve(&sig.radii)?;
     let rms = rms(&fitter.fitted(&tau), &sig.radii);
-    Ok(SignatureFit {
+    let fit = SignatureFit {
         centre: sig.centre,
         radius: SplineCurve::new(axis, tau)?,
         lambda: report,
         rms_residual: rms,
-    })
+    };
+    Ok((fit, problem))
 }
 
 /// The spline [`fit_signature`] fits for a given λ, without what it
@@ -298,6 +309,38 @@ pub fn fit_signature_curve(
     check_lambda(lambda)?;
     let (axis, problem) = signature_problem(location, sig, knots)?;
     let tau = problem.fitter(lambda, solver)?.solve(&sig.radii)?;
+    SplineCurve::new(axis, tau)
+}
+
+/// [`fit_signature_curve`] for the signature of `sig`'s points `keep`
+/// (in that order), whose rows it takes from `full`, the problem at all
+/// of `sig`'s angles ([`fit_signature_with_problem`]): the same curve to
+/// the bit, without evaluating the basis at those angles again. The
+/// points' signature is validated as [`Signature::new`] validates it.
+pub(crate) fn fit_signature_curve_at(
+    location: &str,
+    sig: &Signature,
+    keep: &[usize],
+    full: &FitProblem,
+    knots: usize,
+    lambda: f64,
+    solver: Solver,
+) -> Result<SplineCurve> {
+    check_lambda(lambda)?;
+    let angles: Vec<f64> = keep.iter().map(|&k| sig.angles_rad[k]).collect();
+    let radii: Vec<f64> = keep.iter().map(|&k| sig.radii[k]).collect();
+    let part = Signature::new(location, sig.centre, &angles, &radii)?;
+    let axis = Axis::over(0.0, knots as f64, knots, true)?;
+    let problem = full
+        .samples_at(keep)
+        .ok_or_else(|| ContourError::LengthMismatch {
+            what: "the halves' samples",
+            got: keep.len(),
+            expected: full.samples(),
+        })?;
+    let tau = Arc::new(problem)
+        .fitter(lambda, solver)?
+        .solve(&part.radii)?;
     SplineCurve::new(axis, tau)
 }
 
@@ -528,4 +571,60 @@ pub fn fit_movie(frames: &[(f64, Signature)], opts: &MovieOptions) -> Result<Mov
         centre_lambda: creport,
         rms_residual,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// A half's curve from the full problem's rows is the curve fitted to
+    /// the half's own signature, to the bit: random signatures (uneven
+    /// angles, any order), random subsets, both solvers.
+    #[test]
+    fn a_curve_from_the_full_problems_rows_is_the_halfs_own_fit() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(34);
+        for case in 0..60 {
+            let n = rng.gen_range(12..80);
+            let mut angles: Vec<f64> = (0..n)
+                .map(|k| (k as f64 + rng.gen_range(-0.3..0.3)) * TAU / n as f64)
+                .collect();
+            // Some angles given outside [0, 2π): the signature wraps them.
+            for a in angles.iter_mut().filter(|_| rng.gen_bool(0.1)) {
+                *a += TAU;
+            }
+            let radii: Vec<f64> = angles
+                .iter()
+                .map(|a| 30.0 + 5.0 * (2.0 * a).cos() + rng.gen_range(-0.5..0.5))
+                .collect();
+            let sig = Signature::new("case", (1.0, -2.0), &angles, &radii).unwrap();
+            let knots = rng.gen_range(4..12);
+            let solver = if case % 2 == 0 {
+                Solver::Reduced
+            } else {
+                Solver::Kkt
+            };
+            let opts = ContourOptions {
+                knots,
+                lambda: crate::identify::gcv::Lambda::Fixed(1e-3),
+                solver,
+            };
+            let (_, full) = fit_signature_with_problem("case", &sig, &opts).unwrap();
+            let mut keep: Vec<usize> = (0..n).filter(|_| rng.gen_bool(0.5)).collect();
+            if keep.len() < 8 {
+                continue;
+            }
+            // Any order: the rows follow `keep`.
+            keep.reverse();
+            let lambda = 10f64.powf(rng.gen_range(-6.0..0.0));
+            let got =
+                fit_signature_curve_at("case", &sig, &keep, &full, knots, lambda, solver).unwrap();
+            let a: Vec<f64> = keep.iter().map(|&k| sig.angles_rad[k]).collect();
+            let r: Vec<f64> = keep.iter().map(|&k| sig.radii[k]).collect();
+            let own = Signature::new("case", sig.centre, &a, &r).unwrap();
+            let want = fit_signature_curve("case", &own, knots, lambda, solver).unwrap();
+            // Debug text: every digit of every coefficient (and ±0).
+            assert_eq!(format!("{got:?}"), format!("{want:?}"), "case {case}");
+        }
+    }
 }

@@ -132,6 +132,36 @@ impl FitProblem {
         }
     }
 
+    /// The same problem at samples `keep` of this one (in that order),
+    /// each weighted 1/`keep.len()`: what [`FitProblem::curve`] builds at
+    /// those samples' sites with the default weights, without evaluating
+    /// their basis again (a sample's basis values are a function of its
+    /// site alone). `None` when an index is out of range or `keep` is
+    /// empty.
+    pub(crate) fn samples_at(&self, keep: &[usize]) -> Option<Self> {
+        if keep.is_empty() || keep.iter().any(|&k| k >= self.samples()) {
+            return None;
+        }
+        let w = self.stride;
+        let mut index = Vec::with_capacity(w * keep.len());
+        let mut value = Vec::with_capacity(w * keep.len());
+        for &k in keep {
+            index.extend_from_slice(&self.index[k * w..(k + 1) * w]);
+            value.extend_from_slice(&self.value[k * w..(k + 1) * w]);
+        }
+        Some(Self {
+            stored: self.stored,
+            free: self.free,
+            free_of: self.free_of.clone(),
+            ties: self.ties.clone(),
+            penalty: self.penalty.clone(),
+            stride: w,
+            index,
+            value,
+            weight: vec![1.0 / keep.len() as f64; keep.len()],
+        })
+    }
+
     /// A surface on `s_axis × t_axis` observed at `sites` (s, t) with
     /// `weights` (Eq. 14–18; stored index `i + M₁ j`, vec τ).
     pub(crate) fn surface(
