@@ -279,13 +279,14 @@ fn fit_cmd(a: FitArgs) -> Result<()> {
     // Checked and rendered once: the file and `--json` are the same text.
     let summary_text = CheckedText::json("fit.json", &summary)?;
     output::create_dir(&a.out)?;
-    // One after another (side by side saved ≈ 0.5 ms of flushes, but two
-    // outputs linked to one device would interleave, and a failure would
-    // leave later files written and earlier ones not).
-    for (name, text) in &files {
-        output::write_checked(&a.out.join(name), text)?;
-    }
-    output::write_checked(&a.out.join("fit.json"), &summary_text)?;
+    // Flushed to disk side by side, then renamed one after another (a
+    // device or FIFO among them written at its turn).
+    let writes: Vec<(PathBuf, &CheckedText)> = files
+        .iter()
+        .map(|(name, text)| (a.out.join(name), text))
+        .chain(std::iter::once((a.out.join("fit.json"), &summary_text)))
+        .collect();
+    output::write_checked_all(&writes)?;
     if a.json {
         outln!("{}", summary_text.as_str());
     } else {

@@ -36,6 +36,9 @@ pub struct AtomicFile {
     /// Where the contents go.
     how: How,
     file: Option<File>,
+    /// A regular file's contents are in its temporary file, flushed to
+    /// disk ([`AtomicFile::stage`]): the commit only renames it.
+    staged: bool,
 }
 
 /// How an [`AtomicFile`] reaches its target.
@@ -146,6 +149,7 @@ impl AtomicFile {
             target: target.to_path_buf(),
             how,
             file,
+            staged: false,
         })
     }
 
@@ -216,6 +220,9 @@ impl AtomicFile {
     /// target's permissions if it existed), or through to the device or
     /// FIFO.
     fn commit(mut self, bytes: &[u8]) -> anyhow::Result<()> {
+        if self.staged {
+            return self.commit_staged();
+        }
         let target = self.target.clone();
         let fail = |e: io::Error| anyhow::anyhow!("cannot write {}: {e}", target.display());
         let file = self.file.take();
@@ -256,6 +263,45 @@ impl AtomicFile {
                 Ok(())
             }
         }
+    }
+}
+
+impl AtomicFile {
+    /// For a regular file (or a new path), writes `bytes` into the
+    /// temporary file and flushes it to disk now; the commit then only
+    /// renames it, with the same `bytes`. A device or a FIFO is left to the
+    /// commit (writing it here could interleave with another output that
+    /// reaches the same device). Several files staged side by side flush
+    /// to disk together ([`super::write_checked_all`]).
+    pub(crate) fn stage(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
+        if !matches!(self.how, How::Replace { .. }) || self.staged {
+            return Ok(());
+        }
+        let target = self.target.clone();
+        let file = self.file.as_mut().ok_or_else(|| {
+            anyhow::anyhow!("cannot write {}: already committed", target.display())
+        })?;
+        file.write_all(bytes)
+            .and_then(|()| file.sync_all())
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))?;
+        self.staged = true;
+        Ok(())
+    }
+
+    /// The commit of a staged regular file: the rename.
+    fn commit_staged(mut self) -> anyhow::Result<()> {
+        let target = self.target.clone();
+        let fail = |e: io::Error| anyhow::anyhow!("cannot write {}: {e}", target.display());
+        let How::Replace { resolved, temp } = &mut self.how else {
+            return Err(fail(io::Error::other("only a regular file is staged")));
+        };
+        if let Ok(meta) = fs::metadata(&*resolved) {
+            let _ = fs::set_permissions(&*temp, meta.permissions());
+        }
+        self.file = None;
+        fs::rename(&*temp, &*resolved).map_err(fail)?;
+        *temp = PathBuf::new();
+        Ok(())
     }
 }
 
@@ -457,6 +503,56 @@ mod tests {
         assert_eq!(
             fs::read_to_string(dir.path().join("made.csv")).unwrap(),
             "b\n2\n"
+        );
+    }
+
+    /// A set of files: the regular ones replaced (their old contents gone,
+    /// no temporary left), a FIFO among them written through at its turn;
+    /// a set with a target that cannot be written replaces none of them,
+    /// not even those before it (written one by one, the first would have
+    /// been).
+    #[test]
+    fn a_set_of_files_is_written_whole_or_not_at_all() {
+        use super::super::{write_checked_all, CheckedText};
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.svg"));
+        fs::write(&a, "old").unwrap();
+        let fifo = dir.path().join("pipe");
+        let reader = fifo_and_reader(&fifo);
+        let texts = [
+            CheckedText::csv("a.csv", "x\n1\n".into()).unwrap(),
+            CheckedText::text("pipe", "through\n".into()).unwrap(),
+            CheckedText::text("b.svg", "<svg/>\n".into()).unwrap(),
+        ];
+        let set: Vec<(PathBuf, &CheckedText)> = [&a, &fifo, &b]
+            .into_iter()
+            .cloned()
+            .zip(texts.iter())
+            .collect();
+        write_checked_all(&set).unwrap();
+        assert_eq!(fs::read_to_string(&a).unwrap(), "x\n1\n");
+        assert_eq!(fs::read_to_string(&b).unwrap(), "<svg/>\n");
+        assert_eq!(reader.join().unwrap(), "through\n");
+        let mut left = names(dir.path());
+        left.sort();
+        assert_eq!(
+            left,
+            ["a.csv", "b.svg", "pipe"].map(std::ffi::OsString::from)
+        );
+
+        // A directory where the last file should go: refused by name, and
+        // the first file keeps what it had.
+        let sub = dir.path().join("c.csv");
+        fs::create_dir(&sub).unwrap();
+        let set = vec![(a.clone(), &texts[2]), (sub, &texts[0])];
+        let e = write_checked_all(&set).unwrap_err().to_string();
+        assert!(e.contains("c.csv") && e.contains("directory"), "{e}");
+        assert_eq!(fs::read_to_string(&a).unwrap(), "x\n1\n");
+        let mut left = names(dir.path());
+        left.sort();
+        assert_eq!(
+            left,
+            ["a.csv", "b.svg", "c.csv", "pipe"].map(std::ffi::OsString::from)
         );
     }
 

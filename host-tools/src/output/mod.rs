@@ -38,8 +38,9 @@
 //! of the program to this module.
 use std::fmt;
 use std::io::{self, Write as _};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 mod atomic;
@@ -339,6 +340,31 @@ impl CheckedText {
 /// Writes text that passed its check, atomically.
 pub fn write_checked(path: &Path, text: &CheckedText) -> anyhow::Result<()> {
     AtomicFile::create(path)?.commit_checked(text)
+}
+
+/// Writes several files that passed their checks, each atomically as
+/// [`write_checked`] writes it: every regular file's text goes into its
+/// temporary file and is flushed to disk side by side (one flush's wait
+/// instead of one per file), then each is renamed over its target in the
+/// order given; a device or FIFO is written at its turn, one after
+/// another. A file that cannot be created or written before the renames
+/// leaves no file of the set replaced (and no temporary file behind).
+pub fn write_checked_all(files: &[(PathBuf, &CheckedText)]) -> anyhow::Result<()> {
+    let mut atomics = files
+        .iter()
+        .map(|(path, _)| AtomicFile::create(path))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let staged: Vec<anyhow::Result<()>> = atomics
+        .par_iter_mut()
+        .zip(files.par_iter())
+        .map(|(file, (_, text))| file.stage(text.as_str().as_bytes()))
+        .collect();
+    // The first failure in the order given, as one after another reports.
+    staged.into_iter().collect::<anyhow::Result<()>>()?;
+    for (file, (_, text)) in atomics.into_iter().zip(files) {
+        file.commit_checked(text)?;
+    }
+    Ok(())
 }
 
 /// Writes a CSV file, atomically, after [`check_csv`].
