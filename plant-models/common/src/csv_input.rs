@@ -179,7 +179,13 @@ pub fn read_numeric(text: &str, file: &str) -> Result<Table, CsvError> {
                 Ok(false) => break,
                 Err(e) => return Err(err(csv_line(&e, &line_at), None, csv_reason(&e))),
             }
-            let fields: Vec<&[u8]> = record.iter().collect();
+            // The text is a `str` and records split at ASCII bytes, so
+            // every field is UTF-8 (were one not, it would be refused as
+            // not a number, never taken as blank).
+            let fields: Vec<&str> = record
+                .iter()
+                .map(|f| std::str::from_utf8(f).unwrap_or("\u{fffd}"))
+                .collect();
             if is_blank(&fields) {
                 continue;
             }
@@ -258,7 +264,7 @@ fn plain_rows_in(
     let read_piece = |k: usize| -> (Vec<Row>, Option<CsvError>, usize) {
         let (a, b) = (cuts[k], cuts[k + 1]);
         let mut rows = Vec::new();
-        let mut fields: Vec<&[u8]> = Vec::new();
+        let mut fields: Vec<&str> = Vec::new();
         let mut lines = 0;
         for raw in rest[a..b].split_terminator('\n') {
             let line = lines;
@@ -268,7 +274,7 @@ fn plain_rows_in(
                 continue;
             }
             fields.clear();
-            fields.extend(l.as_bytes().split(|&c| c == b',').map(<[u8]>::trim_ascii));
+            fields.extend(l.split(',').map(str::trim_ascii));
             if is_blank(&fields) {
                 continue;
             }
@@ -301,10 +307,8 @@ fn plain_rows_in(
 
 /// Whether every field is empty once trimmed of Unicode space (a blank
 /// row, skipped).
-fn is_blank(fields: &[&[u8]]) -> bool {
-    fields
-        .iter()
-        .all(|f| std::str::from_utf8(f).is_ok_and(|f| f.trim().is_empty()))
+fn is_blank(fields: &[&str]) -> bool {
+    fields.iter().all(|f| f.trim().is_empty())
 }
 
 /// One data row's values from its fields (trimmed of ASCII space), at
@@ -312,12 +316,7 @@ fn is_blank(fields: &[&[u8]]) -> bool {
 /// every field is UTF-8; a field that does not parse once trimmed of ASCII
 /// space is trimmed of Unicode space (as a `StringRecord` is) before it
 /// is refused.
-fn data_row(
-    fields: &[&[u8]],
-    line: usize,
-    columns: &[String],
-    file: &str,
-) -> Result<Row, CsvError> {
+fn data_row(fields: &[&str], line: usize, columns: &[String], file: &str) -> Result<Row, CsvError> {
     let err = |column: &str, reason: String| CsvError {
         file: file.to_string(),
         line,
@@ -337,8 +336,7 @@ fn data_row(
         });
     }
     let mut values = Vec::with_capacity(columns.len());
-    for (field, name) in fields.iter().zip(columns) {
-        let field = std::str::from_utf8(field).unwrap_or_default();
+    for (&field, name) in fields.iter().zip(columns) {
         let parsed = field.parse().or_else(|e| {
             let unicode_trimmed = field.trim();
             if unicode_trimmed.len() < field.len() {

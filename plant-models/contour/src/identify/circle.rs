@@ -27,17 +27,20 @@ enum Table {
 /// Tables kept per thread; the oldest goes first.
 const KEPT: usize = 4;
 
+/// `(cos a, sin a)` at each angle of a table.
+type CosSin = Rc<[(f64, f64)]>;
+
 thread_local! {
-    static TABLES: RefCell<Vec<(Table, Rc<[(f64, f64)]>)>> = const { RefCell::new(Vec::new()) };
+    static TABLES: RefCell<Vec<(Table, CosSin)>> = const { RefCell::new(Vec::new()) };
 }
 
-fn table(which: Table, angles: impl FnOnce() -> Vec<f64>) -> Rc<[(f64, f64)]> {
+fn table(which: Table, angles: impl FnOnce() -> Vec<f64>) -> CosSin {
     TABLES.with(|tables| {
         let mut tables = tables.borrow_mut();
         if let Some((_, t)) = tables.iter().find(|(w, _)| *w == which) {
             return Rc::clone(t);
         }
-        let t: Rc<[(f64, f64)]> = angles().into_iter().map(|a| (a.cos(), a.sin())).collect();
+        let t: CosSin = angles().into_iter().map(|a| (a.cos(), a.sin())).collect();
         if tables.len() == KEPT {
             tables.remove(0);
         }
@@ -52,7 +55,7 @@ pub(crate) fn turn_angle(k: usize, n: usize) -> f64 {
 }
 
 /// `(cos a, sin a)` at [`turn_angle`]`(k, n)`, k in 0..n.
-pub(crate) fn turn(n: usize) -> Rc<[(f64, f64)]> {
+pub(crate) fn turn(n: usize) -> CosSin {
     table(Table::Turn(n), || {
         (0..n).map(|k| turn_angle(k, n)).collect()
     })
@@ -65,7 +68,7 @@ pub(crate) fn site_angle(axis: &Axis, t: f64) -> f64 {
 
 /// `(cos a, sin a)` at the [`site_angle`] of each of `axis`'s `n` sample
 /// sites.
-pub(crate) fn sites(axis: &Axis, n: usize) -> Rc<[(f64, f64)]> {
+pub(crate) fn sites(axis: &Axis, n: usize) -> CosSin {
     table(Table::Sites(axis.key(), n), || {
         sample_sites(axis, n)
             .into_iter()

@@ -76,17 +76,20 @@ pub struct FitProblem {
     weight: Vec<f64>,
 }
 
+/// A Gramian's entries (row, column, value) over stored indices.
+type Entries = Vec<(usize, usize, f64)>;
+
 thread_local! {
     /// The last axis a curve problem was built on, with its Q⁽²²⁾ entries:
     /// the frames of a contour fit (and their halves) share one axis.
-    static CURVE_PENALTY: std::cell::RefCell<Option<(AxisKey, Vec<(usize, usize, f64)>)>> =
+    static CURVE_PENALTY: std::cell::RefCell<Option<(AxisKey, Entries)>> =
         const { std::cell::RefCell::new(None) };
 }
 
 /// Q⁽²²⁾'s entries on `axis`, from [`CURVE_PENALTY`] when the axis is the
 /// last one's (the same entries to the bit: the Gramian is a function of
 /// the axis alone).
-fn curve_penalty(axis: &Axis) -> Vec<(usize, usize, f64)> {
+fn curve_penalty(axis: &Axis) -> Entries {
     let key = axis.key();
     CURVE_PENALTY.with(|cache| {
         let mut cache = cache.borrow_mut();
