@@ -37,8 +37,9 @@ pub struct AtomicFile {
     how: How,
     file: Option<File>,
     /// A regular file's contents are in its temporary file, flushed to
-    /// disk ([`AtomicFile::stage`]): the commit only renames it.
-    staged: bool,
+    /// disk ([`AtomicFile::stage`]), this many bytes: the commit, given
+    /// the same text, only renames it.
+    staged: Option<usize>,
 }
 
 /// How an [`AtomicFile`] reaches its target.
@@ -149,7 +150,7 @@ impl AtomicFile {
             target: target.to_path_buf(),
             how,
             file,
-            staged: false,
+            staged: None,
         })
     }
 
@@ -220,7 +221,15 @@ impl AtomicFile {
     /// target's permissions if it existed), or through to the device or
     /// FIFO.
     fn commit(mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        if self.staged {
+        if let Some(len) = self.staged {
+            // Staged text is checked text; a commit of other contents
+            // would bypass its own check.
+            if bytes.len() != len {
+                return Err(anyhow::anyhow!(
+                    "cannot write {}: other contents than those staged",
+                    self.target.display()
+                ));
+            }
             return self.commit_staged();
         }
         let target = self.target.clone();
@@ -267,16 +276,22 @@ impl AtomicFile {
 }
 
 impl AtomicFile {
-    /// For a regular file (or a new path), writes `bytes` into the
-    /// temporary file and flushes it to disk now; the commit then only
-    /// renames it, with the same `bytes`. A device or a FIFO is left to the
-    /// commit (writing it here could interleave with another output that
-    /// reaches the same device). Several files staged side by side flush
-    /// to disk together ([`super::write_checked_all`]).
-    pub(crate) fn stage(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        if !matches!(self.how, How::Replace { .. }) || self.staged {
+    /// Whether this replaces a regular file (or makes a new one), rather
+    /// than writing through to a device or FIFO.
+    pub(super) fn replaces(&self) -> bool {
+        matches!(self.how, How::Replace { .. })
+    }
+
+    /// For a regular file (or a new path), writes `text` into the
+    /// temporary file and flushes it to disk now; the commit, given the
+    /// same text ([`Self::commit_checked`]), then only renames it. A device
+    /// or a FIFO is left to the commit. Several files staged side by side
+    /// flush to disk at the same time ([`super::write_checked_all`]).
+    pub(super) fn stage(&mut self, text: &super::CheckedText) -> anyhow::Result<()> {
+        if !self.replaces() || self.staged.is_some() {
             return Ok(());
         }
+        let bytes = text.as_str().as_bytes();
         let target = self.target.clone();
         let file = self.file.as_mut().ok_or_else(|| {
             anyhow::anyhow!("cannot write {}: already committed", target.display())
@@ -284,7 +299,7 @@ impl AtomicFile {
         file.write_all(bytes)
             .and_then(|()| file.sync_all())
             .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))?;
-        self.staged = true;
+        self.staged = Some(bytes.len());
         Ok(())
     }
 
@@ -506,11 +521,12 @@ mod tests {
         );
     }
 
-    /// A set of files: the regular ones replaced (their old contents gone,
-    /// no temporary left), a FIFO among them written through at its turn;
-    /// a set with a target that cannot be written replaces none of them,
-    /// not even those before it (written one by one, the first would have
-    /// been).
+    /// A set of files: with a FIFO among them, written one after another
+    /// (the FIFO through, at its turn); a set with a target that cannot be
+    /// created replaces none of them, not even those before it (written
+    /// one by one, the first would have been); regular files only, staged
+    /// side by side and renamed (their old contents gone, no temporary
+    /// left).
     #[test]
     fn a_set_of_files_is_written_whole_or_not_at_all() {
         use super::super::{write_checked_all, CheckedText};
@@ -554,6 +570,39 @@ mod tests {
             left,
             ["a.csv", "b.svg", "c.csv", "pipe"].map(std::ffi::OsString::from)
         );
+
+        // Regular files only: staged side by side, then renamed.
+        let set = vec![(a.clone(), &texts[2]), (b.clone(), &texts[0])];
+        write_checked_all(&set).unwrap();
+        assert_eq!(fs::read_to_string(&a).unwrap(), "<svg/>\n");
+        assert_eq!(fs::read_to_string(&b).unwrap(), "x\n1\n");
+        let mut left = names(dir.path());
+        left.sort();
+        assert_eq!(
+            left,
+            ["a.csv", "b.svg", "c.csv", "pipe"].map(std::ffi::OsString::from)
+        );
+    }
+
+    /// A staged file commits only the text it staged: another text (here
+    /// one its own check would refuse) is an error, the target untouched.
+    #[test]
+    fn a_staged_file_refuses_other_contents() {
+        use super::super::CheckedText;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.csv");
+        fs::write(&p, "old").unwrap();
+        let text = CheckedText::csv("s.csv", "x\n1\n".into()).unwrap();
+        let mut file = AtomicFile::create(&p).unwrap();
+        file.stage(&text).unwrap();
+        let e = file.commit_svg("other\n").unwrap_err().to_string();
+        assert!(e.contains("s.csv") && e.contains("staged"), "{e}");
+        assert_eq!(fs::read_to_string(&p).unwrap(), "old");
+        assert_eq!(names(dir.path()), vec![std::ffi::OsString::from("s.csv")]);
+        let mut file = AtomicFile::create(&p).unwrap();
+        file.stage(&text).unwrap();
+        file.commit_checked(&text).unwrap();
+        assert_eq!(fs::read_to_string(&p).unwrap(), "x\n1\n");
     }
 
     #[test]

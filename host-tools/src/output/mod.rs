@@ -343,23 +343,33 @@ pub fn write_checked(path: &Path, text: &CheckedText) -> anyhow::Result<()> {
 }
 
 /// Writes several files that passed their checks, each atomically as
-/// [`write_checked`] writes it: every regular file's text goes into its
-/// temporary file and is flushed to disk side by side (one flush's wait
-/// instead of one per file), then each is renamed over its target in the
-/// order given; a device or FIFO is written at its turn, one after
-/// another. A file that cannot be created or written before the renames
-/// leaves no file of the set replaced (and no temporary file behind).
+/// [`write_checked`] writes it. When every target is a regular file (or a
+/// new path), each text goes into its temporary file and is flushed to
+/// disk side by side, then each is renamed over its target in the order
+/// given: a file that cannot be created or written then leaves every
+/// file of the set as it was (a rename that fails leaves those before it
+/// replaced). All the new files are on disk at once before the renames.
+/// A set with a device or FIFO among its targets is written one file
+/// after another, as [`write_checked`] would (never side by side: two
+/// outputs may reach one device, and a FIFO waits for its reader).
 pub fn write_checked_all(files: &[(PathBuf, &CheckedText)]) -> anyhow::Result<()> {
     let mut atomics = files
         .iter()
         .map(|(path, _)| AtomicFile::create(path))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    if !atomics.iter().all(AtomicFile::replaces) {
+        drop(atomics);
+        for (path, text) in files {
+            write_checked(path, text)?;
+        }
+        return Ok(());
+    }
     let staged: Vec<anyhow::Result<()>> = atomics
         .par_iter_mut()
         .zip(files.par_iter())
-        .map(|(file, (_, text))| file.stage(text.as_str().as_bytes()))
+        .map(|(file, (_, text))| file.stage(text))
         .collect();
-    // The first failure in the order given, as one after another reports.
+    // The first failure in the order given.
     staged.into_iter().collect::<anyhow::Result<()>>()?;
     for (file, (_, text)) in atomics.into_iter().zip(files) {
         file.commit_checked(text)?;

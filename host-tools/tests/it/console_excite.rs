@@ -124,7 +124,11 @@ fn a_plan_runs_on_a_plant_backed_board_and_logs_what_identify_reads() {
         .and_then(|s| s.rsplit("; ").next())
         .and_then(|n| n.trim().parse().ok())
         .unwrap_or_else(|| panic!("no `rows filled` in {stdout}"));
-    assert!(filled <= 5, "{filled} telemetry frames lost: {stdout}");
+    // A few frames lost on a loaded machine are filled and counted (the
+    // log says how many); more than 2 % would be a link that cannot keep
+    // up. (At most 5 until a clean CI run of f42add1 lost 8 of 800 beside
+    // the twins on the other CPU.)
+    assert!(filled <= 16, "{filled} telemetry frames lost: {stdout}");
 
     // Coil columns are the plan's inputs on the driven coils (1 mV
     // quantisation; a row may lag one interval when a command met a slow

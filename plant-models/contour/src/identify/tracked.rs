@@ -331,12 +331,20 @@ pub(crate) fn fit_signature_curve_at(
     let radii: Vec<f64> = keep.iter().map(|&k| sig.radii[k]).collect();
     let part = Signature::new(location, sig.centre, &angles, &radii)?;
     let axis = Axis::over(0.0, knots as f64, knots, true)?;
+    // `full` must be the problem on this axis (its coefficients tell).
+    if full.coefficients() != axis.coefficients() {
+        return Err(ContourError::LengthMismatch {
+            what: "the full problem's coefficients",
+            got: full.coefficients(),
+            expected: axis.coefficients(),
+        });
+    }
     let problem = full
         .samples_at(keep)
-        .ok_or_else(|| ContourError::LengthMismatch {
-            what: "the halves' samples",
-            got: keep.len(),
-            expected: full.samples(),
+        .ok_or(ContourError::InvalidParameter {
+            name: "sample index",
+            value: keep.iter().copied().max().unwrap_or(0) as f64,
+            reason: "a part's samples must be some of the full problem's",
         })?;
     let tau = Arc::new(problem)
         .fitter(lambda, solver)?

@@ -135,6 +135,11 @@ impl FitProblem {
         }
     }
 
+    /// Stored coefficients (M, or M₁M₂ for a surface).
+    pub(crate) fn coefficients(&self) -> usize {
+        self.stored
+    }
+
     /// The same problem at samples `keep` of this one (in that order),
     /// each weighted 1/`keep.len()`: what [`FitProblem::curve`] builds at
     /// those samples' sites with the default weights, without evaluating
@@ -590,4 +595,35 @@ fn kkt_pseudo_inverse(problem: &FitProblem, lambda: f64) -> Result<DMatrix<f64>>
         .map_err(|e| ContourError::Unsolvable(e.to_string()))?;
     let n = problem.stored;
     Ok(pinv.view((0, 0), (n, n)).into_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cached penalty is the Gramian of the axis asked for, however
+    /// axes alternate on one thread (knots, start, length, periodic).
+    #[test]
+    fn the_cached_penalty_follows_the_axis() {
+        let axes = [
+            Axis::over(0.0, 16.0, 16, true).unwrap(),
+            Axis::over(0.0, 16.0, 16, false).unwrap(),
+            Axis::over(0.0, 8.0, 8, true).unwrap(),
+            Axis::over(1.0, 17.0, 16, true).unwrap(),
+            Axis::over(0.0, 32.0, 16, true).unwrap(),
+        ];
+        for round in 0..3 {
+            for (k, axis) in axes.iter().enumerate() {
+                let want: Vec<_> = crate::model::gramian::gramian(axis, 2, 2)
+                    .entries()
+                    .collect();
+                let got = curve_penalty(axis);
+                assert_eq!(
+                    format!("{got:?}"),
+                    format!("{want:?}"),
+                    "round {round}, axis {k}"
+                );
+            }
+        }
+    }
 }
