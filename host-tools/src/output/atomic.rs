@@ -434,6 +434,16 @@ mod tests {
             .collect()
     }
 
+    /// The names in `dir`, sorted, as text.
+    fn sorted_names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = names(dir)
+            .into_iter()
+            .map(|n| n.to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
     #[test]
     fn a_commit_replaces_the_file_and_a_drop_leaves_it() {
         let dir = tempfile::tempdir().unwrap();
@@ -549,12 +559,7 @@ mod tests {
         assert_eq!(fs::read_to_string(&a).unwrap(), "x\n1\n");
         assert_eq!(fs::read_to_string(&b).unwrap(), "<svg/>\n");
         assert_eq!(reader.join().unwrap(), "through\n");
-        let mut left = names(dir.path());
-        left.sort();
-        assert_eq!(
-            left,
-            ["a.csv", "b.svg", "pipe"].map(std::ffi::OsString::from)
-        );
+        assert_eq!(sorted_names(dir.path()), ["a.csv", "b.svg", "pipe"]);
 
         // A directory where the last file should go: refused by name, and
         // the first file keeps what it had.
@@ -564,11 +569,9 @@ mod tests {
         let e = write_checked_all(&set).unwrap_err().to_string();
         assert!(e.contains("c.csv") && e.contains("directory"), "{e}");
         assert_eq!(fs::read_to_string(&a).unwrap(), "x\n1\n");
-        let mut left = names(dir.path());
-        left.sort();
         assert_eq!(
-            left,
-            ["a.csv", "b.svg", "c.csv", "pipe"].map(std::ffi::OsString::from)
+            sorted_names(dir.path()),
+            ["a.csv", "b.svg", "c.csv", "pipe"]
         );
 
         // Regular files only: staged side by side, then renamed.
@@ -576,11 +579,9 @@ mod tests {
         write_checked_all(&set).unwrap();
         assert_eq!(fs::read_to_string(&a).unwrap(), "<svg/>\n");
         assert_eq!(fs::read_to_string(&b).unwrap(), "x\n1\n");
-        let mut left = names(dir.path());
-        left.sort();
         assert_eq!(
-            left,
-            ["a.csv", "b.svg", "c.csv", "pipe"].map(std::ffi::OsString::from)
+            sorted_names(dir.path()),
+            ["a.csv", "b.svg", "c.csv", "pipe"]
         );
     }
 
