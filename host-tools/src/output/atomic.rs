@@ -232,6 +232,10 @@ impl AtomicFile {
             }
             return self.commit_staged();
         }
+        if self.replaces() {
+            self.write_temp(bytes)?;
+            return self.commit_staged();
+        }
         let target = self.target.clone();
         let fail = |e: io::Error| anyhow::anyhow!("cannot write {}: {e}", target.display());
         let file = self.file.take();
@@ -255,22 +259,7 @@ impl AtomicFile {
                     .and_then(|()| file.flush())
                     .map_err(fail)
             }
-            How::Replace { resolved, temp } => {
-                let mut file = file.ok_or_else(|| fail(io::ErrorKind::Other.into()))?;
-                file.write_all(bytes)
-                    .and_then(|()| file.sync_all())
-                    .map_err(fail)?;
-                if let Ok(meta) = fs::metadata(&*resolved) {
-                    // Best effort: a file the user made readable to others
-                    // stays so.
-                    let _ = fs::set_permissions(&*temp, meta.permissions());
-                }
-                drop(file);
-                fs::rename(&*temp, &*resolved).map_err(fail)?;
-                // Renamed: nothing left to clean up.
-                *temp = PathBuf::new();
-                Ok(())
-            }
+            How::Replace { .. } => Err(fail(io::Error::other("a regular file is renamed"))),
         }
     }
 }
@@ -291,7 +280,11 @@ impl AtomicFile {
         if !self.replaces() || self.staged.is_some() {
             return Ok(());
         }
-        let bytes = text.as_str().as_bytes();
+        self.write_temp(text.as_str().as_bytes())
+    }
+
+    /// A regular file's `bytes` into its temporary file, flushed to disk.
+    fn write_temp(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
         let target = self.target.clone();
         let file = self.file.as_mut().ok_or_else(|| {
             anyhow::anyhow!("cannot write {}: already committed", target.display())
@@ -303,7 +296,8 @@ impl AtomicFile {
         Ok(())
     }
 
-    /// The commit of a staged regular file: the rename.
+    /// The commit of a staged regular file: the rename (keeping the
+    /// target's permissions if it existed).
     fn commit_staged(mut self) -> anyhow::Result<()> {
         let target = self.target.clone();
         let fail = |e: io::Error| anyhow::anyhow!("cannot write {}: {e}", target.display());
@@ -311,10 +305,13 @@ impl AtomicFile {
             return Err(fail(io::Error::other("only a regular file is staged")));
         };
         if let Ok(meta) = fs::metadata(&*resolved) {
+            // Best effort: a file the user made readable to others stays
+            // so.
             let _ = fs::set_permissions(&*temp, meta.permissions());
         }
         self.file = None;
         fs::rename(&*temp, &*resolved).map_err(fail)?;
+        // Renamed: nothing left to clean up.
         *temp = PathBuf::new();
         Ok(())
     }
