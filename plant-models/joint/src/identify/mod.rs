@@ -133,10 +133,14 @@ impl From<PlantError> for IdentifyError {
 /// evaluations are most of an identification's CPU; with 2 updates they
 /// fell by 6–73 % per plane on the logs measured (docs/benchmarks.md,
 /// "Identification with secant updates"), the estimates within 0.9 σ of
-/// the textbook method's. The thermal and wire stages difference
+/// the textbook method's. With 4 (session 50) the campaigns of twins
+/// 0..20 (standard and adapted plans) took 8 % less CPU with the same
+/// verdicts and coverage and the ignored twins 13 % less, though single planes vary both ways (one
+/// 600 s log's β fit took 52 % more replays; docs/benchmarks.md,
+/// "Four secant updates"). The thermal and wire stages difference
 /// every iteration (cheap replays; the wire stage's cost is rugged in its
 /// stick realisations).
-pub const SECANT_UPDATES: usize = 2;
+pub const SECANT_UPDATES: usize = 4;
 
 /// Settings of an identification.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -141,7 +141,7 @@ fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
     );
 }
 
-/// The mechanics stage's secant updates (`LmOptions::secant_updates`, 2
+/// The mechanics stage's secant updates (`LmOptions::secant_updates`, 4
 /// by default) against the textbook method (0) on the compact 2D twin,
 /// fits run to convergence: fewer mechanics replays, the same verdict,
 /// the same parameters called identifiable and every estimate within its
@@ -166,7 +166,7 @@ fn secant_updates_save_mechanics_replays_on_the_compact_twin() {
     };
     let textbook = run(0);
     let secant = run(IdentifyOptions::default().lm.secant_updates);
-    assert_eq!(IdentifyOptions::default().lm.secant_updates, 2);
+    assert_eq!(IdentifyOptions::default().lm.secant_updates, 4);
     let mechanics = |r: &PlaneReport| {
         let st = r.stages.iter().find(|s| s.name == "mechanics").unwrap();
         assert!(!st.stopped_by_budget, "{st:?}");
