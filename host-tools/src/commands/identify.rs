@@ -343,7 +343,20 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
         },
         ..IdentifyOptions::default()
     };
-    let found = fit(&a, &log, prior, &opts, &stop)?;
+    // Tens of seconds for a 10-minute log: a spinner with the time so far
+    // on a terminal (nothing on a pipe or with --json).
+    let spinner = host_tools::progress::spinner(
+        &format!(
+            "identifying the plant from {} ({} rows, {:.0} s of log)",
+            a.log.display(),
+            log.len(),
+            log.len() as f64 * log.period_s
+        ),
+        a.json,
+    );
+    let found = fit(&a, &log, prior, &opts, &stop);
+    spinner.finish_and_clear();
+    let found = found?;
     if let Some(signal) = stop.requested() {
         // Late in the fit: a stage may have been cut short.
         return Err(Stopped {
