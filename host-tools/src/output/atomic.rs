@@ -37,9 +37,9 @@ pub struct AtomicFile {
     how: How,
     file: Option<File>,
     /// A regular file's contents are in its temporary file, flushed to
-    /// disk ([`AtomicFile::stage`]), this many bytes: the commit, given
-    /// the same text, only renames it.
-    staged: Option<usize>,
+    /// disk ([`AtomicFile::stage`]): the address and length of the text
+    /// staged. The commit, given that very text, only renames it.
+    staged: Option<(usize, usize)>,
 }
 
 /// How an [`AtomicFile`] reaches its target.
@@ -221,10 +221,11 @@ impl AtomicFile {
     /// target's permissions if it existed), or through to the device or
     /// FIFO.
     fn commit(mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        if let Some(len) = self.staged {
+        if let Some(staged) = self.staged {
             // Staged text is checked text; a commit of other contents
-            // would bypass its own check.
-            if bytes.len() != len {
+            // would bypass its own check. The same buffer is the same
+            // text (it is borrowed from staging to commit).
+            if (bytes.as_ptr() as usize, bytes.len()) != staged {
                 return Err(anyhow::anyhow!(
                     "cannot write {}: other contents than those staged",
                     self.target.display()
@@ -292,7 +293,7 @@ impl AtomicFile {
         file.write_all(bytes)
             .and_then(|()| file.sync_all())
             .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))?;
-        self.staged = Some(bytes.len());
+        self.staged = Some((bytes.as_ptr() as usize, bytes.len()));
         Ok(())
     }
 
@@ -582,8 +583,9 @@ mod tests {
         );
     }
 
-    /// A staged file commits only the text it staged: another text (here
-    /// one its own check would refuse) is an error, the target untouched.
+    /// A staged file commits only the text it staged: another text (one
+    /// its own check would refuse, or one of the same length) is an
+    /// error, the target untouched.
     #[test]
     fn a_staged_file_refuses_other_contents() {
         use super::super::CheckedText;
@@ -594,6 +596,11 @@ mod tests {
         let mut file = AtomicFile::create(&p).unwrap();
         file.stage(&text).unwrap();
         let e = file.commit_svg("other\n").unwrap_err().to_string();
+        assert!(e.contains("s.csv") && e.contains("staged"), "{e}");
+        let mut file = AtomicFile::create(&p).unwrap();
+        file.stage(&text).unwrap();
+        let same_length = CheckedText::csv("s.csv", "y\n2\n".into()).unwrap();
+        let e = file.commit_checked(&same_length).unwrap_err().to_string();
         assert!(e.contains("s.csv") && e.contains("staged"), "{e}");
         assert_eq!(fs::read_to_string(&p).unwrap(), "old");
         assert_eq!(names(dir.path()), vec![std::ffi::OsString::from("s.csv")]);
