@@ -102,6 +102,10 @@ wait_job() {
     printf -- '--- %s ---\n' "$3"
     cat "$2"
     rm -f "$2"
+    if [ "$rc" -eq 124 ]; then
+        echo "$3: did not finish in its time limit (timeout, exit $rc)" >&2
+        exit 1
+    fi
     if [ "$rc" -ne 0 ]; then
         echo "$3: failed (exit $rc)" >&2
         exit 1
@@ -296,7 +300,13 @@ rm -f "$pip_log"
 
 step "beside each other: the checks that need the optimised build or QEMU (every #[ignore]d test but the joint's twins): the knot, the belt and the end-distance sequence; indentation at levels 7-9 and the 60 s replays; Table I at the paper's size; the firmware images in lockstep with the joint under QEMU (mps2-an386 and the STM32F4 image on netduinoplus2), the tuned gains and the link's fault campaign through the image — and the Python package's pytest against the program with two Ray raylets"
 py_log=$(mktemp)
-SOFTJOINT_BIN=target/ci-opt/softjoint "$venv/bin/python" -m pytest -q python/tests >"$py_log" 2>&1 &
+# A bound on the Python tests (≈ 100 s when well): a Ray head that dies
+# while `ray.init` waits on it, or any other test that hangs, fails the
+# suite after 15 minutes, naming it, instead of holding CI to its limit.
+# SIGINT first, so that pytest runs its fixtures' teardown (the raylets
+# are stopped); SIGKILL a minute later if that hangs too.
+SOFTJOINT_BIN=target/ci-opt/softjoint timeout --signal=INT --kill-after=60 900 \
+    "$venv/bin/python" -m pytest -q python/tests >"$py_log" 2>&1 &
 py_pid=$!
 bg_pids+=("$py_pid")
 cargo test "${targets[@]}" --exclude plant-joint -- --ignored --skip hil_qemu_cli:: --skip console_excite::
