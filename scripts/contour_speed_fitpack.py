@@ -31,7 +31,14 @@ Usage (after ``cargo build --release -p host-tools`` and
 
     python3 scripts/contour_speed_fitpack.py [--softjoint target/release/softjoint]
         [--example target/release/examples/contour_fit_speed]
-        [--frames 200] [--points 64] [--knots 16] [--reps 5]
+        [--frames 200] [--points 64] [--knots 16] [--reps 5] [--marginal 1000]
+
+With ``--marginal F2`` the command is also run on the first F2 frames of
+the same kind of data (F2 > frames), alternating with the other runs,
+and the time per added frame, (median at F2 − median at frames) /
+(F2 − frames), is set beside ``splrep``'s time per frame: the per-frame
+cost without the run's fixed cost (process start, thread pool, five
+files flushed to disk).
 
 Needs numpy and scipy (pip install numpy scipy).
 """
@@ -70,20 +77,33 @@ def main():
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--example", default=None,
                     help="the contour_fit_speed example, to time the fit alone in-process")
+    ap.add_argument("--marginal", type=int, default=None, metavar="F2",
+                    help="also run the command on F2 frames and report the time per added frame")
     a = ap.parse_args()
-    theta, data = contours(a.frames, a.points)
+    if a.marginal is not None and a.marginal <= a.frames:
+        sys.exit(f"--marginal must exceed --frames ({a.frames}), got {a.marginal}")
+    theta, data = contours(max(a.frames, a.marginal or 0), a.points)
     sigma = 0.01 * 35
     with tempfile.TemporaryDirectory() as work:
-        path = os.path.join(work, "data.csv")
-        with open(path, "w") as fh:
-            fh.write("frame,angle_rad,radius\n")
-            for f, r in enumerate(data):
-                for t, v in zip(theta, r):
-                    fh.write(f"{f},{t:.12f},{v:.12f}\n")
-        cmd = [a.softjoint, "contour", "fit", path, "--model", "signature",
-               "--knots", str(a.knots), "--lambda", a.lam, "--samples", "64",
-               "--out", os.path.join(work, "out"), "--json", "--allow-unverified"]
-        ours, theirs, lsq, alone, checked = [], [], [], [], []
+        def write_data(name, frames):
+            path = os.path.join(work, name)
+            with open(path, "w") as fh:
+                fh.write("frame,angle_rad,radius\n")
+                for f, r in enumerate(data[:frames]):
+                    for t, v in zip(theta, r):
+                        fh.write(f"{f},{t:.12f},{v:.12f}\n")
+            return path
+
+        def command(path):
+            return [a.softjoint, "contour", "fit", path, "--model", "signature",
+                    "--knots", str(a.knots), "--lambda", a.lam, "--samples", "64",
+                    "--out", os.path.join(work, "out"), "--json", "--allow-unverified"]
+
+        path = write_data("data.csv", a.frames)
+        cmd = command(path)
+        cmd2 = command(write_data("more.csv", a.marginal)) if a.marginal else None
+        data = data[:a.frames]
+        ours, theirs, lsq, alone, checked, more = [], [], [], [], [], []
         # Our knots: `knots` equal intervals over [0, 2 pi); FITPACK takes
         # the interior ones.
         t_ours = np.linspace(0, 2 * np.pi, a.knots + 1)[1:-1]
@@ -93,6 +113,12 @@ def main():
             ours.append(time.perf_counter() - t0)
             if res.returncode != 0:
                 sys.exit(f"softjoint failed: {res.stderr}")
+            if cmd2:
+                t0 = time.perf_counter()
+                res = subprocess.run(cmd2, capture_output=True, text=True)
+                more.append(time.perf_counter() - t0)
+                if res.returncode != 0:
+                    sys.exit(f"softjoint failed on {a.marginal} frames: {res.stderr}")
             # FITPACK: a closed contour needs the first point repeated at
             # 2 pi for per=1.
             tt = np.append(theta, 2 * np.pi)
@@ -123,6 +149,13 @@ def main():
     print(f"FITPACK splrep(per=1, t = our knots, task=-1), least squares, fit only: "
           f"{1e3 * ml / a.frames:.3f} ms per frame")
     print(f"ratio softjoint whole command / FITPACK s given: {mo / mt:.2f}")
+    if more:
+        mm = statistics.median(more)
+        added = (mm - mo) / (a.marginal - a.frames)
+        print(f"softjoint whole command on {a.marginal} frames: {mm:.3f} s; "
+              f"per added frame ({a.frames} -> {a.marginal}): {1e3 * added:.4f} ms")
+        print(f"ratio softjoint per added frame / FITPACK s given per frame: "
+              f"{added / (mt / a.frames):.2f}")
     if a.example:
         fa, fc = statistics.median(alone), statistics.median(checked)
         print(f"softjoint fit alone (fit_signature, lambda given, in-process): {fa:.3f} ms per frame")
