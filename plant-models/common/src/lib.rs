@@ -12,6 +12,7 @@ pub mod check;
 pub mod csv_input;
 pub mod fem;
 pub mod linalg;
+pub mod scalar;
 pub mod three_element;
 
 pub mod rng {

@@ -29,6 +29,8 @@
 //! Left out: nonlinear (large-strain) springs and dashpots.
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
+use crate::scalar::Scalar;
+
 use crate::check::{
     named_non_negative as check_non_negative, named_positive as check_positive, ParamError,
 };
@@ -39,14 +41,21 @@ pub type Result<T> = std::result::Result<T, ParamError>;
 /// `(E, φ)` of one step: `E = e^(−a h)`, `φ = (1 − E)/(a h)`, with the
 /// limits `(0, 0)` for no damping (`a h = ∞`) and `(1, 1)` for `a h → 0`.
 fn decay(a_h: f64) -> (f64, f64) {
-    if a_h.is_infinite() {
-        (0.0, 0.0)
-    } else if a_h < 1e-300 {
-        (1.0, 1.0)
+    decay_of(a_h)
+}
+
+/// [`decay`] of any [`Scalar`]: the limits by value, carrying no
+/// derivative.
+#[inline(always)]
+fn decay_of<S: Scalar>(a_h: S) -> (S, S) {
+    if a_h.val().is_infinite() {
+        (S::cst(0.0), S::cst(0.0))
+    } else if a_h.val() < 1e-300 {
+        (S::cst(1.0), S::cst(1.0))
     } else {
         // 1 − E by expm1: no cancellation for small a h.
         let one_minus_e = -(-a_h).exp_m1();
-        (1.0 - one_minus_e, one_minus_e / a_h)
+        (-one_minus_e + 1.0, one_minus_e / a_h)
     }
 }
 
@@ -206,13 +215,16 @@ impl ExactStep {
 /// Two elements' exact relaxation steps side by side (a sponge column's
 /// shear and normal models): the same operations in the same order as two
 /// [`ExactStep::force`] calls, so the results are bit-identical, laid out
-/// so that both lanes share one SIMD instruction each.
+/// so that both lanes share one SIMD instruction each. Over a [`Scalar`]:
+/// with duals ([`ExactPair::relaxation`]) the step carries the
+/// derivatives of its coefficients with respect to the springs and the
+/// dashpot.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ExactPair {
-    e: [f64; 2],
-    phi: [f64; 2],
-    gain: [f64; 2],
-    k2: [f64; 2],
+pub struct ExactPair<S = f64> {
+    e: [S; 2],
+    phi: [S; 2],
+    gain: [S; 2],
+    k2: [S; 2],
 }
 
 impl From<[ExactStep; 2]> for ExactPair {
@@ -226,11 +238,30 @@ impl From<[ExactStep; 2]> for ExactPair {
     }
 }
 
-impl ExactPair {
+impl<S: Scalar> ExactPair<S> {
+    /// The relaxation steps of two elements given as (`k1`, `k2`, `b`) in
+    /// any scalar: with `f64` the same numbers as
+    /// [`Element::relaxation_step`] (checked by a test), with duals their
+    /// derivatives too. The elements are taken as valid (`k1`, `k2` > 0,
+    /// `b` ≥ 0: built by [`Element::new`] for their values).
+    pub fn relaxation(elements: [(S, S, S); 2], h: StepLength) -> Self {
+        let lane = |(k1, k2, b): (S, S, S)| {
+            let (e, phi) = decay_of((k1 + k2) / b * h.0);
+            (e, phi, k2 / (k1 + k2), k2)
+        };
+        let [a, c] = elements.map(lane);
+        Self {
+            e: [a.0, c.0],
+            phi: [a.1, c.1],
+            gain: [a.2, c.2],
+            k2: [a.3, c.3],
+        }
+    }
+
     /// [`ExactStep::force`] of both lanes.
     #[inline(always)]
-    pub fn force(&self, x: &mut [f64; 2], u_start: [f64; 2], u_end: [f64; 2]) -> [f64; 2] {
-        let mut f = [0.0; 2];
+    pub fn force(&self, x: &mut [S; 2], u_start: [S; 2], u_end: [S; 2]) -> [S; 2] {
+        let mut f = [S::cst(0.0); 2];
         for i in 0..2 {
             let (start, end) = (u_start[i], u_end[i]);
             x[i] = x[i] * self.e[i]
@@ -518,6 +549,69 @@ mod tests {
             assert_eq!(single.map(f64::to_bits), paired.map(f64::to_bits));
             assert_eq!(xs.map(f64::to_bits), xp.map(f64::to_bits));
             start = end;
+        }
+    }
+
+    /// The generic pair from (k1, k2, b) is the elements' own steps to
+    /// the bit with f64, and with duals its derivatives are those of the
+    /// force along a run (against central differences).
+    #[test]
+    fn the_generic_pair_is_the_elements_steps_and_differentiates() {
+        use crate::scalar::Dual;
+        let h = StepLength::new(1e-3).unwrap();
+        for (k, ratio, b) in [(40.0, 3.0, 0.05), (2.5e3, 0.7, 1e-4), (1.0, 9.0, 30.0)] {
+            let el = [
+                Element::from_ratio(k, ratio, b).unwrap(),
+                Element::from_ratio(2.0 * k, ratio, b).unwrap(),
+            ];
+            let from_steps = ExactPair::from(el.map(|e| e.relaxation_step(h)));
+            let generic = ExactPair::<f64>::relaxation(el.map(|e| (e.k1(), e.k2(), e.b())), h);
+            assert_eq!(format!("{from_steps:?}"), format!("{generic:?}"));
+            // Force after 300 steps of a wiggling input, and its
+            // derivatives with respect to k and b.
+            let run = |k: f64, b: f64| -> f64 {
+                let el = [
+                    Element::from_ratio(k, ratio, b).unwrap(),
+                    Element::from_ratio(2.0 * k, ratio, b).unwrap(),
+                ];
+                let pair = ExactPair::<f64>::relaxation(el.map(|e| (e.k1(), e.k2(), e.b())), h);
+                let (mut x, mut u) = ([0.0; 2], [0.0; 2]);
+                let mut f = [0.0; 2];
+                for i in 0..300 {
+                    let end = [
+                        (i as f64 * 0.05).sin() * 1e-3,
+                        (i as f64 * 0.02).cos() * 1e-3,
+                    ];
+                    f = pair.force(&mut x, u, end);
+                    u = end;
+                }
+                f[0] + f[1]
+            };
+            let (kd, bd) = (Dual::<2>::var(k, 0), Dual::<2>::var(b, 1));
+            let lanes =
+                [kd, kd * 2.0].map(|k| (k * ((1.0 + ratio) / ratio), k * (1.0 + ratio), bd * k));
+            let pair = ExactPair::relaxation(lanes, h);
+            let (mut x, mut u) = ([Dual::cst(0.0); 2], [Dual::cst(0.0); 2]);
+            let mut f = [Dual::cst(0.0); 2];
+            for i in 0..300 {
+                let end = [
+                    (i as f64 * 0.05).sin() * 1e-3,
+                    (i as f64 * 0.02).cos() * 1e-3,
+                ]
+                .map(Dual::cst);
+                f = pair.force(&mut x, u, end);
+                u = end;
+            }
+            let fd = f[0] + f[1];
+            assert!((fd.v - run(k, b)).abs() <= 1e-12 * run(k, b).abs().max(1e-30));
+            for (j, (dk, db)) in [(1e-6 * k, 0.0), (0.0, 1e-6 * b)].into_iter().enumerate() {
+                let diff = (run(k + dk, b + db) - run(k - dk, b - db)) / (2.0 * (dk + db));
+                assert!(
+                    (fd.d[j] - diff).abs() <= 1e-6 * diff.abs().max(1e-12),
+                    "k {k} b {b}: ∂{j} {} vs {diff}",
+                    fd.d[j]
+                );
+            }
         }
     }
 

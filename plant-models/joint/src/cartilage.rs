@@ -25,6 +25,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use plant_common::scalar::Scalar;
 use plant_common::three_element::{Element, ExactPair, StepLength};
 
 use super::{check_positive, PlantError};
@@ -115,40 +116,63 @@ impl CartilageParams {
 /// relative; `tests::moments_match_the_columns_one_by_one`), and O(1)
 /// instead of O(N) per substep.
 #[derive(Clone, Debug)]
-pub struct Cartilage {
+pub struct Cartilage<S = f64> {
     params: CartilageParams,
-    /// [shear, normal].
-    models: [Element; 2],
+    /// The sponge's modulus and Rayleigh damping as scalars (a dual
+    /// carries their derivatives; their values are `params`').
+    modulus_pa: S,
+    damping_s: S,
     /// Moments of the columns' lateral positions on the link base
     /// (link frame): [N, Σs (m), Σs² (m²)].
     moments: [f64; 3],
     /// Dashpot displacement of a column at `s`, [shear, normal] (m):
     /// `x[0] + x[1]·s`.
-    x: [[f64; 2]; 2],
+    x: [[S; 2]; 2],
     /// Column displacement at the end of the last substep, [shear, normal]
     /// (m), as `u[0] + u[1]·s`: the start of the next substep's linear
     /// motion.
-    u: [[f64; 2]; 2],
+    u: [[S; 2]; 2],
     /// The exact steps ([shear, normal]) for the last step length.
-    steps: Option<(StepLength, ExactPair)>,
+    steps: Option<(StepLength, ExactPair<S>)>,
 }
 
 /// Force (N) and clockwise torque about the link-base origin (N·m) on the
 /// link.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Wrench {
+pub struct Wrench<S = f64> {
     /// Force along x (N).
-    pub fx_n: f64,
+    pub fx_n: S,
     /// Force along y (N).
-    pub fy_n: f64,
+    pub fy_n: S,
     /// Clockwise torque about the link-base origin (N·m).
-    pub torque_cw_nm: f64,
+    pub torque_cw_nm: S,
 }
 
 impl Cartilage {
     /// Builds the columns (allocates once).
     pub fn new(params: CartilageParams) -> Result<Self, PlantError> {
+        let (e, b) = (params.youngs_modulus_pa, params.rayleigh_damping_s);
+        Self::with_seeds(params, e, b)
+    }
+}
+
+impl<S: Scalar> Cartilage<S> {
+    /// The columns with the modulus and the damping given as scalars
+    /// (their values must be `params`'; a dual carries its derivatives).
+    pub fn with_seeds(
+        params: CartilageParams,
+        modulus_pa: S,
+        damping_s: S,
+    ) -> Result<Self, PlantError> {
         params.validate("cartilage.")?;
+        if modulus_pa.val().to_bits() != params.youngs_modulus_pa.to_bits()
+            || damping_s.val().to_bits() != params.rayleigh_damping_s.to_bits()
+        {
+            return Err(PlantError::param(
+                "cartilage",
+                "seeded parameters differ from the sponge's own values",
+            ));
+        }
         let n = params.columns;
         let area = params.width_m / n as f64 * params.depth_m;
         let kn = params.youngs_modulus_pa * area / params.thickness_m;
@@ -157,6 +181,10 @@ impl Cartilage {
             Element::from_ratio(k, params.stiffness_ratio, params.rayleigh_damping_s)
                 .map_err(|e| PlantError::param("cartilage", &e.to_string()))
         };
+        // The elements are built for their checks (the step is computed
+        // from the scalars, as `exact_steps` says).
+        mk(kt)?;
+        mk(kn)?;
         let mut moments = [0.0; 3];
         for s_m in column_positions_m(&params) {
             moments[0] += 1.0;
@@ -164,10 +192,11 @@ impl Cartilage {
             moments[2] += s_m * s_m;
         }
         Ok(Self {
-            models: [mk(kt)?, mk(kn)?],
+            modulus_pa,
+            damping_s,
             moments,
-            x: [[0.0; 2]; 2],
-            u: [[0.0; 2]; 2],
+            x: [[S::cst(0.0); 2]; 2],
+            u: [[S::cst(0.0); 2]; 2],
             steps: None,
             params,
         })
@@ -178,17 +207,31 @@ impl Cartilage {
         &self.params
     }
 
+    /// The exact steps of the shear and normal models over `h`, as
+    /// [`Element::relaxation_step`] gives them (to the bit, with `f64`),
+    /// from the modulus and damping scalars: each column's springs and
+    /// dashpot as `Element::from_ratio` splits them.
+    fn exact_steps(&self, h: StepLength) -> ExactPair<S> {
+        let p = &self.params;
+        let area = p.width_m / p.columns as f64 * p.depth_m;
+        let kn = self.modulus_pa * area / p.thickness_m;
+        let kt = kn * p.shear_fraction;
+        let r = p.stiffness_ratio;
+        let lanes = [kt, kn].map(|k| (k * ((1.0 + r) / r), k * (1.0 + r), self.damping_s * k));
+        ExactPair::relaxation(lanes, h)
+    }
+
     /// Advances every column by `h` with the link base moving to (`x`,
     /// `y`) m and angle `theta` (clockwise positive), and returns the
     /// sponge's wrench on the link. The columns' dashpots are integrated
     /// exactly for motion linear over the substep, so this part is
     /// unconditionally stable.
     #[inline]
-    pub fn step(&mut self, h: StepLength, x: f64, y: f64, sin_t: f64, cos_t: f64) -> Wrench {
+    pub fn step(&mut self, h: StepLength, x: S, y: S, sin_t: S, cos_t: S) -> Wrench<S> {
         let steps = match self.steps {
             Some((cached, steps)) if cached == h => steps,
             _ => {
-                let steps = ExactPair::from(self.models.map(|m| m.relaxation_step(h)));
+                let steps = self.exact_steps(h);
                 self.steps = Some((h, steps));
                 steps
             }
@@ -201,8 +244,8 @@ impl Cartilage {
         self.u = [e0, e1];
         // On the link, column at s: f(s) = −(f0 + f1·s), [shear, normal].
         let [n, s1, s2] = self.moments;
-        let sum = |k: usize| -(n * f0[k] + s1 * f1[k]);
-        let first = |k: usize| -(s1 * f0[k] + s2 * f1[k]);
+        let sum = |k: usize| -(f0[k] * n + f1[k] * s1);
+        let first = |k: usize| -(f0[k] * s1 + f1[k] * s2);
         // Σ (r_y f_t − r_x f_n), r = (s cos θ, −s sin θ).
         Wrench {
             fx_n: sum(0),
@@ -213,8 +256,8 @@ impl Cartilage {
 
     /// Resets the viscous states (unloaded sponge at its glued rest).
     pub fn reset(&mut self) {
-        self.x = [[0.0; 2]; 2];
-        self.u = [[0.0; 2]; 2];
+        self.x = [[S::cst(0.0); 2]; 2];
+        self.u = [[S::cst(0.0); 2]; 2];
     }
 }
 
@@ -285,12 +328,12 @@ mod tests {
             let (x, y, th) = (1e-4 * t.sin(), -2e-4 * t, 0.2 * (3.0 * t).sin());
             let (sn, cs) = th.sin_cos();
             let got = c.step(h, x, y, sn, cs);
-            let mut want = Wrench::default();
+            let mut want: Wrench = Wrench::default();
             // The scale of the rounding: each force is k₂ times the
             // difference of the column's displacement and its dashpot's,
             // the displacement (x + s·cos θ − s here) rounded relative to
             // its operands, so the force relative to k₂·(|x| + |s| + …).
-            let mut scale = Wrench::default();
+            let mut scale: Wrench = Wrench::default();
             for (i, &s_m) in s_m.iter().enumerate() {
                 let (rx, ry) = (s_m * cs, -s_m * sn);
                 let (end_t, end_n) = (x + rx - s_m, y + ry);

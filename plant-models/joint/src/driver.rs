@@ -12,6 +12,7 @@
 //! the switching transients and the flyback diode (a resistive coil needs
 //! none).
 
+use plant_common::scalar::Scalar;
 use serde::{Deserialize, Serialize};
 
 use super::{check_positive, PlantError};
@@ -67,21 +68,34 @@ impl DriverParams {
 
     /// Saturated current through a coil of `coil_ohm` (A).
     pub fn saturation_current_a(&self, coil_ohm: f64) -> f64 {
-        ((self.supply_v - self.vce_sat_v) / (coil_ohm + self.vce_sat_ohm)).max(0.0)
+        self.saturation_current_of(coil_ohm)
+    }
+
+    /// [`Self::saturation_current_a`] of any [`Scalar`] resistance.
+    #[inline]
+    fn saturation_current_of<S: Scalar>(&self, coil_ohm: S) -> S {
+        (S::cst(self.supply_v - self.vce_sat_v) / (coil_ohm + self.vce_sat_ohm)).max_of(S::cst(0.0))
     }
 
     /// Coil current (A) for input `input_v` and coil resistance `coil_ohm`.
     /// Non-finite inputs are the caller's business (the plant rejects them).
     #[inline]
     pub fn current_a(&self, input_v: f64, coil_ohm: f64) -> f64 {
-        let linear = self.transconductance_a_v * (input_v - self.turn_on_v);
-        if linear < 0.0 {
+        self.current_a_of(self.transconductance_a_v, input_v, coil_ohm)
+    }
+
+    /// [`Self::current_a`] with the transconductance and the resistance
+    /// in any [`Scalar`] (their derivatives carried to the current).
+    #[inline]
+    pub fn current_a_of<S: Scalar>(&self, transconductance_a_v: S, input_v: f64, coil_ohm: S) -> S {
+        let linear = transconductance_a_v * (input_v - self.turn_on_v);
+        if linear.val() < 0.0 {
             // Below turn-on the clamp gives 0 whatever the limit: skip the
             // saturation current's division.
-            return 0.0;
+            return S::cst(0.0);
         }
-        let limit = self.max_current_a.min(self.saturation_current_a(coil_ohm));
-        linear.clamp(0.0, limit)
+        let limit = S::cst(self.max_current_a).min_of(self.saturation_current_of(coil_ohm));
+        linear.clamp_to(S::cst(0.0), limit)
     }
 }
 

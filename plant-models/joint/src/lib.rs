@@ -73,10 +73,10 @@ pub use camera::{Camera, CameraFrame, CameraParams};
 pub use cartilage::CartilageParams;
 pub use driver::DriverParams;
 pub use link::{
-    BearingParams, CoilGeometry, LinkParams, LoadId, PlanarJoint, PlaneParams, PointLoad,
-    SupportParams,
+    BearingParams, CoilGeometry, LinkParams, LoadId, PlanarJoint, PlaneParams, PlaneSeeds,
+    PointLoad, SupportParams,
 };
-pub use sma::{SmaCoil, SmaParams};
+pub use sma::{CoilSeeds, SmaCoil, SmaParams};
 pub use wire_sensor::{JamParams, WireGeometry, WireSensor, WireSensorParams};
 
 /// Why the plant refused parameters or a step.

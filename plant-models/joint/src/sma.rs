@@ -47,6 +47,7 @@
 //! coil is a linear spring here), fatigue and the coil's thermal coupling to
 //! its neighbours and to the socket.
 
+use plant_common::scalar::Scalar;
 use serde::{Deserialize, Serialize};
 
 use super::{check_finite, check_positive, PlantError};
@@ -241,33 +242,24 @@ impl SmaParams {
 
     /// The constants of [`Self::phase_update`]'s two cosine branches.
     fn phase_shape(&self) -> PhaseShape {
-        PhaseShape {
-            heat_scale: core::f64::consts::PI / (self.austenite_finish_c - self.austenite_start_c),
-            cool_scale: core::f64::consts::PI
-                / (self.martensite_start_c - self.martensite_finish_c),
-        }
+        Law::new(
+            self.austenite_start_c,
+            self.austenite_finish_c,
+            self.martensite_start_c,
+            self.martensite_finish_c,
+        )
     }
 
     /// Heating-branch shape g_A(T): 1 below A_s, 0 above A_f.
+    #[cfg(test)]
     fn g_heat(&self, shape: &PhaseShape, t: f64) -> f64 {
-        if t <= self.austenite_start_c {
-            1.0
-        } else if t >= self.austenite_finish_c {
-            0.0
-        } else {
-            0.5 * (1.0 + (shape.heat_scale * (t - self.austenite_start_c)).cos())
-        }
+        shape.g_heat(t)
     }
 
     /// Cooling-branch shape g_M(T): 1 above M_s, 0 below M_f.
+    #[cfg(test)]
     fn g_cool(&self, shape: &PhaseShape, t: f64) -> f64 {
-        if t >= self.martensite_start_c {
-            1.0
-        } else if t <= self.martensite_finish_c {
-            0.0
-        } else {
-            0.5 * (1.0 - (shape.cool_scale * (t - self.martensite_finish_c)).cos())
-        }
+        shape.g_cool(t)
     }
 
     /// Temperature rise equivalent to a full transformation, ΔH/c (K).
@@ -326,8 +318,7 @@ impl SmaParams {
         shift_k: [f64; 2],
         cache: &mut ShapeCache,
     ) -> (f64, f64) {
-        let outside =
-            self.phase_update_outside_bands(t_old - shift_k[0], xi_old, t_sensible - shift_k[1]);
+        let outside = shape.outside(t_old - shift_k[0], xi_old, t_sensible - shift_k[1]);
         match outside {
             Some(xi) if xi == xi_old || self.latent_rise_k() == 0.0 => (t_sensible, xi),
             _ => self.settle_latent_heat_solve(shape, t_old, xi_old, t_sensible, shift_k, cache),
@@ -380,8 +371,7 @@ impl SmaParams {
         let mut xi_at = |t: f64| {
             let mut at = PhaseFrom::default();
             let t_to = t - shift_k[1];
-            let xi =
-                self.phase_update_from(shape, &mut from, t_old - shift_k[0], xi_old, t_to, &mut at);
+            let xi = shape.update_from(&mut from, t_old - shift_k[0], xi_old, t_to, &mut at);
             (xi, at)
         };
         let (xi_sensible, at_sensible) = xi_at(t_sensible);
@@ -450,86 +440,149 @@ impl SmaParams {
     #[inline]
     fn phase_update_with(&self, shape: &PhaseShape, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
         let mut at = PhaseFrom::default();
-        self.phase_update_from(
-            shape,
-            &mut PhaseFrom::default(),
-            t_old,
-            xi_old,
-            t_new,
-            &mut at,
-        )
+        shape.update_from(&mut PhaseFrom::default(), t_old, xi_old, t_new, &mut at)
+    }
+}
+
+/// The phase law's constants — the transformation temperatures and the
+/// cosine branches' π/(A_f − A_s) and π/(M_s − M_f) — in any [`Scalar`]:
+/// with duals the law carries the derivatives of ξ with respect to the
+/// temperatures (identification's sensitivities); with `f64` it is the
+/// law as it always was, operation for operation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Law<S> {
+    a_s: S,
+    a_f: S,
+    m_s: S,
+    m_f: S,
+    heat_scale: S,
+    cool_scale: S,
+}
+
+/// The `f64` law, as [`SmaParams::phase_shape`] gives it.
+type PhaseShape = Law<f64>;
+
+impl<S: Scalar> Law<S> {
+    /// The law of the temperatures A_s, A_f, M_s, M_f (°C).
+    pub(crate) fn new(a_s: S, a_f: S, m_s: S, m_f: S) -> Self {
+        Self {
+            a_s,
+            a_f,
+            m_s,
+            m_f,
+            heat_scale: S::cst(core::f64::consts::PI) / (a_f - a_s),
+            cool_scale: S::cst(core::f64::consts::PI) / (m_s - m_f),
+        }
     }
 
-    /// [`Self::phase_update_with`] keeping g_A(`t_old`) and g_M(`t_old`)
-    /// in `from` once computed, for several updates from the same
-    /// (`t_old`, `xi_old`); the shape it evaluates at `t_new` (if any)
-    /// goes to `at`.
+    /// The law's values (no derivatives).
     #[inline(always)]
-    fn phase_update_from(
+    fn values(&self) -> Law<f64> {
+        Law {
+            a_s: self.a_s.val(),
+            a_f: self.a_f.val(),
+            m_s: self.m_s.val(),
+            m_f: self.m_f.val(),
+            heat_scale: self.heat_scale.val(),
+            cool_scale: self.cool_scale.val(),
+        }
+    }
+
+    /// Heating-branch shape g_A(T): 1 below A_s, 0 above A_f.
+    #[inline(always)]
+    fn g_heat(&self, t: S) -> S {
+        if t.val() <= self.a_s.val() {
+            S::cst(1.0)
+        } else if t.val() >= self.a_f.val() {
+            S::cst(0.0)
+        } else {
+            ((self.heat_scale * (t - self.a_s)).cos() + 1.0) * 0.5
+        }
+    }
+
+    /// Cooling-branch shape g_M(T): 1 above M_s, 0 below M_f.
+    #[inline(always)]
+    fn g_cool(&self, t: S) -> S {
+        if t.val() >= self.m_s.val() {
+            S::cst(1.0)
+        } else if t.val() <= self.m_f.val() {
+            S::cst(0.0)
+        } else {
+            (-(self.cool_scale * (t - self.m_f)).cos() + 1.0) * 0.5
+        }
+    }
+
+    /// One update from (`t_old`, `xi_old`) to `t_new` keeping g_A(`t_old`)
+    /// and g_M(`t_old`) in `from` once computed, for several updates from
+    /// the same (`t_old`, `xi_old`); the shape it evaluates at `t_new` (if
+    /// any) goes to `at`.
+    #[inline(always)]
+    fn update_from(
         &self,
-        shape: &PhaseShape,
-        from: &mut PhaseFrom,
-        t_old: f64,
-        xi_old: f64,
-        t_new: f64,
-        at: &mut PhaseFrom,
-    ) -> f64 {
-        if let Some(xi) = self.phase_update_outside_bands(t_old, xi_old, t_new) {
+        from: &mut PhaseFrom<S>,
+        t_old: S,
+        xi_old: S,
+        t_new: S,
+        at: &mut PhaseFrom<S>,
+    ) -> S {
+        if let Some(xi) = self.outside(t_old, xi_old, t_new) {
             return xi;
         }
-        if t_new > t_old {
-            let g_old = *from.heat.get_or_insert_with(|| self.g_heat(shape, t_old));
-            if g_old <= 0.0 {
+        let (zero, one) = (S::cst(0.0), S::cst(1.0));
+        if t_new.val() > t_old.val() {
+            let g_old = *from.heat.get_or_insert_with(|| self.g_heat(t_old));
+            if g_old.val() <= 0.0 {
                 return xi_old;
             }
-            let g_new = self.g_heat(shape, t_new);
+            let g_new = self.g_heat(t_new);
             at.heat = Some(g_new);
-            (xi_old * g_new / g_old).min(xi_old).clamp(0.0, 1.0)
+            (xi_old * g_new / g_old).min_of(xi_old).clamp_to(zero, one)
         } else {
-            let g_old = *from.cool.get_or_insert_with(|| self.g_cool(shape, t_old));
-            if g_old <= 0.0 {
+            let g_old = *from.cool.get_or_insert_with(|| self.g_cool(t_old));
+            if g_old.val() <= 0.0 {
                 return xi_old;
             }
-            let g_new = self.g_cool(shape, t_new);
+            let g_new = self.g_cool(t_new);
             at.cool = Some(g_new);
-            let aus = ((1.0 - xi_old) * g_new / g_old).min(1.0 - xi_old);
-            (1.0 - aus).clamp(0.0, 1.0)
+            let aus = ((-xi_old + 1.0) * g_new / g_old).min_of(-xi_old + 1.0);
+            (-aus + 1.0).clamp_to(zero, one)
         }
     }
 
-    /// [`Self::phase_update`] where it needs neither branch's shape: no
-    /// change of temperature, an end outside the band of the branch taken
-    /// (heating: at or above A_f, at or below A_s; cooling: at or below
-    /// M_f, at or above M_s), or a phase the branch cannot move (heating
-    /// with no martensite left, cooling with no austenite); `None` inside
-    /// the band otherwise.
+    /// The update where it needs neither branch's shape: no change of
+    /// temperature, an end outside the band of the branch taken (heating:
+    /// at or above A_f, at or below A_s; cooling: at or below M_f, at or
+    /// above M_s), or a phase the branch cannot move (heating with no
+    /// martensite left, cooling with no austenite); `None` inside the band
+    /// otherwise.
     #[inline(always)]
-    fn phase_update_outside_bands(&self, t_old: f64, xi_old: f64, t_new: f64) -> Option<f64> {
-        if t_new > t_old {
-            if t_new >= self.austenite_finish_c {
-                return Some(0.0);
+    fn outside(&self, t_old: S, xi_old: S, t_new: S) -> Option<S> {
+        let (zero, one) = (S::cst(0.0), S::cst(1.0));
+        if t_new.val() > t_old.val() {
+            if t_new.val() >= self.a_f.val() {
+                return Some(zero);
             }
-            if t_new <= self.austenite_start_c {
+            if t_new.val() <= self.a_s.val() {
                 // g_A(t_old) = g_A(t_new) = 1: ξ·1/1 = ξ.
-                return Some(xi_old.min(xi_old).clamp(0.0, 1.0));
+                return Some(xi_old.min_of(xi_old).clamp_to(zero, one));
             }
-            if xi_old == 0.0 {
+            if xi_old.val() == 0.0 {
                 // ξ·g_A(t_new)/g_A(t_old) with ξ = ±0 and shapes in
                 // [0, 1] (or g_A(t_old) = 0, which returns ξ): ξ itself,
                 // to the bit, without the two cosines (issue 34).
                 return Some(xi_old);
             }
             None
-        } else if t_new < t_old {
-            if t_new <= self.martensite_finish_c {
-                return Some(1.0);
+        } else if t_new.val() < t_old.val() {
+            if t_new.val() <= self.m_f.val() {
+                return Some(one);
             }
-            if t_new >= self.martensite_start_c {
+            if t_new.val() >= self.m_s.val() {
                 // g_M(t_old) = g_M(t_new) = 1: (1 − ξ)·1/1 = 1 − ξ.
-                let aus = (1.0 - xi_old).min(1.0 - xi_old);
-                return Some((1.0 - aus).clamp(0.0, 1.0));
+                let aus = (-xi_old + 1.0).min_of(-xi_old + 1.0);
+                return Some((-aus + 1.0).clamp_to(zero, one));
             }
-            if xi_old == 1.0 {
+            if xi_old.val() == 1.0 {
                 // (1 − ξ)·g_M(t_new)/g_M(t_old) = 0: 1 − 0 = 1 = ξ (or
                 // g_M(t_old) = 0, which returns ξ).
                 return Some(xi_old);
@@ -541,16 +594,101 @@ impl SmaParams {
     }
 }
 
+impl Law<f64> {
+    /// ∂ξ/∂t_new of [`Law::update_from`] (values): the slope of the branch
+    /// inside its band, 0 where the update is held (outside the bands, at
+    /// the min or the clamp).
+    fn slope(&self, t_old: f64, xi_old: f64, t_new: f64) -> f64 {
+        if self.outside(t_old, xi_old, t_new).is_some() {
+            return 0.0;
+        }
+        if t_new > t_old {
+            let g_old = self.g_heat(t_old);
+            if g_old <= 0.0 {
+                return 0.0;
+            }
+            let x = xi_old * self.g_heat(t_new) / g_old;
+            if x > xi_old || !(0.0..=1.0).contains(&x) {
+                return 0.0;
+            }
+            let arg = self.heat_scale * (t_new - self.a_s);
+            xi_old * (-0.5 * arg.sin() * self.heat_scale) / g_old
+        } else {
+            let g_old = self.g_cool(t_old);
+            if g_old <= 0.0 {
+                return 0.0;
+            }
+            let aus = (1.0 - xi_old) * self.g_cool(t_new) / g_old;
+            if aus > 1.0 - xi_old || !(0.0..=1.0).contains(&(1.0 - aus)) {
+                return 0.0;
+            }
+            let arg = self.cool_scale * (t_new - self.m_f);
+            -((1.0 - xi_old) * (0.5 * arg.sin() * self.cool_scale) / g_old)
+        }
+    }
+}
+
+/// The end (T, ξ) of a coil's step in duals, from the temperature `t` the
+/// `f64` search settled on (values): where it took the step's sensible
+/// end or its start, that end with ξ there; at a root of the latent-heat
+/// balance `T = T_s + L (ξ(T) − ξ₀)`, the derivatives by the implicit
+/// function rule, `dT = (dT_s + L (dξ_p − dξ₀)) / (1 − L ∂ξ/∂T)` with
+/// `dξ_p` ξ's derivatives at fixed T.
+#[allow(clippy::too_many_arguments)] // the step's state, as the f64 solve takes it
+fn settle_tangents<S: Scalar>(
+    law: &Law<S>,
+    latent_rise_k: f64,
+    t_old: S,
+    xi_old: S,
+    t_sensible: S,
+    shift_k: [S; 2],
+    t: f64,
+) -> (S, S) {
+    let from_t = t_old - shift_k[0];
+    let xi_at = |t: S| {
+        law.update_from(
+            &mut PhaseFrom::default(),
+            from_t,
+            xi_old,
+            t - shift_k[1],
+            &mut PhaseFrom::default(),
+        )
+    };
+    if t == t_sensible.val() {
+        return (t_sensible, xi_at(t_sensible));
+    }
+    if t == t_old.val() {
+        return (t_old, xi_at(t_old));
+    }
+    let xi_p = xi_at(S::cst(t));
+    let xi_t = law
+        .values()
+        .slope(from_t.val(), xi_old.val(), t - shift_k[1].val());
+    let k = 1.0 / (1.0 - latent_rise_k * xi_t);
+    let rhs = t_sensible + (xi_p - xi_old) * latent_rise_k;
+    let t_end = (rhs - rhs.val()) * k + t;
+    (t_end, xi_p.plus_tangents_of(xi_t, t_end))
+}
+
 /// Accuracy of the temperature that settles the latent heat
 /// ([`SmaParams::settle_latent_heat`]): within this of the exact root (K).
 pub const LATENT_HEAT_TOLERANCE_K: f64 = 1e-9;
 
 /// The phase law's branch shapes at the start of a step, g_A(T_old) and
 /// g_M(T_old), once computed.
-#[derive(Clone, Copy, Debug, Default)]
-struct PhaseFrom {
-    heat: Option<f64>,
-    cool: Option<f64>,
+#[derive(Clone, Copy, Debug)]
+struct PhaseFrom<S = f64> {
+    heat: Option<S>,
+    cool: Option<S>,
+}
+
+impl<S> Default for PhaseFrom<S> {
+    fn default() -> Self {
+        Self {
+            heat: None,
+            cool: None,
+        }
+    }
 }
 
 /// The branch shapes at one effective temperature, kept by a coil from
@@ -586,164 +724,80 @@ impl PartialEq for ShapeCache {
     }
 }
 
-/// Constants of the phase law's cosine branches, π/(A_f − A_s) and
-/// π/(M_s − M_f).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct PhaseShape {
-    heat_scale: f64,
-    cool_scale: f64,
-}
-
-/// State of one coil.
+/// State of one coil, in any [`Scalar`]: `f64` for the plant, a dual for
+/// identification's sensitivities to the coil's convection, transformation
+/// temperatures and stress slope ([`SmaCoil::with_seeds`]).
 #[derive(Clone, Debug, PartialEq)]
-pub struct SmaCoil {
+pub struct SmaCoil<S = f64> {
     params: SmaParams,
     heat_capacity_j_k: f64,
-    conductance_w_k: f64,
+    conductance_w_k: S,
     resistance_martensite_ohm: f64,
     resistance_austenite_ohm: f64,
-    phase_shape: PhaseShape,
+    phase_shape: Law<S>,
+    /// Its values, which the latent-heat search runs on.
+    law_values: Law<f64>,
+    /// `stress_shift_k_per_mpa`.
+    stress_slope: S,
     cached_dt_s: f64,
-    cached_decay: f64,
-    temperature_c: f64,
-    martensite_fraction: f64,
+    cached_decay: S,
+    temperature_c: S,
+    martensite_fraction: S,
     /// Resistance, spring rate and rest length at `martensite_fraction`,
     /// refreshed whenever it changes (read several times per step).
-    mix: PhaseMix,
-    current_a: f64,
+    mix: PhaseMix<S>,
+    current_a: S,
     /// s·σ of the last step and of the next (K): the Clausius–Clapeyron
     /// shift of the transformation temperatures.
-    shift_k: f64,
-    next_shift_k: f64,
+    shift_k: S,
+    next_shift_k: S,
     /// The branch shapes where the last latent-heat search ended.
     shape_cache: ShapeCache,
 }
 
 /// The phase-mixed coil properties at one martensite fraction.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct PhaseMix {
-    resistance_ohm: f64,
-    stiffness_n_m: f64,
-    rest_length_m: f64,
+struct PhaseMix<S> {
+    resistance_ohm: S,
+    stiffness_n_m: S,
+    rest_length_m: S,
+}
+
+/// The coil parameters a dual coil carries derivatives of (each in its
+/// own unit: W/(m²·K), °C, K/MPa).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoilSeeds<S> {
+    /// `convection_w_m2_k`.
+    pub convection_w_m2_k: S,
+    /// `austenite_start_c`, `austenite_finish_c`, `martensite_start_c`,
+    /// `martensite_finish_c`.
+    pub transformation_c: [S; 4],
+    /// `stress_shift_k_per_mpa`.
+    pub stress_shift_k_per_mpa: S,
+}
+
+impl<S: Scalar> CoilSeeds<S> {
+    /// The parameters' values as constants (no derivatives).
+    pub fn constants(p: &SmaParams) -> Self {
+        Self {
+            convection_w_m2_k: S::cst(p.convection_w_m2_k),
+            transformation_c: [
+                p.austenite_start_c,
+                p.austenite_finish_c,
+                p.martensite_start_c,
+                p.martensite_finish_c,
+            ]
+            .map(S::cst),
+            stress_shift_k_per_mpa: S::cst(p.stress_shift_k_per_mpa),
+        }
+    }
 }
 
 impl SmaCoil {
     /// A cold coil (ambient temperature, fully martensite).
     pub fn new(params: SmaParams) -> Result<Self, PlantError> {
-        params.validate("coil.")?;
-        let t = params.ambient_c;
-        // Cold start below A_s: fully martensite. (A coil above A_f would be
-        // austenite; we only start at ambient, validated < A_s below.)
-        if t >= params.austenite_start_c {
-            return Err(PlantError::param(
-                "coil.ambient_c",
-                "must be below austenite_start_c",
-            ));
-        }
-        let mut coil = Self {
-            heat_capacity_j_k: params.heat_capacity_j_k(),
-            conductance_w_k: params.conductance_w_k(),
-            resistance_martensite_ohm: params.resistance_ohm(1.0),
-            resistance_austenite_ohm: params.resistance_ohm(0.0),
-            phase_shape: params.phase_shape(),
-            cached_dt_s: 0.0,
-            cached_decay: 1.0,
-            temperature_c: t,
-            martensite_fraction: 1.0,
-            mix: PhaseMix {
-                resistance_ohm: 0.0,
-                stiffness_n_m: 0.0,
-                rest_length_m: 0.0,
-            },
-            current_a: 0.0,
-            shift_k: 0.0,
-            next_shift_k: 0.0,
-            shape_cache: ShapeCache::default(),
-            params,
-        };
-        coil.refresh_mix();
-        Ok(coil)
-    }
-
-    /// Recomputes the phase-mixed properties for the present ξ (each mixed
-    /// linearly by phase).
-    fn refresh_mix(&mut self) {
-        let xi = self.martensite_fraction;
-        let p = &self.params;
-        self.mix = PhaseMix {
-            resistance_ohm: xi * self.resistance_martensite_ohm
-                + (1.0 - xi) * self.resistance_austenite_ohm,
-            stiffness_n_m: xi * p.stiffness_martensite_n_m + (1.0 - xi) * p.stiffness_austenite_n_m,
-            rest_length_m: xi * p.rest_length_martensite_m + (1.0 - xi) * p.rest_length_austenite_m,
-        };
-    }
-
-    /// Parameters.
-    pub fn params(&self) -> &SmaParams {
-        &self.params
-    }
-
-    /// Coil temperature (°C).
-    pub fn temperature_c(&self) -> f64 {
-        self.temperature_c
-    }
-
-    /// Martensite fraction ξ ∈ [0, 1].
-    pub fn martensite_fraction(&self) -> f64 {
-        self.martensite_fraction
-    }
-
-    /// Current through the coil during the last step (A).
-    pub fn current_a(&self) -> f64 {
-        self.current_a
-    }
-
-    /// Present resistance (Ω) (resistivity mixed linearly by phase).
-    #[inline]
-    pub fn resistance_ohm(&self) -> f64 {
-        self.mix.resistance_ohm
-    }
-
-    /// Present spring rate (N/m), mixed linearly by phase.
-    #[inline]
-    pub fn stiffness_n_m(&self) -> f64 {
-        self.mix.stiffness_n_m
-    }
-
-    /// Present rest length (m), mixed linearly by phase.
-    #[inline]
-    pub fn rest_length_m(&self) -> f64 {
-        self.mix.rest_length_m
-    }
-
-    /// Axial tension (N) at `length_m` stretching at `rate_m_s`; a coil
-    /// shorter than its rest length is slack (no push).
-    #[inline]
-    pub fn tension_n(&self, length_m: f64, rate_m_s: f64) -> f64 {
-        let stretch = length_m - self.rest_length_m();
-        if stretch <= 0.0 {
-            0.0
-        } else {
-            (self.stiffness_n_m() * stretch + self.params.damping_n_s_m * rate_m_s).max(0.0)
-        }
-    }
-
-    /// The wire stress for the next step's phase law (the coil's present
-    /// tension, N): with `stress_shift_k_per_mpa = s` the transformation
-    /// temperatures of the next step are raised by `s·F/A`. Does nothing
-    /// when `s = 0`.
-    #[inline]
-    pub fn set_tension_for_phase(&mut self, tension_n: f64) {
-        let s = self.params.stress_shift_k_per_mpa;
-        if s != 0.0 {
-            self.next_shift_k = s * tension_n / self.params.wire_area_m2() * 1e-6;
-        }
-    }
-
-    /// The present Clausius–Clapeyron shift of the transformation
-    /// temperatures (K).
-    pub fn transformation_shift_k(&self) -> f64 {
-        self.next_shift_k
+        let seeds = CoilSeeds::constants(&params);
+        Self::with_seeds(params, seeds)
     }
 
     /// Sets temperature and phase directly (tests, warm starts).
@@ -764,26 +818,176 @@ impl SmaCoil {
         self.refresh_mix();
         Ok(())
     }
+}
+
+impl<S: Scalar> SmaCoil<S> {
+    /// A cold coil whose convection, transformation temperatures and
+    /// stress slope are `seeds` (their values must be `params`'; a dual
+    /// seed carries its derivatives through every step).
+    pub fn with_seeds(params: SmaParams, seeds: CoilSeeds<S>) -> Result<Self, PlantError> {
+        params.validate("coil.")?;
+        let values = CoilSeeds::<f64>::constants(&params);
+        let seeded = [seeds.convection_w_m2_k, seeds.stress_shift_k_per_mpa]
+            .into_iter()
+            .chain(seeds.transformation_c)
+            .map(S::val)
+            .zip(
+                [values.convection_w_m2_k, values.stress_shift_k_per_mpa]
+                    .into_iter()
+                    .chain(values.transformation_c),
+            )
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        if !seeded {
+            return Err(PlantError::param(
+                "coil",
+                "seeded parameters differ from the coil's own values",
+            ));
+        }
+        let t = params.ambient_c;
+        // Cold start below A_s: fully martensite. (A coil above A_f would be
+        // austenite; we only start at ambient, validated < A_s below.)
+        if t >= params.austenite_start_c {
+            return Err(PlantError::param(
+                "coil.ambient_c",
+                "must be below austenite_start_c",
+            ));
+        }
+        let [a_s, a_f, m_s, m_f] = seeds.transformation_c;
+        let law = Law::new(a_s, a_f, m_s, m_f);
+        let mut coil = Self {
+            heat_capacity_j_k: params.heat_capacity_j_k(),
+            // As SmaParams::conductance_w_k, with h a scalar.
+            conductance_w_k: seeds.convection_w_m2_k
+                * core::f64::consts::PI
+                * params.wire_diameter_m
+                * params.wire_length_m,
+            resistance_martensite_ohm: params.resistance_ohm(1.0),
+            resistance_austenite_ohm: params.resistance_ohm(0.0),
+            phase_shape: law,
+            law_values: law.values(),
+            stress_slope: seeds.stress_shift_k_per_mpa,
+            cached_dt_s: 0.0,
+            cached_decay: S::cst(1.0),
+            temperature_c: S::cst(t),
+            martensite_fraction: S::cst(1.0),
+            mix: PhaseMix {
+                resistance_ohm: S::cst(0.0),
+                stiffness_n_m: S::cst(0.0),
+                rest_length_m: S::cst(0.0),
+            },
+            current_a: S::cst(0.0),
+            shift_k: S::cst(0.0),
+            next_shift_k: S::cst(0.0),
+            shape_cache: ShapeCache::default(),
+            params,
+        };
+        coil.refresh_mix();
+        Ok(coil)
+    }
+
+    /// Recomputes the phase-mixed properties for the present ξ (each mixed
+    /// linearly by phase).
+    #[inline(always)]
+    fn refresh_mix(&mut self) {
+        let xi = self.martensite_fraction;
+        let p = &self.params;
+        let aus = -xi + 1.0;
+        self.mix = PhaseMix {
+            resistance_ohm: xi * self.resistance_martensite_ohm
+                + aus * self.resistance_austenite_ohm,
+            stiffness_n_m: xi * p.stiffness_martensite_n_m + aus * p.stiffness_austenite_n_m,
+            rest_length_m: xi * p.rest_length_martensite_m + aus * p.rest_length_austenite_m,
+        };
+    }
+
+    /// Parameters.
+    pub fn params(&self) -> &SmaParams {
+        &self.params
+    }
+
+    /// Coil temperature (°C).
+    pub fn temperature_c(&self) -> S {
+        self.temperature_c
+    }
+
+    /// Martensite fraction ξ ∈ [0, 1].
+    pub fn martensite_fraction(&self) -> S {
+        self.martensite_fraction
+    }
+
+    /// Current through the coil during the last step (A).
+    pub fn current_a(&self) -> S {
+        self.current_a
+    }
+
+    /// Present resistance (Ω) (resistivity mixed linearly by phase).
+    #[inline]
+    pub fn resistance_ohm(&self) -> S {
+        self.mix.resistance_ohm
+    }
+
+    /// Present spring rate (N/m), mixed linearly by phase.
+    #[inline]
+    pub fn stiffness_n_m(&self) -> S {
+        self.mix.stiffness_n_m
+    }
+
+    /// Present rest length (m), mixed linearly by phase.
+    #[inline]
+    pub fn rest_length_m(&self) -> S {
+        self.mix.rest_length_m
+    }
+
+    /// Axial tension (N) at `length_m` stretching at `rate_m_s`; a coil
+    /// shorter than its rest length is slack (no push).
+    #[inline(always)]
+    pub fn tension_n(&self, length_m: S, rate_m_s: S) -> S {
+        let stretch = length_m - self.rest_length_m();
+        if stretch.val() <= 0.0 {
+            S::cst(0.0)
+        } else {
+            (self.stiffness_n_m() * stretch + rate_m_s * self.params.damping_n_s_m)
+                .max_of(S::cst(0.0))
+        }
+    }
+
+    /// The wire stress for the next step's phase law (the coil's present
+    /// tension, N): with `stress_shift_k_per_mpa = s` the transformation
+    /// temperatures of the next step are raised by `s·F/A`. Does nothing
+    /// when `s = 0`.
+    #[inline]
+    pub fn set_tension_for_phase(&mut self, tension_n: S) {
+        let s = self.stress_slope;
+        if s.val() != 0.0 {
+            self.next_shift_k = s * tension_n / self.params.wire_area_m2() * 1e-6;
+        }
+    }
+
+    /// The present Clausius–Clapeyron shift of the transformation
+    /// temperatures (K).
+    pub fn transformation_shift_k(&self) -> S {
+        self.next_shift_k
+    }
 
     /// Advances the thermal and phase state by `dt_s` with `current_a`
     /// flowing. With `freeze_phase`, ξ (and so R) stays fixed and no latent
     /// heat is exchanged — the case with a closed-form answer.
-    #[inline]
-    pub fn step(&mut self, dt_s: f64, current_a: f64, freeze_phase: bool) {
+    #[inline(always)]
+    pub fn step(&mut self, dt_s: f64, current_a: S, freeze_phase: bool) {
         if dt_s != self.cached_dt_s {
             self.cached_dt_s = dt_s;
-            self.cached_decay = (-dt_s * self.conductance_w_k / self.heat_capacity_j_k).exp();
+            self.cached_decay = (self.conductance_w_k * -dt_s / self.heat_capacity_j_k).exp();
         }
         self.current_a = current_a;
         let power_w = current_a * current_a * self.resistance_ohm();
         // An idle coil (the usual case for one coil of a pair) has
         // power_w = +0 and power_w / G = +0 exactly; skip the division.
-        let heating_k = if power_w == 0.0 {
-            0.0
+        let heating_k = if power_w.val() == 0.0 {
+            S::cst(0.0)
         } else {
             power_w / self.conductance_w_k
         };
-        let t_eq = self.params.ambient_c + heating_k;
+        let t_eq = heating_k + self.params.ambient_c;
         let t_old = self.temperature_c;
         let t_sensible = t_eq + (t_old - t_eq) * self.cached_decay;
         if freeze_phase {
@@ -793,15 +997,29 @@ impl SmaCoil {
             let shift = [self.shift_k, self.next_shift_k];
             self.shift_k = self.next_shift_k;
             let (t_new, xi_new) = self.params.settle_latent_heat_with(
-                &self.phase_shape,
-                t_old,
-                xi_old,
-                t_sensible,
-                shift,
+                &self.law_values,
+                t_old.val(),
+                xi_old.val(),
+                t_sensible.val(),
+                shift.map(S::val),
                 &mut self.shape_cache,
             );
+            let (t_new, xi_new) = if S::TANGENTS {
+                settle_tangents(
+                    &self.phase_shape,
+                    self.params.latent_rise_k(),
+                    t_old,
+                    xi_old,
+                    t_sensible,
+                    shift,
+                    t_new,
+                )
+            } else {
+                (S::cst(t_new), S::cst(xi_new))
+            };
             self.temperature_c = t_new;
-            if xi_new != xi_old {
+            // A dual's derivatives can move where its value does not.
+            if xi_new.val() != xi_old.val() || S::TANGENTS {
                 self.martensite_fraction = xi_new;
                 self.refresh_mix();
             }

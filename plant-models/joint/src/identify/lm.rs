@@ -78,7 +78,7 @@ impl LmOptions {
     /// `f` that first checks whether the caller asked the fit to stop
     /// (then [`IdentifyError::Stopped`], `f` not run): a stop ends a fit
     /// within one evaluation, however many a Jacobian or a step needs.
-    fn stoppable<'a, F>(
+    pub(crate) fn stoppable<'a, F>(
         &'a self,
         f: &'a F,
     ) -> impl Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync + 'a
@@ -119,6 +119,9 @@ pub struct LmResult {
     pub stopped_by_budget: bool,
     /// Residual evaluations.
     pub evaluations: usize,
+    /// Jacobians from a replay carrying derivatives ([`JacobianCost`]),
+    /// not counted in `evaluations`.
+    pub derivative_replays: usize,
     /// Standard deviation of each coordinate (∞ where undetermined).
     pub std: Vec<f64>,
     /// Correlation matrix (row-major n×n; NaN where a variance is ∞).
@@ -156,6 +159,8 @@ pub struct Minimum {
     pub iterations: usize,
     /// Residual evaluations so far.
     pub evaluations: usize,
+    /// Jacobians from a replay carrying derivatives so far.
+    pub derivative_replays: usize,
     /// Ran out of iterations (see [`LmResult::stopped_by_budget`]).
     pub stopped_by_budget: bool,
     /// The Jacobian at `x` where the minimiser already has it (it stopped
@@ -202,6 +207,7 @@ impl Minimum {
             residuals,
             iterations: fit.iterations,
             evaluations: fit.evaluations,
+            derivative_replays: fit.derivative_replays,
             stopped_by_budget: fit.stopped_by_budget,
             jacobian: None,
             jacobian_elsewhere: fit.jacobian_known,
@@ -210,22 +216,42 @@ impl Minimum {
 
     /// The result with the Jacobian at the minimiser and the covariance
     /// from it (the Jacobian costs `n` evaluations unless known).
-    pub fn finish<F>(mut self, f: &F, opts: LmOptions) -> Result<LmResult, IdentifyError>
+    pub fn finish<F>(self, f: &F, opts: LmOptions) -> Result<LmResult, IdentifyError>
     where
         F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
     {
+        let f = opts.stoppable(f);
+        let jac = differences(&f, opts.step);
+        self.finish_with(&f, &jac, opts)
+    }
+
+    /// [`Minimum::finish`] with the Jacobian from `jac` ([`minimise_with`]).
+    pub fn finish_with<F, J>(
+        mut self,
+        f: &F,
+        jac: &J,
+        opts: LmOptions,
+    ) -> Result<LmResult, IdentifyError>
+    where
+        F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+        J: Fn(&[f64], &[f64]) -> Result<Costed, IdentifyError> + Sync,
+    {
+        let _ = f;
         if self.jacobian_elsewhere {
-            let f = opts.stoppable(f);
-            self.jacobian = Some(jacobian(&f, &self.x, &self.residuals, opts.step)?);
+            opts.check_stop()?;
+            self.jacobian = Some(jac(&self.x, &self.residuals)?.0);
         }
-        let n = self.x.len();
         let m = self.residuals.len();
-        let (jac, evaluations) = match self.jacobian {
-            Some(jac) => (jac, self.evaluations),
-            None => (
-                jacobian(&opts.stoppable(f), &self.x, &self.residuals, opts.step)?,
-                self.evaluations + n,
-            ),
+        let mut evaluations = self.evaluations;
+        let mut derivative_replays = self.derivative_replays;
+        let jac = match self.jacobian {
+            Some(jac) => jac,
+            None => {
+                opts.check_stop()?;
+                let (j, cost) = jac(&self.x, &self.residuals)?;
+                cost.count(&mut evaluations, &mut derivative_replays);
+                j
+            }
         };
         let (std, correlation) = covariance(&jac, self.cost, m);
         Ok(LmResult {
@@ -235,11 +261,52 @@ impl Minimum {
             iterations: self.iterations,
             stopped_by_budget: self.stopped_by_budget,
             evaluations,
+            derivative_replays,
             std,
             correlation,
             residuals: self.residuals,
             jacobian: jac,
         })
+    }
+}
+
+/// A Jacobian's columns (one per coordinate) and what it cost.
+pub type Costed = (Vec<Vec<f64>>, JacobianCost);
+
+/// What a Jacobian for [`minimise_with`] cost.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JacobianCost {
+    /// Residual evaluations (forward differences: one per coordinate).
+    Evaluations(usize),
+    /// One replay carrying the derivatives (counted apart: it costs
+    /// several plain ones, docs/benchmarks.md).
+    DerivativeReplay,
+}
+
+impl JacobianCost {
+    /// Adds itself to the counters.
+    fn count(self, evaluations: &mut usize, derivative_replays: &mut usize) {
+        match self {
+            JacobianCost::Evaluations(n) => *evaluations += n,
+            JacobianCost::DerivativeReplay => *derivative_replays += 1,
+        }
+    }
+}
+
+/// The forward-difference Jacobian of `f` with steps `step`, as a
+/// Jacobian for [`minimise_with`] (`n` evaluations).
+pub fn differences<F>(
+    f: &F,
+    step: f64,
+) -> impl Fn(&[f64], &[f64]) -> Result<Costed, IdentifyError> + Sync + '_
+where
+    F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+{
+    move |x: &[f64], r0: &[f64]| {
+        Ok((
+            jacobian(f, x, r0, step)?,
+            JacobianCost::Evaluations(x.len()),
+        ))
     }
 }
 
@@ -260,6 +327,25 @@ pub fn minimise<F>(f: &F, x0: &[f64], opts: LmOptions) -> Result<Minimum, Identi
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
+    let f = opts.stoppable(f);
+    let jac = differences(&f, opts.step);
+    minimise_with(&f, &jac, x0, opts)
+}
+
+/// [`minimise`] with the Jacobian, wherever the textbook method takes
+/// one, from `jac`: given a point and the residuals there, the Jacobian's
+/// columns and what it cost in evaluations (forward differences,
+/// [`differences`]: `n`; a replay carrying derivatives: 1).
+pub fn minimise_with<F, J>(
+    f: &F,
+    jac_at: &J,
+    x0: &[f64],
+    opts: LmOptions,
+) -> Result<Minimum, IdentifyError>
+where
+    F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+    J: Fn(&[f64], &[f64]) -> Result<Costed, IdentifyError> + Sync,
+{
     let f = &opts.stoppable(f);
     let n = x0.len();
     let mut x = x0.to_vec();
@@ -276,21 +362,26 @@ where
     let mut lambda = 1e-2;
     let mut iterations = 0;
     opts.check_stop()?;
-    let mut jac = jacobian(f, &x, &r, opts.step)?;
-    evaluations += n;
+    let mut derivative_replays = 0;
+    let (mut jac, cost_j) = jac_at(&x, &r)?;
+    cost_j.count(&mut evaluations, &mut derivative_replays);
     // Secant updates applied to `jac` since it was differenced at a point
     // (0: it is the forward-difference Jacobian at `x`).
     let mut updates = 0;
-    let stop = |x, r, cost, iterations, evaluations, stopped_by_budget, jacobian| Minimum {
-        x,
-        cost,
-        residuals: r,
-        iterations,
-        evaluations,
-        stopped_by_budget,
-        jacobian,
-        jacobian_elsewhere: false,
-    };
+    let stop =
+        |x, r, cost, iterations, evaluations, derivative_replays, stopped_by_budget, jacobian| {
+            Minimum {
+                x,
+                cost,
+                residuals: r,
+                iterations,
+                evaluations,
+                derivative_replays,
+                stopped_by_budget,
+                jacobian,
+                jacobian_elsewhere: false,
+            }
+        };
     while iterations < opts.max_iterations {
         opts.check_stop()?;
         iterations += 1;
@@ -302,15 +393,25 @@ where
             if updates == 0 {
                 // No step lowers the cost: a (local) optimum, where the
                 // Jacobian is the one just used.
-                return Ok(stop(x, r, cost, iterations, evaluations, false, Some(jac)));
+                return Ok(stop(
+                    x,
+                    r,
+                    cost,
+                    iterations,
+                    evaluations,
+                    derivative_replays,
+                    false,
+                    Some(jac),
+                ));
             }
             // The updated Jacobian found no lower cost: difference anew,
             // with the damping the failed trials started from (their
             // rejections judged the updated Jacobian, not the point).
             lambda = lambda_before;
             opts.check_stop()?;
-            jac = jacobian(f, &x, &r, opts.step)?;
-            evaluations += n;
+            let (j, cost_j) = jac_at(&x, &r)?;
+            jac = j;
+            cost_j.count(&mut evaluations, &mut derivative_replays);
             updates = 0;
             continue;
         };
@@ -327,19 +428,38 @@ where
         r = rt;
         cost = new_cost;
         if converged && updates == 0 {
-            return Ok(stop(x, r, cost, iterations, evaluations, false, None));
+            return Ok(stop(
+                x,
+                r,
+                cost,
+                iterations,
+                evaluations,
+                derivative_replays,
+                false,
+                None,
+            ));
         }
         opts.check_stop()?;
         if difference {
-            jac = jacobian(f, &x, &r, opts.step)?;
-            evaluations += n;
+            let (j, cost_j) = jac_at(&x, &r)?;
+            jac = j;
+            cost_j.count(&mut evaluations, &mut derivative_replays);
             updates = 0;
         } else {
             updates += 1;
         }
     }
     let known = (updates == 0).then_some(jac);
-    Ok(stop(x, r, cost, iterations, evaluations, true, known))
+    Ok(stop(
+        x,
+        r,
+        cost,
+        iterations,
+        evaluations,
+        derivative_replays,
+        true,
+        known,
+    ))
 }
 
 /// Trials (λ raised tenfold after each) a step from an updated Jacobian

@@ -225,8 +225,13 @@ pub struct StageReport {
     pub name: String,
     /// Minimiser iterations (both passes).
     pub iterations: usize,
-    /// Replays.
+    /// Plain replays (the residuals once each; forward differences one
+    /// per parameter).
     pub evaluations: usize,
+    /// Replays carrying the derivatives with respect to every fitted
+    /// parameter, each giving a Jacobian (the mechanics stage; one costs
+    /// about four to five plain replays, docs/benchmarks.md).
+    pub derivative_replays: usize,
     /// Residuals.
     pub residuals: usize,
     /// rms of the scaled residuals at the optimum.
@@ -845,6 +850,7 @@ fn electrical_stage(
         name: "electrical".into(),
         iterations: 1,
         evaluations: 0,
+        derivative_replays: 0,
         residuals: 0,
         rms_scaled: 0.0,
         stopped_by_budget: false,
@@ -929,6 +935,7 @@ fn thermal_stage(
         halves: Some(&blocks),
         elsewhere: None,
         secant: false,
+        jacobian: None,
     }
     .run(found, prior, opts)
 }
@@ -948,6 +955,7 @@ fn mechanics_stage(
 ) -> Result<(), IdentifyError> {
     let fit_frames = frames(part.log, part.map.plane, part.rows);
     let mech = mechanics_residuals(part, opts, &fit_frames);
+    let mech_jacobian = mechanics_jacobian(part, opts, &fit_frames);
     // The mechanics residuals' layout: the fitted frames, then the
     // resistances row by row (both coils). Were a frame to have no
     // prediction, the lengths would differ and `Stage` would fall back to
@@ -1016,6 +1024,7 @@ fn mechanics_stage(
             plane: part.map.plane,
         }),
         secant: true,
+        jacobian: Some(&mech_jacobian),
     }
     .run(found, prior, opts)?;
     if let Some(st) = found.stages.last_mut() {
@@ -1090,6 +1099,56 @@ fn mechanics_residuals<'a>(
     }
 }
 
+/// A Jacobian's columns, one per parameter.
+type Columns = Result<Vec<Vec<f64>>, IdentifyError>;
+
+/// The Jacobian of [`mechanics_residuals`] with respect to the
+/// coordinates of `active` at a model, from one replay carrying their
+/// derivatives ([`replay::replay_sensitivities`]) instead of one replay
+/// per parameter moved (issue 34); `None` where a parameter is not one a
+/// replay carries.
+fn mechanics_jacobian<'a>(
+    part: &'a FitPart,
+    opts: &IdentifyOptions,
+    fit_frames: &'a [(f64, f64)],
+) -> impl Fn(&PlaneModel, &[Param]) -> Option<Columns> + Sync + 'a {
+    let (log, map, fit_rows) = (part.log, part.map, part.rows);
+    let sig_a = opts.angle_sigma_deg;
+    let sig_r = opts.resistance_sigma_ohm;
+    move |m: &PlaneModel, active: &[Param]| {
+        if active.is_empty() || !active.iter().all(|p| replay::carries_derivative(*p)) {
+            return None;
+        }
+        Some((|| {
+            // The substep boundary of each frame, as Prediction::angle_at
+            // finds it.
+            let (_, h_s) = replay::split(log.period_s, m.substep_s);
+            let at: Vec<usize> = fit_frames
+                .iter()
+                .map(|(t, _)| (t / h_s - 1e-6).ceil().max(0.0) as usize)
+                .collect();
+            let s = replay::replay_sensitivities(m, log, map, fit_rows, active, &at)?;
+            let frames = s.angle_deg.len();
+            Ok(active
+                .iter()
+                .enumerate()
+                .map(|(j, _)| {
+                    let mut col: Vec<f64> = s.angle_deg_d[j][..frames]
+                        .iter()
+                        .map(|d| d / sig_a)
+                        .collect();
+                    if log.resistance_ohm.is_some() {
+                        for r in &s.resistance_ohm_d[j] {
+                            col.extend(r.iter().map(|d| d / sig_r));
+                        }
+                    }
+                    col
+                })
+                .collect())
+        })())
+    }
+}
+
 /// Stage 3: wire jamming from the wire readings. The jamming parameters
 /// do not move the link, so the wires' paths come from one replay of the
 /// stage-2 plane; each evaluation then averages the random sensor over
@@ -1136,6 +1195,7 @@ fn wire_stage(
         halves: Some(&part.row_blocks(map.sensors.len())),
         elsewhere: None,
         secant: false,
+        jacobian: None,
     }
     .run(found, prior, opts)
 }

@@ -28,9 +28,13 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::log::ExcitationLog;
+use super::params::{Param, Scale};
 use super::IdentifyError;
 use crate::wire_sensor::JamState;
-use crate::{PlanarJoint, PlaneParams, SmaCoil, SmaParams, WireSensor, WireSensorParams};
+use crate::{
+    PlanarJoint, PlaneParams, PlaneSeeds, SmaCoil, SmaParams, WireSensor, WireSensorParams,
+};
+use plant_common::scalar::{Dual, Scalar};
 use plant_common::three_element::StepLength;
 
 /// Which coils and sensors of a log belong to one plane.
@@ -357,6 +361,166 @@ fn replay_inner(
         }
     }
     out.angle_deg.push(plane.angle_rad().to_degrees());
+    Ok(out)
+}
+
+/// Whether a replay can carry the derivatives of the prediction with
+/// respect to `p` ([`replay_sensitivities`]): the plane's parameters the
+/// mechanics stage fits.
+pub fn carries_derivative(p: Param) -> bool {
+    matches!(
+        p,
+        Param::Transconductance
+            | Param::Convection
+            | Param::AusteniteStart
+            | Param::AusteniteFinish
+            | Param::MartensiteStart
+            | Param::MartensiteFinish
+            | Param::StressShift
+            | Param::SpongeModulus
+            | Param::SpongeDamping
+            | Param::LinkInertia
+    )
+}
+
+/// A replay's predictions with their derivatives with respect to the
+/// coordinates of some parameters ([`Param::to_coord`]): what the
+/// mechanics stage needs for its Jacobian, in one replay instead of one
+/// per parameter moved a little (issue 34).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Sensitivities {
+    /// The predicted angle (deg) at each substep boundary asked for
+    /// (those of the plane's replay ([`Prediction::angle_deg`]), in the
+    /// order asked; a boundary past the replay is left out).
+    pub angle_deg: Vec<f64>,
+    /// Its derivatives, one vector per parameter, one entry per angle.
+    pub angle_deg_d: Vec<Vec<f64>>,
+    /// Coil resistances at each row start (Ω), [raising, lowering].
+    pub resistance_ohm: Vec<[f64; 2]>,
+    /// Their derivatives: per parameter, per row, [raising, lowering].
+    pub resistance_ohm_d: Vec<Vec<[f64; 2]>>,
+}
+
+/// [`replay`] of rows `0..rows` with the plane's parameters `active`
+/// carried as dual numbers (each must [`carries_derivative`]): the angles
+/// at the substep boundaries `at` (ascending; the indices of
+/// [`Prediction::angle_deg`]) and the resistances at the row starts, with
+/// their derivatives with respect to the parameters' coordinates (for a
+/// parameter on a log scale, `v·∂/∂v`). Every value is the plain replay's
+/// to the bit (the same operations); the derivatives are those of the
+/// plane's own substep (`link::tests`). More than 10 parameters are
+/// refused.
+pub fn replay_sensitivities(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+    active: &[Param],
+    at: &[usize],
+) -> Result<Sensitivities, IdentifyError> {
+    if let Some(p) = active.iter().find(|p| !carries_derivative(**p)) {
+        return Err(IdentifyError::Log(format!(
+            "a replay cannot carry the derivative with respect to {}",
+            p.field()
+        )));
+    }
+    // Lanes in even numbers: nine in ten take less time than in nine
+    // (the vectorised tangents need no odd lane; 4.25 against 4.60 plain
+    // substeps, docs/benchmarks.md).
+    match active.len() {
+        0..=2 => sensitivities::<2>(model, log, map, rows, active, at),
+        3..=4 => sensitivities::<4>(model, log, map, rows, active, at),
+        5..=6 => sensitivities::<6>(model, log, map, rows, active, at),
+        7..=8 => sensitivities::<8>(model, log, map, rows, active, at),
+        9..=10 => sensitivities::<10>(model, log, map, rows, active, at),
+        n => Err(IdentifyError::Log(format!(
+            "a replay carries at most 10 derivatives, {n} asked"
+        ))),
+    }
+}
+
+/// [`replay_sensitivities`] with `N` ≥ `active.len()` lanes.
+fn sensitivities<const N: usize>(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+    active: &[Param],
+    at: &[usize],
+) -> Result<Sensitivities, IdentifyError> {
+    let rows = rows.min(log.len());
+    let p = &model.plane;
+    let mut seeds = PlaneSeeds::<Dual<N>>::constants(p);
+    for (k, &param) in active.iter().enumerate() {
+        let v = param.get(model);
+        // ∂v/∂coordinate: v on a log scale, 1 on a linear one.
+        let dv = match param.scale() {
+            Scale::Log { .. } => v,
+            Scale::Linear { .. } => 1.0,
+        };
+        let mut seed = Dual::<N>::cst(v);
+        seed.d[k] = dv;
+        match param {
+            Param::Transconductance => seeds.transconductance_a_v = seed,
+            Param::Convection => seeds.coil.convection_w_m2_k = seed,
+            Param::AusteniteStart => seeds.coil.transformation_c[0] = seed,
+            Param::AusteniteFinish => seeds.coil.transformation_c[1] = seed,
+            Param::MartensiteStart => seeds.coil.transformation_c[2] = seed,
+            Param::MartensiteFinish => seeds.coil.transformation_c[3] = seed,
+            Param::StressShift => seeds.coil.stress_shift_k_per_mpa = seed,
+            Param::SpongeModulus => seeds.sponge_modulus_pa = seed,
+            Param::SpongeDamping => seeds.sponge_damping_s = seed,
+            Param::LinkInertia => seeds.link_inertia_kg_m2 = seed,
+            _ => unreachable!("refused by replay_sensitivities"),
+        }
+    }
+    let mut plane = PlanarJoint::with_seeds(p.clone(), seeds)?;
+    let name = if map.plane == 0 { "alpha" } else { "beta" };
+    let limit_j = 0.5;
+    if model.settle_s > 0.0 {
+        let (n, h) = split(model.settle_s, model.substep_s);
+        let h = step_length(h)?;
+        for _ in 0..n {
+            plane.substep(h, [0.0; 2]);
+            plane.check(name, limit_j)?;
+        }
+    }
+    let (n, h_s) = split(log.period_s, model.substep_s);
+    let h = step_length(h_s)?;
+    let lanes = active.len();
+    let mut out = Sensitivities {
+        angle_deg: Vec::with_capacity(at.len()),
+        angle_deg_d: vec![Vec::with_capacity(at.len()); lanes],
+        resistance_ohm: Vec::with_capacity(rows),
+        resistance_ohm_d: vec![Vec::with_capacity(rows); lanes],
+    };
+    let mut wanted = at.iter().copied().peekable();
+    let mut record = |boundary: usize, a: Dual<N>, out: &mut Sensitivities| {
+        while wanted.next_if(|&k| k == boundary).is_some() {
+            let deg = a * (180.0f64 / core::f64::consts::PI);
+            out.angle_deg.push(deg.v);
+            for (j, d) in out.angle_deg_d.iter_mut().enumerate() {
+                d.push(deg.d[j]);
+            }
+        }
+    };
+    let mut boundary = 0;
+    for k in 0..rows {
+        let c = plane.coils();
+        let r = [c[0].resistance_ohm(), c[1].resistance_ohm()];
+        out.resistance_ohm.push([r[0].v, r[1].v]);
+        for (j, d) in out.resistance_ohm_d.iter_mut().enumerate() {
+            d.push([r[0].d[j], r[1].d[j]]);
+        }
+        let v = [log.volts[k][map.coils[0]], log.volts[k][map.coils[1]]];
+        for _ in 0..n {
+            record(boundary, plane.angle_rad(), &mut out);
+            plane.substep(h, v);
+            plane.check(name, limit_j)?;
+            boundary += 1;
+        }
+    }
+    record(boundary, plane.angle_rad(), &mut out);
     Ok(out)
 }
 

@@ -78,7 +78,17 @@ pub(super) struct Stage<'a, F> {
     /// between forward differences (`opts.lm.secant_updates` of them;
     /// without, every iteration differences it).
     pub secant: bool,
+    /// The Jacobian of the residuals with respect to the coordinates of
+    /// the parameters given, at a model, where it can be had otherwise
+    /// than by forward differences (the mechanics stage's replay
+    /// carrying derivatives); `None` for a parameter set it cannot take.
+    pub jacobian: Option<&'a Jacobian<'a>>,
 }
+
+/// A stage's Jacobian at a model with respect to the coordinates of
+/// `active`, or `None` where it has none for them ([`Stage::jacobian`]).
+pub(super) type Jacobian<'a> =
+    dyn Fn(&PlaneModel, &[Param]) -> Option<Result<Vec<Vec<f64>>, IdentifyError>> + Sync + 'a;
 
 /// Fits from several starts run elsewhere: by `fits`, as units of plane
 /// `plane`.
@@ -122,6 +132,7 @@ struct BestFit {
     others: Vec<(Vec<f64>, f64)>,
     iterations: usize,
     evaluations: usize,
+    derivative_replays: usize,
 }
 
 /// `base` with the parameters `params` at the coordinates `x`.
@@ -156,6 +167,7 @@ where
         let mut dropped: Vec<Dropped> = Vec::new();
         let mut iterations = 0;
         let mut evaluations = 0;
+        let mut derivative_replays = 0;
         let mut last: Option<LmResult> = None;
         let mut kept = None;
         let mut best_start = 0;
@@ -172,6 +184,7 @@ where
             let fit = self.best_of(&base, &active, &x0s, prior, opts)?;
             iterations += fit.iterations;
             evaluations += fit.evaluations;
+            derivative_replays += fit.derivative_replays;
             if pass == 0 {
                 best_start = fit.start;
             }
@@ -208,6 +221,7 @@ where
             name: self.name.into(),
             iterations,
             evaluations,
+            derivative_replays,
             residuals: r.m,
             rms_scaled: (r.cost / r.m.max(1) as f64).sqrt(),
             stopped_by_budget: r.stopped_by_budget,
@@ -245,6 +259,20 @@ where
             ..opts.lm
         };
         let f = |x: &[f64]| (self.residuals)(&with_coords(base, active, x));
+        let f = lm_opts.stoppable(&f);
+        let differenced = lm::differences(&f, lm_opts.step);
+        // The stage's own Jacobian where it has one for these parameters
+        // (a replay carrying derivatives: one evaluation), differences
+        // otherwise.
+        let jac = |x: &[f64], r0: &[f64]| -> Result<lm::Costed, IdentifyError> {
+            match self
+                .jacobian
+                .and_then(|j| j(&with_coords(base, active, x), active))
+            {
+                Some(columns) => Ok((columns?, lm::JacobianCost::DerivativeReplay)),
+                None => differenced(x, r0),
+            }
+        };
         let mut minima: Vec<(usize, lm::Minimum)> = Vec::new();
         let mut iterations = 0;
         let mut evaluations = 0;
@@ -286,7 +314,7 @@ where
                 }
                 None => x0s
                     .par_iter()
-                    .map(|x0| lm::minimise(&f, x0, lm_opts))
+                    .map(|x0| lm::minimise_with(&f, &jac, x0, lm_opts))
                     .collect(),
             };
         // A fit the caller stopped ends the stage: the other starts' best
@@ -297,11 +325,13 @@ where
         {
             return Err(IdentifyError::Stopped);
         }
+        let mut derivative_replays = 0;
         for (k, fit) in fits.into_iter().enumerate() {
             match fit {
                 Ok(r) => {
                     iterations += r.iterations;
                     evaluations += r.evaluations;
+                    derivative_replays += r.derivative_replays;
                     minima.push((k, r));
                 }
                 Err(e) => {
@@ -319,10 +349,11 @@ where
             }
         }) {
             let (k, minimum) = minima.remove(best);
-            let before = minimum.evaluations;
-            match minimum.finish(&f, lm_opts) {
+            let before = (minimum.evaluations, minimum.derivative_replays);
+            match minimum.finish_with(&f, &jac, lm_opts) {
                 Ok(result) => {
-                    evaluations += result.evaluations - before;
+                    evaluations += result.evaluations - before.0;
+                    derivative_replays += result.derivative_replays - before.1;
                     let others = minima.iter().map(|(_, o)| (o.x.clone(), o.cost)).collect();
                     return Ok(BestFit {
                         result,
@@ -330,6 +361,7 @@ where
                         others,
                         iterations,
                         evaluations,
+                        derivative_replays,
                     });
                 }
                 Err(e) => {

@@ -21,7 +21,9 @@ use serde::{Deserialize, Serialize};
 use super::lm::{self, LmOptions};
 use super::replay::{PlaneMap, PlaneModel};
 use super::stage::with_coords;
-use super::{frames, mechanics_residuals, FitPart, IdentifyError, IdentifyOptions, Param};
+use super::{
+    frames, mechanics_jacobian, mechanics_residuals, FitPart, IdentifyError, IdentifyOptions, Param,
+};
 
 /// A fit of the mechanics stage from one starting point.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -71,6 +73,9 @@ pub struct StartFit {
     pub iterations: usize,
     /// Residual evaluations.
     pub evaluations: usize,
+    /// Jacobians from a replay carrying derivatives.
+    #[serde(default)]
+    pub derivative_replays: usize,
     /// Ran out of iterations.
     pub stopped_by_budget: bool,
     /// The minimiser had the Jacobian at `x` (so the caller recomputes it
@@ -198,13 +203,24 @@ impl StartUnit {
         let part = FitPart::new(log, PlaneMap::of(log.planes, self.plane), opts.fit_fraction)?;
         let fit_frames = frames(log, self.plane, part.rows);
         let mech = mechanics_residuals(&part, &opts, &fit_frames);
+        let mech_jacobian = mechanics_jacobian(&part, &opts, &fit_frames);
         let f = |x: &[f64]| mech(&with_coords(&base, &active, x));
-        let m = lm::minimise(&f, &floats(&self.x0), opts.lm)?;
+        let f = opts.lm.stoppable(&f);
+        let differenced = lm::differences(&f, opts.lm.step);
+        // As the stage's own fits take their Jacobian (stage::Stage::jacobian).
+        let jac = |x: &[f64], r0: &[f64]| -> Result<lm::Costed, IdentifyError> {
+            match mech_jacobian(&with_coords(&base, &active, x), &active) {
+                Some(columns) => Ok((columns?, lm::JacobianCost::DerivativeReplay)),
+                None => differenced(x, r0),
+            }
+        };
+        let m = lm::minimise_with(&f, &jac, &floats(&self.x0), opts.lm)?;
         Ok(StartFit {
             x: bits(&m.x),
             cost: m.cost.to_bits(),
             iterations: m.iterations,
             evaluations: m.evaluations,
+            derivative_replays: m.derivative_replays,
             stopped_by_budget: m.stopped_by_budget,
             jacobian_known: m.jacobian_known(),
         })
