@@ -601,6 +601,7 @@ mod tests {
             ftol: 1e-4f64.to_bits(),
             step: 1e-3f64.to_bits(),
             secant_updates: 2,
+            derivative_jacobians: false,
         }
     }
 

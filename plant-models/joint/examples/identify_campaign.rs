@@ -27,6 +27,9 @@
 //! called identifiable is written there with its
 //! signed distance from the truth in its own 1σ (what the 1σ's
 //! calibration is measured from).
+//! With `CAMPAIGN_JACOBIANS=derivatives` the mechanics stage takes its
+//! Jacobians from replays carrying derivatives
+//! (`IdentifyOptions::derivative_jacobians`).
 //! With `CAMPAIGN_PLAN=adapted`, each twin records the probe first
 //! (`ExcitationPlan::probe`) and then the plan adapted to what the probe
 //! found (`ExcitationPlan::adapted`, the firmware's default budget), as
@@ -121,6 +124,10 @@ fn main() {
     let seconds = parse(2, 240.0);
     let first = parse(3, 0.0) as u64;
     let adapted = std::env::var("CAMPAIGN_PLAN").is_ok_and(|v| v == "adapted");
+    let opts = IdentifyOptions {
+        derivative_jacobians: std::env::var("CAMPAIGN_JACOBIANS").is_ok_and(|v| v == "derivatives"),
+        ..IdentifyOptions::default()
+    };
     if adapted {
         println!("plan: each twin's probe recorded and analysed, the plan adapted to it");
     }
@@ -145,9 +152,8 @@ fn main() {
         if let Some(e) = refused {
             println!("twin {k}: probe refused ({e}); the standard plan instead");
         }
-        let run = twin::record_3d(&h, &plan, true, NOISE).and_then(|log| {
-            identify::identify_3d(&log, &Joint3dParams::default(), &IdentifyOptions::default())
-        });
+        let run = twin::record_3d(&h, &plan, true, NOISE)
+            .and_then(|log| identify::identify_3d(&log, &Joint3dParams::default(), &opts));
         let (_, reports) = run.unwrap_or_else(|e| {
             eprintln!("twin {k}: {e}");
             std::process::exit(2)

@@ -159,6 +159,14 @@ pub struct IdentifyOptions {
     /// over ([`replay::expected_wire_readings`]); each costs a pass of the
     /// wire model (not the plane) over the log per evaluation.
     pub stick_realisations: usize,
+    /// The mechanics stage's Jacobians from one replay carrying the
+    /// derivatives with respect to every fitted parameter
+    /// ([`replay::replay_sensitivities`]) instead of one replay per
+    /// parameter moved (forward differences). Off by default: about a
+    /// quarter less CPU on the twins' campaign, but the fits take other
+    /// paths through a landscape of nearly equal minima, and one plane in
+    /// forty ends at another one (docs/benchmarks.md, session 52).
+    pub derivative_jacobians: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -173,6 +181,7 @@ impl Default for IdentifyOptions {
             angle_sigma_deg: 0.1,
             resistance_sigma_ohm: 0.02,
             stick_realisations: replay::STICK_REALISATIONS,
+            derivative_jacobians: false,
         }
     }
 }
@@ -1024,7 +1033,11 @@ fn mechanics_stage(
             plane: part.map.plane,
         }),
         secant: true,
-        jacobian: Some(&mech_jacobian),
+        jacobian: if opts.derivative_jacobians {
+            Some(&mech_jacobian)
+        } else {
+            None
+        },
     }
     .run(found, prior, opts)?;
     if let Some(st) = found.stages.last_mut() {

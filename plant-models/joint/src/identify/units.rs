@@ -56,6 +56,10 @@ pub struct StartUnit {
     pub step: u64,
     /// Its secant updates between forward-difference Jacobians.
     pub secant_updates: usize,
+    /// Jacobians from a replay carrying derivatives
+    /// ([`IdentifyOptions::derivative_jacobians`]).
+    #[serde(default)]
+    pub derivative_jacobians: bool,
 }
 
 /// Where a fit from one start ended: what [`lm::minimise`] returns, less
@@ -156,6 +160,7 @@ impl StartUnit {
             ftol: lm.ftol.to_bits(),
             step: lm.step.to_bits(),
             secant_updates: lm.secant_updates,
+            derivative_jacobians: opts.derivative_jacobians,
         })
     }
 
@@ -173,6 +178,7 @@ impl StartUnit {
                 secant_updates: self.secant_updates,
                 stop: None,
             },
+            derivative_jacobians: self.derivative_jacobians,
             ..IdentifyOptions::default()
         }
     }
@@ -209,7 +215,11 @@ impl StartUnit {
         let differenced = lm::differences(&f, opts.lm.step);
         // As the stage's own fits take their Jacobian (stage::Stage::jacobian).
         let jac = |x: &[f64], r0: &[f64]| -> Result<lm::Costed, IdentifyError> {
-            match mech_jacobian(&with_coords(&base, &active, x), &active) {
+            let derived = opts
+                .derivative_jacobians
+                .then(|| mech_jacobian(&with_coords(&base, &active, x), &active))
+                .flatten();
+            match derived {
                 Some(columns) => Ok((columns?, lm::JacobianCost::DerivativeReplay)),
                 None => differenced(x, r0),
             }

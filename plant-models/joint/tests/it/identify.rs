@@ -143,11 +143,10 @@ fn compact_twin_2d_recovers_driver_temperatures_slope_and_sponge() {
 
 /// The mechanics stage's secant updates (`LmOptions::secant_updates`, 4
 /// by default) against the textbook method (0) on the compact 2D twin,
-/// fits run to convergence: fewer Jacobians (each a replay carrying the
-/// derivatives, which costs several plain ones), the same verdict, the
-/// same parameters called identifiable and every estimate within its 1σ
-/// of the textbook one. (Timings on longer logs: docs/benchmarks.md,
-/// "Identification with secant updates" and session 52.)
+/// fits run to convergence: fewer mechanics replays, the same verdict,
+/// the same parameters called identifiable and every estimate within its
+/// 1σ of the textbook one. (Timings on longer logs: docs/benchmarks.md,
+/// "Identification with secant updates".)
 #[test]
 #[ignore = "two identifications of the compact twin to convergence (≈ 10 CPU-s in ci-opt); CI runs it with the twins"]
 fn secant_updates_save_mechanics_replays_on_the_compact_twin() {
@@ -171,16 +170,19 @@ fn secant_updates_save_mechanics_replays_on_the_compact_twin() {
     let mechanics = |r: &PlaneReport| {
         let st = r.stages.iter().find(|s| s.name == "mechanics").unwrap();
         assert!(!st.stopped_by_budget, "{st:?}");
-        (st.evaluations, st.derivative_replays)
+        assert_eq!(st.derivative_replays, 0, "differences by default");
+        st.evaluations
     };
     let (a, b) = (mechanics(&textbook), mechanics(&secant));
-    eprintln!(
-        "mechanics (plain replays, replays with derivatives): textbook {a:?}, secant updates {b:?}"
-    );
-    assert!(
-        b.1 < a.1,
-        "mechanics Jacobians: textbook {a:?}, secant updates {b:?}"
-    );
+    eprintln!("mechanics replays: textbook {a}, secant updates {b}");
+    assert!(b < a, "mechanics replays: textbook {a}, secant updates {b}");
+    same_answers(&textbook, &secant);
+}
+
+/// The verdict, the parameters called identifiable and every estimate
+/// within its 1σ of `reference`'s.
+fn same_answers(reference: &PlaneReport, other: &PlaneReport) {
+    let (textbook, secant) = (reference, other);
     assert_eq!(textbook.verdict.verified, secant.verdict.verified);
     assert_eq!(textbook.estimates.len(), secant.estimates.len());
     for t in &textbook.estimates {
@@ -197,6 +199,43 @@ fn secant_updates_save_mechanics_replays_on_the_compact_twin() {
             );
         }
     }
+}
+
+/// The mechanics stage's Jacobians from a replay carrying derivatives
+/// (`IdentifyOptions::derivative_jacobians`) against forward differences
+/// on the compact 2D twin: far fewer plain replays (each Jacobian one
+/// replay with derivatives instead of one per parameter), the same
+/// verdict, the same parameters called identifiable and every estimate
+/// within its 1σ of the differenced fit.
+#[test]
+#[ignore = "two identifications of the compact twin to convergence (≈ 10 CPU-s in ci-opt); CI runs it with the twins"]
+fn derivative_jacobians_reach_the_differenced_fit_on_the_compact_twin() {
+    let hidden = hidden::joint_2d(3);
+    let log = twin::record_2d(&hidden, &ExcitationPlan::compact(1), true, NOISE).unwrap();
+    let run = |derivative_jacobians| {
+        let opts = IdentifyOptions {
+            derivative_jacobians,
+            ..IdentifyOptions::default()
+        };
+        let (_, mut reports) =
+            identify::identify_2d(&log, &Joint2dParams::default(), &opts).unwrap();
+        let r = reports.remove(0);
+        let st = r.stages.iter().find(|s| s.name == "mechanics").unwrap();
+        assert!(!st.stopped_by_budget, "{st:?}");
+        let counts = (st.evaluations, st.derivative_replays);
+        (r, counts)
+    };
+    let (differenced, a) = run(false);
+    let (derived, b) = run(true);
+    eprintln!(
+        "mechanics (plain replays, replays with derivatives): differences {a:?}, derivatives {b:?}"
+    );
+    assert_eq!(a.1, 0);
+    assert!(
+        b.1 > 0 && b.0 < a.0 / 2,
+        "differences {a:?}, derivatives {b:?}"
+    );
+    same_answers(&differenced, &derived);
 }
 
 /// The 10-minute standard plan on the hidden 2D joint, electrical columns
