@@ -887,7 +887,6 @@ impl<S: Scalar> SmaCoil<S> {
 
     /// Recomputes the phase-mixed properties for the present ξ (each mixed
     /// linearly by phase).
-    #[inline(always)]
     fn refresh_mix(&mut self) {
         let xi = self.martensite_fraction;
         let p = &self.params;
@@ -940,7 +939,7 @@ impl<S: Scalar> SmaCoil<S> {
 
     /// Axial tension (N) at `length_m` stretching at `rate_m_s`; a coil
     /// shorter than its rest length is slack (no push).
-    #[inline(always)]
+    #[inline]
     pub fn tension_n(&self, length_m: S, rate_m_s: S) -> S {
         let stretch = length_m - self.rest_length_m();
         if stretch.val() <= 0.0 {
@@ -972,7 +971,7 @@ impl<S: Scalar> SmaCoil<S> {
     /// Advances the thermal and phase state by `dt_s` with `current_a`
     /// flowing. With `freeze_phase`, ξ (and so R) stays fixed and no latent
     /// heat is exchanged — the case with a closed-form answer.
-    #[inline(always)]
+    #[inline]
     pub fn step(&mut self, dt_s: f64, current_a: S, freeze_phase: bool) {
         if dt_s != self.cached_dt_s {
             self.cached_dt_s = dt_s;
