@@ -369,18 +369,16 @@ where
     // (0: it is the forward-difference Jacobian at `x`).
     let mut updates = 0;
     let stop =
-        |x, r, cost, iterations, evaluations, derivative_replays, stopped_by_budget, jacobian| {
-            Minimum {
-                x,
-                cost,
-                residuals: r,
-                iterations,
-                evaluations,
-                derivative_replays,
-                stopped_by_budget,
-                jacobian,
-                jacobian_elsewhere: false,
-            }
+        |x, r, cost, (iterations, evaluations, derivative_replays), budget, jacobian| Minimum {
+            x,
+            cost,
+            residuals: r,
+            iterations,
+            evaluations,
+            derivative_replays,
+            stopped_by_budget: budget,
+            jacobian,
+            jacobian_elsewhere: false,
         };
     while iterations < opts.max_iterations {
         opts.check_stop()?;
@@ -397,9 +395,7 @@ where
                     x,
                     r,
                     cost,
-                    iterations,
-                    evaluations,
-                    derivative_replays,
+                    (iterations, evaluations, derivative_replays),
                     false,
                     Some(jac),
                 ));
@@ -432,9 +428,7 @@ where
                 x,
                 r,
                 cost,
-                iterations,
-                evaluations,
-                derivative_replays,
+                (iterations, evaluations, derivative_replays),
                 false,
                 None,
             ));
@@ -454,9 +448,7 @@ where
         x,
         r,
         cost,
-        iterations,
-        evaluations,
-        derivative_replays,
+        (iterations, evaluations, derivative_replays),
         true,
         known,
     ))

@@ -238,6 +238,50 @@ where
         Ok(())
     }
 
+    /// The fits from `x0s` run as units by `e` ([`super::units`]): every
+    /// fit that came back is replayed here once at its minimiser (in
+    /// parallel) and must reproduce its cost — one that does not ends the
+    /// stage, since it would decide the selection and the starts check.
+    #[allow(clippy::too_many_arguments)] // what a unit is built from
+    #[allow(clippy::type_complexity)] // one fit's result per start
+    fn fits_elsewhere<G>(
+        &self,
+        e: Elsewhere<'_>,
+        base: &PlaneModel,
+        active: &[Param],
+        x0s: &[Vec<f64>],
+        prior: &PlaneModel,
+        opts: &IdentifyOptions,
+        lm_opts: LmOptions,
+        f: &G,
+    ) -> Result<Vec<Result<lm::Minimum, IdentifyError>>, IdentifyError>
+    where
+        G: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
+    {
+        let units = x0s
+            .iter()
+            .enumerate()
+            .map(|(k, x0)| StartUnit::new(e.plane, k, prior, base, active, x0, opts, lm_opts))
+            .collect::<Result<Vec<_>, _>>()?;
+        let answers = e.fits.fit(&units)?;
+        if answers.len() != units.len() {
+            return Err(IdentifyError::Remote(format!(
+                "{} answers for {} fits of the {} stage",
+                answers.len(),
+                units.len(),
+                self.name
+            )));
+        }
+        let taken: Vec<Result<Result<lm::Minimum, IdentifyError>, IdentifyError>> = answers
+            .into_par_iter()
+            .map(|a| match a {
+                Ok(fit) => lm::Minimum::from_unit(&fit, f, lm_opts).map(Ok),
+                Err(why) => Ok(Err(IdentifyError::Remote(why))),
+            })
+            .collect();
+        taken.into_iter().collect()
+    }
+
     /// Fits `active` from each of `x0s` (coordinates around `base`) and
     /// keeps the lowest cost, the first on a tie; the first error when no
     /// fit succeeded. Only the fit kept gets its final Jacobian (should it
@@ -281,37 +325,7 @@ where
         // taken in order.
         let fits: Vec<Result<lm::Minimum, IdentifyError>> =
             match self.elsewhere.filter(|_| x0s.len() > 1) {
-                Some(e) => {
-                    let units = x0s
-                        .iter()
-                        .enumerate()
-                        .map(|(k, x0)| {
-                            StartUnit::new(e.plane, k, prior, base, active, x0, opts, lm_opts)
-                        })
-                        .collect::<Result<Vec<_>, _>>()?;
-                    let answers = e.fits.fit(&units)?;
-                    if answers.len() != units.len() {
-                        return Err(IdentifyError::Remote(format!(
-                            "{} answers for {} fits of the {} stage",
-                            answers.len(),
-                            units.len(),
-                            self.name
-                        )));
-                    }
-                    // Every fit that came back is replayed here once at
-                    // its minimiser (in parallel) and must reproduce its
-                    // cost: one that does not ends the stage, since it
-                    // would decide the selection and the starts check.
-                    let taken: Vec<Result<Result<lm::Minimum, IdentifyError>, IdentifyError>> =
-                        answers
-                            .into_par_iter()
-                            .map(|a| match a {
-                                Ok(fit) => lm::Minimum::from_unit(&fit, &f, lm_opts).map(Ok),
-                                Err(why) => Ok(Err(IdentifyError::Remote(why))),
-                            })
-                            .collect();
-                    taken.into_iter().collect::<Result<Vec<_>, _>>()?
-                }
+                Some(e) => self.fits_elsewhere(e, base, active, x0s, prior, opts, lm_opts, &f)?,
                 None => x0s
                     .par_iter()
                     .map(|x0| lm::minimise_with(&f, &jac, x0, lm_opts))
