@@ -299,15 +299,14 @@ impl StickEvents {
     }
 }
 
-fn replay_inner(
+/// Settles a replay's plane as `Joint2d` and `Joint3d` do (coils off
+/// for `settle_s`, checked every substep); the plane's name and the
+/// kinetic-energy limit its replay checks with.
+fn settle<S: Scalar>(
+    plane: &mut PlanarJoint<S>,
     model: &PlaneModel,
-    log: &ExcitationLog,
     map: PlaneMap,
-    rows: usize,
-    wire_paths: bool,
-) -> Result<Prediction, IdentifyError> {
-    let rows = rows.min(log.len());
-    let mut plane = PlanarJoint::new(model.plane.clone())?;
+) -> Result<(&'static str, f64), IdentifyError> {
     let name = if map.plane == 0 { "alpha" } else { "beta" };
     let limit_j = 0.5;
     if model.settle_s > 0.0 {
@@ -318,6 +317,19 @@ fn replay_inner(
             plane.check(name, limit_j)?;
         }
     }
+    Ok((name, limit_j))
+}
+
+fn replay_inner(
+    model: &PlaneModel,
+    log: &ExcitationLog,
+    map: PlaneMap,
+    rows: usize,
+    wire_paths: bool,
+) -> Result<Prediction, IdentifyError> {
+    let rows = rows.min(log.len());
+    let mut plane = PlanarJoint::new(model.plane.clone())?;
+    let (name, limit_j) = settle(&mut plane, model, map)?;
     let b = plane.base_m();
     // Zeroed at the settled pose; only their geometry is used here.
     let wires = if wire_paths {
@@ -475,16 +487,7 @@ fn sensitivities<const N: usize>(
         }
     }
     let mut plane = PlanarJoint::with_seeds(p.clone(), seeds)?;
-    let name = if map.plane == 0 { "alpha" } else { "beta" };
-    let limit_j = 0.5;
-    if model.settle_s > 0.0 {
-        let (n, h) = split(model.settle_s, model.substep_s);
-        let h = step_length(h)?;
-        for _ in 0..n {
-            plane.substep(h, [0.0; 2]);
-            plane.check(name, limit_j)?;
-        }
-    }
+    let (name, limit_j) = settle(&mut plane, model, map)?;
     let (n, h_s) = split(log.period_s, model.substep_s);
     let h = step_length(h_s)?;
     let lanes = active.len();
