@@ -777,6 +777,19 @@ pub struct CoilSeeds<S> {
 }
 
 impl<S: Scalar> CoilSeeds<S> {
+    /// The seeds' values: convection, stress slope, A_s, A_f, M_s, M_f.
+    fn values(&self) -> [f64; 6] {
+        let [a_s, a_f, m_s, m_f] = self.transformation_c.map(S::val);
+        [
+            self.convection_w_m2_k.val(),
+            self.stress_shift_k_per_mpa.val(),
+            a_s,
+            a_f,
+            m_s,
+            m_f,
+        ]
+    }
+
     /// The parameters' values as constants (no derivatives).
     pub fn constants(p: &SmaParams) -> Self {
         Self {
@@ -826,17 +839,8 @@ impl<S: Scalar> SmaCoil<S> {
     /// seed carries its derivatives through every step).
     pub fn with_seeds(params: SmaParams, seeds: CoilSeeds<S>) -> Result<Self, PlantError> {
         params.validate("coil.")?;
-        let values = CoilSeeds::<f64>::constants(&params);
-        let seeded = [seeds.convection_w_m2_k, seeds.stress_shift_k_per_mpa]
-            .into_iter()
-            .chain(seeds.transformation_c)
-            .map(S::val)
-            .zip(
-                [values.convection_w_m2_k, values.stress_shift_k_per_mpa]
-                    .into_iter()
-                    .chain(values.transformation_c),
-            )
-            .all(|(a, b)| a.to_bits() == b.to_bits());
+        let own = CoilSeeds::<f64>::constants(&params).values();
+        let seeded = seeds.values().map(f64::to_bits) == own.map(f64::to_bits);
         if !seeded {
             return Err(PlantError::param(
                 "coil",

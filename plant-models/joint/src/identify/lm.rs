@@ -222,21 +222,14 @@ impl Minimum {
     {
         let f = opts.stoppable(f);
         let jac = differences(&f, opts.step);
-        self.finish_with(&f, &jac, opts)
+        self.finish_with(&jac, opts)
     }
 
     /// [`Minimum::finish`] with the Jacobian from `jac` ([`minimise_with`]).
-    pub fn finish_with<F, J>(
-        mut self,
-        f: &F,
-        jac: &J,
-        opts: LmOptions,
-    ) -> Result<LmResult, IdentifyError>
+    pub fn finish_with<J>(mut self, jac: &J, opts: LmOptions) -> Result<LmResult, IdentifyError>
     where
-        F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
         J: Fn(&[f64], &[f64]) -> Result<Costed, IdentifyError> + Sync,
     {
-        let _ = f;
         if self.jacobian_elsewhere {
             opts.check_stop()?;
             self.jacobian = Some(jac(&self.x, &self.residuals)?.0);
@@ -327,9 +320,11 @@ pub fn minimise<F>(f: &F, x0: &[f64], opts: LmOptions) -> Result<Minimum, Identi
 where
     F: Fn(&[f64]) -> Result<Vec<f64>, IdentifyError> + Sync,
 {
-    let f = opts.stoppable(f);
-    let jac = differences(&f, opts.step);
-    minimise_with(&f, &jac, x0, opts)
+    // The differences evaluate the stoppable residuals, as minimise_with's
+    // own evaluations do.
+    let stoppable = opts.stoppable(f);
+    let jac = differences(&stoppable, opts.step);
+    minimise_with(f, &jac, x0, opts)
 }
 
 /// [`minimise`] with the Jacobian, wherever the textbook method takes

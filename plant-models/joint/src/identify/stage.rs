@@ -364,7 +364,7 @@ where
         }) {
             let (k, minimum) = minima.remove(best);
             let before = (minimum.evaluations, minimum.derivative_replays);
-            match minimum.finish_with(&f, &jac, lm_opts) {
+            match minimum.finish_with(&jac, lm_opts) {
                 Ok(result) => {
                     evaluations += result.evaluations - before.0;
                     derivative_replays += result.derivative_replays - before.1;
