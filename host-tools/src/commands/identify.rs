@@ -136,12 +136,17 @@ pub struct JointArgs {
     /// file and report are the same as without it.
     #[arg(long, value_name = "ADDRESS")]
     ray: Option<String>,
-    /// Take the mechanics stage's Jacobians from one replay carrying the
-    /// derivatives with respect to every fitted parameter instead of one
-    /// replay per parameter moved: about a quarter less CPU on the twins,
-    /// but the fits take other paths and may end at another of several
-    /// nearly equal minima (the checks judge it as any other).
-    #[arg(long)]
+    /// Take the mechanics stage's Jacobians by forward differences (one
+    /// replay per fitted parameter, four secant updates between them), as
+    /// before session 53, instead of from one replay carrying the
+    /// derivatives with respect to every fitted parameter (the default:
+    /// about a third less CPU on the twins, the same verdicts; the fits
+    /// take other paths, so estimates differ within their 1σ).
+    #[arg(long, conflicts_with = "derivative_jacobians")]
+    differenced_jacobians: bool,
+    /// The default since session 53 (kept so that session 52's commands
+    /// still run).
+    #[arg(long, hide = true)]
     derivative_jacobians: bool,
 }
 
@@ -348,7 +353,8 @@ fn joint(a: JointArgs) -> anyhow::Result<()> {
             stop: Some(StopFlag(flag)),
             ..IdentifyOptions::default().lm
         },
-        derivative_jacobians: a.derivative_jacobians,
+        // (The two flags conflict: at most one is given.)
+        derivative_jacobians: a.derivative_jacobians || !a.differenced_jacobians,
         ..IdentifyOptions::default()
     };
     // Tens of seconds for a 10-minute log: a spinner with the time so far

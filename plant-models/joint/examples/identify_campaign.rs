@@ -27,9 +27,10 @@
 //! called identifiable is written there with its
 //! signed distance from the truth in its own 1σ (what the 1σ's
 //! calibration is measured from).
-//! With `CAMPAIGN_JACOBIANS=derivatives` the mechanics stage takes its
-//! Jacobians from replays carrying derivatives
-//! (`IdentifyOptions::derivative_jacobians`).
+//! With `CAMPAIGN_JACOBIANS=differences` the mechanics stage differences
+//! its Jacobians instead of taking them from replays carrying derivatives
+//! (`IdentifyOptions::derivative_jacobians`, the default since session
+//! 53).
 //! With `CAMPAIGN_PLAN=adapted`, each twin records the probe first
 //! (`ExcitationPlan::probe`) and then the plan adapted to what the probe
 //! found (`ExcitationPlan::adapted`, the firmware's default budget), as
@@ -125,7 +126,8 @@ fn main() {
     let first = parse(3, 0.0) as u64;
     let adapted = std::env::var("CAMPAIGN_PLAN").is_ok_and(|v| v == "adapted");
     let opts = IdentifyOptions {
-        derivative_jacobians: std::env::var("CAMPAIGN_JACOBIANS").is_ok_and(|v| v == "derivatives"),
+        derivative_jacobians: !std::env::var("CAMPAIGN_JACOBIANS")
+            .is_ok_and(|v| v == "differences"),
         ..IdentifyOptions::default()
     };
     if adapted {

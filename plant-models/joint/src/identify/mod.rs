@@ -142,6 +142,19 @@ impl From<PlantError> for IdentifyError {
 /// stick realisations).
 pub const SECANT_UPDATES: usize = 4;
 
+/// Secant updates between the Jacobians a replay carrying derivatives
+/// gives ([`IdentifyOptions::derivative_jacobians`]; the mechanics
+/// stage's default). Such a Jacobian costs about 4.3 plain replays
+/// instead of nine, and a fit takes a new one only where an updated one
+/// no longer finds a lower cost (a mechanics fit takes 15–20 steps, so
+/// ten is as many as it uses). Against four: 9.4–9.8 against 10.5–10.6
+/// CPU-s on the hidden scenario's 240 s log, and on the campaign of
+/// twins 0..20 (adapted plans) the same verdicts as differences, 40 of
+/// 40 planes verified, where four updates left one plane (twin 5's β) at
+/// another nearly equal minimum that failed its held-out check
+/// (docs/benchmarks.md, session 53).
+pub const DERIVATIVE_SECANT_UPDATES: usize = 10;
+
 /// Settings of an identification.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IdentifyOptions {
@@ -162,11 +175,15 @@ pub struct IdentifyOptions {
     /// The mechanics stage's Jacobians from one replay carrying the
     /// derivatives with respect to every fitted parameter
     /// ([`replay::replay_sensitivities`]) instead of one replay per
-    /// parameter moved (forward differences). Off by default: about a
-    /// quarter less CPU on the twins' campaign, but the fits take other
-    /// paths through a landscape of nearly equal minima, and one plane in
-    /// forty ends at another one (docs/benchmarks.md, session 52).
+    /// parameter moved (forward differences), with
+    /// `derivative_secant_updates` secant updates between them instead of
+    /// `lm.secant_updates`. On by default (session 53): a third less CPU
+    /// on the twins' campaign with the same verdicts (docs/benchmarks.md);
+    /// off, the fits are those of session 52 and before to the bit.
     pub derivative_jacobians: bool,
+    /// Secant updates between derived Jacobians
+    /// ([`DERIVATIVE_SECANT_UPDATES`] by default).
+    pub derivative_secant_updates: usize,
 }
 
 impl Default for IdentifyOptions {
@@ -181,7 +198,8 @@ impl Default for IdentifyOptions {
             angle_sigma_deg: 0.1,
             resistance_sigma_ohm: 0.02,
             stick_realisations: replay::STICK_REALISATIONS,
-            derivative_jacobians: false,
+            derivative_jacobians: true,
+            derivative_secant_updates: DERIVATIVE_SECANT_UPDATES,
         }
     }
 }

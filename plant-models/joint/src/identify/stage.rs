@@ -76,7 +76,9 @@ pub(super) struct Stage<'a, F> {
     pub elsewhere: Option<Elsewhere<'a>>,
     /// Whether its fits carry the Jacobian along by secant updates
     /// between forward differences (`opts.lm.secant_updates` of them;
-    /// without, every iteration differences it).
+    /// `opts.derivative_secant_updates` between the Jacobians of
+    /// `jacobian` where it has one; without, every iteration takes a new
+    /// Jacobian).
     pub secant: bool,
     /// The Jacobian of the residuals with respect to the coordinates of
     /// the parameters given, at a model, where it can be had otherwise
@@ -294,11 +296,14 @@ where
         prior: &PlaneModel,
         opts: &IdentifyOptions,
     ) -> Result<BestFit, IdentifyError> {
+        // Secant updates between Jacobians: as many as the stage's way of
+        // taking them pays for (derived ones cost less than differences
+        // and steer as well).
         let lm_opts = LmOptions {
-            secant_updates: if self.secant {
-                opts.lm.secant_updates
-            } else {
-                0
+            secant_updates: match (self.secant, self.jacobian.is_some()) {
+                (false, _) => 0,
+                (true, false) => opts.lm.secant_updates,
+                (true, true) => opts.derivative_secant_updates,
             },
             ..opts.lm
         };

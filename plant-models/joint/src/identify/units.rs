@@ -54,7 +54,7 @@ pub struct StartUnit {
     pub ftol: u64,
     /// Its forward-difference step, bits.
     pub step: u64,
-    /// Its secant updates between forward-difference Jacobians.
+    /// Its secant updates between Jacobians (differenced or derived).
     pub secant_updates: usize,
     /// Jacobians from a replay carrying derivatives
     /// ([`IdentifyOptions::derivative_jacobians`]).
