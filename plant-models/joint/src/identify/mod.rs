@@ -967,6 +967,20 @@ fn thermal_stage(
     .run(found, prior, opts)
 }
 
+/// The parameters the mechanics stage fits (g joins them where stage 1
+/// could not fit the driver).
+const MECHANICS_PARAMS: [Param; 9] = [
+    Param::Convection,
+    Param::AusteniteStart,
+    Param::AusteniteFinish,
+    Param::MartensiteStart,
+    Param::MartensiteFinish,
+    Param::StressShift,
+    Param::SpongeModulus,
+    Param::SpongeDamping,
+    Param::LinkInertia,
+];
+
 /// Stage 2: mechanics and the stress slope from the camera angles (and
 /// the resistances where logged), from the starting points of
 /// [`mechanics_starts`]; g joins it when stage 1 could not fit it. Where
@@ -993,17 +1007,7 @@ fn mechanics_stage(
             mech_blocks.extend([part.block_of(k as f64 * part.log.period_s); 2]);
         }
     }
-    let mut free = vec![
-        Param::Convection,
-        Param::AusteniteStart,
-        Param::AusteniteFinish,
-        Param::MartensiteStart,
-        Param::MartensiteFinish,
-        Param::StressShift,
-        Param::SpongeModulus,
-        Param::SpongeDamping,
-        Param::LinkInertia,
-    ];
+    let mut free = MECHANICS_PARAMS.to_vec();
     // Without a driver regression (no current column, or no spread of
     // unsaturated inputs in the fitted part) g is fitted here, from the
     // angles and resistances, as for a log without electrical columns;
@@ -1368,9 +1372,8 @@ mod tests {
     /// substep late already fail (1.7·10⁻³).
     #[test]
     fn the_derived_mechanics_jacobian_is_the_residuals_own() {
-        // With the electrical columns (the replay drives the coils with
-        // the logged currents, so g does not move it) the stage's nine
-        // parameters; without them (angles only) g too.
+        // With the electrical columns the stage's nine parameters (g is
+        // fitted by stage 1 then); without them (angles only) g too.
         for electrical in [true, false] {
             derived_jacobian_against_differences(electrical);
         }
@@ -1395,17 +1398,7 @@ mod tests {
         // antagonist's transformation (0.4 A, unsaturated): g then moves
         // the link where the currents are not logged.
         Param::Transconductance.set(&mut model, 2.0);
-        let mut active = vec![
-            Param::Convection,
-            Param::AusteniteStart,
-            Param::AusteniteFinish,
-            Param::MartensiteStart,
-            Param::MartensiteFinish,
-            Param::StressShift,
-            Param::SpongeModulus,
-            Param::SpongeDamping,
-            Param::LinkInertia,
-        ];
+        let mut active = MECHANICS_PARAMS.to_vec();
         if !electrical {
             active.insert(0, Param::Transconductance);
         }
