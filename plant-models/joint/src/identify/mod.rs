@@ -129,7 +129,8 @@ impl From<PlantError> for IdentifyError {
 }
 
 /// Secant updates of the Jacobian between forward-difference ones in the
-/// mechanics stage's fits (its default; [`lm::minimise`]). Its
+/// mechanics stage's fits where they difference it
+/// (`IdentifyOptions::derivative_jacobians` off; [`lm::minimise`]). Its
 /// evaluations are most of an identification's CPU; with 2 updates they
 /// fell by 6–73 % per plane on the logs measured (docs/benchmarks.md,
 /// "Identification with secant updates"), the estimates within 0.9 σ of
@@ -1363,8 +1364,9 @@ mod tests {
     /// The mechanics Jacobian from a replay carrying derivatives (the
     /// stage's default since session 53) is the mechanics residuals' own:
     /// on a compact twin's log (with and without resistances), at a
-    /// model with a stress slope, each of the ten parameters' columns
-    /// agrees with central differences of the residuals in the same
+    /// model with a stress slope, each parameter's column (the stage's
+    /// nine; g too without the electrical columns) agrees with central
+    /// differences of the residuals in the same
     /// coordinates, and the replay's angles are the plain replay's at the
     /// frames to the bit. Seen: within 1.3·10⁻⁴ of the differences' rms
     /// (g), 3·10⁻⁶ or less for the rest; a wrong coordinate scale (value
