@@ -151,8 +151,9 @@ pub const SECANT_UPDATES: usize = 4;
 /// ten is as many as it uses). Against four: 9.4–9.8 against 10.5–10.6
 /// CPU-s on the hidden scenario's 240 s log, and on the campaign of
 /// twins 0..20 (adapted plans) the same verdicts as differences, 40 of
-/// 40 planes verified, where four updates left one plane (twin 5's β) at
-/// another nearly equal minimum that failed its held-out check
+/// 40 planes verified, where four updates left one plane (twin 5's β, a
+/// knife edge between nearly equal minima) failing its held-out check;
+/// on new twins (20..40) the same verdicts as differences too
 /// (docs/benchmarks.md, session 53).
 pub const DERIVATIVE_SECANT_UPDATES: usize = 10;
 
