@@ -957,11 +957,12 @@ impl<S: Scalar> SmaCoil<S> {
     /// The wire stress for the next step's phase law (the coil's present
     /// tension, N): with `stress_shift_k_per_mpa = s` the transformation
     /// temperatures of the next step are raised by `s·F/A`. Does nothing
-    /// when `s = 0`.
+    /// when `s = 0` — but for a number carrying derivatives, whose shift
+    /// has the derivative `ds·F/A` there (its value stays +0).
     #[inline]
     pub fn set_tension_for_phase(&mut self, tension_n: S) {
         let s = self.stress_slope;
-        if s.val() != 0.0 {
+        if s.val() != 0.0 || S::TANGENTS {
             self.next_shift_k = s * tension_n / self.params.wire_area_m2() * 1e-6;
         }
     }
