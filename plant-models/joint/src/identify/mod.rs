@@ -1382,6 +1382,17 @@ mod tests {
         }
     }
 
+    /// The compact 2D twin's log (seed 3), with or without the electrical
+    /// columns.
+    fn compact_log(electrical: bool) -> ExcitationLog {
+        let noise = ElectricalNoise {
+            current_a: 0.002,
+            resistance_ohm: 0.02,
+        };
+        let plan = ExcitationPlan::compact(1);
+        twin::record_2d(&hidden::joint_2d(3), &plan, electrical, noise).unwrap()
+    }
+
     /// At a slope of exactly 0 (the prior's, which the stage can start a
     /// fit from) the slope's column is the residuals' one-sided
     /// derivative, not 0: a plane skips the shift there, a dual must not
@@ -1390,12 +1401,7 @@ mod tests {
     /// negative slope); seen 2.4·10⁻⁴ of its rms.
     #[test]
     fn the_slope_column_is_not_lost_at_a_slope_of_zero() {
-        let hidden = hidden::joint_2d(3);
-        let noise = ElectricalNoise {
-            current_a: 0.002,
-            resistance_ohm: 0.02,
-        };
-        let log = twin::record_2d(&hidden, &ExcitationPlan::compact(1), true, noise).unwrap();
+        let log = compact_log(true);
         let opts = IdentifyOptions::default();
         let part = FitPart::new(&log, PlaneMap::of(1, 0), opts.fit_fraction).unwrap();
         let fit_frames = frames(&log, 0, part.rows);
@@ -1425,18 +1431,15 @@ mod tests {
     }
 
     fn derived_jacobian_against_differences(electrical: bool) {
-        let hidden = hidden::joint_2d(3);
-        let noise = ElectricalNoise {
-            current_a: 0.002,
-            resistance_ohm: 0.02,
-        };
-        let plan = ExcitationPlan::compact(1);
-        let log = twin::record_2d(&hidden, &plan, electrical, noise).unwrap();
+        let log = compact_log(electrical);
         let opts = IdentifyOptions::default();
-        let part = FitPart::new(&log, PlaneMap::of(1, 0), opts.fit_fraction).unwrap();
+        let map = PlaneMap::of(1, 0);
+        let part = FitPart::new(&log, map, opts.fit_fraction).unwrap();
         let fit_frames = frames(&log, 0, part.rows);
-        let mech = mechanics_residuals(&part, &opts, &fit_frames);
-        let jac = mechanics_jacobian(&part, &opts, &fit_frames);
+        let (mech, jac) = (
+            mechanics_residuals(&part, &opts, &fit_frames),
+            mechanics_jacobian(&part, &opts, &fit_frames),
+        );
         let mut model = prior_model_2d(&Joint2dParams::default(), &opts);
         Param::StressShift.set(&mut model, 0.07);
         // A driver strong enough for the plan's 1.9 V level to start the
