@@ -162,23 +162,31 @@ fn secant_updates_save_mechanics_replays_on_the_compact_twin() {
             derivative_jacobians: false,
             ..IdentifyOptions::default()
         };
-        let (_, mut reports) =
-            identify::identify_2d(&log, &Joint2dParams::default(), &opts).unwrap();
-        reports.remove(0)
+        let (r, (evaluations, derived)) = compact_mechanics(&log, &opts);
+        assert_eq!(derived, 0, "differences asked");
+        (r, evaluations)
     };
-    let textbook = run(0);
-    let secant = run(IdentifyOptions::default().lm.secant_updates);
+    let (textbook, a) = run(0);
+    let (secant, b) = run(IdentifyOptions::default().lm.secant_updates);
     assert_eq!(IdentifyOptions::default().lm.secant_updates, 4);
-    let mechanics = |r: &PlaneReport| {
-        let st = r.stages.iter().find(|s| s.name == "mechanics").unwrap();
-        assert!(!st.stopped_by_budget, "{st:?}");
-        assert_eq!(st.derivative_replays, 0, "differences asked");
-        st.evaluations
-    };
-    let (a, b) = (mechanics(&textbook), mechanics(&secant));
     eprintln!("mechanics replays: textbook {a}, secant updates {b}");
     assert!(b < a, "mechanics replays: textbook {a}, secant updates {b}");
     same_answers(&textbook, &secant);
+}
+
+/// The compact twin's log identified with `opts`, its mechanics fit run to
+/// convergence: the plane's report and the mechanics stage's (plain
+/// replays, replays with derivatives).
+fn compact_mechanics(
+    log: &identify::ExcitationLog,
+    opts: &IdentifyOptions,
+) -> (PlaneReport, (usize, usize)) {
+    let (_, mut reports) = identify::identify_2d(log, &Joint2dParams::default(), opts).unwrap();
+    let r = reports.remove(0);
+    let st = r.stages.iter().find(|s| s.name == "mechanics").unwrap();
+    assert!(!st.stopped_by_budget, "{st:?}");
+    let counts = (st.evaluations, st.derivative_replays);
+    (r, counts)
 }
 
 /// The verdict, the parameters called identifiable and every estimate
@@ -219,13 +227,7 @@ fn derivative_jacobians_reach_the_differenced_fit_on_the_compact_twin() {
             derivative_jacobians,
             ..IdentifyOptions::default()
         };
-        let (_, mut reports) =
-            identify::identify_2d(&log, &Joint2dParams::default(), &opts).unwrap();
-        let r = reports.remove(0);
-        let st = r.stages.iter().find(|s| s.name == "mechanics").unwrap();
-        assert!(!st.stopped_by_budget, "{st:?}");
-        let counts = (st.evaluations, st.derivative_replays);
-        (r, counts)
+        compact_mechanics(&log, &opts)
     };
     assert!(IdentifyOptions::default().derivative_jacobians);
     let (differenced, a) = run(false);
